@@ -1,0 +1,264 @@
+"""Contact patches: surface normal and principal curvatures at a contact.
+
+Method (one batch for all contacts, no per-point Python loop):
+
+1. The patch is the set of dense surface samples (see :mod:`surface`) within
+   ``patch_radius_mm`` of the contact whose triangle faces the same way as
+   the contact's (normals within 60°). This keeps the far face of a thin
+   wall, and the other side of a sharp edge, out of the patch.
+2. In a frame whose third axis is the current normal estimate, fit a
+   height function h(u, v), a bivariate polynomial of degree 4 (an
+   osculating jet, as CGAL's Monge fitting used by the method), by weighted
+   least squares with the smooth weight (1 - ρ²/r²)².
+3. The normal, the second fundamental form and the first fundamental form
+   come from the jet's derivatives at the contact; the principal curvatures
+   are the eigenvalues of the shape operator (convex positive, with the
+   normal pointing out of the solid).
+4. Refit once in the frame of the fitted normal, dropping samples whose
+   residual is an outlier (a neighbouring part, a scan artefact).
+
+A degree-2 fit over 8 mm is biased by the surface's quartic terms (3-9 %
+on 20 mm spheres); degree 4 absorbs them. The weights and the two passes
+are tested against closed-form curvature on spheres, cylinders, tori and
+ellipsoids in several triangulations (``tests/test_curvature.py``) and
+measured in ``benchmarks/bench_poses.py``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .surface import SurfaceContext
+
+#: samples whose triangle normal is further than this from the contact normal are not in the patch
+SAME_SIDE_DEG = 60.0
+#: degree of the osculating jet
+JET_DEGREE = 4
+#: neighbours considered per contact (the patch is cut from these by radius)
+MAX_PATCH_SAMPLES = 384
+#: a sample is an outlier when its residual exceeds max(this, 4 x rms)
+OUTLIER_FLOOR_MM = 0.5
+#: fits: the first in the contact triangle's frame, then refits with chord-corrected samples
+FIT_PASSES = 3
+#: below this effective number of trusted samples (Kish) a patch is fitted by a quadric
+MIN_QUARTIC_SUPPORT = 40.0
+#: a triangle sample moved this far by the chord correction counts half
+CHORD_TRUST_MM = 0.05
+#: the jet needs at least this many samples, else the contact is flagged invalid
+MIN_PATCH_SAMPLES = 24
+
+
+@dataclass(frozen=True)
+class PatchGeometry:
+    """Local geometry of n contact patches.
+
+    point_mm : (n, 3) float64        contact on the fitted surface
+    normal : (n, 3) float64          unit outward normal of the fitted surface
+    kappa_max_per_m : (n,) float64   largest principal curvature, convex positive
+    kappa_min_per_m : (n,) float64   smallest principal curvature
+    dir_max : (n, 3) float64         unit tangent direction of kappa_max
+    dir_min : (n, 3) float64         unit tangent direction of kappa_min
+    n_samples : (n,) int64           samples used in the final fit
+    rms_mm : (n,) float64            weighted rms residual of the final fit
+    valid : (n,) bool                enough samples for the fit
+    """
+
+    point_mm: np.ndarray
+    normal: np.ndarray
+    kappa_max_per_m: np.ndarray
+    kappa_min_per_m: np.ndarray
+    dir_max: np.ndarray
+    dir_min: np.ndarray
+    n_samples: np.ndarray
+    rms_mm: np.ndarray
+    valid: np.ndarray
+
+
+def tangent_frame(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit tangents (t1, t2) completing each normal to a right-handed frame."""
+    helper = np.where(
+        (np.abs(normal[:, 0]) < 0.9)[:, None], np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])
+    )
+    t1 = np.cross(normal, helper)
+    t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
+    t2 = np.cross(normal, t1)
+    return t1, t2
+
+
+def _monomials(degree: int) -> list[tuple[int, int]]:
+    return [(i, k - i) for k in range(degree + 1) for i in range(k, -1, -1)]
+
+
+_EXPONENTS = _monomials(JET_DEGREE)
+_INDEX = {e: i for i, e in enumerate(_EXPONENTS)}
+_HIGH_ORDER = np.diag([1.0 if i + j > 2 else 0.0 for i, j in _EXPONENTS])
+
+
+def _fit_jets(points, origin, normal, weight, radius, quadric_only):
+    """Weighted least-squares jets; returns derivatives at the origin and residuals.
+
+    points : (n, k, 3), origin : (n, 3), normal : (n, 3), weight : (n, k) (0 = not in patch),
+    quadric_only : (n,) bool, fit degree 2 only (too little support for the quartic jet).
+    """
+    t1, t2 = tangent_frame(normal)
+    rel = points - origin[:, None, :]
+    frame = np.stack([t1, t2, normal], axis=-1)  # (n, 3, 3), columns t1 t2 n
+    local = np.matmul(rel, frame)  # (n, k, 3)
+    u = local[..., 0] / radius
+    v = local[..., 1] / radius
+    h = local[..., 2]
+    rho2 = u * u + v * v
+    w = weight * np.clip(1.0 - rho2, 0.0, None) ** 2
+
+    upow = [np.ones_like(u)]
+    vpow = [np.ones_like(v)]
+    for _ in range(JET_DEGREE):
+        upow.append(upow[-1] * u)
+        vpow.append(vpow[-1] * v)
+    A = np.stack([upow[i] * vpow[j] for i, j in _EXPONENTS], axis=-1)  # (n, k, m)
+    AwT = (A * w[..., None]).transpose(0, 2, 1)  # (n, m, k)
+    AtA = np.matmul(AwT, A)
+    Atb = np.matmul(AwT, h[..., None])
+    m = AtA.shape[-1]
+    # where the samples cannot support the cubic and quartic terms (a patch spanning
+    # two or three rows of coarse triangles) pin them to zero: an osculating quadric
+    diag = np.einsum("nii->ni", AtA)
+    scale = (diag.mean(axis=1) + 1e-300)[:, None, None]
+    pin = np.where(quadric_only, 1e8, 0.0)[:, None, None]
+    ridge = scale * (1e-10 * np.eye(m) + pin * _HIGH_ORDER)
+    coef = np.linalg.solve(AtA + ridge, Atb)[..., 0]  # (n, m)
+
+    residual = h - np.matmul(A, coef[..., None])[..., 0]
+    wsum = np.maximum(w.sum(axis=1), 1e-300)
+    rms = np.sqrt((w * residual**2).sum(axis=1) / wsum)
+
+    c = lambda i, j: coef[:, _INDEX[(i, j)]]  # noqa: E731
+    f0 = c(0, 0)
+    fu, fv = c(1, 0) / radius, c(0, 1) / radius
+    fuu, fuv, fvv = 2.0 * c(2, 0) / radius**2, c(1, 1) / radius**2, 2.0 * c(0, 2) / radius**2
+    return (t1, t2, f0, fu, fv, fuu, fuv, fvv), residual, rms
+
+
+def _chord_offset(chord6, k_max, k_min, d_max, d_min):
+    """Height (mm) of the curved surface above each flat-triangle sample: ½⟨II, chord⟩."""
+    def quad(d):  # d (n, 3) -> (n, 6) coefficients of dᵀ C d for C as (xx, yy, zz, xy, xz, yz)
+        x, y, z = d[:, 0], d[:, 1], d[:, 2]
+        return np.stack([x * x, y * y, z * z, 2 * x * y, 2 * x * z, 2 * y * z], axis=-1)
+
+    II6 = k_max[:, None] * quad(d_max) + k_min[:, None] * quad(d_min)  # (n, 6), per mm
+    return 0.5 * np.einsum("nkc,nc->nk", chord6, II6)
+
+
+def _shape(t1, t2, normal, fu, fv, fuu, fuv, fvv):
+    """Unit normal, principal curvatures (convex positive, per mm) and directions."""
+    W = np.sqrt(1.0 + fu * fu + fv * fv)
+    n_out = (normal - fu[:, None] * t1 - fv[:, None] * t2) / W[:, None]
+    # first fundamental form and minus the second (convex positive with outward normal)
+    E, F, G = 1.0 + fu * fu, fu * fv, 1.0 + fv * fv
+    L, M, N = -fuu / W, -fuv / W, -fvv / W
+    det = E * G - F * F
+    # Weingarten map S = I^-1 II, as a 2x2 matrix [[a, b], [c, d]]
+    a = (G * L - F * M) / det
+    b = (G * M - F * N) / det
+    c = (E * M - F * L) / det
+    d = (E * N - F * M) / det
+    half_tr = 0.5 * (a + d)
+    disc = np.sqrt(np.maximum(half_tr**2 - (a * d - b * c), 0.0))
+    k_max, k_min = half_tr + disc, half_tr - disc
+    # eigenvector of k_max: the better conditioned of (b, k-a) and (k-d, c)
+    e1 = np.stack([b, k_max - a], axis=-1)
+    e2 = np.stack([k_max - d, c], axis=-1)
+    use2 = np.linalg.norm(e2, axis=1) > np.linalg.norm(e1, axis=1)
+    e = np.where(use2[:, None], e2, e1)
+    degenerate = np.linalg.norm(e, axis=1) < 1e-12
+    e[degenerate] = (1.0, 0.0)
+    xu = t1 + fu[:, None] * normal
+    xv = t2 + fv[:, None] * normal
+    d_max = e[:, :1] * xu + e[:, 1:] * xv
+    d_max -= np.einsum("ij,ij->i", d_max, n_out)[:, None] * n_out
+    d_max /= np.linalg.norm(d_max, axis=1, keepdims=True)
+    d_min = np.cross(n_out, d_max)
+    return n_out, k_max, k_min, d_max, d_min
+
+
+def patch_geometry(
+    context: SurfaceContext,
+    points_mm: np.ndarray,
+    normals: np.ndarray,
+    *,
+    patch_radius_mm: float | None = None,
+) -> PatchGeometry:
+    """Normal and principal curvatures of the patch around each contact.
+
+    Parameters
+    ----------
+    context : SurfaceContext
+        The surface.
+    points_mm : (n, 3) float64
+        Contacts on (or very near) the surface.
+    normals : (n, 3) float64
+        Initial outward normal at each contact (the hit triangle's normal).
+    patch_radius_mm : float, optional
+        Patch radius; default the context's.
+    """
+    radius = float(patch_radius_mm or context.patch_radius_mm)
+    points_mm = np.asarray(points_mm, dtype=np.float64).reshape(-1, 3)
+    normal = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
+    normal = normal / np.linalg.norm(normal, axis=1, keepdims=True)
+    n = len(points_mm)
+    if n == 0:
+        empty3 = np.zeros((0, 3))
+        empty = np.zeros(0)
+        return PatchGeometry(empty3, empty3, empty, empty, empty3, empty3,
+                             np.zeros(0, np.int64), empty, np.zeros(0, bool))
+
+    sample = context.sample
+    k = int(min(MAX_PATCH_SAMPLES, len(sample.points)))
+    dist, idx = context.tree.query(points_mm, k=k, distance_upper_bound=radius, workers=-1)
+    dist, idx = dist.reshape(n, k), idx.reshape(n, k)
+    inside = np.isfinite(dist)
+    idx = np.where(inside, idx, 0)
+    nbr = sample.points[idx]
+    nbr_normal = sample.normals[idx]
+    same_side = np.einsum("nkd,nd->nk", nbr_normal, normal) > np.cos(np.radians(SAME_SIDE_DEG))
+    valid = inside & same_side
+
+    chord6 = sample.chord6[idx]
+    base_weight = sample.weight[idx]
+    sample_weight = base_weight
+
+    origin, fitted = points_mm, nbr
+    quadric_only = np.zeros(n, dtype=bool)
+    for it in range(FIT_PASSES):
+        weight = np.where(valid, sample_weight, 0.0)
+        jets, residual, rms = _fit_jets(fitted, origin, normal, weight, radius, quadric_only)
+        t1, t2, f0, fu, fv, fuu, fuv, fvv = jets
+        n_out, k_max, k_min, d_max, d_min = _shape(t1, t2, normal, fu, fv, fuu, fuv, fvv)
+        contact = origin + f0[:, None] * normal
+        if it == 0:
+            threshold = np.maximum(OUTLIER_FLOOR_MM, 4.0 * rms)
+            valid = valid & (np.abs(residual) <= threshold[:, None])
+        # move each sample from its flat triangle onto the curved surface of the current
+        # estimate; trust a sample less the more it had to be moved (large triangles)
+        offset = _chord_offset(chord6, k_max, k_min, d_max, d_min)
+        fitted = nbr + offset[..., None] * n_out[:, None, :]
+        sample_weight = base_weight / (1.0 + (offset / CHORD_TRUST_MM) ** 2)
+        trusted = np.where(valid, sample_weight / base_weight, 0.0)
+        support = trusted.sum(axis=1) ** 2 / np.maximum((trusted**2).sum(axis=1), 1e-300)
+        quadric_only = support < MIN_QUARTIC_SUPPORT
+        origin, normal = contact, n_out
+
+    count = valid.sum(axis=1)
+    return PatchGeometry(
+        point_mm=contact,
+        normal=n_out,
+        kappa_max_per_m=k_max * 1000.0,
+        kappa_min_per_m=k_min * 1000.0,
+        dir_max=d_max,
+        dir_min=d_min,
+        n_samples=count.astype(np.int64),
+        rms_mm=rms,
+        valid=count >= MIN_PATCH_SAMPLES,
+    )

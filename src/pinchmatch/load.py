@@ -1,0 +1,332 @@
+"""Read a mesh file into millimetres, repair what is safe to repair, refuse the rest.
+
+Everything downstream works in millimetres, in the file's own frame (only
+scaled), so a coordinate a user reads in their modelling tool is the one
+they pass to ``--p1``.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import struct
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from .errors import ConfigError, MeshError
+
+log = logging.getLogger(__name__)
+
+#: millimetres per unit
+UNITS_MM = {"mm": 1.0, "cm": 10.0, "m": 1000.0, "in": 25.4}
+
+#: extensions trimesh reads that we accept, mapped to the trimesh file type
+MESH_EXTENSIONS = {
+    ".stl": "stl",
+    ".obj": "obj",
+    ".ply": "ply",
+    ".off": "off",
+    ".glb": "glb",
+    ".gltf": "gltf",
+}
+
+#: glTF is metres and +Y up by its own specification; other formats carry no units
+GLTF_TYPES = {"glb", "gltf"}
+
+UP_VECTORS = {
+    "x": (1.0, 0.0, 0.0),
+    "y": (0.0, 1.0, 0.0),
+    "z": (0.0, 0.0, 1.0),
+    "-x": (-1.0, 0.0, 0.0),
+    "-y": (0.0, -1.0, 0.0),
+    "-z": (0.0, 0.0, -1.0),
+}
+
+#: an object whose largest side is outside this range (mm) surely has the wrong units:
+#: nothing smaller than a grain of rice or larger than a room is pinched.
+PLAUSIBLE_SIZE_MM = (2.0, 10_000.0)
+
+#: a connected piece with less than this fraction of the total area is a loose sliver
+SLIVER_AREA_FRACTION = 1e-3
+
+
+@dataclass(frozen=True)
+class LoadedMesh:
+    """One object read from a file, in millimetres.
+
+    mesh : trimesh.Trimesh
+        Repaired triangle mesh, vertices in mm, in the file's frame.
+    path : str
+        The file it came from (as given).
+    units_in : str
+        Unit the file was read in (``mm``, ``cm``, ``m`` or ``in``).
+    up_label : str
+        The object's up direction as given (``z``, ``-y``, ...).
+    up : (3,) float64
+        Unit vector of ``up_label``.
+    watertight : bool
+        True when the surface is closed, consistently wound and encloses volume.
+    repairs : list of str
+        What was repaired, one human-readable entry each.
+    warnings : list of str
+        What the user should know about the result.
+    """
+
+    mesh: trimesh.Trimesh
+    path: str
+    units_in: str
+    up_label: str
+    up: np.ndarray
+    watertight: bool
+    repairs: list = field(default_factory=list)
+    warnings: list = field(default_factory=list)
+
+    @property
+    def name(self) -> str:
+        return Path(self.path).name
+
+
+def parse_up(up: str, *, source: str = "--up") -> tuple[str, np.ndarray]:
+    """Return the label and unit vector of an up direction like ``"z"`` or ``"-y"``."""
+    key = str(up).strip().lower()
+    if key not in UP_VECTORS:
+        raise ConfigError(
+            f"{source}: unknown up direction {up!r}; use one of {', '.join(UP_VECTORS)}"
+        )
+    return key, np.array(UP_VECTORS[key])
+
+
+def _file_type(path: Path) -> str:
+    ext = path.suffix.lower()
+    if ext not in MESH_EXTENSIONS:
+        known = " ".join(MESH_EXTENSIONS)
+        raise MeshError(
+            f"{path}: unknown mesh format {ext or '(no extension)'!r}; "
+            f"export it as one of {known}"
+        )
+    return MESH_EXTENSIONS[ext]
+
+
+def _check_binary_stl(path: Path, size: int) -> None:
+    """Explain a truncated binary STL precisely (trimesh would read it as empty)."""
+    with open(path, "rb") as fh:
+        head = fh.read(84)
+    if len(head) < 84 or head[:5].lower() == b"solid":
+        return
+    (count,) = struct.unpack("<I", head[80:84])
+    expected = 84 + 50 * count
+    if size < expected:
+        raise MeshError(
+            f"{path}: truncated binary STL: its header promises {count} triangles "
+            f"({expected} bytes) but the file has {size} bytes; re-export or re-download it"
+        )
+
+
+def _read(path: Path, file_type: str) -> trimesh.Trimesh:
+    try:
+        loaded = trimesh.load(str(path), file_type=file_type, process=False)
+    except (IndexError,) as exc:
+        raise MeshError(
+            f"{path}: a face refers to a vertex that does not exist ({exc}); "
+            "the file is corrupt, re-export it"
+        ) from None
+    except Exception as exc:  # trimesh raises many types on malformed input
+        reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise MeshError(
+            f"{path}: cannot be read as {file_type.upper()} ({reason}); "
+            "the file is corrupt or truncated, re-export it"
+        ) from None
+
+    if isinstance(loaded, trimesh.Scene):
+        meshes = [g for g in loaded.dump() if isinstance(g, trimesh.Trimesh)] if loaded.geometry else []
+        meshes = [m for m in meshes if len(m.faces)]
+        if not meshes:
+            kinds = sorted({type(g).__name__ for g in loaded.geometry.values()})
+            what = f"only {', '.join(kinds)}" if kinds else "nothing"
+            raise MeshError(
+                f"{path}: no triangles could be read ({what}); the file is corrupt, "
+                "truncated or not a triangle mesh, re-export it"
+            )
+        mesh = trimesh.util.concatenate(meshes) if len(meshes) > 1 else meshes[0]
+    elif isinstance(loaded, trimesh.Trimesh):
+        mesh = loaded
+    else:
+        raise MeshError(
+            f"{path}: holds a {type(loaded).__name__}, no triangles; "
+            "export the object as a triangle mesh"
+        )
+    return mesh
+
+
+def _validate_arrays(path: Path, mesh: trimesh.Trimesh) -> None:
+    vertices = np.asarray(mesh.vertices)
+    faces = np.asarray(mesh.faces)
+    if len(faces) == 0:
+        raise MeshError(
+            f"{path}: has {len(vertices)} vertices but no faces; export it as a triangle mesh"
+        )
+    if faces.min() < 0 or faces.max() >= len(vertices):
+        raise MeshError(
+            f"{path}: a face refers to vertex {int(faces.max())} but there are only "
+            f"{len(vertices)} vertices; the file is corrupt, re-export it"
+        )
+    bad = ~np.isfinite(vertices).all(axis=1)
+    if bad.any():
+        raise MeshError(
+            f"{path}: {int(bad.sum())} of {len(vertices)} vertices are NaN or infinite; "
+            "fix the export (or the modelling tool's modifiers) and re-export"
+        )
+
+
+def _check_units(path: Path, extent_mm: float, units_in: str) -> None:
+    lo, hi = PLAUSIBLE_SIZE_MM
+    if lo <= extent_mm <= hi:
+        return
+    raw = extent_mm / UNITS_MM[units_in]
+    fits = [u for u, s in UNITS_MM.items() if lo <= raw * s <= hi and u != units_in]
+    hint = f"try --units {fits[0]}" if fits else "scale the mesh to real size"
+    problem = "small" if extent_mm < lo else "large"
+    raise MeshError(
+        f"{path}: mesh is {extent_mm:.4g} mm across when read in {units_in} (too {problem} "
+        f"to pinch; were its units not {units_in}?); {hint}"
+    )
+
+
+def _repair(mesh: trimesh.Trimesh) -> list[str]:
+    """Repair in place what is safe to repair; return what was done."""
+    repairs: list[str] = []
+
+    n_vertices = len(mesh.vertices)
+    mesh.merge_vertices()
+    if len(mesh.vertices) < n_vertices:
+        repairs.append(f"merged {n_vertices - len(mesh.vertices)} duplicate vertices")
+
+    keep = mesh.nondegenerate_faces(height=1e-9 * max(mesh.scale, 1e-12))
+    if not keep.all():
+        repairs.append(f"removed {int((~keep).sum())} degenerate faces")
+        mesh.update_faces(keep)
+
+    unique = mesh.unique_faces()
+    if len(unique) < len(mesh.faces):
+        repairs.append(f"removed {len(mesh.faces) - len(unique)} duplicate faces")
+        mask = np.zeros(len(mesh.faces), dtype=bool)
+        mask[unique] = True
+        mesh.update_faces(mask)
+
+    labels = trimesh.graph.connected_component_labels(
+        mesh.face_adjacency, node_count=len(mesh.faces)
+    )
+    n_parts = int(labels.max()) + 1 if len(labels) else 0
+    if n_parts > 1:
+        part_area = np.bincount(labels, weights=mesh.area_faces, minlength=n_parts)
+        tiny = part_area < SLIVER_AREA_FRACTION * part_area.sum()
+        if tiny.any() and not tiny.all():
+            mesh.update_faces(~tiny[labels])
+            repairs.append(
+                f"removed {int(tiny.sum())} loose sliver(s) under "
+                f"{SLIVER_AREA_FRACTION:.1%} of the surface"
+            )
+    mesh.remove_unreferenced_vertices()
+
+    before = mesh.faces.copy()
+    trimesh.repair.fix_normals(mesh, multibody=True)
+    if mesh.faces.shape == before.shape:
+        flipped = int((mesh.faces[:, 1] != before[:, 1]).sum())
+        if flipped == len(before):
+            repairs.append("turned the surface right side out (it was inside-out)")
+        elif flipped:
+            repairs.append(f"made winding consistent ({flipped} faces flipped)")
+    return repairs
+
+
+def load_mesh(
+    path: str | os.PathLike,
+    *,
+    units: str | None = None,
+    up: str | None = None,
+) -> LoadedMesh:
+    """Read one object from a mesh file, in millimetres.
+
+    Parameters
+    ----------
+    path : path-like
+        STL, OBJ, PLY, OFF, glTF or GLB file. A file with several meshes is
+        one object (all its parts together, with their node transforms).
+    units : {"mm", "cm", "m", "in"}, optional
+        Unit of the file's coordinates. Default: metres for glTF/GLB (the
+        format's rule), millimetres for the others.
+    up : {"x", "y", "z", "-x", "-y", "-z"}, optional
+        The object's up direction. Default: ``y`` for glTF/GLB, ``z`` otherwise.
+
+    Raises
+    ------
+    MeshError
+        The file is missing, empty, corrupt, not a solid or of implausible size.
+    ConfigError
+        ``units`` or ``up`` is not a known value.
+    """
+    path = Path(path)
+    if units is not None and units not in UNITS_MM:
+        raise ConfigError(f"--units: unknown unit {units!r}; use one of {', '.join(UNITS_MM)}")
+    if up is not None:
+        parse_up(up)
+    if not path.exists():
+        raise MeshError(f"{path}: no such file; check the path")
+    if path.is_dir():
+        raise MeshError(f"{path}: is a folder, not a mesh file; give a mesh file inside it")
+    file_type = _file_type(path)
+    size = path.stat().st_size
+    if size == 0:
+        raise MeshError(f"{path}: file is empty (0 bytes); re-export the mesh")
+    if file_type == "stl":
+        _check_binary_stl(path, size)
+
+    mesh = _read(path, file_type)
+    _validate_arrays(path, mesh)
+
+    is_gltf = file_type in GLTF_TYPES
+    units_in = units or ("m" if is_gltf else "mm")
+    up_label, up_vector = parse_up(up or ("y" if is_gltf else "z"))
+
+    mesh = trimesh.Trimesh(
+        vertices=np.asarray(mesh.vertices, dtype=np.float64) * UNITS_MM[units_in],
+        faces=np.asarray(mesh.faces, dtype=np.int64),
+        process=False,
+    )
+    repairs = _repair(mesh)
+    if len(mesh.faces) == 0:
+        raise MeshError(f"{path}: every face is degenerate (zero area); re-export the mesh")
+
+    extent = float(np.ptp(mesh.vertices, axis=0).max())
+    _check_units(path, extent, units_in)
+
+    centred = mesh.vertices - mesh.vertices.mean(axis=0)
+    thickness = float(np.linalg.svd(centred, compute_uv=False)[-1] / np.sqrt(len(centred)))
+    if thickness < 1e-6 * extent:
+        raise MeshError(
+            f"{path}: the mesh is flat (all vertices in one plane), so it has no volume "
+            "to pinch; give it thickness (solidify) and re-export"
+        )
+
+    watertight = bool(mesh.is_watertight and mesh.is_winding_consistent and mesh.volume > 0)
+    warnings: list[str] = []
+    if not watertight:
+        warnings.append(
+            f"{path.name}: surface is not closed; centre of mass is that of the surface, "
+            "and 'inside' is judged by ray parity"
+        )
+    for line in repairs:
+        log.info("%s: %s", path.name, line)
+    return LoadedMesh(
+        mesh=mesh,
+        path=str(path),
+        units_in=units_in,
+        up_label=up_label,
+        up=up_vector,
+        watertight=watertight,
+        repairs=repairs,
+        warnings=warnings,
+    )

@@ -1,0 +1,181 @@
+"""Per-mesh context: everything expensive about a surface, built once.
+
+A :class:`SurfaceContext` holds the mesh, a dense area-uniform sample of its
+surface with a KD-tree over it (used for contact patches and fingertip
+clearance), and a ray engine (Embree through ``embreex`` when installed,
+trimesh's pure-numpy engine otherwise).
+
+The dense sample is what makes curvature independent of triangulation: a
+patch is the set of sample points within the patch radius, and samples are
+spread by area, so a patch looks the same whether it was cut from long thin
+CAD triangles, a fine scan or a random triangulation.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+import trimesh
+from scipy.spatial import cKDTree
+
+log = logging.getLogger(__name__)
+
+#: samples per patch disc of radius r on a flat surface (sets the sample density)
+SAMPLES_PER_PATCH = 150
+#: at most this many samples per mesh (bounds memory on very large objects)
+MAX_SAMPLES = 400_000
+#: fixed seed of the dense sample: features of a pinch never depend on --seed
+SAMPLE_SEED = 20190323
+
+
+def ray_engine(mesh: trimesh.Trimesh):
+    """Return (intersector, name): Embree when ``embreex`` imports, else trimesh's own."""
+    try:
+        from trimesh.ray.ray_pyembree import RayMeshIntersector
+
+        return RayMeshIntersector(mesh), "embree"
+    except Exception:  # embreex missing or unusable on this platform
+        from trimesh.ray.ray_triangle import RayMeshIntersector
+
+        log.info("embreex not available; using trimesh's slower numpy ray engine")
+        return RayMeshIntersector(mesh), "numpy"
+
+
+@dataclass(frozen=True)
+class SurfaceSample:
+    """Area-uniform sample of a surface.
+
+    points : (s, 3) float64, mm
+    face_index : (s,) int64   triangle holding each sample
+    normals : (s, 3) float64  unit normal of that triangle
+    chord6 : (s, 6) float64   chord tensor Σ_{i<j} b_i b_j e_ij e_ijᵀ of the sample's
+                              barycentric coordinates b and its triangle's edges e,
+                              as (xx, yy, zz, xy, xz, yz), mm²
+    weight : (s,) float64     fit weight: 1 for a triangle sample, the vertex's
+                              area share in samples for a mesh vertex
+    spacing_mm : float        mean distance between neighbouring samples
+
+    The mesh vertices are included: they lie on the surface the mesh stands
+    for, exactly. Their weights sum to the same total as the triangle
+    samples', and each is its area share, so no triangulation weighs more.
+
+    A flat triangle is a chord of the curved surface it stands for. For a
+    surface with second fundamental form II, the surface lies
+    ½ ⟨II, chord⟩ outside the triangle at the sample (exact for a locally
+    quadratic surface); :mod:`curvature` uses this to undo the chord bias of
+    coarse meshes.
+    """
+
+    points: np.ndarray
+    face_index: np.ndarray
+    normals: np.ndarray
+    chord6: np.ndarray
+    weight: np.ndarray
+    spacing_mm: float
+
+
+def sample_surface(
+    mesh: trimesh.Trimesh,
+    *,
+    area_per_sample_mm2: float,
+    seed: int = SAMPLE_SEED,
+) -> SurfaceSample:
+    """Deterministic area-uniform sample, about ``area / area_per_sample`` points.
+
+    Each face gets floor(area / area_per_sample + U) points, U uniform in
+    [0, 1): its expected share exactly, with no aliasing against the order
+    of the faces.
+    """
+    rng = np.random.default_rng(seed)
+    area = mesh.area_faces
+    # independent rounding: unbiased per face, and no aliasing with the face order
+    # (systematic sampling of a regular CAD mesh can pick only one kind of face)
+    counts = np.floor(area / area_per_sample_mm2 + rng.random(len(area))).astype(np.int64)
+    face_index = np.repeat(np.arange(len(area)), counts)
+    r1, r2 = rng.random((2, len(face_index)))
+    flip = r1 + r2 > 1.0
+    r1[flip], r2[flip] = 1.0 - r1[flip], 1.0 - r2[flip]
+    tri = mesh.triangles[face_index]
+    points = tri[:, 0] + r1[:, None] * (tri[:, 1] - tri[:, 0]) + r2[:, None] * (tri[:, 2] - tri[:, 0])
+    bary = np.column_stack([1.0 - r1 - r2, r1, r2])
+    chord = np.zeros((len(points), 6))
+    for i, j in ((0, 1), (1, 2), (2, 0)):
+        e = tri[:, i] - tri[:, j]
+        w = bary[:, i] * bary[:, j]
+        chord += w[:, None] * np.column_stack(
+            [e[:, 0] ** 2, e[:, 1] ** 2, e[:, 2] ** 2, e[:, 0] * e[:, 1], e[:, 0] * e[:, 2], e[:, 1] * e[:, 2]]
+        )
+    # vertices: exact points, each weighted by a third of its triangles' area
+    vertex_area = np.bincount(
+        mesh.faces.ravel(), weights=np.repeat(area / 3.0, 3), minlength=len(mesh.vertices)
+    )
+    used = vertex_area > 0
+    vertex_face = np.asarray(mesh.vertex_faces)[:, 0]
+    return SurfaceSample(
+        points=np.vstack([points, mesh.vertices[used]]),
+        face_index=np.concatenate([face_index, vertex_face[used]]),
+        normals=np.vstack([mesh.face_normals[face_index], mesh.vertex_normals[used]]),
+        chord6=np.vstack([chord, np.zeros((int(used.sum()), 6))]),
+        weight=np.concatenate([np.ones(len(points)), vertex_area[used] / area_per_sample_mm2]),
+        spacing_mm=float(np.sqrt(area_per_sample_mm2)),
+    )
+
+
+class SurfaceContext:
+    """Everything expensive about one surface, computed once and shared.
+
+    Parameters
+    ----------
+    mesh : trimesh.Trimesh
+        The surface, in mm.
+    patch_radius_mm : float
+        Contact patch radius; sets the density of the dense sample.
+    """
+
+    def __init__(self, mesh: trimesh.Trimesh, *, patch_radius_mm: float = 8.0):
+        self.mesh = mesh
+        self.patch_radius_mm = float(patch_radius_mm)
+        area = float(mesh.area)
+        per_sample = max(np.pi * patch_radius_mm**2 / SAMPLES_PER_PATCH, area / MAX_SAMPLES)
+        self.sample = sample_surface(mesh, area_per_sample_mm2=per_sample)
+        self.tree = cKDTree(self.sample.points)
+        self.rays, self.ray_engine_name = ray_engine(mesh)
+        self.face_normals = np.asarray(mesh.face_normals)
+        self.scale_mm = float(mesh.scale)
+        log.debug(
+            "surface context: %d faces, %d samples (%.2f mm apart), rays by %s",
+            len(mesh.faces), len(self.sample.points), self.sample.spacing_mm, self.ray_engine_name,
+        )
+
+    def first_hit(self, origins: np.ndarray, directions: np.ndarray):
+        """First surface hit along each ray.
+
+        Returns
+        -------
+        face : (n,) int64      hit triangle, -1 where the ray escapes
+        distance : (n,) float  distance along the unit direction, inf where it escapes
+        """
+        directions = directions / np.linalg.norm(directions, axis=1, keepdims=True)
+        face = np.asarray(self.rays.intersects_first(origins, directions), dtype=np.int64)
+        distance = np.full(len(origins), np.inf)
+        hit = face >= 0
+        if hit.any():
+            n = self.face_normals[face[hit]]
+            v0 = self.mesh.triangles[face[hit], 0]
+            denom = np.einsum("ij,ij->i", directions[hit], n)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                t = np.einsum("ij,ij->i", v0 - origins[hit], n) / denom
+            distance[hit] = np.where(np.isfinite(t), t, 0.0)
+        return face, distance
+
+    def closest_points(self, points: np.ndarray):
+        """Exact closest surface point, distance (mm) and triangle for each query point."""
+        closest, distance, face = trimesh.proximity.closest_point(self.mesh, points)
+        return np.asarray(closest), np.asarray(distance), np.asarray(face, dtype=np.int64)
+
+    def min_distance_to_samples(self, points: np.ndarray) -> np.ndarray:
+        """Distance (mm) from each point to the nearest dense surface sample."""
+        distance, _ = self.tree.query(points, k=1, workers=-1)
+        return distance
