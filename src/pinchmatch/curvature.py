@@ -26,6 +26,8 @@ measured in ``benchmarks/bench_poses.py``.
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -37,7 +39,7 @@ SAME_SIDE_DEG = 60.0
 #: degree of the osculating jet
 JET_DEGREE = 4
 #: neighbours considered per contact (the patch is cut from these by radius)
-MAX_PATCH_SAMPLES = 384
+MAX_PATCH_SAMPLES = 320
 #: a sample is an outlier when its residual exceeds max(this, 4 x rms)
 OUTLIER_FLOOR_MM = 0.5
 #: fits: the first in the contact triangle's frame, then refits with chord-corrected samples
@@ -46,6 +48,8 @@ FIT_PASSES = 3
 MIN_QUARTIC_SUPPORT = 40.0
 #: a triangle sample moved this far by the chord correction counts half
 CHORD_TRUST_MM = 0.05
+#: contacts fitted per batch (bounds memory: about CHUNK x MAX_PATCH_SAMPLES x 15 doubles)
+CHUNK = 256
 #: the jet needs at least this many samples, else the contact is flagged invalid
 MIN_PATCH_SAMPLES = 24
 
@@ -112,12 +116,13 @@ def _fit_jets(points, origin, normal, weight, radius, quadric_only):
     rho2 = u * u + v * v
     w = weight * np.clip(1.0 - rho2, 0.0, None) ** 2
 
-    upow = [np.ones_like(u)]
-    vpow = [np.ones_like(v)]
-    for _ in range(JET_DEGREE):
-        upow.append(upow[-1] * u)
-        vpow.append(vpow[-1] * v)
-    A = np.stack([upow[i] * vpow[j] for i, j in _EXPONENTS], axis=-1)  # (n, k, m)
+    A = np.empty(u.shape + (len(_EXPONENTS),))  # (n, k, m): monomials u^i v^j
+    A[..., 0] = 1.0
+    for col, (i, j) in enumerate(_EXPONENTS[1:], start=1):
+        if i:
+            np.multiply(A[..., _INDEX[(i - 1, j)]], u, out=A[..., col])
+        else:
+            np.multiply(A[..., _INDEX[(i, j - 1)]], v, out=A[..., col])
     AwT = (A * w[..., None]).transpose(0, 2, 1)  # (n, m, k)
     AtA = np.matmul(AwT, A)
     Atb = np.matmul(AwT, h[..., None])
@@ -218,13 +223,32 @@ def patch_geometry(
     k = int(min(MAX_PATCH_SAMPLES, len(sample.points)))
     dist, idx = context.tree.query(points_mm, k=k, distance_upper_bound=radius, workers=-1)
     dist, idx = dist.reshape(n, k), idx.reshape(n, k)
+    used = int(np.isfinite(dist).sum(axis=1).max())  # trim columns no patch uses
+    dist, idx = dist[:, : max(used, 1)], idx[:, : max(used, 1)]
+    def chunk(s):
+        sl = slice(s, s + CHUNK)
+        return _patch_chunk(sample, points_mm[sl], normal[sl], dist[sl], idx[sl], radius)
+
+    starts = range(0, n, CHUNK)
+    workers = min(len(starts), os.cpu_count() or 1)
+    if workers > 1:
+        # numpy releases the GIL in the batched products: chunks run on every core
+        with ThreadPoolExecutor(max_workers=workers) as pool:
+            parts = list(pool.map(chunk, starts))
+    else:
+        parts = [chunk(s) for s in starts]
+    return PatchGeometry(*(np.concatenate(arrays) for arrays in zip(*parts)))
+
+
+def _patch_chunk(sample, points_mm, normal, dist, idx, radius):
+    """patch_geometry for one chunk of contacts, with their neighbour lists."""
+    n = len(points_mm)
     inside = np.isfinite(dist)
     idx = np.where(inside, idx, 0)
     nbr = sample.points[idx]
     nbr_normal = sample.normals[idx]
     same_side = np.einsum("nkd,nd->nk", nbr_normal, normal) > np.cos(np.radians(SAME_SIDE_DEG))
     valid = inside & same_side
-
     chord6 = sample.chord6[idx]
     base_weight = sample.weight[idx]
     sample_weight = base_weight
@@ -251,14 +275,5 @@ def patch_geometry(
         origin, normal = contact, n_out
 
     count = valid.sum(axis=1)
-    return PatchGeometry(
-        point_mm=contact,
-        normal=n_out,
-        kappa_max_per_m=k_max * 1000.0,
-        kappa_min_per_m=k_min * 1000.0,
-        dir_max=d_max,
-        dir_min=d_min,
-        n_samples=count.astype(np.int64),
-        rms_mm=rms,
-        valid=count >= MIN_PATCH_SAMPLES,
-    )
+    return (contact, n_out, k_max * 1000.0, k_min * 1000.0, d_max, d_min,
+            count.astype(np.int64), rms, count >= MIN_PATCH_SAMPLES)

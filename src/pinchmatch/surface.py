@@ -23,7 +23,7 @@ from scipy.spatial import cKDTree
 log = logging.getLogger(__name__)
 
 #: samples per patch disc of radius r on a flat surface (sets the sample density)
-SAMPLES_PER_PATCH = 150
+SAMPLES_PER_PATCH = 120
 #: at most this many samples per mesh (bounds memory on very large objects)
 MAX_SAMPLES = 400_000
 #: fixed seed of the dense sample: features of a pinch never depend on --seed
@@ -107,11 +107,14 @@ def sample_surface(
         chord += w[:, None] * np.column_stack(
             [e[:, 0] ** 2, e[:, 1] ** 2, e[:, 2] ** 2, e[:, 0] * e[:, 1], e[:, 0] * e[:, 2], e[:, 1] * e[:, 2]]
         )
-    # vertices: exact points, each weighted by a third of its triangles' area
+    # vertices: exact points, each weighted by a third of its triangles' area; on a
+    # mesh finer than the sample, a random subset of them at the sample's density
     vertex_area = np.bincount(
         mesh.faces.ravel(), weights=np.repeat(area / 3.0, 3), minlength=len(mesh.vertices)
     )
-    used = vertex_area > 0
+    keep_prob = min(1.0, len(points) / max(len(mesh.vertices), 1))
+    used = (vertex_area > 0) & (rng.random(len(vertex_area)) < keep_prob)
+    vertex_area = vertex_area / keep_prob
     vertex_face = np.asarray(mesh.vertex_faces)[:, 0]
     return SurfaceSample(
         points=np.vstack([points, mesh.vertices[used]]),

@@ -1,0 +1,91 @@
+"""The seven haptic features of a pinch (Step #2 of the method).
+
+For the midpoint m, centre of mass c, unit principal axis a and unit pinch
+direction u = (p2 - p1) / |p2 - p1|:
+
+- ``width_mm``          w = |p1p2|
+- ``com_distance_mm``   d = |(m - c)·a|
+- ``tilt_deg``          φ = angle between u and the plane orthogonal to a, 0-90
+
+and per patch (at p1, at p2):
+
+- ``normal_angle_deg``           ψ = angle between the pinch line and the patch normal, 0-90
+- ``curvature_axis_angle_deg``   ρ = angle between the κmax direction and a projected on
+                                 the tangent plane, 0-90; NaN (``null`` in JSON) where it is
+                                 undefined: an umbilic patch (κmax - κmin < ``UMBILIC_PER_M``)
+                                 or a within ``AXIS_NORMAL_DEG`` of the normal
+- ``kappa_max_per_m``, ``kappa_min_per_m``
+
+All features are invariant under rigid motions of the object (tested).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .pinches import Pinches
+from .properties import ObjectProperties
+
+#: below this anisotropy (1/m) the κmax direction is undefined: the curvature
+#: discrimination threshold of 2 cm stimuli (about 2 m⁻¹, perception.md)
+UMBILIC_PER_M = 2.0
+#: an axis within this angle of the normal has no meaningful tangent projection
+AXIS_NORMAL_DEG = 5.0
+
+
+@dataclass(frozen=True)
+class PinchFeatures:
+    """Features of n pinches.
+
+    width_mm, com_distance_mm, tilt_deg : (n,) float64
+    normal_angle_deg, curvature_axis_angle_deg : (n, 2) float64, NaN where undefined
+    kappa_max_per_m, kappa_min_per_m : (n, 2) float64
+    """
+
+    width_mm: np.ndarray
+    com_distance_mm: np.ndarray
+    tilt_deg: np.ndarray
+    normal_angle_deg: np.ndarray
+    curvature_axis_angle_deg: np.ndarray
+    kappa_max_per_m: np.ndarray
+    kappa_min_per_m: np.ndarray
+
+
+def _acute_deg(cosine: np.ndarray) -> np.ndarray:
+    return np.degrees(np.arccos(np.clip(np.abs(cosine), 0.0, 1.0)))
+
+
+def pinch_features(pinches: Pinches, props: ObjectProperties) -> PinchFeatures:
+    """The seven features of every pinch, from its contacts and patches."""
+    p1, p2 = pinches.points[:, 0], pinches.points[:, 1]
+    seg = p2 - p1
+    width = np.linalg.norm(seg, axis=1)
+    u = seg / np.maximum(width, 1e-300)[:, None]
+    a = props.principal_axis / np.linalg.norm(props.principal_axis)
+    mid = 0.5 * (p1 + p2)
+    com_distance = np.abs((mid - props.com_mm) @ a)
+    tilt = np.degrees(np.arcsin(np.clip(np.abs(u @ a), 0.0, 1.0)))
+
+    normals = pinches.normals  # (n, 2, 3)
+    psi = _acute_deg(np.einsum("nkd,nd->nk", normals, u))
+
+    a_t = a[None, None, :] - (normals @ a)[..., None] * normals  # (n, 2, 3)
+    a_t_norm = np.linalg.norm(a_t, axis=-1)
+    cos_rho = np.einsum("nkd,nkd->nk", pinches.dir_max, a_t) / np.maximum(a_t_norm, 1e-300)
+    rho = _acute_deg(cos_rho)
+    undefined = (pinches.kappa_max_per_m - pinches.kappa_min_per_m < UMBILIC_PER_M) | (
+        a_t_norm < np.sin(np.radians(AXIS_NORMAL_DEG))
+    )
+    rho = np.where(undefined, np.nan, rho)
+
+    return PinchFeatures(
+        width_mm=width,
+        com_distance_mm=com_distance,
+        tilt_deg=tilt,
+        normal_angle_deg=psi,
+        curvature_axis_angle_deg=rho,
+        kappa_max_per_m=pinches.kappa_max_per_m.copy(),
+        kappa_min_per_m=pinches.kappa_min_per_m.copy(),
+    )
