@@ -195,13 +195,17 @@ def _check_units(path: Path, extent_mm: float, units_in: str) -> None:
     )
 
 
-def _repair(mesh: trimesh.Trimesh) -> list[str]:
-    """Repair in place what is safe to repair; return what was done."""
+def _repair(mesh: trimesh.Trimesh, *, indexed: bool) -> list[str]:
+    """Repair in place what is safe to repair; return what was done.
+
+    ``indexed``: the format shares vertices between faces (not STL, where
+    every triangle has its own copies and merging them is routine).
+    """
     repairs: list[str] = []
 
     n_vertices = len(mesh.vertices)
     mesh.merge_vertices()
-    if len(mesh.vertices) < n_vertices:
+    if len(mesh.vertices) < n_vertices and indexed:
         repairs.append(f"merged {n_vertices - len(mesh.vertices)} duplicate vertices")
 
     keep = mesh.nondegenerate_faces(height=1e-9 * max(mesh.scale, 1e-12))
@@ -296,7 +300,7 @@ def load_mesh(
         faces=np.asarray(mesh.faces, dtype=np.int64),
         process=False,
     )
-    repairs = _repair(mesh)
+    repairs = _repair(mesh, indexed=file_type != "stl")
     if len(mesh.faces) == 0:
         raise MeshError(f"{path}: every face is degenerate (zero area); re-export the mesh")
 

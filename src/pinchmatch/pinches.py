@@ -52,7 +52,9 @@ OVERSAMPLE = 6
 #: pre-filter margin on the friction cone with triangle normals, before patch normals exist
 PREFILTER_MARGIN_DEG = 2.0
 #: how many more pinches than requested get patches before the final check
-SELECT_MARGIN = 1.3
+SELECT_MARGIN = 1.2
+#: rounds of spreading and checking before giving up on reaching the count
+MAX_ROUNDS = 4
 
 
 @dataclass(frozen=True)
@@ -100,7 +102,7 @@ class PinchSettings:
 class Pinches:
     """n two-finger pinch poses on one mesh (lengths in mm).
 
-    points : (n, 2, 3) float64          contacts [p1, p2] on the fitted surface
+    points : (n, 2, 3) float64          contacts [p1, p2] on the mesh surface
     normals : (n, 2, 3) float64         unit outward normals of the fitted patches
     face_index : (n, 2) int64           triangle holding each contact
     kappa_max_per_m : (n, 2) float64    principal curvatures of each patch, convex positive
@@ -108,6 +110,9 @@ class Pinches:
     dir_max : (n, 2, 3) float64         unit direction of kappa_max
     feasible : (n,) bool                every rule holds
     broken : (n, len(RULES)) bool       which rules each pinch breaks, columns in RULES order
+    snap_distance_mm : (n, 2) float64   how far each given contact was moved onto the surface
+                                        (0 for sampled pinches)
+    rejected : dict                     sampling only: candidates rejected per rule
     """
 
     points: np.ndarray
@@ -118,6 +123,7 @@ class Pinches:
     dir_max: np.ndarray
     feasible: np.ndarray
     broken: np.ndarray
+    snap_distance_mm: np.ndarray
     rejected: dict = field(default_factory=dict)
 
     def __len__(self) -> int:
@@ -131,7 +137,7 @@ class Pinches:
             points=self.points[keep], normals=self.normals[keep], face_index=self.face_index[keep],
             kappa_max_per_m=self.kappa_max_per_m[keep], kappa_min_per_m=self.kappa_min_per_m[keep],
             dir_max=self.dir_max[keep], feasible=self.feasible[keep], broken=self.broken[keep],
-            rejected=dict(self.rejected),
+            snap_distance_mm=self.snap_distance_mm[keep], rejected=dict(self.rejected),
         )
 
 
@@ -190,10 +196,10 @@ def _patches(context, points, face_normals, settings) -> PatchGeometry:
     )
 
 
-def _assemble(points_faces, geom: PatchGeometry, broken, rejected) -> Pinches:
+def _assemble(points, points_faces, geom: PatchGeometry, broken, rejected, snap=None) -> Pinches:
     n = len(broken)
     return Pinches(
-        points=geom.point_mm.reshape(n, 2, 3),
+        points=points.reshape(n, 2, 3),
         normals=geom.normal.reshape(n, 2, 3),
         face_index=points_faces.reshape(n, 2),
         kappa_max_per_m=geom.kappa_max_per_m.reshape(n, 2),
@@ -201,6 +207,7 @@ def _assemble(points_faces, geom: PatchGeometry, broken, rejected) -> Pinches:
         dir_max=geom.dir_max.reshape(n, 2, 3),
         feasible=~broken.any(axis=1),
         broken=broken,
+        snap_distance_mm=np.zeros((n, 2)) if snap is None else snap.reshape(n, 2),
         rejected=rejected,
     )
 
@@ -231,10 +238,10 @@ def check_pinches(
     closest, distance, face = context.closest_points(raw)
     surface_ok = (distance <= settings.snap_tolerance_mm).reshape(n, 2).all(axis=1)
     geom = _patches(context, closest, context.face_normals[face], settings)
-    points = geom.point_mm.reshape(n, 2, 3)
+    points = closest.reshape(n, 2, 3)
     normals = geom.normal.reshape(n, 2, 3)
     broken = _rule_table(context, points, normals, geom.valid, settings, surface_ok)
-    return _assemble(face, geom, broken, {})
+    return _assemble(points, face, geom, broken, {}, distance)
 
 
 def _cone_directions(normals: np.ndarray, half_angle_deg: float, rng) -> np.ndarray:
@@ -249,22 +256,29 @@ def _cone_directions(normals: np.ndarray, half_angle_deg: float, rng) -> np.ndar
     return -(cos_t[:, None] * normals + sin_t[:, None] * (np.cos(phi)[:, None] * t1 + np.sin(phi)[:, None] * t2))
 
 
-def spread_order(points: np.ndarray, count: int) -> np.ndarray:
+def spread_order(points: np.ndarray, count: int, nearest: np.ndarray | None = None):
     """Farthest-point order of pinches, treating (p1, p2) and (p2, p1) as the same.
 
-    points : (n, 2, 3). Returns the indices of the first ``count`` picks:
-    each next pick is the pinch farthest from all picked so far, so any
-    prefix covers the graspable regions evenly, without clumps.
+    points : (n, 2, 3). Each next pick is the pinch farthest from all picked
+    so far, so any prefix covers the graspable regions evenly, without clumps.
+
+    Returns ``(chosen, nearest)``: the indices of up to ``count`` new picks
+    and each pinch's squared distance to its nearest pick (-1 for picks).
+    Pass ``nearest`` back in to continue the same order.
     """
     n = len(points)
-    count = min(count, n)
     centred = points - points.reshape(-1, 3).mean(axis=0)
     a = centred.reshape(n, 6)
     b = centred[:, ::-1].reshape(n, 6)
     sq = (a * a).sum(axis=1)  # same for both finger orders
+    if nearest is None:
+        nearest = np.full(n, np.inf)
+        current = 0
+    else:
+        nearest = nearest.copy()
+        current = int(np.argmax(nearest))
+    count = min(count, int((nearest >= 0).sum()))
     chosen = np.empty(count, dtype=np.int64)
-    nearest = np.full(n, np.inf)
-    current = 0
     for i in range(count):
         chosen[i] = current
         q = a[current]
@@ -273,7 +287,7 @@ def spread_order(points: np.ndarray, count: int) -> np.ndarray:
         np.minimum(nearest, d, out=nearest)
         nearest[current] = -1.0
         current = int(np.argmax(nearest))
-    return chosen
+    return chosen, nearest
 
 
 def sample_pinches(
@@ -325,28 +339,48 @@ def sample_pinches(
     rejected["antipodal"] += int(bad_cone.sum())
     keep &= ~bad_cone
 
-    p2 = p1 + width[:, None] * d
-    points = np.stack([p1, p2], axis=1)[keep]
-    face_pairs = np.stack([faces, face2], axis=1)[keep]
+    p2 = p1[keep] + width[keep, None] * d[keep]
+    p1, face_pairs = p1[keep], np.stack([faces, face2], axis=1)[keep]
+    r_tip = settings.fingertip_radius_mm
+    clear = _clearance_ok(context, p1, n1[keep], r_tip) & _clearance_ok(context, p2, hit_n[keep], r_tip)
+    rejected["clearance"] += int((~clear).sum())
+    points = np.stack([p1, p2], axis=1)[clear]
+    face_pairs = face_pairs[clear]
     if len(points) == 0:
         raise NoFeasiblePinchError(_no_pinch_message(source, n_cand, rejected, settings))
 
-    order = spread_order(points, int(np.ceil(SELECT_MARGIN * settings.count)))
-    points, face_pairs = points[order], face_pairs[order]
-    geom = _patches(context, points, context.face_normals[face_pairs], settings)
-    fitted = geom.point_mm.reshape(-1, 2, 3)
-    broken = _rule_table(context, fitted, geom.normal.reshape(-1, 2, 3), geom.valid, settings)
-    first_broken = np.argmax(broken, axis=1)
-    for j, rule in enumerate(RULES):
-        rejected[rule] += int((broken.any(axis=1) & (first_broken == j)).sum())
-    pinches = _assemble(face_pairs, geom, broken, rejected)
-    feasible = np.flatnonzero(pinches.feasible)
-    if len(feasible) == 0:
+    # spread the survivors, then fit patches and check every rule on the first picks;
+    # where picks fail with patch normals, continue the same spread order
+    parts, n_feasible, nearest = [], 0, None
+    for _ in range(MAX_ROUNDS):
+        want = int(np.ceil(SELECT_MARGIN * (settings.count - n_feasible)))
+        order, nearest = spread_order(points, want, nearest)
+        if len(order) == 0:
+            break
+        geom = _patches(context, points[order], context.face_normals[face_pairs[order]], settings)
+        broken = _rule_table(context, points[order], geom.normal.reshape(-1, 2, 3), geom.valid, settings)
+        first_broken = np.argmax(broken, axis=1)
+        for j, rule in enumerate(RULES):
+            rejected[rule] += int((broken.any(axis=1) & (first_broken == j)).sum())
+        part = _assemble(points[order], face_pairs[order], geom, broken, rejected)
+        part = part.subset(part.feasible)
+        parts.append(part)
+        n_feasible += len(part)
+        if n_feasible >= settings.count:
+            break
+    if n_feasible == 0:
         raise NoFeasiblePinchError(_no_pinch_message(source, n_cand, rejected, settings))
-    # the spread order is kept, so the first `count` are still evenly spread
-    result = pinches.subset(feasible[: settings.count])
+    # concatenated in spread order, so the first `count` are evenly spread
+    result = _concat(parts).subset(np.arange(min(settings.count, n_feasible)))
     log.info("%s: %d feasible pinches from %d candidates", source, len(result), n_cand)
     return result
+
+
+def _concat(parts: list[Pinches]) -> Pinches:
+    fields = ("points", "normals", "face_index", "kappa_max_per_m", "kappa_min_per_m",
+              "dir_max", "feasible", "broken", "snap_distance_mm")
+    arrays = {f: np.concatenate([getattr(p, f) for p in parts]) for f in fields}
+    return Pinches(**arrays, rejected=dict(parts[-1].rejected))
 
 
 _RULE_HINTS = {

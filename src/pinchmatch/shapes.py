@@ -294,7 +294,11 @@ def stacked_prop(order=("cylinder", "cube", "cone"), *, sections: int = 96) -> t
             raise ValueError(f"unknown part {name!r}")
         part.apply_translation((0.0, 0.0, z0 + 20.0))
         parts.append(part)
-    return trimesh.boolean.union(parts, engine="manifold") if _has_manifold() else _stack_by_hull(parts)
+    try:
+        import manifold3d  # noqa: F401
+    except ImportError:
+        raise ImportError("stacked_prop needs manifold3d for the union: pip install manifold3d") from None
+    return trimesh.boolean.union(parts, engine="manifold")
 
 
 def _frustum(r_bottom, r_top, height, sections):
@@ -302,15 +306,3 @@ def _frustum(r_bottom, r_top, height, sections):
     bottom = np.column_stack([r_bottom * np.cos(t), r_bottom * np.sin(t), np.full(sections, -height / 2)])
     top = np.column_stack([r_top * np.cos(t), r_top * np.sin(t), np.full(sections, height / 2)])
     return _hull_mesh(np.vstack([bottom, top]))
-
-
-def _has_manifold() -> bool:
-    try:
-        import manifold3d  # noqa: F401
-    except ImportError:
-        return False
-    return True
-
-
-def _stack_by_hull(parts):
-    return trimesh.util.concatenate(parts)

@@ -80,6 +80,7 @@ def sample_surface(
     mesh: trimesh.Trimesh,
     *,
     area_per_sample_mm2: float,
+    max_chord_edge_mm: float = np.inf,
     seed: int = SAMPLE_SEED,
 ) -> SurfaceSample:
     """Deterministic area-uniform sample, about ``area / area_per_sample`` points.
@@ -87,6 +88,11 @@ def sample_surface(
     Each face gets floor(area / area_per_sample + U) points, U uniform in
     [0, 1): its expected share exactly, with no aliasing against the order
     of the faces.
+
+    Triangles with an edge longer than ``max_chord_edge_mm`` get no chord
+    correction: the quadratic model of a patch cannot be extrapolated along
+    them, and such triangles (CAD exports) are flat to the exporter's
+    chordal tolerance along their length anyway.
     """
     rng = np.random.default_rng(seed)
     area = mesh.area_faces
@@ -116,6 +122,8 @@ def sample_surface(
     used = (vertex_area > 0) & (rng.random(len(vertex_area)) < keep_prob)
     vertex_area = vertex_area / keep_prob
     vertex_face = np.asarray(mesh.vertex_faces)[:, 0]
+    longest = np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=-1).max(axis=1) if len(tri) else np.zeros(0)
+    chord[longest > max_chord_edge_mm] = 0.0
     return SurfaceSample(
         points=np.vstack([points, mesh.vertices[used]]),
         face_index=np.concatenate([face_index, vertex_face[used]]),
@@ -142,7 +150,9 @@ class SurfaceContext:
         self.patch_radius_mm = float(patch_radius_mm)
         area = float(mesh.area)
         per_sample = max(np.pi * patch_radius_mm**2 / SAMPLES_PER_PATCH, area / MAX_SAMPLES)
-        self.sample = sample_surface(mesh, area_per_sample_mm2=per_sample)
+        self.sample = sample_surface(
+            mesh, area_per_sample_mm2=per_sample, max_chord_edge_mm=2.0 * patch_radius_mm
+        )
         self.tree = cKDTree(self.sample.points)
         self.rays, self.ray_engine_name = ray_engine(mesh)
         self.face_normals = np.asarray(mesh.face_normals)

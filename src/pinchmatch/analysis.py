@@ -1,0 +1,141 @@
+"""One object, analysed once: the context object the pipeline passes along.
+
+:func:`analyze_object` loads a file and builds everything expensive about it
+(mass properties, dense surface sample, KD-tree, ray engine);
+:func:`find_pinches` and :func:`score_pinch` are the one-shot calls behind
+``pinchmatch poses`` and ``pinchmatch features``.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import ContactError
+from .features import PinchFeatures, pinch_features
+from .load import LoadedMesh, load_mesh
+from .pinches import PinchSettings, Pinches, check_pinches, sample_pinches
+from .properties import ObjectProperties, object_properties
+from .surface import SurfaceContext
+
+
+@dataclass(frozen=True)
+class ObjectAnalysis:
+    """A loaded object with its properties and surface context."""
+
+    loaded: LoadedMesh
+    props: ObjectProperties
+    context: SurfaceContext
+
+    @property
+    def name(self) -> str:
+        return self.loaded.name
+
+
+def analyze_object(
+    path: str | os.PathLike,
+    *,
+    units: str | None = None,
+    up: str | None = None,
+    com_mm: np.ndarray | None = None,
+    axis: np.ndarray | None = None,
+    patch_radius_mm: float = 8.0,
+) -> ObjectAnalysis:
+    """Load ``path`` and build its properties and surface context (see :func:`load_mesh`)."""
+    loaded = load_mesh(path, units=units, up=up)
+    props = object_properties(loaded.mesh, up=loaded.up, watertight=loaded.watertight, com_mm=com_mm, axis=axis)
+    context = SurfaceContext(loaded.mesh, patch_radius_mm=patch_radius_mm)
+    return ObjectAnalysis(loaded, props, context)
+
+
+def find_pinches(obj: ObjectAnalysis, *, settings: PinchSettings = PinchSettings()) -> tuple[Pinches, PinchFeatures]:
+    """Feasible pinches spread over ``obj`` and their features."""
+    pinches = sample_pinches(obj.context, settings=settings, source=obj.loaded.path)
+    return pinches, pinch_features(pinches, obj.props)
+
+
+def score_pinches(
+    obj: ObjectAnalysis,
+    p1_mm: np.ndarray,
+    p2_mm: np.ndarray,
+    *,
+    settings: PinchSettings = PinchSettings(),
+    source: str | None = None,
+) -> tuple[Pinches, PinchFeatures]:
+    """Snap user-given pinches to the surface, check them and compute their features.
+
+    Returns the pinches (all of them, feasible or not; ``snap_distance_mm``
+    says how far each contact moved) and their features.
+
+    Raises
+    ------
+    ContactError
+        A contact is farther than ``settings.snap_tolerance_mm`` from the surface.
+    """
+    p1_mm = np.asarray(p1_mm, dtype=np.float64).reshape(-1, 3)
+    p2_mm = np.asarray(p2_mm, dtype=np.float64).reshape(-1, 3)
+    pinches = check_pinches(obj.context, p1_mm, p2_mm, settings=settings)
+    distance = pinches.snap_distance_mm
+    far = np.argwhere(distance > settings.snap_tolerance_mm)
+    if len(far):
+        i, k = far[0]
+        point = (p1_mm, p2_mm)[k][i]
+        label = f"p{k + 1}" if len(p1_mm) == 1 else f"pose {i} p{k + 1}"
+        raise ContactError(
+            f"{source or obj.loaded.path}: {label} ({', '.join(f'{c:g}' for c in point)}) mm is "
+            f"{distance[i, k]:.2f} mm from the surface (tolerance {settings.snap_tolerance_mm:g} mm); "
+            "give a point on the surface, in the file's frame and in mm (check --units)"
+        )
+    return pinches, pinch_features(pinches, obj.props)
+
+
+def load_poses_file(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
+    """Read user-given pinches: a JSON list of ``{"p1_mm": [x, y, z], "p2_mm": [x, y, z]}``.
+
+    A ``pinchmatch poses`` document (an object with a ``poses`` list) is read too.
+
+    Returns
+    -------
+    p1_mm, p2_mm : (n, 3) float64
+
+    Raises
+    ------
+    ConfigError
+        Missing file, invalid JSON, or an entry without two finite 3-vectors.
+    """
+    import json
+
+    from .errors import ConfigError
+
+    path = os.fspath(path)
+    try:
+        with open(path, encoding="utf-8") as fh:
+            data = json.load(fh)
+    except FileNotFoundError:
+        raise ConfigError(f"{path}: no such poses file; check the path") from None
+    except IsADirectoryError:
+        raise ConfigError(f"{path}: is a folder; give a JSON poses file") from None
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"{path}: not valid JSON ({exc}); fix the file") from None
+    if isinstance(data, dict) and isinstance(data.get("poses"), list):
+        data = data["poses"]
+    if not isinstance(data, list) or not data:
+        raise ConfigError(
+            f'{path}: expected a non-empty JSON list of {{"p1_mm": [x, y, z], "p2_mm": [x, y, z]}}'
+        )
+    p1, p2 = [], []
+    for i, entry in enumerate(data):
+        try:
+            a = np.asarray(entry["p1_mm"], dtype=np.float64)
+            b = np.asarray(entry["p2_mm"], dtype=np.float64)
+        except (KeyError, TypeError, ValueError):
+            a = b = np.zeros(0)
+        if a.shape != (3,) or b.shape != (3,) or not (np.isfinite(a).all() and np.isfinite(b).all()):
+            raise ConfigError(
+                f"{path}: pose {i} needs \"p1_mm\" and \"p2_mm\", each three finite numbers (mm); fix that entry"
+            )
+        p1.append(a)
+        p2.append(b)
+    return np.array(p1), np.array(p2)

@@ -1,0 +1,227 @@
+"""Command line: ``pinchmatch poses`` and ``pinchmatch features``.
+
+Exit codes, in one place: 0 success, 2 bad input or usage (one line on
+stderr naming the file, the problem and the fix), 1 unexpected error (a
+traceback only with ``--verbose``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import re
+import sys
+import time
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from . import __version__
+from .analysis import analyze_object, find_pinches, load_poses_file, score_pinches
+from .errors import ConfigError, PinchmatchError
+from .load import UNITS_MM, UP_VECTORS
+from .pinches import PinchSettings
+from .properties import parse_vector
+from .report import features_document, poses_csv, poses_document, to_json, write_atomic
+
+log = logging.getLogger("pinchmatch")
+
+#: options whose value is a vector and may start with a minus sign
+VECTOR_OPTIONS = ("--p1", "--p2", "--com", "--axis")
+
+
+def example_mesh_path() -> Path:
+    """The built-in example: the method's study prop (cylinder, cube and cone stacked, 120 mm tall)."""
+    return Path(str(resources.files("pinchmatch") / "data" / "example_prop.stl"))
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that raises ConfigError instead of printing usage and exiting."""
+
+    def error(self, message):
+        raise ConfigError(f"{self.prog}: {message}; see '{self.prog} --help'")
+
+
+def _join_vector_values(argv: list[str]) -> list[str]:
+    """Turn ``--p1 -3,0,1`` into ``--p1=-3,0,1`` so argparse does not read -3,0,1 as an option."""
+    out: list[str] = []
+    i = 0
+    while i < len(argv):
+        token = argv[i]
+        if token in VECTOR_OPTIONS and i + 1 < len(argv) and re.match(r"^-?[\d.]", argv[i + 1]):
+            out.append(f"{token}={argv[i + 1]}")
+            i += 2
+            continue
+        out.append(token)
+        i += 1
+    return out
+
+
+def _add_object_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("mesh", nargs="?", help="mesh file (STL, OBJ, PLY, OFF, glTF, GLB)")
+    p.add_argument("--example", action="store_true", help="use the built-in example prop instead of MESH")
+    p.add_argument("--units", choices=sorted(UNITS_MM), help="units of the file (default: m for glTF/GLB, mm otherwise)")
+    p.add_argument("--up", choices=list(UP_VECTORS), help="the object's up direction (default: y for glTF/GLB, z otherwise)")
+    p.add_argument("--com", metavar="X,Y,Z", help="centre of mass override, mm in the file's frame")
+    p.add_argument("--axis", metavar="X,Y,Z", help="principal axis override")
+    p.add_argument("--friction-cone-deg", type=float, default=30.0, help="antipodal tolerance (default 30)")
+    p.add_argument("--min-width-mm", type=float, default=2.0, help="smallest pinch width (default 2)")
+    p.add_argument("--max-width-mm", type=float, default=100.0, help="largest pinch width (default 100)")
+    p.add_argument("--fingertip-radius-mm", type=float, default=8.0, help="fingertip sphere radius (default 8)")
+    p.add_argument("--patch-radius-mm", type=float, default=8.0, help="contact patch radius (default 8)")
+    p.add_argument("--snap-tolerance-mm", type=float, default=2.0,
+                   help="how far a given contact may be from the surface (default 2)")
+    p.add_argument("-o", "--output", metavar="FILE", help="write the result here (default: print it)")
+    p.add_argument("-q", "--quiet", action="store_true", help="print only errors")
+    p.add_argument("-v", "--verbose", action="store_true", help="log progress; tracebacks on internal errors")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="pinchmatch", description="Match thumb-index pinches between tangible props and virtual objects.")
+    parser.add_argument("--version", action="version", version=f"pinchmatch {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+
+    poses = sub.add_parser("poses", help="feasible pinches of one mesh, with their haptic features")
+    _add_object_options(poses)
+    poses.add_argument("--count", type=int, default=1000, help="about how many pinches (default 1000)")
+    poses.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    poses.add_argument("--poses", metavar="FILE", help='check these pinches instead: JSON list of {"p1_mm": [...], "p2_mm": [...]}')
+    poses.add_argument("--format", choices=("json", "csv"), default="json", help="output format (default json)")
+
+    features = sub.add_parser("features", help="the features of one given pinch, and whether it is feasible")
+    _add_object_options(features)
+    features.add_argument("--p1", required=True, metavar="X,Y,Z", help="first contact, mm")
+    features.add_argument("--p2", required=True, metavar="X,Y,Z", help="second contact, mm")
+    return parser
+
+
+def _settings(args, **extra) -> PinchSettings:
+    return PinchSettings(
+        friction_cone_deg=args.friction_cone_deg,
+        min_width_mm=args.min_width_mm,
+        max_width_mm=args.max_width_mm,
+        fingertip_radius_mm=args.fingertip_radius_mm,
+        patch_radius_mm=args.patch_radius_mm,
+        snap_tolerance_mm=args.snap_tolerance_mm,
+        **extra,
+    )
+
+
+def _object(args):
+    if args.example and args.mesh:
+        raise ConfigError(f"{args.mesh}: give either a MESH or --example, not both")
+    if not args.example and not args.mesh:
+        raise ConfigError("no mesh given; name a mesh file, or use --example for the built-in one")
+    com = parse_vector(args.com, option="--com") if args.com else None
+    axis = parse_vector(args.axis, option="--axis") if args.axis else None
+    path = example_mesh_path() if args.example else Path(args.mesh)
+    return analyze_object(
+        path, units=args.units, up=args.up, com_mm=com, axis=axis, patch_radius_mm=args.patch_radius_mm
+    )
+
+
+def _settings_dict(args, settings: PinchSettings, obj) -> dict:
+    out = settings.as_dict()
+    out.update(units=obj.loaded.units_in, up=obj.loaded.up_label)
+    return out
+
+
+def _emit(args, text: str, summary: str) -> None:
+    if args.output:
+        write_atomic(args.output, text)
+        if not args.quiet:
+            print(summary)
+    else:
+        sys.stdout.write(text)
+
+
+def _cmd_poses(args) -> int:
+    settings = _settings(args, count=args.count, seed=args.seed)  # validate options before any work
+    given = load_poses_file(args.poses) if args.poses else None
+    t0 = time.perf_counter()
+    obj = _object(args)
+    t1 = time.perf_counter()
+    if given is not None:
+        pinches, features = score_pinches(obj, *given, settings=settings, source=args.poses)
+    else:
+        pinches, features = find_pinches(obj, settings=settings)
+    t2 = time.perf_counter()
+    doc = poses_document(obj.loaded, obj.props, _settings_dict(args, settings, obj), pinches, features,
+                         ray_engine=obj.context.ray_engine_name)
+    text = to_json(doc) if args.format == "json" else poses_csv(doc)
+    n_ok = int(pinches.feasible.sum())
+    lines = [
+        f"{obj.name}: {len(obj.loaded.mesh.faces)} faces, {doc['object']['extent_mm']} mm, "
+        f"watertight={obj.loaded.watertight}, axis from {obj.props.axis_source}",
+        f"{n_ok} feasible of {len(pinches)} pinches; load {t1 - t0:.2f} s, poses and features {t2 - t1:.2f} s",
+    ]
+    if given is not None:
+        for i in np.flatnonzero(~pinches.feasible):
+            lines.append(f"  pose {i}: infeasible, breaks {', '.join(pinches.broken_rules(i))}")
+    lines += [f"  repaired: {r}" for r in obj.loaded.repairs] + [f"  warning: {w}" for w in obj.loaded.warnings]
+    if args.output:
+        lines.append(f"wrote {args.output}")
+    _emit(args, text, "\n".join(lines))
+    return 0
+
+
+def _cmd_features(args) -> int:
+    settings = _settings(args)
+    p1 = parse_vector(args.p1, option="--p1")
+    p2 = parse_vector(args.p2, option="--p2")
+    obj = _object(args)
+    pinches, features = score_pinches(obj, p1, p2, settings=settings)
+    doc = features_document(obj.loaded, obj.props, _settings_dict(args, settings, obj), pinches, features,
+                            given=(p1, p2), ray_engine=obj.context.ray_engine_name)
+    pose = doc["pose"]
+    verdict = "feasible" if pose["feasible"] else f"NOT feasible: breaks {', '.join(pose['broken_rules'])}"
+    lines = [
+        f"{obj.name}: pinch {verdict}",
+        f"  width {pose['width_mm']} mm, com distance {pose['com_distance_mm']} mm, tilt {pose['tilt_deg']} deg",
+    ]
+    for k, patch in enumerate(pose["patches"], start=1):
+        lines.append(
+            f"  patch {k}: normal angle {patch['normal_angle_deg']} deg, curvature axis angle "
+            f"{patch['curvature_axis_angle_deg']} deg, kappa {patch['kappa_max_per_m']} / {patch['kappa_min_per_m']} 1/m"
+        )
+    if args.output:
+        _emit(args, to_json(doc), "\n".join(lines + [f"wrote {args.output}"]))
+    elif args.quiet:
+        sys.stdout.write(to_json(doc))
+    else:
+        print("\n".join(lines))
+        sys.stdout.write(to_json(doc))
+    return 0
+
+
+COMMANDS = {"poses": _cmd_poses, "features": _cmd_features}
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the command line; return the exit code."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    verbose = "-v" in argv or "--verbose" in argv
+    logging.basicConfig(level=logging.INFO if verbose else logging.WARNING, format="%(name)s: %(message)s")
+    try:
+        args = build_parser().parse_args(_join_vector_values(argv))
+        if args.command is None:
+            build_parser().print_help()
+            return 2
+        return COMMANDS[args.command](args)
+    except PinchmatchError as exc:
+        print(f"pinchmatch: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("pinchmatch: interrupted", file=sys.stderr)
+        return 130
+    except Exception as exc:  # an internal error: say so, traceback on request
+        if verbose:
+            raise
+        print(f"pinchmatch: internal error: {type(exc).__name__}: {exc}; rerun with --verbose and report it",
+              file=sys.stderr)
+        return 1
+
+
+def console() -> None:
+    sys.exit(main())
