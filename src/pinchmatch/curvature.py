@@ -4,8 +4,9 @@ Method (one batch for all contacts, no per-point Python loop):
 
 1. The patch is the set of dense surface samples (see :mod:`surface`) within
    ``patch_radius_mm`` of the contact whose triangle faces the same way as
-   the contact's (normals within 60°). This keeps the far face of a thin
-   wall, and the other side of a sharp edge, out of the patch.
+   the patch's mean normal (within 80°). This keeps the far face of a thin
+   wall, and the other side of a sharp edge, out of the patch, while the
+   noisy triangle normals of a scan stay in.
 2. In a frame whose third axis is the current normal estimate, fit a
    height function h(u, v), a bivariate polynomial of degree 4 (an
    osculating jet, as CGAL's Monge fitting used by the method), by weighted
@@ -35,7 +36,9 @@ import numpy as np
 from .surface import SurfaceContext
 
 #: samples whose triangle normal is further than this from the contact normal are not in the patch
-SAME_SIDE_DEG = 60.0
+SAME_SIDE_DEG = 80.0
+#: the contact triangle's normal is turned when this many times more sample weight faces against it
+FLIP_VOTE = 3.0
 #: degree of the osculating jet
 JET_DEGREE = 4
 #: neighbours considered per contact (the patch is cut from these by radius)
@@ -247,6 +250,19 @@ def _patch_chunk(sample, points_mm, normal, dist, idx, radius):
     idx = np.where(inside, idx, 0)
     nbr = sample.points[idx]
     nbr_normal = sample.normals[idx]
+    # a robust start: the mean normal of the samples facing the contact triangle's way
+    # (one triangle's normal is noisy on scans; the far face of a thin wall faces away)
+    # A triangle flipped by scan noise (a sliver) has an inverted normal: when the
+    # samples facing against it outweigh those facing with it threefold, turn it.
+    weighted = inside * sample.weight[idx]
+    cosine = np.einsum("nkd,nd->nk", nbr_normal, normal)
+    agree = (weighted * (cosine > 0)).sum(axis=1)
+    oppose = (weighted * (cosine < 0)).sum(axis=1)
+    normal = np.where((oppose > FLIP_VOTE * agree)[:, None], -normal, normal)
+    facing = inside & (np.einsum("nkd,nd->nk", nbr_normal, normal) > 0.0)
+    mean = np.einsum("nk,nkd->nd", facing * sample.weight[idx], nbr_normal)
+    norm = np.linalg.norm(mean, axis=1, keepdims=True)
+    normal = np.where(norm > 1e-12, mean / np.maximum(norm, 1e-300), normal)
     same_side = np.einsum("nkd,nd->nk", nbr_normal, normal) > np.cos(np.radians(SAME_SIDE_DEG))
     valid = inside & same_side
     chord6 = sample.chord6[idx]
