@@ -49,6 +49,8 @@ OUTLIER_FLOOR_MM = 0.5
 FIT_PASSES = 3
 #: below this effective number of trusted samples (Kish) a patch is fitted by a quadric
 MIN_QUARTIC_SUPPORT = 40.0
+#: patch sample centroid farther than this (in patch radii) from the contact: fit a quadric
+MAX_CENTROID_OFFSET = 0.3
 #: a triangle sample moved this far by the chord correction counts half
 CHORD_TRUST_MM = 0.05
 #: contacts fitted per batch (bounds memory: about CHUNK x MAX_PATCH_SAMPLES x 15 doubles)
@@ -118,6 +120,11 @@ def _fit_jets(points, origin, normal, weight, radius, quadric_only):
     h = local[..., 2]
     rho2 = u * u + v * v
     w = weight * np.clip(1.0 - rho2, 0.0, None) ** 2
+    # a contact at the rim of its patch (a corner, the edge of an open surface) has
+    # samples on one side only: a quartic would be extrapolated there, a quadric is safer
+    wsum = np.maximum(w.sum(axis=1), 1e-300)
+    lopsided = np.hypot((w * u).sum(axis=1), (w * v).sum(axis=1)) / wsum > MAX_CENTROID_OFFSET
+    quadric_only = quadric_only | lopsided
 
     A = np.empty(u.shape + (len(_EXPONENTS),))  # (n, k, m): monomials u^i v^j
     A[..., 0] = 1.0
@@ -139,7 +146,6 @@ def _fit_jets(points, origin, normal, weight, radius, quadric_only):
     coef = np.linalg.solve(AtA + ridge, Atb)[..., 0]  # (n, m)
 
     residual = h - np.matmul(A, coef[..., None])[..., 0]
-    wsum = np.maximum(w.sum(axis=1), 1e-300)
     rms = np.sqrt((w * residual**2).sum(axis=1) / wsum)
 
     c = lambda i, j: coef[:, _INDEX[(i, j)]]  # noqa: E731
@@ -254,16 +260,17 @@ def _patch_chunk(sample, points_mm, normal, dist, idx, radius):
     # (one triangle's normal is noisy on scans; the far face of a thin wall faces away)
     # A triangle flipped by scan noise (a sliver) has an inverted normal: when the
     # samples facing against it outweigh those facing with it threefold, turn it.
-    weighted = inside * sample.weight[idx]
+    weighted = inside * np.where(sample.is_vertex[idx], 0.0, sample.weight[idx])  # triangle samples vote
     cosine = np.einsum("nkd,nd->nk", nbr_normal, normal)
     agree = (weighted * (cosine > 0)).sum(axis=1)
     oppose = (weighted * (cosine < 0)).sum(axis=1)
     normal = np.where((oppose > FLIP_VOTE * agree)[:, None], -normal, normal)
-    facing = inside & (np.einsum("nkd,nd->nk", nbr_normal, normal) > 0.0)
-    mean = np.einsum("nk,nkd->nd", facing * sample.weight[idx], nbr_normal)
+    cos_side = np.cos(np.radians(SAME_SIDE_DEG))
+    facing = inside & (np.einsum("nkd,nd->nk", nbr_normal, normal) > cos_side)
+    mean = np.einsum("nk,nkd->nd", facing * weighted, nbr_normal)
     norm = np.linalg.norm(mean, axis=1, keepdims=True)
     normal = np.where(norm > 1e-12, mean / np.maximum(norm, 1e-300), normal)
-    same_side = np.einsum("nkd,nd->nk", nbr_normal, normal) > np.cos(np.radians(SAME_SIDE_DEG))
+    same_side = np.einsum("nkd,nd->nk", nbr_normal, normal) > cos_side
     valid = inside & same_side
     chord6 = sample.chord6[idx]
     base_weight = sample.weight[idx]

@@ -118,6 +118,11 @@ def _check_binary_stl(path: Path, size: int) -> None:
         return
     (count,) = struct.unpack("<I", head[80:84])
     expected = 84 + 50 * count
+    if size < expected and expected > 10 * size:
+        raise MeshError(
+            f"{path}: not a valid STL: its header claims {count} triangles in a {size}-byte file; "
+            "the file is corrupt or not an STL, re-export it"
+        )
     if size < expected:
         raise MeshError(
             f"{path}: truncated binary STL: its header promises {count} triangles "
@@ -155,7 +160,7 @@ def _read(path: Path, file_type: str) -> trimesh.Trimesh:
         mesh = loaded
     else:
         raise MeshError(
-            f"{path}: holds a {type(loaded).__name__}, no triangles; "
+            f"{path}: has no faces (it holds a {type(loaded).__name__}); "
             "export the object as a triangle mesh"
         )
     return mesh
@@ -213,12 +218,14 @@ def _repair(mesh: trimesh.Trimesh, *, indexed: bool) -> list[str]:
         repairs.append(f"removed {int((~keep).sum())} degenerate faces")
         mesh.update_faces(keep)
 
-    unique = mesh.unique_faces()
-    if len(unique) < len(mesh.faces):
-        repairs.append(f"removed {len(mesh.faces) - len(unique)} duplicate faces")
+    unique = np.asarray(mesh.unique_faces())
+    if unique.dtype != bool:  # older trimesh returns indices, newer a mask
         mask = np.zeros(len(mesh.faces), dtype=bool)
         mask[unique] = True
-        mesh.update_faces(mask)
+        unique = mask
+    if not unique.all():
+        repairs.append(f"removed {int((~unique).sum())} duplicate faces")
+        mesh.update_faces(unique)
 
     labels = trimesh.graph.connected_component_labels(
         mesh.face_adjacency, node_count=len(mesh.faces)
@@ -235,15 +242,23 @@ def _repair(mesh: trimesh.Trimesh, *, indexed: bool) -> list[str]:
             )
     mesh.remove_unreferenced_vertices()
 
-    before = mesh.faces.copy()
+    before = _cyclic(mesh.faces)
+    consistent_before = mesh.is_winding_consistent
+    volume_before = mesh.volume if consistent_before else 0.0
     trimesh.repair.fix_normals(mesh, multibody=True)
-    if mesh.faces.shape == before.shape:
-        flipped = int((mesh.faces[:, 1] != before[:, 1]).sum())
-        if flipped == len(before):
-            repairs.append("turned the surface right side out (it was inside-out)")
-        elif flipped:
-            repairs.append(f"made winding consistent ({flipped} faces flipped)")
+    flipped = int((_cyclic(mesh.faces) != before).any(axis=1).sum())
+    if consistent_before and volume_before < 0 and flipped:
+        repairs.append("turned the surface right side out (it was inside-out)")
+    elif flipped:
+        repairs.append(f"made winding consistent ({flipped} faces flipped)")
     return repairs
+
+
+def _cyclic(faces: np.ndarray) -> np.ndarray:
+    """Faces rotated to start at their smallest index: equal rows mean equal orientation."""
+    shift = np.argmin(faces, axis=1)
+    idx = (shift[:, None] + np.arange(3)) % 3
+    return np.take_along_axis(faces, idx, axis=1)
 
 
 def load_mesh(

@@ -55,6 +55,8 @@ class SurfaceSample:
                               as (xx, yy, zz, xy, xz, yz), mm²
     weight : (s,) float64     fit weight: 1 for a triangle sample, the vertex's
                               area share in samples for a mesh vertex
+    is_vertex : (s,) bool     the sample is a mesh vertex (its normal is an average
+                              of its triangles', meaningless on a sharp edge)
     spacing_mm : float        mean distance between neighbouring samples
 
     The mesh vertices are included: they lie on the surface the mesh stands
@@ -73,6 +75,7 @@ class SurfaceSample:
     normals: np.ndarray
     chord6: np.ndarray
     weight: np.ndarray
+    is_vertex: np.ndarray
     spacing_mm: float
 
 
@@ -130,6 +133,7 @@ def sample_surface(
         normals=np.vstack([mesh.face_normals[face_index], mesh.vertex_normals[used]]),
         chord6=np.vstack([chord, np.zeros((int(used.sum()), 6))]),
         weight=np.concatenate([np.ones(len(points)), vertex_area[used] / area_per_sample_mm2]),
+        is_vertex=np.concatenate([np.zeros(len(points), bool), np.ones(int(used.sum()), bool)]),
         spacing_mm=float(np.sqrt(area_per_sample_mm2)),
     )
 

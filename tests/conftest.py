@@ -1,0 +1,27 @@
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+
+def random_rigid(seed):
+    """A seeded random rotation (3, 3) and translation (3,) in mm."""
+    rng = np.random.default_rng(seed)
+    return Rotation.random(random_state=rng).as_matrix(), rng.uniform(-200, 200, 3)
+
+
+def transformed(mesh, R, t):
+    out = mesh.copy()
+    out.vertices = mesh.vertices @ R.T + t
+    return out
+
+
+@pytest.fixture
+def write_mesh(tmp_path):
+    """Write a trimesh to tmp_path/name and return the path."""
+
+    def _write(mesh, name):
+        path = tmp_path / name
+        mesh.export(path)
+        return path
+
+    return _write

@@ -1,0 +1,162 @@
+import json
+
+import numpy as np
+import pytest
+import trimesh
+
+from pinchmatch.cli import main
+
+
+def run(capsys, *argv):
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_poses_on_the_example_writes_a_complete_document(tmp_path, capsys):
+    out = tmp_path / "poses.json"
+    code, stdout, err = run(capsys, "poses", "--example", "--count", "150", "-o", str(out))
+    assert code == 0, err
+    doc = json.loads(out.read_text())
+    assert doc["schema"] == "pinchmatch.poses/1" and doc["version"]
+    assert doc["settings"]["count"] == 150 and doc["settings"]["units"] == "mm"
+    obj = doc["object"]
+    for key in ("com_mm", "principal_axis", "axis_source", "up", "units_in", "bounds_mm", "watertight", "repairs"):
+        assert key in obj
+    assert obj["watertight"] and obj["axis_source"] == "pca" and obj["up"] == "z"
+    assert doc["pose_count"] == len(doc["poses"]) == 150
+    pose = doc["poses"][0]
+    for key in ("p1_mm", "p2_mm", "n1", "n2", "width_mm", "com_distance_mm", "tilt_deg"):
+        assert key in pose
+    assert set(pose["patches"][0]) >= {"normal_angle_deg", "curvature_axis_angle_deg", "kappa_max_per_m", "kappa_min_per_m"}
+    assert "150 feasible" in stdout
+
+
+def test_poses_csv_and_stdout(capsys):
+    code, stdout, _ = run(capsys, "poses", "--example", "--count", "20", "--format", "csv")
+    assert code == 0
+    lines = stdout.strip().splitlines()
+    assert lines[0].startswith("index,feasible,p1_x_mm") and len(lines) == 21
+
+
+def test_given_poses_are_checked_and_infeasible_ones_named(tmp_path, capsys):
+    poses = tmp_path / "poses.json"
+    poses.write_text(json.dumps([
+        {"p1_mm": [-20, 0, 20], "p2_mm": [20, 0, 20]},   # across the cylinder: feasible
+        {"p1_mm": [-20, 0, 20], "p2_mm": [0, 20, 20]},   # a quarter turn apart: not antipodal
+    ]))
+    out = tmp_path / "checked.json"
+    code, stdout, _ = run(capsys, "poses", "--example", "--poses", str(poses), "-o", str(out))
+    assert code == 0
+    doc = json.loads(out.read_text())
+    assert [p["feasible"] for p in doc["poses"]] == [True, False]
+    assert "antipodal" in doc["poses"][1]["broken_rules"]
+    assert "pose 1: infeasible, breaks antipodal" in stdout
+
+
+@pytest.mark.parametrize("style", ["equals", "separate"])
+def test_features_accepts_negative_coordinates(capsys, style):
+    args = ["--p1=-20,0,20", "--p2=20,0,20"] if style == "equals" else ["--p1", "-20,0,20", "--p2", "20,0,20"]
+    code, stdout, err = run(capsys, "features", "--example", *args, "-q")
+    assert code == 0, err
+    doc = json.loads(stdout)
+    assert doc["schema"] == "pinchmatch.features/1"
+    pose = doc["pose"]
+    assert pose["feasible"] and pose["width_mm"] == pytest.approx(40.0, abs=1e-3)
+    assert pose["patches"][0]["kappa_max_per_m"] == pytest.approx(50.0, rel=0.02)
+
+
+def test_features_reports_an_infeasible_pinch(capsys):
+    code, stdout, _ = run(capsys, "features", "--example", "--p1", "-20,0,20", "--p2", "0,20,20")
+    assert code == 0 and "NOT feasible: breaks antipodal" in stdout
+
+
+# ---- bad input: exit 2, one line naming the file and the fix, no traceback, no output file
+def _box(tmp_path, name="box.stl", extents=(60.0, 40.0, 20.0)):
+    path = tmp_path / name
+    trimesh.creation.box(extents=extents).export(path)
+    return path
+
+
+def _bad_files(tmp_path):
+    garbage = tmp_path / "garbage.stl"
+    garbage.write_bytes(bytes(range(256)) * 4)
+    truncated = _box(tmp_path, "trunc.stl")
+    truncated.write_bytes(truncated.read_bytes()[:300])
+    (tmp_path / "empty.obj").write_text("")
+    (tmp_path / "badidx.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n")
+    (tmp_path / "nan.obj").write_text("v 0 0 0\nv nan 0 0\nv 0 9 0\nv 0 0 9\nf 1 2 3\nf 1 3 4\nf 1 2 4\nf 2 3 4\n")
+    (tmp_path / "points.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\n")
+    (tmp_path / "mesh.dat").write_text("1 2 3")
+    (tmp_path / "folder.stl").mkdir()
+    tiny = _box(tmp_path, "tiny.stl", (0.06, 0.04, 0.02))
+    return {
+        "missing.stl": "no such file",
+        "empty.obj": "file is empty",
+        "mesh.dat": "unknown mesh format",
+        "folder.stl": "is a folder",
+        "garbage.stl": "corrupt",
+        "trunc.stl": "truncated binary STL",
+        "badidx.obj": "refers to a vertex",
+        "nan.obj": "NaN or infinite",
+        "points.obj": "no faces",
+        tiny.name: "try --units m",
+    }
+
+
+def test_each_bad_file_fails_cleanly(tmp_path, capsys):
+    for name, expected in _bad_files(tmp_path).items():
+        out = tmp_path / f"{name}.out.json"
+        code, stdout, err = run(capsys, "poses", str(tmp_path / name), "-o", str(out))
+        assert code == 2, name
+        lines = err.strip().splitlines()
+        assert len(lines) == 1 and "Traceback" not in err, err
+        assert name in lines[0] and expected in lines[0], lines[0]
+        assert not out.exists()
+        assert not list(tmp_path.glob(f".{out.name}*"))  # no temporary left behind
+
+
+@pytest.mark.parametrize("argv, expected", [
+    (["--count", "0"], "--count: got 0"),
+    (["--friction-cone-deg", "95"], "--friction-cone-deg: got 95"),
+    (["--max-width-mm", "1"], "--max-width-mm"),
+    (["--fingertip-radius-mm", "-1"], "--fingertip-radius-mm"),
+    (["--units", "ft"], "invalid choice: 'ft'"),
+    (["--com", "1,2"], "--com: expected three finite numbers"),
+    (["--axis", "0,0,0"], "--axis: the axis must be a non-zero vector"),
+    (["--bogus"], "unrecognized arguments: --bogus"),
+])
+def test_bad_options_fail_cleanly(tmp_path, capsys, argv, expected):
+    out = tmp_path / "o.json"
+    code, _, err = run(capsys, "poses", "--example", *argv, "-o", str(out))
+    assert code == 2 and len(err.strip().splitlines()) == 1 and expected in err, err
+    assert not out.exists()
+
+
+def test_no_feasible_pinch_fails_cleanly(tmp_path, capsys):
+    path = _box(tmp_path, "slab.stl", (300.0, 300.0, 150.0))
+    code, _, err = run(capsys, "poses", str(path), "-o", str(tmp_path / "o.json"))
+    assert code == 2 and "slab.stl: no feasible pinch" in err and "width" in err
+    assert not (tmp_path / "o.json").exists()
+
+
+def test_contact_far_from_the_surface(tmp_path, capsys):
+    code, _, err = run(capsys, "features", "--example", "--p1", "-40,0,20", "--p2", "20,0,20")
+    assert code == 2 and "p1 (-40, 0, 20) mm is 20.00 mm from the surface" in err
+
+
+def test_bad_poses_file(tmp_path, capsys):
+    bad = tmp_path / "p.json"
+    bad.write_text("[{\"p1_mm\": [1, 2]")
+    code, _, err = run(capsys, "poses", "--example", "--poses", str(bad))
+    assert code == 2 and "p.json: not valid JSON" in err
+    bad.write_text(json.dumps([{"p1_mm": [1, 2], "p2_mm": [0, 0, 0]}]))
+    code, _, err = run(capsys, "poses", "--example", "--poses", str(bad))
+    assert code == 2 and "pose 0 needs" in err
+
+
+def test_mesh_and_example_together_or_neither(tmp_path, capsys):
+    code, _, err = run(capsys, "poses")
+    assert code == 2 and "no mesh given" in err
+    code, _, err = run(capsys, "poses", str(_box(tmp_path)), "--example")
+    assert code == 2 and "either a MESH or --example" in err

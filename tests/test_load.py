@@ -1,0 +1,155 @@
+import numpy as np
+import pytest
+import trimesh
+
+from pinchmatch import ConfigError, MeshError, load_mesh
+
+
+def box(extents=(60.0, 40.0, 20.0)):
+    return trimesh.creation.box(extents=extents)
+
+
+@pytest.mark.parametrize("ext", ["stl", "obj", "ply", "off", "glb"])
+def test_every_format_reads_to_the_same_solid(write_mesh, ext):
+    units = "mm" if ext == "glb" else None  # glTF defaults to metres
+    loaded = load_mesh(write_mesh(box(), f"b.{ext}"), units=units)
+    assert loaded.watertight
+    assert loaded.mesh.volume == pytest.approx(60 * 40 * 20, rel=1e-9)
+    np.testing.assert_allclose(np.ptp(loaded.mesh.vertices, axis=0), [60, 40, 20], atol=1e-6)
+
+
+def test_gltf_defaults_to_metres_and_y_up(write_mesh):
+    loaded = load_mesh(write_mesh(box((0.06, 0.04, 0.02)), "b.glb"))
+    assert loaded.units_in == "m" and loaded.up_label == "y"
+    np.testing.assert_allclose(np.ptp(loaded.mesh.vertices, axis=0), [60, 40, 20], atol=1e-6)
+    np.testing.assert_allclose(loaded.up, [0, 1, 0])
+
+
+def test_other_formats_default_to_mm_and_z_up(write_mesh):
+    loaded = load_mesh(write_mesh(box(), "b.stl"))
+    assert loaded.units_in == "mm" and loaded.up_label == "z"
+
+
+@pytest.mark.parametrize("units, scale", [("cm", 10.0), ("in", 25.4), ("m", 1000.0)])
+def test_units_scale_to_mm(write_mesh, units, scale):
+    loaded = load_mesh(write_mesh(box((6.0, 4.0, 2.0)), "b.obj"), units=units)
+    assert np.ptp(loaded.mesh.vertices, axis=0)[0] == pytest.approx(6.0 * scale)
+
+
+def test_scene_with_several_meshes_is_one_object(write_mesh):
+    a = box((20.0, 20.0, 20.0))
+    b = box((20.0, 20.0, 20.0))
+    b.apply_translation((50.0, 0, 0))
+    scene = trimesh.Scene([a, b])
+    loaded = load_mesh(write_mesh(scene, "two.glb"), units="mm")
+    assert len(loaded.mesh.faces) == 24
+    assert loaded.mesh.volume == pytest.approx(2 * 8000.0)
+
+
+def test_inside_out_mesh_is_turned_and_reported(write_mesh):
+    m = box()
+    m.invert()
+    loaded = load_mesh(write_mesh(m, "inv.obj"))
+    assert loaded.mesh.volume > 0
+    assert any("inside-out" in r for r in loaded.repairs)
+
+
+def test_duplicates_degenerates_and_slivers_are_repaired(write_mesh):
+    m = box()
+    faces = np.vstack([m.faces, m.faces[:2], [[0, 0, 1]]])  # two duplicates and a degenerate
+    sliver = trimesh.creation.box(extents=(0.5, 0.5, 0.5))
+    sliver.apply_translation((200, 0, 0))
+    combined = trimesh.util.concatenate([trimesh.Trimesh(m.vertices, faces, process=False), sliver])
+    loaded = load_mesh(write_mesh(combined, "messy.obj"))
+    text = " ".join(loaded.repairs)
+    assert "duplicate faces" in text and "degenerate" in text and "sliver" in text
+    assert len(loaded.mesh.faces) == 12 and loaded.watertight
+
+
+def test_open_mesh_warns(write_mesh):
+    m = box()
+    m.update_faces(np.arange(len(m.faces)) != 0)
+    loaded = load_mesh(write_mesh(m, "open.obj"))
+    assert not loaded.watertight and loaded.warnings
+
+
+# ---- bad input: each a MeshError naming the file, the problem and the fix
+def test_missing_file(tmp_path):
+    with pytest.raises(MeshError, match=r"nope\.stl: no such file"):
+        load_mesh(tmp_path / "nope.stl")
+
+
+def test_empty_file(tmp_path):
+    (tmp_path / "e.stl").write_bytes(b"")
+    with pytest.raises(MeshError, match=r"e\.stl: file is empty.*re-export"):
+        load_mesh(tmp_path / "e.stl")
+
+
+def test_unknown_extension(tmp_path):
+    (tmp_path / "m.xyz").write_text("1 2 3\n")
+    with pytest.raises(MeshError, match=r"m\.xyz: unknown mesh format '\.xyz'.*export it as one of"):
+        load_mesh(tmp_path / "m.xyz")
+
+
+def test_folder(tmp_path):
+    (tmp_path / "d.stl").mkdir()
+    with pytest.raises(MeshError, match=r"is a folder"):
+        load_mesh(tmp_path / "d.stl")
+
+
+def test_garbage(tmp_path):
+    (tmp_path / "g.stl").write_bytes(bytes(range(256)) * 3)
+    with pytest.raises(MeshError, match=r"g\.stl: .*(truncated|corrupt)"):
+        load_mesh(tmp_path / "g.stl")
+
+
+def test_truncated_binary_stl(write_mesh):
+    path = write_mesh(box(), "t.stl")
+    data = path.read_bytes()
+    path.write_bytes(data[: len(data) // 2])
+    with pytest.raises(MeshError, match=r"t\.stl: truncated binary STL: its header promises 12 triangles"):
+        load_mesh(path)
+
+
+def test_obj_with_bad_indices(tmp_path):
+    (tmp_path / "bad.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n")
+    with pytest.raises(MeshError, match=r"bad\.obj: a face refers to a vertex that does not exist"):
+        load_mesh(tmp_path / "bad.obj")
+
+
+@pytest.mark.parametrize("value", ["nan", "inf"])
+def test_nan_or_inf_vertices(tmp_path, value):
+    text = f"v 0 0 0\nv {value} 0 0\nv 0 10 0\nv 0 0 10\nf 1 2 3\nf 1 3 4\nf 1 2 4\nf 2 3 4\n"
+    (tmp_path / "n.obj").write_text(text)
+    with pytest.raises(MeshError, match=r"n\.obj: 1 of 4 vertices are NaN or infinite"):
+        load_mesh(tmp_path / "n.obj")
+
+
+def test_no_faces(tmp_path):
+    (tmp_path / "p.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\n")
+    with pytest.raises(MeshError, match=r"p\.obj: .*no (faces|triangles)"):
+        load_mesh(tmp_path / "p.obj")
+
+
+def test_mesh_in_metres_read_as_mm_suggests_units(write_mesh):
+    with pytest.raises(MeshError, match=r"m\.stl: mesh is 0\.06 mm across .*try --units m"):
+        load_mesh(write_mesh(box((0.06, 0.04, 0.02)), "m.stl"))
+
+
+def test_huge_mesh_suggests_units(write_mesh):
+    with pytest.raises(MeshError, match=r"big\.glb: mesh is 6e\+04 mm across when read in m .*try --units (mm|cm)"):
+        load_mesh(write_mesh(box((60.0, 40.0, 20.0)), "big.glb"))
+
+
+def test_flat_mesh_has_no_volume(tmp_path):
+    (tmp_path / "f.obj").write_text("v 0 0 0\nv 10 0 0\nv 0 10 0\nv 10 10 0\nf 1 2 3\nf 2 4 3\n")
+    with pytest.raises(MeshError, match=r"f\.obj: the mesh is flat"):
+        load_mesh(tmp_path / "f.obj")
+
+
+def test_bad_units_and_up(write_mesh):
+    path = write_mesh(box(), "b.stl")
+    with pytest.raises(ConfigError, match="--units: unknown unit 'ft'"):
+        load_mesh(path, units="ft")
+    with pytest.raises(ConfigError, match="--up: unknown up direction 'w'"):
+        load_mesh(path, up="w")

@@ -1,0 +1,128 @@
+import numpy as np
+import pytest
+import trimesh
+
+from pinchmatch import NoFeasiblePinchError, PinchSettings, check_pinches, sample_pinches
+from pinchmatch.pinches import CLEARANCE_TOLERANCE_MM, RULES
+from pinchmatch.surface import SurfaceContext
+from pinchmatch import shapes
+
+
+@pytest.fixture(scope="module")
+def box_ctx():
+    return SurfaceContext(trimesh.creation.box(extents=(60.0, 40.0, 20.0)).subdivide_to_size(4.0))
+
+
+@pytest.fixture(scope="module")
+def box_pinches(box_ctx):
+    return sample_pinches(box_ctx, settings=PinchSettings(count=300, seed=1))
+
+
+def assert_rules_hold(mesh, pinches, settings):
+    """Every rule, re-checked independently of the code under test."""
+    p1, p2 = pinches.points[:, 0], pinches.points[:, 1]
+    seg = p2 - p1
+    width = np.linalg.norm(seg, axis=1)
+    u = seg / width[:, None]
+    assert np.all((width >= settings.min_width_mm) & (width <= settings.max_width_mm))
+    cos_cone = np.cos(np.radians(settings.friction_cone_deg)) - 1e-9
+    assert np.all(np.einsum("ij,ij->i", u, -pinches.normals[:, 0]) >= cos_cone)
+    assert np.all(np.einsum("ij,ij->i", -u, -pinches.normals[:, 1]) >= cos_cone)
+    # inside: points along the segment are inside the solid
+    t = np.linspace(0.05, 0.95, 7)
+    along = (p1[:, None, :] + t[None, :, None] * seg[:, None, :]).reshape(-1, 3)
+    assert mesh.contains(along).all()
+    # clearance: exact distance from each fingertip centre to the mesh
+    r = settings.fingertip_radius_mm
+    centres = (pinches.points + r * pinches.normals).reshape(-1, 3)
+    _, dist, _ = trimesh.proximity.closest_point(mesh, centres)
+    assert np.all(dist >= r - CLEARANCE_TOLERANCE_MM - 0.5)  # 0.5 mm: sample spacing of the fast check
+    # contacts on the surface
+    _, on, _ = trimesh.proximity.closest_point(mesh, pinches.points.reshape(-1, 3))
+    assert on.max() < 1e-6
+
+
+def test_every_rule_holds_on_every_pose(box_ctx, box_pinches):
+    assert len(box_pinches) == 300 and box_pinches.feasible.all()
+    assert_rules_hold(box_ctx.mesh, box_pinches, PinchSettings())
+
+
+def test_box_widths_are_its_extents(box_pinches):
+    n1, n2 = box_pinches.normals[:, 0], box_pinches.normals[:, 1]
+    np.testing.assert_allclose(n1, -n2, atol=1e-6)  # opposite faces
+    seg = box_pinches.points[:, 1] - box_pinches.points[:, 0]
+    across = np.abs(np.einsum("ij,ij->i", seg, n1))  # width measured along the face normal
+    assert np.all(np.min(np.abs(across[:, None] - [60.0, 40.0, 20.0]), axis=1) < 1e-6)
+    # every pair of opposite faces is used
+    axis = np.argmax(np.abs(n1), axis=1)
+    assert set(axis) == {0, 1, 2}
+
+
+def test_same_seed_same_pinches_other_seed_other_pinches(box_ctx, box_pinches):
+    again = sample_pinches(box_ctx, settings=PinchSettings(count=300, seed=1))
+    np.testing.assert_array_equal(again.points, box_pinches.points)
+    other = sample_pinches(box_ctx, settings=PinchSettings(count=300, seed=2))
+    assert not np.array_equal(other.points, box_pinches.points)
+
+
+def test_pinches_spread_over_the_whole_sphere():
+    ctx = SurfaceContext(shapes.sphere(30.0, triangulation="regular", faces=20000).mesh)
+    pinches = sample_pinches(ctx, settings=PinchSettings(count=400, seed=0))
+    contacts = pinches.points.reshape(-1, 3) / 30.0
+    probes = trimesh.creation.icosphere(subdivisions=2).vertices  # 162 directions
+    nearest = np.degrees(np.arccos(np.clip(probes @ contacts.T, -1, 1))).min(axis=1)
+    assert nearest.max() < 12.0  # nothing graspable left out
+    # no clumps: no two pinches nearly the same (either finger order)
+    a = pinches.points.reshape(len(pinches), 6)
+    b = pinches.points[:, ::-1].reshape(len(pinches), 6)
+    d = np.minimum(np.linalg.norm(a[:, None] - a[None], axis=-1), np.linalg.norm(a[:, None] - b[None], axis=-1))
+    d[np.diag_indices(len(d))] = np.inf
+    assert d.min() > 2.0
+
+
+def _slotted_block():
+    manifold3d = pytest.importorskip("manifold3d")  # noqa: F841
+    block = trimesh.creation.box(extents=(60.0, 40.0, 40.0))
+    slot = trimesh.creation.box(extents=(10.0, 60.0, 30.0))  # 10 mm wide: narrower than a finger
+    slot.apply_translation((0, 0, 10.0))
+    return trimesh.boolean.difference([block, slot], engine="manifold")
+
+
+def test_no_pinch_inside_a_slot_narrower_than_a_finger():
+    mesh = _slotted_block()
+    ctx = SurfaceContext(mesh)
+    pinches = sample_pinches(ctx, settings=PinchSettings(count=300, seed=0))
+    inside_slot = (np.abs(pinches.points[..., 0]) <= 5.0 + 1e-6) & (pinches.points[..., 2] > -5.0 + 1e-6)
+    assert not inside_slot.any()
+    assert_rules_hold(mesh, pinches, PinchSettings())
+    # the slot walls themselves, pinched across the gap: broken rules are reported
+    given = check_pinches(ctx, [[-5.0, 0, 10]], [[5.0, 0, 10]])
+    assert not given.feasible[0]
+    assert "inside" in given.broken_rules(0) and "clearance" in given.broken_rules(0)
+
+
+def test_no_pinch_across_a_gap_between_parts():
+    a = trimesh.creation.box(extents=(20.0, 20.0, 20.0))
+    b = a.copy()
+    b.apply_translation((23.0, 0, 0))  # 3 mm gap
+    mesh = trimesh.util.concatenate([a, b])
+    pinches = sample_pinches(SurfaceContext(mesh), settings=PinchSettings(count=200, seed=0))
+    mid_x = pinches.points[:, :, 0].mean(axis=1)
+    assert not ((mid_x > 10.0) & (mid_x < 13.0)).any()
+    same_part = (pinches.points[:, 0, 0] > 11.5) == (pinches.points[:, 1, 0] > 11.5)
+    assert same_part.all()
+
+
+def test_no_feasible_pinch_says_which_rule():
+    ctx = SurfaceContext(shapes.sphere(80.0, faces=5000).mesh)
+    with pytest.raises(NoFeasiblePinchError, match=r"ball: no feasible pinch .*width \d+.*--max-width-mm"):
+        sample_pinches(ctx, settings=PinchSettings(count=50), source="ball")
+
+
+def test_user_pinches_are_snapped_and_checked(box_ctx):
+    given = check_pinches(box_ctx, [[-30.3, 0, 0], [-30.0, 0, 0]], [[30.2, 0, 0], [0, 20.0, 0]])
+    np.testing.assert_allclose(given.points[0], [[-30, 0, 0], [30, 0, 0]], atol=1e-9)
+    np.testing.assert_allclose(given.snap_distance_mm[0], [0.3, 0.2], atol=1e-9)
+    assert given.feasible[0]
+    assert given.broken_rules(1) == ["antipodal"]
+    assert given.broken.shape == (2, len(RULES))

@@ -1,0 +1,56 @@
+import numpy as np
+import pytest
+import trimesh
+
+from pinchmatch import ConfigError, object_properties
+from pinchmatch.shapes import cylinder, stacked_prop
+
+from conftest import random_rigid, transformed
+
+
+def test_solid_com_and_axis_of_a_moved_cylinder():
+    R, t = random_rigid(3)
+    mesh = transformed(cylinder(20.0, 80.0, triangulation="cad", faces=2000).mesh, R, t)
+    props = object_properties(mesh, up=np.array([0.0, 0.0, 1.0]), watertight=True)
+    np.testing.assert_allclose(props.com_mm, t, atol=1e-6)
+    assert abs(props.principal_axis @ R[:, 2]) == pytest.approx(1.0, abs=1e-9)
+    assert props.axis_source == "pca" and props.com_source == "solid"
+    # variances of a solid cylinder: h²/12 along the axis, R²/4 across
+    np.testing.assert_allclose(props.variances_mm2[0], 80.0**2 / 12, rtol=1e-9)
+
+
+def test_com_of_the_solid_not_of_the_surface():
+    # a cone-like stack: the solid's centre of mass differs from the surface centroid
+    mesh = stacked_prop(sections=64)
+    props = object_properties(mesh, up=np.array([0.0, 0.0, 1.0]), watertight=True)
+    assert props.com_mm == pytest.approx(np.asarray(mesh.center_mass))
+    np.testing.assert_allclose(props.principal_axis, [0, 0, 1], atol=1e-9)
+
+
+@pytest.mark.parametrize("extents", [(40.0, 40.0, 40.0), (60.0, 60.0, 10.0)])
+def test_ambiguous_axis_uses_up(extents):
+    # a cube (all variances equal) and a disc (two largest equal): the axis is ill-defined
+    mesh = trimesh.creation.box(extents=extents)
+    up = np.array([0.0, 1.0, 0.0])
+    props = object_properties(mesh, up=up, watertight=True)
+    assert props.axis_source == "up"
+    np.testing.assert_allclose(props.principal_axis, up)
+
+
+def test_open_mesh_uses_the_surface():
+    mesh = trimesh.creation.box(extents=(80.0, 20.0, 10.0))
+    mesh.update_faces(np.arange(12) != 0)
+    props = object_properties(mesh, up=np.array([0.0, 0.0, 1.0]), watertight=False)
+    assert props.com_source == "surface" and props.volume_mm3 is None
+    assert abs(props.principal_axis[0]) == pytest.approx(1.0, abs=1e-3)  # one face missing
+
+
+def test_user_overrides():
+    mesh = trimesh.creation.box(extents=(80.0, 20.0, 10.0))
+    props = object_properties(mesh, up=np.array([0.0, 0.0, 1.0]), watertight=True,
+                              com_mm=np.array([1.0, 2.0, 3.0]), axis=np.array([0.0, 2.0, 0.0]))
+    np.testing.assert_allclose(props.com_mm, [1, 2, 3])
+    np.testing.assert_allclose(props.principal_axis, [0, 1, 0])
+    assert props.axis_source == "user" and props.com_source == "user"
+    with pytest.raises(ConfigError, match="--axis"):
+        object_properties(mesh, up=np.array([0.0, 0.0, 1.0]), watertight=True, axis=np.zeros(3))
