@@ -315,10 +315,6 @@ def load_mesh(
         faces=np.asarray(mesh.faces, dtype=np.int64),
         process=False,
     )
-    repairs = _repair(mesh, indexed=file_type != "stl")
-    if len(mesh.faces) == 0:
-        raise MeshError(f"{path}: every face is degenerate (zero area); re-export the mesh")
-
     extent = float(np.ptp(mesh.vertices, axis=0).max())
     _check_units(path, extent, units_in)
 
@@ -329,6 +325,10 @@ def load_mesh(
             f"{path}: the mesh is flat (all vertices in one plane), so it has no volume "
             "to pinch; give it thickness (solidify) and re-export"
         )
+
+    repairs = _repair(mesh, indexed=file_type != "stl")
+    if len(mesh.faces) == 0:
+        raise MeshError(f"{path}: every face is degenerate (zero area); re-export the mesh")
 
     watertight = bool(mesh.is_watertight and mesh.is_winding_consistent and mesh.volume > 0)
     warnings: list[str] = []

@@ -124,7 +124,8 @@ def sample_surface(
     keep_prob = min(1.0, len(points) / max(len(mesh.vertices), 1))
     used = (vertex_area > 0) & (rng.random(len(vertex_area)) < keep_prob)
     vertex_area = vertex_area / keep_prob
-    vertex_face = np.asarray(mesh.vertex_faces)[:, 0]
+    vertex_face = np.zeros(len(mesh.vertices), dtype=np.int64)  # any one triangle of each vertex
+    vertex_face[mesh.faces.ravel()] = np.repeat(np.arange(len(mesh.faces)), 3)
     longest = np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=-1).max(axis=1) if len(tri) else np.zeros(0)
     chord[longest > max_chord_edge_mm] = 0.0
     return SurfaceSample(
