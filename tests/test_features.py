@@ -23,7 +23,8 @@ def test_cylinder_features_match_closed_form():
     z = 15.0
     pinches, f = features_of(mesh, [[-20.0, 0, z]], [[20.0, 0, z]])
     assert pinches.feasible[0]
-    assert f.width_mm[0] == pytest.approx(40.0, abs=1e-3)
+    # contacts lie on the facets, inside the true cylinder by at most the sagitta
+    assert 40.0 - 0.02 <= f.width_mm[0] <= 40.0 + 1e-9
     assert f.com_distance_mm[0] == pytest.approx(z, abs=1e-6)
     assert f.tilt_deg[0] == pytest.approx(0.0, abs=0.05)
     np.testing.assert_allclose(f.normal_angle_deg[0], 0.0, atol=0.1)

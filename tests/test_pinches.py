@@ -126,3 +126,22 @@ def test_user_pinches_are_snapped_and_checked(box_ctx):
     assert given.feasible[0]
     assert given.broken_rules(1) == ["antipodal"]
     assert given.broken.shape == (2, len(RULES))
+
+
+def test_without_embree_the_numpy_engine_gives_feasible_pinches(monkeypatch):
+    import builtins
+
+    real_import = builtins.__import__
+
+    def no_embree(name, *args, **kwargs):
+        if name.startswith("trimesh.ray.ray_pyembree") or name.startswith("embreex"):
+            raise ImportError(name)
+        return real_import(name, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, "__import__", no_embree)
+    mesh = trimesh.creation.box(extents=(30.0, 20.0, 10.0)).subdivide_to_size(5.0)
+    ctx = SurfaceContext(mesh)
+    assert ctx.ray_engine_name == "numpy"
+    pinches = sample_pinches(ctx, settings=PinchSettings(count=40, seed=0))
+    assert len(pinches) == 40
+    assert_rules_hold(mesh, pinches, PinchSettings())

@@ -3,6 +3,7 @@ import pytest
 import trimesh
 
 from pinchmatch import ConfigError, object_properties
+from pinchmatch import shapes
 from pinchmatch.shapes import cylinder, stacked_prop
 
 from conftest import random_rigid, transformed
@@ -54,3 +55,24 @@ def test_user_overrides():
     assert props.axis_source == "user" and props.com_source == "user"
     with pytest.raises(ConfigError, match="--axis"):
         object_properties(mesh, up=np.array([0.0, 0.0, 1.0]), watertight=True, axis=np.zeros(3))
+
+
+SOLIDS = [
+    lambda: shapes.sphere(20.0, triangulation="random", faces=20000),
+    lambda: cylinder(20.0, 80.0, triangulation="regular", faces=20000),
+    lambda: shapes.torus(30.0, 12.0, triangulation="regular", faces=20000),
+    lambda: shapes.ellipsoid((40.0, 25.0, 18.0), triangulation="regular", faces=20000),
+    lambda: shapes.box((60.0, 40.0, 20.0)),
+]
+
+
+@pytest.mark.parametrize("make", SOLIDS, ids=["sphere", "cylinder", "torus", "ellipsoid", "box"])
+def test_centre_of_mass_and_volume_of_moved_solids(make):
+    shape = make()
+    R, t = random_rigid(11)
+    mesh = transformed(shape.mesh, R, t)
+    props = object_properties(mesh, up=np.array([0.0, 0.0, 1.0]), watertight=True)
+    # a random triangulation is not exactly symmetric: its centre of mass moves by microns
+    np.testing.assert_allclose(props.com_mm, R @ shape.com_mm + t, atol=0.01)
+    # faceting makes the mesh a little smaller than the solid it stands for (one-sided)
+    assert 0.985 * shape.volume_mm3 <= props.volume_mm3 <= shape.volume_mm3 * (1 + 1e-9)

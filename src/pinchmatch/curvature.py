@@ -15,14 +15,20 @@ Method (one batch for all contacts, no per-point Python loop):
    come from the jet's derivatives at the contact; the principal curvatures
    are the eigenvalues of the shape operator (convex positive, with the
    normal pointing out of the solid).
-4. Refit once in the frame of the fitted normal, dropping samples whose
-   residual is an outlier (a neighbouring part, a scan artefact).
+4. Refit twice in the frame of the fitted normal, after (a) dropping samples
+   whose residual is an outlier (a neighbouring part, a scan artefact),
+   (b) moving every triangle sample from its flat triangle onto the current
+   curved estimate (the chord correction of :class:`surface.SurfaceSample`),
+   and (c) subtracting from every sample the part of the osculating model
+   h = -Q / (1 + sqrt(1 - S)) beyond its quadratic term, with Q and S from
+   the current principal curvatures. That model is exact for spheres and
+   circular cylinders, so the quartic terms left to the jet are small; a
+   ridge pulls them towards zero, which keeps the variance of a noisy scan
+   down without the bias a plain quadric fit has (3-9 % at 8 mm).
 
-A degree-2 fit over 8 mm is biased by the surface's quartic terms (3-9 %
-on 20 mm spheres); degree 4 absorbs them. The weights and the two passes
-are tested against closed-form curvature on spheres, cylinders, tori and
-ellipsoids in several triangulations (``tests/test_curvature.py``) and
-measured in ``benchmarks/bench_poses.py``.
+The passes, weights and thresholds are tested against closed-form curvature
+on spheres, cylinders, tori and ellipsoids in several triangulations
+(``tests/test_curvature.py``) and measured in ``benchmarks/bench_poses.py``.
 """
 
 from __future__ import annotations
@@ -55,6 +61,10 @@ MAX_CENTROID_OFFSET = 0.3
 CHORD_TRUST_MM = 0.05
 #: contacts fitted per batch (bounds memory: about CHUNK x MAX_PATCH_SAMPLES x 15 doubles)
 CHUNK = 256
+#: ridge pulling the quartic terms (left after the model correction) towards zero, relative to their diagonal
+QUARTIC_RIDGE = 0.3
+#: subtract the osculating model's beyond-quadratic part from the samples before each refit
+CORRECTED_QUADRIC = True
 #: the jet needs at least this many samples, else the contact is flagged invalid
 MIN_PATCH_SAMPLES = 24
 
@@ -103,6 +113,7 @@ def _monomials(degree: int) -> list[tuple[int, int]]:
 _EXPONENTS = _monomials(JET_DEGREE)
 _INDEX = {e: i for i, e in enumerate(_EXPONENTS)}
 _HIGH_ORDER = np.diag([1.0 if i + j > 2 else 0.0 for i, j in _EXPONENTS])
+_QUARTIC = np.diag([1.0 if i + j > 3 else 0.0 for i, j in _EXPONENTS])
 
 
 def _fit_jets(points, origin, normal, weight, radius, quadric_only):
@@ -142,7 +153,7 @@ def _fit_jets(points, origin, normal, weight, radius, quadric_only):
     diag = np.einsum("nii->ni", AtA)
     scale = (diag.mean(axis=1) + 1e-300)[:, None, None]
     pin = np.where(quadric_only, 1e8, 0.0)[:, None, None]
-    ridge = scale * (1e-10 * np.eye(m) + pin * _HIGH_ORDER)
+    ridge = scale * (1e-10 * np.eye(m) + pin * _HIGH_ORDER) + QUARTIC_RIDGE * diag[:, :, None] * _QUARTIC
     coef = np.linalg.solve(AtA + ridge, Atb)[..., 0]  # (n, m)
 
     residual = h - np.matmul(A, coef[..., None])[..., 0]
@@ -153,6 +164,19 @@ def _fit_jets(points, origin, normal, weight, radius, quadric_only):
     fu, fv = c(1, 0) / radius, c(0, 1) / radius
     fuu, fuv, fvv = 2.0 * c(2, 0) / radius**2, c(1, 1) / radius**2, 2.0 * c(0, 2) / radius**2
     return (t1, t2, f0, fu, fv, fuu, fuv, fvv), residual, rms
+
+
+def _beyond_quadric(rel, k_max, k_min, d_max, d_min):
+    """Height (mm, along the outward normal) of the osculating model beyond its quadratic part.
+
+    The model h = -Q / (1 + sqrt(1 - S)), Q = κ1 x² + κ2 y², S = κ1² x² + κ2² y² in the
+    principal frame, is exact for spheres and circular cylinders; its quadratic part is -Q/2.
+    """
+    x = np.einsum("nkd,nd->nk", rel, d_max)
+    y = np.einsum("nkd,nd->nk", rel, d_min)
+    Q = k_max[:, None] * x * x + k_min[:, None] * y * y
+    S = np.clip((k_max[:, None] * x) ** 2 + (k_min[:, None] * y) ** 2, 0.0, 0.96)
+    return 0.5 * Q - Q / (1.0 + np.sqrt(1.0 - S))
 
 
 def _chord_offset(chord6, k_max, k_min, d_max, d_min):
@@ -291,6 +315,8 @@ def _patch_chunk(sample, points_mm, normal, dist, idx, radius):
         # estimate; trust a sample less the more it had to be moved (large triangles)
         offset = _chord_offset(chord6, k_max, k_min, d_max, d_min)
         fitted = nbr + offset[..., None] * n_out[:, None, :]
+        if CORRECTED_QUADRIC:
+            fitted = fitted - _beyond_quadric(fitted - contact[:, None, :], k_max, k_min, d_max, d_min)[..., None] * n_out[:, None, :]
         sample_weight = base_weight / (1.0 + (offset / CHORD_TRUST_MM) ** 2)
         trusted = np.where(valid, sample_weight / base_weight, 0.0)
         support = trusted.sum(axis=1) ** 2 / np.maximum((trusted**2).sum(axis=1), 1e-300)

@@ -87,7 +87,7 @@ def sphere(radius_mm: float = 20.0, *, triangulation: str = "regular", faces: in
         level = int(np.clip(np.round(np.log(faces / 20) / np.log(4)), 1, 8))
         mesh = trimesh.creation.icosphere(subdivisions=level, radius=radius_mm)
     elif triangulation == "cad":
-        count = max(8, int(np.sqrt(faces / 2)))
+        count = max(8, int(np.sqrt(faces / 8)))
         mesh = trimesh.creation.uv_sphere(radius=radius_mm, count=[count, 2 * count])
     elif triangulation == "random":
         mesh = _hull_mesh(radius_mm * _uniform_sphere_points(faces // 2 + 2, rng))
@@ -111,12 +111,10 @@ def cylinder(radius_mm: float = 20.0, height_mm: float = 80.0, *, triangulation:
     if triangulation == "cad":
         mesh = trimesh.creation.cylinder(radius=radius_mm, height=height_mm, sections=max(16, faces // 4))
     elif triangulation == "regular":
-        # quad grid on the side (split into triangles), fans on the caps
-        sections = int(np.sqrt(faces * np.pi * radius_mm / (2 * height_mm))) + 8
-        rings = max(2, int(faces / (2 * sections)) // 2)
-        mesh = trimesh.creation.cylinder(radius=radius_mm, height=height_mm, sections=sections)
-        mesh = mesh.subdivide_to_size(max_edge=max(2 * np.pi * radius_mm / sections, height_mm / rings) * 1.01)
-        mesh.vertices = _project_cylinder(mesh.vertices, radius_mm, h2)
+        # square-ish quad grid on the side (split into triangles), fans on the caps
+        sections = max(16, int(np.sqrt(faces * np.pi * radius_mm / height_mm)))
+        rings = max(2, int(round(sections * height_mm / (2 * np.pi * radius_mm))))
+        mesh = _cylinder_grid(radius_mm, height_mm, sections, rings)
     elif triangulation == "random":
         side_area = 2 * np.pi * radius_mm * height_mm
         cap_area = np.pi * radius_mm**2
@@ -149,12 +147,27 @@ def cylinder(radius_mm: float = 20.0, height_mm: float = 80.0, *, triangulation:
                  np.pi * radius_mm**2 * height_mm)
 
 
-def _project_cylinder(v, radius, h2):
-    v = v.copy()
-    rho = np.linalg.norm(v[:, :2], axis=1)
-    side = np.abs(np.abs(v[:, 2]) - h2) > 1e-9
-    v[side, :2] *= (radius / rho[side])[:, None]
-    return v
+def _cylinder_grid(radius, height, sections, rings):
+    t = 2 * np.pi * np.arange(sections) / sections
+    z = np.linspace(-height / 2, height / 2, rings + 1)
+    side = np.column_stack([np.tile(radius * np.cos(t), rings + 1), np.tile(radius * np.sin(t), rings + 1),
+                            np.repeat(z, sections)])
+    verts = np.vstack([side, [[0, 0, -height / 2], [0, 0, height / 2]]])
+    i, j = np.meshgrid(np.arange(sections), np.arange(rings), indexing="ij")
+    a = (j * sections + i).ravel()
+    b = (j * sections + (i + 1) % sections).ravel()
+    c = ((j + 1) * sections + (i + 1) % sections).ravel()
+    d = ((j + 1) * sections + i).ravel()
+    ring = np.arange(sections)
+    bottom, top = len(side), len(side) + 1
+    tris = np.vstack([
+        np.column_stack([a, b, c]), np.column_stack([a, c, d]),
+        np.column_stack([np.full(sections, bottom), (ring + 1) % sections, ring]),
+        np.column_stack([np.full(sections, top), rings * sections + ring, rings * sections + (ring + 1) % sections]),
+    ])
+    mesh = trimesh.Trimesh(verts, tris, process=True)
+    trimesh.repair.fix_normals(mesh)
+    return mesh
 
 
 # ---------------------------------------------------------------------- torus
@@ -217,7 +230,7 @@ def ellipsoid(axes_mm=(40.0, 25.0, 18.0), *, triangulation: str = "regular", fac
         faces_ = trimesh.creation.icosphere(subdivisions=level).faces
         mesh = trimesh.Trimesh(unit * axes, faces_, process=True)
     elif triangulation == "cad":
-        count = max(8, int(np.sqrt(faces / 2)))
+        count = max(8, int(np.sqrt(faces / 8)))
         base = trimesh.creation.uv_sphere(radius=1.0, count=[count, 2 * count])
         mesh = trimesh.Trimesh(base.vertices * axes, base.faces, process=True)
     elif triangulation == "random":
