@@ -160,3 +160,14 @@ def test_mesh_and_example_together_or_neither(tmp_path, capsys):
     assert code == 2 and "no mesh given" in err
     code, _, err = run(capsys, "poses", str(_box(tmp_path)), "--example")
     assert code == 2 and "either a MESH or --example" in err
+
+
+def test_output_has_ordinary_permissions(tmp_path, capsys):
+    import os
+    import stat
+
+    out = tmp_path / "p.json"
+    assert run(capsys, "poses", "--example", "--count", "5", "-o", str(out))[0] == 0
+    umask = os.umask(0)
+    os.umask(umask)
+    assert stat.S_IMODE(out.stat().st_mode) == 0o666 & ~umask
