@@ -175,13 +175,18 @@ def table(header, rows) -> str:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="smaller meshes and fewer points")
+    parser.add_argument("--only", choices=("speed", "accuracy"), help="run one part only")
     args = parser.parse_args()
     print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, python {platform.python_version()}")
 
     faces = 20_000 if args.quick else 100_000
     count = 500 if args.quick else 2000
-    print(f"\n## Speed: {count} feasible poses with all features, after loading (target <= 1.5 s at 100k faces)\n")
-    print(table(["mesh", "faces", "rays", "context_s", "poses", "poses+features_s", "poses_per_s"], speed(faces, count)))
+    if args.only != "accuracy":
+        print(f"\n## Speed: {count} feasible poses with all features, after loading (target <= 1.5 s at 100k faces)\n")
+        print(table(["mesh", "faces", "rays", "context_s", "poses", "poses+features_s", "poses_per_s"],
+                    speed(faces, count)))
+    if args.only == "speed":
+        return
 
     sizes = (2_000, 20_000) if args.quick else (2_000, 100_000)
     n_points = 100 if args.quick else 300

@@ -52,7 +52,7 @@ OVERSAMPLE = 6
 #: pre-filter margin on the friction cone with triangle normals, before patch normals exist
 PREFILTER_MARGIN_DEG = 2.0
 #: how many more pinches than requested get patches before the final check
-SELECT_MARGIN = 1.2
+SELECT_MARGIN = 1.05
 #: rounds of spreading and checking before giving up on reaching the count
 MAX_ROUNDS = 4
 
