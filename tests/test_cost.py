@@ -1,0 +1,67 @@
+import numpy as np
+import pytest
+
+from pinchmatch import ConfigError
+from pinchmatch.cost import (CRITERIA, CostModel, contributions, feature_ranges, pair_costs,
+                             parse_weights)
+
+
+def random_table(n, seed):
+    rng = np.random.default_rng(seed)
+    t = np.empty((n, 2, 7))
+    t[:, :, 0] = rng.uniform(5, 80, n)[:, None]          # width
+    t[:, :, 1] = rng.uniform(0, 60, n)[:, None]          # com distance
+    t[:, :, 2] = rng.uniform(0, 90, n)[:, None]          # tilt
+    t[:, :, 3] = rng.uniform(0, 30, (n, 2))              # normal angle
+    t[:, :, 4] = rng.uniform(0, 90, (n, 2))              # curvature axis angle
+    t[:, :, 4][rng.random((n, 2)) < 0.3] = np.nan       # undefined rho
+    t[:, :, 5] = rng.uniform(0, 100, (n, 2))             # kappa max
+    t[:, :, 6] = t[:, :, 5] - rng.uniform(0, 100, (n, 2))
+    return t
+
+
+def brute_force(tang, virt, model):
+    cost = np.empty((len(tang), len(virt)))
+    for i, t in enumerate(tang):
+        for j, v in enumerate(virt):
+            w = model.weights
+            c = [sum(w[k] * x for k, x in contributions(t, v, model, swapped=s).items()) for s in (False, True)]
+            cost[i, j] = min(c)
+    return cost
+
+
+@pytest.mark.parametrize("mode", ["jnd", "range"])
+def test_blockwise_costs_equal_brute_force(mode):
+    tang, virt = random_table(23, 1), random_table(17, 2)
+    model = CostModel(weights=dict(zip(CRITERIA, [1, 0.5, 2, 1, 1, 3, 1])), normalize=mode,
+                      ranges=feature_ranges(tang, virt))
+    cost, _ = pair_costs(tang, virt, model, block_rows=5)
+    np.testing.assert_allclose(cost, brute_force(tang, virt, model), rtol=1e-9, atol=1e-9)
+
+
+def test_a_pose_against_itself_costs_nothing_in_either_finger_order():
+    t = random_table(40, 3)
+    cost, _ = pair_costs(t, t, CostModel())
+    np.testing.assert_allclose(np.diag(cost), 0.0, atol=1e-9)
+    cost_swapped, swapped = pair_costs(t, t[:, ::-1], CostModel())
+    np.testing.assert_allclose(np.diag(cost_swapped), 0.0, atol=1e-9)
+    np.testing.assert_allclose(cost_swapped, cost, atol=1e-9)  # swapping p1 and p2 changes no cost
+
+
+def test_one_jnd_of_width_contributes_one():
+    t = random_table(1, 4)[0]
+    v = t.copy()
+    v[:, 0] = t[:, 0] * (1 + 0.0575)
+    c = contributions(t, v, CostModel(), swapped=False)
+    assert c["width"] == pytest.approx(1.0)
+    assert all(c[k] == 0 for k in CRITERIA if k != "width")
+
+
+def test_weights_are_parsed_and_checked():
+    assert parse_weights("width=2, kmax=0")["width"] == 2.0
+    with pytest.raises(ConfigError, match="unknown criterion 'widht'; did you mean 'width'"):
+        parse_weights("widht=1")
+    with pytest.raises(ConfigError, match="needs a weight of 0 or more"):
+        parse_weights("width=-1")
+    with pytest.raises(ConfigError, match="unknown mode 'zscore'"):
+        CostModel(normalize="zscore")
