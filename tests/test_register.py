@@ -1,0 +1,43 @@
+import numpy as np
+import pytest
+
+from pinchmatch.register import register_pose
+
+from conftest import random_rigid
+
+
+def pose(seed):
+    rng = np.random.default_rng(seed)
+    points = rng.uniform(-30, 30, (2, 3))
+    normals = rng.normal(size=(2, 3))
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    com = rng.uniform(-10, 10, 3)
+    axis = rng.normal(size=3)
+    return points, normals, com, axis / np.linalg.norm(axis)
+
+
+@pytest.mark.parametrize("seed", range(5))
+@pytest.mark.parametrize("swapped", [False, True])
+def test_a_moved_copy_registers_back_onto_the_original(seed, swapped):
+    points, normals, com, axis = pose(seed)
+    R, t = random_rigid(seed + 100)
+    v_points, v_normals = points @ R.T + t, normals @ R.T
+    if swapped:
+        v_points, v_normals = v_points[::-1], v_normals[::-1]
+    T = register_pose(points, normals, v_points, v_normals, swapped=swapped,
+                      tangible_com=com, virtual_com=R @ com + t, tangible_axis=axis, virtual_axis=R @ axis)
+    assert np.linalg.det(T[:3, :3]) == pytest.approx(1.0)
+    np.testing.assert_allclose(T[:3, :3], R.T, atol=1e-9)
+    np.testing.assert_allclose(T[:3, 3], -R.T @ t, atol=1e-7)
+
+
+def test_midpoints_meet_and_lines_are_parallel_for_different_poses():
+    tp, tn, tc, ta = pose(1)
+    vp, vn, vc, va = pose(2)
+    T = register_pose(tp, tn, vp, vn, swapped=False, tangible_com=tc, virtual_com=vc,
+                      tangible_axis=ta, virtual_axis=va)
+    moved = vp @ T[:3, :3].T + T[:3, 3]
+    np.testing.assert_allclose(moved.mean(axis=0), tp.mean(axis=0), atol=1e-9)
+    u_t = (tp[1] - tp[0]) / np.linalg.norm(tp[1] - tp[0])
+    u_v = (moved[1] - moved[0]) / np.linalg.norm(moved[1] - moved[0])
+    np.testing.assert_allclose(u_v, u_t, atol=1e-9)
