@@ -63,8 +63,6 @@ CHORD_TRUST_MM = 0.05
 CHUNK = 256
 #: ridge pulling the quartic terms (left after the model correction) towards zero, relative to their diagonal
 QUARTIC_RIDGE = 0.3
-#: subtract the osculating model's beyond-quadratic part from the samples before each refit
-MODEL_CORRECTION = True
 #: the jet needs at least this many samples, else the contact is flagged invalid
 MIN_PATCH_SAMPLES = 24
 
@@ -315,8 +313,8 @@ def _patch_chunk(sample, points_mm, normal, dist, idx, radius):
         # estimate; trust a sample less the more it had to be moved (large triangles)
         offset = _chord_offset(chord6, k_max, k_min, d_max, d_min)
         fitted = nbr + offset[..., None] * n_out[:, None, :]
-        if MODEL_CORRECTION:
-            fitted = fitted - _beyond_quadric(fitted - contact[:, None, :], k_max, k_min, d_max, d_min)[..., None] * n_out[:, None, :]
+        beyond = _beyond_quadric(fitted - contact[:, None, :], k_max, k_min, d_max, d_min)
+        fitted = fitted - beyond[..., None] * n_out[:, None, :]
         sample_weight = base_weight / (1.0 + (offset / CHORD_TRUST_MM) ** 2)
         trusted = np.where(valid, sample_weight / base_weight, 0.0)
         support = trusted.sum(axis=1) ** 2 / np.maximum((trusted**2).sum(axis=1), 1e-300)

@@ -37,7 +37,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .curvature import PatchGeometry, patch_geometry
+from .curvature import PatchGeometry, patch_geometry, tangent_frame
 from .errors import ConfigError, NoFeasiblePinchError
 from .surface import SurfaceContext
 
@@ -246,8 +246,6 @@ def check_pinches(
 
 def _cone_directions(normals: np.ndarray, half_angle_deg: float, rng) -> np.ndarray:
     """Unit directions uniform in solid angle within the cone around -normal."""
-    from .curvature import tangent_frame
-
     n = len(normals)
     cos_t = 1.0 - rng.random(n) * (1.0 - np.cos(np.radians(half_angle_deg)))
     sin_t = np.sqrt(1.0 - cos_t**2)

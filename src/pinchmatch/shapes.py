@@ -238,7 +238,6 @@ def ellipsoid(axes_mm=(40.0, 25.0, 18.0), *, triangulation: str = "regular", fac
         d = _uniform_sphere_points(8 * faces, rng)
         p = d * axes
         grad = p / axes**2
-        factor = np.linalg.norm(grad, axis=1) * np.prod(axes) / np.linalg.norm(d / axes, axis=1) ** 0
         factor = np.linalg.norm(grad, axis=1) * np.prod(axes)
         keep = rng.random(len(d)) < factor / factor.max()
         mesh = _hull_mesh(p[keep][: faces // 2 + 2])
