@@ -8,12 +8,13 @@
 
 from __future__ import annotations
 
+import json
 import os
 from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import ContactError
+from .errors import ConfigError, ContactError
 from .features import PinchFeatures, pinch_features
 from .load import LoadedMesh, load_mesh
 from .pinches import PinchSettings, Pinches, check_pinches, sample_pinches
@@ -105,10 +106,6 @@ def load_poses_file(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
     ConfigError
         Missing file, invalid JSON, or an entry without two finite 3-vectors.
     """
-    import json
-
-    from .errors import ConfigError
-
     path = os.fspath(path)
     try:
         with open(path, encoding="utf-8") as fh:
