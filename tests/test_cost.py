@@ -8,7 +8,7 @@ from pinchmatch.cost import (CRITERIA, CostModel, contributions, feature_ranges,
 
 def random_table(n, seed):
     rng = np.random.default_rng(seed)
-    t = np.empty((n, 2, 7))
+    t = np.empty((n, 2, 9))
     t[:, :, 0] = rng.uniform(5, 80, n)[:, None]          # width
     t[:, :, 1] = rng.uniform(0, 60, n)[:, None]          # com distance
     t[:, :, 2] = rng.uniform(0, 90, n)[:, None]          # tilt
@@ -17,6 +17,9 @@ def random_table(n, seed):
     t[:, :, 4][rng.random((n, 2)) < 0.3] = np.nan       # undefined rho
     t[:, :, 5] = rng.uniform(0, 100, (n, 2))             # kappa max
     t[:, :, 6] = t[:, :, 5] - rng.uniform(0, 100, (n, 2))
+    along = rng.uniform(-40, 40, n)
+    t[:, 0, 7], t[:, 1, 7] = along, -along                # mass offset along the line, seen from each finger
+    t[:, :, 8] = rng.uniform(0, 60, n)[:, None]          # mass lever arm
     return t
 
 
@@ -33,7 +36,7 @@ def brute_force(tang, virt, model):
 @pytest.mark.parametrize("mode", ["jnd", "range"])
 def test_blockwise_costs_equal_brute_force(mode):
     tang, virt = random_table(23, 1), random_table(17, 2)
-    model = CostModel(weights=dict(zip(CRITERIA, [1, 0.5, 2, 1, 1, 3, 1])), normalize=mode,
+    model = CostModel(weights=dict(zip(CRITERIA, [1, 0.5, 2, 1, 1, 3, 1, 2])), normalize=mode,
                       ranges=feature_ranges(tang, virt))
     cost, _ = pair_costs(tang, virt, model, block_rows=5)
     np.testing.assert_allclose(cost, brute_force(tang, virt, model), rtol=1e-9, atol=1e-9)

@@ -6,6 +6,13 @@ divided by a scale; a criterion's *contribution* is the mean over its
 entries of (difference / scale)², and the cost is the weighted sum of the
 contributions.
 
+Beyond the paper, the ``mass`` criterion compares where the mass is felt
+and seen: |R·o_V - o_T|² / s², with o = centre of mass - pinch midpoint and
+R the registration's rotation. It depends on the registration, so the
+search works with its lower bound ((Δ along the line)² + (Δ lever arm)²) / s²,
+which is separable like the paper's terms, and evaluates the exact term on
+the few pairs that the bound cannot rule out (see :mod:`pinchmatch.match`).
+
 Scales (``normalize``):
 
 - ``"jnd"``: just-noticeable differences from ``shared/paper/perception.md``,
@@ -15,9 +22,9 @@ Scales (``normalize``):
   candidate poses of the run.
 
 Since every scale depends on the tangible side only, each term
-(v/s - t/s)² splits into products of a tangible factor and a virtual
-factor, so a whole block of pose pairs is three matrix products (BLAS):
-exact, and fast enough for 10,000 x 10,000 pairs.
+a·(v - t)² splits into products of a tangible factor and a virtual
+factor, so a whole block of pose pairs is one matrix product (BLAS) per
+finger order: exact, and fast enough for 10,000 x 10,000 pairs.
 """
 
 from __future__ import annotations
@@ -30,7 +37,9 @@ import numpy as np
 from .errors import ConfigError
 from .features import PinchFeatures
 
-CRITERIA = ("width", "com", "tilt", "normal", "axis", "kmax", "kmin")
+CRITERIA = ("width", "com", "tilt", "normal", "axis", "kmax", "kmin", "mass")
+#: the method paper's seven criteria (``--criteria paper``)
+PAPER_CRITERIA = CRITERIA[:7]
 
 #: width: 5.75 % of the reference width (de Tinguy et al., WHC 2019), floor: 0.4 mm (Ho & Srinivasan)
 WIDTH_JND_FRACTION, WIDTH_JND_FLOOR_MM = 0.0575, 0.4
@@ -40,32 +49,45 @@ ANGLE_JND_FRACTION, ANGLE_JND_FLOOR_DEG = 0.438, 20.0
 CURVATURE_JND_FRACTION, CURVATURE_JND_FLOOR_PER_M = 0.6666, 2.0
 #: distance from the centre of mass: no published threshold; proprioceptive accuracy, about 20 mm
 COM_JND_MM = 20.0
+#: mass offset: the torque of a weight held in a pinch scales with the lever arm; static weight in a
+#: pinch is discriminated at a Weber fraction of 22-44 % (van Beek et al. 2021): 22 % of the tangible's
+#: offset, floor 20 mm (proprioceptive accuracy, as for d)
+MASS_JND_FRACTION, MASS_JND_FLOOR_MM = 0.22, 20.0
 
-#: column layout of a feature table: per patch k in (0, 1), these 7 columns
-_COLUMNS = ("width", "com", "tilt", "normal", "axis", "kmax", "kmin")
+#: columns of a feature table, per patch; the last two belong to ``mass``
+COLUMNS = ("width", "com", "tilt", "normal", "axis", "kmax", "kmin", "mass_along", "mass_perp")
+#: criterion index of each column
+COLUMN_CRITERION = np.array([0, 1, 2, 3, 4, 5, 6, 7, 7])
+N_COLUMNS = len(COLUMNS)
 
 
 def feature_table(features: PinchFeatures) -> np.ndarray:
-    """(n, 2, 7) float64: per pose and patch, the 7 features in CRITERIA order (NaN = undefined ρ)."""
+    """(n, 2, 9) float64: per pose and patch, the columns of COLUMNS (NaN = undefined ρ)."""
     n = len(features.width_mm)
     pose = np.stack([features.width_mm, features.com_distance_mm, features.tilt_deg], axis=-1)  # (n, 3)
     patch = np.stack([features.normal_angle_deg, features.curvature_axis_angle_deg,
-                      features.kappa_max_per_m, features.kappa_min_per_m], axis=-1)  # (n, 2, 4)
+                      features.kappa_max_per_m, features.kappa_min_per_m, features.mass_along_mm,
+                      np.broadcast_to(features.mass_perp_mm[:, None], (n, 2))], axis=-1)  # (n, 2, 6)
     return np.concatenate([np.broadcast_to(pose[:, None, :], (n, 2, 3)), patch], axis=-1)
 
 
-def parse_weights(text: str | None) -> dict[str, float]:
-    """Parse ``"width=1,com=0.5"`` into weights for every criterion (default 1)."""
-    weights = dict.fromkeys(CRITERIA, 1.0)
+def parse_weights(text: str | None, *, criteria: tuple = CRITERIA) -> dict[str, float]:
+    """Parse ``"width=1,com=0.5"`` into weights for every criterion (default 1).
+
+    Criteria outside ``criteria`` (for instance ``mass`` with ``--criteria paper``)
+    get weight 0 and may not be given.
+    """
+    weights = {c: (1.0 if c in criteria else 0.0) for c in CRITERIA}
     if not text:
         return weights
     for item in str(text).split(","):
         name, sep, value = item.partition("=")
         name = name.strip()
-        if name not in weights:
-            close = difflib.get_close_matches(name, CRITERIA, n=1)
+        if name not in criteria:
+            close = difflib.get_close_matches(name, criteria, n=1)
             hint = f"did you mean {close[0]!r}? " if close else ""
-            raise ConfigError(f"--weights: unknown criterion {name!r}; {hint}valid: {', '.join(CRITERIA)}")
+            extra = " (not part of --criteria paper)" if name in CRITERIA else ""
+            raise ConfigError(f"--weights: unknown criterion {name!r}{extra}; {hint}valid: {', '.join(criteria)}")
         try:
             w = float(value)
         except ValueError:
@@ -76,27 +98,48 @@ def parse_weights(text: str | None) -> dict[str, float]:
     return weights
 
 
+def parse_criteria(text: str | None) -> tuple:
+    """``"default"`` (the paper's seven plus mass) or ``"paper"`` (the seven)."""
+    if text in (None, "default"):
+        return CRITERIA
+    if text == "paper":
+        return PAPER_CRITERIA
+    raise ConfigError(f"--criteria: unknown set {text!r}; use default (the paper's seven plus mass) or paper")
+
+
 @dataclass(frozen=True)
 class CostModel:
     """How pose differences are scaled and weighted.
 
-    weights : dict criterion -> float >= 0
+    weights : dict criterion -> float >= 0 (0 for criteria left out)
     normalize : ``"jnd"`` or ``"range"``
-    ranges : (7,) float64, per criterion, for ``"range"`` (see :func:`feature_ranges`)
+    ranges : (9,) float64, per column, for ``"range"`` (see :func:`feature_ranges`)
+    criteria : the criteria in use (reported); the others have weight 0
     """
 
     weights: dict = field(default_factory=lambda: dict.fromkeys(CRITERIA, 1.0))
     normalize: str = "jnd"
     ranges: np.ndarray | None = None
+    criteria: tuple = CRITERIA
 
     def __post_init__(self):
         if self.normalize not in ("jnd", "range"):
             raise ConfigError(f"--normalize: unknown mode {self.normalize!r}; use jnd or range")
         if self.normalize == "range" and self.ranges is None:
             raise ConfigError("range normalisation needs the feature ranges of the run")
+        full = {c: float(self.weights.get(c, 0.0)) for c in CRITERIA}
+        object.__setattr__(self, "weights", full)
+
+    @property
+    def uses_mass(self) -> bool:
+        return self.weights["mass"] > 0
+
+    def as_jnd(self) -> "CostModel":
+        """The same criteria and weights, in just-noticeable differences (for ``noticeable``)."""
+        return CostModel(self.weights, "jnd", None, self.criteria)
 
     def scales(self, table: np.ndarray) -> np.ndarray:
-        """Scale of each entry of a tangible feature table, same shape (never 0)."""
+        """Scale of each entry of a tangible feature table (..., 9), same shape (never 0)."""
         if self.normalize == "range":
             return np.broadcast_to(np.maximum(self.ranges, 1e-12), table.shape).copy()
         t = np.nan_to_num(np.abs(table))
@@ -105,73 +148,119 @@ class CostModel:
         s[..., 1] = COM_JND_MM
         s[..., 2:5] = np.maximum(ANGLE_JND_FRACTION * t[..., 2:5], ANGLE_JND_FLOOR_DEG)
         s[..., 5:7] = np.maximum(CURVATURE_JND_FRACTION * t[..., 5:7], CURVATURE_JND_FLOOR_PER_M)
+        s[..., 7:9] = np.maximum(MASS_JND_FRACTION * np.hypot(t[..., 7], t[..., 8]), MASS_JND_FLOOR_MM)[..., None]
         return s
 
     def column_weights(self) -> np.ndarray:
-        """(2, 7): each entry's weight, so that a criterion's contribution is the mean of its entries."""
-        w = np.array([self.weights[c] for c in _COLUMNS])
-        return np.broadcast_to(w / 2.0, (2, 7))
+        """(2, 9): each entry's weight: a criterion's contribution is the mean of its entries over
+        the two patches, and ``mass`` sums its two columns (along the line and lever arm)."""
+        w = np.array([self.weights[c] for c in CRITERIA])[COLUMN_CRITERION]
+        return np.broadcast_to(w / 2.0, (2, N_COLUMNS))
 
 
 def feature_ranges(*tables: np.ndarray) -> np.ndarray:
-    """(7,) range of each criterion over every pose and patch of the given tables (NaN ignored)."""
-    stacked = np.concatenate([t.reshape(-1, 7) for t in tables])
-    return np.nanmax(stacked, axis=0) - np.nanmin(stacked, axis=0)
+    """(9,) range of each column over every pose and patch of the given tables (NaN ignored).
+
+    The two mass columns share one range: that of the offset length |c - m|.
+    """
+    stacked = np.concatenate([t.reshape(-1, N_COLUMNS) for t in tables])
+    ranges = np.nanmax(stacked, axis=0) - np.nanmin(stacked, axis=0)
+    offset = np.hypot(stacked[:, 7], stacked[:, 8])
+    ranges[7:9] = offset.max() - offset.min()
+    return ranges
+
+
+def _factors(virtual: np.ndarray) -> list[np.ndarray]:
+    """Virtual factors for both finger orders: (nv, 3 x 18) = [v² m, v m, m], m = defined."""
+    nv = len(virtual)
+    out = []
+    for v in (virtual.reshape(nv, -1), virtual[:, ::-1].reshape(nv, -1)):
+        ok = (~np.isnan(v)).astype(np.float64)
+        vv = np.nan_to_num(v)
+        out.append(np.ascontiguousarray(np.concatenate([vv * vv * ok, vv * ok, ok], axis=1).T))
+    return out
+
+
+def pair_cost_blocks(tangible: np.ndarray, virtual: np.ndarray, model: CostModel, *, block_rows: int = 2048):
+    """Yield ``(start, cost, swapped)`` for blocks of tangible rows: the separable cost of every pair.
+
+    With ``mass`` in use, this is the lower bound of the exact cost (see the module notes);
+    without it, it is the exact cost. ``swapped`` is True where the virtual pose's p1 goes on
+    the tangible's p2.
+    """
+    w = model.column_weights().reshape(-1)
+    v_orders = _factors(virtual)
+    for start in range(0, len(tangible), block_rows):
+        t = tangible[start:start + block_rows]
+        s = model.scales(t).reshape(len(t), -1)
+        t = t.reshape(len(t), -1)
+        a = np.where(np.isnan(t), 0.0, w / s**2)  # weight / s², 0 where ρ is undefined
+        tv = np.nan_to_num(t)
+        # Σ a (v - t)² m_v = [a, -2 a t, a t²] · [v² m_v, v m_v, m_v]
+        left = np.concatenate([a, -2.0 * a * tv, a * tv * tv], axis=1)
+        c0 = left @ v_orders[0]
+        c1 = left @ v_orders[1]
+        swapped = c1 < c0
+        np.minimum(c0, c1, out=c0)
+        np.maximum(c0, 0.0, out=c0)  # round-off
+        yield start, c0, swapped
 
 
 def pair_costs(tangible: np.ndarray, virtual: np.ndarray, model: CostModel, *, block_rows: int = 2048):
-    """Exact cost of every (tangible pose, virtual pose) pair, with the better finger order.
+    """Separable cost of every (tangible pose, virtual pose) pair, with the better finger order.
 
     Parameters
     ----------
-    tangible : (nt, 2, 7) feature table;  virtual : (nv, 2, 7) feature table.
+    tangible : (nt, 2, 9) feature table;  virtual : (nv, 2, 9) feature table.
 
     Returns
     -------
-    cost : (nt, nv) float64
+    cost : (nt, nv) float64   exact without ``mass``; its lower bound with it
     swapped : (nt, nv) bool   True where the virtual pose's p1 goes on the tangible's p2.
 
-    An undefined ρ on either side contributes nothing. Memory is bounded by
-    working in blocks of ``block_rows`` tangible poses.
+    An undefined ρ on either side contributes nothing.
     """
-    nt, nv = len(tangible), len(virtual)
-    w = model.column_weights().reshape(14)
-    cost = np.empty((nt, nv))
-    swapped = np.empty((nt, nv), dtype=bool)
-    # virtual factors for both finger orders: values, squares, and the defined-mask
-    v_orders = [virtual.reshape(nv, 14), virtual[:, ::-1].reshape(nv, 14)]
-    for start in range(0, nt, block_rows):
-        t = tangible[start:start + block_rows]
-        s = model.scales(t).reshape(len(t), 14)
-        t = t.reshape(len(t), 14)
-        t_ok = ~np.isnan(t)
-        a = np.where(t_ok, w / s**2, 0.0)  # weight / s²
-        tv = np.nan_to_num(t)
-        best = None
-        for order, v in enumerate(v_orders):
-            v_ok = (~np.isnan(v)).astype(float)
-            vv = np.nan_to_num(v)
-            # Σ a (v - t)² m_v = Σ a m_v v² - 2 Σ a t m_v v + Σ a t² m_v
-            c = a @ (vv * vv * v_ok).T - 2.0 * (a * tv) @ (vv * v_ok).T + (a * tv * tv) @ v_ok.T
-            np.maximum(c, 0.0, out=c)  # round-off
-            if best is None:
-                best, flip = c, np.zeros(c.shape, dtype=bool)
-            else:
-                flip = c < best
-                best = np.where(flip, c, best)
-        cost[start:start + len(t)] = best
-        swapped[start:start + len(t)] = flip
+    cost = np.empty((len(tangible), len(virtual)))
+    swapped = np.empty(cost.shape, dtype=bool)
+    for start, c, sw in pair_cost_blocks(tangible, virtual, model, block_rows=block_rows):
+        cost[start:start + len(c)] = c
+        swapped[start:start + len(c)] = sw
     return cost, swapped
 
 
-def contributions(tangible_row: np.ndarray, virtual_row: np.ndarray, model: CostModel, *, swapped: bool) -> dict:
+def separable_terms(tangible_rows: np.ndarray, virtual_rows: np.ndarray, model: CostModel) -> np.ndarray:
+    """(k, 8) each criterion's contribution for k aligned pairs (virtual rows already in finger
+    order); the ``mass`` entry is its lower bound."""
+    s = model.scales(tangible_rows)
+    z = ((virtual_rows - tangible_rows) / s) ** 2
+    z = np.where(np.isnan(z), 0.0, z)  # undefined ρ contributes nothing
+    per_column = z.mean(axis=1)  # mean over the two patches
+    out = np.zeros((len(z), len(CRITERIA)))
+    np.add.at(out.T, COLUMN_CRITERION, per_column.T)
+    return out
+
+
+def mass_term(tangible_rows: np.ndarray, delta_mm: np.ndarray, model: CostModel) -> np.ndarray:
+    """(k,) exact ``mass`` contribution |Δ|²/s² for the offset mismatch Δ (k, 3) after registration."""
+    s = model.scales(tangible_rows)[:, 0, 7]
+    return np.einsum("kd,kd->k", delta_mm, delta_mm) / s**2
+
+
+def contributions(tangible_row: np.ndarray, virtual_row: np.ndarray, model: CostModel, *, swapped: bool,
+                  mass_delta_mm: np.ndarray | None = None) -> dict:
     """Each criterion's contribution for one pair: mean over its entries of (difference / scale)².
 
-    tangible_row, virtual_row : (2, 7). Returns {criterion: float}; the cost is
-    Σ weight x contribution.
+    tangible_row, virtual_row : (2, 9). ``mass_delta_mm`` (3,), the offset mismatch after
+    registration, gives the exact ``mass`` contribution; without it, its lower bound. The cost
+    is Σ weight x contribution.
     """
     v = virtual_row[::-1] if swapped else virtual_row
-    s = model.scales(tangible_row[None])[0]
-    z = ((v - tangible_row) / s) ** 2
-    z = np.where(np.isnan(z), 0.0, z)
-    return {c: float(z[:, i].mean()) for i, c in enumerate(_COLUMNS)}
+    terms = separable_terms(tangible_row[None], v[None], model)[0]
+    if mass_delta_mm is not None:
+        terms[7] = mass_term(tangible_row[None], np.asarray(mass_delta_mm, float)[None], model)[0]
+    return dict(zip(CRITERIA, terms.tolist()))
+
+
+def total(terms: np.ndarray, model: CostModel) -> np.ndarray:
+    """Weighted sum of (..., 8) contributions."""
+    return terms @ np.array([model.weights[c] for c in CRITERIA])

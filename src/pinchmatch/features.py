@@ -16,6 +16,12 @@ and per patch (at p1, at p2):
                                  or a within ``AXIS_NORMAL_DEG`` of the normal
 - ``kappa_max_per_m``, ``kappa_min_per_m``
 
+and, for the ``mass`` criterion (beyond the paper), the offset o = c - m of
+the centre of mass from the pinch midpoint, split in the pinch's own frame:
+
+- ``mass_along_mm``  (n, 2) o·u seen from each finger: at p1 along u, at p2 along -u
+- ``mass_perp_mm``   (n,)  |o - (o·u)u|, the lever arm about the pinch line
+
 All features are invariant under rigid motions of the object (tested).
 """
 
@@ -42,6 +48,7 @@ class PinchFeatures:
     width_mm, com_distance_mm, tilt_deg : (n,) float64
     normal_angle_deg, curvature_axis_angle_deg : (n, 2) float64, NaN where undefined
     kappa_max_per_m, kappa_min_per_m : (n, 2) float64
+    mass_along_mm : (n, 2) float64;  mass_perp_mm : (n,) float64
     """
 
     width_mm: np.ndarray
@@ -51,6 +58,8 @@ class PinchFeatures:
     curvature_axis_angle_deg: np.ndarray
     kappa_max_per_m: np.ndarray
     kappa_min_per_m: np.ndarray
+    mass_along_mm: np.ndarray
+    mass_perp_mm: np.ndarray
 
 
 def _acute_deg(cosine: np.ndarray) -> np.ndarray:
@@ -80,6 +89,10 @@ def pinch_features(pinches: Pinches, props: ObjectProperties) -> PinchFeatures:
     )
     rho = np.where(undefined, np.nan, rho)
 
+    offset = props.com_mm - mid
+    along = np.einsum("nd,nd->n", offset, u)
+    perp = np.linalg.norm(offset - along[:, None] * u, axis=1)
+
     return PinchFeatures(
         width_mm=width,
         com_distance_mm=com_distance,
@@ -88,4 +101,6 @@ def pinch_features(pinches: Pinches, props: ObjectProperties) -> PinchFeatures:
         curvature_axis_angle_deg=rho,
         kappa_max_per_m=pinches.kappa_max_per_m.copy(),
         kappa_min_per_m=pinches.kappa_min_per_m.copy(),
+        mass_along_mm=np.stack([along, -along], axis=-1),
+        mass_perp_mm=perp,
     )

@@ -7,6 +7,11 @@ The rigid transform maps the virtual object's frame to the tangible's:
 3. the remaining rotation about the pinch line best aligns the patch
    normals (closed form), with the centres of mass and the principal axes
    as tie-breakers where the normals run along the pinch line.
+
+A normal within ``NORMAL_ALONG_LINE_DEG`` of the pinch line says nothing
+about the roll (its part across the line is fitting noise) and is left out
+of step 3; the masses then decide, which keeps the felt and seen masses on
+the same side of the fingers.
 """
 
 from __future__ import annotations
@@ -16,26 +21,93 @@ import numpy as np
 #: tie-breaker weights of the mass offset and the principal axis against the patch normals
 MASS_TIE_WEIGHT = 0.1
 AXIS_TIE_WEIGHT = 0.05
+#: a normal this close to the pinch line does not take part in choosing the roll
+NORMAL_ALONG_LINE_DEG = 5.0
 
 
-def _rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Smallest rotation taking unit vector a onto unit vector b."""
-    v = np.cross(a, b)
-    c = float(a @ b)
-    if c < -1.0 + 1e-12:  # opposite: half turn about any perpendicular axis
-        perp = np.cross(a, [1.0, 0.0, 0.0])
-        if np.linalg.norm(perp) < 1e-6:
-            perp = np.cross(a, [0.0, 1.0, 0.0])
-        perp /= np.linalg.norm(perp)
-        return 2.0 * np.outer(perp, perp) - np.eye(3)
-    vx = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
-    return np.eye(3) + vx + vx @ vx / (1.0 + c)
+def _skew(v: np.ndarray) -> np.ndarray:
+    """(k, 3) -> (k, 3, 3) cross-product matrices."""
+    K = np.zeros(v.shape[:-1] + (3, 3))
+    K[..., 0, 1], K[..., 0, 2], K[..., 1, 2] = -v[..., 2], v[..., 1], -v[..., 0]
+    K[..., 1, 0], K[..., 2, 0], K[..., 2, 1] = v[..., 2], -v[..., 1], v[..., 0]
+    return K
 
 
-def _about(axis: np.ndarray, angle: float) -> np.ndarray:
-    x, y, z = axis
-    K = np.array([[0, -z, y], [z, 0, -x], [-y, x, 0]])
-    return np.eye(3) + np.sin(angle) * K + (1.0 - np.cos(angle)) * K @ K
+def _rotations_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(k, 3, 3) smallest rotations taking unit vectors a (k, 3) onto b (k, 3)."""
+    c = np.einsum("kd,kd->k", a, b)
+    K = _skew(np.cross(a, b))
+    R = np.eye(3) + K + (K @ K) / np.maximum(1.0 + c, 1e-300)[:, None, None]
+    opposite = c < -1.0 + 1e-12
+    if opposite.any():  # a half turn about any perpendicular axis
+        ao = a[opposite]
+        perp = np.cross(ao, [1.0, 0.0, 0.0])
+        small = np.linalg.norm(perp, axis=1) < 1e-6
+        perp[small] = np.cross(ao[small], [0.0, 1.0, 0.0])
+        perp /= np.linalg.norm(perp, axis=1, keepdims=True)
+        R[opposite] = 2.0 * perp[:, :, None] * perp[:, None, :] - np.eye(3)
+    return R
+
+
+def _about(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """(k, 3, 3) rotations by angle (k,) about unit axes (k, 3)."""
+    K = _skew(axis)
+    return np.eye(3) + np.sin(angle)[:, None, None] * K + (1.0 - np.cos(angle))[:, None, None] * (K @ K)
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-300)
+
+
+def register_poses(
+    tangible_points: np.ndarray,
+    tangible_normals: np.ndarray,
+    virtual_points: np.ndarray,
+    virtual_normals: np.ndarray,
+    *,
+    tangible_com: np.ndarray,
+    virtual_com: np.ndarray,
+    tangible_axis: np.ndarray,
+    virtual_axis: np.ndarray,
+) -> np.ndarray:
+    """(k, 4, 4) rigid transforms (mm, det +1) taking k virtual poses onto k tangible poses.
+
+    points, normals : (k, 2, 3), the virtual ones already in finger order (virtual p1 goes on
+    tangible p1). com and axis : (3,) or (k, 3).
+    """
+    k = len(tangible_points)
+    tc, vc = np.broadcast_to(tangible_com, (k, 3)), np.broadcast_to(virtual_com, (k, 3))
+    ta, va = np.broadcast_to(tangible_axis, (k, 3)), np.broadcast_to(virtual_axis, (k, 3))
+    tm, vm = tangible_points.mean(axis=1), virtual_points.mean(axis=1)
+    ut = _unit(tangible_points[:, 1] - tangible_points[:, 0])
+    uv = _unit(virtual_points[:, 1] - virtual_points[:, 0])
+    R1 = _rotations_between(uv, ut)
+
+    def moved(x):
+        return np.einsum("kij,kj->ki", R1, x)
+
+    def perp(x):
+        return x - np.einsum("kd,kd->k", x, ut)[:, None] * ut
+
+    # (moved virtual direction, tangible direction, weight): aligned by a roll about the line
+    def across(x):  # the part of a unit normal across the line, 0 when it runs along the line
+        p = perp(x)
+        return p * (np.linalg.norm(p, axis=1) > np.sin(np.radians(NORMAL_ALONG_LINE_DEG)))[:, None]
+
+    pairs = [(across(moved(virtual_normals[:, j])), across(tangible_normals[:, j]), 1.0) for j in range(2)]
+    dm_v, dm_t = moved(vc - vm), tc - tm
+    has_mass = (np.linalg.norm(perp(dm_v), axis=1) > 1e-9) & (np.linalg.norm(perp(dm_t), axis=1) > 1e-9)
+    pairs.append((_unit(dm_v), _unit(dm_t), MASS_TIE_WEIGHT * has_mass))
+    pairs.append((moved(va), ta, AXIS_TIE_WEIGHT))
+    sin_sum = sum(w * np.einsum("kd,kd->k", np.cross(perp(x), perp(y)), ut) for x, y, w in pairs)
+    cos_sum = sum(w * np.einsum("kd,kd->k", perp(x), perp(y)) for x, y, w in pairs)
+    R = _about(ut, np.arctan2(sin_sum, cos_sum)) @ R1
+
+    T = np.zeros((k, 4, 4))
+    T[:, :3, :3] = R
+    T[:, :3, 3] = tm - np.einsum("kij,kj->ki", R, vm)
+    T[:, 3, 3] = 1.0
+    return T
 
 
 def register_pose(
@@ -50,33 +122,15 @@ def register_pose(
     tangible_axis: np.ndarray,
     virtual_axis: np.ndarray,
 ) -> np.ndarray:
-    """4x4 rigid transform (mm, det +1) taking the virtual pose onto the tangible pose.
+    """4x4 rigid transform (mm, det +1) taking one virtual pose onto one tangible pose.
 
     points, normals : (2, 3) per object, [p1, p2]. ``swapped``: the virtual p1
     goes on the tangible p2.
     """
     vp = virtual_points[::-1] if swapped else virtual_points
     vn = virtual_normals[::-1] if swapped else virtual_normals
-    tm, vm = tangible_points.mean(axis=0), vp.mean(axis=0)
-    ut = tangible_points[1] - tangible_points[0]
-    uv = vp[1] - vp[0]
-    ut, uv = ut / np.linalg.norm(ut), uv / np.linalg.norm(uv)
-    R1 = _rotation_between(uv, ut)
-
-    def perp(x):
-        return x - (x @ ut) * ut
-
-    # pairs (moved virtual direction, tangible direction, weight) to align about the line
-    pairs = [(R1 @ vn[k], tangible_normals[k], 1.0) for k in range(2)]
-    dm_v, dm_t = R1 @ (virtual_com - vm), tangible_com - tm
-    if np.linalg.norm(perp(dm_v)) > 1e-9 and np.linalg.norm(perp(dm_t)) > 1e-9:
-        pairs.append((dm_v / np.linalg.norm(dm_v), dm_t / np.linalg.norm(dm_t), MASS_TIE_WEIGHT))
-    pairs.append((R1 @ virtual_axis, tangible_axis, AXIS_TIE_WEIGHT))
-    sin_sum = sum(w * float(np.cross(perp(x), perp(y)) @ ut) for x, y, w in pairs)
-    cos_sum = sum(w * float(perp(x) @ perp(y)) for x, y, w in pairs)
-    R = _about(ut, np.arctan2(sin_sum, cos_sum)) @ R1
-
-    T = np.eye(4)
-    T[:3, :3] = R
-    T[:3, 3] = tm - R @ vm
-    return T
+    return register_poses(
+        np.asarray(tangible_points, float)[None], np.asarray(tangible_normals, float)[None],
+        np.asarray(vp, float)[None], np.asarray(vn, float)[None],
+        tangible_com=tangible_com, virtual_com=virtual_com, tangible_axis=tangible_axis, virtual_axis=virtual_axis,
+    )[0]

@@ -1,0 +1,461 @@
+"""Step #3: for every virtual object, the best tangible and pinch pair, registered (issue 3).
+
+The search is exact. For each (virtual object, tangible) pair of objects:
+
+1. The separable part of the cost (the paper's seven criteria and the lower
+   bound of ``mass``) is computed for every pose pair, blockwise with BLAS
+   (:func:`pinchmatch.cost.pair_cost_blocks`), keeping only the ``pool``
+   smallest values; ``tau`` is the smallest value left out.
+2. The pooled pairs are registered and get their exact cost (the exact
+   ``mass`` term, and ``--keep-upright``). Every pair left out costs at
+   least ``tau``, so the pooled pairs costing less than ``tau`` are exactly
+   the cheapest pairs of all. If they do not hold the best pair and
+   ``top_k`` distinct alternatives, the pool grows and step 1 repeats.
+
+Alternatives are picked greedily by cost among pairs that are not near
+duplicates of those already picked: a pair is a near duplicate of another
+when it uses the same tangible and both its pinches, the tangible's and the
+virtual's, lie within ``distinct_mm`` of the other's (each contact, in the
+better finger order).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+from .analysis import ObjectAnalysis, find_pinches, score_pinches
+from .cost import CRITERIA, CostModel, feature_table, mass_term, pair_cost_blocks, separable_terms, total
+from .errors import ConfigError, NoFeasiblePinchError
+from .features import PinchFeatures, pinch_features
+from .pinches import PinchSettings, Pinches, check_pinches
+from .register import register_poses
+
+#: pose pairs kept per (virtual, tangible) object pair before the exact evaluation; grows x4 when short
+INITIAL_POOL = 4096
+#: an up direction turned more than 90° (cosine below this) is ``flipped``
+FLIP_COSINE = -1e-6
+
+
+@dataclass(frozen=True)
+class MatchSettings:
+    """Options of the search (the cost model is built from the candidates, see :func:`cost_model`)."""
+
+    weights: dict = field(default_factory=lambda: dict.fromkeys(CRITERIA, 1.0))
+    criteria: tuple = CRITERIA
+    normalize: str = "jnd"
+    top_k: int = 3
+    one_to_one: bool = False
+    keep_upright: bool = False
+    distinct_mm: float = 8.0
+    block_rows: int = 2048
+
+    def __post_init__(self):
+        if not isinstance(self.top_k, int) or self.top_k < 0:
+            raise ConfigError(f"--top-k: {self.top_k!r} must be a whole number of 0 or more")
+        if not np.isfinite(self.distinct_mm) or self.distinct_mm < 0:
+            raise ConfigError(f"--distinct-mm: {self.distinct_mm!r} must be a distance of 0 mm or more")
+        if self.normalize not in ("jnd", "range"):
+            raise ConfigError(f"--normalize: unknown mode {self.normalize!r}; use jnd or range")
+
+    def as_dict(self) -> dict:
+        return {
+            "criteria": list(self.criteria),
+            "weights": {c: self.weights[c] for c in self.criteria},
+            "normalize": self.normalize,
+            "top_k": self.top_k,
+            "one_to_one": self.one_to_one,
+            "keep_upright": self.keep_upright,
+            "distinct_mm": self.distinct_mm,
+        }
+
+
+@dataclass(frozen=True)
+class Candidates:
+    """One object's candidate poses: its feasible pinches, their features and feature table.
+
+    ``index`` maps each candidate to its place in the sampled or given list.
+    """
+
+    obj: ObjectAnalysis
+    pinches: Pinches
+    features: PinchFeatures
+    table: np.ndarray
+    index: np.ndarray
+    given: bool
+
+    @property
+    def name(self) -> str:
+        return self.obj.name
+
+    def __len__(self) -> int:
+        return len(self.pinches)
+
+    @property
+    def midpoints(self) -> np.ndarray:
+        return self.pinches.points.mean(axis=1)
+
+
+def _features_subset(features: PinchFeatures, keep: np.ndarray) -> PinchFeatures:
+    return PinchFeatures(**{f.name: getattr(features, f.name)[keep] for f in dataclasses.fields(features)})
+
+
+def candidate_poses(
+    obj: ObjectAnalysis,
+    *,
+    settings: PinchSettings = PinchSettings(),
+    given: tuple[np.ndarray, np.ndarray] | None = None,
+    source: str | None = None,
+) -> Candidates:
+    """The feasible poses of ``obj``: sampled, or the ``given`` (p1_mm, p2_mm) checked.
+
+    Raises
+    ------
+    NoFeasiblePinchError
+        No sampled pose is feasible, or none of the given ones is.
+    ContactError
+        A given contact is off the surface.
+    """
+    if given is None:
+        pinches, features = find_pinches(obj, settings=settings)
+    else:
+        pinches, features = score_pinches(obj, *given, settings=settings, source=source)
+    keep = np.flatnonzero(pinches.feasible)
+    if not len(keep):
+        reasons = "; ".join(f"pose {i} breaks {', '.join(pinches.broken_rules(i))}" for i in range(min(3, len(pinches))))
+        raise NoFeasiblePinchError(
+            f"{source or obj.loaded.path}: none of the {len(pinches)} given poses is feasible on {obj.name} "
+            f"({reasons}); give poses that a fingertip can hold, or loosen --friction-cone-deg"
+        )
+    pinches, features = pinches.subset(keep), _features_subset(features, keep)
+    return Candidates(obj, pinches, features, feature_table(features), keep, given is not None)
+
+
+def cost_model(settings: MatchSettings, candidates: list[Candidates]) -> CostModel:
+    """The run's cost model; ``range`` takes each feature's range over every candidate of the run."""
+    ranges = None
+    if settings.normalize == "range":
+        from .cost import feature_ranges
+
+        ranges = feature_ranges(*[c.table for c in candidates])
+    return CostModel(dict(settings.weights), settings.normalize, ranges, tuple(settings.criteria))
+
+
+@dataclass(frozen=True)
+class PairResult:
+    """Exact evaluation of k (tangible pose, virtual pose) pairs, in the better finger order.
+
+    cost (k,), terms (k, 8) contributions per criterion, swapped (k,) bool (virtual p1 on
+    tangible p2), transform (k, 4, 4) virtual -> tangible, flipped (k,) bool, mass_delta_mm
+    (k, 3) seen minus felt centre-of-mass offset in the tangible's frame, allowed (k,) bool
+    (False: flipped under ``keep_upright``; cost is then inf).
+    """
+
+    cost: np.ndarray
+    terms: np.ndarray
+    swapped: np.ndarray
+    transform: np.ndarray
+    flipped: np.ndarray
+    mass_delta_mm: np.ndarray
+    allowed: np.ndarray
+
+
+def _take(result: PairResult, keep) -> PairResult:
+    return PairResult(**{f.name: getattr(result, f.name)[keep] for f in dataclasses.fields(result)})
+
+
+def evaluate_pairs(
+    tangible: Candidates,
+    virtual: Candidates,
+    it: np.ndarray,
+    iv: np.ndarray,
+    model: CostModel,
+    *,
+    keep_upright: bool = False,
+) -> PairResult:
+    """Register k pose pairs (tangible pose ``it[i]``, virtual pose ``iv[i]``) and give their exact cost."""
+    it, iv = np.asarray(it, dtype=np.int64), np.asarray(iv, dtype=np.int64)
+    tp, tn = tangible.pinches.points[it], tangible.pinches.normals[it]
+    t_rows = tangible.table[it]
+    t_props, v_props = tangible.obj.props, virtual.obj.props
+    up_t, up_v = tangible.obj.loaded.up, virtual.obj.loaded.up
+    results = []
+    for order in (False, True):
+        vp, vn, v_rows = virtual.pinches.points[iv], virtual.pinches.normals[iv], virtual.table[iv]
+        if order:
+            vp, vn, v_rows = vp[:, ::-1], vn[:, ::-1], v_rows[:, ::-1]
+        X = register_poses(tp, tn, vp, vn, tangible_com=t_props.com_mm, virtual_com=v_props.com_mm,
+                           tangible_axis=t_props.principal_axis, virtual_axis=v_props.principal_axis)
+        R = X[:, :3, :3]
+        delta = np.einsum("kij,kj->ki", R, v_props.com_mm - vp.mean(axis=1)) - (t_props.com_mm - tp.mean(axis=1))
+        terms = separable_terms(t_rows, v_rows, model)
+        terms[:, 7] = mass_term(t_rows, delta, model)
+        flipped = (R @ up_v) @ up_t < FLIP_COSINE
+        allowed = ~flipped if keep_upright else np.ones(len(it), dtype=bool)
+        cost = np.where(allowed, total(terms, model), np.inf)
+        results.append(PairResult(cost, terms, np.full(len(it), order), X, flipped, delta, allowed))
+    a, b = results
+    pick_b = b.cost < a.cost
+    return PairResult(**{
+        f.name: np.where(pick_b.reshape((-1,) + (1,) * (getattr(a, f.name).ndim - 1)),
+                         getattr(b, f.name), getattr(a, f.name))
+        for f in dataclasses.fields(a)
+    })
+
+
+def _pool(tangible: Candidates, virtual: Candidates, model: CostModel, size: int, block_rows: int):
+    """The ``size`` pose pairs with the smallest separable cost, and tau, the smallest left out.
+
+    Returns (it, iv, bound, tau); tau is inf when no pair was left out.
+    """
+    nv = len(virtual)
+    kept_val = np.zeros(0)
+    kept_idx = np.zeros(0, dtype=np.int64)
+    tau = np.inf
+    for start, block, _ in pair_cost_blocks(tangible.table, virtual.table, model, block_rows=block_rows):
+        flat = block.ravel()
+        sel = np.flatnonzero(flat < tau) if np.isfinite(tau) else np.arange(flat.size)
+        vals = np.concatenate([kept_val, flat[sel]])
+        idx = np.concatenate([kept_idx, sel + start * nv])
+        if len(vals) > size:
+            part = np.argpartition(vals, size)
+            tau = min(tau, float(vals[part[size]]))
+            keep = part[:size]
+            vals, idx = vals[keep], idx[keep]
+        kept_val, kept_idx = vals, idx
+    return kept_idx // nv, kept_idx % nv, kept_val, tau
+
+
+@dataclass
+class _PairPool:
+    """Exactly evaluated pose pairs of one (virtual, tangible) object pair, all costing less than tau."""
+
+    tangible: int
+    it: np.ndarray
+    iv: np.ndarray
+    result: PairResult
+    tau: float
+    size: int
+
+
+def _pinch_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Order-free distance between pinches a (k, 2, 3) and b (2, 3): the larger contact displacement."""
+    direct = np.maximum(np.linalg.norm(a[:, 0] - b[0], axis=1), np.linalg.norm(a[:, 1] - b[1], axis=1))
+    crossed = np.maximum(np.linalg.norm(a[:, 0] - b[1], axis=1), np.linalg.norm(a[:, 1] - b[0], axis=1))
+    return np.minimum(direct, crossed)
+
+
+@dataclass(frozen=True)
+class Choice:
+    """One registered pose pair: tangible ``tangible`` pose ``t_pose`` with virtual pose ``v_pose``
+    (indices into the candidates) and its exact evaluation."""
+
+    tangible: int
+    t_pose: int
+    v_pose: int
+    cost: float
+    terms: np.ndarray
+    swapped: bool
+    transform: np.ndarray
+    flipped: bool
+    mass_delta_mm: np.ndarray
+
+
+@dataclass
+class VirtualMatch:
+    """The result for one virtual object: best choice (None with ``reason``) and alternatives."""
+
+    virtual: int
+    best: Choice | None
+    alternatives: list
+    reason: str | None = None
+
+
+@dataclass
+class SceneMatch:
+    tangibles: list
+    virtuals: list
+    settings: MatchSettings
+    model: CostModel
+    cost_matrix: np.ndarray  # (m, n), inf where no registration is allowed
+    matches: list
+
+
+class _Search:
+    """Pools per (virtual, tangible), grown on demand."""
+
+    def __init__(self, tangibles, virtuals, model, settings):
+        self.tangibles, self.virtuals, self.model, self.settings = tangibles, virtuals, model, settings
+        self.pools: dict[tuple[int, int], _PairPool] = {}
+
+    def pool(self, j: int, t: int, size: int | None = None) -> _PairPool:
+        old = self.pools.get((j, t))
+        if old is not None and (size is None or old.size >= size or not np.isfinite(old.tau)):
+            return old
+        size = size or INITIAL_POOL
+        T, V = self.tangibles[t], self.virtuals[j]
+        it, iv, _, tau = _pool(T, V, self.model, size, self.settings.block_rows)
+        result = evaluate_pairs(T, V, it, iv, self.model, keep_upright=self.settings.keep_upright)
+        keep = np.flatnonzero(result.cost < tau)
+        pool = _PairPool(t, it[keep], iv[keep], _take(result, keep), tau, size)
+        self.pools[(j, t)] = pool
+        return pool
+
+    def best_cost(self, j: int, t: int) -> float:
+        """Exact minimum cost of virtual j on tangible t (inf if no pair is allowed)."""
+        while True:
+            pool = self.pool(j, t)
+            if len(pool.it) or not np.isfinite(pool.tau):
+                return float(pool.result.cost.min()) if len(pool.it) else np.inf
+            self.pool(j, t, pool.size * 4)
+
+    def choices(self, j: int, allowed_tangibles: list[int], count: int) -> list[Choice]:
+        """Up to ``count`` distinct best choices for virtual j among the allowed tangibles."""
+        while True:
+            pools = [self.pool(j, t) for t in allowed_tangibles]
+            tau = min(p.tau for p in pools)
+            picks = self._greedy(j, pools, tau, count)
+            if len(picks) >= count or not np.isfinite(tau):
+                return picks
+            smallest = min((p for p in pools if np.isfinite(p.tau)), key=lambda p: p.tau)
+            self.pool(j, smallest.tangible, smallest.size * 4)
+
+    def _greedy(self, j, pools, tau, count) -> list[Choice]:
+        V = self.virtuals[j]
+        entries = []
+        for p in pools:
+            ok = np.flatnonzero(np.isfinite(p.result.cost) & (p.result.cost < tau))
+            entries += [(p, ok)]
+        cost = np.concatenate([p.result.cost[ok] for p, ok in entries]) if entries else np.zeros(0)
+        owner = np.concatenate([np.full(len(ok), k) for k, (_, ok) in enumerate(entries)]) if entries else np.zeros(0, int)
+        local = np.concatenate([ok for _, ok in entries]) if entries else np.zeros(0, int)
+        t_pinch = np.concatenate([self.tangibles[p.tangible].pinches.points[p.it[ok]] for p, ok in entries]) \
+            if entries else np.zeros((0, 2, 3))
+        v_pinch = np.concatenate([V.pinches.points[p.iv[ok]] for p, ok in entries]) if entries else np.zeros((0, 2, 3))
+        order = np.lexsort((local, owner, cost))  # by cost; ties broken deterministically
+        alive = np.ones(len(cost), dtype=bool)
+        picks: list[Choice] = []
+        for i in order:
+            if len(picks) >= count:
+                break
+            if not alive[i]:
+                continue
+            p, k = entries[owner[i]][0], local[i]
+            r = p.result
+            picks.append(Choice(p.tangible, int(p.it[k]), int(p.iv[k]), float(r.cost[k]), r.terms[k],
+                                bool(r.swapped[k]), r.transform[k], bool(r.flipped[k]), r.mass_delta_mm[k]))
+            near = (owner == owner[i]) & (_pinch_distance(t_pinch, t_pinch[i]) < self.settings.distinct_mm) \
+                & (_pinch_distance(v_pinch, v_pinch[i]) < self.settings.distinct_mm)
+            alive &= ~near
+        return picks
+
+
+def match_scene(tangibles: list[Candidates], virtuals: list[Candidates], settings: MatchSettings = MatchSettings(),
+                model: CostModel | None = None) -> SceneMatch:
+    """For every virtual object, the best tangible, pose pair and registration, with alternatives."""
+    if not tangibles:
+        raise ConfigError("no tangible object given; name at least one with --tangible")
+    if not virtuals:
+        raise ConfigError("no virtual object given; name at least one with --virtual")
+    model = model or cost_model(settings, tangibles + virtuals)
+    search = _Search(tangibles, virtuals, model, settings)
+    m, n = len(virtuals), len(tangibles)
+    cost_matrix = np.array([[search.best_cost(j, t) for t in range(n)] for j in range(m)]).reshape(m, n)
+
+    allowed: dict[int, list[int]] = {j: list(range(n)) for j in range(m)}
+    reasons: dict[int, str] = {}
+    if settings.one_to_one:
+        assigned = assign_one_to_one(cost_matrix)
+        for j in range(m):
+            if assigned[j] < 0:
+                allowed[j] = []
+                reasons[j] = ("every tangible serves another virtual object (--one-to-one)"
+                              if np.isfinite(cost_matrix[j]).any() else "no upright registration on any tangible")
+            else:
+                allowed[j] = [int(assigned[j])]
+    matches = []
+    for j in range(m):
+        picks = search.choices(j, allowed[j], settings.top_k + 1) if allowed[j] else []
+        if not picks and j not in reasons:
+            reasons[j] = "no registration is allowed: every one flips the virtual object (--keep-upright)"
+        matches.append(VirtualMatch(j, picks[0] if picks else None, picks[1:], reasons.get(j)))
+    return SceneMatch(tangibles, virtuals, settings, model, cost_matrix, matches)
+
+
+def assign_one_to_one(cost_matrix: np.ndarray) -> np.ndarray:
+    """(m,) tangible of each virtual object, -1 for none: the assignment of least total cost in
+    which each tangible serves at most one virtual object and as many as possible are served.
+
+    Pairs with no allowed registration (inf) are never assigned.
+    """
+    m, n = cost_matrix.shape
+    finite = np.isfinite(cost_matrix)
+    out = np.full(m, -1, dtype=np.int64)
+    if not finite.any():
+        return out
+    # serve as many as possible first, then least cost: a forbidden pair costs more than any full set
+    big = (np.abs(cost_matrix[finite]).sum() + 1.0) * (min(m, n) + 1)
+    rows, cols = linear_sum_assignment(np.where(finite, cost_matrix, big))
+    for r, c in zip(rows, cols):
+        if finite[r, c]:
+            out[r] = c
+    return out
+
+
+def line_contacts(obj: ObjectAnalysis, point: np.ndarray, direction: np.ndarray) -> np.ndarray | None:
+    """(2, 3) where two fingers closing along a line meet the surface of ``obj``, or None.
+
+    The line passes through ``point`` along ``direction``; the first finger comes from the
+    -direction side, the second from the +direction side. None when the line misses.
+    """
+    u = np.asarray(direction, dtype=np.float64)
+    u = u / np.linalg.norm(u)
+    bounds = obj.props.bounds_mm
+    reach = np.linalg.norm(bounds[1] - bounds[0]) + np.linalg.norm(point - bounds.mean(axis=0)) + 1.0
+    origins = np.array([point - reach * u, point + reach * u])
+    face, dist = obj.context.first_hit(origins, np.array([u, -u]))
+    if (face < 0).any():
+        return None
+    points = origins + dist[:, None] * np.array([u, -u])
+    if (points[1] - points[0]) @ u <= 1e-9:
+        return None
+    return points
+
+
+@dataclass(frozen=True)
+class Reference:
+    """The paper's Ref: the virtual object superimposed on the tangible as the files place them."""
+
+    pinches: Pinches | None
+    features: PinchFeatures | None
+    terms: np.ndarray | None
+    cost: float | None
+    reason: str | None
+    flipped: bool | None = None
+
+
+def reference_pose(tangible: Candidates, t_pose: int, virtual: Candidates, model: CostModel, *,
+                   settings: PinchSettings = PinchSettings()) -> Reference:
+    """Where the tangible pose's pinch line meets the virtual surface, and its cost.
+
+    Each finger closes along the tangible's pinch line from its own side; its contact is the
+    first virtual surface it meets. The placement is the identity (both files' frames), the
+    finger order p1 on p1. The cost is ``None`` with a reason when a finger meets nothing.
+    """
+    p = tangible.pinches.points[t_pose]
+    mid = p.mean(axis=0)
+    points = line_contacts(virtual.obj, mid, p[1] - p[0])
+    if points is None:
+        return Reference(None, None, None, None, "the tangible's pinch line misses the virtual object")
+    pinches = check_pinches(virtual.obj.context, points[:1], points[1:], settings=settings)
+    features = pinch_features(pinches, virtual.obj.props)
+    v_row = feature_table(features)
+    t_row = tangible.table[t_pose][None]
+    terms = separable_terms(t_row, v_row, model)
+    delta = (virtual.obj.props.com_mm - pinches.points[0].mean(axis=0)) - (tangible.obj.props.com_mm - mid)
+    terms[:, 7] = mass_term(t_row, delta[None], model)
+    flipped = bool(virtual.obj.loaded.up @ tangible.obj.loaded.up < FLIP_COSINE)
+    return Reference(pinches, features, terms[0], float(total(terms, model)[0]), None, flipped)

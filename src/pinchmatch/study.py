@@ -1,0 +1,153 @@
+"""The method paper's user study (Sec. 4.1.4, Table 2), rebuilt in code: ``pinchmatch demo``.
+
+- Tangible: three coaxial 40 mm parts stacked along +Z, bottom to top a
+  cylinder Ø40, a cube 40 and a cone frustum Ø60 -> Ø20 (Ø40 at mid-height).
+- Tangible poses: three horizontal pinches along X at the mid-height of each
+  part (z = 20, 60, 100 mm).
+- Virtual objects: the six stacking orders of the parts, VO1 the tangible's
+  own order, then in the order of ``itertools.permutations``.
+- Candidate virtual poses: 17 horizontal pinches along X at z = 120·k/18 mm,
+  k = 1..17 (evenly spaced, ends excluded; the mid-heights 20, 60 and 100 mm
+  are among them). Poses that are not feasible (at the junctions of parts a
+  finger would rest on an edge) are left out. ``full``: every sampled pose.
+
+Each of the 18 rows (tangible part x virtual object) gives three poses on
+the virtual object: ``ours`` (the default criteria and normalisation),
+``paper`` (``--criteria paper --normalize range``) and ``ref`` (the virtual
+object superimposed on the tangible, the paper's Ref).
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .analysis import analyze_object
+from .cost import PAPER_CRITERIA
+from .match import (Candidates, MatchSettings, SceneMatch, candidate_poses, cost_model, evaluate_pairs,
+                    line_contacts, match_scene, reference_pose)
+from .pinches import PinchSettings
+from .shapes import stacked_prop
+
+PARTS = ("cylinder", "cube", "cone")
+PART_HEIGHT_MM = 40.0
+#: every stacking order; the first is the tangible's
+ORDERS = tuple(itertools.permutations(PARTS))
+CANDIDATE_HEIGHTS_MM = PART_HEIGHT_MM * 3 * np.arange(1, 18) / 18.0
+TANGIBLE_HEIGHTS_MM = PART_HEIGHT_MM * (np.arange(3) + 0.5)
+
+
+def part_at(order: tuple, height_mm: float) -> str:
+    """The part of a stack at a height; ``"cylinder|cube"`` on a junction (within 0.5 mm)."""
+    level = height_mm / PART_HEIGHT_MM
+    nearest = round(level)
+    if 0 < nearest < len(order) and abs(level - nearest) * PART_HEIGHT_MM < 0.5:
+        return f"{order[nearest - 1]}|{order[nearest]}"
+    return order[int(np.clip(np.floor(level), 0, len(order) - 1))]
+
+
+def horizontal_poses(obj, heights_mm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Pinches along X through the Z axis at the given heights: where the fingers meet the surface."""
+    p1, p2 = [], []
+    for z in heights_mm:
+        contacts = line_contacts(obj, np.array([0.0, 0.0, z]), np.array([1.0, 0.0, 0.0]))
+        if contacts is None:
+            raise ValueError(f"the study object has no surface at z = {z} mm")
+        p1.append(contacts[0])
+        p2.append(contacts[1])
+    return np.array(p1), np.array(p2)
+
+
+@dataclass
+class Study:
+    tangible: Candidates
+    virtuals: list
+    rows: list
+    scene: SceneMatch
+
+
+def write_study_meshes(folder: Path, *, sections: int = 96) -> tuple[Path, list[Path]]:
+    """Write the tangible and the six virtual objects as STL (mm) into ``folder``."""
+    from .report import write_atomic
+
+    folder.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for j, order in enumerate(ORDERS, start=1):
+        path = folder / f"vo{j}_{'_'.join(order)}.stl"
+        write_atomic(path, stacked_prop(order, sections=sections).export(file_type="stl"))
+        paths.append(path)
+    tangible = folder / "tangible_cylinder_cube_cone.stl"
+    write_atomic(tangible, stacked_prop(ORDERS[0], sections=sections).export(file_type="stl"))
+    return tangible, paths
+
+
+def _pose_entry(order, candidates: Candidates, v_pose: int, *, points=None, flipped, cost, cost_paper,
+                reason=None) -> dict:
+    from .report import _num, _vec
+
+    pts = candidates.pinches.points[v_pose] if points is None else points
+    height = float(pts[:, 2].mean()) if pts is not None else None
+    return {
+        "part": part_at(order, height) if height is not None else None,
+        "height_mm": _num(height, 2) if height is not None else None,
+        "p1_mm": _vec(pts[0]) if pts is not None else None,
+        "p2_mm": _vec(pts[1]) if pts is not None else None,
+        "flipped": flipped,
+        "cost": _num(cost) if cost is not None else None,
+        "cost_paper": _num(cost_paper) if cost_paper is not None else None,
+        "reason": reason,
+    }
+
+
+def run_study(folder: Path, *, full: bool = False, settings: PinchSettings = PinchSettings(),
+              match_settings: MatchSettings = MatchSettings(), progress=None) -> Study:
+    """Build the study objects in ``folder`` and compute its 18 rows and the scene's matches."""
+    say = progress or (lambda message: None)
+    tangible_path, virtual_paths = write_study_meshes(folder)
+    t_obj = analyze_object(tangible_path, units="mm", up="z")
+    tangible = candidate_poses(t_obj, settings=settings, given=horizontal_poses(t_obj, TANGIBLE_HEIGHTS_MM),
+                               source="study tangible poses")
+    if len(tangible) != 3:
+        raise RuntimeError("a study tangible pose is not feasible")
+    virtuals = []
+    for j, path in enumerate(virtual_paths, start=1):
+        say(f"VO{j}: {' / '.join(ORDERS[j - 1])}")
+        obj = analyze_object(path, units="mm", up="z")
+        given = None if full else horizontal_poses(obj, CANDIDATE_HEIGHTS_MM)
+        virtuals.append(candidate_poses(obj, settings=settings, given=given, source=f"VO{j} candidate poses"))
+
+    everything = [tangible] + virtuals
+    ours_model = cost_model(match_settings, everything)
+    paper_settings = MatchSettings(weights=dict.fromkeys(PAPER_CRITERIA, 1.0), criteria=PAPER_CRITERIA,
+                                   normalize="range")
+    paper_model = cost_model(paper_settings, everything)
+
+    rows = []
+    for i, t_part in enumerate(PARTS):
+        for j, V in enumerate(virtuals):
+            order = ORDERS[j]
+            it, iv = np.full(len(V), i), np.arange(len(V))
+            ours = evaluate_pairs(tangible, V, it, iv, ours_model)
+            paper = evaluate_pairs(tangible, V, it, iv, paper_model)
+            k_ours, k_paper = int(np.argmin(ours.cost)), int(np.argmin(paper.cost))
+            ref = reference_pose(tangible, i, V, ours_model, settings=settings)
+            ref_paper = reference_pose(tangible, i, V, paper_model, settings=settings)
+            rows.append({
+                "tangible_part": t_part,
+                "tangible_height_mm": float(TANGIBLE_HEIGHTS_MM[i]),
+                "virtual": j + 1,
+                "virtual_order": list(order),
+                "ours": _pose_entry(order, V, k_ours, flipped=bool(ours.flipped[k_ours]),
+                                    cost=ours.cost[k_ours], cost_paper=paper.cost[k_ours]),
+                "paper": _pose_entry(order, V, k_paper, flipped=bool(paper.flipped[k_paper]),
+                                     cost=ours.cost[k_paper], cost_paper=paper.cost[k_paper]),
+                "ref": _pose_entry(order, V, 0, points=ref.pinches.points[0] if ref.pinches is not None else None,
+                                   flipped=ref.flipped,
+                                   cost=ref.cost, cost_paper=ref_paper.cost, reason=ref.reason),
+            })
+    say("matching the scene")
+    scene = match_scene([tangible], virtuals, match_settings, model=ours_model)
+    return Study(tangible, virtuals, rows, scene)
