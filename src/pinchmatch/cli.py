@@ -1,4 +1,4 @@
-"""Command line: ``pinchmatch poses`` and ``pinchmatch features``.
+"""Command line: ``pinchmatch demo``, ``match``, ``poses`` and ``features``.
 
 Exit codes, in one place: 0 success, 2 bad input or usage (one line on
 stderr naming the file, the problem and the fix), 1 unexpected error (a
@@ -22,8 +22,12 @@ from .analysis import analyze_object, find_pinches, load_poses_file, score_pinch
 from .errors import ConfigError, PinchmatchError
 from .load import UNITS_MM, UP_VECTORS
 from .pinches import PinchSettings
+from .cost import parse_criteria, parse_weights
+from .match import MatchSettings, candidate_poses, match_scene
 from .properties import parse_vector
-from .report import features_document, poses_csv, poses_document, to_json, write_atomic
+from .report import (features_document, matches_document, matches_table, poses_csv, poses_document,
+                     study_document, study_table, to_json, write_atomic)
+from .study import run_study
 
 log = logging.getLogger("pinchmatch")
 
@@ -61,10 +65,16 @@ def _join_vector_values(argv: list[str]) -> list[str]:
 def _add_object_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("mesh", nargs="?", help="mesh file (STL, OBJ, PLY, OFF, glTF, GLB)")
     p.add_argument("--example", action="store_true", help="use the built-in example prop instead of MESH")
-    p.add_argument("--units", choices=sorted(UNITS_MM), help="units of the file (default: m for glTF/GLB, mm otherwise)")
-    p.add_argument("--up", choices=list(UP_VECTORS), help="the object's up direction (default: y for glTF/GLB, z otherwise)")
+    _add_pinch_options(p)
     p.add_argument("--com", metavar="X,Y,Z", help="centre of mass override, mm in the file's frame")
     p.add_argument("--axis", metavar="X,Y,Z", help="principal axis override")
+    p.add_argument("-o", "--output", metavar="FILE", help="write the result here (default: print it)")
+    _add_verbosity(p)
+
+
+def _add_pinch_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--units", choices=sorted(UNITS_MM), help="units of the files (default: m for glTF/GLB, mm otherwise)")
+    p.add_argument("--up", choices=list(UP_VECTORS), help="the objects' up direction (default: y for glTF/GLB, z otherwise)")
     p.add_argument("--friction-cone-deg", type=float, default=30.0, help="antipodal tolerance (default 30)")
     p.add_argument("--min-width-mm", type=float, default=2.0, help="smallest pinch width (default 2)")
     p.add_argument("--max-width-mm", type=float, default=100.0, help="largest pinch width (default 100)")
@@ -72,7 +82,28 @@ def _add_object_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--patch-radius-mm", type=float, default=8.0, help="contact patch radius (default 8)")
     p.add_argument("--snap-tolerance-mm", type=float, default=2.0,
                    help="how far a given contact may be from the surface (default 2)")
-    p.add_argument("-o", "--output", metavar="FILE", help="write the result here (default: print it)")
+
+
+def _add_sampling_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--count", type=int, default=1000, help="about how many pinches per object (default 1000)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+
+
+def _add_match_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--weights", metavar="NAME=W,...",
+                   help="weight per criterion, default 1: width,com,tilt,normal,axis,kmax,kmin,mass")
+    p.add_argument("--criteria", choices=("default", "paper"), default="default",
+                   help="default: the paper's seven criteria plus mass; paper: the seven")
+    p.add_argument("--normalize", choices=("jnd", "range"), default="jnd",
+                   help="jnd: differences in just-noticeable differences (default); range: the paper's scaling")
+    p.add_argument("--top-k", type=int, default=3, help="distinct alternatives per virtual object (default 3)")
+    p.add_argument("--distinct-mm", type=float, default=8.0,
+                   help="alternatives differ by at least this much at a contact, on one object or both (default 8)")
+    p.add_argument("--one-to-one", action="store_true", help="each tangible serves at most one virtual object")
+    p.add_argument("--keep-upright", action="store_true", help="never turn a virtual object upside down")
+
+
+def _add_verbosity(p: argparse.ArgumentParser) -> None:
     p.add_argument("-q", "--quiet", action="store_true", help="print only errors")
     p.add_argument("-v", "--verbose", action="store_true", help="log progress; tracebacks on internal errors")
 
@@ -82,10 +113,31 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"pinchmatch {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
 
+    demo = sub.add_parser("demo", help="the method paper's user study, rebuilt in code: 18 rows and the scene's matches")
+    demo.add_argument("-o", "--output", metavar="OUT", default="pinchmatch-demo",
+                      help="folder for study.json, matches.json and the objects (default pinchmatch-demo)")
+    demo.add_argument("--full", action="store_true",
+                      help="candidate virtual poses: every sampled pose instead of the paper's 17")
+    _add_sampling_options(demo)
+    _add_verbosity(demo)
+
+    match = sub.add_parser("match", help="best tangible, pinch and registration for every virtual object")
+    match.add_argument("--tangible", nargs="+", action="extend", required=True, metavar="PATH", help="tangible meshes")
+    match.add_argument("--virtual", nargs="+", action="extend", required=True, metavar="PATH", help="virtual meshes")
+    match.add_argument("--tangible-poses", action="append", metavar="FILE",
+                       help="use only these poses on a tangible (JSON, as for poses --poses); once per tangible, in order")
+    match.add_argument("--virtual-poses", action="append", metavar="FILE",
+                       help="use only these poses on a virtual object; once per virtual object, in order")
+    _add_pinch_options(match)
+    _add_sampling_options(match)
+    _add_match_options(match)
+    match.add_argument("-o", "--output", metavar="OUT", default="pinchmatch-out",
+                       help="folder for matches.json (default pinchmatch-out)")
+    _add_verbosity(match)
+
     poses = sub.add_parser("poses", help="feasible pinches of one mesh, with their haptic features")
     _add_object_options(poses)
-    poses.add_argument("--count", type=int, default=1000, help="about how many pinches (default 1000)")
-    poses.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    _add_sampling_options(poses)
     poses.add_argument("--poses", metavar="FILE", help='check these pinches instead: JSON list of {"p1_mm": [...], "p2_mm": [...]}')
     poses.add_argument("--format", choices=("json", "csv"), default="json", help="output format (default json)")
 
@@ -195,7 +247,81 @@ def _cmd_features(args) -> int:
     return 0
 
 
-COMMANDS = {"poses": _cmd_poses, "features": _cmd_features}
+def _match_settings(args) -> MatchSettings:
+    criteria = parse_criteria(args.criteria)
+    return MatchSettings(weights=parse_weights(args.weights, criteria=criteria), criteria=criteria,
+                         normalize=args.normalize, top_k=args.top_k, one_to_one=args.one_to_one,
+                         keep_upright=args.keep_upright, distinct_mm=args.distinct_mm)
+
+
+def _given_poses(files, paths, option) -> list:
+    """Per object, the given poses or None; ``files`` must be one per object."""
+    if not files:
+        return [None] * len(paths)
+    if len(files) != len(paths):
+        raise ConfigError(f"{option}: got {len(files)} files for {len(paths)} objects; give one per object, in order")
+    return [load_poses_file(f) for f in files]
+
+
+def _say(args, message: str) -> None:
+    if not args.quiet:
+        print(message, file=sys.stderr if args.command == "match" else sys.stdout, flush=True)
+
+
+def _cmd_match(args) -> int:
+    settings = _settings(args, count=args.count, seed=args.seed)
+    match_settings = _match_settings(args)
+    out = Path(args.output)
+    if out.exists() and not out.is_dir():
+        raise ConfigError(f"{out}: -o names a file; give a folder for matches.json")
+    given_t = _given_poses(args.tangible_poses, args.tangible, "--tangible-poses")
+    given_v = _given_poses(args.virtual_poses, args.virtual, "--virtual-poses")
+    t0 = time.perf_counter()
+    groups = []
+    for paths, given, files in ((args.tangible, given_t, args.tangible_poses),
+                                (args.virtual, given_v, args.virtual_poses)):
+        group = []
+        for k, path in enumerate(paths):
+            obj = analyze_object(Path(path), units=args.units, up=args.up, patch_radius_mm=args.patch_radius_mm)
+            group.append(candidate_poses(obj, settings=settings, given=given[k],
+                                         source=files[k] if given[k] is not None else None))
+            _say(args, f"{obj.name}: {len(group[-1])} feasible poses")
+        groups.append(group)
+    t1 = time.perf_counter()
+    scene = match_scene(*groups, match_settings, pinch_settings=settings)
+    t2 = time.perf_counter()
+    doc = matches_document(scene, {**settings.as_dict(), **match_settings.as_dict(),
+                                   "units": args.units, "up": args.up})
+    write_atomic(out / "matches.json", to_json(doc))
+    if not args.quiet:
+        print(matches_table(doc))
+        print(f"poses and features {t1 - t0:.2f} s, search {t2 - t1:.2f} s; wrote {out / 'matches.json'}")
+    return 0
+
+
+def _cmd_demo(args) -> int:
+    settings = PinchSettings(count=args.count, seed=args.seed)
+    out = Path(args.output)
+    if out.exists() and not out.is_dir():
+        raise ConfigError(f"{out}: -o names a file; give a folder for the demo's output")
+    t0 = time.perf_counter()
+    study = run_study(out / "objects", full=args.full, settings=settings,
+                      progress=None if args.quiet else (lambda m: print(m, flush=True)))
+    t1 = time.perf_counter()
+    common = {**settings.as_dict(), "candidate_virtual_poses": "all sampled" if args.full else "17 heights"}
+    study_doc = study_document(study, {**common, **MatchSettings().as_dict()})
+    matches_doc = matches_document(study.scene, {**common, **MatchSettings().as_dict()})
+    write_atomic(out / "study.json", to_json(study_doc))
+    write_atomic(out / "matches.json", to_json(matches_doc))
+    if not args.quiet:
+        print(study_table(study.rows))
+        print()
+        print(matches_table(matches_doc))
+        print(f"{t1 - t0:.2f} s; wrote {out / 'study.json'}, {out / 'matches.json'} and the objects in {out / 'objects'}")
+    return 0
+
+
+COMMANDS = {"demo": _cmd_demo, "match": _cmd_match, "poses": _cmd_poses, "features": _cmd_features}
 
 
 def main(argv: list[str] | None = None) -> int:

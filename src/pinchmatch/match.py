@@ -250,9 +250,10 @@ def _pinch_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Choice:
-    """One registered pose pair: tangible ``tangible`` pose ``t_pose`` with virtual pose ``v_pose``
-    (indices into the candidates) and its exact evaluation."""
+    """One registered pose pair: virtual object ``virtual``'s pose ``v_pose`` on tangible
+    ``tangible``'s pose ``t_pose`` (indices into the candidates), and its exact evaluation."""
 
+    virtual: int
     tangible: int
     t_pose: int
     v_pose: int
@@ -266,12 +267,14 @@ class Choice:
 
 @dataclass
 class VirtualMatch:
-    """The result for one virtual object: best choice (None with ``reason``) and alternatives."""
+    """The result for one virtual object: best choice (None with ``reason``), alternatives, and
+    the paper's Ref for the best choice's tangible pose."""
 
     virtual: int
     best: Choice | None
     alternatives: list
     reason: str | None = None
+    reference: "Reference | None" = None
 
 
 @dataclass
@@ -345,7 +348,7 @@ class _Search:
                 continue
             p, k = entries[owner[i]][0], local[i]
             r = p.result
-            picks.append(Choice(p.tangible, int(p.it[k]), int(p.iv[k]), float(r.cost[k]), r.terms[k],
+            picks.append(Choice(j, p.tangible, int(p.it[k]), int(p.iv[k]), float(r.cost[k]), r.terms[k],
                                 bool(r.swapped[k]), r.transform[k], bool(r.flipped[k]), r.mass_delta_mm[k]))
             near = (owner == owner[i]) & (_pinch_distance(t_pinch, t_pinch[i]) < self.settings.distinct_mm) \
                 & (_pinch_distance(v_pinch, v_pinch[i]) < self.settings.distinct_mm)
@@ -354,8 +357,12 @@ class _Search:
 
 
 def match_scene(tangibles: list[Candidates], virtuals: list[Candidates], settings: MatchSettings = MatchSettings(),
-                model: CostModel | None = None) -> SceneMatch:
-    """For every virtual object, the best tangible, pose pair and registration, with alternatives."""
+                model: CostModel | None = None, *, pinch_settings: PinchSettings = PinchSettings()) -> SceneMatch:
+    """For every virtual object, the best tangible, pose pair and registration, with alternatives.
+
+    ``model`` defaults to :func:`cost_model` over all candidates; ``pinch_settings`` are used to
+    check the reference poses.
+    """
     if not tangibles:
         raise ConfigError("no tangible object given; name at least one with --tangible")
     if not virtuals:
@@ -381,7 +388,10 @@ def match_scene(tangibles: list[Candidates], virtuals: list[Candidates], setting
         picks = search.choices(j, allowed[j], settings.top_k + 1) if allowed[j] else []
         if not picks and j not in reasons:
             reasons[j] = "no registration is allowed: every one flips the virtual object (--keep-upright)"
-        matches.append(VirtualMatch(j, picks[0] if picks else None, picks[1:], reasons.get(j)))
+        best = picks[0] if picks else None
+        ref = reference_pose(tangibles[best.tangible], best.t_pose, virtuals[j], model,
+                             settings=pinch_settings) if best else None
+        matches.append(VirtualMatch(j, best, picks[1:], reasons.get(j), ref))
     return SceneMatch(tangibles, virtuals, settings, model, cost_matrix, matches)
 
 
@@ -402,6 +412,26 @@ def assign_one_to_one(cost_matrix: np.ndarray) -> np.ndarray:
     for r, c in zip(rows, cols):
         if finite[r, c]:
             out[r] = c
+    return out
+
+
+def criterion_table(tangible: Candidates, virtual: Candidates, choice: Choice, model: CostModel) -> dict:
+    """Per criterion in use: weight, contribution (in the run's normalisation), the difference in
+    just-noticeable differences (root mean square over the criterion's entries) and ``noticeable``."""
+    t_row = tangible.table[choice.t_pose][None]
+    v_row = virtual.table[choice.v_pose][None]
+    if choice.swapped:
+        v_row = v_row[:, ::-1]
+    jnd_model = model.as_jnd()
+    jnd = separable_terms(t_row, v_row, jnd_model)[0]
+    jnd[7] = mass_term(t_row, choice.mass_delta_mm[None], jnd_model)[0]
+    out = {}
+    for k, c in enumerate(CRITERIA):
+        if c not in model.criteria:
+            continue
+        size = float(np.sqrt(jnd[k]))
+        out[c] = {"weight": model.weights[c], "contribution": float(choice.terms[k]), "jnd": size,
+                  "noticeable": bool(size >= 1.0)}
     return out
 
 

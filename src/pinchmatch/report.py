@@ -30,7 +30,7 @@ SCHEMA_FEATURES = "pinchmatch.features/1"
 def _num(x, digits: int = 4):
     """A float for JSON: rounded, ``None`` for NaN or inf."""
     x = float(x)
-    return round(x, digits) if math.isfinite(x) else None
+    return round(x, digits) + 0.0 if math.isfinite(x) else None  # + 0.0: no -0.0
 
 
 def _vec(v, digits: int = 4) -> list:
@@ -174,3 +174,164 @@ def write_atomic(path: str | os.PathLike, text: str | bytes) -> None:
     finally:
         if os.path.exists(tmp):  # only when something failed before the replace
             os.unlink(tmp)
+
+
+SCHEMA_MATCHES = "pinchmatch.matches/1"
+SCHEMA_STUDY = "pinchmatch.study/1"
+
+#: how transforms are to be read, stated in every matches document
+FRAME_NOTE = (
+    "transform_virtual_to_tangible maps points of the virtual object, in its file's frame scaled to mm, "
+    "into the tangible's file frame in mm: x_t = R x_v + t; row-major 4x4, right-handed, det +1. "
+    "position_mm is t; quaternion_xyzw is R as a unit quaternion [x, y, z, w]."
+)
+
+
+def _candidate_record(candidates, i: int, *, swapped: bool = False) -> dict:
+    """A candidate pose as a record; with ``swapped`` its contacts are given in the other order."""
+    record = pose_records(candidates.pinches.subset([i]), _features_row(candidates.features, i))[0]
+    record["index"] = int(candidates.index[i])
+    if swapped:
+        record["p1_mm"], record["p2_mm"] = record["p2_mm"], record["p1_mm"]
+        record["n1"], record["n2"] = record["n2"], record["n1"]
+        record["face_index"] = record["face_index"][::-1]
+        record["patches"] = record["patches"][::-1]
+    record["finger_order_swapped"] = bool(swapped)
+    return record
+
+
+def _features_row(features, i: int):
+    import dataclasses
+
+    return type(features)(**{f.name: getattr(features, f.name)[[i]] for f in dataclasses.fields(features)})
+
+
+def _rigid(transform: np.ndarray) -> dict:
+    from scipy.spatial.transform import Rotation
+
+    return {
+        "transform_virtual_to_tangible": [_vec(row, 6) for row in transform],
+        "position_mm": _vec(transform[:3, 3]),
+        "quaternion_xyzw": _vec(Rotation.from_matrix(transform[:3, :3]).as_quat(), 6),
+    }
+
+
+def _choice_record(scene, choice, *, full: bool) -> dict:
+    T, V = scene.tangibles[choice.tangible], scene.virtuals[choice.virtual]
+    t_width = float(T.features.width_mm[choice.t_pose])
+    v_width = float(V.features.width_mm[choice.v_pose])
+    up_t = T.obj.loaded.up
+    record = {
+        "tangible": T.name,
+        "cost": _num(choice.cost, 6),
+        "tangible_pose": _candidate_record(T, choice.t_pose) if full else _contacts(T, choice.t_pose),
+        "virtual_pose": (_candidate_record(V, choice.v_pose, swapped=choice.swapped) if full
+                         else _contacts(V, choice.v_pose, swapped=choice.swapped)),
+        **_rigid(choice.transform),
+        "flipped": choice.flipped,
+        "contact_offset_mm": _num((v_width - t_width) / 2.0),
+        "mass_mismatch_mm": _vec(choice.mass_delta_mm),
+        "mass_mismatch_vertical_mm": _num(float(choice.mass_delta_mm @ up_t)),
+    }
+    return record
+
+
+def _contacts(candidates, i: int, *, swapped: bool = False) -> dict:
+    p = candidates.pinches.points[i][::-1] if swapped else candidates.pinches.points[i]
+    return {"index": int(candidates.index[i]), "p1_mm": _vec(p[0]), "p2_mm": _vec(p[1]),
+            "finger_order_swapped": bool(swapped)}
+
+
+def _reference_record(ref, model) -> dict:
+    if ref is None:
+        return None
+    if ref.pinches is None:
+        return {"cost": None, "reason": ref.reason}
+    record = pose_records(ref.pinches, ref.features)[0]
+    return {"cost": _num(ref.cost, 6), "reason": None, "flipped": ref.flipped,
+            "transform_virtual_to_tangible": [_vec(row, 6) for row in np.eye(4)], "virtual_pose": record}
+
+
+def matches_document(scene, settings: dict) -> dict:
+    """The ``pinchmatch match`` result (schema ``pinchmatch.matches/1``, docs/output-format.md)."""
+    from .match import criterion_table
+
+    objects = lambda group: [  # noqa: E731
+        {"name": c.name, **object_section(c.obj.loaded, c.obj.props, ray_engine=c.obj.context.ray_engine_name),
+         "pose_count": len(c), "poses_given": c.given}
+        for c in group
+    ]
+    matches = []
+    for vm in scene.matches:
+        V = scene.virtuals[vm.virtual]
+        entry = {"virtual": V.name}
+        if vm.best is None:
+            entry.update(tangible=None, cost=None, reason=vm.reason)
+            matches.append(entry)
+            continue
+        best = vm.best
+        entry.update(_choice_record(scene, best, full=True))
+        entry["reason"] = None
+        entry["criteria"] = criterion_table(scene.tangibles[best.tangible], V, best, scene.model)
+        entry["alternatives"] = [_choice_record(scene, a, full=False) for a in vm.alternatives]
+        entry["reference"] = _reference_record(vm.reference, scene.model)
+        # keys in a stable, readable order
+        order = ["virtual", "tangible", "cost", "reason", "criteria", "tangible_pose", "virtual_pose"]
+        matches.append({k: entry[k] for k in order} | {k: v for k, v in entry.items() if k not in order})
+    return {
+        "schema": SCHEMA_MATCHES,
+        "version": __version__,
+        "settings": settings,
+        "frames": FRAME_NOTE,
+        "tangibles": objects(scene.tangibles),
+        "virtuals": objects(scene.virtuals),
+        "matches": matches,
+        "cost_matrix": {
+            "rows_virtual": [v.name for v in scene.virtuals],
+            "columns_tangible": [t.name for t in scene.tangibles],
+            "values": [[_num(x, 6) for x in row] for row in scene.cost_matrix],
+        },
+    }
+
+
+def matches_table(document: dict) -> str:
+    """A plain-text table of a matches document, one row per virtual object."""
+    rows = [("virtual", "tangible", "cost", "noticeable", "flipped", "offset_mm", "ref_cost")]
+    for m in document["matches"]:
+        if m.get("tangible") is None:
+            rows.append((m["virtual"], "-", "-", m.get("reason") or "", "", "", ""))
+            continue
+        loud = [c for c, v in m["criteria"].items() if v["noticeable"]]
+        ref = m["reference"]
+        rows.append((m["virtual"], m["tangible"], f"{m['cost']:.4g}", ",".join(loud) or "none",
+                     "F" if m["flipped"] else "", f"{m['contact_offset_mm']:+.2f}",
+                     f"{ref['cost']:.4g}" if ref and ref["cost"] is not None else "null"))
+    return _format_rows(rows)
+
+
+def _format_rows(rows) -> str:
+    widths = [max(len(str(r[i])) for r in rows) for i in range(len(rows[0]))]
+    return "\n".join("  ".join(str(v).ljust(w) for v, w in zip(r, widths)).rstrip() for r in rows)
+
+
+def study_document(study, settings: dict) -> dict:
+    return {"schema": SCHEMA_STUDY, "version": __version__, "settings": settings, "rows": study.rows}
+
+
+def study_table(rows: list) -> str:
+    """The study's 18 rows as plain text: part and height of each pose, F for flipped, costs."""
+    def cell(p):
+        if p["height_mm"] is None:
+            return "none", "null", "null"
+        where = f"{p['part']} {p['height_mm']:g}" + (" F" if p["flipped"] else "")
+        cost = "null" if p["cost"] is None else f"{p['cost']:.3g}"
+        paper = "null" if p["cost_paper"] is None else f"{p['cost_paper']:.3g}"
+        return where, cost, paper
+
+    head = ("tangible", "VO", "virtual order", "ours", "cost", "cost_paper", "paper", "cost", "cost_paper",
+            "ref", "cost", "cost_paper")
+    out = [head]
+    for r in rows:
+        out.append((r["tangible_part"], str(r["virtual"]), "/".join(r["virtual_order"]),
+                    *cell(r["ours"]), *cell(r["paper"]), *cell(r["ref"])))
+    return _format_rows(out)
