@@ -81,7 +81,6 @@ def test_pinches_spread_over_the_whole_sphere():
 
 
 def _slotted_block():
-    manifold3d = pytest.importorskip("manifold3d")  # noqa: F841
     block = trimesh.creation.box(extents=(60.0, 40.0, 40.0))
     slot = trimesh.creation.box(extents=(10.0, 60.0, 30.0))  # 10 mm wide: narrower than a finger
     slot.apply_translation((0, 0, 10.0))

@@ -306,10 +306,6 @@ def stacked_prop(order=("cylinder", "cube", "cone"), *, sections: int = 96) -> t
             raise ValueError(f"unknown part {name!r}")
         part.apply_translation((0.0, 0.0, z0 + 20.0))
         parts.append(part)
-    try:
-        import manifold3d  # noqa: F401
-    except ImportError:
-        raise ImportError("stacked_prop needs manifold3d for the union: pip install manifold3d") from None
     return trimesh.boolean.union(parts, engine="manifold")
 
 

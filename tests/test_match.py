@@ -1,0 +1,309 @@
+import itertools
+import json
+
+import numpy as np
+import pytest
+import trimesh
+
+from pinchmatch import match as match_module
+from pinchmatch.analysis import analyze_object
+from pinchmatch.cli import example_mesh_path, main
+from pinchmatch.cost import CRITERIA, CostModel, separable_terms
+from pinchmatch.match import (MatchSettings, assign_one_to_one, candidate_poses, cost_model, evaluate_pairs,
+                              match_scene, reference_pose)
+from pinchmatch.pinches import PinchSettings
+from pinchmatch.shapes import ellipsoid
+from pinchmatch.study import PARTS, TANGIBLE_HEIGHTS_MM, run_study
+
+from conftest import random_rigid, transformed
+
+
+@pytest.fixture(scope="module")
+def example():
+    return candidate_poses(analyze_object(example_mesh_path()), settings=PinchSettings(count=300))
+
+
+@pytest.fixture(scope="module")
+def study(tmp_path_factory):
+    return run_study(tmp_path_factory.mktemp("study"))
+
+
+def moved_copy(tmp_path, mesh, seed, name):
+    """The mesh rotated, translated and re-triangulated (every triangle split in four)."""
+    R, t = random_rigid(seed)
+    copy = transformed(mesh.subdivide(), R, t)
+    path = tmp_path / name
+    copy.export(path)
+    return path, R, t
+
+
+def patch_disagreement_mm(tangible, virtual, choice, radius_mm=8.0):
+    """Largest distance from the registered virtual surface to the tangible's, over both contact patches."""
+    X = choice.transform
+    ctx = virtual.obj.context
+    worst = 0.0
+    for k in range(2):
+        near = ctx.tree.query_ball_point(virtual.pinches.points[choice.v_pose, k], radius_mm)
+        moved = ctx.sample.points[near] @ X[:3, :3].T + X[:3, 3]
+        _, distance, _ = tangible.obj.context.closest_points(moved)
+        worst = max(worst, float(distance.max()))
+    return worst
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_an_object_matched_against_a_moved_retriangulated_copy_gets_the_same_place(tmp_path, example, seed):
+    """The copy's candidates are the original's pinches carried over, then snapped, checked and
+    described again on the re-triangulated copy: the same places exist on both, at new triangles."""
+    path, R, t = moved_copy(tmp_path, trimesh.load(example_mesh_path()), seed, "copy.stl")
+    p = example.pinches.points @ R.T + t
+    copy = candidate_poses(analyze_object(path, up="z"), given=(p[:, 0], p[:, 1]))
+    assert len(copy) >= 0.95 * len(example)  # a few sit on a rule's boundary (friction cone, clearance)
+    best = match_scene([example], [copy]).matches[0].best
+    assert best.cost < 1e-6
+    assert patch_disagreement_mm(example, copy, best) < 0.5
+    assert abs(np.linalg.det(best.transform[:3, :3]) - 1.0) < 1e-9
+    # the pinch lines meet: midpoints coincide
+    vp = copy.pinches.points[best.v_pose] @ best.transform[:3, :3].T + best.transform[:3, 3]
+    np.testing.assert_allclose(vp.mean(axis=0), example.pinches.points[best.t_pose].mean(axis=0), atol=1e-6)
+
+
+def test_an_ellipsoid_registers_onto_its_moved_copy_sampled_anew(tmp_path):
+    """Poses sampled independently on both: the best pair still puts the surfaces together."""
+    mesh = ellipsoid((40.0, 25.0, 15.0), faces=5000).mesh
+    mesh.export(tmp_path / "e.stl")
+    original = candidate_poses(analyze_object(tmp_path / "e.stl"), settings=PinchSettings(count=1000))
+    path, R, t = moved_copy(tmp_path, mesh, 7, "copy.stl")
+    copy = candidate_poses(analyze_object(path), settings=PinchSettings(count=1000, seed=3))
+    best = match_scene([original], [copy]).matches[0].best
+    assert patch_disagreement_mm(original, copy, best) < 0.5
+
+
+def test_a_pose_against_itself_costs_nothing_and_registers_to_the_identity(example):
+    idx = np.arange(len(example))
+    result = evaluate_pairs(example, example, idx, idx, cost_model(MatchSettings(), [example]))
+    np.testing.assert_allclose(result.cost, 0.0, atol=1e-9)
+    np.testing.assert_allclose(result.transform, np.broadcast_to(np.eye(4), result.transform.shape), atol=1e-6)
+    assert not result.flipped.any()
+
+
+def test_swapping_p1_and_p2_in_the_inputs_changes_no_cost(example, tmp_path):
+    obj = example.obj
+    p = example.pinches.points[:40]
+    given = candidate_poses(obj, given=(p[:, 0], p[:, 1]))
+    swapped = candidate_poses(obj, given=(p[:, 1], p[:, 0]))
+    model = cost_model(MatchSettings(), [example])
+    it = np.repeat(np.arange(len(example)), len(given))
+    iv = np.tile(np.arange(len(given)), len(example))
+    a = evaluate_pairs(example, given, it, iv, model)
+    b = evaluate_pairs(example, swapped, it, iv, model)
+    np.testing.assert_allclose(a.cost, b.cost, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(a.transform, b.transform, atol=1e-6)
+    assert (a.swapped != b.swapped).all()
+
+
+@pytest.mark.parametrize("keep_upright", [False, True])
+@pytest.mark.parametrize("normalize", ["jnd", "range"])
+def test_the_pooled_search_finds_the_exact_minimum(example, tmp_path, monkeypatch, keep_upright, normalize):
+    mesh = ellipsoid((30.0, 22.0, 14.0), faces=1300).mesh
+    mesh.export(tmp_path / "e.stl")
+    virtual = candidate_poses(analyze_object(tmp_path / "e.stl"), settings=PinchSettings(count=120))
+    monkeypatch.setattr(match_module, "INITIAL_POOL", 7)  # force the pool to grow
+    settings = MatchSettings(normalize=normalize, keep_upright=keep_upright, top_k=4, distinct_mm=10.0)
+    scene = match_scene([example], [virtual], settings)
+    it = np.repeat(np.arange(len(example)), len(virtual))
+    iv = np.tile(np.arange(len(virtual)), len(example))
+    brute = evaluate_pairs(example, virtual, it, iv, scene.model, keep_upright=keep_upright)
+    vm = scene.matches[0]
+    assert vm.best.cost == pytest.approx(brute.cost.min(), rel=1e-9, abs=1e-12)
+    assert scene.cost_matrix[0, 0] == pytest.approx(brute.cost.min(), rel=1e-9, abs=1e-12)
+    if keep_upright:
+        assert not vm.best.flipped and not any(a.flipped for a in vm.alternatives)
+    picks = [vm.best] + vm.alternatives
+    assert len(picks) == 5
+    costs = [c.cost for c in picks]
+    assert costs == sorted(costs)
+    for a, b in itertools.combinations(picks, 2):  # alternatives are different places
+        dt = match_module._pinch_distance(example.pinches.points[[a.t_pose]], example.pinches.points[b.t_pose])[0]
+        dv = match_module._pinch_distance(virtual.pinches.points[[a.v_pose]], virtual.pinches.points[b.v_pose])[0]
+        assert dt >= 10.0 or dv >= 10.0
+    # the second pick is the cheapest pair that is not a near duplicate of the first
+    far = np.array([
+        match_module._pinch_distance(example.pinches.points[[i]], example.pinches.points[vm.best.t_pose])[0] >= 10.0
+        or match_module._pinch_distance(virtual.pinches.points[[j]], virtual.pinches.points[vm.best.v_pose])[0] >= 10.0
+        for i, j in zip(it, iv)
+    ])
+    assert picks[1].cost == pytest.approx(brute.cost[far].min(), rel=1e-9)
+
+
+def test_the_mass_lower_bound_never_exceeds_the_exact_mass_term(example, tmp_path):
+    mesh = ellipsoid((30.0, 22.0, 14.0), faces=1300).mesh
+    mesh.export(tmp_path / "e.stl")
+    virtual = candidate_poses(analyze_object(tmp_path / "e.stl"), settings=PinchSettings(count=80))
+    model = cost_model(MatchSettings(), [example, virtual])
+    it = np.repeat(np.arange(len(example)), len(virtual))
+    iv = np.tile(np.arange(len(virtual)), len(example))
+    exact = evaluate_pairs(example, virtual, it, iv, model)
+    v_rows = virtual.table[iv]
+    v_rows = np.where(exact.swapped[:, None, None], v_rows[:, ::-1], v_rows)
+    bound = separable_terms(example.table[it], v_rows, model)[:, 7]
+    assert (bound <= exact.terms[:, 7] + 1e-9).all()
+    assert (exact.terms[:, 7] > bound + 1e-3).any()  # the bound is not the exact term
+
+
+def brute_force_assignment(cost):
+    m, n = cost.shape
+    best = (-1, np.inf, None)
+    for targets in itertools.product(range(-1, n), repeat=m):
+        used = [t for t in targets if t >= 0]
+        if len(used) != len(set(used)) or any(not np.isfinite(cost[j, t]) for j, t in enumerate(targets) if t >= 0):
+            continue
+        served, total = len(used), sum(cost[j, t] for j, t in enumerate(targets) if t >= 0)
+        if served > best[0] or (served == best[0] and total < best[1] - 1e-12):
+            best = (served, total, targets)
+    return best
+
+
+@pytest.mark.parametrize("shape", [(3, 3), (4, 2), (2, 4), (5, 3)])
+@pytest.mark.parametrize("seed", range(4))
+def test_one_to_one_assignment_equals_brute_force(shape, seed):
+    rng = np.random.default_rng(seed)
+    cost = rng.uniform(0, 10, shape)
+    cost[rng.random(shape) < 0.2] = np.inf  # forbidden pairs (no upright registration)
+    assigned = assign_one_to_one(cost)
+    served, total, _ = brute_force_assignment(cost)
+    used = assigned[assigned >= 0]
+    assert len(set(used.tolist())) == len(used) == served
+    assert sum(cost[j, t] for j, t in enumerate(assigned) if t >= 0) == pytest.approx(total)
+
+
+def test_one_to_one_in_a_scene_gives_each_tangible_to_one_virtual_object(example, tmp_path):
+    mesh = ellipsoid((30.0, 22.0, 14.0), faces=1300).mesh
+    mesh.export(tmp_path / "e.stl")
+    egg = candidate_poses(analyze_object(tmp_path / "e.stl"), settings=PinchSettings(count=80))
+    scene = match_scene([example, egg], [egg, example, egg], MatchSettings(one_to_one=True, top_k=1))
+    tangibles = [vm.best.tangible if vm.best else None for vm in scene.matches]
+    assert sorted(t for t in tangibles if t is not None) == [0, 1]
+    assert tangibles[1] == 0 and 1 in (tangibles[0], tangibles[2])  # each object goes to its own kind
+    left = [vm for vm in scene.matches if vm.best is None]
+    assert len(left) == 1 and "another virtual object" in left[0].reason
+    for vm in scene.matches:
+        if vm.best:
+            assert all(a.tangible == vm.best.tangible for a in vm.alternatives)
+
+
+def test_the_reference_of_an_object_on_itself_is_the_same_pinch_at_no_cost(example):
+    model = cost_model(MatchSettings(), [example])
+    ref = reference_pose(example, 5, example, model)
+    assert ref.reason is None and ref.cost == pytest.approx(0.0, abs=1e-6)
+    np.testing.assert_allclose(ref.pinches.points[0], example.pinches.points[5], atol=1e-6)
+
+
+def test_study_vo1_maps_each_part_to_itself_and_ours_never_costs_more_than_ref(study):
+    rows = study.rows
+    assert len(rows) == 18
+    assert {(r["tangible_part"], r["virtual"]) for r in rows} == {(p, v) for p in PARTS for v in range(1, 7)}
+    for r in rows:
+        if r["virtual"] == 1:
+            assert r["ours"]["part"] == r["tangible_part"]
+            assert r["ours"]["height_mm"] == pytest.approx(TANGIBLE_HEIGHTS_MM[PARTS.index(r["tangible_part"])], abs=0.5)
+            assert r["ours"]["cost"] == pytest.approx(0.0, abs=1e-6) and not r["ours"]["flipped"]
+        assert r["ref"]["cost"] is not None  # the stacks share their axis: the fingers always meet the VO
+        assert r["ours"]["cost"] <= r["ref"]["cost"] + 1e-6
+        assert r["paper"]["cost_paper"] <= r["ours"]["cost_paper"] + 1e-6  # each is optimal for its own model
+        assert r["paper"]["cost_paper"] <= r["ref"]["cost_paper"] + 1e-6
+
+
+def test_study_flips_a_virtual_object_where_the_part_sits_at_the_other_end(study):
+    # VO4 (cube / cone / cylinder) has the cylinder on top: the cylinder pose is found there, flipped
+    row = next(r for r in study.rows if r["tangible_part"] == "cylinder" and r["virtual"] == 4)
+    assert row["ours"]["part"] == "cylinder" and row["ours"]["flipped"]
+
+
+def run(capsys, *argv):
+    code = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_match_cli_writes_matches_json(tmp_path, capsys):
+    mesh = ellipsoid((30.0, 22.0, 14.0), faces=1300).mesh
+    mesh.export(tmp_path / "e.stl")
+    out = tmp_path / "out"
+    code, stdout, err = run(capsys, "match", "--tangible", example_mesh_path(), "--virtual", tmp_path / "e.stl",
+                            example_mesh_path(), "--count", 150, "--top-k", 2, "-o", out)
+    assert code == 0, err
+    doc = json.loads((out / "matches.json").read_text())
+    assert doc["schema"] == "pinchmatch.matches/1" and doc["settings"]["top_k"] == 2
+    assert len(doc["matches"]) == 2 and len(doc["cost_matrix"]["values"]) == 2
+    m = doc["matches"][1]
+    for key in ("virtual", "tangible", "cost", "criteria", "tangible_pose", "virtual_pose",
+                "transform_virtual_to_tangible", "position_mm", "quaternion_xyzw", "flipped", "contact_offset_mm",
+                "alternatives", "reference"):
+        assert key in m
+    assert set(m["criteria"]) == set(CRITERIA)
+    assert all({"contribution", "jnd", "noticeable", "weight"} <= set(v) for v in m["criteria"].values())
+    assert len(m["alternatives"]) == 2
+    T = np.array(m["transform_virtual_to_tangible"])
+    assert np.linalg.det(T[:3, :3]) == pytest.approx(1.0, abs=1e-5)
+    assert m["reference"]["cost"] == pytest.approx(0.0, abs=1e-3)  # the example on itself
+    assert "virtual" in stdout and "wrote" in stdout
+
+
+def test_match_cli_paper_criteria_and_given_tangible_poses(tmp_path, capsys):
+    poses = tmp_path / "poses.json"
+    poses.write_text(json.dumps([{"p1_mm": [-20, 0, 20], "p2_mm": [20, 0, 20]},
+                                 {"p1_mm": [-20, 0, 60], "p2_mm": [20, 0, 60]}]))
+    out = tmp_path / "out"
+    code, _, err = run(capsys, "match", "--tangible", example_mesh_path(), "--tangible-poses", poses,
+                       "--virtual", example_mesh_path(), "--count", 100, "--criteria", "paper", "--normalize", "range",
+                       "-q", "-o", out)
+    assert code == 0, err
+    doc = json.loads((out / "matches.json").read_text())
+    assert doc["tangibles"][0]["pose_count"] == 2 and doc["tangibles"][0]["poses_given"]
+    assert set(doc["matches"][0]["criteria"]) == set(CRITERIA[:7])
+    assert doc["matches"][0]["tangible_pose"]["index"] in (0, 1)
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--weights", "widht=1"], "did you mean 'width'"),
+    (["--weights", "width=-2"], "needs a weight of 0 or more"),
+    (["--criteria", "paper", "--weights", "mass=1"], "not part of --criteria paper"),
+    (["--normalize", "zscore"], "invalid choice"),
+    (["--top-k", "-1"], "--top-k"),
+])
+def test_match_cli_refuses_bad_options(tmp_path, capsys, argv, message):
+    code, _, err = run(capsys, "match", "--tangible", example_mesh_path(), "--virtual", example_mesh_path(),
+                       *argv, "-o", tmp_path / "out")
+    assert code == 2 and message in err and "Traceback" not in err
+    assert len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "out").exists()
+
+
+def test_match_cli_refuses_bad_pose_files(tmp_path, capsys):
+    broken = tmp_path / "broken.json"
+    broken.write_text('[{"p1_mm": [0, 0')
+    code, _, err = run(capsys, "match", "--tangible", example_mesh_path(), "--tangible-poses", broken,
+                       "--virtual", example_mesh_path(), "-o", tmp_path / "out")
+    assert code == 2 and "broken.json: not valid JSON" in err
+    infeasible = tmp_path / "infeasible.json"  # both fingers on the same face
+    infeasible.write_text(json.dumps([{"p1_mm": [-20, -5, 60], "p2_mm": [-20, 5, 60]}]))
+    code, _, err = run(capsys, "match", "--tangible", example_mesh_path(), "--tangible-poses", infeasible,
+                       "--virtual", example_mesh_path(), "-o", tmp_path / "out")
+    assert code == 2 and "infeasible.json: none of the 1 given poses is feasible" in err
+    code, _, err = run(capsys, "match", "--tangible", example_mesh_path(), example_mesh_path(),
+                       "--tangible-poses", infeasible, "--virtual", example_mesh_path(), "-o", tmp_path / "out")
+    assert code == 2 and "got 1 files for 2 objects" in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_demo_writes_the_study_and_the_scene(tmp_path, capsys):
+    code, stdout, err = run(capsys, "demo", "-o", tmp_path / "demo")
+    assert code == 0, err
+    study = json.loads((tmp_path / "demo" / "study.json").read_text())
+    assert study["schema"] == "pinchmatch.study/1" and len(study["rows"]) == 18
+    row = study["rows"][0]
+    assert {"tangible_part", "virtual", "virtual_order", "ours", "paper", "ref"} <= set(row)
+    assert {"part", "height_mm", "flipped", "cost", "cost_paper"} <= set(row["ours"])
+    scene = json.loads((tmp_path / "demo" / "matches.json").read_text())
+    assert len(scene["matches"]) == 6
+    assert "cylinder/cube/cone" in stdout
