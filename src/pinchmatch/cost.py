@@ -181,26 +181,32 @@ def _factors(virtual: np.ndarray) -> list[np.ndarray]:
     return out
 
 
-def pair_cost_blocks(tangible: np.ndarray, virtual: np.ndarray, model: CostModel, *, block_rows: int = 2048):
+def pair_cost_blocks(tangible: np.ndarray, virtual: np.ndarray, model: CostModel, *, block_rows: int = 2048,
+                     with_swapped: bool = True):
     """Yield ``(start, cost, swapped)`` for blocks of tangible rows: the separable cost of every pair.
 
     With ``mass`` in use, this is the lower bound of the exact cost (see the module notes);
-    without it, it is the exact cost. ``swapped`` is True where the virtual pose's p1 goes on
-    the tangible's p2.
+    without it, it is the exact cost. ``swapped`` (None unless ``with_swapped``) is True where
+    the virtual pose's p1 goes on the tangible's p2. The blocks are views of buffers reused
+    from one block to the next: use or copy each before taking the next.
     """
+    nv = len(virtual)
     w = model.column_weights().reshape(-1)
     v_orders = _factors(virtual)
-    for start in range(0, len(tangible), block_rows):
-        t = tangible[start:start + block_rows]
+    rows = max(1, min(block_rows, len(tangible)))
+    buffers = np.empty((2, rows, nv))  # allocated once: no page faults per block
+    for start in range(0, len(tangible), rows):
+        t = tangible[start:start + rows]
         s = model.scales(t).reshape(len(t), -1)
         t = t.reshape(len(t), -1)
         a = np.where(np.isnan(t), 0.0, w / s**2)  # weight / s², 0 where ρ is undefined
         tv = np.nan_to_num(t)
         # Σ a (v - t)² m_v = [a, -2 a t, a t²] · [v² m_v, v m_v, m_v]
         left = np.concatenate([a, -2.0 * a * tv, a * tv * tv], axis=1)
-        c0 = left @ v_orders[0]
-        c1 = left @ v_orders[1]
-        swapped = c1 < c0
+        c0, c1 = buffers[0, :len(t)], buffers[1, :len(t)]
+        np.matmul(left, v_orders[0], out=c0)
+        np.matmul(left, v_orders[1], out=c1)
+        swapped = np.less(c1, c0) if with_swapped else None
         np.minimum(c0, c1, out=c0)
         np.maximum(c0, 0.0, out=c0)  # round-off
         yield start, c0, swapped

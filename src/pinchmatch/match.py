@@ -215,8 +215,16 @@ def _pool(tangible: Candidates, virtual: Candidates, model: CostModel, size: int
     kept_val = np.zeros(0)
     kept_idx = np.zeros(0, dtype=np.int64)
     tau = np.inf
-    for start, block, _ in pair_cost_blocks(tangible.table, virtual.table, model, block_rows=block_rows):
+    blocks = pair_cost_blocks(tangible.table, virtual.table, model, block_rows=block_rows, with_swapped=False)
+    for start, block, _ in blocks:
         flat = block.ravel()
+        if not np.isfinite(tau) and flat.size > 4 * size:
+            # a first threshold from a subsample, so that the full block is only compared, never
+            # partitioned; every pair left out costs at least tau, whatever the estimate
+            step = max(1, flat.size // (64 * size))
+            sub = flat[::step]
+            kth = min(len(sub) - 1, max(1, size // step))
+            tau = float(np.partition(sub, kth)[kth])
         sel = np.flatnonzero(flat < tau) if np.isfinite(tau) else np.arange(flat.size)
         vals = np.concatenate([kept_val, flat[sel]])
         idx = np.concatenate([kept_idx, sel + start * nv])
