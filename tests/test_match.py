@@ -307,3 +307,11 @@ def test_demo_writes_the_study_and_the_scene(tmp_path, capsys):
     scene = json.loads((tmp_path / "demo" / "matches.json").read_text())
     assert len(scene["matches"]) == 6
     assert "cylinder/cube/cone" in stdout
+
+
+def test_full_study_adds_sampled_candidates_and_only_gains(tmp_path, study):
+    full = run_study(tmp_path / "full", full=True, settings=PinchSettings(count=300))
+    assert all(len(f) > len(s) for f, s in zip(full.virtuals, study.virtuals))
+    for row, base in zip(full.rows, study.rows):
+        assert row["ours"]["cost"] <= base["ours"]["cost"] + 1e-9
+        assert row["ours"]["cost"] <= row["ref"]["cost"] + 1e-6

@@ -117,7 +117,7 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("-o", "--output", metavar="OUT", default="pinchmatch-demo",
                       help="folder for study.json, matches.json and the objects (default pinchmatch-demo)")
     demo.add_argument("--full", action="store_true",
-                      help="candidate virtual poses: every sampled pose instead of the paper's 17")
+                      help="candidate virtual poses: every sampled pose as well as the paper's 17")
     _add_sampling_options(demo)
     _add_verbosity(demo)
 
@@ -308,7 +308,7 @@ def _cmd_demo(args) -> int:
     study = run_study(out / "objects", full=args.full, settings=settings,
                       progress=None if args.quiet else (lambda m: print(m, flush=True)))
     t1 = time.perf_counter()
-    common = {**settings.as_dict(), "candidate_virtual_poses": "all sampled" if args.full else "17 heights"}
+    common = {**settings.as_dict(), "candidate_virtual_poses": "17 heights and all sampled" if args.full else "17 heights"}
     study_doc = study_document(study, {**common, **MatchSettings().as_dict()})
     matches_doc = matches_document(study.scene, {**common, **MatchSettings().as_dict()})
     write_atomic(out / "study.json", to_json(study_doc))

@@ -134,6 +134,18 @@ def candidate_poses(
     return Candidates(obj, pinches, features, feature_table(features), keep, given is not None)
 
 
+def merge_candidates(first: Candidates, second: Candidates) -> Candidates:
+    """The candidates of both (same object); the second's indices follow the first's list."""
+    from .pinches import _concat
+
+    features = PinchFeatures(**{f.name: np.concatenate([getattr(first.features, f.name), getattr(second.features, f.name)])
+                                for f in dataclasses.fields(first.features)})
+    offset = int(first.index.max()) + 1 if len(first.index) else 0
+    return Candidates(first.obj, _concat([first.pinches, second.pinches]), features,
+                      np.concatenate([first.table, second.table]),
+                      np.concatenate([first.index, second.index + offset]), first.given and second.given)
+
+
 def cost_model(settings: MatchSettings, candidates: list[Candidates]) -> CostModel:
     """The run's cost model; ``range`` takes each feature's range over every candidate of the run."""
     ranges = None

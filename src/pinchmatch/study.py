@@ -9,7 +9,8 @@
 - Candidate virtual poses: 17 horizontal pinches along X at z = 120·k/18 mm,
   k = 1..17 (evenly spaced, ends excluded; the mid-heights 20, 60 and 100 mm
   are among them). Poses that are not feasible (at the junctions of parts a
-  finger would rest on an edge) are left out. ``full``: every sampled pose.
+  finger would rest on an edge) are left out. ``full``: every sampled pose
+  as well, so the search only gains.
 
 Each of the 18 rows (tangible part x virtual object) gives three poses on
 the virtual object: ``ours`` (the default criteria and normalisation),
@@ -28,7 +29,7 @@ import numpy as np
 from .analysis import analyze_object
 from .cost import PAPER_CRITERIA
 from .match import (Candidates, MatchSettings, SceneMatch, candidate_poses, cost_model, evaluate_pairs,
-                    line_contacts, match_scene, reference_pose)
+                    line_contacts, match_scene, merge_candidates, reference_pose)
 from .pinches import PinchSettings
 from .shapes import stacked_prop
 
@@ -116,8 +117,11 @@ def run_study(folder: Path, *, full: bool = False, settings: PinchSettings = Pin
     for j, path in enumerate(virtual_paths, start=1):
         say(f"VO{j}: {' / '.join(ORDERS[j - 1])}")
         obj = analyze_object(path, units="mm", up="z")
-        given = None if full else horizontal_poses(obj, CANDIDATE_HEIGHTS_MM)
-        virtuals.append(candidate_poses(obj, settings=settings, given=given, source=f"VO{j} candidate poses"))
+        candidates = candidate_poses(obj, settings=settings, given=horizontal_poses(obj, CANDIDATE_HEIGHTS_MM),
+                                     source=f"VO{j} candidate poses")
+        if full:
+            candidates = merge_candidates(candidate_poses(obj, settings=settings), candidates)
+        virtuals.append(candidates)
 
     everything = [tangible] + virtuals
     ours_model = cost_model(match_settings, everything)
