@@ -68,3 +68,16 @@ def test_weights_are_parsed_and_checked():
         parse_weights("width=-1")
     with pytest.raises(ConfigError, match="unknown mode 'zscore'"):
         CostModel(normalize="zscore")
+
+
+def test_a_feature_constant_over_the_run_contributes_nothing_in_range_mode():
+    t = random_table(30, 5)
+    t[:, :, 2] = 0.0  # every pinch horizontal: tilt 0 everywhere
+    v = t.copy()
+    v[:, :, 2] = 1e-9  # round-off
+    model = CostModel(normalize="range", ranges=feature_ranges(t))
+    assert model.ranges[2] == 0.0
+    cost, _ = pair_costs(t, v, model)
+    assert np.isfinite(cost).all()
+    np.testing.assert_allclose(np.diag(cost), 0.0, atol=1e-9)
+    assert contributions(t[0], v[0], model, swapped=False)["tilt"] == 0.0

@@ -54,6 +54,9 @@ COM_JND_MM = 20.0
 #: offset, floor 20 mm (proprioceptive accuracy, as for d)
 MASS_JND_FRACTION, MASS_JND_FLOOR_MM = 0.22, 20.0
 
+#: ``range`` normalisation: a feature whose range is below this (in its unit) is constant over the run
+RANGE_TOLERANCE = 1e-6
+
 #: columns of a feature table, per patch; the last two belong to ``mass``
 COLUMNS = ("width", "com", "tilt", "normal", "axis", "kmax", "kmin", "mass_along", "mass_perp")
 #: criterion index of each column
@@ -141,7 +144,10 @@ class CostModel:
     def scales(self, table: np.ndarray) -> np.ndarray:
         """Scale of each entry of a tangible feature table (..., 9), same shape (never 0)."""
         if self.normalize == "range":
-            return np.broadcast_to(np.maximum(self.ranges, 1e-12), table.shape).copy()
+            # a feature that does not vary over the run's candidates tells no pose from another:
+            # an infinite scale makes it contribute nothing (instead of amplifying round-off)
+            scale = np.where(self.ranges > RANGE_TOLERANCE, self.ranges, np.inf)
+            return np.broadcast_to(scale, table.shape).copy()
         t = np.nan_to_num(np.abs(table))
         s = np.empty_like(t)
         s[..., 0] = np.maximum(WIDTH_JND_FRACTION * t[..., 0], WIDTH_JND_FLOOR_MM)
