@@ -27,6 +27,7 @@ from .match import MatchSettings, candidate_poses, match_scene
 from .properties import parse_vector
 from .report import (features_document, matches_document, matches_table, poses_csv, poses_document,
                      study_document, study_table, to_json, write_atomic)
+from .scenes import write_scenes
 from .study import run_study
 
 log = logging.getLogger("pinchmatch")
@@ -292,10 +293,12 @@ def _cmd_match(args) -> int:
     t2 = time.perf_counter()
     doc = matches_document(scene, {**settings.as_dict(), **match_settings.as_dict(),
                                    "units": args.units, "up": args.up})
+    scenes = write_scenes(scene, out / "scenes")
     write_atomic(out / "matches.json", to_json(doc))
     if not args.quiet:
         print(matches_table(doc))
-        print(f"poses and features {t1 - t0:.2f} s, search {t2 - t1:.2f} s; wrote {out / 'matches.json'}")
+        print(f"poses and features {t1 - t0:.2f} s, search {t2 - t1:.2f} s; wrote {out / 'matches.json'} "
+              f"and {len(scenes)} glTF scenes in {out / 'scenes'}")
     return 0
 
 
@@ -311,13 +314,15 @@ def _cmd_demo(args) -> int:
     common = {**settings.as_dict(), "candidate_virtual_poses": "17 heights and all sampled" if args.full else "17 heights"}
     study_doc = study_document(study, {**common, **MatchSettings().as_dict()})
     matches_doc = matches_document(study.scene, {**common, **MatchSettings().as_dict()})
+    write_scenes(study.scene, out / "scenes")
     write_atomic(out / "study.json", to_json(study_doc))
     write_atomic(out / "matches.json", to_json(matches_doc))
     if not args.quiet:
         print(study_table(study.rows))
         print()
         print(matches_table(matches_doc))
-        print(f"{t1 - t0:.2f} s; wrote {out / 'study.json'}, {out / 'matches.json'} and the objects in {out / 'objects'}")
+        print(f"{t1 - t0:.2f} s; wrote {out / 'study.json'}, {out / 'matches.json'}, the glTF scenes in "
+              f"{out / 'scenes'} and the objects in {out / 'objects'}")
     return 0
 
 

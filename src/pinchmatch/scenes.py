@@ -1,0 +1,122 @@
+"""glTF scenes of matches: the tangible, the registered virtual object and two green cones (issue 4).
+
+glTF conventions: metres and +Y up. pinchmatch works in mm in each file's
+frame, so every scene applies C = Q / 1000, where Q is the smallest rotation
+taking the tangible's up direction (``--up``, default z for STL/OBJ/PLY,
+y for glTF) onto +Y. C is baked into the vertices. The virtual object's
+node carries the registration as a rigid matrix,
+Q·R·Qᵀ with translation Q·t/1000, applied to its own vertices Q·v/1000. So
+the node matrix is what an engine reads, and the mm transform stays in the
+extras.
+
+Node names: ``tangible``, ``virtual``, ``cone_p1``, ``cone_p2``. Match data
+sits in node and scene extras as flat keys prefixed ``pinchmatch:``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import trimesh
+from trimesh.visual.material import PBRMaterial
+
+from .register import _rotations_between
+
+#: the fingertip cones: tip on the contact, axis along the pinch line, outside the object
+CONE_HEIGHT_MM, CONE_RADIUS_MM = 20.0, 5.0
+GREEN = [0.15, 0.75, 0.25, 1.0]
+TANGIBLE_COLOR = [0.6, 0.6, 0.6, 1.0]
+VIRTUAL_COLOR = [0.25, 0.45, 1.0, 0.45]
+
+
+def gltf_rotation(up: np.ndarray) -> np.ndarray:
+    """Q: the smallest rotation taking ``up`` onto glTF's +Y."""
+    return _rotations_between(np.asarray(up, float)[None], np.array([[0.0, 1.0, 0.0]]))[0]
+
+
+def _material(color, *, blend: bool = False) -> PBRMaterial:
+    return PBRMaterial(baseColorFactor=color, metallicFactor=0.0, roughnessFactor=0.8,
+                       alphaMode="BLEND" if blend else "OPAQUE", doubleSided=blend)
+
+
+def _styled(mesh: trimesh.Trimesh, vertices: np.ndarray, color, *, blend: bool = False) -> trimesh.Trimesh:
+    out = trimesh.Trimesh(vertices, mesh.faces.copy(), process=False)
+    out.visual = trimesh.visual.TextureVisuals(material=_material(color, blend=blend))
+    return out
+
+
+def fingertip_cone(contact_mm: np.ndarray, toward_mm: np.ndarray) -> trimesh.Trimesh:
+    """A cone (mm) with its tip on ``contact_mm``, pointing along ``toward_mm`` (unit)."""
+    cone = trimesh.creation.cone(radius=CONE_RADIUS_MM, height=CONE_HEIGHT_MM, sections=24)
+    cone.apply_translation([0.0, 0.0, -CONE_HEIGHT_MM])  # tip at the origin, body along -z
+    R = _rotations_between(np.array([[0.0, 0.0, 1.0]]), np.asarray(toward_mm, float)[None])[0]
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = R, contact_mm
+    cone.apply_transform(T)
+    return cone
+
+
+def _flat(prefix_values: dict) -> dict:
+    out = {}
+    for key, value in prefix_values.items():
+        if isinstance(value, np.ndarray):
+            value = value.tolist()
+        out[f"pinchmatch:{key}"] = value
+    return out
+
+
+def match_scene_glb(tangible, virtual, choice, *, extras: dict | None = None) -> bytes:
+    """One match as GLB bytes: tangible, registered virtual object (semi-transparent), two cones."""
+    Q = gltf_rotation(tangible.obj.loaded.up)
+    to_gltf = lambda points_mm: (np.asarray(points_mm) @ Q.T) / 1000.0  # noqa: E731
+
+    scene = trimesh.Scene()
+    t_mesh = tangible.obj.loaded.mesh
+    scene.add_geometry(_styled(t_mesh, to_gltf(t_mesh.vertices), TANGIBLE_COLOR), node_name="tangible",
+                       geom_name="tangible", metadata=_flat({"role": "tangible", "object": tangible.name}))
+
+    X = choice.transform
+    node = np.eye(4)
+    node[:3, :3] = Q @ X[:3, :3] @ Q.T
+    node[:3, 3] = Q @ X[:3, 3] / 1000.0
+    v_mesh = virtual.obj.loaded.mesh
+    info = {
+        "role": "virtual", "object": virtual.name, "tangible": tangible.name, "cost": float(choice.cost),
+        "flipped": bool(choice.flipped), "finger_order_swapped": bool(choice.swapped),
+        "transform_virtual_to_tangible_mm": X.reshape(-1),
+        "contact_offset_mm": float(virtual.features.width_mm[choice.v_pose] - tangible.features.width_mm[choice.t_pose]) / 2,
+    }
+    scene.add_geometry(_styled(v_mesh, to_gltf(v_mesh.vertices), VIRTUAL_COLOR, blend=True), node_name="virtual",
+                       geom_name="virtual", transform=node, metadata=_flat(info | (extras or {})))
+
+    p = tangible.pinches.points[choice.t_pose]
+    u = (p[1] - p[0]) / np.linalg.norm(p[1] - p[0])
+    for k, (contact, toward) in enumerate(((p[0], u), (p[1], -u)), start=1):
+        cone = fingertip_cone(contact, toward)
+        scene.add_geometry(_styled(cone, to_gltf(cone.vertices), GREEN), node_name=f"cone_p{k}",
+                           geom_name=f"cone_p{k}",
+                           metadata=_flat({"role": "fingertip", "finger": f"p{k}", "contact_mm": contact}))
+    scene.metadata.update(_flat({"schema": "pinchmatch.scene/1", "units": "m", "up": "+y",
+                                 "source_up": tangible.obj.loaded.up_label}))
+    return scene.export(file_type="glb")
+
+
+def write_scenes(scene, folder) -> list:
+    """Write ``folder/<virtual name>.glb`` for every matched virtual object; return the paths."""
+    from pathlib import Path
+
+    from .report import write_atomic
+
+    folder = Path(folder)
+    stems = [Path(v.name).stem for v in scene.virtuals]
+    paths = []
+    for vm in scene.matches:
+        if vm.best is None:
+            continue
+        stem = stems[vm.virtual]
+        if stems.count(stem) > 1:
+            stem = f"{stem}_{vm.virtual + 1}"
+        path = folder / f"{stem}.glb"
+        T, V = scene.tangibles[vm.best.tangible], scene.virtuals[vm.virtual]
+        write_atomic(path, match_scene_glb(T, V, vm.best))
+        paths.append(path)
+    return paths
