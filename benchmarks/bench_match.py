@@ -35,16 +35,9 @@ import numpy as np
 from pinchmatch.analysis import analyze_object
 from pinchmatch.cli import example_mesh_path
 from pinchmatch.cost import PAPER_CRITERIA
-from pinchmatch.match import Candidates, MatchSettings, candidate_poses, cost_model, evaluate_pairs, match_scene
+from pinchmatch.match import MatchSettings, candidate_poses, cost_model, evaluate_pairs, match_scene
 from pinchmatch.pinches import PinchSettings
 from pinchmatch.shapes import ellipsoid
-
-
-def first(c: Candidates, n: int) -> Candidates:
-    keep = np.arange(min(n, len(c)))
-    from pinchmatch.match import _features_subset
-
-    return Candidates(c.obj, c.pinches.subset(keep), _features_subset(c.features, keep), c.table[keep], keep, c.given)
 
 
 def timed_search(T, V, settings) -> tuple[float, float, float, float]:
@@ -86,7 +79,7 @@ def main() -> None:
                      ("paper+range", MatchSettings(weights=dict.fromkeys(PAPER_CRITERIA, 1.0),
                                                    criteria=PAPER_CRITERIA, normalize="range"))]
     for n in sizes:
-        t, v = first(T, n), first(V, n)
+        t, v = T.subset(np.arange(min(n, len(T)))), V.subset(np.arange(min(n, len(V))))
         for label, settings in settings_list:
             first_s, median_s, peak, best = timed_search(t, v, settings)
             exact = "-"

@@ -28,10 +28,11 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from .analysis import ObjectAnalysis, find_pinches, score_pinches
-from .cost import CRITERIA, CostModel, feature_table, mass_term, pair_cost_blocks, separable_terms, total
+from .cost import (CRITERIA, CostModel, feature_ranges, feature_table, mass_term, pair_cost_blocks,
+                   separable_terms, total)
 from .errors import ConfigError, NoFeasiblePinchError
 from .features import PinchFeatures, pinch_features
-from .pinches import PinchSettings, Pinches, check_pinches
+from .pinches import PinchSettings, Pinches, _concat, check_pinches
 from .register import register_poses
 
 #: pose pairs kept per (virtual, tangible) object pair before the exact evaluation; grows x4 when short
@@ -98,6 +99,12 @@ class Candidates:
     def midpoints(self) -> np.ndarray:
         return self.pinches.points.mean(axis=1)
 
+    def subset(self, keep) -> "Candidates":
+        """The candidates at positions ``keep`` (their ``index`` kept)."""
+        keep = np.asarray(keep)
+        return Candidates(self.obj, self.pinches.subset(keep), _features_subset(self.features, keep),
+                          self.table[keep], self.index[keep], self.given)
+
 
 def _features_subset(features: PinchFeatures, keep: np.ndarray) -> PinchFeatures:
     return PinchFeatures(**{f.name: getattr(features, f.name)[keep] for f in dataclasses.fields(features)})
@@ -136,8 +143,6 @@ def candidate_poses(
 
 def merge_candidates(first: Candidates, second: Candidates) -> Candidates:
     """The candidates of both (same object); the second's indices follow the first's list."""
-    from .pinches import _concat
-
     features = PinchFeatures(**{f.name: np.concatenate([getattr(first.features, f.name), getattr(second.features, f.name)])
                                 for f in dataclasses.fields(first.features)})
     offset = int(first.index.max()) + 1 if len(first.index) else 0
@@ -150,8 +155,6 @@ def cost_model(settings: MatchSettings, candidates: list[Candidates]) -> CostMod
     """The run's cost model; ``range`` takes each feature's range over every candidate of the run."""
     ranges = None
     if settings.normalize == "range":
-        from .cost import feature_ranges
-
         ranges = feature_ranges(*[c.table for c in candidates])
     return CostModel(dict(settings.weights), settings.normalize, ranges, tuple(settings.criteria))
 
@@ -348,16 +351,12 @@ class _Search:
 
     def _greedy(self, j, pools, tau, count) -> list[Choice]:
         V = self.virtuals[j]
-        entries = []
-        for p in pools:
-            ok = np.flatnonzero(np.isfinite(p.result.cost) & (p.result.cost < tau))
-            entries += [(p, ok)]
-        cost = np.concatenate([p.result.cost[ok] for p, ok in entries]) if entries else np.zeros(0)
-        owner = np.concatenate([np.full(len(ok), k) for k, (_, ok) in enumerate(entries)]) if entries else np.zeros(0, int)
-        local = np.concatenate([ok for _, ok in entries]) if entries else np.zeros(0, int)
-        t_pinch = np.concatenate([self.tangibles[p.tangible].pinches.points[p.it[ok]] for p, ok in entries]) \
-            if entries else np.zeros((0, 2, 3))
-        v_pinch = np.concatenate([V.pinches.points[p.iv[ok]] for p, ok in entries]) if entries else np.zeros((0, 2, 3))
+        entries = [(p, np.flatnonzero(np.isfinite(p.result.cost) & (p.result.cost < tau))) for p in pools]
+        cost = np.concatenate([p.result.cost[ok] for p, ok in entries])
+        owner = np.concatenate([np.full(len(ok), k) for k, (_, ok) in enumerate(entries)])
+        local = np.concatenate([ok for _, ok in entries])
+        t_pinch = np.concatenate([self.tangibles[p.tangible].pinches.points[p.it[ok]] for p, ok in entries])
+        v_pinch = np.concatenate([V.pinches.points[p.iv[ok]] for p, ok in entries])
         order = np.lexsort((local, owner, cost))  # by cost; ties broken deterministically
         alive = np.ones(len(cost), dtype=bool)
         picks: list[Choice] = []
@@ -435,6 +434,11 @@ def assign_one_to_one(cost_matrix: np.ndarray) -> np.ndarray:
     return out
 
 
+def contact_offset_mm(tangible: Candidates, virtual: Candidates, choice: Choice) -> float:
+    """(w_V - w_T) / 2: each virtual fingertip's offset from the tangible contact along the pinch line."""
+    return float(virtual.features.width_mm[choice.v_pose] - tangible.features.width_mm[choice.t_pose]) / 2.0
+
+
 def criterion_table(tangible: Candidates, virtual: Candidates, choice: Choice, model: CostModel) -> dict:
     """Per criterion in use: weight, contribution (in the run's normalisation), the difference in
     just-noticeable differences (root mean square over the criterion's entries) and ``noticeable``."""
@@ -494,18 +498,33 @@ def reference_pose(tangible: Candidates, t_pose: int, virtual: Candidates, model
     Each finger closes along the tangible's pinch line from its own side; its contact is the
     first virtual surface it meets. The placement is the identity (both files' frames), the
     finger order p1 on p1. The cost is ``None`` with a reason when a finger meets nothing.
+    Use :func:`reference_cost` for the same pose under another model.
     """
     p = tangible.pinches.points[t_pose]
-    mid = p.mean(axis=0)
-    points = line_contacts(virtual.obj, mid, p[1] - p[0])
+    points = line_contacts(virtual.obj, p.mean(axis=0), p[1] - p[0])
     if points is None:
         return Reference(None, None, None, None, "the tangible's pinch line misses the virtual object")
     pinches = check_pinches(virtual.obj.context, points[:1], points[1:], settings=settings)
     features = pinch_features(pinches, virtual.obj.props)
-    v_row = feature_table(features)
+    flipped = bool(virtual.obj.loaded.up @ tangible.obj.loaded.up < FLIP_COSINE)
+    terms = _reference_terms(tangible, t_pose, virtual, pinches, features, model)
+    return Reference(pinches, features, terms, float(total(terms[None], model)[0]), None, flipped)
+
+
+def reference_cost(tangible: Candidates, t_pose: int, virtual: Candidates, ref: Reference,
+                   model: CostModel) -> float | None:
+    """The cost of a reference pose under ``model`` (None where the fingers meet nothing)."""
+    if ref.pinches is None:
+        return None
+    terms = _reference_terms(tangible, t_pose, virtual, ref.pinches, ref.features, model)
+    return float(total(terms[None], model)[0])
+
+
+def _reference_terms(tangible, t_pose, virtual, pinches, features, model) -> np.ndarray:
+    """(8,) contributions of the reference pose, placed by the identity, p1 on p1."""
     t_row = tangible.table[t_pose][None]
-    terms = separable_terms(t_row, v_row, model)
+    terms = separable_terms(t_row, feature_table(features), model)
+    mid = tangible.pinches.points[t_pose].mean(axis=0)
     delta = (virtual.obj.props.com_mm - pinches.points[0].mean(axis=0)) - (tangible.obj.props.com_mm - mid)
     terms[:, 7] = mass_term(t_row, delta[None], model)
-    flipped = bool(virtual.obj.loaded.up @ tangible.obj.loaded.up < FLIP_COSINE)
-    return Reference(pinches, features, terms[0], float(total(terms, model)[0]), None, flipped)
+    return terms[0]

@@ -16,10 +16,12 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from . import __version__
 from .features import PinchFeatures
 from .load import LoadedMesh
+from .match import contact_offset_mm, criterion_table
 from .pinches import RULES, Pinches
 from .properties import ObjectProperties
 
@@ -189,8 +191,9 @@ FRAME_NOTE = (
 
 def _candidate_record(candidates, i: int, *, swapped: bool = False) -> dict:
     """A candidate pose as a record; with ``swapped`` its contacts are given in the other order."""
-    record = pose_records(candidates.pinches.subset([i]), _features_row(candidates.features, i))[0]
-    record["index"] = int(candidates.index[i])
+    one = candidates.subset([i])
+    record = pose_records(one.pinches, one.features)[0]
+    record["index"] = int(one.index[0])
     if swapped:
         record["p1_mm"], record["p2_mm"] = record["p2_mm"], record["p1_mm"]
         record["n1"], record["n2"] = record["n2"], record["n1"]
@@ -200,15 +203,7 @@ def _candidate_record(candidates, i: int, *, swapped: bool = False) -> dict:
     return record
 
 
-def _features_row(features, i: int):
-    import dataclasses
-
-    return type(features)(**{f.name: getattr(features, f.name)[[i]] for f in dataclasses.fields(features)})
-
-
 def _rigid(transform: np.ndarray) -> dict:
-    from scipy.spatial.transform import Rotation
-
     return {
         "transform_virtual_to_tangible": [_vec(row, 6) for row in transform],
         "position_mm": _vec(transform[:3, 3]),
@@ -218,8 +213,6 @@ def _rigid(transform: np.ndarray) -> dict:
 
 def _choice_record(scene, choice, *, full: bool) -> dict:
     T, V = scene.tangibles[choice.tangible], scene.virtuals[choice.virtual]
-    t_width = float(T.features.width_mm[choice.t_pose])
-    v_width = float(V.features.width_mm[choice.v_pose])
     up_t = T.obj.loaded.up
     record = {
         "tangible": T.name,
@@ -229,7 +222,7 @@ def _choice_record(scene, choice, *, full: bool) -> dict:
                          else _contacts(V, choice.v_pose, swapped=choice.swapped)),
         **_rigid(choice.transform),
         "flipped": choice.flipped,
-        "contact_offset_mm": _num((v_width - t_width) / 2.0),
+        "contact_offset_mm": _num(contact_offset_mm(T, V, choice)),
         "mass_mismatch_mm": _vec(choice.mass_delta_mm),
         "mass_mismatch_vertical_mm": _num(float(choice.mass_delta_mm @ up_t)),
     }
@@ -254,8 +247,6 @@ def _reference_record(ref, model) -> dict:
 
 def matches_document(scene, settings: dict) -> dict:
     """The ``pinchmatch match`` result (schema ``pinchmatch.matches/1``, docs/output-format.md)."""
-    from .match import criterion_table
-
     objects = lambda group: [  # noqa: E731
         {"name": c.name, **object_section(c.obj.loaded, c.obj.props, ray_engine=c.obj.context.ray_engine_name),
          "pose_count": len(c), "poses_given": c.given}

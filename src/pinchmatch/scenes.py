@@ -15,11 +15,15 @@ sits in node and scene extras as flat keys prefixed ``pinchmatch:``.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import trimesh
 from trimesh.visual.material import PBRMaterial
 
+from .match import contact_offset_mm
 from .register import _rotations_between
+from .report import write_atomic
 
 #: the fingertip cones: tip on the contact, axis along the pinch line, outside the object
 CONE_HEIGHT_MM, CONE_RADIUS_MM = 20.0, 5.0
@@ -83,7 +87,7 @@ def match_scene_glb(tangible, virtual, choice, *, extras: dict | None = None) ->
         "role": "virtual", "object": virtual.name, "tangible": tangible.name, "cost": float(choice.cost),
         "flipped": bool(choice.flipped), "finger_order_swapped": bool(choice.swapped),
         "transform_virtual_to_tangible_mm": X.reshape(-1),
-        "contact_offset_mm": float(virtual.features.width_mm[choice.v_pose] - tangible.features.width_mm[choice.t_pose]) / 2,
+        "contact_offset_mm": contact_offset_mm(tangible, virtual, choice),
     }
     scene.add_geometry(_styled(v_mesh, to_gltf(v_mesh.vertices), VIRTUAL_COLOR, blend=True), node_name="virtual",
                        geom_name="virtual", transform=node, metadata=_flat(info | (extras or {})))
@@ -102,10 +106,6 @@ def match_scene_glb(tangible, virtual, choice, *, extras: dict | None = None) ->
 
 def write_scenes(scene, folder) -> list:
     """Write ``folder/<virtual name>.glb`` for every matched virtual object; return the paths."""
-    from pathlib import Path
-
-    from .report import write_atomic
-
     folder = Path(folder)
     stems = [Path(v.name).stem for v in scene.virtuals]
     paths = []

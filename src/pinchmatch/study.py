@@ -29,8 +29,9 @@ import numpy as np
 from .analysis import analyze_object
 from .cost import PAPER_CRITERIA
 from .match import (Candidates, MatchSettings, SceneMatch, candidate_poses, cost_model, evaluate_pairs,
-                    line_contacts, match_scene, merge_candidates, reference_pose)
+                    line_contacts, match_scene, merge_candidates, reference_cost, reference_pose)
 from .pinches import PinchSettings
+from .report import _num, _vec, write_atomic
 from .shapes import stacked_prop
 
 PARTS = ("cylinder", "cube", "cone")
@@ -72,8 +73,6 @@ class Study:
 
 def write_study_meshes(folder: Path, *, sections: int = 96) -> tuple[Path, list[Path]]:
     """Write the tangible and the six virtual objects as STL (mm) into ``folder``."""
-    from .report import write_atomic
-
     folder.mkdir(parents=True, exist_ok=True)
     paths = []
     for j, order in enumerate(ORDERS, start=1):
@@ -87,8 +86,6 @@ def write_study_meshes(folder: Path, *, sections: int = 96) -> tuple[Path, list[
 
 def _pose_entry(order, candidates: Candidates, v_pose: int, *, points=None, flipped, cost, cost_paper,
                 reason=None) -> dict:
-    from .report import _num, _vec
-
     pts = candidates.pinches.points[v_pose] if points is None else points
     height = float(pts[:, 2].mean()) if pts is not None else None
     return {
@@ -138,7 +135,6 @@ def run_study(folder: Path, *, full: bool = False, settings: PinchSettings = Pin
             paper = evaluate_pairs(tangible, V, it, iv, paper_model)
             k_ours, k_paper = int(np.argmin(ours.cost)), int(np.argmin(paper.cost))
             ref = reference_pose(tangible, i, V, ours_model, settings=settings)
-            ref_paper = reference_pose(tangible, i, V, paper_model, settings=settings)
             rows.append({
                 "tangible_part": t_part,
                 "tangible_height_mm": float(TANGIBLE_HEIGHTS_MM[i]),
@@ -150,7 +146,8 @@ def run_study(folder: Path, *, full: bool = False, settings: PinchSettings = Pin
                                      cost=ours.cost[k_paper], cost_paper=paper.cost[k_paper]),
                 "ref": _pose_entry(order, V, 0, points=ref.pinches.points[0] if ref.pinches is not None else None,
                                    flipped=ref.flipped,
-                                   cost=ref.cost, cost_paper=ref_paper.cost, reason=ref.reason),
+                                   cost=ref.cost, cost_paper=reference_cost(tangible, i, V, ref, paper_model),
+                                   reason=ref.reason),
             })
     say("matching the scene")
     scene = match_scene([tangible], virtuals, match_settings, model=ours_model)
