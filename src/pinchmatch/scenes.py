@@ -68,6 +68,12 @@ def _flat(prefix_values: dict) -> dict:
     return out
 
 
+def virtual_contacts_mm(virtual, choice) -> np.ndarray:
+    """(2, 3) the virtual pose's contacts in the virtual object's frame, ordered to meet the tangible's p1, p2."""
+    p = virtual.pinches.points[choice.v_pose]
+    return p[::-1] if choice.swapped else p
+
+
 def match_scene_glb(tangible, virtual, choice, *, extras: dict | None = None) -> bytes:
     """One match as GLB bytes: tangible, registered virtual object (semi-transparent), two cones."""
     Q = gltf_rotation(tangible.obj.loaded.up)
@@ -88,6 +94,8 @@ def match_scene_glb(tangible, virtual, choice, *, extras: dict | None = None) ->
         "flipped": bool(choice.flipped), "finger_order_swapped": bool(choice.swapped),
         "transform_virtual_to_tangible_mm": X.reshape(-1),
         "contact_offset_mm": contact_offset_mm(tangible, virtual, choice),
+        # where the fingers go on the virtual object, in its own file frame (mm), in the tangible's finger order
+        "virtual_contacts_mm": virtual_contacts_mm(virtual, choice).reshape(-1),
     }
     scene.add_geometry(_styled(v_mesh, to_gltf(v_mesh.vertices), VIRTUAL_COLOR, blend=True), node_name="virtual",
                        geom_name="virtual", transform=node, metadata=_flat(info | (extras or {})))
@@ -99,23 +107,29 @@ def match_scene_glb(tangible, virtual, choice, *, extras: dict | None = None) ->
         scene.add_geometry(_styled(cone, to_gltf(cone.vertices), GREEN), node_name=f"cone_p{k}",
                            geom_name=f"cone_p{k}",
                            metadata=_flat({"role": "fingertip", "finger": f"p{k}", "contact_mm": contact}))
+    C = np.eye(4)
+    C[:3, :3] = Q / 1000.0
     scene.metadata.update(_flat({"schema": "pinchmatch.scene/1", "units": "m", "up": "+y",
-                                 "source_up": tangible.obj.loaded.up_label}))
+                                 "source_up": tangible.obj.loaded.up_label,
+                                 "file_mm_to_gltf_m": C.reshape(-1)}))
     return scene.export(file_type="glb")
+
+
+def scene_stems(virtual_names: list[str]) -> list[str]:
+    """File stems for the virtual objects' scenes and figures: the name's stem, numbered when two agree."""
+    stems = [Path(name).stem for name in virtual_names]
+    return [f"{s}_{k + 1}" if stems.count(s) > 1 else s for k, s in enumerate(stems)]
 
 
 def write_scenes(scene, folder) -> list:
     """Write ``folder/<virtual name>.glb`` for every matched virtual object; return the paths."""
     folder = Path(folder)
-    stems = [Path(v.name).stem for v in scene.virtuals]
+    stems = scene_stems([v.name for v in scene.virtuals])
     paths = []
     for vm in scene.matches:
         if vm.best is None:
             continue
-        stem = stems[vm.virtual]
-        if stems.count(stem) > 1:
-            stem = f"{stem}_{vm.virtual + 1}"
-        path = folder / f"{stem}.glb"
+        path = folder / f"{stems[vm.virtual]}.glb"
         T, V = scene.tangibles[vm.best.tangible], scene.virtuals[vm.virtual]
         write_atomic(path, match_scene_glb(T, V, vm.best))
         paths.append(path)

@@ -1,0 +1,187 @@
+"""Figures for people to read, written to ``OUT/figures/`` (issue 4).
+
+- ``cost_matrix.png``: cost of the best pair for every virtual object (rows) and tangible (columns);
+- ``criteria/<virtual>.png``: per match, each criterion's difference in JND, with the line at 1 JND;
+- ``study.png`` (demo only): the paper's Table 2 layout, the tangible and the six virtual objects in
+  side view with the chosen poses coloured by the tangible part they stand in for, flips marked F.
+
+matplotlib's object API with the Agg canvas: no pyplot, no display, no global state. Each figure
+has a fixed size in pixels (``FIGURE_DPI`` times the size in inches) so pages and tests can rely on it.
+"""
+
+from __future__ import annotations
+
+import io
+import logging
+from pathlib import Path
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.colors import LogNorm
+from matplotlib.figure import Figure
+
+from .report import write_atomic
+from .scenes import scene_stems
+
+log = logging.getLogger(__name__)
+
+FIGURE_DPI = 100
+#: the colour of each tangible part's pose in the study figure
+PART_COLORS = {"cylinder": "#1f77b4", "cube": "#ff7f0e", "cone": "#2ca02c"}
+LOUD, QUIET = "#d1432f", "#2e9d52"
+#: costs below this are drawn in the lightest colour of the log scale
+COST_FLOOR = 1e-3
+
+
+def _png(fig: Figure) -> bytes:
+    FigureCanvasAgg(fig)
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=FIGURE_DPI)
+    return buffer.getvalue()
+
+
+def cost_matrix_figure(document: dict) -> Figure:
+    """Heatmap of ``cost_matrix`` in a matches document; the chosen tangible of each row is outlined."""
+    cm = document["cost_matrix"]
+    names_v, names_t = cm["rows_virtual"], cm["columns_tangible"]
+    values = np.array([[np.nan if x is None else x for x in row] for row in cm["values"]], dtype=float)
+    chosen = {m["virtual"]: m["tangible"] for m in document["matches"] if m.get("tangible") is not None}
+
+    width_in = min(4.0 + 1.3 * len(names_t), 16.0)
+    height_in = min(1.8 + 0.42 * len(names_v), 30.0)
+    fig = Figure(figsize=(width_in, height_in), layout="constrained")
+    ax = fig.add_subplot()
+    finite = values[np.isfinite(values)]
+    vmax = max(float(finite.max()) if finite.size else 1.0, 10 * COST_FLOOR)
+    image = ax.imshow(np.clip(values, COST_FLOOR, None), cmap="viridis_r", aspect="auto",
+                      norm=LogNorm(vmin=COST_FLOOR, vmax=vmax))
+    cbar = fig.colorbar(image, ax=ax, shrink=0.9)
+    cbar.set_label("cost (log scale)")
+    for i in range(len(names_v)):
+        for j in range(len(names_t)):
+            x = values[i, j]
+            text = "none" if not np.isfinite(x) else f"{x:.3g}"
+            dark = np.isfinite(x) and np.log(max(x, COST_FLOOR)) > 0.5 * (np.log(COST_FLOOR) + np.log(vmax))
+            ax.text(j, i, text, ha="center", va="center", fontsize=8, color="white" if dark else "black")
+        if chosen.get(names_v[i]) in names_t:
+            j = names_t.index(chosen[names_v[i]])
+            ax.add_patch(_outline(j, i))
+    ax.set_xticks(range(len(names_t)), [Path(n).stem for n in names_t], rotation=30, ha="right", fontsize=8)
+    ax.set_yticks(range(len(names_v)), [Path(n).stem for n in names_v], fontsize=8)
+    ax.set_xlabel("tangible")
+    ax.set_ylabel("virtual object")
+    ax.set_title("cost of the best pinch pair (outlined: the chosen tangible)", fontsize=10)
+    return fig
+
+
+def _outline(x, y):
+    from matplotlib.patches import Rectangle
+    return Rectangle((x - 0.5, y - 0.5), 1, 1, fill=False, edgecolor=LOUD, linewidth=2)
+
+
+def criteria_figure(match: dict) -> Figure:
+    """Bars of each criterion's difference in JND for one match of a matches document, line at 1 JND."""
+    names = list(match["criteria"])
+    jnd = np.array([match["criteria"][c]["jnd"] for c in names])
+    fig = Figure(figsize=(6.4, 3.6), layout="constrained")
+    ax = fig.add_subplot()
+    y = np.arange(len(names))
+    ax.barh(y, jnd, color=[LOUD if x >= 1.0 else QUIET for x in jnd], height=0.6)
+    ax.axvline(1.0, color="black", linestyle="--", linewidth=1)
+    top = max(2.0, float(jnd.max()) * 1.18)
+    ax.set_xlim(0, top)
+    ax.text(1.0, -0.9, " 1 JND: noticeable", fontsize=8, va="center")
+    for k, x in enumerate(jnd):
+        ax.text(min(x, top) + top * 0.01, k, f"{x:.2f}", va="center", fontsize=8)
+    ax.set_yticks(y, names)
+    ax.set_ylim(len(names) - 0.5, -1.3)
+    ax.set_xlabel("difference between the tangible and the virtual pose (JND)")
+    flip = ", flipped" if match.get("flipped") else ""
+    ax.set_title(f"{Path(match['virtual']).stem} on {Path(match['tangible']).stem}: "
+                 f"cost {match['cost']:.3g}{flip}", fontsize=10)
+    return fig
+
+
+def _silhouette(ax, mesh) -> None:
+    """The mesh's section by the plane y = 0, filled, as the object's side view (x right, z up)."""
+    section = mesh.section(plane_origin=[0.0, 0.0, 0.0], plane_normal=[0.0, 1.0, 0.0])
+    if section is None:
+        return
+    for loop in section.discrete:
+        ax.fill(loop[:, 0], loop[:, 2], facecolor="#dfe3e8", edgecolor="#4b5563", linewidth=1.0)
+
+
+def _pose(ax, p1, p2, color, *, dz=0.0, flipped=False, label_dx=0.0) -> None:
+    x = [p1[0], p2[0]]
+    z = [p1[2] + dz, p2[2] + dz]
+    ax.plot(x, z, color=color, linewidth=2.2, solid_capstyle="round")
+    ax.plot(x, z, "o", color=color, markersize=4.5)
+    if flipped:
+        ax.text(max(x) + 3 + label_dx, z[1], "F", color=color, fontsize=10, fontweight="bold", va="center")
+
+
+def study_figure(tangible_mesh, tangible_points_mm: np.ndarray, virtual_meshes: list, rows: list) -> Figure:
+    """The study in the layout of the paper's Table 2.
+
+    Columns: the tangible and the six virtual objects, side view (section y = 0, mm). Rows: the poses
+    chosen by pinchmatch (default criteria, JND) and by the paper's algorithm (seven criteria, range
+    scaling). Each of the three tangible poses has the colour of its part; on a virtual object the
+    pose chosen for it has the same colour, F when the virtual object is turned upside down.
+    """
+    parts = list(dict.fromkeys(r["tangible_part"] for r in rows))
+    fig = Figure(figsize=(14.0, 6.4), layout="constrained")
+    axes = fig.subplots(2, 1 + len(virtual_meshes), sharey=True)
+    titles = {r["virtual"]: "/".join(r["virtual_order"]) for r in rows}
+    for row, (key, label) in enumerate((("ours", "pinchmatch"), ("paper", "paper's algorithm"))):
+        ax = axes[row, 0]
+        _silhouette(ax, tangible_mesh)
+        for k, part in enumerate(parts):
+            _pose(ax, *tangible_points_mm[k], PART_COLORS.get(part, "black"))
+        ax.set_ylabel(f"{label}\nheight (mm)")
+        ax.set_title("tangible\n" + "/".join(parts) if row == 0 else "", fontsize=9)
+        for j, mesh in enumerate(virtual_meshes, start=1):
+            ax = axes[row, j]
+            _silhouette(ax, mesh)
+            chosen = [r for r in rows if r["virtual"] == j and r[key]["p1_mm"] is not None]
+            heights = np.array([r[key]["height_mm"] for r in chosen])
+            for k, r in enumerate(chosen):
+                pose = r[key]
+                # a pose chosen for several tangible parts is drawn once per part, 2 mm apart, F labels side by side
+                same = np.flatnonzero(np.abs(heights - heights[k]) < 1.0)
+                rank = int(np.searchsorted(same, k))
+                _pose(ax, pose["p1_mm"], pose["p2_mm"], PART_COLORS.get(r["tangible_part"], "black"),
+                      dz=(rank - (len(same) - 1) / 2) * 2.5, flipped=pose["flipped"], label_dx=rank * 7.0)
+            ax.set_title(f"VO{j}\n{titles.get(j, '')}" if row == 0 else "", fontsize=9)
+    for ax in axes.ravel():
+        ax.set_aspect("equal")
+        ax.set_xlim(-45, 55)
+        ax.tick_params(labelsize=7)
+        ax.set_xticks([])
+    handles = [axes[0, 0].plot([], [], color=c, linewidth=2.2)[0] for c in PART_COLORS.values()]
+    fig.legend(handles, [f"tangible pose on the {p}" for p in PART_COLORS], loc="outside lower center",
+               ncol=3, fontsize=9, frameon=False)
+    fig.suptitle("User study, rebuilt: where each tangible pose lands on each virtual object (F: flipped)",
+                 fontsize=11)
+    return fig
+
+
+def write_figures(out: Path, document: dict, *, study=None) -> list[Path]:
+    """Write the figures of a matches document (and of the demo's study) into ``OUT/figures``."""
+    folder = Path(out) / "figures"
+    written = []
+
+    def save(fig: Figure, path: Path) -> None:
+        write_atomic(path, _png(fig))
+        written.append(path)
+
+    save(cost_matrix_figure(document), folder / "cost_matrix.png")
+    stems = scene_stems([m["virtual"] for m in document["matches"]])
+    for stem, match in zip(stems, document["matches"]):
+        if match.get("tangible") is not None:
+            save(criteria_figure(match), folder / "criteria" / f"{stem}.png")
+    if study is not None:
+        save(study_figure(study.tangible.obj.loaded.mesh, study.tangible.pinches.points,
+                          [v.obj.loaded.mesh for v in study.virtuals], study.rows),
+             folder / "study.png")
+    log.info("wrote %d figures in %s", len(written), folder)
+    return written

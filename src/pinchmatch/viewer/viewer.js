@@ -1,0 +1,229 @@
+// pinchmatch viewer: the matches of one run, each as its glTF scene (the tangible, the registered
+// virtual object and the fingertip cones), plus the two poses side by side in their own frames.
+// Everything it needs is inlined in the page: three.js as the global PM3, the data as JSON.
+"use strict";
+(function () {
+  const { THREE, GLTFLoader, OrbitControls } = PM3;
+  const DATA = JSON.parse(document.getElementById("pinchmatch-data").textContent);
+  const CONE_HEIGHT_M = 0.02, CONE_RADIUS_M = 0.005;
+  const VIEW_DIRECTION = new THREE.Vector3(0.9, 0.55, 1.3).normalize();
+
+  // One canvas, its renderer, camera and orbit controls; renders on demand.
+  class View {
+    constructor(canvas) {
+      this.canvas = canvas;
+      this.renderer = new THREE.WebGLRenderer({ canvas, antialias: true });
+      this.renderer.setPixelRatio(Math.min(window.devicePixelRatio || 1, 2));
+      this.scene = new THREE.Scene();
+      this.scene.background = new THREE.Color(0xeef1f5);
+      this.scene.add(new THREE.HemisphereLight(0xffffff, 0x8d949e, 2.0));
+      const sun = new THREE.DirectionalLight(0xffffff, 1.6);
+      sun.position.set(1, 2, 1.5);
+      this.scene.add(sun);
+      this.content = new THREE.Group();
+      this.scene.add(this.content);
+      this.camera = new THREE.PerspectiveCamera(35, 1, 0.001, 100);
+      this.controls = new OrbitControls(this.camera, canvas);
+      this.controls.addEventListener("change", () => this.render());
+      new ResizeObserver(() => this.resize()).observe(canvas);
+    }
+
+    resize() {
+      const w = this.canvas.clientWidth, h = this.canvas.clientHeight;
+      if (w === 0 || h === 0) return;
+      this.renderer.setSize(w, h, false);
+      this.camera.aspect = w / h;
+      this.camera.updateProjectionMatrix();
+      this.render();
+    }
+
+    // Replace the content and frame it: the camera looks at the bounding sphere from the front-right.
+    show(objects) {
+      this.content.clear();
+      for (const o of objects) this.content.add(o);
+      const box = new THREE.Box3().setFromObject(this.content);
+      const sphere = box.getBoundingSphere(new THREE.Sphere());
+      const grid = new THREE.GridHelper(sphere.radius * 3, 12, 0xb6bcc6, 0xd3d8df);
+      grid.position.set(sphere.center.x, box.min.y, sphere.center.z);
+      this.content.add(grid);
+      const distance = sphere.radius / Math.sin(THREE.MathUtils.degToRad(this.camera.fov / 2)) * 1.15;
+      this.camera.position.copy(sphere.center).addScaledVector(VIEW_DIRECTION, distance);
+      this.camera.near = distance / 100;
+      this.camera.far = distance * 10;
+      this.controls.target.copy(sphere.center);
+      this.controls.update();
+      this.resize();
+    }
+
+    render() {
+      this.renderer.render(this.scene, this.camera);
+    }
+  }
+
+  const views = {
+    main: new View(document.getElementById("canvas-main")),
+    tangible: new View(document.getElementById("canvas-tangible")),
+    virtual: new View(document.getElementById("canvas-virtual")),
+  };
+
+  function decodeBase64(text) {
+    const bytes = Uint8Array.from(atob(text), (c) => c.charCodeAt(0));
+    return bytes.buffer;
+  }
+
+  const loader = new GLTFLoader();
+  const loaded = new Map();
+  function loadScene(index) {
+    if (!loaded.has(index)) {
+      loaded.set(index, new Promise((resolve, reject) =>
+        loader.parse(decodeBase64(DATA.matches[index].glb_base64), "", resolve, reject)));
+    }
+    return loaded.get(index);
+  }
+
+  // A fingertip cone like the scene's: tip on the contact, pointing along `toward`, body outside.
+  function cone(material, contact, toward) {
+    const geometry = new THREE.ConeGeometry(CONE_RADIUS_M, CONE_HEIGHT_M, 24);
+    geometry.translate(0, -CONE_HEIGHT_M / 2, 0); // tip at the origin, body along -Y
+    const mesh = new THREE.Mesh(geometry, material);
+    mesh.quaternion.setFromUnitVectors(new THREE.Vector3(0, 1, 0), toward);
+    mesh.position.copy(contact);
+    return mesh;
+  }
+
+  // The scene's objects for the three views.
+  function parts(gltf) {
+    const root = gltf.scene;
+    const get = (name) => {
+      const node = root.getObjectByName(name);
+      if (!node) throw new Error(`scene has no node '${name}'`);
+      return node;
+    };
+    const tangible = get("tangible"), virtual = get("virtual");
+    const cones = [get("cone_p1"), get("cone_p2")];
+    const C = new THREE.Matrix4().fromArray(root.userData["pinchmatch:file_mm_to_gltf_m"]).transpose();
+    const p = virtual.userData["pinchmatch:virtual_contacts_mm"];
+    const p1 = new THREE.Vector3(p[0], p[1], p[2]).applyMatrix4(C);
+    const p2 = new THREE.Vector3(p[3], p[4], p[5]).applyMatrix4(C);
+    const u = p2.clone().sub(p1).normalize();
+    const ownVirtual = virtual.clone(); // in its own frame (identity), and opaque there
+    ownVirtual.matrix.identity();
+    ownVirtual.matrix.decompose(ownVirtual.position, ownVirtual.quaternion, ownVirtual.scale);
+    ownVirtual.material = virtual.material.clone();
+    Object.assign(ownVirtual.material, { transparent: false, opacity: 1, depthWrite: true });
+    const green = cones[0].material;
+    return {
+      main: [root],
+      tangible: [tangible.clone(), cones[0].clone(), cones[1].clone()],
+      virtual: [ownVirtual, cone(green, p1, u), cone(green, p2, u.clone().negate())],
+      virtualNode: virtual,
+    };
+  }
+
+  // Numbers for people: 3 significant digits, no exponent below 0.001 but "< 0.001", 0 as 0.
+  function fmt(x, digits = 3) {
+    if (x === null || x === undefined) return "null";
+    if (x === 0) return "0";
+    if (Math.abs(x) < 0.001) return "< 0.001";
+    return String(Number(Number(x).toPrecision(digits)));
+  }
+  const escape = (text) => String(text).replace(/[&<>"']/g, (c) => `&#${c.charCodeAt(0)};`);
+
+  function loudCriteria(match) {
+    return match.criteria.filter((c) => c.noticeable);
+  }
+
+  function listEntries() {
+    const list = document.getElementById("matches");
+    DATA.matches.forEach((m, index) => {
+      const li = document.createElement("li");
+      li.className = "match";
+      li.dataset.index = index;
+      const loud = loudCriteria(m);
+      const badges = [`<span class="badge">cost ${fmt(m.cost)}</span>`];
+      badges.push(loud.length
+        ? loud.map((c) => `<span class="badge loud">${escape(c.name)} ${c.jnd.toFixed(1)} JND</span>`).join("")
+        : `<span class="badge quiet">nothing noticeable</span>`);
+      if (m.flipped) badges.push(`<span class="badge flip" title="the virtual object is turned upside down">F</span>`);
+      li.innerHTML = `<div class="names">${escape(m.virtual)} <span class="arrow">→</span> ${escape(m.tangible)}</div>` +
+        `<div class="meta">${badges.join("")}</div>`;
+      li.addEventListener("click", () => select(index));
+      list.appendChild(li);
+    });
+    for (const u of DATA.unmatched) {
+      const li = document.createElement("li");
+      li.className = "unmatched";
+      li.innerHTML = `<div class="names">${escape(u.virtual)}</div><div class="meta">no tangible: ${escape(u.reason || "")}</div>`;
+      list.appendChild(li);
+    }
+  }
+
+  function details(m) {
+    const rows = m.criteria.map((c) => {
+      const width = Math.min(c.jnd / 3, 1) * 100;
+      return `<tr><th>${escape(c.name)}</th><td>${c.jnd.toFixed(2)} JND</td>` +
+        `<td><div class="jnd-bar"><span class="${c.noticeable ? "loud" : ""}" style="width:${width}%"></span>` +
+        `<i style="left:33.3%"></i></div></td><td>weight ${c.weight}</td></tr>`;
+    }).join("");
+    const facts = [
+      `<b>${escape(m.virtual)}</b> on <b>${escape(m.tangible)}</b>`,
+      `cost ${fmt(m.cost, 4)}`,
+      `reference cost ${fmt(m.reference_cost, 4)}`,
+      `pinch width ${m.tangible_width_mm.toFixed(1)} mm on the tangible, ${m.virtual_width_mm.toFixed(1)} mm on the virtual object`,
+      `contact offset ${m.contact_offset_mm.toFixed(2)} mm`,
+      m.flipped ? "flipped: the virtual object is upside down" : "upright",
+      `position ${m.position_mm.map((x) => x.toFixed(1)).join(", ")} mm`,
+    ];
+    document.getElementById("details").innerHTML =
+      `<div class="facts">${facts.map((f) => `<span>${f}</span>`).join("")}</div>` +
+      `<table>${rows}</table>`;
+  }
+
+  let current = -1, virtualNode = null;
+  async function select(index) {
+    current = index;
+    document.querySelectorAll("#matches li.match").forEach((li) =>
+      li.classList.toggle("selected", Number(li.dataset.index) === index));
+    const m = DATA.matches[index];
+    details(m);
+    document.getElementById("main-title").textContent = `${m.virtual} registered on ${m.tangible}`;
+    document.getElementById("tangible-title").textContent = `tangible pose: ${m.tangible} (its frame)`;
+    document.getElementById("virtual-title").textContent = `virtual pose: ${m.virtual} (its frame)`;
+    const gltf = await loadScene(index);
+    if (current !== index) return; // another entry was clicked meanwhile
+    const p = parts(gltf);
+    virtualNode = p.virtualNode;
+    virtualNode.visible = document.getElementById("toggle-virtual").checked;
+    views.main.show(p.main);
+    views.tangible.show(p.tangible);
+    views.virtual.show(p.virtual);
+    history.replaceState(null, "", `#${encodeURIComponent(m.virtual)}`);
+    document.body.dataset.shown = String(index);
+  }
+
+  function setVirtualVisible(visible) {
+    document.getElementById("toggle-virtual").checked = visible;
+    if (virtualNode) virtualNode.visible = visible;
+    views.main.render();
+  }
+
+  document.getElementById("toggle-virtual").addEventListener("change", (e) => setVirtualVisible(e.target.checked));
+  window.addEventListener("keydown", (e) => {
+    if (e.key === "v" || e.key === "V") setVirtualVisible(!document.getElementById("toggle-virtual").checked);
+    if ((e.key === "ArrowDown" || e.key === "ArrowUp") && DATA.matches.length) {
+      const step = e.key === "ArrowDown" ? 1 : -1;
+      select((current + step + DATA.matches.length) % DATA.matches.length);
+      e.preventDefault();
+    }
+  });
+
+  document.getElementById("summary").textContent = DATA.summary;
+  listEntries();
+  if (DATA.matches.length) {
+    const wanted = decodeURIComponent(location.hash.slice(1));
+    const start = Math.max(0, DATA.matches.findIndex((m) => m.virtual === wanted));
+    select(start).catch((error) => console.error(error));
+  } else {
+    document.getElementById("details").textContent = "No virtual object was matched.";
+  }
+})();
