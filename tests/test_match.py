@@ -247,6 +247,24 @@ def test_match_cli_writes_matches_json(tmp_path, capsys):
     assert np.linalg.det(T[:3, :3]) == pytest.approx(1.0, abs=1e-5)
     assert m["reference"]["cost"] == pytest.approx(0.0, abs=1e-3)  # the example on itself
     assert "virtual" in stdout and "wrote" in stdout
+    # the summary names every object with its pose count, and every output
+    for obj in doc["tangibles"] + doc["virtuals"]:
+        assert obj["name"] in stdout
+    assert f"{len(doc['matches'])} glTF scenes" in stdout and "figures" in stdout and "index.html" in stdout
+    assert sorted(p.name for p in (out / "scenes").glob("*.glb")) == ["e.glb", "example_prop.glb"]
+    assert (out / "figures" / "cost_matrix.png").is_file() and (out / "index.html").is_file()
+
+
+def test_match_cli_json_quiet_and_skips(tmp_path, capsys):
+    args = ["match", "--tangible", example_mesh_path(), "--virtual", example_mesh_path(), "--count", 120]
+    code, stdout, err = run(capsys, *args, "-o", tmp_path / "a", "--json", "--no-view", "--no-figures")
+    assert code == 0, err
+    assert json.loads(stdout) == json.loads((tmp_path / "a" / "matches.json").read_text())  # stdout: the document only
+    assert (tmp_path / "a" / "scenes" / "example_prop.glb").is_file()
+    assert not (tmp_path / "a" / "index.html").exists() and not (tmp_path / "a" / "figures").exists()
+    code, stdout, err = run(capsys, *args, "-o", tmp_path / "b", "-q")
+    assert code == 0 and stdout == "" and err == ""
+    assert (tmp_path / "b" / "index.html").is_file()
 
 
 def test_match_cli_paper_criteria_and_given_tangible_poses(tmp_path, capsys):
@@ -307,6 +325,20 @@ def test_demo_writes_the_study_and_the_scene(tmp_path, capsys):
     scene = json.loads((tmp_path / "demo" / "matches.json").read_text())
     assert len(scene["matches"]) == 6
     assert "cylinder/cube/cone" in stdout
+
+
+def test_demo_ends_with_scenes_page_and_figures(demo_out):
+    assert len(list((demo_out / "scenes").glob("*.glb"))) == 6
+    assert (demo_out / "index.html").is_file()
+    assert (demo_out / "figures" / "study.png").is_file() and (demo_out / "figures" / "cost_matrix.png").is_file()
+    assert len(list((demo_out / "figures" / "criteria").glob("*.png"))) == 6
+
+
+def test_demo_json_prints_the_study_document(tmp_path, capsys):
+    code, stdout, err = run(capsys, "demo", "-o", tmp_path / "demo", "--json", "--no-view", "--no-figures")
+    assert code == 0, err
+    doc = json.loads(stdout)
+    assert doc["schema"] == "pinchmatch.study/1" and len(doc["rows"]) == 18
 
 
 def test_full_study_adds_sampled_candidates_and_only_gains(tmp_path, study):

@@ -1,4 +1,4 @@
-"""Command line: ``pinchmatch demo``, ``match``, ``poses`` and ``features``.
+"""Command line: ``pinchmatch demo``, ``match``, ``view``, ``poses`` and ``features``.
 
 Exit codes, in one place: 0 success, 2 bad input or usage (one line on
 stderr naming the file, the problem and the fix), 1 unexpected error (a
@@ -25,10 +25,13 @@ from .pinches import PinchSettings
 from .cost import parse_criteria, parse_weights
 from .match import MatchSettings, candidate_poses, match_scene
 from .properties import parse_vector
-from .report import (features_document, matches_document, matches_table, poses_csv, poses_document,
-                     study_document, study_table, to_json, write_atomic)
+from ._console import Presenter
+from .figures import figure_count, write_figures
+from .report import (features_document, matches_document, matches_rows, poses_csv, poses_document,
+                     study_document, study_rows, to_json, write_atomic)
 from .scenes import write_scenes
-from .study import run_study
+from .study import ORDERS, run_study
+from .view import make_server, write_page
 
 log = logging.getLogger("pinchmatch")
 
@@ -104,6 +107,13 @@ def _add_match_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--keep-upright", action="store_true", help="never turn a virtual object upside down")
 
 
+def _add_output_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--no-view", action="store_true", help="do not write the viewer page OUT/index.html")
+    p.add_argument("--no-figures", action="store_true", help="do not write the figures in OUT/figures")
+    p.add_argument("--json", action="store_true",
+                   help="print the result document to stdout (and nothing else there)")
+
+
 def _add_verbosity(p: argparse.ArgumentParser) -> None:
     p.add_argument("-q", "--quiet", action="store_true", help="print only errors")
     p.add_argument("-v", "--verbose", action="store_true", help="log progress; tracebacks on internal errors")
@@ -120,6 +130,7 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--full", action="store_true",
                       help="candidate virtual poses: every sampled pose as well as the paper's 17")
     _add_sampling_options(demo)
+    _add_output_options(demo)
     _add_verbosity(demo)
 
     match = sub.add_parser("match", help="best tangible, pinch and registration for every virtual object")
@@ -133,8 +144,15 @@ def build_parser() -> argparse.ArgumentParser:
     _add_sampling_options(match)
     _add_match_options(match)
     match.add_argument("-o", "--output", metavar="OUT", default="pinchmatch-out",
-                       help="folder for matches.json (default pinchmatch-out)")
+                       help="folder for matches.json, the scenes, the figures and the page (default pinchmatch-out)")
+    _add_output_options(match)
     _add_verbosity(match)
+
+    view = sub.add_parser("view", help="write OUT/index.html, the viewer page of a match or demo run, and serve it")
+    view.add_argument("folder", metavar="OUT", help="the -o folder of a 'pinchmatch match' or 'pinchmatch demo' run")
+    view.add_argument("--serve", action="store_true", help="serve OUT on 127.0.0.1 and print the address")
+    view.add_argument("--port", type=int, default=0, help="port for --serve (default: a free one)")
+    _add_verbosity(view)
 
     poses = sub.add_parser("poses", help="feasible pinches of one mesh, with their haptic features")
     _add_object_options(poses)
@@ -264,69 +282,114 @@ def _given_poses(files, paths, option) -> list:
     return [load_poses_file(f) for f in files]
 
 
-def _say(args, message: str) -> None:
-    if not args.quiet:
-        print(message, file=sys.stderr if args.command == "match" else sys.stdout, flush=True)
+def _out_folder(args) -> Path:
+    out = Path(args.output)
+    if out.exists() and not out.is_dir():
+        raise ConfigError(f"{out}: -o names a file; give a folder for the results")
+    return out
+
+
+def _write_visuals(args, ui: Presenter, out: Path, scene, document: dict, *, study=None) -> list[str]:
+    """The scenes, the figures and the page of a run; returns what was written, for the summary."""
+    written = []
+    n_matched = sum(vm.best is not None for vm in scene.matches)
+    with ui.step("glTF scenes", total=n_matched) as advance:
+        write_scenes(scene, out / "scenes", progress=lambda path: advance(path.name))
+    written.append(f"{n_matched} glTF scenes in {out / 'scenes'}")
+    if not args.no_figures:
+        with ui.step("figures", total=figure_count(document, study=study)) as advance:
+            figures = write_figures(out, document, study=study, progress=lambda path: advance(path.name))
+        written.append(f"{len(figures)} figures in {out / 'figures'}")
+    if not args.no_view:
+        with ui.step("viewer page"):
+            written.append(f"the viewer page {write_page(out)}")
+    return written
 
 
 def _cmd_match(args) -> int:
     settings = _settings(args, count=args.count, seed=args.seed)
     match_settings = _match_settings(args)
-    out = Path(args.output)
-    if out.exists() and not out.is_dir():
-        raise ConfigError(f"{out}: -o names a file; give a folder for matches.json")
+    out = _out_folder(args)
     given_t = _given_poses(args.tangible_poses, args.tangible, "--tangible-poses")
     given_v = _given_poses(args.virtual_poses, args.virtual, "--virtual-poses")
+    ui = Presenter(quiet=args.quiet, json_mode=args.json)
     t0 = time.perf_counter()
-    groups = []
-    for paths, given, files in ((args.tangible, given_t, args.tangible_poses),
-                                (args.virtual, given_v, args.virtual_poses)):
-        group = []
-        for k, path in enumerate(paths):
-            obj = analyze_object(Path(path), units=args.units, up=args.up, patch_radius_mm=args.patch_radius_mm)
-            group.append(candidate_poses(obj, settings=settings, given=given[k],
-                                         source=files[k] if given[k] is not None else None))
-            _say(args, f"{obj.name}: {len(group[-1])} feasible poses")
-        groups.append(group)
+    groups, objects = [], [("object", "role", "faces", "feasible poses")]
+    with ui.step("poses and features", total=len(args.tangible) + len(args.virtual)) as advance:
+        for role, paths, given, files in (("tangible", args.tangible, given_t, args.tangible_poses),
+                                          ("virtual", args.virtual, given_v, args.virtual_poses)):
+            group = []
+            for k, path in enumerate(paths):
+                obj = analyze_object(Path(path), units=args.units, up=args.up, patch_radius_mm=args.patch_radius_mm)
+                group.append(candidate_poses(obj, settings=settings, given=given[k],
+                                             source=files[k] if given[k] is not None else None))
+                objects.append((obj.name, role, len(obj.loaded.mesh.faces), len(group[-1])))
+                advance(obj.name)
+            groups.append(group)
     t1 = time.perf_counter()
-    scene = match_scene(*groups, match_settings, pinch_settings=settings)
+    with ui.step("searching the best pairs"):
+        scene = match_scene(*groups, match_settings, pinch_settings=settings)
     t2 = time.perf_counter()
     doc = matches_document(scene, {**settings.as_dict(), **match_settings.as_dict(),
                                    "units": args.units, "up": args.up})
-    scenes = write_scenes(scene, out / "scenes")
     write_atomic(out / "matches.json", to_json(doc))
-    if not args.quiet:
-        print(matches_table(doc))
-        print(f"poses and features {t1 - t0:.2f} s, search {t2 - t1:.2f} s; wrote {out / 'matches.json'} "
-              f"and {len(scenes)} glTF scenes in {out / 'scenes'}")
+    written = [f"{out / 'matches.json'}"] + _write_visuals(args, ui, out, scene, doc)
+    ui.table(objects, title="objects")
+    ui.table(matches_rows(doc), title="matches")
+    ui.note(f"poses and features {t1 - t0:.2f} s, search {t2 - t1:.2f} s; wrote " + ", ".join(written))
+    ui.document(to_json(doc))
     return 0
 
 
 def _cmd_demo(args) -> int:
     settings = PinchSettings(count=args.count, seed=args.seed)
-    out = Path(args.output)
-    if out.exists() and not out.is_dir():
-        raise ConfigError(f"{out}: -o names a file; give a folder for the demo's output")
+    out = _out_folder(args)
+    ui = Presenter(quiet=args.quiet, json_mode=args.json)
     t0 = time.perf_counter()
-    study = run_study(out / "objects", full=args.full, settings=settings,
-                      progress=None if args.quiet else (lambda m: print(m, flush=True)))
+    with ui.step("user study", total=len(ORDERS) + 1) as advance:
+        study = run_study(out / "objects", full=args.full, settings=settings, progress=advance)
     t1 = time.perf_counter()
     common = {**settings.as_dict(), "candidate_virtual_poses": "17 heights and all sampled" if args.full else "17 heights"}
     study_doc = study_document(study, {**common, **MatchSettings().as_dict()})
     matches_doc = matches_document(study.scene, {**common, **MatchSettings().as_dict()})
-    write_scenes(study.scene, out / "scenes")
     write_atomic(out / "study.json", to_json(study_doc))
     write_atomic(out / "matches.json", to_json(matches_doc))
-    if not args.quiet:
-        print(study_table(study.rows))
-        print()
-        print(matches_table(matches_doc))
-        print(f"{t1 - t0:.2f} s; wrote {out / 'study.json'}, {out / 'matches.json'}, the glTF scenes in "
-              f"{out / 'scenes'} and the objects in {out / 'objects'}")
+    written = [f"{out / 'study.json'}", f"{out / 'matches.json'}"]
+    written += _write_visuals(args, ui, out, study.scene, matches_doc, study=study)
+    written.append(f"the objects in {out / 'objects'}")
+    ui.table(study_rows(study.rows), title="user study (F: flipped)")
+    ui.table(matches_rows(matches_doc), title="matches")
+    ui.note(f"study {t1 - t0:.2f} s; wrote " + ", ".join(written))
+    ui.document(to_json(study_doc))
     return 0
 
 
-COMMANDS = {"demo": _cmd_demo, "match": _cmd_match, "poses": _cmd_poses, "features": _cmd_features}
+def _cmd_view(args) -> int:
+    if not 0 <= args.port <= 65535:
+        raise ConfigError(f"--port {args.port}: not a port; give 0 (any free port) to 65535")
+    ui = Presenter(quiet=args.quiet)
+    path = write_page(Path(args.folder))
+    ui.note(f"wrote {path}")
+    if not args.serve:
+        return 0
+    try:
+        server = make_server(Path(args.folder), port=args.port)
+    except OSError as exc:
+        raise ConfigError(f"--port {args.port}: cannot serve there ({exc.strerror}); try --port 0") from None
+    host, port = server.server_address[:2]
+    # the address is printed even with --quiet: it is what --serve is for
+    print(f"serving {args.folder} at http://{host}:{port}/index.html (Ctrl-C stops)", flush=True)
+    try:
+        server.serve_forever()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        server.server_close()
+    return 0
+
+
+COMMANDS = {"demo": _cmd_demo, "match": _cmd_match, "view": _cmd_view, "poses": _cmd_poses,
+            "features": _cmd_features}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -165,14 +165,24 @@ def study_figure(tangible_mesh, tangible_points_mm: np.ndarray, virtual_meshes: 
     return fig
 
 
-def write_figures(out: Path, document: dict, *, study=None) -> list[Path]:
-    """Write the figures of a matches document (and of the demo's study) into ``OUT/figures``."""
+def figure_count(document: dict, *, study=None) -> int:
+    """How many files ``write_figures`` writes."""
+    return 1 + sum(m.get("tangible") is not None for m in document["matches"]) + (study is not None)
+
+
+def write_figures(out: Path, document: dict, *, study=None, progress=None) -> list[Path]:
+    """Write the figures of a matches document (and of the demo's study) into ``OUT/figures``.
+
+    ``progress``, if given, is called with each path once it is written.
+    """
     folder = Path(out) / "figures"
     written = []
 
     def save(fig: Figure, path: Path) -> None:
         write_atomic(path, _png(fig))
         written.append(path)
+        if progress is not None:
+            progress(path)
 
     save(cost_matrix_figure(document), folder / "cost_matrix.png")
     stems = scene_stems([m["virtual"] for m in document["matches"]])

@@ -285,8 +285,8 @@ def matches_document(scene, settings: dict) -> dict:
     }
 
 
-def matches_table(document: dict) -> str:
-    """A plain-text table of a matches document, one row per virtual object."""
+def matches_rows(document: dict) -> list[tuple]:
+    """The rows of the matches table, header first."""
     rows = [("virtual", "tangible", "cost", "noticeable", "flipped", "offset_mm", "ref_cost")]
     for m in document["matches"]:
         if m.get("tangible") is None:
@@ -297,20 +297,15 @@ def matches_table(document: dict) -> str:
         rows.append((m["virtual"], m["tangible"], f"{m['cost']:.4g}", ",".join(loud) or "none",
                      "F" if m["flipped"] else "", f"{m['contact_offset_mm']:+.2f}",
                      f"{ref['cost']:.4g}" if ref and ref["cost"] is not None else "null"))
-    return _format_rows(rows)
-
-
-def _format_rows(rows) -> str:
-    widths = [max(len(str(r[i])) for r in rows) for i in range(len(rows[0]))]
-    return "\n".join("  ".join(str(v).ljust(w) for v, w in zip(r, widths)).rstrip() for r in rows)
+    return rows
 
 
 def study_document(study, settings: dict) -> dict:
     return {"schema": SCHEMA_STUDY, "version": __version__, "settings": settings, "rows": study.rows}
 
 
-def study_table(rows: list) -> str:
-    """The study's 18 rows as plain text: part and height of each pose, F for flipped, costs."""
+def study_rows(rows: list) -> list[tuple]:
+    """The rows of the study table, header first."""
     def cell(p):
         if p["height_mm"] is None:
             return "none", "null", "null"
@@ -325,4 +320,4 @@ def study_table(rows: list) -> str:
     for r in rows:
         out.append((r["tangible_part"], str(r["virtual"]), "/".join(r["virtual_order"]),
                     *cell(r["ours"]), *cell(r["paper"]), *cell(r["ref"])))
-    return _format_rows(out)
+    return out

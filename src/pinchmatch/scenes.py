@@ -121,8 +121,11 @@ def scene_stems(virtual_names: list[str]) -> list[str]:
     return [f"{s}_{k + 1}" if stems.count(s) > 1 else s for k, s in enumerate(stems)]
 
 
-def write_scenes(scene, folder) -> list:
-    """Write ``folder/<virtual name>.glb`` for every matched virtual object; return the paths."""
+def write_scenes(scene, folder, *, progress=None) -> list:
+    """Write ``folder/<virtual name>.glb`` for every matched virtual object; return the paths.
+
+    ``progress``, if given, is called with each path once it is written.
+    """
     folder = Path(folder)
     stems = scene_stems([v.name for v in scene.virtuals])
     paths = []
@@ -133,4 +136,6 @@ def write_scenes(scene, folder) -> list:
         T, V = scene.tangibles[vm.best.tangible], scene.virtuals[vm.virtual]
         write_atomic(path, match_scene_glb(T, V, vm.best))
         paths.append(path)
+        if progress is not None:
+            progress(path)
     return paths

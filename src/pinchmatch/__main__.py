@@ -1,0 +1,5 @@
+"""``python -m pinchmatch``: the command line."""
+
+from .cli import console
+
+console()

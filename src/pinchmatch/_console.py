@@ -1,0 +1,67 @@
+"""What the command line shows a person: progress bars, summary tables, one-line notes (rich).
+
+The library never prints; it logs. Only the CLI builds a Presenter. Progress goes to stderr and
+only to a terminal; tables and notes go to stdout. ``quiet`` keeps only errors, and ``json``
+keeps stdout for the result document alone.
+"""
+
+from __future__ import annotations
+
+import sys
+from contextlib import contextmanager
+
+from rich import box
+from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+from rich.table import Table
+from rich.text import Text
+
+#: width for tables written to a file or a pipe, where no terminal says how wide it is
+PIPE_WIDTH = 200
+
+
+class Presenter:
+    def __init__(self, *, quiet: bool = False, json_mode: bool = False):
+        self.quiet = quiet
+        self.json_mode = json_mode
+        self.err = Console(stderr=True, highlight=False)
+        self.out = Console(file=sys.stdout, highlight=False,
+                           width=None if sys.stdout.isatty() else PIPE_WIDTH)
+        self.show_progress = not quiet and self.err.is_terminal
+        self.show_summary = not quiet and not json_mode
+
+    @contextmanager
+    def step(self, description: str, total: int | None = None):
+        """A progress bar for one step (a spinner when ``total`` is None); yields ``advance(note=None)``."""
+        if not self.show_progress:
+            yield lambda note=None: None
+            return
+        columns = [SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                   TimeElapsedColumn()] if total is not None else [
+                   SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn()]
+        with Progress(*columns, console=self.err, transient=True) as progress:
+            task = progress.add_task(description, total=total)
+
+            def advance(note: str | None = None) -> None:
+                progress.update(task, advance=1, description=f"{description}: {note}" if note else description)
+
+            yield advance
+
+    def table(self, rows: list, *, title: str | None = None) -> None:
+        """``rows[0]`` is the header; printed to stdout unless quiet or ``--json``."""
+        if not self.show_summary:
+            return
+        table = Table(*rows[0], title=title, box=box.SIMPLE_HEAD, title_justify="left", pad_edge=False)
+        for row in rows[1:]:
+            table.add_row(*(Text(str(v)) for v in row))  # Text: names are not read as markup
+        self.out.print(table)
+
+    def note(self, message: str) -> None:
+        if self.show_summary:
+            self.out.print(message, soft_wrap=True, markup=False)
+
+    def document(self, text: str) -> None:
+        """The result document on stdout, with ``--json``."""
+        if self.json_mode:
+            sys.stdout.write(text)
+            sys.stdout.flush()

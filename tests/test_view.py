@@ -1,0 +1,203 @@
+"""The viewer page: built from a run's folder, checked in headless Chromium (Debian's package).
+
+The browser tests need playwright (the test extra) and /usr/bin/chromium; .ci/run installs both.
+Outside CI they are skipped when either is missing; in CI (CI=true) a missing browser fails.
+"""
+
+import io
+import json
+import os
+import shutil
+import subprocess
+import sys
+import urllib.request
+
+import numpy as np
+import pytest
+from matplotlib.image import imread
+
+from pinchmatch.cli import main
+from pinchmatch.view import page_data, read_matches
+
+CHROMIUM = os.environ.get("PINCHMATCH_CHROMIUM") or shutil.which("chromium") or "/usr/bin/chromium"
+#: the flags this machine needs: no sandbox as root, no GPU, no background connections to a closed network
+CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-background-networking",
+                 "--disable-component-update", "--disable-sync", "--disable-quic"]
+VIEW_BACKGROUND = np.array([0xEE, 0xF1, 0xF5]) / 255.0
+
+
+def run(capsys, *argv):
+    code = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+@pytest.fixture(scope="module")
+def browser():
+    try:
+        from playwright.sync_api import sync_playwright
+    except ImportError:
+        if os.environ.get("CI"):
+            raise
+        pytest.skip("playwright is not installed (pip install -e '.[test]')")
+    if not os.path.exists(CHROMIUM):
+        if os.environ.get("CI"):
+            pytest.fail(f"{CHROMIUM} missing; .ci/run installs Debian's chromium")
+        pytest.skip(f"no Chromium at {CHROMIUM} (apt-get install chromium)")
+    with sync_playwright() as p:
+        b = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+        yield b
+        b.close()
+
+
+@pytest.fixture
+def page(browser, demo_out):
+    """The demo's index.html opened from file://, with every console message and request recorded."""
+    context = browser.new_context(viewport={"width": 1400, "height": 900})
+    pg = context.new_page()
+    pg.messages, pg.requests = [], []
+    pg.on("console", lambda m: pg.messages.append((m.type, m.text)))
+    pg.on("pageerror", lambda e: pg.messages.append(("pageerror", str(e))))
+    pg.on("request", lambda r: pg.requests.append(r.url))
+    pg.goto((demo_out / "index.html").as_uri())
+    pg.wait_for_selector("body[data-shown='0']", timeout=30_000)
+    yield pg
+    context.close()
+
+
+def canvas_pixels(pg, selector):
+    """The canvas as it is on screen: (h, w, 3) floats in [0, 1]."""
+    return imread(io.BytesIO(pg.locator(selector).screenshot()), format="png")[..., :3]
+
+
+def drawn_fraction(pixels):
+    """Share of pixels that differ from the view's background colour."""
+    return float(np.mean(np.abs(pixels - VIEW_BACKGROUND).max(axis=-1) > 0.04))
+
+
+def test_page_has_one_entry_per_match_and_no_console_errors(page, demo_out):
+    doc = json.loads((demo_out / "matches.json").read_text())
+    matched = [m for m in doc["matches"] if m["tangible"] is not None]
+    entries = page.locator("#matches li.match")
+    assert entries.count() == len(matched) == 6
+    for k, m in enumerate(matched):
+        text = entries.nth(k).inner_text()
+        assert m["virtual"] in text and m["tangible"] in text
+        loud = [c for c, v in m["criteria"].items() if v["noticeable"]]
+        assert all(c in text for c in loud) and (("nothing noticeable" in text) == (not loud))
+    errors = [m for m in page.messages if m[0] in ("error", "pageerror")]
+    assert errors == []
+    # self-contained: nothing but the file itself (and data: URLs) is requested
+    assert all(u.startswith(("file:", "data:", "blob:")) for u in page.requests), page.requests
+
+
+def test_canvases_are_drawn(page):
+    for selector in ("#canvas-main", "#canvas-tangible", "#canvas-virtual"):
+        pixels = canvas_pixels(page, selector)
+        assert pixels.shape[0] > 100 and pixels.shape[1] > 100
+        assert drawn_fraction(pixels) > 0.05, selector
+
+
+def test_clicking_another_entry_changes_the_view(page):
+    before = canvas_pixels(page, "#canvas-main")
+    before_virtual = canvas_pixels(page, "#canvas-virtual")
+    page.locator("#matches li.match").nth(2).click()
+    page.wait_for_selector("body[data-shown='2']", timeout=30_000)
+    after = canvas_pixels(page, "#canvas-main")
+    assert np.mean(np.abs(after - before).max(axis=-1) > 0.04) > 0.01
+    assert np.mean(np.abs(canvas_pixels(page, "#canvas-virtual") - before_virtual).max(axis=-1) > 0.04) > 0.01
+    assert "vo3_cube_cylinder_cone.stl" in page.locator("#main-title").inner_text()
+    assert page.locator("#matches li.selected").get_attribute("data-index") == "2"
+    assert [m for m in page.messages if m[0] in ("error", "pageerror")] == []
+
+
+def test_virtual_object_can_be_hidden(page):
+    shown = canvas_pixels(page, "#canvas-main")
+    page.locator("#toggle-virtual").click()
+    hidden = canvas_pixels(page, "#canvas-main")
+    assert np.mean(np.abs(hidden - shown).max(axis=-1) > 0.04) > 0.005
+    page.keyboard.press("v")  # and back; only the checkbox's focus ring may differ
+    again = canvas_pixels(page, "#canvas-main")
+    assert np.mean(np.abs(again - shown).max(axis=-1) > 0.04) < 0.001
+
+
+def test_scene_loads_in_three_js_with_the_nodes_and_extras(page, demo_out):
+    """three.js's GLTFLoader reads our GLB: node names, the registration matrix and the extras."""
+    doc = json.loads((demo_out / "matches.json").read_text())
+    info = page.evaluate("""async () => {
+        const data = JSON.parse(document.getElementById('pinchmatch-data').textContent);
+        const bytes = Uint8Array.from(atob(data.matches[3].glb_base64), c => c.charCodeAt(0));
+        const gltf = await new PM3.GLTFLoader().parseAsync(bytes.buffer, '');
+        const v = gltf.scene.getObjectByName('virtual');
+        return {names: gltf.scene.children.map(c => c.name), matrix: v.matrix.elements,
+                cost: v.userData['pinchmatch:cost'], flipped: v.userData['pinchmatch:flipped'],
+                units: gltf.scene.userData['pinchmatch:units']};
+    }""")
+    m = doc["matches"][3]
+    assert sorted(info["names"]) == ["cone_p1", "cone_p2", "tangible", "virtual"]
+    assert info["cost"] == pytest.approx(m["cost"], abs=1e-6) and info["flipped"] == m["flipped"]
+    assert info["units"] == "m"
+    # the demo's files are z-up: the node matrix is Q R Q^T with Q taking +z to +y, t in metres
+    Q = np.array([[1.0, 0, 0], [0, 0, 1], [0, -1, 0]])
+    X = np.array(m["transform_virtual_to_tangible"])
+    node = np.array(info["matrix"]).reshape(4, 4).T  # three.js stores column-major
+    np.testing.assert_allclose(node[:3, :3], Q @ X[:3, :3] @ Q.T, atol=1e-6)
+    np.testing.assert_allclose(node[:3, 3], Q @ X[:3, 3] / 1000.0, atol=1e-7)
+
+
+def test_page_data_lists_unmatched_objects_apart(demo_out, tmp_path):
+    doc = read_matches(demo_out)
+    doc["matches"][1] = {"virtual": doc["matches"][1]["virtual"], "tangible": None, "cost": None,
+                         "reason": "no tangible left (--one-to-one)"}
+    data = page_data(demo_out, doc)
+    assert len(data["matches"]) == 5 and data["unmatched"][0]["reason"].startswith("no tangible left")
+
+
+def test_view_cli_rewrites_the_page(demo_out, tmp_path, capsys):
+    out = tmp_path / "run"
+    shutil.copytree(demo_out, out)
+    (out / "index.html").unlink()
+    code, stdout, err = run(capsys, "view", out)
+    assert code == 0, err
+    assert (out / "index.html").is_file() and f"wrote {out / 'index.html'}" in stdout
+
+
+@pytest.mark.parametrize("damage, message", [
+    ("no folder", "no such folder"),
+    ("no matches", "matches.json: not found; run 'pinchmatch match -o"),
+    ("bad json", "matches.json: not valid JSON"),
+    ("other schema", "not a pinchmatch matches document"),
+    ("no scene", "scene missing for"),
+])
+def test_view_cli_fails_cleanly(demo_out, tmp_path, capsys, damage, message):
+    out = tmp_path / "run"
+    if damage != "no folder":
+        shutil.copytree(demo_out, out)
+        (out / "index.html").unlink()
+    if damage == "no matches":
+        (out / "matches.json").unlink()
+    elif damage == "bad json":
+        (out / "matches.json").write_text('{"schema": ')
+    elif damage == "other schema":
+        (out / "matches.json").write_text('{"schema": "pinchmatch.study/1"}')
+    elif damage == "no scene":
+        next((out / "scenes").glob("*.glb")).unlink()
+    code, stdout, err = run(capsys, "view", out)
+    assert code == 2 and message in err and "Traceback" not in err
+    assert len(err.strip().splitlines()) == 1
+    assert not (out / "index.html").exists()
+
+
+def test_view_serve_binds_loopback_and_serves_the_page(demo_out):
+    proc = subprocess.Popen([sys.executable, "-m", "pinchmatch", "view", str(demo_out), "--serve", "-q"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        line = proc.stdout.readline()
+        assert line.startswith(f"serving {demo_out} at http://127.0.0.1:"), (line, proc.stderr.read())
+        url = line.split(" at ")[1].split()[0]
+        with urllib.request.urlopen(url, timeout=10) as response:
+            body = response.read().decode("utf-8")
+        assert response.status == 200 and 'id="pinchmatch-data"' in body
+    finally:
+        proc.terminate()
+        proc.wait(timeout=10)
