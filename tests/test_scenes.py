@@ -1,3 +1,9 @@
+import json
+import os
+import shutil
+import subprocess
+from pathlib import Path
+
 import numpy as np
 import pytest
 import trimesh
@@ -49,3 +55,50 @@ def test_glb_round_trip_gives_named_nodes_transforms_and_extras(written):
             centre = cone.vertices.mean(axis=0) * 1000.0 @ Q  # back to the tangible's mm frame
             outward = (p[k] - p[1 - k]) / np.linalg.norm(p[k] - p[1 - k])
             assert (centre - p[k]) @ outward > 0.2 * CONE_HEIGHT_MM
+
+
+def test_scene_extras_map_the_virtual_contacts_into_the_scene(written):
+    study, paths = written
+    for vm, path in zip(study.scene.matches, paths):
+        scene = trimesh.load(path)
+        C = np.reshape(scene.metadata["pinchmatch:file_mm_to_gltf_m"], (4, 4))
+        extras = scene.graph.transforms.edge_data[("world", "virtual")]["metadata"]
+        q = np.reshape(extras["pinchmatch:virtual_contacts_mm"], (2, 3))
+        # registered, the virtual contacts lie on the tangible's pinch line, around the same midpoint
+        matrix, _ = scene.graph["virtual"]
+        q_scene = (np.c_[q, np.ones(2)] @ C.T) @ matrix.T
+        p = study.tangible.pinches.points[vm.best.t_pose]
+        p_scene = np.c_[p, np.ones(2)] @ C.T
+        np.testing.assert_allclose(q_scene.mean(axis=0), p_scene.mean(axis=0), atol=1e-6)
+        u = (p_scene[1, :3] - p_scene[0, :3]) / np.linalg.norm(p_scene[1, :3] - p_scene[0, :3])
+        assert (q_scene[1, :3] - q_scene[0, :3]) @ u > 0  # p1 meets p1
+
+
+BLENDER = shutil.which("blender")
+
+
+@pytest.mark.skipif(BLENDER is None and not os.environ.get("CI"),
+                    reason="Blender not installed (apt-get install blender python3-numpy); .ci/run installs it")
+def test_scene_opens_in_blender(written):
+    """Blender's own glTF importer: Z-up metres, so the node matrix comes back as the mm transform / 1000."""
+    assert BLENDER is not None, ".ci/run installs Debian's blender"
+    study, paths = written
+    vm, path = study.scene.matches[3], paths[3]
+    script = Path(__file__).parents[1] / "tools" / "blender_import_check.py"
+    # Blender embeds the system's Python: keep a virtualenv's or pyenv's python3 off its PATH
+    env = dict(os.environ, PATH=os.pathsep.join(["/usr/bin", "/bin", str(Path(BLENDER).parent)]))
+    env.pop("PYTHONHOME", None)
+    env.pop("PYTHONPATH", None)
+    run = subprocess.run([BLENDER, "-b", "--factory-startup", "--python", str(script), "--", str(path)],
+                         capture_output=True, text=True, timeout=300, env=env)
+    line = next((x for x in run.stdout.splitlines() if x.startswith("RESULT ")), None)
+    assert line is not None, run.stdout[-2000:] + run.stderr[-2000:]
+    objects = json.loads(line[len("RESULT "):])
+    assert set(objects) == {"tangible", "virtual", "cone_p1", "cone_p2"}
+    assert objects["tangible"]["dimensions"] == pytest.approx([0.06, 0.06, 0.12], abs=1e-4)
+    X = vm.best.transform
+    world = np.array(objects["virtual"]["matrix_world"])
+    np.testing.assert_allclose(world[:3, :3], X[:3, :3], atol=1e-5)  # the study files are Z-up, like Blender
+    np.testing.assert_allclose(world[:3, 3], X[:3, 3] / 1000.0, atol=1e-6)
+    extras = objects["virtual"]["extras"]
+    assert extras["pinchmatch:cost"] == pytest.approx(vm.best.cost) and bool(extras["pinchmatch:flipped"]) == vm.best.flipped

@@ -32,9 +32,13 @@ class Presenter:
 
     @contextmanager
     def step(self, description: str, total: int | None = None):
-        """A progress bar for one step (a spinner when ``total`` is None); yields ``advance(note=None)``."""
+        """A progress bar for one step (a spinner when ``total`` is None).
+
+        Yields ``advance(note=None, *, done=True)``: counts one item done and shows ``note``; with
+        ``done=False`` it only shows ``note``, the item now being worked on.
+        """
         if not self.show_progress:
-            yield lambda note=None: None
+            yield lambda note=None, *, done=True: None
             return
         columns = [SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                    TimeElapsedColumn()] if total is not None else [
@@ -42,8 +46,9 @@ class Presenter:
         with Progress(*columns, console=self.err, transient=True) as progress:
             task = progress.add_task(description, total=total)
 
-            def advance(note: str | None = None) -> None:
-                progress.update(task, advance=1, description=f"{description}: {note}" if note else description)
+            def advance(note: str | None = None, *, done: bool = True) -> None:
+                progress.update(task, advance=1 if done else 0,
+                                description=f"{description}: {note}" if note else description)
 
             yield advance
 

@@ -320,11 +320,12 @@ def _cmd_match(args) -> int:
                                           ("virtual", args.virtual, given_v, args.virtual_poses)):
             group = []
             for k, path in enumerate(paths):
+                advance(Path(path).name, done=False)
                 obj = analyze_object(Path(path), units=args.units, up=args.up, patch_radius_mm=args.patch_radius_mm)
                 group.append(candidate_poses(obj, settings=settings, given=given[k],
                                              source=files[k] if given[k] is not None else None))
                 objects.append((obj.name, role, len(obj.loaded.mesh.faces), len(group[-1])))
-                advance(obj.name)
+                advance()
             groups.append(group)
     t1 = time.perf_counter()
     with ui.step("searching the best pairs"):
@@ -347,7 +348,13 @@ def _cmd_demo(args) -> int:
     ui = Presenter(quiet=args.quiet, json_mode=args.json)
     t0 = time.perf_counter()
     with ui.step("user study", total=len(ORDERS) + 1) as advance:
-        study = run_study(out / "objects", full=args.full, settings=settings, progress=advance)
+        started = []
+
+        def starting(note: str) -> None:  # run_study names each part as it starts: the one before is done
+            advance(note, done=bool(started))
+            started.append(note)
+
+        study = run_study(out / "objects", full=args.full, settings=settings, progress=starting)
     t1 = time.perf_counter()
     common = {**settings.as_dict(), "candidate_virtual_poses": "17 heights and all sampled" if args.full else "17 heights"}
     study_doc = study_document(study, {**common, **MatchSettings().as_dict()})
