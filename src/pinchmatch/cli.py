@@ -210,13 +210,16 @@ def _emit(args, text: str, summary: str) -> None:
 def _cmd_poses(args) -> int:
     settings = _settings(args, count=args.count, seed=args.seed)  # validate options before any work
     given = load_poses_file(args.poses) if args.poses else None
+    ui = Presenter(quiet=args.quiet)
     t0 = time.perf_counter()
-    obj = _object(args)
+    with ui.step("loading"):
+        obj = _object(args)
     t1 = time.perf_counter()
-    if given is not None:
-        pinches, features = score_pinches(obj, *given, settings=settings, source=args.poses)
-    else:
-        pinches, features = find_pinches(obj, settings=settings)
+    with ui.step("poses and features"):
+        if given is not None:
+            pinches, features = score_pinches(obj, *given, settings=settings, source=args.poses)
+        else:
+            pinches, features = find_pinches(obj, settings=settings)
     t2 = time.perf_counter()
     doc = poses_document(obj.loaded, obj.props, _settings_dict(args, settings, obj), pinches, features,
                          ray_engine=obj.context.ray_engine_name)
@@ -241,8 +244,9 @@ def _cmd_features(args) -> int:
     settings = _settings(args)
     p1 = parse_vector(args.p1, option="--p1")
     p2 = parse_vector(args.p2, option="--p2")
-    obj = _object(args)
-    pinches, features = score_pinches(obj, p1, p2, settings=settings)
+    with Presenter(quiet=args.quiet).step("loading and scoring the pinch"):
+        obj = _object(args)
+        pinches, features = score_pinches(obj, p1, p2, settings=settings)
     doc = features_document(obj.loaded, obj.props, _settings_dict(args, settings, obj), pinches, features,
                             given=(p1, p2), ray_engine=obj.context.ray_engine_name)
     pose = doc["pose"]
