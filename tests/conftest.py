@@ -35,3 +35,9 @@ def demo_out(tmp_path_factory):
     out = tmp_path_factory.mktemp("demo") / "out"
     assert main(["demo", "-o", str(out), "-q"]) == 0
     return out
+
+
+@pytest.fixture(autouse=True)
+def _private_cache(tmp_path, monkeypatch):
+    """Every test gets its own feature cache; none writes to the user's."""
+    monkeypatch.setenv("PINCHMATCH_CACHE_DIR", str(tmp_path / "cache"))

@@ -1,4 +1,4 @@
-"""Command line: ``pinchmatch demo``, ``match``, ``view``, ``poses`` and ``features``.
+"""Command line: ``pinchmatch demo``, ``match``, ``view``, ``cache``, ``poses`` and ``features``.
 
 Exit codes, in one place: 0 success, 2 bad input or usage (one line on
 stderr naming the file, the problem and the fix), 1 unexpected error (a
@@ -19,11 +19,12 @@ import numpy as np
 
 from . import __version__
 from .analysis import analyze_object, find_pinches, load_poses_file, score_pinches
+from .cache import FeatureCache, cached_candidates
 from .errors import ConfigError, PinchmatchError
 from .load import UNITS_MM, UP_VECTORS
 from .pinches import PinchSettings
 from .cost import parse_criteria, parse_weights
-from .match import MatchSettings, candidate_poses, match_scene
+from .match import MatchSettings, match_scene
 from .properties import parse_vector
 from ._console import Presenter
 from .figures import figure_count, write_figures
@@ -145,8 +146,17 @@ def build_parser() -> argparse.ArgumentParser:
     _add_match_options(match)
     match.add_argument("-o", "--output", metavar="OUT", default="pinchmatch-out",
                        help="folder for matches.json, the scenes, the figures and the page (default pinchmatch-out)")
+    match.add_argument("--cache", metavar="DIR",
+                       help="keep each object's poses and features here (default: the per-user cache, "
+                            "$PINCHMATCH_CACHE_DIR or ~/.cache/pinchmatch)")
+    match.add_argument("--no-cache", action="store_true", help="compute every object's poses afresh, store nothing")
     _add_output_options(match)
     _add_verbosity(match)
+
+    cache = sub.add_parser("cache", help="the cache of poses and features: where, how big; clear it")
+    cache.add_argument("action", choices=("info", "clear"), help="info: folder, entries, size; clear: delete them")
+    cache.add_argument("--cache", metavar="DIR", help="the cache folder (default: the per-user cache)")
+    _add_verbosity(cache)
 
     view = sub.add_parser("view", help="write OUT/index.html, the viewer page of a match or demo run, and serve it")
     view.add_argument("folder", metavar="OUT", help="the -o folder of a 'pinchmatch match' or 'pinchmatch demo' run")
@@ -316,6 +326,9 @@ def _cmd_match(args) -> int:
     out = _out_folder(args)
     given_t = _given_poses(args.tangible_poses, args.tangible, "--tangible-poses")
     given_v = _given_poses(args.virtual_poses, args.virtual, "--virtual-poses")
+    if args.cache and args.no_cache:
+        raise ConfigError("--cache and --no-cache: give one of them")
+    cache = None if args.no_cache else FeatureCache(args.cache)
     ui = Presenter(quiet=args.quiet, json_mode=args.json)
     t0 = time.perf_counter()
     groups, objects = [], [("object", "role", "faces", "feasible poses")]
@@ -325,9 +338,10 @@ def _cmd_match(args) -> int:
             group = []
             for k, path in enumerate(paths):
                 advance(Path(path).name, done=False)
-                obj = analyze_object(Path(path), units=args.units, up=args.up, patch_radius_mm=args.patch_radius_mm)
-                group.append(candidate_poses(obj, settings=settings, given=given[k],
-                                             source=files[k] if given[k] is not None else None))
+                group.append(cached_candidates(Path(path), cache=cache, units=args.units, up=args.up,
+                                               patch_radius_mm=args.patch_radius_mm, settings=settings,
+                                               given=given[k], source=files[k] if given[k] is not None else None))
+                obj = group[-1].obj
                 objects.append((obj.name, role, len(obj.loaded.mesh.faces), len(group[-1])))
                 advance()
             groups.append(group)
@@ -341,8 +355,21 @@ def _cmd_match(args) -> int:
     written = [f"{out / 'matches.json'}"] + _write_visuals(args, ui, out, scene, doc)
     ui.table(objects, title="objects")
     ui.table(matches_rows(doc), title="matches")
-    ui.note(f"poses and features {t1 - t0:.2f} s, search {t2 - t1:.2f} s; wrote " + ", ".join(written))
+    cached = (f" ({cache.hits} from the cache, {cache.misses} computed; cache {cache.folder})"
+              if cache is not None else "")
+    ui.note(f"poses and features {t1 - t0:.2f} s{cached}, search {t2 - t1:.2f} s; wrote " + ", ".join(written))
     ui.document(to_json(doc))
+    return 0
+
+
+def _cmd_cache(args) -> int:
+    cache = FeatureCache(args.cache)
+    if args.action == "clear":
+        n = cache.clear()
+        Presenter(quiet=args.quiet).note(f"deleted {n} entries from {cache.folder}")
+        return 0
+    info = cache.info()
+    Presenter(quiet=args.quiet).note(f"{info.folder}: {info.entries} entries, {info.size_bytes / 2**20:.1f} MiB")
     return 0
 
 
@@ -399,8 +426,8 @@ def _cmd_view(args) -> int:
     return 0
 
 
-COMMANDS = {"demo": _cmd_demo, "match": _cmd_match, "view": _cmd_view, "poses": _cmd_poses,
-            "features": _cmd_features}
+COMMANDS = {"demo": _cmd_demo, "match": _cmd_match, "view": _cmd_view, "cache": _cmd_cache,
+            "poses": _cmd_poses, "features": _cmd_features}
 
 
 def main(argv: list[str] | None = None) -> int:

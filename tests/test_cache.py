@@ -1,0 +1,151 @@
+import json
+import logging
+from concurrent.futures import ProcessPoolExecutor
+
+import numpy as np
+import pytest
+
+from pinchmatch.cache import FeatureCache, cached_candidates, default_cache_dir
+from pinchmatch.cli import example_mesh_path, main
+from pinchmatch.pinches import PinchSettings
+from pinchmatch.shapes import ellipsoid
+
+SETTINGS = PinchSettings(count=200, seed=3)
+
+
+@pytest.fixture
+def mesh_file(tmp_path):
+    path = tmp_path / "e.stl"
+    ellipsoid((30.0, 20.0, 12.0), faces=1500).mesh.export(path)
+    return path
+
+
+def same_candidates(a, b):
+    for name in ("points", "normals", "face_index", "kappa_max_per_m", "kappa_min_per_m", "dir_max", "broken"):
+        assert np.array_equal(getattr(a.pinches, name), getattr(b.pinches, name)), name
+    assert np.array_equal(a.table, b.table, equal_nan=True) and np.array_equal(a.index, b.index)
+    assert np.array_equal(a.obj.loaded.mesh.vertices, b.obj.loaded.mesh.vertices)
+    assert np.array_equal(a.obj.loaded.mesh.faces, b.obj.loaded.mesh.faces)
+    assert np.array_equal(a.obj.props.com_mm, b.obj.props.com_mm)
+    assert np.array_equal(a.obj.props.principal_axis, b.obj.props.principal_axis)
+    assert a.obj.loaded.repairs == b.obj.loaded.repairs and a.pinches.rejected == b.pinches.rejected
+
+
+def test_a_hit_rebuilds_exactly_what_a_cold_run_computes(tmp_path, mesh_file):
+    cache = FeatureCache(tmp_path / "c")
+    cold = cached_candidates(mesh_file, cache=cache, settings=SETTINGS)
+    warm = cached_candidates(mesh_file, cache=cache, settings=SETTINGS)
+    assert (cache.hits, cache.misses) == (1, 1) and cache.info().entries == 1
+    same_candidates(cold, warm)
+    same_candidates(cold, cached_candidates(mesh_file, cache=None, settings=SETTINGS))
+
+
+def test_the_key_follows_content_and_settings_only(tmp_path, mesh_file):
+    cache = FeatureCache(tmp_path / "c")
+    key = cache.key(mesh_file, units=None, up=None, patch_radius_mm=8.0, settings=SETTINGS)
+    same = lambda **kw: cache.key(mesh_file, **({"units": None, "up": None, "patch_radius_mm": 8.0,  # noqa: E731
+                                                "settings": SETTINGS} | kw))
+    assert same() == key
+    assert same(settings=PinchSettings(count=200, seed=4)) != key
+    assert same(settings=PinchSettings(count=200, seed=3, friction_cone_deg=20)) != key
+    assert same(units="cm") != key and same(up="y") != key and same(patch_radius_mm=6.0) != key
+    assert same(given=(np.zeros((1, 3)), np.ones((1, 3)))) != key
+    copy = tmp_path / "copy.stl"  # the name does not matter, the bytes do
+    copy.write_bytes(mesh_file.read_bytes())
+    assert cache.key(copy, units=None, up=None, patch_radius_mm=8.0, settings=SETTINGS) == key
+    mesh_file.write_bytes(mesh_file.read_bytes()[:-50] + bytes(50))
+    assert same() != key
+
+
+@pytest.mark.parametrize("damage", ["truncated", "garbage", "empty", "other key"])
+def test_a_damaged_entry_is_computed_again(tmp_path, mesh_file, damage, caplog):
+    cache = FeatureCache(tmp_path / "c")
+    cold = cached_candidates(mesh_file, cache=cache, settings=SETTINGS)
+    entry = next(cache.folder.glob("*.npz"))
+    data = entry.read_bytes()
+    if damage == "truncated":
+        entry.write_bytes(data[: len(data) // 2])
+    elif damage == "garbage":
+        entry.write_bytes(b"\x00not a zip" * 100)
+    elif damage == "empty":
+        entry.write_bytes(b"")
+    else:  # an entry of another object under this key, as a stale or mixed-up file would be
+        other = tmp_path / "o.stl"
+        ellipsoid((25.0, 25.0, 10.0), faces=900).mesh.export(other)
+        cached_candidates(other, cache=cache, settings=SETTINGS)
+        other_entry = next(p for p in cache.folder.glob("*.npz") if p != entry)
+        entry.write_bytes(other_entry.read_bytes())
+    with caplog.at_level(logging.WARNING, logger="pinchmatch.cache"):
+        again = cached_candidates(mesh_file, cache=cache, settings=SETTINGS)
+    assert "unusable" in caplog.text
+    same_candidates(cold, again)
+    assert cache.load(cache.key(mesh_file, units=None, up=None, patch_radius_mm=8.0, settings=SETTINGS),
+                      mesh_file, patch_radius_mm=8.0) is not None  # rewritten whole
+
+
+def test_an_unwritable_cache_only_loses_the_caching(tmp_path, mesh_file, caplog):
+    blocked = tmp_path / "file"
+    blocked.write_text("not a folder")
+    with caplog.at_level(logging.WARNING, logger="pinchmatch.cache"):
+        got = cached_candidates(mesh_file, cache=FeatureCache(blocked), settings=SETTINGS)
+    assert len(got) > 0 and "cannot write the cache" in caplog.text
+
+
+def _fill(args):
+    folder, path = args
+    cache = FeatureCache(folder)
+    return len(cached_candidates(path, cache=cache, settings=SETTINGS))
+
+
+def test_two_processes_writing_one_entry_leave_a_whole_entry(tmp_path, mesh_file):
+    with ProcessPoolExecutor(2) as pool:
+        counts = list(pool.map(_fill, [(tmp_path / "c", mesh_file)] * 4))
+    assert len(set(counts)) == 1
+    cache = FeatureCache(tmp_path / "c")
+    assert cache.info().entries == 1 and not list(cache.folder.glob(".*.tmp"))
+    cached_candidates(mesh_file, cache=cache, settings=SETTINGS)
+    assert cache.hits == 1
+
+
+def test_default_cache_dir_follows_the_environment(monkeypatch, tmp_path):
+    monkeypatch.setenv("PINCHMATCH_CACHE_DIR", str(tmp_path / "x"))
+    assert default_cache_dir() == tmp_path / "x"
+    monkeypatch.delenv("PINCHMATCH_CACHE_DIR")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    assert default_cache_dir() == tmp_path / "xdg" / "pinchmatch"
+
+
+def run(capsys, *argv):
+    code = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_match_reuses_the_cache_when_weights_change_and_gives_the_same_result(tmp_path, capsys, mesh_file):
+    base = ["match", "--tangible", example_mesh_path(), "--virtual", mesh_file, "--count", 150,
+            "--no-view", "--no-figures"]
+    code, cold_out, err = run(capsys, *base, "-o", tmp_path / "cold")
+    assert code == 0, err
+    assert "0 from the cache, 2 computed" in cold_out
+    code, warm_out, err = run(capsys, *base, "-o", tmp_path / "warm")
+    assert code == 0 and "2 from the cache, 0 computed" in warm_out
+    cold = (tmp_path / "cold" / "matches.json").read_text()
+    assert (tmp_path / "warm" / "matches.json").read_text() == cold  # bit for bit
+    code, tuned_out, err = run(capsys, *base, "--weights", "width=3,mass=0", "--normalize", "range",
+                               "-o", tmp_path / "tuned")
+    assert code == 0 and "2 from the cache, 0 computed" in tuned_out
+    assert json.loads((tmp_path / "tuned" / "matches.json").read_text())["settings"]["weights"]["width"] == 3.0
+    code, fresh_out, err = run(capsys, *base, "--no-cache", "-o", tmp_path / "fresh")
+    assert code == 0 and "from the cache" not in fresh_out
+    assert (tmp_path / "fresh" / "matches.json").read_text() == cold
+
+
+def test_cache_info_and_clear(tmp_path, capsys, mesh_file):
+    folder = tmp_path / "mine"
+    cached_candidates(mesh_file, cache=FeatureCache(folder), settings=SETTINGS)
+    code, out, _ = run(capsys, "cache", "info", "--cache", folder)
+    assert code == 0 and f"{folder}: 1 entries" in out
+    code, out, _ = run(capsys, "cache", "clear", "--cache", folder)
+    assert code == 0 and "deleted 1 entries" in out and FeatureCache(folder).info().entries == 0
+    code, _, err = run(capsys, "cache", "purge")
+    assert code == 2 and "invalid choice" in err
