@@ -149,3 +149,42 @@ def test_cache_info_and_clear(tmp_path, capsys, mesh_file):
     assert code == 0 and "deleted 1 entries" in out and FeatureCache(folder).info().entries == 0
     code, _, err = run(capsys, "cache", "purge")
     assert code == 2 and "invalid choice" in err
+
+
+def test_folders_are_searched_recursively_and_a_bad_file_is_left_out(tmp_path, capsys):
+    props, assets = tmp_path / "props", tmp_path / "level"
+    (assets / "room" / "shelf").mkdir(parents=True)
+    (assets / ".hidden").mkdir()
+    props.mkdir()
+    (props / "prop.stl").write_bytes(example_mesh_path().read_bytes())
+    ellipsoid((30.0, 20.0, 12.0), faces=900).mesh.export(assets / "room" / "egg.STL")
+    ellipsoid((22.0, 22.0, 22.0), faces=900).mesh.export(assets / "room" / "shelf" / "ball.obj")
+    ellipsoid((22.0, 22.0, 22.0), faces=900).mesh.export(assets / ".hidden" / "ignored.stl")
+    (assets / "notes.txt").write_text("not a mesh")
+    (assets / "room" / "broken.stl").write_bytes(b"solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0")
+    out = tmp_path / "out"
+    code, stdout, err = run(capsys, "match", "--tangible", props, "--virtual", assets, "--count", 120, "-o", out,
+                            "--no-view", "--no-figures")
+    assert code == 3, err
+    assert err.count("pinchmatch: error:") == 1 and "broken.stl" in err and "going on" in err
+    doc = json.loads((out / "matches.json").read_text())
+    assert [m["virtual"] for m in doc["matches"]] == ["egg.STL", "ball.obj"]  # by path: room/egg < room/shelf/ball
+    assert len(doc["failed"]) == 1 and doc["failed"][0]["path"].endswith("broken.stl")
+    assert doc["failed"][0]["role"] == "virtual" and "broken.stl" in doc["failed"][0]["error"]
+    assert "failed: 1 files" in stdout
+
+
+def test_when_no_file_of_a_role_can_be_used_the_run_stops(tmp_path, capsys):
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    for name in ("a.stl", "b.stl"):
+        (bad / name).write_bytes(b"")
+    out = tmp_path / "out"
+    code, _, err = run(capsys, "match", "--tangible", example_mesh_path(), "--virtual", bad, "-o", out)
+    assert code == 2 and "none of the 2 virtual files could be used" in err and "Traceback" not in err
+    assert err.strip().splitlines()[-1].startswith("pinchmatch: error: none of the 2")
+    assert not out.exists()
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    code, _, err = run(capsys, "match", "--tangible", example_mesh_path(), "--virtual", empty, "-o", out)
+    assert code == 2 and "names a folder with no mesh file" in err and len(err.strip().splitlines()) == 1

@@ -65,6 +65,10 @@ class Presenter:
         if self.show_summary:
             self.out.print(message, soft_wrap=True, markup=False)
 
+    def error(self, message: str) -> None:
+        """An error line on stderr; shown even with ``--quiet``."""
+        self.err.print(f"pinchmatch: error: {message}", soft_wrap=True, markup=False, highlight=False)
+
     def document(self, text: str) -> None:
         """The result document on stdout, with ``--json``."""
         if self.json_mode:

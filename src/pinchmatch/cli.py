@@ -1,8 +1,10 @@
 """Command line: ``pinchmatch demo``, ``match``, ``view``, ``cache``, ``poses`` and ``features``.
 
 Exit codes, in one place: 0 success, 2 bad input or usage (one line on
-stderr naming the file, the problem and the fix), 1 unexpected error (a
-traceback only with ``--verbose``).
+stderr naming the file, the problem and the fix), 3 ``match`` finished but
+left out files it could not use (each named on stderr and in the summary
+and ``matches.json``), 1 unexpected error (a traceback only with
+``--verbose``).
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ from . import __version__
 from .analysis import analyze_object, find_pinches, load_poses_file, score_pinches
 from .cache import FeatureCache, cached_candidates
 from .errors import ConfigError, PinchmatchError
-from .load import UNITS_MM, UP_VECTORS
+from .load import UNITS_MM, UP_VECTORS, mesh_files
 from .pinches import PinchSettings
 from .cost import parse_criteria, parse_weights
 from .match import MatchSettings, match_scene
@@ -35,6 +37,8 @@ from .study import ORDERS, run_study
 from .view import make_server, write_page
 
 log = logging.getLogger("pinchmatch")
+
+EXIT_SOME_FAILED = 3
 
 #: options whose value is a vector and may start with a minus sign
 VECTOR_OPTIONS = ("--p1", "--p2", "--com", "--axis")
@@ -135,8 +139,10 @@ def build_parser() -> argparse.ArgumentParser:
     _add_verbosity(demo)
 
     match = sub.add_parser("match", help="best tangible, pinch and registration for every virtual object")
-    match.add_argument("--tangible", nargs="+", action="extend", required=True, metavar="PATH", help="tangible meshes")
-    match.add_argument("--virtual", nargs="+", action="extend", required=True, metavar="PATH", help="virtual meshes")
+    match.add_argument("--tangible", nargs="+", action="extend", required=True, metavar="PATH",
+                       help="tangible meshes, or folders searched recursively for them")
+    match.add_argument("--virtual", nargs="+", action="extend", required=True, metavar="PATH",
+                       help="virtual meshes, or folders searched recursively for them")
     match.add_argument("--tangible-poses", action="append", metavar="FILE",
                        help="use only these poses on a tangible (JSON, as for poses --poses); once per tangible, in order")
     match.add_argument("--virtual-poses", action="append", metavar="FILE",
@@ -324,42 +330,59 @@ def _cmd_match(args) -> int:
     settings = _settings(args, count=args.count, seed=args.seed)
     match_settings = _match_settings(args)
     out = _out_folder(args)
-    given_t = _given_poses(args.tangible_poses, args.tangible, "--tangible-poses")
-    given_v = _given_poses(args.virtual_poses, args.virtual, "--virtual-poses")
+    tangible_paths = mesh_files(args.tangible, option="--tangible")
+    virtual_paths = mesh_files(args.virtual, option="--virtual")
+    given_t = _given_poses(args.tangible_poses, tangible_paths, "--tangible-poses")
+    given_v = _given_poses(args.virtual_poses, virtual_paths, "--virtual-poses")
     if args.cache and args.no_cache:
         raise ConfigError("--cache and --no-cache: give one of them")
     cache = None if args.no_cache else FeatureCache(args.cache)
     ui = Presenter(quiet=args.quiet, json_mode=args.json)
     t0 = time.perf_counter()
-    groups, objects = [], [("object", "role", "faces", "feasible poses")]
-    with ui.step("poses and features", total=len(args.tangible) + len(args.virtual)) as advance:
-        for role, paths, given, files in (("tangible", args.tangible, given_t, args.tangible_poses),
-                                          ("virtual", args.virtual, given_v, args.virtual_poses)):
-            group = []
+    groups, objects, failed = [], [("object", "role", "faces", "feasible poses")], []
+    with ui.step("poses and features", total=len(tangible_paths) + len(virtual_paths)) as advance:
+        for role, paths, given, files in (("tangible", tangible_paths, given_t, args.tangible_poses),
+                                          ("virtual", virtual_paths, given_v, args.virtual_poses)):
+            group, errors = [], []
             for k, path in enumerate(paths):
-                advance(Path(path).name, done=False)
-                group.append(cached_candidates(Path(path), cache=cache, units=args.units, up=args.up,
-                                               patch_radius_mm=args.patch_radius_mm, settings=settings,
-                                               given=given[k], source=files[k] if given[k] is not None else None))
-                obj = group[-1].obj
-                objects.append((obj.name, role, len(obj.loaded.mesh.faces), len(group[-1])))
+                advance(path.name, done=False)
+                try:
+                    group.append(cached_candidates(path, cache=cache, units=args.units, up=args.up,
+                                                   patch_radius_mm=args.patch_radius_mm, settings=settings,
+                                                   given=given[k],
+                                                   source=files[k] if given[k] is not None else None))
+                except PinchmatchError as exc:  # one bad file: say so, go on with the rest
+                    errors.append(exc)
+                    failed.append({"role": role, "path": str(path), "error": str(exc)})
+                    ui.error(f"{exc}; skipped, going on with the other files")
+                else:
+                    obj = group[-1].obj
+                    objects.append((obj.name, role, len(obj.loaded.mesh.faces), len(group[-1])))
                 advance()
+            if not group:
+                if len(errors) == 1:
+                    raise errors[0]
+                raise ConfigError(f"none of the {len(errors)} {role} files could be used (first: {errors[0]}); "
+                                  "fix or remove them")
             groups.append(group)
     t1 = time.perf_counter()
     with ui.step("searching the best pairs"):
         scene = match_scene(*groups, match_settings, pinch_settings=settings)
     t2 = time.perf_counter()
     doc = matches_document(scene, {**settings.as_dict(), **match_settings.as_dict(),
-                                   "units": args.units, "up": args.up})
+                                   "units": args.units, "up": args.up}, failed=failed)
     write_atomic(out / "matches.json", to_json(doc))
     written = [f"{out / 'matches.json'}"] + _write_visuals(args, ui, out, scene, doc)
     ui.table(objects, title="objects")
     ui.table(matches_rows(doc), title="matches")
+    if failed:
+        ui.table([("file", "role", "problem")] + [(f["path"], f["role"], f["error"]) for f in failed],
+                 title=f"failed: {len(failed)} files, left out of the run")
     cached = (f" ({cache.hits} from the cache, {cache.misses} computed; cache {cache.folder})"
               if cache is not None else "")
     ui.note(f"poses and features {t1 - t0:.2f} s{cached}, search {t2 - t1:.2f} s; wrote " + ", ".join(written))
     ui.document(to_json(doc))
-    return 0
+    return EXIT_SOME_FAILED if failed else 0
 
 
 def _cmd_cache(args) -> int:

@@ -99,6 +99,28 @@ def parse_up(up: str, *, source: str = "--up") -> tuple[str, np.ndarray]:
     return key, np.array(UP_VECTORS[key])
 
 
+def mesh_files(paths, *, option: str) -> list[Path]:
+    """Each path as given when it is a file (or missing: loading will say so), and every mesh file
+    below each folder, searched recursively by extension, hidden files and folders skipped, sorted.
+
+    Raises ConfigError for a folder that holds no mesh file.
+    """
+    out: list[Path] = []
+    for given in paths:
+        path = Path(given)
+        if not path.is_dir():
+            out.append(path)
+            continue
+        found = sorted(p for p in path.rglob("*")
+                       if p.suffix.lower() in MESH_EXTENSIONS and p.is_file()
+                       and not any(part.startswith(".") for part in p.relative_to(path).parts))
+        if not found:
+            raise ConfigError(f"{path}: {option} names a folder with no mesh file in it "
+                              f"({', '.join(MESH_EXTENSIONS)}, searched recursively); point it at your meshes")
+        out.extend(found)
+    return out
+
+
 def _file_type(path: Path) -> str:
     ext = path.suffix.lower()
     if ext not in MESH_EXTENSIONS:

@@ -245,7 +245,7 @@ def _reference_record(ref, model) -> dict:
             "transform_virtual_to_tangible": [_vec(row, 6) for row in np.eye(4)], "virtual_pose": record}
 
 
-def matches_document(scene, settings: dict) -> dict:
+def matches_document(scene, settings: dict, *, failed: list | None = None) -> dict:
     """The ``pinchmatch match`` result (schema ``pinchmatch.matches/1``, docs/output-format.md)."""
     objects = lambda group: [  # noqa: E731
         {"name": c.name, **object_section(c.obj.loaded, c.obj.props, ray_engine=c.obj.context.ray_engine_name),
@@ -277,6 +277,7 @@ def matches_document(scene, settings: dict) -> dict:
         "tangibles": objects(scene.tangibles),
         "virtuals": objects(scene.virtuals),
         "matches": matches,
+        "failed": list(failed or []),
         "cost_matrix": {
             "rows_virtual": [v.name for v in scene.virtuals],
             "columns_tangible": [t.name for t in scene.tangibles],
