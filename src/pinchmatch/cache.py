@@ -177,18 +177,18 @@ def cached_candidates(path: str | os.PathLike, *, cache: FeatureCache | None, un
                       settings: PinchSettings = PinchSettings(),
                       given: tuple[np.ndarray, np.ndarray] | None = None, source: str | None = None) -> Candidates:
     """An object's candidate poses: from ``cache`` when it holds them, else computed (and stored)."""
-    if cache is None:
-        obj = analyze_object(path, units=units, up=up, patch_radius_mm=patch_radius_mm)
-        return candidate_poses(obj, settings=settings, given=given, source=source)
-    if not Path(path).is_file():
-        load_mesh(path, units=units, up=up)  # raises the loader's one-line error for this path
-    key = cache.key(path, units=units, up=up, patch_radius_mm=patch_radius_mm, settings=settings, given=given)
-    hit = cache.load(key, path, patch_radius_mm=patch_radius_mm)
-    if hit is not None:
-        cache.hits += 1
-        return hit
-    cache.misses += 1
+    key = None
+    if cache is not None:
+        if not Path(path).is_file():
+            load_mesh(path, units=units, up=up)  # raises the loader's one-line error for this path
+        key = cache.key(path, units=units, up=up, patch_radius_mm=patch_radius_mm, settings=settings, given=given)
+        hit = cache.load(key, path, patch_radius_mm=patch_radius_mm)
+        if hit is not None:
+            cache.hits += 1
+            return hit
+        cache.misses += 1
     obj = analyze_object(path, units=units, up=up, patch_radius_mm=patch_radius_mm)
     candidates = candidate_poses(obj, settings=settings, given=given, source=source)
-    cache.store(key, candidates)
+    if cache is not None:
+        cache.store(key, candidates)
     return candidates

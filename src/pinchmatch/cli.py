@@ -322,7 +322,7 @@ def _write_visuals(args, ui: Presenter, out: Path, scene, document: dict, *, stu
         written.append(f"{len(figures)} figures in {out / 'figures'}")
     if not args.no_view:
         with ui.step("viewer page"):
-            written.append(f"the viewer page {write_page(out)}")
+            written.append(f"the viewer page {write_page(out, document=document)}")
     return written
 
 
@@ -386,13 +386,12 @@ def _cmd_match(args) -> int:
 
 
 def _cmd_cache(args) -> int:
-    cache = FeatureCache(args.cache)
+    cache, ui = FeatureCache(args.cache), Presenter(quiet=args.quiet)
     if args.action == "clear":
-        n = cache.clear()
-        Presenter(quiet=args.quiet).note(f"deleted {n} entries from {cache.folder}")
-        return 0
-    info = cache.info()
-    Presenter(quiet=args.quiet).note(f"{info.folder}: {info.entries} entries, {info.size_bytes / 2**20:.1f} MiB")
+        ui.note(f"deleted {cache.clear()} entries from {cache.folder}")
+    else:
+        info = cache.info()
+        ui.note(f"{info.folder}: {info.entries} entries, {info.size_bytes / 2**20:.1f} MiB")
     return 0
 
 

@@ -19,6 +19,7 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.colors import LogNorm
 from matplotlib.figure import Figure
+from matplotlib.patches import Rectangle
 
 from .report import write_atomic
 from .scenes import scene_stems
@@ -75,7 +76,6 @@ def cost_matrix_figure(document: dict) -> Figure:
 
 
 def _outline(x, y):
-    from matplotlib.patches import Rectangle
     return Rectangle((x - 0.5, y - 0.5), 1, 1, fill=False, edgecolor=LOUD, linewidth=2)
 
 

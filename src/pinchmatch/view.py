@@ -110,10 +110,12 @@ def render_page(data: dict, *, normalize: str = "jnd") -> str:
     return re.sub(r"\{\{([A-Z_]+)\}\}", lambda m: values[m.group(1)], _asset("page.html"))
 
 
-def write_page(out: Path) -> Path:
-    """Write ``OUT/index.html`` from ``OUT/matches.json`` and ``OUT/scenes``; return its path."""
+def write_page(out: Path, *, document: dict | None = None) -> Path:
+    """Write ``OUT/index.html`` from ``OUT/matches.json`` (or the ``document`` a run has just written
+    there) and ``OUT/scenes``; return its path."""
     out = Path(out)
-    document = read_matches(out)
+    if document is None:
+        document = read_matches(out)
     data = page_data(out, document)
     path = out / "index.html"
     write_atomic(path, render_page(data, normalize=document.get("settings", {}).get("normalize", "jnd")))
