@@ -107,7 +107,8 @@ def test_the_pooled_search_finds_the_exact_minimum(example, tmp_path, monkeypatc
     mesh = ellipsoid((30.0, 22.0, 14.0), faces=1300).mesh
     mesh.export(tmp_path / "e.stl")
     virtual = candidate_poses(analyze_object(tmp_path / "e.stl"), settings=PinchSettings(count=120))
-    monkeypatch.setattr(match_module, "INITIAL_POOL", 7)  # force the pool to grow
+    monkeypatch.setattr(match_module, "MIN_POOL", 7)  # force the pool to grow
+    monkeypatch.setattr(match_module, "MAX_POOL", 7)
     settings = MatchSettings(normalize=normalize, keep_upright=keep_upright, top_k=4, distinct_mm=10.0)
     scene = match_scene([example], [virtual], settings)
     it = np.repeat(np.arange(len(example)), len(virtual))

@@ -119,15 +119,8 @@ class FeatureCache:
 
     def store(self, key: str, candidates: Candidates) -> None:
         """Write the entry atomically; a folder that cannot be written is logged, not raised."""
-        loaded = candidates.obj.loaded
-        meta = {"key": key, "format": CACHE_FORMAT, "version": __version__, "units_in": loaded.units_in,
-                "up_label": loaded.up_label, "watertight": bool(loaded.watertight), "repairs": list(loaded.repairs),
-                "warnings": list(loaded.warnings), "given": bool(candidates.given),
-                "rejected": {str(k): int(v) for k, v in candidates.pinches.rejected.items()}}
-        arrays = {"meta": np.array(json.dumps(meta)), "vertices": loaded.mesh.vertices,
-                  "faces": loaded.mesh.faces, "up": loaded.up, "index": candidates.index}
-        arrays |= {f"pinches.{name}": getattr(candidates.pinches, name) for name in PINCH_ARRAYS}
-        arrays |= {f"features.{name}": getattr(candidates.features, name) for name in FEATURE_ARRAYS}
+        meta, arrays = to_payload(candidates)
+        arrays = {"meta": np.array(json.dumps(meta | {"key": key, "format": CACHE_FORMAT}))} | arrays
         try:
             self.folder.mkdir(parents=True, exist_ok=True)
             fd, tmp = tempfile.mkstemp(prefix=f".{key[:16]}.", suffix=".tmp", dir=self.folder)
@@ -153,6 +146,28 @@ class FeatureCache:
         for p in entries + list(self.folder.glob(".*.tmp")):
             p.unlink(missing_ok=True)
         return len(entries)
+
+
+def to_payload(candidates: Candidates) -> tuple[dict, dict]:
+    """(meta, arrays): what a cache entry holds, plain JSON and numpy arrays; :func:`from_payload`
+    makes the same candidates again. Also how parallel workers hand candidates over."""
+    loaded = candidates.obj.loaded
+    meta = {"version": __version__, "path": str(loaded.path), "units_in": loaded.units_in,
+            "up_label": loaded.up_label, "watertight": bool(loaded.watertight), "repairs": list(loaded.repairs),
+            "warnings": list(loaded.warnings), "given": bool(candidates.given),
+            "patch_radius_mm": candidates.obj.context.patch_radius_mm,
+            "rejected": {str(k): int(v) for k, v in candidates.pinches.rejected.items()}}
+    arrays = {"vertices": loaded.mesh.vertices, "faces": loaded.mesh.faces, "up": loaded.up,
+              "index": candidates.index}
+    arrays |= {f"pinches.{name}": getattr(candidates.pinches, name) for name in PINCH_ARRAYS}
+    arrays |= {f"features.{name}": getattr(candidates.features, name) for name in FEATURE_ARRAYS}
+    return meta, arrays
+
+
+def from_payload(meta: dict, arrays: dict, path=None, *, patch_radius_mm: float | None = None) -> Candidates:
+    """Candidates as a cold run makes them, bit for bit, from :func:`to_payload`'s output."""
+    return _rebuild(meta, arrays, meta["path"] if path is None else path,
+                    patch_radius_mm=meta["patch_radius_mm"] if patch_radius_mm is None else patch_radius_mm)
 
 
 def _rebuild(meta: dict, arrays: dict, path, *, patch_radius_mm: float) -> Candidates:

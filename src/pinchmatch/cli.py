@@ -21,18 +21,21 @@ import numpy as np
 
 from . import __version__
 from .analysis import analyze_object, find_pinches, load_poses_file, score_pinches
-from .cache import FeatureCache, cached_candidates
+from concurrent.futures.process import BrokenProcessPool
+
+from .cache import FeatureCache
 from .errors import ConfigError, PinchmatchError
 from .load import UNITS_MM, UP_VECTORS, mesh_files
 from .pinches import PinchSettings
 from .cost import parse_criteria, parse_weights
-from .match import MatchSettings, match_scene
+from .match import MatchSettings
 from .properties import parse_vector
 from ._console import Presenter
-from .figures import figure_count, write_figures
+from .figures import _png, cost_matrix_figure, figure_count, write_figures
 from .report import (features_document, matches_document, matches_rows, poses_csv, poses_document,
                      study_document, study_rows, to_json, write_atomic)
-from .scenes import write_scenes
+from .run import Job, MatchesSink, ObjectTask, RunError, default_jobs, executor, run_match
+from .scenes import scene_stems, write_scenes
 from .study import ORDERS, run_study
 from .view import make_server, write_page
 
@@ -156,6 +159,16 @@ def build_parser() -> argparse.ArgumentParser:
                        help="keep each object's poses and features here (default: the per-user cache, "
                             "$PINCHMATCH_CACHE_DIR or ~/.cache/pinchmatch)")
     match.add_argument("--no-cache", action="store_true", help="compute every object's poses afresh, store nothing")
+    match.add_argument("-j", "--jobs", type=int, metavar="N",
+                       help=f"objects worked on at once, in local processes (default: all {default_jobs()} cores)")
+    match.add_argument("--scheduler", metavar="ADDRESS",
+                       help="run the per-object work on this Dask scheduler, e.g. tcp://10.0.0.5:8786 "
+                            "(needs pinchmatch[dask]; the workers must reach the mesh files)")
+    match.add_argument("--format", choices=("json", "jsonl"), default="json",
+                       help="json: OUT/matches.json (default); jsonl: OUT/matches.jsonl, one line per virtual "
+                            "object, written as they come (memory stays flat for thousands of objects)")
+    match.add_argument("--dump-poses", action="store_true",
+                       help="list every object's feasible poses in the result (large)")
     _add_output_options(match)
     _add_verbosity(match)
 
@@ -326,6 +339,17 @@ def _write_visuals(args, ui: Presenter, out: Path, scene, document: dict, *, stu
     return written
 
 
+#: at most this many rows in the printed tables; the result files hold every one
+TABLE_ROWS = 40
+
+
+def _table_rows(rows: list, what: str) -> list:
+    """The header and at most TABLE_ROWS rows, the rest counted in a last row."""
+    if len(rows) <= TABLE_ROWS + 1:
+        return rows
+    return rows[:TABLE_ROWS + 1] + [(f"... {len(rows) - 1 - TABLE_ROWS} more {what}",) + ("",) * (len(rows[0]) - 1)]
+
+
 def _cmd_match(args) -> int:
     settings = _settings(args, count=args.count, seed=args.seed)
     match_settings = _match_settings(args)
@@ -336,53 +360,55 @@ def _cmd_match(args) -> int:
     given_v = _given_poses(args.virtual_poses, virtual_paths, "--virtual-poses")
     if args.cache and args.no_cache:
         raise ConfigError("--cache and --no-cache: give one of them")
+    if args.json and args.format == "jsonl":
+        raise ConfigError("--json and --format jsonl: give one of them; --json prints the matches.json document")
     cache = None if args.no_cache else FeatureCache(args.cache)
+    job = Job(units=args.units, up=args.up, patch_radius_mm=args.patch_radius_mm, settings=settings,
+              match=match_settings, cache_folder=None if cache is None else str(cache.folder.resolve()),
+              dump_poses=args.dump_poses, scenes=True, figures=not args.no_figures)
+    tasks = lambda role, paths, given, files: [  # noqa: E731
+        ObjectTask(role, str(p), given[k], files[k] if given[k] is not None else None) for k, p in enumerate(paths)]
     ui = Presenter(quiet=args.quiet, json_mode=args.json)
+    stems = scene_stems([p.name for p in virtual_paths])
+    run_settings = {**settings.as_dict(), **match_settings.as_dict(), "units": args.units, "up": args.up}
+    sink = MatchesSink(out, args.format, stems)
+
+    def on_failure(f) -> None:
+        ui.error(f"{f.error}; skipped, going on with the other files")
+
     t0 = time.perf_counter()
-    groups, objects, failed = [], [("object", "role", "faces", "feasible poses")], []
-    with ui.step("poses and features", total=len(tangible_paths) + len(virtual_paths)) as advance:
-        for role, paths, given, files in (("tangible", tangible_paths, given_t, args.tangible_poses),
-                                          ("virtual", virtual_paths, given_v, args.virtual_poses)):
-            group, errors = [], []
-            for k, path in enumerate(paths):
-                advance(path.name, done=False)
-                try:
-                    group.append(cached_candidates(path, cache=cache, units=args.units, up=args.up,
-                                                   patch_radius_mm=args.patch_radius_mm, settings=settings,
-                                                   given=given[k],
-                                                   source=files[k] if given[k] is not None else None))
-                except PinchmatchError as exc:  # one bad file: say so, go on with the rest
-                    errors.append(exc)
-                    failed.append({"role": role, "path": str(path), "error": str(exc)})
-                    ui.error(f"{exc}; skipped, going on with the other files")
-                else:
-                    obj = group[-1].obj
-                    objects.append((obj.name, role, len(obj.loaded.mesh.faces), len(group[-1])))
-                advance()
-            if not group:
-                if len(errors) == 1:
-                    raise errors[0]
-                raise ConfigError(f"none of the {len(errors)} {role} files could be used (first: {errors[0]}); "
-                                  "fix or remove them")
-            groups.append(group)
+    with executor(args.jobs, args.scheduler) as ex, sink:
+        try:
+            result = run_match(tasks("tangible", tangible_paths, given_t, args.tangible_poses),
+                               tasks("virtual", virtual_paths, given_v, args.virtual_poses), job, ex,
+                               on_failure=on_failure, on_result=sink.add, step=ui.step,
+                               header=lambda tangibles: sink.start(run_settings, tangibles, args.dump_poses))
+        except BrokenProcessPool:
+            raise RunError("a worker process died (out of memory?); run again with fewer --jobs") from None
+        doc = sink.finish(result)
     t1 = time.perf_counter()
-    with ui.step("searching the best pairs"):
-        scene = match_scene(*groups, match_settings, pinch_settings=settings)
-    t2 = time.perf_counter()
-    doc = matches_document(scene, {**settings.as_dict(), **match_settings.as_dict(),
-                                   "units": args.units, "up": args.up}, failed=failed)
-    write_atomic(out / "matches.json", to_json(doc))
-    written = [f"{out / 'matches.json'}"] + _write_visuals(args, ui, out, scene, doc)
-    ui.table(objects, title="objects")
-    ui.table(matches_rows(doc), title="matches")
-    if failed:
-        ui.table([("file", "role", "problem")] + [(f["path"], f["role"], f["error"]) for f in failed],
-                 title=f"failed: {len(failed)} files, left out of the run")
-    cached = (f" ({cache.hits} from the cache, {cache.misses} computed; cache {cache.folder})"
+    written = [str(sink.result_path), f"{sink.scenes} glTF scenes in {out / 'scenes'}"]
+    if not args.no_figures:
+        with ui.step("cost matrix figure"):
+            write_atomic(out / "figures" / "cost_matrix.png", _png(cost_matrix_figure(sink.overview())))
+        written.append(f"{sink.scenes + 1} figures in {out / 'figures'}")
+    if not args.no_view and doc is not None:
+        with ui.step("viewer page"):
+            written.append(f"the viewer page {write_page(out, document=doc)}")
+    elif not args.no_view:
+        written.append(f"no viewer page (build it with: pinchmatch view {out})")
+    ui.table(_table_rows(sink.objects, "objects"), title="objects")
+    ui.table(_table_rows(sink.rows, "matches"), title="matches")
+    if result.failed:
+        ui.table(_table_rows([("file", "role", "problem")] + [(f.path, f.role, f.error) for f in result.failed],
+                             "files"), title=f"failed: {len(result.failed)} files, left out of the run")
+    where = f"{ex.workers} {'Dask workers' if args.scheduler else 'processes' if ex.workers > 1 else 'process'}"
+    cached = (f"; {result.cached} from the cache, {result.computed} computed; cache {cache.folder}"
               if cache is not None else "")
-    ui.note(f"poses and features {t1 - t0:.2f} s{cached}, search {t2 - t1:.2f} s; wrote " + ", ".join(written))
-    ui.document(to_json(doc))
-    return EXIT_SOME_FAILED if failed else 0
+    ui.note(f"{t1 - t0:.2f} s on {where}{cached}; wrote " + ", ".join(written))
+    if doc is not None:
+        ui.document(to_json(doc))
+    return EXIT_SOME_FAILED if result.failed else 0
 
 
 def _cmd_cache(args) -> int:

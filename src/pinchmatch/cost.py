@@ -169,10 +169,25 @@ def feature_ranges(*tables: np.ndarray) -> np.ndarray:
 
     The two mass columns share one range: that of the offset length |c - m|.
     """
-    stacked = np.concatenate([t.reshape(-1, N_COLUMNS) for t in tables])
-    ranges = np.nanmax(stacked, axis=0) - np.nanmin(stacked, axis=0)
+    return ranges_from_bounds([feature_bounds(t) for t in tables])
+
+
+def feature_bounds(table: np.ndarray) -> np.ndarray:
+    """(2, 10) least and greatest of each column of one table, and of the offset length (NaN ignored).
+
+    What :func:`ranges_from_bounds` needs, so that ranges can be gathered object by object."""
+    stacked = table.reshape(-1, N_COLUMNS)
     offset = np.hypot(stacked[:, 7], stacked[:, 8])
-    ranges[7:9] = offset.max() - offset.min()
+    values = np.column_stack([stacked, offset])
+    return np.stack([np.fmin.reduce(values, axis=0, initial=np.inf), np.fmax.reduce(values, axis=0, initial=-np.inf)])
+
+
+def ranges_from_bounds(bounds: list[np.ndarray]) -> np.ndarray:
+    """(9,) :func:`feature_ranges` from the bounds of each table."""
+    b = np.stack(bounds)
+    span = np.fmax.reduce(b[:, 1], axis=0) - np.fmin.reduce(b[:, 0], axis=0)
+    ranges = np.where(np.isfinite(span[:N_COLUMNS]), span[:N_COLUMNS], np.nan)  # NaN: a column never defined
+    ranges[7:9] = span[N_COLUMNS]
     return ranges
 
 

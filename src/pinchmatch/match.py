@@ -17,6 +17,12 @@ duplicates of those already picked: a pair is a near duplicate of another
 when it uses the same tangible and both its pinches, the tangible's and the
 virtual's, lie within ``distinct_mm`` of the other's (each contact, in the
 better finger order).
+
+The result does not depend on the pool sizes, so a search of one virtual
+object alone (:func:`match_virtual`, what parallel runs do) gives the same
+bits as a search of the whole scene: every pair cheaper than tau is pooled,
+the greedy pick walks pairs by cost, and ties go to the lower (tangible,
+tangible pose, virtual pose).
 """
 
 from __future__ import annotations
@@ -35,8 +41,18 @@ from .features import PinchFeatures, pinch_features
 from .pinches import PinchSettings, Pinches, _concat, check_pinches
 from .register import register_poses
 
-#: pose pairs kept per (virtual, tangible) object pair before the exact evaluation; grows x4 when short
-INITIAL_POOL = 4096
+#: pose pairs kept per (virtual, tangible) object pair before the exact evaluation: one per
+#: POOL_PAIRS_PER_KEPT pose pairs, within [MIN_POOL, MAX_POOL]; grows x4 when short
+MIN_POOL, MAX_POOL, POOL_PAIRS_PER_KEPT = 256, 4096, 4096
+
+
+def initial_pool(n_tangible: int, n_virtual: int) -> int:
+    """The first pool size for n_tangible x n_virtual pose pairs.
+
+    The blockwise pass costs in proportion to all pairs, the exact evaluation to the pool: a pool
+    that grows with the pairs keeps the evaluation a small share of the search at every size. The
+    result does not depend on it (see the module's notes)."""
+    return int(np.clip(n_tangible * n_virtual // POOL_PAIRS_PER_KEPT, MIN_POOL, MAX_POOL))
 #: an up direction turned more than 90° (cosine below this) is ``flipped``
 FLIP_COSINE = -1e-6
 
@@ -151,12 +167,13 @@ def merge_candidates(first: Candidates, second: Candidates) -> Candidates:
                       np.concatenate([first.index, second.index + offset]), first.given and second.given)
 
 
-def cost_model(settings: MatchSettings, candidates: list[Candidates]) -> CostModel:
-    """The run's cost model; ``range`` takes each feature's range over every candidate of the run."""
-    ranges = None
-    if settings.normalize == "range":
+def cost_model(settings: MatchSettings, candidates: list[Candidates], *, ranges: np.ndarray | None = None) -> CostModel:
+    """The run's cost model; ``range`` takes each feature's range over every candidate of the run
+    (or ``ranges``, when they were gathered elsewhere, see :func:`pinchmatch.cost.ranges_from_bounds`)."""
+    if settings.normalize == "range" and ranges is None:
         ranges = feature_ranges(*[c.table for c in candidates])
-    return CostModel(dict(settings.weights), settings.normalize, ranges, tuple(settings.criteria))
+    return CostModel(dict(settings.weights), settings.normalize, ranges if settings.normalize == "range" else None,
+                     tuple(settings.criteria))
 
 
 @dataclass(frozen=True)
@@ -321,8 +338,8 @@ class _Search:
         old = self.pools.get((j, t))
         if old is not None and (size is None or old.size >= size or not np.isfinite(old.tau)):
             return old
-        size = size or INITIAL_POOL
         T, V = self.tangibles[t], self.virtuals[j]
+        size = size or initial_pool(len(T), len(V))
         it, iv, _, tau = _pool(T, V, self.model, size, self.settings.block_rows)
         result = evaluate_pairs(T, V, it, iv, self.model, keep_upright=self.settings.keep_upright)
         keep = np.flatnonzero(result.cost < tau)
@@ -357,7 +374,9 @@ class _Search:
         local = np.concatenate([ok for _, ok in entries])
         t_pinch = np.concatenate([self.tangibles[p.tangible].pinches.points[p.it[ok]] for p, ok in entries])
         v_pinch = np.concatenate([V.pinches.points[p.iv[ok]] for p, ok in entries])
-        order = np.lexsort((local, owner, cost))  # by cost; ties broken deterministically
+        it = np.concatenate([p.it[ok] for p, ok in entries])
+        iv = np.concatenate([p.iv[ok] for p, ok in entries])
+        order = np.lexsort((iv, it, owner, cost))  # by cost; ties by tangible and poses, whatever the pools
         alive = np.ones(len(cost), dtype=bool)
         picks: list[Choice] = []
         for i in order:
@@ -389,29 +408,54 @@ def match_scene(tangibles: list[Candidates], virtuals: list[Candidates], setting
     model = model or cost_model(settings, tangibles + virtuals)
     search = _Search(tangibles, virtuals, model, settings)
     m, n = len(virtuals), len(tangibles)
-    cost_matrix = np.array([[search.best_cost(j, t) for t in range(n)] for j in range(m)]).reshape(m, n)
-
-    allowed: dict[int, list[int]] = {j: list(range(n)) for j in range(m)}
-    reasons: dict[int, str] = {}
-    if settings.one_to_one:
-        assigned = assign_one_to_one(cost_matrix)
-        for j in range(m):
-            if assigned[j] < 0:
-                allowed[j] = []
-                reasons[j] = ("every tangible serves another virtual object (--one-to-one)"
-                              if np.isfinite(cost_matrix[j]).any() else "no upright registration on any tangible")
-            else:
-                allowed[j] = [int(assigned[j])]
-    matches = []
-    for j in range(m):
-        picks = search.choices(j, allowed[j], settings.top_k + 1) if allowed[j] else []
-        if not picks and j not in reasons:
-            reasons[j] = "no registration is allowed: every one flips the virtual object (--keep-upright)"
-        best = picks[0] if picks else None
-        ref = reference_pose(tangibles[best.tangible], best.t_pose, virtuals[j], model,
-                             settings=pinch_settings) if best else None
-        matches.append(VirtualMatch(j, best, picks[1:], reasons.get(j), ref))
+    cost_matrix = np.array([cost_row(search, j) for j in range(m)]).reshape(m, n)
+    plan = allowed_tangibles(cost_matrix, settings)
+    matches = [_match(search, j, *plan[j], pinch_settings=pinch_settings) for j in range(m)]
     return SceneMatch(tangibles, virtuals, settings, model, cost_matrix, matches)
+
+
+def cost_row(search: "_Search", j: int) -> np.ndarray:
+    """(n,) exact least cost of virtual j on each tangible (inf where none is allowed)."""
+    return np.array([search.best_cost(j, t) for t in range(len(search.tangibles))], dtype=np.float64)
+
+
+def allowed_tangibles(cost_matrix: np.ndarray, settings: MatchSettings) -> list[tuple[list[int], str | None]]:
+    """Per virtual object, the tangibles it may use and, when none, why: all of them, or the one
+    ``--one-to-one`` assigns."""
+    m, n = cost_matrix.shape
+    if not settings.one_to_one:
+        return [(list(range(n)), None)] * m
+    assigned = assign_one_to_one(cost_matrix)
+    return [([int(assigned[j])], None) if assigned[j] >= 0 else
+            ([], "every tangible serves another virtual object (--one-to-one)"
+             if np.isfinite(cost_matrix[j]).any() else "no upright registration on any tangible")
+            for j in range(m)]
+
+
+def _match(search: "_Search", j: int, allowed: list[int], reason: str | None, *,
+           pinch_settings: PinchSettings) -> VirtualMatch:
+    picks = search.choices(j, allowed, search.settings.top_k + 1) if allowed else []
+    if not picks and reason is None:
+        reason = "no registration is allowed: every one flips the virtual object (--keep-upright)"
+    best = picks[0] if picks else None
+    ref = reference_pose(search.tangibles[best.tangible], best.t_pose, search.virtuals[j], search.model,
+                         settings=pinch_settings) if best else None
+    return VirtualMatch(j, best, picks[1:], None if best else reason, ref)
+
+
+def match_virtual(tangibles: list[Candidates], virtual: Candidates, model: CostModel,
+                  settings: MatchSettings = MatchSettings(), *, allowed: tuple[list[int], str | None] | None = None,
+                  row: np.ndarray | None = None, pinch_settings: PinchSettings = PinchSettings()) -> SceneMatch:
+    """One virtual object's row of :func:`match_scene`, bit for bit, searched on its own.
+
+    ``model`` must be the run's (built over every object); ``allowed`` is its entry of
+    :func:`allowed_tangibles` (default: every tangible, which is right unless ``one_to_one``);
+    ``row`` its row of the cost matrix when already known. The result is a one-row scene.
+    """
+    search = _Search(tangibles, [virtual], model, settings)
+    row = cost_row(search, 0) if row is None else np.asarray(row, dtype=np.float64)
+    vm = _match(search, 0, *(allowed or (list(range(len(tangibles))), None)), pinch_settings=pinch_settings)
+    return SceneMatch(tangibles, [virtual], settings, model, row[None], [vm])
 
 
 def assign_one_to_one(cost_matrix: np.ndarray) -> np.ndarray:

@@ -13,6 +13,7 @@ import json
 import math
 import os
 import tempfile
+from collections.abc import Iterable
 from pathlib import Path
 
 import numpy as np
@@ -180,6 +181,8 @@ def write_atomic(path: str | os.PathLike, text: str | bytes) -> None:
 
 SCHEMA_MATCHES = "pinchmatch.matches/1"
 SCHEMA_STUDY = "pinchmatch.study/1"
+#: ``--format jsonl``: a header line, one line per virtual object, failed files, an end line
+SCHEMA_MATCH_LINES = "pinchmatch.matches.jsonl/1"
 
 #: how transforms are to be read, stated in every matches document
 FRAME_NOTE = (
@@ -245,44 +248,76 @@ def _reference_record(ref, model) -> dict:
             "transform_virtual_to_tangible": [_vec(row, 6) for row in np.eye(4)], "virtual_pose": record}
 
 
-def matches_document(scene, settings: dict, *, failed: list | None = None) -> dict:
+def object_entry(candidates, *, dump_poses: bool = False) -> dict:
+    """One object of a matches document; with ``dump_poses``, every feasible pose as a record."""
+    obj = candidates.obj
+    entry = {"name": candidates.name, **object_section(obj.loaded, obj.props, ray_engine=obj.context.ray_engine_name),
+             "pose_count": len(candidates), "poses_given": candidates.given}
+    if dump_poses:
+        entry["poses"] = pose_records(candidates.pinches, candidates.features)
+        for record, index in zip(entry["poses"], candidates.index):
+            record["index"] = int(index)
+    return entry
+
+
+def match_entry(scene, vm) -> dict:
+    """One virtual object's entry in ``matches``."""
+    V = scene.virtuals[vm.virtual]
+    entry = {"virtual": V.name}
+    if vm.best is None:
+        return entry | {"tangible": None, "cost": None, "reason": vm.reason}
+    best = vm.best
+    entry.update(_choice_record(scene, best, full=True))
+    entry["reason"] = None
+    entry["criteria"] = criterion_table(scene.tangibles[best.tangible], V, best, scene.model)
+    entry["alternatives"] = [_choice_record(scene, a, full=False) for a in vm.alternatives]
+    entry["reference"] = _reference_record(vm.reference, scene.model)
+    # keys in a stable, readable order
+    order = ["virtual", "tangible", "cost", "reason", "criteria", "tangible_pose", "virtual_pose"]
+    return {k: entry[k] for k in order} | {k: v for k, v in entry.items() if k not in order}
+
+
+def matches_header(settings: dict, tangibles: list[dict]) -> dict:
+    """What a matches document says before any virtual object: schema, settings, frames, tangibles."""
+    return {"schema": SCHEMA_MATCHES, "version": __version__, "settings": settings, "frames": FRAME_NOTE,
+            "tangibles": tangibles}
+
+
+def cost_matrix_section(virtual_names: list[str], tangible_names: list[str], values) -> dict:
+    return {"rows_virtual": list(virtual_names), "columns_tangible": list(tangible_names),
+            "values": [[_num(x, 6) for x in row] for row in values]}
+
+
+def matches_document(scene, settings: dict, *, failed: list | None = None, dump_poses: bool = False) -> dict:
     """The ``pinchmatch match`` result (schema ``pinchmatch.matches/1``, docs/output-format.md)."""
-    objects = lambda group: [  # noqa: E731
-        {"name": c.name, **object_section(c.obj.loaded, c.obj.props, ray_engine=c.obj.context.ray_engine_name),
-         "pose_count": len(c), "poses_given": c.given}
-        for c in group
-    ]
-    matches = []
-    for vm in scene.matches:
-        V = scene.virtuals[vm.virtual]
-        entry = {"virtual": V.name}
-        if vm.best is None:
-            entry.update(tangible=None, cost=None, reason=vm.reason)
-            matches.append(entry)
-            continue
-        best = vm.best
-        entry.update(_choice_record(scene, best, full=True))
-        entry["reason"] = None
-        entry["criteria"] = criterion_table(scene.tangibles[best.tangible], V, best, scene.model)
-        entry["alternatives"] = [_choice_record(scene, a, full=False) for a in vm.alternatives]
-        entry["reference"] = _reference_record(vm.reference, scene.model)
-        # keys in a stable, readable order
-        order = ["virtual", "tangible", "cost", "reason", "criteria", "tangible_pose", "virtual_pose"]
-        matches.append({k: entry[k] for k in order} | {k: v for k, v in entry.items() if k not in order})
-    return {
-        "schema": SCHEMA_MATCHES,
-        "version": __version__,
-        "settings": settings,
-        "frames": FRAME_NOTE,
-        "tangibles": objects(scene.tangibles),
-        "virtuals": objects(scene.virtuals),
-        "matches": matches,
+    return matches_header(settings, [object_entry(c, dump_poses=dump_poses) for c in scene.tangibles]) | {
+        "virtuals": [object_entry(c, dump_poses=dump_poses) for c in scene.virtuals],
+        "matches": [match_entry(scene, vm) for vm in scene.matches],
         "failed": list(failed or []),
-        "cost_matrix": {
-            "rows_virtual": [v.name for v in scene.virtuals],
-            "columns_tangible": [t.name for t in scene.tangibles],
-            "values": [[_num(x, 6) for x in row] for row in scene.cost_matrix],
-        },
+        "cost_matrix": cost_matrix_section([v.name for v in scene.virtuals], [t.name for t in scene.tangibles],
+                                           scene.cost_matrix),
+    }
+
+
+def matches_from_lines(lines: Iterable[str]) -> dict:
+    """The ``matches.json`` document that a ``matches.jsonl`` stream holds (see ``SCHEMA_MATCH_LINES``).
+
+    Raises ValueError when the lines are not a whole stream."""
+    records = [json.loads(line) for line in lines if line.strip()]
+    if not records or records[0].get("record") != "header" or records[0].get("schema") != SCHEMA_MATCH_LINES:
+        raise ValueError(f"the first line is not a {SCHEMA_MATCH_LINES} header")
+    if records[-1].get("record") != "end":
+        raise ValueError("the end line is missing: the stream was cut short")
+    header = {k: v for k, v in records[0].items() if k != "record"} | {"schema": SCHEMA_MATCHES}
+    matches = [r for r in records if r.get("record") == "match"]
+    failed = [{k: v for k, v in r.items() if k != "record"} for r in records if r.get("record") == "failed"]
+    return header | {
+        "virtuals": [r["object"] for r in matches],
+        "matches": [r["match"] for r in matches],
+        "failed": failed,
+        "cost_matrix": {"rows_virtual": [r["match"]["virtual"] for r in matches],
+                        "columns_tangible": [t["name"] for t in header["tangibles"]],
+                        "values": [r["cost_row"] for r in matches]},
     }
 
 

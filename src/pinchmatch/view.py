@@ -21,7 +21,7 @@ from pathlib import Path
 
 from . import __version__
 from .errors import ConfigError
-from .report import SCHEMA_MATCHES, write_atomic
+from .report import matches_from_lines, SCHEMA_MATCHES, write_atomic
 from .scenes import scene_stems
 
 log = logging.getLogger(__name__)
@@ -34,11 +34,20 @@ def _asset(name: str) -> str:
 
 
 def read_matches(out: Path) -> dict:
-    """``OUT/matches.json``, checked: a clear error when it is missing or not a matches document."""
+    """``OUT/matches.json`` (or the document ``OUT/matches.jsonl`` holds), checked: a clear error when
+    it is missing or not a matches document."""
     out = Path(out)
     if not out.is_dir():
         raise ConfigError(f"{out}: no such folder; give the -o folder of a 'pinchmatch match' or 'pinchmatch demo' run")
     path = out / "matches.json"
+    lines = out / "matches.jsonl"
+    if not path.is_file() and lines.is_file():
+        try:
+            with open(lines, encoding="utf-8") as fh:
+                return matches_from_lines(fh)
+        except (UnicodeDecodeError, ValueError, KeyError, TypeError, AttributeError) as exc:
+            raise ConfigError(f"{lines}: not a whole pinchmatch matches stream ({exc}); "
+                              "run pinchmatch match again to rewrite it") from None
     if not path.is_file():
         raise ConfigError(f"{path}: not found; run 'pinchmatch match -o {out}' (or 'pinchmatch demo -o {out}') first")
     try:

@@ -1,0 +1,519 @@
+"""``pinchmatch match`` over many files: per-object work in parallel, on this machine or a Dask cluster (issue 5).
+
+A run splits into tasks of one object each:
+
+1. each tangible's candidate poses (from the cache, or computed);
+2. with ``--normalize range``, each virtual object's feature bounds: the cost model needs every
+   feature's range over the whole run before any search;
+3. with ``--one-to-one``, each virtual object's row of the cost matrix: the assignment needs them all;
+4. each virtual object's candidates, its search against every tangible, its result entry, glTF
+   scene and criteria figure.
+
+An :class:`Executor` runs the tasks: in this process (``--jobs 1``), on a pool of local processes
+(``--jobs N``), or on an existing Dask cluster (``--scheduler ADDRESS``). Whatever runs them, the
+results come back in input order and are the same bits as a serial run: the search of one virtual
+object alone equals its row of the whole scene (:func:`pinchmatch.match.match_virtual`), and
+candidates cross process boundaries as the cache's arrays (:func:`pinchmatch.cache.to_payload`).
+
+Memory stays bounded: a virtual object's mesh and poses live only inside its task, and only a
+window of tasks (twice the workers) is in flight. The parent keeps the tangibles and, per virtual
+object, its entry (a few kB), or with ``--format jsonl`` nothing: each line is written as it comes.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import logging
+import os
+import pickle
+import tempfile
+from collections import deque
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .cache import FeatureCache, cached_candidates, from_payload, to_payload
+from .cost import feature_bounds, ranges_from_bounds
+from .errors import ConfigError, PinchmatchError
+from .match import (Candidates, MatchSettings, allowed_tangibles, cost_model, cost_row, match_virtual, _Search)
+from .pinches import PinchSettings
+
+log = logging.getLogger(__name__)
+
+
+def default_jobs() -> int:
+    """All the cores this process may use."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+@dataclass(frozen=True)
+class Job:
+    """What every task of a run needs to know (small, sent with each task)."""
+
+    units: str | None
+    up: str | None
+    patch_radius_mm: float
+    settings: PinchSettings
+    match: MatchSettings
+    cache_folder: str | None = None  # None: no cache
+    dump_poses: bool = False
+    scenes: bool = True
+    figures: bool = True
+
+
+@dataclass(frozen=True)
+class ObjectTask:
+    role: str
+    path: str
+    given: tuple | None = None  # (p1_mm, p2_mm) arrays of given poses
+    source: str | None = None  # the poses file they came from
+
+
+@dataclass(frozen=True)
+class Failure:
+    """A file that could not be used, and why (the one-line error)."""
+
+    role: str
+    path: str
+    error: str
+
+    def as_dict(self) -> dict:
+        return {"role": self.role, "path": self.path, "error": self.error}
+
+
+@dataclass(frozen=True)
+class Computed:
+    """One object's candidates as the cache's arrays, and whether they came from the cache."""
+
+    meta: dict
+    arrays: dict
+    cached: bool
+
+
+@dataclass(frozen=True)
+class VirtualResult:
+    """Everything the output needs of one virtual object; its mesh and poses stay in the task."""
+
+    name: str
+    entry: dict  # its object entry in ``virtuals``
+    match: dict  # its entry in ``matches``
+    row: np.ndarray  # (n,) its row of the cost matrix
+    scene_glb: bytes | None
+    figure_png: bytes | None
+    cached: bool
+
+
+# --- tasks (run in workers: top-level functions, picklable arguments) ---------------------------
+
+def _candidates(task: ObjectTask, job: Job) -> tuple[Candidates, bool]:
+    cache = FeatureCache(job.cache_folder) if job.cache_folder is not None else None
+    c = cached_candidates(task.path, cache=cache, units=job.units, up=job.up, patch_radius_mm=job.patch_radius_mm,
+                          settings=job.settings, given=task.given, source=task.source)
+    return c, bool(cache is not None and cache.hits)
+
+
+def candidates_task(task: ObjectTask, job: Job) -> Computed | Failure:
+    try:
+        c, cached = _candidates(task, job)
+    except PinchmatchError as exc:
+        return Failure(task.role, task.path, str(exc))
+    return Computed(*to_payload(c), cached)
+
+
+def bounds_task(task: ObjectTask, job: Job) -> np.ndarray | Failure:
+    try:
+        c, _ = _candidates(task, job)
+    except PinchmatchError as exc:
+        return Failure(task.role, task.path, str(exc))
+    return feature_bounds(c.table)
+
+
+#: per worker process: the run's tangibles, by token, rebuilt once from their payloads
+_TANGIBLES: dict[str, list[Candidates]] = {}
+
+
+def _tangibles(shared) -> list[Candidates]:
+    token, source = shared
+    if token not in _TANGIBLES:
+        if isinstance(source, (str, os.PathLike)):  # a local pool: a file the parent wrote
+            with open(source, "rb") as fh:
+                source = pickle.load(fh)
+        _TANGIBLES.clear()
+        _TANGIBLES[token] = [from_payload(meta, arrays) for meta, arrays in source]
+    return _TANGIBLES[token]
+
+
+def row_task(task: ObjectTask, job: Job, shared, model) -> np.ndarray | Failure:
+    try:
+        c, _ = _candidates(task, job)
+    except PinchmatchError as exc:
+        return Failure(task.role, task.path, str(exc))
+    return cost_row(_Search(_tangibles(shared), [c], model, job.match), 0)
+
+
+def virtual_task(item: tuple, job: Job, shared, model) -> VirtualResult | Failure:
+    """Item: (task, its entry of :func:`allowed_tangibles` or None, its cost row or None)."""
+    from .figures import _png, criteria_figure
+    from .report import match_entry, object_entry
+    from .scenes import match_scene_glb
+
+    task, allowed, row = item
+    try:
+        c, cached = _candidates(task, job)
+    except PinchmatchError as exc:
+        return Failure(task.role, task.path, str(exc))
+    tangibles = _tangibles(shared)
+    scene = match_virtual(tangibles, c, model, job.match, allowed=allowed, row=row,
+                          pinch_settings=job.settings)
+    vm = scene.matches[0]
+    match = match_entry(scene, vm)
+    glb = png = None
+    if vm.best is not None:
+        if job.scenes:
+            glb = match_scene_glb(tangibles[vm.best.tangible], c, vm.best)
+        if job.figures:
+            png = _png(criteria_figure(match))
+    return VirtualResult(c.name, object_entry(c, dump_poses=job.dump_poses), match, scene.cost_matrix[0], glb, png,
+                         cached)
+
+
+# --- executors -------------------------------------------------------------------------------
+
+class Executor:
+    """Runs tasks in this process, one after another."""
+
+    workers = 1
+
+    def map(self, fn: Callable, items: Iterable, *args) -> Iterator:
+        """``fn(item, *args)`` for each item, in order."""
+        for item in items:
+            yield fn(item, *args)
+
+    def share(self, payloads: list, tangibles: list[Candidates]) -> tuple:
+        """A handle on the tangibles (``payloads`` rebuild them) for :func:`_tangibles`, valid in every worker."""
+        token = _token(payloads)
+        _TANGIBLES.clear()
+        _TANGIBLES[token] = tangibles
+        return token, None
+
+    def close(self) -> None:
+        _TANGIBLES.clear()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+def _token(payloads: list) -> str:
+    h = hashlib.sha256()
+    for meta, arrays in payloads:
+        h.update(repr(sorted(meta.items())).encode())
+        for name in sorted(arrays):
+            h.update(np.ascontiguousarray(arrays[name]).tobytes())
+    return h.hexdigest()
+
+
+def _init_worker(threads: int) -> None:
+    """A local worker: numpy's BLAS gets its share of the cores, not all of them."""
+    global _LIMITS
+    from threadpoolctl import threadpool_limits
+
+    _LIMITS = threadpool_limits(limits=threads)
+    logging.getLogger("pinchmatch").setLevel(logging.ERROR)  # the parent reports; workers stay quiet
+
+
+_LIMITS = None
+
+
+class LocalExecutor(Executor):
+    """A pool of ``jobs`` local processes (started fresh, not forked, so that BLAS threads are sane)."""
+
+    def __init__(self, jobs: int):
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor
+
+        self.workers = jobs
+        self._pool = ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn"),
+                                         initializer=_init_worker, initargs=(max(1, default_jobs() // jobs),))
+        self._folder = tempfile.TemporaryDirectory(prefix="pinchmatch-run-")
+
+    def map(self, fn, items, *args):
+        window: deque = deque()
+        for item in items:
+            window.append(self._pool.submit(fn, item, *args))
+            if len(window) >= 2 * self.workers:
+                yield window.popleft().result()
+        while window:
+            yield window.popleft().result()
+
+    def share(self, payloads, tangibles):
+        path = Path(self._folder.name) / "tangibles.pickle"
+        with open(path, "wb") as fh:
+            pickle.dump(payloads, fh, protocol=pickle.HIGHEST_PROTOCOL)
+        return _token(payloads), str(path)
+
+    def close(self):
+        self._pool.shutdown(cancel_futures=True)
+        self._folder.cleanup()
+
+
+class DaskExecutor(Executor):
+    """Tasks on an existing Dask cluster; the workers need pinchmatch installed and the mesh files in reach."""
+
+    def __init__(self, address: str, *, timeout_s: float = 10.0):
+        try:
+            from distributed import Client
+        except ImportError:
+            raise ConfigError("--scheduler: Dask is not installed; install it with pip install 'pinchmatch[dask]'") \
+                from None
+        try:
+            self._client = Client(address, timeout=f"{timeout_s}s", set_as_default=False)
+        except (OSError, TimeoutError, ValueError) as exc:
+            raise ConfigError(f"--scheduler {address}: cannot reach a Dask scheduler there ({exc}); "
+                              "check the address and that the scheduler runs") from None
+        self.workers = max(1, sum(self._client.nthreads().values()))
+
+    def map(self, fn, items, *args):
+        window: deque = deque()
+        for item in items:
+            window.append(self._client.submit(fn, item, *args, pure=False))
+            if len(window) >= 2 * self.workers:
+                yield window.popleft().result()
+        while window:
+            yield window.popleft().result()
+
+    def share(self, payloads, tangibles):
+        [future] = self._client.scatter([payloads], broadcast=True, hash=False)
+        return _token(payloads), future
+
+    def close(self):
+        self._client.close()
+
+
+def executor(jobs: int | None = None, scheduler: str | None = None) -> Executor:
+    """The executor for ``--jobs`` and ``--scheduler`` (default: all local cores)."""
+    if scheduler is not None:
+        if jobs is not None:
+            raise ConfigError("--jobs and --scheduler: give one of them; the cluster decides how many workers run")
+        return DaskExecutor(scheduler)
+    jobs = default_jobs() if jobs is None else jobs
+    if jobs < 1:
+        raise ConfigError(f"--jobs: {jobs} must be 1 or more")
+    return Executor() if jobs == 1 else LocalExecutor(jobs)
+
+
+# --- the run ---------------------------------------------------------------------------------
+
+@dataclass
+class RunResult:
+    tangibles: list[Candidates]
+    cost_rows: dict  # virtual index -> row
+    failed: list[Failure]
+    cached: int  # objects whose candidates came from the cache
+    computed: int
+
+
+def run_match(tangible_tasks: list[ObjectTask], virtual_tasks: list[ObjectTask], job: Job, ex: Executor, *,
+              on_failure: Callable[[Failure], None], on_result: Callable[[int, VirtualResult], None],
+              step: Callable, header: Callable[[list[Candidates]], None] = lambda tangibles: None) -> RunResult:
+    """Run every task; hand each virtual object's result, in input order, to ``on_result(k, result)``.
+
+    ``header(tangibles)`` is called once the tangibles are known, before any virtual object's result.
+    ``step(description, total)`` is a context manager yielding ``advance(note, done=...)``, as
+    :meth:`pinchmatch._console.Presenter.step`. A role with no usable file raises the single error,
+    or a :class:`ConfigError` naming the first.
+    """
+    failed: list[Failure] = []
+    counts = {"cached": 0, "computed": 0}
+
+    def fail(f: Failure) -> None:
+        failed.append(f)
+        on_failure(f)
+
+    def none_usable(role: str, errors: list[Failure]):
+        if len(errors) == 1:
+            return _Failed(errors[0].error)
+        return ConfigError(f"none of the {len(errors)} {role} files could be used (first: {errors[0].error}); "
+                           "fix or remove them")
+
+    payloads, tangible_errors = [], []
+    with step("tangibles: poses and features", len(tangible_tasks)) as advance:
+        for task, r in zip(tangible_tasks, ex.map(candidates_task, tangible_tasks, job)):
+            advance(Path(task.path).name)
+            if isinstance(r, Failure):
+                tangible_errors.append(r)
+                fail(r)
+                continue
+            payloads.append((r.meta, r.arrays))
+            counts["cached" if r.cached else "computed"] += 1
+    if not payloads:
+        raise none_usable("tangible", tangible_errors)
+    tangibles = [from_payload(meta, arrays) for meta, arrays in payloads]
+    shared = ex.share(payloads, tangibles)
+    header(tangibles)
+
+    todo = list(range(len(virtual_tasks)))
+    ranges = None
+    if job.match.normalize == "range":
+        bounds = [feature_bounds(t.table) for t in tangibles]
+        with step("virtual objects: feature ranges", len(todo)) as advance:
+            for k, r in zip(list(todo), ex.map(bounds_task, virtual_tasks, job)):
+                advance(Path(virtual_tasks[k].path).name)
+                if isinstance(r, Failure):
+                    todo.remove(k)
+                    fail(r)
+                else:
+                    bounds.append(r)
+        ranges = ranges_from_bounds(bounds)
+    model = cost_model(job.match, tangibles, ranges=ranges)
+
+    plan: dict[int, tuple] = {k: (None, None) for k in todo}
+    if job.match.one_to_one:
+        rows = {}
+        with step("virtual objects: cost rows", len(todo)) as advance:
+            for k, r in zip(list(todo), ex.map(row_task, [virtual_tasks[k] for k in todo], job, shared, model)):
+                advance(Path(virtual_tasks[k].path).name)
+                if isinstance(r, Failure):
+                    todo.remove(k)
+                    fail(r)
+                else:
+                    rows[k] = r
+        if todo:
+            allowed = allowed_tangibles(np.array([rows[k] for k in todo]), job.match)
+            plan = {k: (allowed[i], rows[k]) for i, k in enumerate(todo)}
+
+    cost_rows, virtual_errors = {}, [f for f in failed if f.role == "virtual"]
+    with step("virtual objects: poses, features, search", len(todo)) as advance:
+        items = [(virtual_tasks[k], *plan[k]) for k in todo]
+        for k, r in zip(list(todo), ex.map(virtual_task, items, job, shared, model)):
+            advance(Path(virtual_tasks[k].path).name)
+            if isinstance(r, Failure):
+                virtual_errors.append(r)
+                fail(r)
+                continue
+            counts["cached" if r.cached else "computed"] += 1
+            cost_rows[k] = r.row
+            on_result(k, r)
+    if not cost_rows:
+        raise none_usable("virtual", virtual_errors) if virtual_errors else \
+            ConfigError("no virtual object given; name at least one with --virtual")
+    return RunResult(tangibles, cost_rows, failed, counts["cached"], counts["computed"])
+
+
+class _Failed(PinchmatchError):
+    """A role's only file failed: its own error, as one line."""
+
+
+class RunError(PinchmatchError):
+    """The run itself broke (a worker died): one line, and what to change."""
+
+
+# --- output, as results come ------------------------------------------------------------------
+
+class MatchesSink:
+    """Writes a run's results as they come: each scene and criteria figure at once, and either
+    ``matches.json`` at the end or ``matches.jsonl`` line by line (docs/output-format.md).
+
+    Every file appears whole (a temporary file, then a rename); a run that stops early leaves no
+    result file. The tables for the summary are kept (one short row per object).
+    """
+
+    def __init__(self, out: Path, fmt: str, stems: list[str]):
+        from .report import matches_rows
+
+        self.out, self.fmt, self.stems = Path(out), fmt, stems
+        self.result_path = self.out / f"matches.{fmt}"
+        self.scenes = 0
+        self.objects = [("object", "role", "faces", "feasible poses")]
+        self.rows = matches_rows({"matches": []})
+        self._header = None
+        self._virtuals, self._matches, self._names, self._cost_rows, self._chosen = [], [], [], [], []
+        self._lines = None  # (file, temporary path) while matches.jsonl is being written
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        if self._lines is not None:  # stopped before finish: no half-written result
+            fh, tmp = self._lines
+            fh.close()
+            os.unlink(tmp)
+            self._lines = None
+
+    def _line(self, record: dict) -> None:
+        import json
+
+        self._lines[0].write(json.dumps(record, allow_nan=False, separators=(",", ":")) + "\n")
+
+    def start(self, settings: dict, tangibles: list[Candidates], dump_poses: bool) -> None:
+        from .report import matches_header, object_entry
+
+        entries = [object_entry(t, dump_poses=dump_poses) for t in tangibles]
+        self.objects += [(e["name"], "tangible", e["faces"], e["pose_count"]) for e in entries]
+        self._header = matches_header(settings, entries)
+        if self.fmt == "jsonl":
+            from .report import SCHEMA_MATCH_LINES
+
+            self.out.mkdir(parents=True, exist_ok=True)
+            fd, tmp = tempfile.mkstemp(prefix=".matches.jsonl.", suffix=".tmp", dir=self.out)
+            self._lines = (os.fdopen(fd, "w", encoding="utf-8", newline=""), tmp)
+            self._line({"record": "header", **self._header, "schema": SCHEMA_MATCH_LINES})
+
+    def add(self, k: int, r: VirtualResult) -> None:
+        from .report import matches_rows, write_atomic, _num
+
+        stem = self.stems[k]
+        if r.scene_glb is not None:
+            write_atomic(self.out / "scenes" / f"{stem}.glb", r.scene_glb)
+            self.scenes += 1
+        if r.figure_png is not None:
+            write_atomic(self.out / "figures" / "criteria" / f"{stem}.png", r.figure_png)
+        self.objects.append((r.name, "virtual", r.entry["faces"], r.entry["pose_count"]))
+        self.rows += matches_rows({"matches": [r.match]})[1:]
+        self._names.append(r.name)
+        self._cost_rows.append(r.row)
+        self._chosen.append(r.match.get("tangible"))
+        if self._lines is not None:
+            self._line({"record": "match", "object": r.entry, "cost_row": [_num(x, 6) for x in r.row],
+                        "match": r.match})
+        else:
+            self._virtuals.append(r.entry)
+            self._matches.append(r.match)
+
+    def overview(self) -> dict:
+        """The cost matrix and the chosen tangibles, as :func:`pinchmatch.figures.cost_matrix_figure` reads them."""
+        from .report import cost_matrix_section
+
+        return {"cost_matrix": cost_matrix_section(self._names, [t["name"] for t in self._header["tangibles"]],
+                                                   self._cost_rows),
+                "matches": [{"virtual": n, "tangible": t} for n, t in zip(self._names, self._chosen)]}
+
+    def finish(self, result: RunResult) -> dict | None:
+        """Close the result file; return the matches document (None for jsonl, never held whole)."""
+        from .report import to_json, write_atomic
+
+        failed = [f.as_dict() for f in result.failed]
+        other = self.out / f"matches.{'json' if self.fmt == 'jsonl' else 'jsonl'}"
+        other.unlink(missing_ok=True)  # the other format's file of an earlier run would be stale
+        if self._lines is None:
+            doc = self._header | {"virtuals": self._virtuals, "matches": self._matches, "failed": failed,
+                                  "cost_matrix": self.overview()["cost_matrix"]}
+            write_atomic(self.result_path, to_json(doc))
+            return doc
+        for f in failed:
+            self._line({"record": "failed", **f})
+        self._line({"record": "end", "virtual_count": len(self._names),
+                    "matched_count": sum(t is not None for t in self._chosen), "failed_count": len(failed)})
+        fh, tmp = self._lines
+        fh.close()
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, self.result_path)
+        self._lines = None
+        return None
