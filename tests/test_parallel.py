@@ -1,0 +1,168 @@
+"""Parallel and distributed runs, streamed output (issue 5): the same bits whatever runs the work."""
+
+import json
+
+import numpy as np
+import pytest
+
+from pinchmatch.cache import cached_candidates
+from pinchmatch.cli import main
+from pinchmatch.match import MatchSettings, match_scene
+from pinchmatch.pinches import PinchSettings
+from pinchmatch.report import matches_document, matches_from_lines, to_json
+from pinchmatch.shapes import ellipsoid, stacked_prop
+
+COUNT = 300
+
+
+@pytest.fixture(scope="module")
+def meshes(tmp_path_factory):
+    """Two tangibles and four virtual objects (one file per object), in mm."""
+    root = tmp_path_factory.mktemp("objects")
+    (root / "t").mkdir()
+    (root / "v").mkdir()
+    stacked_prop(sections=48).export(root / "t" / "prop.stl")
+    ellipsoid((45.0, 30.0, 20.0), faces=2000).mesh.export(root / "t" / "egg.stl")
+    for k, axes in enumerate([(35.0, 20.0, 15.0), (50.0, 22.0, 22.0), (28.0, 28.0, 28.0), (30.0, 20.0, 40.0)]):
+        ellipsoid(axes, faces=2000, triangulation="random", seed=k).mesh.export(root / "v" / f"e{k}.stl")
+    return root
+
+
+def run(meshes, out, *extra):
+    argv = ["match", "--tangible", str(meshes / "t"), "--virtual", str(meshes / "v"), "-o", str(out),
+            "--count", str(COUNT), "-q", "--no-view", *extra]
+    return main(argv)
+
+
+def outputs(out):
+    """Every file a run wrote, by its path under ``out``: name -> bytes."""
+    return {str(p.relative_to(out)): p.read_bytes() for p in sorted(out.rglob("*")) if p.is_file()}
+
+
+@pytest.mark.parametrize("extra, settings", [
+    ([], MatchSettings()),
+    (["--normalize", "range", "--one-to-one", "--keep-upright", "--top-k", "2"],
+     MatchSettings(normalize="range", one_to_one=True, keep_upright=True, top_k=2)),
+])
+def test_a_run_equals_the_library_search_of_the_whole_scene(meshes, tmp_path, extra, settings):
+    assert run(meshes, tmp_path / "out", "--jobs", "1", "--no-figures", *extra) == 0
+    pinch = PinchSettings(count=COUNT)
+    load = lambda folder: [cached_candidates(p, cache=None, settings=pinch)  # noqa: E731
+                           for p in sorted((meshes / folder).glob("*.stl"))]
+    scene = match_scene(load("t"), load("v"), settings, pinch_settings=pinch)
+    doc = matches_document(scene, {**pinch.as_dict(), **settings.as_dict(), "units": None, "up": None})
+    assert (tmp_path / "out" / "matches.json").read_text() == to_json(doc)
+
+
+def test_two_processes_write_the_same_bytes_as_one(meshes, tmp_path):
+    assert run(meshes, tmp_path / "one", "--jobs", "1") == 0
+    assert run(meshes, tmp_path / "two", "--jobs", "2") == 0
+    one, two = outputs(tmp_path / "one"), outputs(tmp_path / "two")
+    assert len([p for p in one if p.startswith("scenes/")]) == 4
+    assert len([p for p in one if p.startswith("figures/criteria/")]) == 4
+    assert one.keys() == two.keys()
+    assert all(one[p] == two[p] for p in one), [p for p in one if one[p] != two[p]]
+
+
+def test_a_dask_cluster_writes_the_same_bytes(meshes, tmp_path):
+    distributed = pytest.importorskip("distributed")
+    extra = ["--normalize", "range", "--no-figures"]
+    assert run(meshes, tmp_path / "serial", "--jobs", "1", *extra) == 0
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+                                  dashboard_address=None) as cluster:
+        assert run(meshes, tmp_path / "dask", "--scheduler", cluster.scheduler_address, *extra) == 0
+    assert outputs(tmp_path / "serial") == outputs(tmp_path / "dask")
+
+
+def test_results_do_not_depend_on_the_cache(meshes, tmp_path):
+    assert run(meshes, tmp_path / "cold", "--jobs", "1", "--no-figures") == 0
+    assert run(meshes, tmp_path / "warm", "--jobs", "1", "--no-figures") == 0  # every object from the cache
+    assert outputs(tmp_path / "cold") == outputs(tmp_path / "warm")
+
+
+def test_jsonl_streams_one_line_per_virtual_object_and_holds_the_same_document(meshes, tmp_path, capsys):
+    assert run(meshes, tmp_path / "json", "--jobs", "1", "--no-figures") == 0
+    (tmp_path / "lines").mkdir()
+    (tmp_path / "lines" / "matches.json").write_text("{}")  # an earlier run's: stale once jsonl is written
+    assert run(meshes, tmp_path / "lines", "--jobs", "1", "--no-figures", "--format", "jsonl") == 0
+    assert not (tmp_path / "lines" / "matches.json").exists()
+    lines = (tmp_path / "lines" / "matches.jsonl").read_text().splitlines()
+    records = [json.loads(line) for line in lines]
+    assert [r["record"] for r in records] == ["header"] + ["match"] * 4 + ["end"]
+    assert records[-1] == {"record": "end", "virtual_count": 4, "matched_count": 4, "failed_count": 0}
+    expected = json.loads((tmp_path / "json" / "matches.json").read_text())
+    assert matches_from_lines(lines) == expected
+    assert not list((tmp_path / "lines").glob(".*.tmp"))
+    # the viewer reads the stream
+    assert main(["view", str(tmp_path / "lines"), "-q"]) == 0
+    assert (tmp_path / "lines" / "index.html").stat().st_size > 100_000
+
+
+def test_a_cut_stream_is_refused_by_the_viewer(meshes, tmp_path, capsys):
+    assert run(meshes, tmp_path / "lines", "--jobs", "1", "--no-figures", "--format", "jsonl") == 0
+    path = tmp_path / "lines" / "matches.jsonl"
+    path.write_text("\n".join(path.read_text().splitlines()[:-2]) + "\n")
+    capsys.readouterr()
+    assert main(["view", str(tmp_path / "lines")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "matches.jsonl" in err[0] and "cut short" in err[0]
+
+
+def test_poses_are_dumped_only_on_request(meshes, tmp_path):
+    assert run(meshes, tmp_path / "plain", "--jobs", "1", "--no-figures") == 0
+    assert run(meshes, tmp_path / "dump", "--jobs", "1", "--no-figures", "--dump-poses") == 0
+    plain = json.loads((tmp_path / "plain" / "matches.json").read_text())
+    dump = json.loads((tmp_path / "dump" / "matches.json").read_text())
+    assert not any("poses" in o for o in plain["tangibles"] + plain["virtuals"])
+    for o in dump["tangibles"] + dump["virtuals"]:
+        assert len(o["poses"]) == o["pose_count"] > 0
+        indices = [p["index"] for p in o["poses"]]
+        assert indices == sorted(set(indices)) and all(p["feasible"] for p in o["poses"])
+    assert dump["matches"] == plain["matches"]
+    best = dump["matches"][0]
+    virtual = next(o for o in dump["virtuals"] if o["name"] == best["virtual"])
+    pose = next(p for p in virtual["poses"] if p["index"] == best["virtual_pose"]["index"])
+    assert pose["width_mm"] == best["virtual_pose"]["width_mm"]
+    assert len(json.dumps(dump)) > 10 * len(json.dumps(plain))
+
+
+def test_a_failed_run_leaves_no_stream(meshes, tmp_path):
+    (tmp_path / "bad").mkdir()
+    (tmp_path / "bad" / "broken.stl").write_bytes(b"solid x\nfacet nonsense")
+    argv = ["match", "--tangible", str(meshes / "t"), "--virtual", str(tmp_path / "bad"), "-o", str(tmp_path / "out"),
+            "--count", str(COUNT), "-q", "--jobs", "1", "--format", "jsonl"]
+    assert main(argv) == 2
+    assert not (tmp_path / "out").exists() or not [p for p in (tmp_path / "out").rglob("*") if "matches" in p.name]
+
+
+@pytest.mark.parametrize("extra, words", [
+    (["--jobs", "0"], "--jobs"),
+    (["--jobs", "2", "--scheduler", "tcp://127.0.0.1:8786"], "give one of them"),
+    (["--json", "--format", "jsonl"], "give one of them"),
+    (["--scheduler", "tcp://127.0.0.1:9"], "cannot reach a Dask scheduler"),
+])
+def test_bad_parallel_options_fail_in_one_line(meshes, tmp_path, capsys, extra, words):
+    argv = ["match", "--tangible", str(meshes / "t"), "--virtual", str(meshes / "v"), "-o", str(tmp_path / "out"),
+            "--count", str(COUNT), *extra]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and words in err[0], err
+    assert not (tmp_path / "out").exists()
+
+
+def test_the_pool_size_does_not_change_the_result(meshes, monkeypatch):
+    import pinchmatch.match as match_module
+
+    pinch = PinchSettings(count=COUNT)
+    tangibles = [cached_candidates(p, cache=None, settings=pinch) for p in sorted((meshes / "t").glob("*.stl"))]
+    virtual = cached_candidates(meshes / "v" / "e2.stl", cache=None, settings=pinch)
+    settings = MatchSettings(top_k=4)
+    default = match_scene(tangibles, [virtual], settings, pinch_settings=pinch)
+    monkeypatch.setattr(match_module, "MIN_POOL", 5)
+    monkeypatch.setattr(match_module, "MAX_POOL", 5)
+    small = match_scene(tangibles, [virtual], settings, pinch_settings=pinch)
+    a, b = default.matches[0], small.matches[0]
+    assert np.array_equal(default.cost_matrix, small.cost_matrix)
+    for x, y in zip([a.best] + a.alternatives, [b.best] + b.alternatives, strict=True):
+        assert (x.tangible, x.t_pose, x.v_pose, x.cost, x.swapped) == (y.tangible, y.t_pose, y.v_pose, y.cost, y.swapped)
+        assert np.array_equal(x.transform, y.transform)
