@@ -31,7 +31,6 @@ from .cost import parse_criteria, parse_weights
 from .match import MatchSettings
 from .properties import parse_vector
 from ._console import Presenter
-from .figures import _png, cost_matrix_figure, figure_count, write_figures
 from .report import (features_document, matches_document, matches_rows, poses_csv, poses_document,
                      study_document, study_rows, to_json, write_atomic)
 from .run import Job, MatchesSink, ObjectTask, RunError, default_jobs, executor, run_match
@@ -330,6 +329,8 @@ def _write_visuals(args, ui: Presenter, out: Path, scene, document: dict, *, stu
         write_scenes(scene, out / "scenes", progress=lambda path: advance(path.name))
     written.append(f"{n_matched} glTF scenes in {out / 'scenes'}")
     if not args.no_figures:
+        from .figures import figure_count, write_figures  # matplotlib: imported when figures are wanted
+
         with ui.step("figures", total=figure_count(document, study=study)) as advance:
             figures = write_figures(out, document, study=study, progress=lambda path: advance(path.name))
         written.append(f"{len(figures)} figures in {out / 'figures'}")
@@ -389,6 +390,8 @@ def _cmd_match(args) -> int:
     t1 = time.perf_counter()
     written = [str(sink.result_path), f"{sink.scenes} glTF scenes in {out / 'scenes'}"]
     if not args.no_figures:
+        from .figures import _png, cost_matrix_figure  # matplotlib: imported when figures are wanted
+
         with ui.step("cost matrix figure"):
             write_atomic(out / "figures" / "cost_matrix.png", _png(cost_matrix_figure(sink.overview())))
         written.append(f"{sink.scenes + 1} figures in {out / 'figures'}")

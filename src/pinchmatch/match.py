@@ -509,6 +509,12 @@ def line_contacts(obj: ObjectAnalysis, point: np.ndarray, direction: np.ndarray)
     The line passes through ``point`` along ``direction``; the first finger comes from the
     -direction side, the second from the +direction side. None when the line misses.
     """
+    hits = _line_hits(obj, point, direction)
+    return None if hits is None else hits[0]
+
+
+def _line_hits(obj: ObjectAnalysis, point: np.ndarray, direction: np.ndarray):
+    """:func:`line_contacts` and the (2,) triangles hit, or None."""
     u = np.asarray(direction, dtype=np.float64)
     u = u / np.linalg.norm(u)
     bounds = obj.props.bounds_mm
@@ -520,7 +526,7 @@ def line_contacts(obj: ObjectAnalysis, point: np.ndarray, direction: np.ndarray)
     points = origins + dist[:, None] * np.array([u, -u])
     if (points[1] - points[0]) @ u <= 1e-9:
         return None
-    return points
+    return points, face
 
 
 @dataclass(frozen=True)
@@ -545,10 +551,11 @@ def reference_pose(tangible: Candidates, t_pose: int, virtual: Candidates, model
     Use :func:`reference_cost` for the same pose under another model.
     """
     p = tangible.pinches.points[t_pose]
-    points = line_contacts(virtual.obj, p.mean(axis=0), p[1] - p[0])
-    if points is None:
+    hits = _line_hits(virtual.obj, p.mean(axis=0), p[1] - p[0])
+    if hits is None:
         return Reference(None, None, None, None, "the tangible's pinch line misses the virtual object")
-    pinches = check_pinches(virtual.obj.context, points[:1], points[1:], settings=settings)
+    points, faces = hits
+    pinches = check_pinches(virtual.obj.context, points[:1], points[1:], settings=settings, faces=faces[None])
     features = pinch_features(pinches, virtual.obj.props)
     flipped = bool(virtual.obj.loaded.up @ tangible.obj.loaded.up < FLIP_COSINE)
     terms = _reference_terms(tangible, t_pose, virtual, pinches, features, model)

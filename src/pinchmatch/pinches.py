@@ -218,6 +218,7 @@ def check_pinches(
     p2_mm: np.ndarray,
     *,
     settings: PinchSettings = PinchSettings(),
+    faces: np.ndarray | None = None,
 ) -> Pinches:
     """Snap user-given contacts onto the surface and check every rule.
 
@@ -225,6 +226,9 @@ def check_pinches(
     ----------
     p1_mm, p2_mm : (n, 3) float64
         Candidate contacts, near the surface.
+    faces : (n, 2) int, optional
+        The triangles the contacts lie on, when they are known to be on the surface (ray hits):
+        they are then taken as they are, with no closest-point search.
 
     Returns
     -------
@@ -235,7 +239,10 @@ def check_pinches(
     p2_mm = np.asarray(p2_mm, dtype=np.float64).reshape(-1, 3)
     n = len(p1_mm)
     raw = np.stack([p1_mm, p2_mm], axis=1).reshape(-1, 3)
-    closest, distance, face = context.closest_points(raw)
+    if faces is None:
+        closest, distance, face = context.closest_points(raw)
+    else:
+        closest, distance, face = raw, np.zeros(len(raw)), np.asarray(faces, dtype=np.int64).reshape(-1)
     surface_ok = (distance <= settings.snap_tolerance_mm).reshape(n, 2).all(axis=1)
     geom = _patches(context, closest, context.face_normals[face], settings)
     points = closest.reshape(n, 2, 3)

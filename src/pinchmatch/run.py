@@ -158,7 +158,6 @@ def row_task(task: ObjectTask, job: Job, shared, model) -> np.ndarray | Failure:
 
 def virtual_task(item: tuple, job: Job, shared, model) -> VirtualResult | Failure:
     """Item: (task, its entry of :func:`allowed_tangibles` or None, its cost row or None)."""
-    from .figures import _png, criteria_figure
     from .report import match_entry, object_entry
     from .scenes import match_scene_glb
 
@@ -177,6 +176,8 @@ def virtual_task(item: tuple, job: Job, shared, model) -> VirtualResult | Failur
         if job.scenes:
             glb = match_scene_glb(tangibles[vm.best.tangible], c, vm.best)
         if job.figures:
+            from .figures import _png, criteria_figure  # matplotlib: imported when figures are wanted
+
             png = _png(criteria_figure(match))
     return VirtualResult(c.name, object_entry(c, dump_poses=job.dump_poses), match, scene.cost_matrix[0], glb, png,
                          cached)

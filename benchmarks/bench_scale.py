@@ -1,0 +1,198 @@
+"""Benchmark of ``pinchmatch match`` on an asset library: cache, --jobs, growth with objects and poses (issue 5).
+
+    python benchmarks/bench_scale.py           # 200 virtual objects x 5 tangibles (about 15 minutes on 2 cores)
+    python benchmarks/bench_scale.py --quick   # 16 virtual objects (about 2 minutes)
+
+It generates the objects (seeded): virtual ellipsoids, cylinders and tori of random sizes, about
+20,000 faces each, randomly rotated; five tangibles (the stacked study prop, an ellipsoid, a
+cylinder, a torus and a subdivided box). Then it runs the command line as users do,
+
+    pinchmatch match --tangible T/* --virtual V/* --count POSES --jobs N --cache DIR --no-view --no-figures -q
+
+(the scenes are written; the figures and the page are left out: they are output, not matching),
+and prints, per run: wall time, time per virtual object, how many came from the cache, and the
+peak resident memory of the main process and of the largest worker (sampled /proc VmHWM).
+
+Runs: cold with --jobs 1 and --jobs 2 (empty caches), warm from the cache with both, warm with
+--format jsonl; cold with 25, 50, 100 (and 200) objects; cold with 500, 1000 and 2000 poses per
+object on 50 objects. The growth plot goes to ``--plot`` (default benchmarks/scale.png).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from pinchmatch.shapes import box, cylinder, ellipsoid, stacked_prop, torus
+
+FACES = 20_000
+
+
+def make_objects(folder: Path, n_virtual: int, seed: int = 7) -> tuple[list[Path], list[Path]]:
+    rng = np.random.default_rng(seed)
+    (folder / "t").mkdir(parents=True, exist_ok=True)
+    (folder / "v").mkdir(parents=True, exist_ok=True)
+    tangibles = {
+        "prop.stl": stacked_prop(sections=512),
+        "egg.stl": ellipsoid((45.0, 30.0, 22.0), faces=FACES).mesh,
+        "rod.stl": cylinder(15.0, 90.0, triangulation="random", faces=FACES, seed=1).mesh,
+        "ring.stl": torus(35.0, 10.0, triangulation="random", faces=FACES, seed=2).mesh,
+        "brick.stl": box((70.0, 40.0, 25.0), subdivide_mm=1.6).mesh,
+    }
+    for name, mesh in tangibles.items():
+        mesh.export(folder / "t" / name)
+    for k in range(n_virtual):
+        kind = k % 3
+        if kind == 0:
+            mesh = ellipsoid(rng.uniform(12, 50, 3), triangulation="random", faces=FACES, seed=k).mesh
+        elif kind == 1:
+            mesh = cylinder(rng.uniform(8, 30), rng.uniform(30, 120), triangulation="random", faces=FACES, seed=k).mesh
+        else:
+            minor = rng.uniform(6, 14)
+            mesh = torus(minor + rng.uniform(10, 30), minor, triangulation="random", faces=FACES, seed=k).mesh
+        mesh.apply_transform(np.block([[Rotation.random(random_state=rng).as_matrix(), np.zeros((3, 1))],
+                                       [np.zeros((1, 3)), np.ones((1, 1))]]))
+        mesh.export(folder / "v" / f"obj{k:04d}.stl")
+    return sorted((folder / "t").glob("*.stl")), sorted((folder / "v").glob("*.stl"))
+
+
+def _hwm_mib(pid: int) -> float:
+    try:
+        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) / 1024
+    except OSError:
+        pass
+    return 0.0
+
+
+def _children(pid: int) -> list[int]:
+    out = []
+    try:
+        for task in Path(f"/proc/{pid}/task").iterdir():
+            out += [int(c) for c in (task / "children").read_text().split()]
+    except OSError:
+        pass
+    return out + [g for c in out for g in _children(c)]
+
+
+def run(tangibles, virtuals, *, poses: int, jobs: int, cache: Path, out: Path, fmt: str = "json") -> dict:
+    argv = [sys.executable, "-m", "pinchmatch", "match", "--tangible", *map(str, tangibles),
+            "--virtual", *map(str, virtuals), "--count", str(poses), "--jobs", str(jobs), "--cache", str(cache),
+            "-o", str(out), "--format", fmt, "--no-view", "--no-figures", "-q"]
+    peak = {"main": 0.0, "worker": 0.0}
+    t0 = time.perf_counter()
+    proc = subprocess.Popen(argv, stderr=subprocess.PIPE, text=True)
+
+    def sample():
+        while proc.poll() is None:
+            peak["main"] = max(peak["main"], _hwm_mib(proc.pid))
+            for c in _children(proc.pid):
+                peak["worker"] = max(peak["worker"], _hwm_mib(c))
+            time.sleep(0.05)
+
+    sampler = threading.Thread(target=sample, daemon=True)
+    sampler.start()
+    _, err = proc.communicate()
+    seconds = time.perf_counter() - t0
+    sampler.join()
+    if proc.returncode != 0:
+        raise SystemExit(f"pinchmatch failed ({proc.returncode}): {err.strip()}")
+    entries = len(list(cache.glob("*.npz")))
+    return {"seconds": seconds, "main_mib": peak["main"], "worker_mib": peak["worker"], "cache_entries": entries}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="16 virtual objects, 8 for the poses rows")
+    parser.add_argument("--plot", default=str(Path(__file__).with_name("scale.png")), help="where the growth plot goes")
+    args = parser.parse_args()
+    n = 16 if args.quick else 200
+    steps = [4, 8, 16] if args.quick else [25, 50, 100, 200]
+    n_poses_objects = 8 if args.quick else 50
+
+    root = Path(tempfile.mkdtemp(prefix="pinchmatch-bench-"))
+    t0 = time.perf_counter()
+    tangibles, virtuals = make_objects(root / "objects", n)
+    print(f"# {len(virtuals)} virtual objects ({FACES} faces) and {len(tangibles)} tangibles generated in "
+          f"{time.perf_counter() - t0:.0f} s; {os.cpu_count()} cores, {platform.machine()}, Python "
+          f"{platform.python_version()}")
+
+    rows = []
+
+    def row(name, objects, poses, jobs, cache, fmt="json"):
+        r = run(tangibles, virtuals[:objects], poses=poses, jobs=jobs, cache=root / cache, out=root / "out" / name,
+                fmt=fmt)
+        rows.append({"run": name, "objects": objects, "poses": poses, "jobs": jobs, **r})
+        print(f"  {name}: {r['seconds']:.1f} s", file=sys.stderr, flush=True)
+        return r
+
+    cold1 = row("cold --jobs 1", n, 1000, 1, "cache-j1")
+    cold2 = row("cold --jobs 2", n, 1000, 2, "cache-j2")
+    warm1 = row("warm --jobs 1", n, 1000, 1, "cache-j2")
+    warm2 = row("warm --jobs 2", n, 1000, 2, "cache-j2")
+    row("warm --jobs 2 jsonl", n, 1000, 2, "cache-j2", fmt="jsonl")
+    growth_objects = {n: cold2["seconds"]}
+    for k in steps[:-1]:
+        growth_objects[k] = row(f"cold {k} objects", k, 1000, 2, f"cache-o{k}")["seconds"]
+    growth_poses = {}
+    for poses in (500, 1000, 2000):
+        growth_poses[poses] = row(f"cold {poses} poses", n_poses_objects, poses, 2, f"cache-p{poses}")["seconds"]
+
+    print()
+    print(f"{'run':>22} {'objects':>7} {'poses':>5} {'jobs':>4} {'seconds':>8} {'s/object':>8} "
+          f"{'main_MiB':>8} {'worker_MiB':>10}")
+    for r in rows:
+        print(f"{r['run']:>22} {r['objects']:>7} {r['poses']:>5} {r['jobs']:>4} {r['seconds']:>8.1f} "
+              f"{r['seconds'] / r['objects']:>8.3f} {r['main_mib']:>8.0f} {r['worker_mib']:>10.0f}")
+    print()
+    print(f"speed-up of --jobs 2 over --jobs 1, cold: {cold1['seconds'] / cold2['seconds']:.2f}x")
+    print(f"warm over cold: {cold1['seconds'] / warm1['seconds']:.1f}x with --jobs 1, "
+          f"{cold2['seconds'] / warm2['seconds']:.1f}x with --jobs 2, "
+          f"{cold1['seconds'] / warm2['seconds']:.1f}x cold --jobs 1 over warm --jobs 2")
+    ks = np.array(sorted(growth_objects))
+    ts = np.array([growth_objects[k] for k in ks])
+    slope, intercept = np.polyfit(ks, ts, 1)
+    fit = slope * ks + intercept
+    r2 = 1 - ((ts - fit) ** 2).sum() / ((ts - ts.mean()) ** 2).sum()
+    print(f"time vs objects: {slope:.3f} s per object + {intercept:.1f} s, R^2 = {r2:.4f}; "
+          f"log-log slope {np.polyfit(np.log(ks), np.log(ts - intercept if intercept > 0 else ts), 1)[0]:.2f}")
+    ps = np.array(sorted(growth_poses))
+    tp = np.array([growth_poses[p] for p in ps])
+    print(f"time vs poses ({n_poses_objects} objects): " + ", ".join(f"{p}: {t:.1f} s" for p, t in zip(ps, tp)))
+    plot(ks, ts, slope, intercept, ps, tp, n_poses_objects, args.plot)
+    print(f"plot: {args.plot}")
+
+
+def plot(ks, ts, slope, intercept, ps, tp, n_poses_objects, path) -> None:
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(9.0, 3.6), layout="constrained")
+    FigureCanvasAgg(fig)
+    a, b = fig.subplots(1, 2)
+    a.plot(ks, ts, "o", color="#1f77b4", label="measured")
+    a.plot(ks, slope * ks + intercept, "-", color="#999999", label=f"{slope:.2f} s/object + {intercept:.1f} s")
+    a.set(xlabel="virtual objects (1000 poses each, 5 tangibles)", ylabel="wall time, cold, --jobs 2 (s)")
+    a.legend(frameon=False, fontsize=8)
+    b.plot(ps, tp, "o-", color="#ff7f0e")
+    b.set(xlabel="poses per object", ylabel="wall time, cold, --jobs 2 (s)",
+          title=f"{n_poses_objects} virtual objects", xticks=ps)
+    for ax in (a, b):
+        ax.set_ylim(bottom=0)
+        ax.grid(alpha=0.3)
+    fig.savefig(path, dpi=100)
+
+
+if __name__ == "__main__":
+    main()
