@@ -8,7 +8,7 @@ import trimesh
 from pinchmatch import match as match_module
 from pinchmatch.analysis import analyze_object
 from pinchmatch.cli import example_mesh_path, main
-from pinchmatch.cost import CRITERIA, CostModel, separable_terms
+from pinchmatch.cost import CRITERIA, separable_terms
 from pinchmatch.match import (MatchSettings, assign_one_to_one, candidate_poses, cost_model, evaluate_pairs,
                               match_scene, reference_pose)
 from pinchmatch.pinches import PinchSettings

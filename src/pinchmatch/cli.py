@@ -14,6 +14,7 @@ import logging
 import re
 import sys
 import time
+from concurrent.futures.process import BrokenProcessPool
 from importlib import resources
 from pathlib import Path
 
@@ -21,8 +22,6 @@ import numpy as np
 
 from . import __version__
 from .analysis import analyze_object, find_pinches, load_poses_file, score_pinches
-from concurrent.futures.process import BrokenProcessPool
-
 from .cache import FeatureCache
 from .errors import ConfigError, PinchmatchError
 from .load import UNITS_MM, UP_VECTORS, mesh_files
