@@ -132,7 +132,18 @@ def test_a_failed_run_leaves_no_stream(meshes, tmp_path):
     argv = ["match", "--tangible", str(meshes / "t"), "--virtual", str(tmp_path / "bad"), "-o", str(tmp_path / "out"),
             "--count", str(COUNT), "-q", "--jobs", "1", "--format", "jsonl"]
     assert main(argv) == 2
-    assert not (tmp_path / "out").exists() or not [p for p in (tmp_path / "out").rglob("*") if "matches" in p.name]
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("role", ["--tangible", "--virtual"])
+def test_a_role_whose_only_file_is_missing_fails_in_one_line(meshes, tmp_path, capsys, role):
+    paths = {"--tangible": str(meshes / "t"), "--virtual": str(meshes / "v")} | {role: str(tmp_path / "gone.stl")}
+    argv = ["match", "--tangible", paths["--tangible"], "--virtual", paths["--virtual"], "-o", str(tmp_path / "out"),
+            "--count", str(COUNT), "--jobs", "1", "--format", "jsonl"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "gone.stl" in err[0] and "no such file" in err[0], err
+    assert not (tmp_path / "out").exists()
 
 
 @pytest.mark.parametrize("extra, words", [

@@ -336,7 +336,8 @@ def run_match(tangible_tasks: list[ObjectTask], virtual_tasks: list[ObjectTask],
 
     def fail(f: Failure) -> None:
         failed.append(f)
-        on_failure(f)
+        if len(tangible_tasks if f.role == "tangible" else virtual_tasks) > 1:
+            on_failure(f)  # a role's only file: the run stops, and its error says it once
 
     def none_usable(role: str, errors: list[Failure]):
         if len(errors) == 1:
@@ -437,6 +438,7 @@ class MatchesSink:
         self._header = None
         self._virtuals, self._matches, self._names, self._cost_rows, self._chosen = [], [], [], [], []
         self._lines = None  # (file, temporary path) while matches.jsonl is being written
+        self._made_out = False
 
     def __enter__(self):
         return self
@@ -447,6 +449,8 @@ class MatchesSink:
             fh.close()
             os.unlink(tmp)
             self._lines = None
+            if self._made_out and not any(self.out.iterdir()):
+                self.out.rmdir()
 
     def _line(self, record: dict) -> None:
         import json
@@ -462,6 +466,7 @@ class MatchesSink:
         if self.fmt == "jsonl":
             from .report import SCHEMA_MATCH_LINES
 
+            self._made_out = not self.out.exists()
             self.out.mkdir(parents=True, exist_ok=True)
             fd, tmp = tempfile.mkstemp(prefix=".matches.jsonl.", suffix=".tmp", dir=self.out)
             self._lines = (os.fdopen(fd, "w", encoding="utf-8", newline=""), tmp)
