@@ -22,7 +22,9 @@ object, its entry (a few kB), or with ``--format jsonl`` nothing: each line is w
 
 from __future__ import annotations
 
+import functools
 import hashlib
+import json
 import logging
 import os
 import pickle
@@ -39,6 +41,9 @@ from .cost import feature_bounds, ranges_from_bounds
 from .errors import ConfigError, PinchmatchError
 from .match import (Candidates, MatchSettings, allowed_tangibles, cost_model, cost_row, match_virtual, _Search)
 from .pinches import PinchSettings
+from .report import (SCHEMA_MATCH_LINES, _num, cost_matrix_section, match_entry, matches_header, matches_rows,
+                     object_entry, to_json, write_atomic)
+from .scenes import match_scene_glb
 
 log = logging.getLogger(__name__)
 
@@ -117,20 +122,29 @@ def _candidates(task: ObjectTask, job: Job) -> tuple[Candidates, bool]:
     return c, bool(cache is not None and cache.hits)
 
 
+def _per_file(fn: Callable) -> Callable:
+    """A task whose item is an ObjectTask (or a tuple starting with one): a bad file makes a Failure."""
+
+    @functools.wraps(fn)
+    def task(item, *args):
+        try:
+            return fn(item, *args)
+        except PinchmatchError as exc:
+            t = item if isinstance(item, ObjectTask) else item[0]
+            return Failure(t.role, t.path, str(exc))
+
+    return task
+
+
+@_per_file
 def candidates_task(task: ObjectTask, job: Job) -> Computed | Failure:
-    try:
-        c, cached = _candidates(task, job)
-    except PinchmatchError as exc:
-        return Failure(task.role, task.path, str(exc))
+    c, cached = _candidates(task, job)
     return Computed(*to_payload(c), cached)
 
 
+@_per_file
 def bounds_task(task: ObjectTask, job: Job) -> np.ndarray | Failure:
-    try:
-        c, _ = _candidates(task, job)
-    except PinchmatchError as exc:
-        return Failure(task.role, task.path, str(exc))
-    return feature_bounds(c.table)
+    return feature_bounds(_candidates(task, job)[0].table)
 
 
 #: per worker process: the run's tangibles, by token, rebuilt once from their payloads
@@ -148,24 +162,17 @@ def _tangibles(shared) -> list[Candidates]:
     return _TANGIBLES[token]
 
 
+@_per_file
 def row_task(task: ObjectTask, job: Job, shared, model) -> np.ndarray | Failure:
-    try:
-        c, _ = _candidates(task, job)
-    except PinchmatchError as exc:
-        return Failure(task.role, task.path, str(exc))
+    c, _ = _candidates(task, job)
     return cost_row(_Search(_tangibles(shared), [c], model, job.match), 0)
 
 
+@_per_file
 def virtual_task(item: tuple, job: Job, shared, model) -> VirtualResult | Failure:
     """Item: (task, its entry of :func:`allowed_tangibles` or None, its cost row or None)."""
-    from .report import match_entry, object_entry
-    from .scenes import match_scene_glb
-
     task, allowed, row = item
-    try:
-        c, cached = _candidates(task, job)
-    except PinchmatchError as exc:
-        return Failure(task.role, task.path, str(exc))
+    c, cached = _candidates(task, job)
     tangibles = _tangibles(shared)
     scene = match_virtual(tangibles, c, model, job.match, allowed=allowed, row=row,
                           pinch_settings=job.settings)
@@ -221,6 +228,17 @@ def _token(payloads: list) -> str:
     return h.hexdigest()
 
 
+def _in_order(submit: Callable, items: Iterable, window: int) -> Iterator:
+    """The results of ``submit(item)`` futures, in input order, with at most ``window`` in flight."""
+    pending: deque = deque()
+    for item in items:
+        pending.append(submit(item))
+        if len(pending) >= window:
+            yield pending.popleft().result()
+    while pending:
+        yield pending.popleft().result()
+
+
 def _init_worker(threads: int) -> None:
     """A local worker: numpy's BLAS gets its share of the cores, not all of them."""
     global _LIMITS
@@ -246,13 +264,7 @@ class LocalExecutor(Executor):
         self._folder = tempfile.TemporaryDirectory(prefix="pinchmatch-run-")
 
     def map(self, fn, items, *args):
-        window: deque = deque()
-        for item in items:
-            window.append(self._pool.submit(fn, item, *args))
-            if len(window) >= 2 * self.workers:
-                yield window.popleft().result()
-        while window:
-            yield window.popleft().result()
+        return _in_order(lambda item: self._pool.submit(fn, item, *args), items, 2 * self.workers)
 
     def share(self, payloads, tangibles):
         path = Path(self._folder.name) / "tangibles.pickle"
@@ -282,13 +294,7 @@ class DaskExecutor(Executor):
         self.workers = max(1, sum(self._client.nthreads().values()))
 
     def map(self, fn, items, *args):
-        window: deque = deque()
-        for item in items:
-            window.append(self._client.submit(fn, item, *args, pure=False))
-            if len(window) >= 2 * self.workers:
-                yield window.popleft().result()
-        while window:
-            yield window.popleft().result()
+        return _in_order(lambda item: self._client.submit(fn, item, *args, pure=False), items, 2 * self.workers)
 
     def share(self, payloads, tangibles):
         [future] = self._client.scatter([payloads], broadcast=True, hash=False)
@@ -334,78 +340,65 @@ def run_match(tangible_tasks: list[ObjectTask], virtual_tasks: list[ObjectTask],
     failed: list[Failure] = []
     counts = {"cached": 0, "computed": 0}
 
-    def fail(f: Failure) -> None:
-        failed.append(f)
-        if len(tangible_tasks if f.role == "tangible" else virtual_tasks) > 1:
-            on_failure(f)  # a role's only file: the run stops, and its error says it once
+    def each(description: str, fn: Callable, tasks: list[ObjectTask], items: list, *args) -> Iterator:
+        """(position, result) of ``fn`` over ``items`` (one per task), in order; failures recorded, left out."""
+        with step(description, len(tasks)) as advance:
+            for k, (task, r) in enumerate(zip(tasks, ex.map(fn, items, *args))):
+                advance(Path(task.path).name)
+                if not isinstance(r, Failure):
+                    yield k, r
+                    continue
+                failed.append(r)
+                if len(tangible_tasks if r.role == "tangible" else virtual_tasks) > 1:
+                    on_failure(r)  # a role's only file: the run stops, and its error says it once
 
-    def none_usable(role: str, errors: list[Failure]):
+    def none_usable(role: str):
+        errors = [f for f in failed if f.role == role]
+        if not errors:
+            return ConfigError(f"no {role} object given; name at least one with --{role}")
         if len(errors) == 1:
             return _Failed(errors[0].error)
         return ConfigError(f"none of the {len(errors)} {role} files could be used (first: {errors[0].error}); "
                            "fix or remove them")
 
-    payloads, tangible_errors = [], []
-    with step("tangibles: poses and features", len(tangible_tasks)) as advance:
-        for task, r in zip(tangible_tasks, ex.map(candidates_task, tangible_tasks, job)):
-            advance(Path(task.path).name)
-            if isinstance(r, Failure):
-                tangible_errors.append(r)
-                fail(r)
-                continue
-            payloads.append((r.meta, r.arrays))
-            counts["cached" if r.cached else "computed"] += 1
+    payloads = []
+    for _, r in each("tangibles: poses and features", candidates_task, tangible_tasks, tangible_tasks, job):
+        payloads.append((r.meta, r.arrays))
+        counts["cached" if r.cached else "computed"] += 1
     if not payloads:
-        raise none_usable("tangible", tangible_errors)
+        raise none_usable("tangible")
     tangibles = [from_payload(meta, arrays) for meta, arrays in payloads]
     shared = ex.share(payloads, tangibles)
     header(tangibles)
 
-    todo = list(range(len(virtual_tasks)))
+    todo = list(range(len(virtual_tasks)))  # the virtual objects not failed yet
     ranges = None
     if job.match.normalize == "range":
         bounds = [feature_bounds(t.table) for t in tangibles]
-        with step("virtual objects: feature ranges", len(todo)) as advance:
-            for k, r in zip(list(todo), ex.map(bounds_task, virtual_tasks, job)):
-                advance(Path(virtual_tasks[k].path).name)
-                if isinstance(r, Failure):
-                    todo.remove(k)
-                    fail(r)
-                else:
-                    bounds.append(r)
-        ranges = ranges_from_bounds(bounds)
+        done = list(each("virtual objects: feature ranges", bounds_task, virtual_tasks, virtual_tasks, job))
+        todo = [k for k, _ in done]
+        ranges = ranges_from_bounds(bounds + [b for _, b in done])
     model = cost_model(job.match, tangibles, ranges=ranges)
 
     plan: dict[int, tuple] = {k: (None, None) for k in todo}
     if job.match.one_to_one:
-        rows = {}
-        with step("virtual objects: cost rows", len(todo)) as advance:
-            for k, r in zip(list(todo), ex.map(row_task, [virtual_tasks[k] for k in todo], job, shared, model)):
-                advance(Path(virtual_tasks[k].path).name)
-                if isinstance(r, Failure):
-                    todo.remove(k)
-                    fail(r)
-                else:
-                    rows[k] = r
+        tasks = [virtual_tasks[k] for k in todo]
+        done = [(todo[i], row) for i, row in each("virtual objects: cost rows", row_task, tasks, tasks, job, shared,
+                                                    model)]
+        todo = [k for k, _ in done]
         if todo:
-            allowed = allowed_tangibles(np.array([rows[k] for k in todo]), job.match)
-            plan = {k: (allowed[i], rows[k]) for i, k in enumerate(todo)}
+            allowed = allowed_tangibles(np.array([row for _, row in done]), job.match)
+            plan = {k: (allowed[i], row) for i, (k, row) in enumerate(done)}
 
-    cost_rows, virtual_errors = {}, [f for f in failed if f.role == "virtual"]
-    with step("virtual objects: poses, features, search", len(todo)) as advance:
-        items = [(virtual_tasks[k], *plan[k]) for k in todo]
-        for k, r in zip(list(todo), ex.map(virtual_task, items, job, shared, model)):
-            advance(Path(virtual_tasks[k].path).name)
-            if isinstance(r, Failure):
-                virtual_errors.append(r)
-                fail(r)
-                continue
-            counts["cached" if r.cached else "computed"] += 1
-            cost_rows[k] = r.row
-            on_result(k, r)
+    cost_rows = {}
+    tasks = [virtual_tasks[k] for k in todo]
+    items = [(virtual_tasks[k], *plan[k]) for k in todo]
+    for i, r in each("virtual objects: poses, features, search", virtual_task, tasks, items, job, shared, model):
+        counts["cached" if r.cached else "computed"] += 1
+        cost_rows[todo[i]] = r.row
+        on_result(todo[i], r)
     if not cost_rows:
-        raise none_usable("virtual", virtual_errors) if virtual_errors else \
-            ConfigError("no virtual object given; name at least one with --virtual")
+        raise none_usable("virtual")
     return RunResult(tangibles, cost_rows, failed, counts["cached"], counts["computed"])
 
 
@@ -428,8 +421,6 @@ class MatchesSink:
     """
 
     def __init__(self, out: Path, fmt: str, stems: list[str]):
-        from .report import matches_rows
-
         self.out, self.fmt, self.stems = Path(out), fmt, stems
         self.result_path = self.out / f"matches.{fmt}"
         self.scenes = 0
@@ -453,19 +444,13 @@ class MatchesSink:
                 self.out.rmdir()
 
     def _line(self, record: dict) -> None:
-        import json
-
         self._lines[0].write(json.dumps(record, allow_nan=False, separators=(",", ":")) + "\n")
 
     def start(self, settings: dict, tangibles: list[Candidates], dump_poses: bool) -> None:
-        from .report import matches_header, object_entry
-
         entries = [object_entry(t, dump_poses=dump_poses) for t in tangibles]
         self.objects += [(e["name"], "tangible", e["faces"], e["pose_count"]) for e in entries]
         self._header = matches_header(settings, entries)
         if self.fmt == "jsonl":
-            from .report import SCHEMA_MATCH_LINES
-
             self._made_out = not self.out.exists()
             self.out.mkdir(parents=True, exist_ok=True)
             fd, tmp = tempfile.mkstemp(prefix=".matches.jsonl.", suffix=".tmp", dir=self.out)
@@ -473,8 +458,6 @@ class MatchesSink:
             self._line({"record": "header", **self._header, "schema": SCHEMA_MATCH_LINES})
 
     def add(self, k: int, r: VirtualResult) -> None:
-        from .report import matches_rows, write_atomic, _num
-
         stem = self.stems[k]
         if r.scene_glb is not None:
             write_atomic(self.out / "scenes" / f"{stem}.glb", r.scene_glb)
@@ -495,16 +478,12 @@ class MatchesSink:
 
     def overview(self) -> dict:
         """The cost matrix and the chosen tangibles, as :func:`pinchmatch.figures.cost_matrix_figure` reads them."""
-        from .report import cost_matrix_section
-
         return {"cost_matrix": cost_matrix_section(self._names, [t["name"] for t in self._header["tangibles"]],
                                                    self._cost_rows),
                 "matches": [{"virtual": n, "tangible": t} for n, t in zip(self._names, self._chosen)]}
 
     def finish(self, result: RunResult) -> dict | None:
         """Close the result file; return the matches document (None for jsonl, never held whole)."""
-        from .report import to_json, write_atomic
-
         failed = [f.as_dict() for f in result.failed]
         other = self.out / f"matches.{'json' if self.fmt == 'jsonl' else 'jsonl'}"
         other.unlink(missing_ok=True)  # the other format's file of an earlier run would be stale
