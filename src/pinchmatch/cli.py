@@ -86,10 +86,18 @@ def _add_pinch_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--units", choices=sorted(UNITS_MM), help="units of the files (default: m for glTF/GLB, mm otherwise)")
     p.add_argument("--up", choices=list(UP_VECTORS), help="the objects' up direction (default: y for glTF/GLB, z otherwise)")
     p.add_argument("--friction-cone-deg", type=float, default=30.0, help="antipodal tolerance (default 30)")
-    p.add_argument("--min-width-mm", type=float, default=2.0, help="smallest pinch width (default 2)")
+    p.add_argument("--min-width-mm", type=float, default=0.5,
+                   help="smallest pinch width (default 0.5: a bowl wall, a plate rim, a card)")
     p.add_argument("--max-width-mm", type=float, default=100.0, help="largest pinch width (default 100)")
     p.add_argument("--fingertip-radius-mm", type=float, default=8.0, help="fingertip sphere radius (default 8)")
     p.add_argument("--patch-radius-mm", type=float, default=8.0, help="contact patch radius (default 8)")
+    p.add_argument("--finger-radius-mm", type=float, default=8.0,
+                   help="radius of the finger capsule behind each fingertip (default 8)")
+    p.add_argument("--finger-length-mm", type=float, default=45.0,
+                   help="length of the finger capsule: distal and middle phalanges (default 45)")
+    p.add_argument("--approach-tilt-deg", type=float, default=30.0,
+                   help="how far the hand's approach may lean towards either finger from the plane "
+                        "perpendicular to the pinch line (default 30)")
     p.add_argument("--snap-tolerance-mm", type=float, default=2.0,
                    help="how far a given contact may be from the surface (default 2)")
 
@@ -202,6 +210,9 @@ def _settings(args, **extra) -> PinchSettings:
         fingertip_radius_mm=args.fingertip_radius_mm,
         patch_radius_mm=args.patch_radius_mm,
         snap_tolerance_mm=args.snap_tolerance_mm,
+        finger_radius_mm=args.finger_radius_mm,
+        finger_length_mm=args.finger_length_mm,
+        approach_tilt_deg=args.approach_tilt_deg,
         **extra,
     )
 

@@ -38,7 +38,7 @@ from .cost import (CRITERIA, CostModel, feature_ranges, feature_table, mass_term
                    separable_terms, total)
 from .errors import ConfigError, NoFeasiblePinchError
 from .features import PinchFeatures, pinch_features
-from .pinches import PinchSettings, Pinches, _concat, check_pinches
+from .pinches import PinchSettings, Pinches, concat_pinches, check_pinches
 from .register import register_poses
 
 #: pose pairs kept per (virtual, tangible) object pair before the exact evaluation: one per
@@ -162,7 +162,7 @@ def merge_candidates(first: Candidates, second: Candidates) -> Candidates:
     features = PinchFeatures(**{f.name: np.concatenate([getattr(first.features, f.name), getattr(second.features, f.name)])
                                 for f in dataclasses.fields(first.features)})
     offset = int(first.index.max()) + 1 if len(first.index) else 0
-    return Candidates(first.obj, _concat([first.pinches, second.pinches]), features,
+    return Candidates(first.obj, concat_pinches([first.pinches, second.pinches]), features,
                       np.concatenate([first.table, second.table]),
                       np.concatenate([first.index, second.index + offset]), first.given and second.given)
 

@@ -91,6 +91,8 @@ def pose_records(pinches: Pinches, features: PinchFeatures) -> list[dict]:
                 "width_mm": _num(features.width_mm[i]),
                 "com_distance_mm": _num(features.com_distance_mm[i]),
                 "tilt_deg": _num(features.tilt_deg[i], 3),
+                "approach": _vec(pinches.approach[i], 6),
+                "approach_clearance_mm": _num(pinches.approach_clearance_mm[i], 3),
                 "patches": patches,
                 "feasible": bool(pinches.feasible[i]),
                 "broken_rules": pinches.broken_rules(i),
@@ -130,6 +132,7 @@ CSV_COLUMNS = (
     + [f"{p}_{c}_mm" for p in ("p1", "p2") for c in "xyz"]
     + [f"{p}_{c}" for p in ("n1", "n2") for c in "xyz"]
     + ["width_mm", "com_distance_mm", "tilt_deg"]
+    + [f"approach_{c}" for c in "xyz"] + ["approach_clearance_mm"]
     + [
         f"patch{k}_{name}"
         for k in (1, 2)
@@ -147,6 +150,7 @@ def poses_csv(document: dict) -> str:
         row = [pose["index"], int(pose["feasible"])]
         row += pose["p1_mm"] + pose["p2_mm"] + pose["n1"] + pose["n2"]
         row += [pose["width_mm"], pose["com_distance_mm"], pose["tilt_deg"]]
+        row += pose["approach"] + [pose["approach_clearance_mm"]]
         for patch in pose["patches"]:
             row += [patch["normal_angle_deg"], patch["curvature_axis_angle_deg"],
                     patch["kappa_max_per_m"], patch["kappa_min_per_m"]]

@@ -181,7 +181,7 @@ def virtual_task(item: tuple, job: Job, shared, model) -> VirtualResult | Failur
     glb = png = None
     if vm.best is not None:
         if job.scenes:
-            glb = match_scene_glb(tangibles[vm.best.tangible], c, vm.best)
+            glb = match_scene_glb(tangibles[vm.best.tangible], c, vm.best, hand=job.settings.hand)
         if job.figures:
             from .figures import _png, criteria_figure  # matplotlib: imported when figures are wanted
 

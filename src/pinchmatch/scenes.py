@@ -9,8 +9,11 @@ Q·R·Qᵀ with translation Q·t/1000, applied to its own vertices Q·v/1000. So
 the node matrix is what an engine reads, and the mm transform stays in the
 extras.
 
-Node names: ``tangible``, ``virtual``, ``cone_p1``, ``cone_p2``. Match data
-sits in node and scene extras as flat keys prefixed ``pinchmatch:``.
+Node names: ``tangible``, ``virtual``, ``cone_p1``, ``cone_p2``, and
+``finger_p1``, ``finger_p2``: semi-transparent capsules of the hand model
+(:mod:`hand`) along the tangible pose's approach, so a user sees where the
+hand comes from. Match data sits in node and scene extras as flat keys
+prefixed ``pinchmatch:``; the approach of both poses is among them.
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ import numpy as np
 import trimesh
 from trimesh.visual.material import PBRMaterial
 
+from .hand import Hand
 from .match import contact_offset_mm
 from .register import _rotations_between
 from .report import write_atomic
@@ -28,6 +32,7 @@ from .report import write_atomic
 #: the fingertip cones: tip on the contact, axis along the pinch line, outside the object
 CONE_HEIGHT_MM, CONE_RADIUS_MM = 20.0, 5.0
 GREEN = [0.15, 0.75, 0.25, 1.0]
+FINGER_COLOR = [0.95, 0.75, 0.6, 0.35]
 TANGIBLE_COLOR = [0.6, 0.6, 0.6, 1.0]
 VIRTUAL_COLOR = [0.25, 0.45, 1.0, 0.45]
 
@@ -59,6 +64,17 @@ def fingertip_cone(contact_mm: np.ndarray, toward_mm: np.ndarray) -> trimesh.Tri
     return cone
 
 
+def finger_capsule(start_mm: np.ndarray, direction: np.ndarray, length_mm: float, radius_mm: float) -> trimesh.Trimesh:
+    """A capsule (mm) whose axis runs from ``start_mm`` along the unit ``direction`` for ``length_mm``."""
+    capsule = trimesh.creation.capsule(height=length_mm, radius=radius_mm, count=[16, 16])
+    capsule.apply_translation([0.0, 0.0, length_mm / 2.0])  # axis from the origin along +z
+    R = _rotations_between(np.array([[0.0, 0.0, 1.0]]), np.asarray(direction, float)[None])[0]
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = R, start_mm
+    capsule.apply_transform(T)
+    return capsule
+
+
 def _flat(prefix_values: dict) -> dict:
     out = {}
     for key, value in prefix_values.items():
@@ -74,7 +90,12 @@ def virtual_contacts_mm(virtual, choice) -> np.ndarray:
     return p[::-1] if choice.swapped else p
 
 
-def match_scene_glb(tangible, virtual, choice, *, extras: dict | None = None) -> bytes:
+def virtual_approach(virtual, choice) -> np.ndarray:
+    """(3,) the virtual pose's approach in the virtual object's frame."""
+    return virtual.pinches.approach[choice.v_pose]
+
+
+def match_scene_glb(tangible, virtual, choice, *, extras: dict | None = None, hand: Hand = Hand()) -> bytes:
     """One match as GLB bytes: tangible, registered virtual object (semi-transparent), two cones."""
     Q = gltf_rotation(tangible.obj.loaded.up)
     to_gltf = lambda points_mm: (np.asarray(points_mm) @ Q.T) / 1000.0  # noqa: E731
@@ -96,6 +117,7 @@ def match_scene_glb(tangible, virtual, choice, *, extras: dict | None = None) ->
         "contact_offset_mm": contact_offset_mm(tangible, virtual, choice),
         # where the fingers go on the virtual object, in its own file frame (mm), in the tangible's finger order
         "virtual_contacts_mm": virtual_contacts_mm(virtual, choice).reshape(-1),
+        "virtual_approach": virtual_approach(virtual, choice),
     }
     scene.add_geometry(_styled(v_mesh, to_gltf(v_mesh.vertices), VIRTUAL_COLOR, blend=True), node_name="virtual",
                        geom_name="virtual", transform=node, metadata=_flat(info | (extras or {})))
@@ -107,6 +129,17 @@ def match_scene_glb(tangible, virtual, choice, *, extras: dict | None = None) ->
         scene.add_geometry(_styled(cone, to_gltf(cone.vertices), GREEN), node_name=f"cone_p{k}",
                            geom_name=f"cone_p{k}",
                            metadata=_flat({"role": "fingertip", "finger": f"p{k}", "contact_mm": contact}))
+    approach = tangible.pinches.approach[choice.t_pose]
+    if np.isfinite(approach).all():
+        normals = tangible.pinches.normals[choice.t_pose]
+        for k in range(2):
+            start = p[k] + hand.fingertip_radius_mm * normals[k]
+            capsule = finger_capsule(start, approach, hand.finger_length_mm, hand.finger_radius_mm)
+            scene.add_geometry(_styled(capsule, to_gltf(capsule.vertices), FINGER_COLOR, blend=True),
+                               node_name=f"finger_p{k + 1}", geom_name=f"finger_p{k + 1}",
+                               metadata=_flat({"role": "finger", "finger": f"p{k + 1}", "approach": approach,
+                                               "finger_radius_mm": hand.finger_radius_mm,
+                                               "finger_length_mm": hand.finger_length_mm}))
     C = np.eye(4)
     C[:3, :3] = Q / 1000.0
     scene.metadata.update(_flat({"schema": "pinchmatch.scene/1", "units": "m", "up": "+y",
@@ -121,7 +154,7 @@ def scene_stems(virtual_names: list[str]) -> list[str]:
     return [f"{s}_{k + 1}" if stems.count(s) > 1 else s for k, s in enumerate(stems)]
 
 
-def write_scenes(scene, folder, *, progress=None) -> list:
+def write_scenes(scene, folder, *, progress=None, hand: Hand = Hand()) -> list:
     """Write ``folder/<virtual name>.glb`` for every matched virtual object; return the paths.
 
     ``progress``, if given, is called with each path once it is written.
@@ -134,7 +167,7 @@ def write_scenes(scene, folder, *, progress=None) -> list:
             continue
         path = folder / f"{stems[vm.virtual]}.glb"
         T, V = scene.tangibles[vm.best.tangible], scene.virtuals[vm.virtual]
-        write_atomic(path, match_scene_glb(T, V, vm.best))
+        write_atomic(path, match_scene_glb(T, V, vm.best, hand=hand))
         paths.append(path)
         if progress is not None:
             progress(path)

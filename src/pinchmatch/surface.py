@@ -162,6 +162,8 @@ class SurfaceContext:
         self.rays, self.ray_engine_name = ray_engine(mesh)
         self.face_normals = np.asarray(mesh.face_normals)
         self.scale_mm = float(mesh.scale)
+        #: area-weighted centroid of the surface: "outward" for the hand's approach
+        self.centroid_mm = np.average(self.sample.points, axis=0, weights=self.sample.weight)
         log.debug(
             "surface context: %d faces, %d samples (%.2f mm apart), rays by %s",
             len(mesh.faces), len(self.sample.points), self.sample.spacing_mm, self.ray_engine_name,
@@ -187,6 +189,43 @@ class SurfaceContext:
                 t = np.einsum("ij,ij->i", v0 - origins[hit], n) / denom
             distance[hit] = np.where(np.isfinite(t), t, 0.0)
         return face, distance
+
+    def exits(self, origins: np.ndarray, directions: np.ndarray, *, max_distance: float, max_hits: int):
+        """Every point where each ray leaves the solid, up to ``max_distance`` along it.
+
+        The ray is followed through the surfaces it meets (walls, cavities, gaps): each hit
+        whose triangle faces along the ray is an exit.
+
+        Returns
+        -------
+        ray : (h,) int64       which ray each exit belongs to
+        face : (h,) int64      the exit triangle
+        distance : (h,) float  distance from the ray's origin along its unit direction
+        """
+        directions = directions / np.linalg.norm(directions, axis=1, keepdims=True)
+        step = 1e-4 * max(self.scale_mm, 10.0)
+        live = np.arange(len(origins))
+        start = np.zeros(len(origins))
+        rays, faces, dists = [], [], []
+        for _ in range(max_hits):
+            if len(live) == 0:
+                break
+            face, dist = self.first_hit(origins[live] + (start[live] + step)[:, None] * directions[live],
+                                        directions[live])
+            total = start[live] + step + dist
+            hit = (face >= 0) & (total <= max_distance)
+            exiting = hit.copy()
+            exiting[hit] = np.einsum("ij,ij->i", self.face_normals[face[hit]], directions[live][hit]) > 0
+            rays.append(live[exiting])
+            faces.append(face[exiting])
+            dists.append(total[exiting])
+            start[live[hit]] = total[hit]
+            live = live[hit]
+        if not rays:
+            return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
+        ray, face, dist = np.concatenate(rays), np.concatenate(faces), np.concatenate(dists)
+        order = np.lexsort((dist, ray))
+        return ray[order], face[order], dist[order]
 
     def closest_points(self, points: np.ndarray):
         """Exact closest surface point, distance (mm) and triangle for each query point."""

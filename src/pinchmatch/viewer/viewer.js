@@ -101,6 +101,8 @@
     };
     const tangible = get("tangible"), virtual = get("virtual");
     const cones = [get("cone_p1"), get("cone_p2")];
+    // the hand model's finger capsules, where the pose has an approach (older scenes have none)
+    const fingers = ["finger_p1", "finger_p2"].map((name) => root.getObjectByName(name)).filter(Boolean);
     const C = new THREE.Matrix4().fromArray(root.userData["pinchmatch:file_mm_to_gltf_m"]).transpose();
     const p = virtual.userData["pinchmatch:virtual_contacts_mm"];
     const p1 = new THREE.Vector3(p[0], p[1], p[2]).applyMatrix4(C);
@@ -114,7 +116,7 @@
     const green = cones[0].material;
     return {
       main: [root],
-      tangible: [tangible.clone(), cones[0].clone(), cones[1].clone()],
+      tangible: [tangible.clone(), cones[0].clone(), cones[1].clone(), ...fingers.map((f) => f.clone())],
       virtual: [ownVirtual, cone(green, p1, u), cone(green, p2, u.clone().negate())],
       virtualNode: virtual,
     };

@@ -1,0 +1,312 @@
+"""The hand: can two fingers of one hand get to the two contacts of a pinch?
+
+Model (lengths in mm):
+
+- **Fingertip:** a sphere of radius ``r_tip`` touching the contact p_i from
+  outside, centred at c_i = p_i + r_tip·n_i (the ``clearance`` rule checks it).
+- **Finger:** a capsule of radius ``r_f`` whose axis runs from c_i along the
+  hand's approach direction h for ``L`` (the distal and middle phalanges).
+- **One hand:** both fingers share h. The pads face each other, so h lies
+  within ``approach_tilt_deg`` of the plane perpendicular to the pinch line u:
+  h(θ, α) = cos α (cos θ e1 + sin θ e2) + sin α u, |α| ≤ A. e1 points away
+  from the centroid of the surface, perpendicular to u, so θ = 0 is "from
+  outside the object"; e2 = u × e1.
+
+A direction h **clears** when no surface sample lies within ``r_f - tol`` of
+either finger's axis (``tol``: the pad's compliance, as for the fingertip).
+The pinch is **reachable** when some h clears and the hand behind the
+fingers gets out: from each finger's end, the line on along h meets no
+surface. The proximal phalanx and the palm are far wider than a finger, so
+where the finger's own line runs into the object (a finger lying flat on the
+inside bottom of a cup, on a plate's well towards its rim) the hand cannot
+follow. This line is tested at each direction the search evaluates.
+
+The axis test is exact with respect to the dense surface sample: test spheres
+of radius ρ = sqrt((r_f - tol)² + (Δ/2)²) sit on the axis every Δ. A sample
+within r_f - tol of the axis is within ρ of the nearest test centre, so it is
+always seen; Δ is chosen so that ρ = r_f - tol/4, which lets a finger slide
+along a flat face at its own radius and pass.
+
+Search for h:
+
+1. Six directions, θ = 0°, 60°, … 300° at α = 0. When any clears, the pinch
+   is reachable; the approach is the one with the most clearance (the largest
+   smallest distance from either axis to the surface), ties to the earlier θ.
+2. Otherwise a branch and bound over the whole band: cells of 30° in θ and of
+   at most 20° in α, split in four until decided. For a cell of angular radius
+   δ around h_c, every test centre at distance s from the fingertip moves by
+   at most s·δ, and distances to the surface are 1-Lipschitz, so a cell whose
+   centre has d_j(h_c) + s_j·δ < ρ for some test sphere j holds no clearing
+   direction and is dropped; a centre that clears decides the pinch. Cells are
+   split until L·δ ≤ tol: an approach that clears with ``tol`` to spare is
+   then always found, so a gap the search misses is narrower than the finger
+   by less than the tolerance.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+#: allowed penetration (mm) of a fingertip or finger into the surface: the pad is soft
+PAD_TOLERANCE_MM = 0.3
+#: directions of the first, quick search: θ steps at α = 0
+QUICK_DIRECTIONS = 6
+#: coarse cells of the full search: θ width (deg) and largest α width (deg)
+CELL_THETA_DEG = 30.0
+CELL_ALPHA_DEG = 20.0
+#: clearance beyond the finger radius that the distance queries resolve (mm); more counts as this
+CLEARANCE_CAP_MM = 4.0
+#: at most this many open cells per refinement level (bounds memory on pathological meshes)
+MAX_OPEN_CELLS = 200_000
+
+
+@dataclass(frozen=True)
+class Hand:
+    """The finger geometry of the reach rule (mm, degrees)."""
+
+    fingertip_radius_mm: float = 8.0
+    finger_radius_mm: float = 8.0
+    finger_length_mm: float = 45.0
+    approach_tilt_deg: float = 30.0
+    tolerance_mm: float = PAD_TOLERANCE_MM
+
+    @property
+    def test_radius_mm(self) -> float:
+        """ρ: a sample closer than this to a test centre is too close to the axis."""
+        return self.finger_radius_mm - 0.25 * self.tolerance_mm
+
+    @property
+    def test_offsets_mm(self) -> np.ndarray:
+        """(P,) distances s_j of the test centres from the fingertip centre, the last at L."""
+        inner = max(self.finger_radius_mm - self.tolerance_mm, 1e-3)
+        half = math.sqrt(max(self.test_radius_mm**2 - inner**2, 1e-6))
+        spacing = min(2.0 * half, self.finger_radius_mm)
+        count = max(1, math.ceil(self.finger_length_mm / spacing))
+        return np.linspace(self.finger_length_mm / count, self.finger_length_mm, count)
+
+
+@dataclass(frozen=True)
+class Reach:
+    """Result of the reach rule for n pinches.
+
+    ok : (n,) bool                  some approach clears
+    approach : (n, 3) float64       unit h with the most clearance found (NaN where none clears)
+    clearance_mm : (n,) float64     smallest distance from either finger's axis to the surface,
+                                    minus the finger radius, along ``approach`` (NaN where none)
+    """
+
+    ok: np.ndarray
+    approach: np.ndarray
+    clearance_mm: np.ndarray
+
+
+def approach_frame(centroid_mm: np.ndarray, points: np.ndarray, axis: np.ndarray | None = None):
+    """u, e1 and e2 = u × e1, each (n, 3): u the pinch line (or ``axis``), e1 perpendicular
+    to it, pointing away from ``centroid_mm``."""
+    if axis is None:
+        seg = points[:, 1] - points[:, 0]
+        u = seg / np.maximum(np.linalg.norm(seg, axis=1, keepdims=True), 1e-300)
+    else:
+        u = axis
+    out = points.mean(axis=1) - centroid_mm
+    out -= np.einsum("ij,ij->i", out, u)[:, None] * u
+    norm = np.linalg.norm(out, axis=1)
+    # on the line through the centroid along u, any perpendicular will do: a fixed one
+    helper = np.where((np.abs(u[:, 0]) < 0.9)[:, None], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
+    fallback = np.cross(u, helper)
+    fallback /= np.linalg.norm(fallback, axis=1, keepdims=True)
+    e1 = np.where((norm > 1e-6)[:, None], out / np.maximum(norm, 1e-300)[:, None], fallback)
+    return u, e1, np.cross(u, e1)
+
+
+def _directions(u, e1, e2, theta, alpha):
+    """h(θ, α) for rows of frames and matching (m,) angles in radians."""
+    ca = np.cos(alpha)[:, None]
+    return ca * (np.cos(theta)[:, None] * e1 + np.sin(theta)[:, None] * e2) + np.sin(alpha)[:, None] * u
+
+
+def _axis_distances(tree, tips, h, offsets, cap):
+    """(m, 2, P) distance from each test centre to the nearest sample, capped at ``cap``.
+
+    tips : (m, 2, 3) fingertip centres, h : (m, 3)."""
+    centres = tips[:, :, None, :] + offsets[None, None, :, None] * h[:, None, None, :]
+    d, _ = tree.query(centres.reshape(-1, 3), k=1, distance_upper_bound=cap, workers=-1)
+    return np.minimum(d, cap).reshape(len(h), 2, len(offsets))
+
+
+def _hand_free(context, tips, h, length):
+    """(m,) bool: beyond each finger's end, the line on along h meets no surface (the hand gets out)."""
+    ends = (tips + length * h[:, None, :]).reshape(-1, 3)
+    face = context.rays.intersects_first(ends, np.repeat(h, 2, axis=0))
+    return (np.asarray(face) < 0).reshape(-1, 2).all(axis=1)
+
+
+def reach(context, points: np.ndarray, normals: np.ndarray, hand: Hand,
+          *, approach: np.ndarray | None = None) -> Reach:
+    """The reach rule for n pinches.
+
+    Parameters
+    ----------
+    context : SurfaceContext
+    points, normals : (n, 2, 3) float64
+        Contacts and unit outward normals.
+    approach : (n, 3) float64, optional
+        A direction to try first (an earlier answer for nearly the same pinch); where it
+        clears it is kept and nothing else is searched.
+    """
+    n = len(points)
+    tips = points + hand.fingertip_radius_mm * normals
+    offsets = hand.test_offsets_mm
+    rho = hand.test_radius_mm
+    cap = hand.finger_radius_mm + CLEARANCE_CAP_MM
+    ok = np.zeros(n, dtype=bool)
+    best_h = np.full((n, 3), np.nan)
+    best_margin = np.full(n, np.nan)
+    if n == 0:
+        return Reach(ok, best_h, best_margin)
+    u, e1, e2 = approach_frame(context.centroid_mm, points)
+
+    pending = np.arange(n)
+    if approach is not None:
+        given = np.asarray(approach, dtype=np.float64)
+        try_rows = pending[np.isfinite(given).all(axis=1)]
+        if len(try_rows):
+            d = _axis_distances(context.tree, tips[try_rows], given[try_rows], offsets, cap)
+            clears = (d >= rho).all(axis=(1, 2))
+            clears &= _hand_free(context, tips[try_rows], given[try_rows], hand.finger_length_mm)
+            rows = try_rows[clears]
+            ok[rows] = True
+            best_h[rows] = given[rows]
+            best_margin[rows] = d[clears].min(axis=(1, 2)) - hand.finger_radius_mm
+            pending = np.flatnonzero(~ok)
+
+    # 1. quick: six directions perpendicular to the pinch line, and six tangent to both
+    #    contact surfaces (perpendicular to the squeeze axis of the normals; the fingers slide
+    #    along a sheet or a wall pinched obliquely); the one with the most clearance
+    if len(pending):
+        k = QUICK_DIRECTIONS
+        m = normals[pending, 0] - normals[pending, 1]
+        m_norm = np.linalg.norm(m, axis=1, keepdims=True)
+        m = np.where(m_norm > 1e-9, m / np.maximum(m_norm, 1e-300), u[pending])
+        _, f1, f2 = approach_frame(context.centroid_mm, points[pending], axis=m)
+        theta = np.arange(k) * (2.0 * np.pi / k)
+        h = np.concatenate([
+            _directions(*(np.repeat(x, k, axis=0) for x in (u[pending], e1[pending], e2[pending])),
+                        np.tile(theta, len(pending)), np.zeros(k * len(pending))).reshape(-1, k, 3),
+            _directions(np.repeat(m, k, axis=0), np.repeat(f1, k, axis=0), np.repeat(f2, k, axis=0),
+                        np.tile(theta, len(pending)), np.zeros(k * len(pending))).reshape(-1, k, 3),
+        ], axis=1)  # (p, 2k, 3)
+        in_band = np.abs(np.einsum("pkd,pd->pk", h, u[pending])) <= np.sin(np.radians(hand.approach_tilt_deg)) + 1e-12
+        rows = np.repeat(pending, 2 * k)
+        d = _axis_distances(context.tree, tips[rows], h.reshape(-1, 3), offsets, cap)
+        clears = (d >= rho).all(axis=(1, 2)) & _hand_free(context, tips[rows], h.reshape(-1, 3), hand.finger_length_mm)
+        clears = clears.reshape(len(pending), 2 * k) & in_band
+        margin = (d.min(axis=(1, 2)) - hand.finger_radius_mm).reshape(len(pending), 2 * k)
+        score = np.where(clears, margin, -np.inf)
+        pick = np.argmax(score, axis=1)  # first of equal maxima: perpendicular to u, the earlier theta
+        found = clears.any(axis=1)
+        chosen = pending[found]
+        ok[chosen] = True
+        best_h[chosen] = h[found, pick[found]]
+        best_margin[chosen] = margin[found, pick[found]]
+        pending = pending[~found]
+
+    # 2. branch and bound over the whole band
+    if len(pending):
+        found_rows, found_h, found_margin = _search_band(context, tips, u, e1, e2, pending, hand,
+                                                         offsets, rho, cap)
+        ok[found_rows] = True
+        best_h[found_rows] = found_h
+        best_margin[found_rows] = found_margin
+    return Reach(ok, best_h, best_margin)
+
+
+def band_cells(hand: Hand):
+    """Coarse cells covering the band: centres (theta, alpha) and half widths, radians."""
+    n_theta = int(round(360.0 / CELL_THETA_DEG))
+    tilt = hand.approach_tilt_deg
+    n_alpha = max(1, math.ceil(2.0 * tilt / CELL_ALPHA_DEG)) if tilt > 0 else 1
+    half_theta = math.radians(180.0 / n_theta)
+    half_alpha = math.radians(tilt / n_alpha)
+    theta = np.arange(n_theta) * 2.0 * half_theta
+    alpha = (-tilt + (2 * np.arange(n_alpha) + 1) * tilt / n_alpha) if tilt > 0 else np.zeros(1)
+    tt, aa = np.meshgrid(theta, np.radians(alpha), indexing="xy")
+    return tt.ravel(), aa.ravel(), half_theta, half_alpha
+
+
+def _search_band(context, tips, u, e1, e2, pending, hand, offsets, rho, cap):
+    tree = context.tree
+    theta0, alpha0, ht, ha = band_cells(hand)
+    c = len(theta0)
+    rows = np.repeat(pending, c)
+    theta = np.tile(theta0, len(pending))
+    alpha = np.tile(alpha0, len(pending))
+    hint = np.full(len(rows), -1)  # the (finger, sphere) that bounded the parent cell tightest
+    length = hand.finger_length_mm
+    flat_offsets = np.tile(offsets, 2)  # (2P,): finger-major, as d.reshape(m, 2P)
+    decided = np.zeros(len(tips), dtype=bool)
+    out_rows, out_h, out_margin = [], [], []
+    while len(rows):
+        delta = ht + ha  # angle from a cell's centre to any direction in it
+        h = _directions(u[rows], e1[rows], e2[rows], theta, alpha)
+        # first the sphere that bounded the parent: most cells that can be dropped are dropped by it
+        has_hint = hint >= 0
+        live = np.ones(len(rows), dtype=bool)
+        if has_hint.any():
+            i = np.flatnonzero(has_hint)
+            f, j = np.divmod(hint[i], len(offsets))
+            centre = tips[rows[i], f] + offsets[j][:, None] * h[i]
+            d1, _ = tree.query(centre, k=1, distance_upper_bound=cap, workers=-1)
+            live[i] = np.minimum(d1, cap) + offsets[j] * delta >= rho
+        idx = np.flatnonzero(live)
+        d = _axis_distances(tree, tips[rows[idx]], h[idx], offsets, cap).reshape(len(idx), 2 * len(offsets))
+        margin = d.min(axis=1) - hand.finger_radius_mm
+        fits = (d >= rho).all(axis=1)
+        clears = fits.copy()
+        if fits.any():
+            clears[fits] = _hand_free(context, tips[rows[idx[fits]]], h[idx[fits]], length)
+        if clears.any():
+            # per pinch, the clearing cell with the most clearance (first of equals in cell order)
+            hit = np.flatnonzero(clears)
+            order = np.lexsort((hit, -margin[hit], rows[idx[hit]]))
+            hit = hit[order]
+            first = np.r_[True, rows[idx[hit]][1:] != rows[idx[hit]][:-1]]
+            hit = hit[first]
+            out_rows.append(rows[idx[hit]])
+            out_h.append(h[idx[hit]])
+            out_margin.append(margin[hit])
+            decided[rows[idx[hit]]] = True
+        if length * delta <= hand.tolerance_mm:
+            break
+        # a cell can hold a clearing direction only if every test sphere could move clear
+        slack = d + flat_offsets[None, :] * delta
+        bound = slack.min(axis=1)
+        # a finger that fits where the hand behind it does not get out is not refined: the
+        # hand's line is tested at cell centres only
+        keep = ~decided[rows[idx]] & ~fits & (bound >= rho)
+        if keep.sum() * 4 > MAX_OPEN_CELLS:
+            # keep the most promising cells, deterministically
+            cand = np.flatnonzero(keep)
+            best = cand[np.lexsort((cand, -bound[cand]))][: MAX_OPEN_CELLS // 4]
+            keep = np.zeros_like(keep)
+            keep[best] = True
+        kept = idx[keep]
+        next_hint = np.argmin(slack[keep], axis=1)
+        ht, ha = ht / 2.0, ha / 2.0
+        signs = np.array([[-1, -1], [-1, 1], [1, -1], [1, 1]], dtype=float)
+        rows = np.repeat(rows[kept], 4)
+        hint = np.repeat(next_hint, 4)
+        theta = (theta[kept][:, None] + signs[None, :, 0] * ht).ravel()
+        alpha = (alpha[kept][:, None] + signs[None, :, 1] * ha).ravel()
+    if not out_rows:
+        return np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0)
+    return np.concatenate(out_rows), np.concatenate(out_h), np.concatenate(out_margin)
+
+
+def finger_axes(points: np.ndarray, normals: np.ndarray, approach: np.ndarray, hand: Hand) -> np.ndarray:
+    """(n, 2, 2, 3) each finger's axis: [fingertip centre, end], for drawing and checking."""
+    tips = points + hand.fingertip_radius_mm * normals
+    return np.stack([tips, tips + hand.finger_length_mm * approach[:, None, :]], axis=2)

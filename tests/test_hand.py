@@ -1,0 +1,148 @@
+"""The hand model on objects people hold: cups, mugs, bowls, plates, tubes; and each rule on its own."""
+
+import numpy as np
+import pytest
+import trimesh
+
+from pinchmatch import PinchSettings, check_pinches, sample_pinches
+from pinchmatch import vessels
+from pinchmatch.pinches import RULES
+from pinchmatch.surface import SurfaceContext
+
+from test_pinches import assert_rules_hold
+
+
+def _ctx(mesh):
+    return SurfaceContext(mesh)
+
+
+@pytest.fixture(scope="module")
+def box():
+    return _ctx(trimesh.creation.box(extents=(60.0, 40.0, 20.0)).subdivide_to_size(4.0))
+
+
+def _only(pinches, rule):
+    assert pinches.broken_rules(0) == [rule], pinches.broken_rules(0)
+
+
+def test_a_pinch_across_a_box_breaks_no_rule_and_reports_its_approach(box):
+    given = check_pinches(box, [[-30.0, 0, 0]], [[30.0, 0, 0]])
+    assert given.feasible[0]
+    h = given.approach[0]
+    assert abs(np.linalg.norm(h) - 1.0) < 1e-9 and abs(h[0]) < 0.5  # within 30 deg of the plane x = 0
+    assert given.approach_clearance_mm[0] >= -0.3
+
+
+def test_width_alone(box):
+    _only(check_pinches(box, [[-30.0, 0, 0]], [[30.0, 0, 0]], settings=PinchSettings(max_width_mm=50.0)), "width")
+
+
+def test_antipodal_alone(box):
+    _only(check_pinches(box, [[-30.0, 0, 0]], [[0.0, 20.0, 0]]), "antipodal")
+
+
+def test_surface_alone(box):
+    _only(check_pinches(box, [[-33.0, 0, 0]], [[30.0, 0, 0]]), "surface")  # 3 mm off, tolerance 2
+
+
+def test_patch_alone(box):
+    _only(check_pinches(box, [[-30.0, 0, 0]], [[30.0, 0, 0]], settings=PinchSettings(patch_radius_mm=0.3)), "patch")
+
+
+def test_clearance_alone():
+    # a 4 mm bump 5 mm above the left contact cuts the 8 mm fingertip sphere, not a 4 mm finger pointing down
+    block = trimesh.creation.box(extents=(40.0, 40.0, 20.0))
+    bump = trimesh.creation.box(extents=(4.0, 4.0, 4.0))
+    bump.apply_translation((-22.0, 0.0, 7.0))
+    mesh = trimesh.boolean.union([block, bump], engine="manifold").subdivide_to_size(3.0)
+    settings = PinchSettings(finger_radius_mm=4.0)
+    _only(check_pinches(_ctx(mesh), [[-20.0, 0, -1.0]], [[20.0, 0, -1.0]], settings=settings), "clearance")
+
+
+def test_reach_alone():
+    # the bottom of a cup pinched through it: the inside finger cannot lie down in a 66 mm cup
+    cup = _ctx(vessels.cup())
+    _only(check_pinches(cup, [[0.0, 0.0, 2.0]], [[0.0, 0.0, 0.0]]), "reach")
+
+
+def test_rules_are_the_documented_ones():
+    assert RULES == ("surface", "width", "antipodal", "clearance", "reach", "patch")
+
+
+@pytest.fixture(scope="module")
+def cup():
+    mesh = vessels.cup()  # outer diameter 70, 90 tall, 2 mm walls and bottom
+    return mesh, sample_pinches(_ctx(mesh), settings=PinchSettings(count=300, seed=0))
+
+
+def test_cup_is_squeezed_from_outside_across_its_cavity(cup):
+    mesh, pinches = cup
+    assert_rules_hold(mesh, pinches, PinchSettings())
+    radial = np.hypot(pinches.points[..., 0], pinches.points[..., 1])
+    level = np.abs(pinches.points[:, 1, 2] - pinches.points[:, 0, 2]) < 1.0
+    outside = (radial > 34.9).all(axis=1) & level
+    width = np.linalg.norm(pinches.points[:, 1] - pinches.points[:, 0], axis=1)
+    assert outside.sum() >= 10
+    assert 69.5 <= width[outside].max() <= np.hypot(70.0, 1.0)  # through the axis: the outer diameter
+    # and the given horizontal pinch through the axis, as everyone holds a cup
+    given = check_pinches(_ctx(mesh), [[-35.0, 0, 50.0]], [[35.0, 0, 50.0]])
+    assert given.feasible[0]
+    assert abs(np.linalg.norm(given.points[0, 1] - given.points[0, 0]) - 70.0) < 0.5
+
+
+def test_no_finger_reaches_the_inside_bottom_of_the_cup(cup):
+    _, pinches = cup
+    radial = np.hypot(pinches.points[..., 0], pinches.points[..., 1])
+    on_inner_bottom = (np.abs(pinches.points[..., 2] - 2.0) < 0.5) & (radial < 32.5)
+    assert not on_inner_bottom.any()
+
+
+def test_no_contact_deep_in_a_hole_narrower_than_a_finger():
+    mesh = vessels.tube()  # inner diameter 12 mm, 100 mm deep
+    pinches = sample_pinches(_ctx(mesh), settings=PinchSettings(count=200, seed=0))
+    radial = np.hypot(pinches.points[..., 0], pinches.points[..., 1])
+    inner = radial < 6.5
+    assert not (inner & (pinches.points[..., 2] < 100.0 - 3.0)).any()
+    assert len(pinches) >= 160
+    assert_rules_hold(mesh, pinches, PinchSettings())
+
+
+def test_bowl_gives_most_of_the_asked_pinches_at_its_rim():
+    mesh = vessels.bowl()  # hemispherical shell, 1.5 mm wall, 160 across, rim at z = 80
+    pinches = sample_pinches(_ctx(mesh), settings=PinchSettings(count=300, seed=0))
+    assert len(pinches) >= 240
+    near_rim = (pinches.points[..., 2] > 80.0 - 15.0).all(axis=1)
+    assert near_rim.mean() > 0.5
+    assert_rules_hold(mesh, pinches, PinchSettings())
+
+
+def test_mug_handle_is_pinched():
+    mesh = vessels.mug()
+    pinches = sample_pinches(_ctx(mesh), settings=PinchSettings(count=300, seed=0))
+    on_handle = (pinches.points[..., 0] > 36.0).all(axis=1)
+    assert on_handle.sum() >= 5
+    assert_rules_hold(mesh, pinches, PinchSettings())
+
+
+def test_plate_rim_is_pinched_and_thin_wall_patches_stay_apart():
+    mesh = vessels.plate()  # 260 across, 2.5 mm thick, rim from radius 100 up to 15 mm
+    pinches = sample_pinches(_ctx(mesh), settings=PinchSettings(count=300, seed=0))
+    radial = np.hypot(pinches.points[..., 0], pinches.points[..., 1])
+    rim = (radial > 101.0).all(axis=1)
+    assert rim.sum() >= 10
+    # across the 2.5 mm sheet the two patches face opposite ways, each fitted to its own face:
+    # the rim is a cone, straight along its slope (kappa_min 0)
+    across = rim & (np.linalg.norm(pinches.points[:, 1] - pinches.points[:, 0], axis=1) < 3.5)
+    assert across.sum() >= 10
+    n = pinches.normals[across]
+    assert np.all(np.einsum("ij,ij->i", n[:, 0], n[:, 1]) < -0.99)
+    clear_of_creases = across & ((radial > 110.0) & (radial < 120.0)).all(axis=1)  # 8 mm patches
+    assert clear_of_creases.sum() >= 3
+    kmax, kmin = pinches.kappa_max_per_m[clear_of_creases], pinches.kappa_min_per_m[clear_of_creases]
+    # one principal curvature is the cone's straight slope (0), the other its circle: convex
+    # below, concave on top, cos(27 deg) / 115 mm = 7.7 per m at most (patches seen from one face only)
+    assert np.minimum(np.abs(kmax), np.abs(kmin)).max() < 1.0
+    assert np.maximum(np.abs(kmax), np.abs(kmin)).max() < 8.0
+    # the well: a hand lying on it runs into the rim
+    assert not (radial < 80.0).any()
+    assert_rules_hold(mesh, pinches, PinchSettings())
