@@ -100,3 +100,18 @@ def test_noisy_scan(make, tri):
     truth = shape.truth(geom.point_mm)
     err = np.abs(geom.kappa_max_per_m - truth.kappa_max_per_m) / truth.kappa_max_per_m
     assert np.median(err) <= 0.03
+
+
+def test_curvature_does_not_depend_on_how_the_object_sits_in_its_file():
+    mesh = shapes.ellipsoid(triangulation="random", faces=8000).mesh
+    moved = mesh.copy()
+    T = trimesh.transformations.random_rotation_matrix(np.random.default_rng(3).random(3))
+    T[:3, 3] = (17.0, -40.0, 5.0)
+    moved.apply_transform(T)
+    a, b = SurfaceContext(mesh), SurfaceContext(moved)  # the same samples, moved
+    idx = np.arange(0, len(a.sample.points), 97)
+    ga = patch_geometry(a, a.sample.points[idx], a.sample.normals[idx])
+    gb = patch_geometry(b, b.sample.points[idx], b.sample.normals[idx])
+    np.testing.assert_allclose(gb.kappa_max_per_m, ga.kappa_max_per_m, rtol=1e-6, atol=1e-6)
+    np.testing.assert_allclose(gb.kappa_min_per_m, ga.kappa_min_per_m, rtol=1e-6, atol=1e-6)
+    np.testing.assert_allclose(gb.normal, ga.normal @ T[:3, :3].T, atol=1e-6)

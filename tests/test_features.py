@@ -79,3 +79,13 @@ def test_features_are_invariant_under_rigid_motion(seed):
     np.testing.assert_allclose(f1.kappa_min_per_m, f0.kappa_min_per_m, rtol=0.02, atol=0.5)
     both = ~np.isnan(f0.curvature_axis_angle_deg) & ~np.isnan(f1.curvature_axis_angle_deg)
     np.testing.assert_allclose(f1.curvature_axis_angle_deg[both], f0.curvature_axis_angle_deg[both], atol=1.5)
+
+
+def test_com_distance_is_measured_along_the_axis_not_to_the_midpoint():
+    mesh = trimesh.creation.box(extents=(80.0, 40.0, 20.0)).subdivide_to_size(4.0)
+    props = object_properties(mesh, up=np.array([0.0, 0.0, 1.0]), watertight=True)
+    # across y, 25 mm along the long axis (x) and 6 mm up: the midpoint is off the axis
+    pinches = check_pinches(SurfaceContext(mesh), [[25.0, -20.0, 6.0]], [[25.0, 20.0, 6.0]])
+    f = pinch_features(pinches, props)
+    assert abs(f.com_distance_mm[0] - 25.0) < 1e-6  # not hypot(25, 6) = 25.7
+

@@ -32,7 +32,18 @@ def test_glb_round_trip_gives_named_nodes_transforms_and_extras(written):
     Q = gltf_rotation(np.array([0.0, 0.0, 1.0]))
     for vm, path in zip(study.scene.matches, paths):
         scene = trimesh.load(path)
-        assert set(scene.graph.nodes_geometry) == {"tangible", "virtual", "cone_p1", "cone_p2"}
+        assert set(scene.graph.nodes_geometry) == {"tangible", "virtual", "cone_p1", "cone_p2",
+                                                   "finger_p1", "finger_p2"}
+        # each finger: a capsule 45 mm long plus its two 8 mm caps, from its fingertip along the approach
+        T = study.scene.tangibles[vm.best.tangible]
+        h = T.pinches.approach[vm.best.t_pose]
+        for k in range(2):
+            finger = scene.geometry[f"finger_p{k + 1}"]
+            tip = (T.pinches.points[vm.best.t_pose, k] + 8.0 * T.pinches.normals[vm.best.t_pose, k]) @ Q.T / 1000.0
+            along = (finger.vertices - tip) @ (Q @ h)
+            assert along.min() == pytest.approx(-0.008, abs=2e-4) and along.max() == pytest.approx(0.053, abs=2e-4)
+            extras = scene.graph.transforms.edge_data[("world", f"finger_p{k + 1}")]["metadata"]
+            np.testing.assert_allclose(extras["pinchmatch:approach"], h, atol=1e-9)
         assert scene.metadata["pinchmatch:units"] == "m" and scene.metadata["pinchmatch:up"] == "+y"
         # the tangible, in metres and +Y up: 120 mm tall along Y
         tangible = scene.geometry["tangible"]
@@ -94,7 +105,7 @@ def test_scene_opens_in_blender(written):
     line = next((x for x in run.stdout.splitlines() if x.startswith("RESULT ")), None)
     assert line is not None, run.stdout[-2000:] + run.stderr[-2000:]
     objects = json.loads(line[len("RESULT "):])
-    assert set(objects) == {"tangible", "virtual", "cone_p1", "cone_p2"}
+    assert set(objects) == {"tangible", "virtual", "cone_p1", "cone_p2", "finger_p1", "finger_p2"}
     assert objects["tangible"]["dimensions"] == pytest.approx([0.06, 0.06, 0.12], abs=1e-4)
     X = vm.best.transform
     world = np.array(objects["virtual"]["matrix_world"])
