@@ -129,12 +129,15 @@ def test_scene_loads_in_three_js_with_the_nodes_and_extras(page, demo_out):
         const bytes = Uint8Array.from(atob(data.matches[3].glb_base64), c => c.charCodeAt(0));
         const gltf = await new PM3.GLTFLoader().parseAsync(bytes.buffer, '');
         const v = gltf.scene.getObjectByName('virtual');
+        const f = gltf.scene.getObjectByName('finger_p1');
         return {names: gltf.scene.children.map(c => c.name), matrix: v.matrix.elements,
+                approach: f.userData['pinchmatch:approach'],
                 cost: v.userData['pinchmatch:cost'], flipped: v.userData['pinchmatch:flipped'],
                 units: gltf.scene.userData['pinchmatch:units']};
     }""")
     m = doc["matches"][3]
-    assert sorted(info["names"]) == ["cone_p1", "cone_p2", "tangible", "virtual"]
+    assert sorted(info["names"]) == ["cone_p1", "cone_p2", "finger_p1", "finger_p2", "tangible", "virtual"]
+    np.testing.assert_allclose(info["approach"], m["tangible_pose"]["approach"], atol=1e-6)
     assert info["cost"] == pytest.approx(m["cost"], abs=1e-6) and info["flipped"] == m["flipped"]
     assert info["units"] == "m"
     # the demo's files are z-up: the node matrix is Q R Q^T with Q taking +z to +y, t in metres

@@ -40,7 +40,10 @@ Search for h:
    direction and is dropped; a centre that clears decides the pinch. Cells are
    split until L·δ ≤ tol: an approach that clears with ``tol`` to spare is
    then always found, so a gap the search misses is narrower than the finger
-   by less than the tolerance.
+   by less than the tolerance. The work is bounded: each pinch keeps at most
+   ``MAX_CELLS_PER_PINCH`` cells per level, those with the largest bound; the
+   guarantee holds where no more were open (a finger that can only slide
+   exactly along a sheet leaves a thin band of directions open at every level).
 """
 
 from __future__ import annotations
@@ -59,8 +62,8 @@ CELL_THETA_DEG = 30.0
 CELL_ALPHA_DEG = 20.0
 #: clearance beyond the finger radius that the distance queries resolve (mm); more counts as this
 CLEARANCE_CAP_MM = 4.0
-#: at most this many open cells per refinement level (bounds memory on pathological meshes)
-MAX_OPEN_CELLS = 200_000
+#: at most this many open cells per pinch and refinement level, the most promising kept
+MAX_CELLS_PER_PINCH = 32
 
 
 @dataclass(frozen=True)
@@ -287,12 +290,15 @@ def _search_band(context, tips, u, e1, e2, pending, hand, offsets, rho, cap):
         # a finger that fits where the hand behind it does not get out is not refined: the
         # hand's line is tested at cell centres only
         keep = ~decided[rows[idx]] & ~fits & (bound >= rho)
-        if keep.sum() * 4 > MAX_OPEN_CELLS:
-            # keep the most promising cells, deterministically
-            cand = np.flatnonzero(keep)
-            best = cand[np.lexsort((cand, -bound[cand]))][: MAX_OPEN_CELLS // 4]
+        cand = np.flatnonzero(keep)
+        if len(cand):
+            # per pinch, the most promising cells (largest bound, then cell order)
+            order = cand[np.lexsort((cand, -bound[cand], rows[idx[cand]]))]
+            group = rows[idx[order]]
+            start = np.r_[0, np.flatnonzero(group[1:] != group[:-1]) + 1]
+            rank = np.arange(len(order)) - np.repeat(start, np.diff(np.r_[start, len(order)]))
             keep = np.zeros_like(keep)
-            keep[best] = True
+            keep[np.sort(order[rank < MAX_CELLS_PER_PINCH // 4])] = True
         kept = idx[keep]
         next_hint = np.argmin(slack[keep], axis=1)
         ht, ha = ht / 2.0, ha / 2.0
