@@ -63,11 +63,34 @@ def test_features_accepts_negative_coordinates(capsys, style):
     pose = doc["pose"]
     assert pose["feasible"] and pose["width_mm"] == pytest.approx(40.0, abs=1e-3)
     assert pose["patches"][0]["kappa_max_per_m"] == pytest.approx(50.0, rel=0.02)
+    # the hand: a unit approach within 30 deg of the plane across the pinch line (x)
+    assert sum(c * c for c in pose["approach"]) == pytest.approx(1.0, abs=1e-5)
+    assert abs(pose["approach"][0]) <= 0.5 + 1e-6 and pose["approach_clearance_mm"] >= -0.3
 
 
-def test_features_reports_an_infeasible_pinch(capsys):
-    code, stdout, _ = run(capsys, "features", "--example", "--p1", "-20,0,20", "--p2", "0,20,20")
-    assert code == 0 and "NOT feasible: breaks antipodal" in stdout
+def test_features_names_the_approach_and_the_csv_carries_it(capsys):
+    code, stdout, _ = run(capsys, "features", "--example", "--p1", "-20,0,20", "--p2", "20,0,20")
+    assert code == 0 and "approach [" in stdout and "fingers clear by" in stdout
+    code, stdout, _ = run(capsys, "poses", "--example", "--count", "5", "--format", "csv")
+    head, first = stdout.splitlines()[:2]
+    columns = dict(zip(head.split(","), first.split(",")))
+    h = [float(columns[f"approach_{c}"]) for c in "xyz"]
+    assert sum(c * c for c in h) == pytest.approx(1.0, abs=1e-4) and "approach_clearance_mm" in columns
+
+
+def test_a_thinner_finger_reaches_into_a_narrow_tube(tmp_path, capsys):
+    # the wall of a test tube (bore 12 mm) pinched 10 mm below its rim: an 8 mm fingertip does not fit
+    # in the bore, a 5 mm one does, and its finger leaves upwards
+    from pinchmatch import vessels
+
+    path = tmp_path / "tube.stl"
+    vessels.tube().export(path)
+    argv = ["features", str(path), "--p1", "8,0,90", "--p2", "6,0,90", "-q"]
+    code, stdout, _ = run(capsys, *argv)
+    assert code == 0 and "clearance" in json.loads(stdout)["pose"]["broken_rules"]
+    code, stdout, _ = run(capsys, *argv, "--fingertip-radius-mm", "5", "--finger-radius-mm", "5")
+    pose = json.loads(stdout)["pose"]
+    assert code == 0 and pose["feasible"] and abs(pose["approach"][2]) > 0.85  # up, along the bore
 
 
 # ---- bad input: exit 2, one line naming the file and the fix, no traceback, no output file
@@ -120,6 +143,14 @@ def test_each_bad_file_fails_cleanly(tmp_path, capsys):
     (["--friction-cone-deg", "95"], "--friction-cone-deg: got 95"),
     (["--max-width-mm", "1"], "--max-width-mm"),
     (["--fingertip-radius-mm", "-1"], "--fingertip-radius-mm"),
+    (["--finger-radius-mm", "9"], "--finger-radius-mm: got 9.0; it must be more than 0.3 and at most --fingertip-radius-mm"),
+    (["--finger-radius-mm", "0.2"], "--finger-radius-mm: got 0.2"),
+    (["--finger-length-mm", "0"], "--finger-length-mm: got 0.0"),
+    (["--approach-tilt-deg", "90"], "--approach-tilt-deg: got 90.0"),
+    (["--approach-tilt-deg", "-5"], "--approach-tilt-deg: got -5.0"),
+    (["--patch-radius-mm", "0"], "--patch-radius-mm: got 0.0"),
+    (["--snap-tolerance-mm", "-1"], "--snap-tolerance-mm: got -1.0"),
+    (["--min-width-mm", "-0.5"], "--min-width-mm: got -0.5"),
     (["--units", "ft"], "invalid choice: 'ft'"),
     (["--com", "1,2"], "--com: expected three finite numbers"),
     (["--axis", "0,0,0"], "--axis: the axis must be a non-zero vector"),

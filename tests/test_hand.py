@@ -5,7 +5,7 @@ import pytest
 import trimesh
 
 from pinchmatch import PinchSettings, check_pinches, sample_pinches
-from pinchmatch import vessels
+from pinchmatch import shapes, vessels
 from pinchmatch.pinches import RULES
 from pinchmatch.surface import SurfaceContext
 
@@ -146,3 +146,21 @@ def test_plate_rim_is_pinched_and_thin_wall_patches_stay_apart():
     # the well: a hand lying on it runs into the rim
     assert not (radial < 80.0).any()
     assert_rules_hold(mesh, pinches, PinchSettings())
+
+
+def test_a_scan_with_holes_gives_pinches_with_the_closed_surfaces_features():
+    shape = shapes.ellipsoid(triangulation="random", faces=40000)
+    mesh = shape.mesh
+    holes = mesh.vertices[np.random.default_rng(1).choice(len(mesh.vertices), 6, replace=False)]
+    near = np.min(np.linalg.norm(mesh.triangles_center[:, None] - holes[None], axis=-1), axis=1) < 5.0
+    holed = mesh.submesh([np.flatnonzero(~near)], append=True)  # six holes 10 mm across
+    assert not holed.is_watertight
+    pinches = sample_pinches(_ctx(holed), settings=PinchSettings(count=300, seed=0))
+    assert len(pinches) == 300
+    truth = shape.truth(pinches.points.reshape(-1, 3))
+    err = np.abs(pinches.kappa_max_per_m.ravel() - truth.kappa_max_per_m) / truth.kappa_max_per_m * 100
+    assert np.median(err) <= 1.5 and np.percentile(err, 95) <= 5.0  # the curvature targets, in %
+    closed = check_pinches(_ctx(mesh), pinches.points[:, 0], pinches.points[:, 1])
+    assert np.median(np.abs(closed.kappa_max_per_m - pinches.kappa_max_per_m)) < 0.5  # 1/m
+    cosine = np.einsum("ij,ij->i", pinches.normals.reshape(-1, 3), truth.normal)
+    assert np.degrees(np.arccos(np.clip(cosine, -1, 1))).max() < 1.0

@@ -292,6 +292,8 @@ def _cmd_features(args) -> int:
     lines = [
         f"{obj.name}: pinch {verdict}",
         f"  width {pose['width_mm']} mm, com distance {pose['com_distance_mm']} mm, tilt {pose['tilt_deg']} deg",
+        "  approach " + (f"{pose['approach']} (fingers clear by {pose['approach_clearance_mm']} mm)"
+                         if pose["approach_clearance_mm"] is not None else "none: no hand gets to both contacts"),
     ]
     for k, patch in enumerate(pose["patches"], start=1):
         lines.append(

@@ -29,9 +29,15 @@ along a flat face at its own radius and pass.
 
 Search for h:
 
-1. Six directions, θ = 0°, 60°, … 300° at α = 0. When any clears, the pinch
-   is reachable; the approach is the one with the most clearance (the largest
-   smallest distance from either axis to the surface), ties to the earlier θ.
+1. Six directions, θ = 0°, 60°, … 300° at α = 0; where none clears, six
+   directions tangent to both contact surfaces (perpendicular to n1 - n2, and
+   within the band: the fingers slide along a wall or a sheet pinched
+   obliquely); where none clears, the surface's three principal axes both
+   ways, within the band (a hand leaning onto a ring's or a cup's axis). When
+   any clears, the pinch is reachable; the approach is the one
+   with the most clearance (the largest smallest distance from either axis to
+   the surface, resolved up to ``CLEARANCE_CAP_MM`` beyond the finger radius),
+   ties to the earlier θ.
 2. Otherwise a branch and bound over the whole band: cells of 30° in θ and of
    at most 20° in α, split in four until decided. For a cell of angular radius
    δ around h_c, every test centre at distance s from the fingertip moves by
@@ -61,7 +67,7 @@ QUICK_DIRECTIONS = 6
 CELL_THETA_DEG = 30.0
 CELL_ALPHA_DEG = 20.0
 #: clearance beyond the finger radius that the distance queries resolve (mm); more counts as this
-CLEARANCE_CAP_MM = 4.0
+CLEARANCE_CAP_MM = 1.0
 #: at most this many open cells per pinch and refinement level, the most promising kept
 MAX_CELLS_PER_PINCH = 32
 
@@ -106,20 +112,23 @@ class Reach:
     clearance_mm: np.ndarray
 
 
-def approach_frame(centroid_mm: np.ndarray, points: np.ndarray, axis: np.ndarray | None = None):
+def approach_frame(context, points: np.ndarray, axis: np.ndarray | None = None):
     """u, e1 and e2 = u × e1, each (n, 3): u the pinch line (or ``axis``), e1 perpendicular
-    to it, pointing away from ``centroid_mm``."""
+    to it, pointing away from the surface's centroid. On the line through the centroid along u,
+    where "away" has no direction, e1 is the surface's principal axis of least spread (the
+    symmetry axis of a ring, a plate, a disc), or of middle spread when that one lies along u."""
     if axis is None:
         seg = points[:, 1] - points[:, 0]
         u = seg / np.maximum(np.linalg.norm(seg, axis=1, keepdims=True), 1e-300)
     else:
         u = axis
-    out = points.mean(axis=1) - centroid_mm
+    out = points.mean(axis=1) - context.centroid_mm
     out -= np.einsum("ij,ij->i", out, u)[:, None] * u
     norm = np.linalg.norm(out, axis=1)
-    # on the line through the centroid along u, any perpendicular will do: a fixed one
-    helper = np.where((np.abs(u[:, 0]) < 0.9)[:, None], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
-    fallback = np.cross(u, helper)
+    first, second = context.principal_axes[:, 0], context.principal_axes[:, 1]
+    fallback = first - (u @ first)[:, None] * u
+    along = np.linalg.norm(fallback, axis=1) < 0.3
+    fallback[along] = second - (u[along] @ second)[:, None] * u[along]
     fallback /= np.linalg.norm(fallback, axis=1, keepdims=True)
     e1 = np.where((norm > 1e-6)[:, None], out / np.maximum(norm, 1e-300)[:, None], fallback)
     return u, e1, np.cross(u, e1)
@@ -170,7 +179,7 @@ def reach(context, points: np.ndarray, normals: np.ndarray, hand: Hand,
     best_margin = np.full(n, np.nan)
     if n == 0:
         return Reach(ok, best_h, best_margin)
-    u, e1, e2 = approach_frame(context.centroid_mm, points)
+    u, e1, e2 = approach_frame(context, points)
 
     pending = np.arange(n)
     if approach is not None:
@@ -186,36 +195,32 @@ def reach(context, points: np.ndarray, normals: np.ndarray, hand: Hand,
             best_margin[rows] = d[clears].min(axis=(1, 2)) - hand.finger_radius_mm
             pending = np.flatnonzero(~ok)
 
-    # 1. quick: six directions perpendicular to the pinch line, and six tangent to both
-    #    contact surfaces (perpendicular to the squeeze axis of the normals; the fingers slide
-    #    along a sheet or a wall pinched obliquely); the one with the most clearance
-    if len(pending):
-        k = QUICK_DIRECTIONS
-        m = normals[pending, 0] - normals[pending, 1]
-        m_norm = np.linalg.norm(m, axis=1, keepdims=True)
-        m = np.where(m_norm > 1e-9, m / np.maximum(m_norm, 1e-300), u[pending])
-        _, f1, f2 = approach_frame(context.centroid_mm, points[pending], axis=m)
-        theta = np.arange(k) * (2.0 * np.pi / k)
-        h = np.concatenate([
-            _directions(*(np.repeat(x, k, axis=0) for x in (u[pending], e1[pending], e2[pending])),
-                        np.tile(theta, len(pending)), np.zeros(k * len(pending))).reshape(-1, k, 3),
-            _directions(np.repeat(m, k, axis=0), np.repeat(f1, k, axis=0), np.repeat(f2, k, axis=0),
-                        np.tile(theta, len(pending)), np.zeros(k * len(pending))).reshape(-1, k, 3),
-        ], axis=1)  # (p, 2k, 3)
-        in_band = np.abs(np.einsum("pkd,pd->pk", h, u[pending])) <= np.sin(np.radians(hand.approach_tilt_deg)) + 1e-12
-        rows = np.repeat(pending, 2 * k)
-        d = _axis_distances(context.tree, tips[rows], h.reshape(-1, 3), offsets, cap)
-        clears = (d >= rho).all(axis=(1, 2)) & _hand_free(context, tips[rows], h.reshape(-1, 3), hand.finger_length_mm)
-        clears = clears.reshape(len(pending), 2 * k) & in_band
-        margin = (d.min(axis=(1, 2)) - hand.finger_radius_mm).reshape(len(pending), 2 * k)
-        score = np.where(clears, margin, -np.inf)
-        pick = np.argmax(score, axis=1)  # first of equal maxima: perpendicular to u, the earlier theta
-        found = clears.any(axis=1)
-        chosen = pending[found]
-        ok[chosen] = True
-        best_h[chosen] = h[found, pick[found]]
-        best_margin[chosen] = margin[found, pick[found]]
-        pending = pending[~found]
+    # 1. quick: six directions perpendicular to the pinch line; where none clears, six tangent
+    #    to both contact surfaces (perpendicular to the squeeze axis of the normals: the fingers
+    #    slide along a sheet or a wall pinched obliquely); where none clears, the object's three
+    #    principal axes both ways (a hand leaning onto a ring's or a cup's axis). The one with the
+    #    most clearance.
+    sin_tilt = np.sin(np.radians(hand.approach_tilt_deg)) + 1e-12
+    geometry, found = (u, tips, offsets, rho, cap), (ok, best_h, best_margin)
+    k = QUICK_DIRECTIONS
+    theta = np.arange(k) * (2.0 * np.pi / k)
+    for group in ("perpendicular", "tangent", "principal"):
+        if not len(pending):
+            break
+        if group == "principal":
+            h = np.tile(np.concatenate([context.principal_axes.T, -context.principal_axes.T]), (len(pending), 1))
+        else:
+            if group == "tangent":
+                axis = normals[pending, 0] - normals[pending, 1]
+                norm = np.linalg.norm(axis, axis=1, keepdims=True)
+                axis = np.where(norm > 1e-9, axis / np.maximum(norm, 1e-300), u[pending])
+                _, f1, f2 = approach_frame(context, points[pending], axis=axis)
+            else:
+                axis, f1, f2 = u[pending], e1[pending], e2[pending]
+            h = _directions(np.repeat(axis, k, axis=0), np.repeat(f1, k, axis=0), np.repeat(f2, k, axis=0),
+                            np.tile(theta, len(pending)), np.zeros(k * len(pending)))
+        _quick(context, hand, pending, h, geometry, sin_tilt, found)
+        pending = pending[~ok[pending]]
 
     # 2. branch and bound over the whole band
     if len(pending):
@@ -225,6 +230,27 @@ def reach(context, points: np.ndarray, normals: np.ndarray, hand: Hand,
         best_h[found_rows] = found_h
         best_margin[found_rows] = found_margin
     return Reach(ok, best_h, best_margin)
+
+
+def _quick(context, hand, pending, h, geometry, sin_tilt, found):
+    """Try k directions for each pending pinch (``h``: (len(pending) * k, 3), pinch-major) and
+    record, where some clear, the one with the most clearance (the first of equals)."""
+    u, tips, offsets, rho, cap = geometry
+    ok, best_h, best_margin = found
+    k = len(h) // len(pending)
+    rows = np.repeat(pending, k)
+    in_band = np.abs(np.einsum("ij,ij->i", h, u[rows])) <= sin_tilt
+    d = _axis_distances(context.tree, tips[rows], h, offsets, cap)
+    clears = in_band & (d >= rho).all(axis=(1, 2))
+    clears[clears] = _hand_free(context, tips[rows[clears]], h[clears], hand.finger_length_mm)
+    clears = clears.reshape(-1, k)
+    margin = (d.min(axis=(1, 2)) - hand.finger_radius_mm).reshape(-1, k)
+    pick = np.argmax(np.where(clears, margin, -np.inf), axis=1)
+    hit = clears.any(axis=1)
+    chosen = pending[hit]
+    ok[chosen] = True
+    best_h[chosen] = h.reshape(-1, k, 3)[hit, pick[hit]]
+    best_margin[chosen] = margin[hit, pick[hit]]
 
 
 def band_cells(hand: Hand):

@@ -164,6 +164,11 @@ class SurfaceContext:
         self.scale_mm = float(mesh.scale)
         #: area-weighted centroid of the surface: "outward" for the hand's approach
         self.centroid_mm = np.average(self.sample.points, axis=0, weights=self.sample.weight)
+        #: (3, 3) principal directions of the surface, as columns, least spread first
+        #: (a ring's, a plate's or a disc's symmetry axis comes first)
+        centred = self.sample.points - self.centroid_mm
+        cov = (centred * self.sample.weight[:, None]).T @ centred / self.sample.weight.sum()
+        self.principal_axes = np.linalg.eigh(cov)[1]
         log.debug(
             "surface context: %d faces, %d samples (%.2f mm apart), rays by %s",
             len(mesh.faces), len(self.sample.points), self.sample.spacing_mm, self.ray_engine_name,
