@@ -71,7 +71,7 @@ def speed(faces: int, count: int) -> list[list]:
         ctx = SurfaceContext(mesh)
         t1 = time.perf_counter()
         props = object_properties(mesh, up=UP, watertight=True)
-        with _Timed(pinches_module, "reach_rule") as reach:
+        with _Timed(pinches_module, "reach") as reach:  # every reach search, pre-check and final
             pinches = sample_pinches(ctx, settings=PinchSettings(count=count, seed=0))
         features = pinch_features(pinches, props)
         t2 = time.perf_counter()

@@ -1,4 +1,4 @@
-"""Benchmark of ``pinchmatch match`` on an asset library: cache, --jobs, growth with objects and poses (issue 5).
+"""Benchmark of ``pinchmatch match`` on an asset library: cache, --jobs, growth with objects and poses.
 
     python benchmarks/bench_scale.py           # 200 virtual objects x 5 tangibles (about 15 minutes on 2 cores)
     python benchmarks/bench_scale.py --quick   # 16 virtual objects (about 2 minutes)

@@ -1,6 +1,6 @@
 """Curvature against closed-form truth, in several triangulations and rigid motions.
 
-Targets (issue 2): kappa_max median error <= 1.5 %, 95th percentile <= 5 %,
+Targets: kappa_max median error <= 1.5 %, 95th percentile <= 5 %,
 |kappa_min error| median <= 1 /m, kappa_max direction median <= 1 deg,
 normal <= 0.5 deg. One-sided: only an upper bound on error matters.
 """

@@ -1,4 +1,4 @@
-"""Parallel and distributed runs, streamed output (issue 5): the same bits whatever runs the work."""
+"""Parallel and distributed runs, streamed output: the same bits whatever runs the work."""
 
 import json
 

@@ -21,7 +21,8 @@ from .load import LoadedMesh, load_mesh
 from .properties import ObjectProperties, object_properties
 from .surface import SurfaceContext
 from .curvature import PatchGeometry, patch_geometry
-from .pinches import PinchSettings, Pinches, sample_pinches, check_pinches
+from .pinches import PinchSettings, Pinches, check_pinches
+from .sampling import sample_pinches
 from .features import PinchFeatures, pinch_features
 
 __version__ = "0.1.0"

@@ -17,7 +17,8 @@ import numpy as np
 from .errors import ConfigError, ContactError
 from .features import PinchFeatures, pinch_features
 from .load import LoadedMesh, load_mesh
-from .pinches import PinchSettings, Pinches, check_pinches, sample_pinches
+from .pinches import PinchSettings, Pinches, check_pinches
+from .sampling import sample_pinches
 from .properties import ObjectProperties, object_properties
 from .surface import SurfaceContext
 

@@ -1,4 +1,4 @@
-"""On-disk cache of each object's candidate poses and features (issue 5).
+"""On-disk cache of each object's candidate poses and features.
 
 An entry is one ``.npz`` file named by a key: the SHA-256 of the mesh file's bytes (and of the
 buffers a ``.gltf`` names), the units and up direction, every sampling and patch setting, the given

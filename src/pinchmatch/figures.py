@@ -1,4 +1,4 @@
-"""Figures for people to read, written to ``OUT/figures/`` (issue 4).
+"""Figures for people to read, written to ``OUT/figures/``.
 
 - ``cost_matrix.png``: cost of the best pair for every virtual object (rows) and tangible (columns);
 - ``criteria/<virtual>.png``: per match, each criterion's difference in JND, with the line at 1 JND;

@@ -181,27 +181,21 @@ def reach(context, points: np.ndarray, normals: np.ndarray, hand: Hand,
         return Reach(ok, best_h, best_margin)
     u, e1, e2 = approach_frame(context, points)
 
+    sin_tilt = np.sin(np.radians(hand.approach_tilt_deg)) + 1e-12
+    geometry, found = (u, tips, offsets, rho, cap), (ok, best_h, best_margin)
     pending = np.arange(n)
     if approach is not None:
         given = np.asarray(approach, dtype=np.float64)
         try_rows = pending[np.isfinite(given).all(axis=1)]
         if len(try_rows):
-            d = _axis_distances(context.tree, tips[try_rows], given[try_rows], offsets, cap)
-            clears = (d >= rho).all(axis=(1, 2))
-            clears &= _hand_free(context, tips[try_rows], given[try_rows], hand.finger_length_mm)
-            rows = try_rows[clears]
-            ok[rows] = True
-            best_h[rows] = given[rows]
-            best_margin[rows] = d[clears].min(axis=(1, 2)) - hand.finger_radius_mm
-            pending = np.flatnonzero(~ok)
+            _quick(context, hand, try_rows, given[try_rows], geometry, sin_tilt, found)
+            pending = pending[~ok[pending]]
 
     # 1. quick: six directions perpendicular to the pinch line; where none clears, six tangent
     #    to both contact surfaces (perpendicular to the squeeze axis of the normals: the fingers
     #    slide along a sheet or a wall pinched obliquely); where none clears, the object's three
     #    principal axes both ways (a hand leaning onto a ring's or a cup's axis). The one with the
     #    most clearance.
-    sin_tilt = np.sin(np.radians(hand.approach_tilt_deg)) + 1e-12
-    geometry, found = (u, tips, offsets, rho, cap), (ok, best_h, best_margin)
     k = QUICK_DIRECTIONS
     theta = np.arange(k) * (2.0 * np.pi / k)
     for group in ("perpendicular", "tangent", "principal"):

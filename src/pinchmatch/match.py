@@ -1,4 +1,4 @@
-"""Step #3: for every virtual object, the best tangible and pinch pair, registered (issue 3).
+"""Step #3: for every virtual object, the best tangible and pinch pair, registered.
 
 The search is exact. For each (virtual object, tangible) pair of objects:
 

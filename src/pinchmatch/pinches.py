@@ -27,7 +27,7 @@ n1, n2. It is feasible when every rule holds:
     there is enough surface around each contact to fit its patch.
 
 Each rule is one function below, used both by the cheap pre-filter of
-sampled candidates (with triangle normals) and by the final check (with the
+sampled candidates (:mod:`sampling`, with triangle normals) and by the final check (with the
 normals of the fitted contact patches, :mod:`curvature`), so a faceted
 cylinder behaves like the cylinder it stands for.
 """
@@ -35,40 +35,21 @@ cylinder behaves like the cylinder it stands for.
 from __future__ import annotations
 
 import dataclasses
-import logging
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from .curvature import PatchGeometry, patch_geometry, tangent_frame
-from .errors import ConfigError, NoFeasiblePinchError
+from .curvature import PatchGeometry, patch_geometry
+from .errors import ConfigError
 from .hand import PAD_TOLERANCE_MM, Hand, Reach, reach
 from .surface import SurfaceContext
-
-log = logging.getLogger(__name__)
 
 RULES = ("surface", "width", "antipodal", "clearance", "reach", "patch")
 
 #: allowed fingertip-sphere penetration (mm): the pad is soft
 CLEARANCE_TOLERANCE_MM = PAD_TOLERANCE_MM
-#: candidates drawn per requested pinch in the first, area-uniform round
-OVERSAMPLE = 6
 #: pre-filter margin on the friction cone with triangle normals, before patch normals exist
 PREFILTER_MARGIN_DEG = 2.0
-#: how many more pinches than requested get the full check in a round
-SELECT_MARGIN = 1.05
-#: rounds of checking before giving up on reaching the count
-MAX_ROUNDS = 12
-#: all rounds together draw at most this many candidates per requested pinch
-MAX_DRAW_FACTOR = 40
-#: the first round checks at most this many picks before judging how graspable the object is
-PROBE_PICKS = 256
-#: below this share of feasible picks, new candidates are drawn near the feasible ones found
-LOCAL_BELOW = 0.5
-#: a ray from p1 is followed through at most this many surfaces (exits are candidate p2)
-MAX_EXITS = 8
-#: local candidates start within this many fingertip radii of a feasible contact
-LOCAL_RADIUS_TIPS = 1.5
 
 
 @dataclass(frozen=True)
@@ -215,7 +196,7 @@ def reach_rule(context: SurfaceContext, points: np.ndarray, normals: np.ndarray,
     return reach(context, points, normals, settings.hand, approach=approach)
 
 
-def _cheap_broken(context, points, normals, settings, cone_deg):
+def cheap_broken(context, points, normals, settings, cone_deg):
     """(n, len(RULES)) bool of the rules that need no patches and no approach search."""
     broken = np.zeros((len(points), len(RULES)), dtype=bool)
     broken[:, RULES.index("width")] = width_broken(points, settings)
@@ -224,9 +205,9 @@ def _cheap_broken(context, points, normals, settings, cone_deg):
     return broken
 
 
-def _rule_table(context, points, normals, valid_patch, settings, surface_ok=None, approach=None):
+def rule_table(context, points, normals, valid_patch, settings, surface_ok=None, approach=None):
     """Which rules each pinch breaks, (n, len(RULES)) bool, and its reach."""
-    broken = _cheap_broken(context, points, normals, settings, settings.friction_cone_deg)
+    broken = cheap_broken(context, points, normals, settings, settings.friction_cone_deg)
     if surface_ok is not None:
         broken[:, RULES.index("surface")] = ~surface_ok
     found = reach_rule(context, points, normals, settings, approach)
@@ -235,13 +216,13 @@ def _rule_table(context, points, normals, valid_patch, settings, surface_ok=None
     return broken, found
 
 
-def _patches(context, points, face_normals, settings) -> PatchGeometry:
+def patches(context, points, face_normals, settings) -> PatchGeometry:
     return patch_geometry(
         context, points.reshape(-1, 3), face_normals.reshape(-1, 3), patch_radius_mm=settings.patch_radius_mm
     )
 
 
-def _assemble(points, points_faces, geom: PatchGeometry, broken, found: Reach, rejected, snap=None) -> Pinches:
+def assemble(points, points_faces, geom: PatchGeometry, broken, found: Reach, rejected, snap=None) -> Pinches:
     n = len(broken)
     return Pinches(
         points=points.reshape(n, 2, 3),
@@ -291,274 +272,14 @@ def check_pinches(
     else:
         closest, distance, face = raw, np.zeros(len(raw)), np.asarray(faces, dtype=np.int64).reshape(-1)
     surface_ok = (distance <= settings.snap_tolerance_mm).reshape(n, 2).all(axis=1)
-    geom = _patches(context, closest, context.face_normals[face], settings)
+    geom = patches(context, closest, context.face_normals[face], settings)
     points = closest.reshape(n, 2, 3)
     normals = geom.normal.reshape(n, 2, 3)
-    broken, found = _rule_table(context, points, normals, geom.valid, settings, surface_ok)
-    return _assemble(points, face, geom, broken, found, {}, distance)
-
-
-def _cone_directions(normals: np.ndarray, half_angle_deg: float, rng) -> np.ndarray:
-    """Unit directions uniform in solid angle within the cone around -normal."""
-    n = len(normals)
-    cos_t = 1.0 - rng.random(n) * (1.0 - np.cos(np.radians(half_angle_deg)))
-    sin_t = np.sqrt(1.0 - cos_t**2)
-    phi = rng.random(n) * 2.0 * np.pi
-    t1, t2 = tangent_frame(normals)
-    return -(cos_t[:, None] * normals + sin_t[:, None] * (np.cos(phi)[:, None] * t1 + np.sin(phi)[:, None] * t2))
-
-
-def _pair_vectors(points: np.ndarray):
-    """Centred 6-vectors of pinches in both finger orders, for the spread distance."""
-    n = len(points)
-    return points.reshape(n, 6), points[:, ::-1].reshape(n, 6)
-
-
-def spread_order(points: np.ndarray, count: int, nearest: np.ndarray | None = None):
-    """Farthest-point order of pinches, treating (p1, p2) and (p2, p1) as the same.
-
-    points : (n, 2, 3). Each next pick is the pinch farthest from all picked
-    so far, so any prefix covers the graspable regions evenly, without clumps.
-
-    Returns ``(chosen, nearest)``: the indices of up to ``count`` new picks
-    and each pinch's squared distance to its nearest pick (-1 for picks).
-    Pass ``nearest`` back in to continue the same order.
-    """
-    n = len(points)
-    a, b = _pair_vectors(points - points.reshape(-1, 3).mean(axis=0))
-    sq = (a * a).sum(axis=1)  # same for both finger orders
-    if nearest is None:
-        nearest = np.full(n, np.inf)
-        current = 0
-    else:
-        nearest = nearest.copy()
-        current = int(np.argmax(nearest))
-    count = min(count, int((nearest >= 0).sum()))
-    chosen = np.empty(count, dtype=np.int64)
-    for i in range(count):
-        chosen[i] = current
-        q = a[current]
-        # |x - q|² = |x|² + |q|² - 2 x·q, with the better of the two finger orders
-        d = sq + sq[current] - 2.0 * np.maximum(a @ q, b @ q)
-        np.minimum(nearest, d, out=nearest)
-        nearest[current] = -1.0
-        current = int(np.argmax(nearest))
-    return chosen, nearest
-
-
-def _nearest_to(points: np.ndarray, picked: np.ndarray) -> np.ndarray:
-    """Squared spread distance from each pinch to the nearest of ``picked`` (inf when none)."""
-    out = np.full(len(points), np.inf)
-    if len(picked) == 0 or len(points) == 0:
-        return out
-    origin = points.reshape(-1, 3).mean(axis=0)
-    a, b = _pair_vectors(points - origin)
-    q, _ = _pair_vectors(picked - origin)
-    sq_a, sq_q = (a * a).sum(axis=1), (q * q).sum(axis=1)
-    for s in range(0, len(q), 2048):
-        block = q[s:s + 2048]
-        d = sq_a[:, None] + sq_q[None, s:s + 2048] - 2.0 * np.maximum(a @ block.T, b @ block.T)
-        np.minimum(out, d.min(axis=1), out=out)
-    return out
-
-
-@dataclass
-class _Pool:
-    """Candidates that passed the cheap rules, with their spread distance to every pick so far."""
-
-    points: np.ndarray
-    faces: np.ndarray
-    nearest: np.ndarray  # squared spread distance to the nearest pick, -1 once picked
-
-    @classmethod
-    def empty(cls) -> "_Pool":
-        return cls(np.zeros((0, 2, 3)), np.zeros((0, 2), np.int64), np.zeros(0))
-
-    def add(self, points, faces, picked_points):
-        self.nearest = np.concatenate([self.nearest, _nearest_to(points, picked_points)])
-        self.points = np.concatenate([self.points, points])
-        self.faces = np.concatenate([self.faces, faces])
-
-    def pick(self, count: int) -> np.ndarray:
-        if len(self.points) == 0 or count <= 0:
-            return np.zeros(0, np.int64)
-        order, self.nearest = spread_order(self.points, count, self.nearest)
-        return order
-
-    def saw(self, picked_points):
-        """Picks made from another pool count for this one's spread too."""
-        live = self.nearest >= 0
-        self.nearest[live] = np.minimum(self.nearest[live], _nearest_to(self.points[live], picked_points))
-
-
-def _draw(context, p1, face1, settings, rng, rejected):
-    """Candidates from contacts p1: exits along directions in the friction cone, cheap rules applied."""
-    n1 = context.face_normals[face1]
-    d = _cone_directions(n1, settings.friction_cone_deg, rng)
-    ray, face2, dist = context.exits(p1, d, max_distance=settings.max_width_mm * (1 + 1e-6), max_hits=MAX_EXITS)
-    n_rays = len(p1)
-    # a ray with no exit within the largest width offers no second contact
-    rejected["width"] += int(n_rays - len(np.unique(ray)))
-    points = np.stack([p1[ray], p1[ray] + dist[:, None] * d[ray]], axis=1)
-    faces = np.stack([face1[ray], face2], axis=1)
-    normals = context.face_normals[faces]
-    broken = _cheap_broken(context, points, normals, settings, settings.friction_cone_deg + PREFILTER_MARGIN_DEG)
-    _count_first(broken, rejected)
-    keep = ~broken.any(axis=1)
-    return points[keep], faces[keep]
-
-
-def _count_first(broken, rejected):
-    """Count each rejected candidate once, under the first rule it breaks."""
-    bad = broken.any(axis=1)
-    first = np.argmax(broken, axis=1)
-    for j, rule in enumerate(RULES):
-        rejected[rule] += int((bad & (first == j)).sum())
-
-
-def _uniform_contacts(context, n, rng):
-    mesh = context.mesh
-    area = mesh.area_faces
-    faces = rng.choice(len(area), size=n, p=area / area.sum())
-    r = rng.random((n, 2))
-    flip = r.sum(axis=1) > 1
-    r[flip] = 1.0 - r[flip]
-    tri = mesh.triangles[faces]
-    p1 = tri[:, 0] + r[:, :1] * (tri[:, 1] - tri[:, 0]) + r[:, 1:] * (tri[:, 2] - tri[:, 0])
-    return p1, faces
-
-
-def _local_contacts(context, seeds, n, radius, rng):
-    """n contacts near ``seeds`` (contacts of feasible pinches): random dense-sample points within ``radius``."""
-    sample = context.sample
-    k = int(min(64, len(sample.points)))
-    which = rng.integers(0, len(seeds), size=n)
-    dist, idx = context.tree.query(seeds, k=k, distance_upper_bound=radius, workers=-1)
-    dist, idx = dist.reshape(len(seeds), k), idx.reshape(len(seeds), k)
-    valid = np.isfinite(dist)
-    counts = valid.sum(axis=1)  # at least 1: the seed's own nearest sample
-    pick = np.minimum((rng.random(n) * counts[which]).astype(np.int64), counts[which] - 1)
-    chosen = idx[which, pick]
-    ok = np.isfinite(dist[which, pick])
-    chosen = chosen[ok]
-    return sample.points[chosen], sample.face_index[chosen]
-
-
-def sample_pinches(
-    context: SurfaceContext,
-    *,
-    settings: PinchSettings = PinchSettings(),
-    source: str = "mesh",
-) -> Pinches:
-    """About ``settings.count`` feasible pinches spread over every graspable region.
-
-    Candidates: contacts p1 drawn area-uniformly (seeded), a direction drawn
-    uniformly within the friction cone around -n1, and as p2 every point
-    where the ray along it leaves the solid within the largest width. The
-    cheap rules prune them with triangle normals; a farthest-point order
-    spreads the survivors; in rounds, the next picks get the reach search,
-    fitted patches and the full check with patch normals.
-
-    When the first picks show that few places are graspable (a bowl's rim, a
-    mug's handle), later rounds draw new candidates near the contacts of the
-    feasible pinches found so far, and the spread order, which keeps its
-    distances to every earlier pick, takes them in turn. All rounds together
-    draw at most ``MAX_DRAW_FACTOR`` candidates per requested pinch.
-
-    Raises
-    ------
-    NoFeasiblePinchError
-        No candidate passes; the message says how many each rule rejected.
-    """
-    rng = np.random.default_rng(settings.seed)
-    count = settings.count
-    rejected = dict.fromkeys(RULES, 0)
-    n_first = max(OVERSAMPLE * count, 2000)
-    budget = MAX_DRAW_FACTOR * max(count, 50)
-    p1, f1 = _uniform_contacts(context, n_first, rng)
-    points, faces = _draw(context, p1, f1, settings, rng, rejected)
-    drawn = n_first
-    if len(points) == 0:
-        raise NoFeasiblePinchError(_no_pinch_message(source, drawn, rejected, settings))
-    uniform = _Pool(points, faces, np.full(len(points), np.inf))
-    local = _Pool.empty()
-
-    parts: list[Pinches] = []
-    picked = np.zeros((0, 2, 3))
-    n_feasible, n_checked = 0, 0
-    local_radius = LOCAL_RADIUS_TIPS * settings.fingertip_radius_mm
-    for round_ in range(MAX_ROUNDS):
-        need = count - n_feasible
-        if need <= 0:
-            break
-        share = n_feasible / n_checked if n_checked else 1.0
-        want = int(np.ceil(SELECT_MARGIN * need / max(share, 0.05)))
-        want = min(want, PROBE_PICKS) if round_ == 0 else min(want, 4 * need + PROBE_PICKS)
-        local_mode = n_checked > 0 and n_feasible > 0 and share < LOCAL_BELOW
-        if local_mode and drawn < budget:
-            seeds = np.concatenate([p.points.reshape(-1, 3) for p in parts])
-            n_local = int(min(budget - drawn, OVERSAMPLE * want))
-            lp, lf = _local_contacts(context, seeds, n_local, local_radius, rng)
-            drawn += n_local
-            new_points, new_faces = _draw(context, lp, lf, settings, rng, rejected)
-            local.add(new_points, new_faces, picked)
-        # in local mode the candidates near feasible pinches go first
-        first, second = (local, uniform) if local_mode else (uniform, local)
-        a = first.pick(want)
-        second.saw(first.points[a])
-        b = second.pick(want - len(a))
-        first.saw(second.points[b])
-        chosen = np.concatenate([first.points[a], second.points[b]])
-        chosen_f = np.concatenate([first.faces[a], second.faces[b]])
-        if len(chosen) == 0:
-            break
-        picked = np.concatenate([picked, chosen])
-        n_checked += len(chosen)
-        part = _check_picks(context, chosen, chosen_f, settings, rejected)
-        parts.append(part)
-        n_feasible += len(part)
-    if n_feasible == 0:
-        raise NoFeasiblePinchError(_no_pinch_message(source, drawn, rejected, settings))
-    # concatenated in spread order, so the first `count` are evenly spread
-    result = concat_pinches(parts, rejected).subset(np.arange(min(count, n_feasible)))
-    log.info("%s: %d feasible pinches from %d candidates", source, len(result), drawn)
-    return result
-
-
-def _check_picks(context, points, faces, settings, rejected) -> Pinches:
-    """The feasible ones among spread picks: reach first (triangle normals), then patches and every rule."""
-    early = reach_rule(context, points, context.face_normals[faces], settings)
-    rejected["reach"] += int((~early.ok).sum())
-    points, faces = points[early.ok], faces[early.ok]
-    geom = _patches(context, points, context.face_normals[faces], settings)
-    broken, found = _rule_table(context, points, geom.normal.reshape(-1, 2, 3), geom.valid, settings,
-                                approach=early.approach[early.ok])
-    _count_first(broken, rejected)
-    part = _assemble(points, faces, geom, broken, found, rejected)
-    return part.subset(part.feasible)
+    broken, found = rule_table(context, points, normals, geom.valid, settings, surface_ok)
+    return assemble(points, face, geom, broken, found, {}, distance)
 
 
 def concat_pinches(parts: list[Pinches], rejected: dict | None = None) -> Pinches:
     """The pinches of ``parts`` in order; ``rejected`` from the last part unless given."""
     arrays = {f: np.concatenate([getattr(p, f) for p in parts]) for f in ARRAY_FIELDS}
     return Pinches(**arrays, rejected=dict(parts[-1].rejected if rejected is None else rejected))
-
-
-_RULE_HINTS = {
-    "width": "the object may be too wide or thin for the width limits: check --min-width-mm/--max-width-mm and --units",
-    "antipodal": "no opposite surfaces face each other: try a wider --friction-cone-deg",
-    "clearance": "a fingertip does not fit: try a smaller --fingertip-radius-mm",
-    "reach": "no approach lets both fingers get to the contacts: try a shorter --finger-length-mm, a thinner "
-             "--finger-radius-mm or a larger --approach-tilt-deg",
-    "patch": "too little surface around the contacts: try a smaller --patch-radius-mm",
-    "surface": "the points are far from the surface",
-}
-
-
-def _no_pinch_message(source, n_cand, rejected, settings) -> str:
-    parts = [f"{rule} {count}" for rule, count in rejected.items() if count]
-    worst = max(rejected, key=rejected.get)
-    return (
-        f"{source}: no feasible pinch among {n_cand} candidates (rejected by "
-        f"{', '.join(parts) or 'nothing'}); {_RULE_HINTS[worst]}"
-    )

@@ -1,4 +1,4 @@
-"""Place the virtual object on the tangible so that the fingers meet (issue 3, registration).
+"""Place the virtual object on the tangible so that the fingers meet.
 
 The rigid transform maps the virtual object's frame to the tangible's:
 

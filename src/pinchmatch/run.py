@@ -1,4 +1,4 @@
-"""``pinchmatch match`` over many files: per-object work in parallel, on this machine or a Dask cluster (issue 5).
+"""``pinchmatch match`` over many files: per-object work in parallel, on this machine or a Dask cluster.
 
 A run splits into tasks of one object each:
 

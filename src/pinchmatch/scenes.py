@@ -1,4 +1,4 @@
-"""glTF scenes of matches: the tangible, the registered virtual object and two green cones (issue 4).
+"""glTF scenes of matches: the tangible, the registered virtual object, two green cones and the two fingers.
 
 glTF conventions: metres and +Y up. pinchmatch works in mm in each file's
 frame, so every scene applies C = Q / 1000, where Q is the smallest rotation

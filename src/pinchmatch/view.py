@@ -1,4 +1,4 @@
-"""The viewer page: ``OUT/index.html``, one self-contained file (issue 4).
+"""The viewer page: ``OUT/index.html``, one self-contained file.
 
 The page is built from what a run wrote, ``OUT/matches.json`` and
 ``OUT/scenes/*.glb``, so it can be made again at any time with
