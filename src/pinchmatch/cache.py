@@ -34,7 +34,7 @@ from .features import PinchFeatures
 from .load import LoadedMesh, load_mesh
 from .match import Candidates, candidate_poses
 from .cost import feature_table
-from .pinches import PinchSettings, Pinches
+from .pinches import ARRAY_FIELDS, PinchSettings, Pinches
 from .properties import object_properties
 from .surface import SurfaceContext
 
@@ -42,7 +42,7 @@ log = logging.getLogger(__name__)
 
 #: bump when what an entry holds, or how candidates are computed, changes
 CACHE_FORMAT = 1
-PINCH_ARRAYS = [f.name for f in dataclasses.fields(Pinches) if f.name != "rejected"]
+PINCH_ARRAYS = list(ARRAY_FIELDS)
 FEATURE_ARRAYS = [f.name for f in dataclasses.fields(PinchFeatures)]
 
 

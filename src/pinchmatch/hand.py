@@ -330,9 +330,3 @@ def _search_band(context, tips, u, e1, e2, pending, hand, offsets, rho, cap):
     if not out_rows:
         return np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0)
     return np.concatenate(out_rows), np.concatenate(out_h), np.concatenate(out_margin)
-
-
-def finger_axes(points: np.ndarray, normals: np.ndarray, approach: np.ndarray, hand: Hand) -> np.ndarray:
-    """(n, 2, 2, 3) each finger's axis: [fingertip centre, end], for drawing and checking."""
-    tips = points + hand.fingertip_radius_mm * normals
-    return np.stack([tips, tips + hand.finger_length_mm * approach[:, None, :]], axis=2)
