@@ -29,7 +29,8 @@ along a flat face at its own radius and pass.
 
 Search for h:
 
-1. Six directions, θ = 0°, 60°, … 300° at α = 0; where none clears, six
+1. Directions at α = 0: θ = 0°, 120°, 240°, and where none clears 60°, 180°,
+   300°; where none of those clears, six
    directions tangent to both contact surfaces (perpendicular to n1 - n2, and
    within the band: the fingers slide along a wall or a sheet pinched
    obliquely); where none clears, the surface's three principal axes both
@@ -191,28 +192,32 @@ def reach(context, points: np.ndarray, normals: np.ndarray, hand: Hand,
             _quick(context, hand, try_rows, given[try_rows], geometry, sin_tilt, found)
             pending = pending[~ok[pending]]
 
-    # 1. quick: six directions perpendicular to the pinch line; where none clears, six tangent
+    # 1. quick: six directions perpendicular to the pinch line (three at a time); where none clears, six tangent
     #    to both contact surfaces (perpendicular to the squeeze axis of the normals: the fingers
     #    slide along a sheet or a wall pinched obliquely); where none clears, the object's three
     #    principal axes both ways (a hand leaning onto a ring's or a cup's axis). The one with the
     #    most clearance.
     k = QUICK_DIRECTIONS
     theta = np.arange(k) * (2.0 * np.pi / k)
-    for group in ("perpendicular", "tangent", "principal"):
+    for group in ("perpendicular", "perpendicular, between", "tangent", "principal"):
         if not len(pending):
             break
         if group == "principal":
             h = np.tile(np.concatenate([context.principal_axes.T, -context.principal_axes.T]), (len(pending), 1))
         else:
+            angles = theta
             if group == "tangent":
                 axis = normals[pending, 0] - normals[pending, 1]
                 norm = np.linalg.norm(axis, axis=1, keepdims=True)
                 axis = np.where(norm > 1e-9, axis / np.maximum(norm, 1e-300), u[pending])
                 _, f1, f2 = approach_frame(context, points[pending], axis=axis)
             else:
+                # the six perpendicular directions in two halves: 0, 120, 240 degrees, then the others
+                angles = theta[0::2] if group == "perpendicular" else theta[1::2]
                 axis, f1, f2 = u[pending], e1[pending], e2[pending]
-            h = _directions(np.repeat(axis, k, axis=0), np.repeat(f1, k, axis=0), np.repeat(f2, k, axis=0),
-                            np.tile(theta, len(pending)), np.zeros(k * len(pending)))
+            m = len(angles)
+            h = _directions(np.repeat(axis, m, axis=0), np.repeat(f1, m, axis=0), np.repeat(f2, m, axis=0),
+                            np.tile(angles, len(pending)), np.zeros(m * len(pending)))
         _quick(context, hand, pending, h, geometry, sin_tilt, found)
         pending = pending[~ok[pending]]
 

@@ -356,8 +356,8 @@ def load_mesh(
     warnings: list[str] = []
     if not watertight:
         warnings.append(
-            f"{path.name}: surface is not closed; centre of mass is that of the surface, "
-            "and 'inside' is judged by ray parity"
+            f"{path.name}: surface is not closed; centre of mass is that of the surface, and pinches "
+            "come only from where the ray along the pinch line leaves through a surface"
         )
     for line in repairs:
         log.info("%s: %s", path.name, line)

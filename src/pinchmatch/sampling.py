@@ -44,6 +44,9 @@ LOCAL_BELOW = 0.5
 MAX_EXITS = 8
 #: local candidates start within this many fingertip radii of a feasible contact
 LOCAL_RADIUS_TIPS = 1.5
+#: after the first round, reach is searched before the patches only where more than this share of
+#: the picks so far had no approach (elsewhere it is searched once, with the patches' normals)
+PRECHECK_ABOVE = 0.05
 
 
 def _cone_directions(normals: np.ndarray, half_angle_deg: float, rng) -> np.ndarray:
@@ -266,8 +269,10 @@ def sample_pinches(
         if len(chosen) == 0:
             break
         picked = np.concatenate([picked, chosen])
+        # the reach pre-check pays where the probe found picks no hand gets to
+        precheck = round_ == 0 or rejected["reach"] > PRECHECK_ABOVE * n_checked
+        part = _check_picks(context, chosen, chosen_f, settings, rejected, precheck=precheck)
         n_checked += len(chosen)
-        part = _check_picks(context, chosen, chosen_f, settings, rejected)
         parts.append(part)
         n_feasible += len(part)
     if n_feasible == 0:
@@ -278,14 +283,19 @@ def sample_pinches(
     return result
 
 
-def _check_picks(context, points, faces, settings, rejected) -> Pinches:
-    """The feasible ones among spread picks: reach first (triangle normals), then patches and every rule."""
-    early = reach_rule(context, points, context.face_normals[faces], settings)
-    rejected["reach"] += int((~early.ok).sum())
-    points, faces = points[early.ok], faces[early.ok]
+def _check_picks(context, points, faces, settings, rejected, *, precheck: bool = True) -> Pinches:
+    """The feasible ones among spread picks: every rule with the normals of fitted patches.
+
+    With ``precheck``, the reach search runs first with triangle normals, so that picks no hand
+    gets to are not fitted (the final check then only confirms the approach found)."""
+    approach = None
+    if precheck:
+        early = reach_rule(context, points, context.face_normals[faces], settings)
+        rejected["reach"] += int((~early.ok).sum())
+        points, faces, approach = points[early.ok], faces[early.ok], early.approach[early.ok]
     geom = patches(context, points, context.face_normals[faces], settings)
     broken, found = rule_table(context, points, geom.normal.reshape(-1, 2, 3), geom.valid, settings,
-                                approach=early.approach[early.ok])
+                               approach=approach)
     _count_first(broken, rejected)
     part = assemble(points, faces, geom, broken, found, rejected)
     return part.subset(part.feasible)
