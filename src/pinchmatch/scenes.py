@@ -53,26 +53,27 @@ def _styled(mesh: trimesh.Trimesh, vertices: np.ndarray, color, *, blend: bool =
     return out
 
 
+def _placed(mesh: trimesh.Trimesh, origin_mm: np.ndarray, direction: np.ndarray) -> trimesh.Trimesh:
+    """``mesh``, built along +z from the origin, turned onto the unit ``direction`` and moved to ``origin_mm``."""
+    T = np.eye(4)
+    T[:3, :3] = _rotations_between(np.array([[0.0, 0.0, 1.0]]), np.asarray(direction, float)[None])[0]
+    T[:3, 3] = origin_mm
+    mesh.apply_transform(T)
+    return mesh
+
+
 def fingertip_cone(contact_mm: np.ndarray, toward_mm: np.ndarray) -> trimesh.Trimesh:
     """A cone (mm) with its tip on ``contact_mm``, pointing along ``toward_mm`` (unit)."""
     cone = trimesh.creation.cone(radius=CONE_RADIUS_MM, height=CONE_HEIGHT_MM, sections=24)
     cone.apply_translation([0.0, 0.0, -CONE_HEIGHT_MM])  # tip at the origin, body along -z
-    R = _rotations_between(np.array([[0.0, 0.0, 1.0]]), np.asarray(toward_mm, float)[None])[0]
-    T = np.eye(4)
-    T[:3, :3], T[:3, 3] = R, contact_mm
-    cone.apply_transform(T)
-    return cone
+    return _placed(cone, contact_mm, toward_mm)
 
 
 def finger_capsule(start_mm: np.ndarray, direction: np.ndarray, length_mm: float, radius_mm: float) -> trimesh.Trimesh:
     """A capsule (mm) whose axis runs from ``start_mm`` along the unit ``direction`` for ``length_mm``."""
     capsule = trimesh.creation.capsule(height=length_mm, radius=radius_mm, count=[16, 16])
     capsule.apply_translation([0.0, 0.0, length_mm / 2.0])  # axis from the origin along +z
-    R = _rotations_between(np.array([[0.0, 0.0, 1.0]]), np.asarray(direction, float)[None])[0]
-    T = np.eye(4)
-    T[:3, :3], T[:3, 3] = R, start_mm
-    capsule.apply_transform(T)
-    return capsule
+    return _placed(capsule, start_mm, direction)
 
 
 def _flat(prefix_values: dict) -> dict:
