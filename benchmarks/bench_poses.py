@@ -2,11 +2,18 @@
 
     python benchmarks/bench_poses.py            # full run (a few minutes on 2 cores)
     python benchmarks/bench_poses.py --quick    # smaller meshes, fewer points
+    python benchmarks/bench_poses.py --only speed --against ../base   # side by side with another checkout
+
+``--against DIR`` times the speed part in this tree and in the checkout DIR (for
+example ``git worktree add ../base <commit>``) in alternating subprocesses, best
+of ``--rounds`` warm runs each, and prints the ratio: the machine's speed drifts
+by tens of percent within minutes, so only figures taken side by side compare.
 
 Speed: wall time of the surface context (dense sample, KD-tree, ray engine)
-and of sampling 2,000 feasible pinches with all features, after loading.
-What bounds it: the batched jet fits of the contact patches (about two
-thirds of the time), then the KD-tree queries and the farthest-point spread.
+and of sampling 2,000 feasible pinches with all features, after loading (one
+cold run per mesh, after the compiled kernels are loaded). What bounds it: the
+KD-tree queries of the reach search (most on the torus, whose pinches across
+the hole need the hand leaned), the compiled patch fits, the ray casts.
 
 Accuracy: kappa_max, kappa_min, direction and normal errors against
 closed-form truth at the same mesh vertices, for pinchmatch and, when the
@@ -55,16 +62,56 @@ class _Timed:
         setattr(self.module, self.name, self.inner)
 
 
+SPEED_SHAPES = {
+    "sphere_random": lambda faces: shapes.sphere(30.0, triangulation="random", faces=faces),
+    "torus_regular": lambda faces: shapes.torus(triangulation="regular", faces=faces),
+    "ellipsoid_random": lambda faces: shapes.ellipsoid(triangulation="random", faces=faces),
+    "cylinder_random": lambda faces: shapes.cylinder(triangulation="random", faces=faces),
+}
+
+
+def time_warm(name: str, faces: int, count: int, rounds: int) -> float:
+    """Best of ``rounds`` warm runs of poses with features on one speed mesh (seconds)."""
+    mesh = SPEED_SHAPES[name](faces).mesh
+    ctx = SurfaceContext(mesh)
+    props = object_properties(mesh, up=UP, watertight=True)
+    best = np.inf
+    for _ in range(rounds + 1):  # the first run loads compiled kernels
+        t = time.perf_counter()
+        pinch_features(sample_pinches(ctx, settings=PinchSettings(count=count, seed=0)), props)
+        best = min(best, time.perf_counter() - t)
+    return best
+
+
+def side_by_side(other: str, faces: int, count: int, rounds: int) -> list[list]:
+    """This tree against the checkout ``other``, alternating subprocesses per mesh."""
+    import subprocess
+
+    here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    rows = []
+    for name in SPEED_SHAPES:
+        best = {}
+        for _ in range(rounds):
+            for label, tree in (("before", other), ("after", here)):
+                env = dict(os.environ, PYTHONPATH=os.path.join(os.path.abspath(tree), "src"))
+                out = subprocess.run([sys.executable, os.path.abspath(__file__), "--time-one", name,
+                                      "--faces", str(faces), "--count", str(count)],
+                                     env=env, capture_output=True, text=True, check=True).stdout
+                best[label] = min(best.get(label, np.inf), float(out.split()[-1]))
+        rows.append([name, f"{best['before']:.3f}", f"{best['after']:.3f}", f"{best['before'] / best['after']:.2f}"])
+    return rows
+
+
 def speed(faces: int, count: int) -> list[list]:
     from pinchmatch import pinches as pinches_module
 
     rows = []
-    meshes = [
-        shapes.sphere(30.0, triangulation="random", faces=faces),
-        shapes.torus(triangulation="regular", faces=faces),
-        shapes.ellipsoid(triangulation="random", faces=faces),
-        shapes.cylinder(triangulation="random", faces=faces),
-    ]
+    # the compiled kernels load once per process (compiled and cached on disk on the first run ever)
+    t = time.perf_counter()
+    small = shapes.sphere(30.0, faces=2000).mesh
+    sample_pinches(SurfaceContext(small), settings=PinchSettings(count=20, seed=0))
+    print(f"kernels loaded, once per process: {time.perf_counter() - t:.2f} s")
+    meshes = [make(faces) for make in SPEED_SHAPES.values()]
     for shape in meshes:
         mesh = shape.mesh
         t0 = time.perf_counter()
@@ -201,7 +248,15 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="smaller meshes and fewer points")
     parser.add_argument("--only", choices=("speed", "accuracy"), help="run one part only")
+    parser.add_argument("--against", metavar="DIR", help="also time the speed part in the checkout DIR, side by side")
+    parser.add_argument("--rounds", type=int, default=3, help="alternating rounds of --against (default 3)")
+    parser.add_argument("--time-one", metavar="MESH", help=argparse.SUPPRESS)
+    parser.add_argument("--faces", type=int, help=argparse.SUPPRESS)
+    parser.add_argument("--count", type=int, help=argparse.SUPPRESS)
     args = parser.parse_args()
+    if args.time_one:  # a subprocess of --against
+        print(time_warm(args.time_one, args.faces, args.count, rounds=2))
+        return
     print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, python {platform.python_version()}")
 
     faces = 20_000 if args.quick else 100_000
@@ -210,6 +265,10 @@ def main() -> None:
         print(f"\n## Speed: {count} feasible poses with all features, after loading (target <= 1.5 s at 100k faces)\n")
         print(table(["mesh", "faces", "rays", "context_s", "poses", "poses+features_s", "poses_per_s", "reach_share"],
                     speed(faces, count)))
+        if args.against:
+            print(f"\n## Side by side with {args.against}: best of {args.rounds} alternating subprocesses, "
+                  "each the best of 2 warm runs (s)\n")
+            print(table(["mesh", "before_s", "after_s", "ratio"], side_by_side(args.against, faces, count, args.rounds)))
     if args.only == "speed":
         return
 

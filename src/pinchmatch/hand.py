@@ -34,15 +34,19 @@ Search for h:
    directions tangent to both contact surfaces (perpendicular to n1 - n2, and
    within the band: the fingers slide along a wall or a sheet pinched
    obliquely); where none clears, the surface's three principal axes both
-   ways, within the band (a hand leaning onto a ring's or a cup's axis). When
+   ways, within the band (a hand leaning onto a ring's or a cup's axis); where
+   none clears, the six θ of step 1 leaned by ±2/3 of the largest tilt (a
+   hand reaching past a ring's inner edge). When
    any clears, the pinch is reachable; the approach is the one
    with the most clearance (the largest smallest distance from either axis to
    the surface, resolved up to ``CLEARANCE_CAP_MM`` beyond the finger radius),
    ties to the earlier θ.
 2. Otherwise a branch and bound over the whole band: cells of 30° in θ and of
-   at most 20° in α, split in four until decided. For a cell of angular radius
-   δ around h_c, every test centre at distance s from the fingertip moves by
-   at most s·δ, and distances to the surface are 1-Lipschitz, so a cell whose
+   at most 20° in α, split in four until decided. For a cell whose centre h_c
+   is at chord δ from its farthest corner (the farthest point of a θ-α
+   rectangle on the sphere of directions), every test centre at distance s
+   from the fingertip moves by at most s·δ, and distances to the surface are
+   1-Lipschitz, so a cell whose
    centre has d_j(h_c) + s_j·δ < ρ for some test sphere j holds no clearing
    direction and is dropped; a centre that clears decides the pinch. Cells are
    split until L·δ ≤ tol: an approach that clears with ``tol`` to spare is
@@ -51,6 +55,11 @@ Search for h:
    ``MAX_CELLS_PER_PINCH`` cells per level, those with the largest bound; the
    guarantee holds where no more were open (a finger that can only slide
    exactly along a sheet leaves a thin band of directions open at every level).
+
+Each direction or cell is tested sphere by sphere, a pair at a time, coarse to
+fine along the finger, each pair only where the earlier ones did not already
+rule it out: one sphere with d + s·δ < ρ decides, so most directions that run
+into the object cost a few distance queries, not all of them.
 """
 
 from __future__ import annotations
@@ -64,6 +73,8 @@ import numpy as np
 PAD_TOLERANCE_MM = 0.3
 #: directions of the first, quick search: θ steps at α = 0
 QUICK_DIRECTIONS = 6
+#: the last quick group leans the hand this share of the largest tilt towards either finger
+LEAN_SHARE = 2.0 / 3.0
 #: coarse cells of the full search: θ width (deg) and largest α width (deg)
 CELL_THETA_DEG = 30.0
 CELL_ALPHA_DEG = 20.0
@@ -71,6 +82,8 @@ CELL_ALPHA_DEG = 20.0
 CLEARANCE_CAP_MM = 1.0
 #: at most this many open cells per pinch and refinement level, the most promising kept
 MAX_CELLS_PER_PINCH = 32
+#: test spheres per finger queried together, each batch only where the earlier ones clear
+STAGE_SPHERES = 2
 
 
 @dataclass(frozen=True)
@@ -141,13 +154,44 @@ def _directions(u, e1, e2, theta, alpha):
     return ca * (np.cos(theta)[:, None] * e1 + np.sin(theta)[:, None] * e2) + np.sin(alpha)[:, None] * u
 
 
-def _axis_distances(tree, tips, h, offsets, cap):
+def _coarse_to_fine(count: int) -> list[int]:
+    """0 … count-1 ordered so that each prefix is spread along the finger: 0, the far end,
+    then halving the gaps (a finger pushed into the object is usually caught early)."""
+    order, seen, step = [], set(), 1 << max(count - 1, 1).bit_length()
+    while step:
+        for i in range(0, count, step):
+            if i not in seen:
+                seen.add(i)
+                order.append(i)
+        step //= 2
+    return order
+
+
+def _axis_distances(tree, tips, h, offsets, cap, rho, delta=None):
     """(m, 2, P) distance from each test centre to the nearest sample, capped at ``cap``.
 
-    tips : (m, 2, 3) fingertip centres, h : (m, 3)."""
-    centres = tips[:, :, None, :] + offsets[None, None, :, None] * h[:, None, None, :]
-    d, _ = tree.query(centres.reshape(-1, 3), k=1, distance_upper_bound=cap, workers=-1)
-    return np.minimum(d, cap).reshape(len(h), 2, len(offsets))
+    tips : (m, 2, 3) fingertip centres, h : (m, 3), delta : (m,) how far, per mm along the
+    finger, a test centre can move within the cell of directions around h (0: h alone). A
+    row is ruled out by one test sphere with d + offset·δ < ρ, so
+    the spheres are queried a few at a time, coarse to fine along the finger, each batch only
+    for the rows no earlier sphere ruled out. The spheres not queried read ``cap``, which
+    changes no decision: a ruled-out row neither fits nor bounds a cell above ρ."""
+    m = len(h)
+    delta = np.zeros(m) if delta is None else delta
+    d = np.full((m, 2, len(offsets)), cap)
+    rows = np.arange(m)
+    order = _coarse_to_fine(len(offsets))
+    for start in range(0, len(order), STAGE_SPHERES):
+        stage = np.array(order[start:start + STAGE_SPHERES])
+        off = offsets[stage]
+        centres = tips[rows][:, :, None, :] + off[None, None, :, None] * h[rows][:, None, None, :]
+        q, _ = tree.query(centres.reshape(-1, 3), k=1, distance_upper_bound=cap, workers=-1)
+        q = np.minimum(q, cap).reshape(len(rows), 2, len(off))
+        d[np.ix_(rows, [0, 1], stage)] = q
+        rows = rows[(q + off * delta[rows, None, None] >= rho).all(axis=(1, 2))]
+        if not len(rows):
+            break
+    return d
 
 
 def _hand_free(context, tips, h, length):
@@ -199,11 +243,17 @@ def reach(context, points: np.ndarray, normals: np.ndarray, hand: Hand,
     #    most clearance.
     k = QUICK_DIRECTIONS
     theta = np.arange(k) * (2.0 * np.pi / k)
-    for group in ("perpendicular", "perpendicular, between", "tangent", "principal"):
+    for group in ("perpendicular", "perpendicular, between", "tangent", "principal", "leaned"):
         if not len(pending):
             break
         if group == "principal":
             h = np.tile(np.concatenate([context.principal_axes.T, -context.principal_axes.T]), (len(pending), 1))
+        elif group == "leaned":
+            lean = np.radians(LEAN_SHARE * hand.approach_tilt_deg)
+            m = 2 * k
+            h = _directions(np.repeat(u[pending], m, axis=0), np.repeat(e1[pending], m, axis=0),
+                            np.repeat(e2[pending], m, axis=0), np.tile(np.repeat(theta, 2), len(pending)),
+                            np.tile(np.tile([lean, -lean], k), len(pending)))
         else:
             angles = theta
             if group == "tangent":
@@ -239,7 +289,7 @@ def _quick(context, hand, pending, h, geometry, sin_tilt, found):
     k = len(h) // len(pending)
     rows = np.repeat(pending, k)
     in_band = np.abs(np.einsum("ij,ij->i", h, u[rows])) <= sin_tilt
-    d = _axis_distances(context.tree, tips[rows], h, offsets, cap)
+    d = _axis_distances(context.tree, tips[rows], h, offsets, cap, rho)
     clears = in_band & (d >= rho).all(axis=(1, 2))
     clears[clears] = _hand_free(context, tips[rows[clears]], h[clears], hand.finger_length_mm)
     clears = clears.reshape(-1, k)
@@ -278,7 +328,12 @@ def _search_band(context, tips, u, e1, e2, pending, hand, offsets, rho, cap):
     decided = np.zeros(len(tips), dtype=bool)
     out_rows, out_h, out_margin = [], [], []
     while len(rows):
-        delta = ht + ha  # angle from a cell's centre to any direction in it
+        # how far a test centre s from the fingertip can move within a cell: s·chord, the chord
+        # of the angle from the cell's centre to its farthest corner (on the sphere of directions,
+        # the farthest point of a θ-α rectangle from its centre is a corner)
+        cos_far = np.minimum(np.sin(alpha) * np.sin(alpha + ha) + np.cos(alpha) * np.cos(alpha + ha) * np.cos(ht),
+                             np.sin(alpha) * np.sin(alpha - ha) + np.cos(alpha) * np.cos(alpha - ha) * np.cos(ht))
+        delta = np.sqrt(np.maximum(2.0 - 2.0 * cos_far, 0.0))  # chord length of a unit vector
         h = _directions(u[rows], e1[rows], e2[rows], theta, alpha)
         # first the sphere that bounded the parent: most cells that can be dropped are dropped by it
         has_hint = hint >= 0
@@ -288,9 +343,9 @@ def _search_band(context, tips, u, e1, e2, pending, hand, offsets, rho, cap):
             f, j = np.divmod(hint[i], len(offsets))
             centre = tips[rows[i], f] + offsets[j][:, None] * h[i]
             d1, _ = tree.query(centre, k=1, distance_upper_bound=cap, workers=-1)
-            live[i] = np.minimum(d1, cap) + offsets[j] * delta >= rho
+            live[i] = np.minimum(d1, cap) + offsets[j] * delta[i] >= rho
         idx = np.flatnonzero(live)
-        d = _axis_distances(tree, tips[rows[idx]], h[idx], offsets, cap).reshape(len(idx), 2 * len(offsets))
+        d = _axis_distances(tree, tips[rows[idx]], h[idx], offsets, cap, rho, delta[idx]).reshape(len(idx), 2 * len(offsets))
         margin = d.min(axis=1) - hand.finger_radius_mm
         fits = (d >= rho).all(axis=1)
         clears = fits.copy()
@@ -307,10 +362,10 @@ def _search_band(context, tips, u, e1, e2, pending, hand, offsets, rho, cap):
             out_h.append(h[idx[hit]])
             out_margin.append(margin[hit])
             decided[rows[idx[hit]]] = True
-        if length * delta <= hand.tolerance_mm:
+        if length * delta.max() <= hand.tolerance_mm:
             break
         # a cell can hold a clearing direction only if every test sphere could move clear
-        slack = d + flat_offsets[None, :] * delta
+        slack = d + flat_offsets[None, :] * delta[idx, None]
         bound = slack.min(axis=1)
         # a finger that fits where the hand behind it does not get out is not refined: the
         # hand's line is tested at cell centres only

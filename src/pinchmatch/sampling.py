@@ -16,14 +16,13 @@ its distances to every earlier pick, so the result stays spread.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
-
 import numpy as np
 
 from .curvature import tangent_frame
 from .errors import NoFeasiblePinchError
 from .pinches import (PREFILTER_MARGIN_DEG, RULES, PinchSettings, Pinches, assemble, cheap_broken,
                       concat_pinches, patches, reach_rule, rule_table)
+from .spread import Pool
 from .surface import SurfaceContext
 
 log = logging.getLogger(__name__)
@@ -57,89 +56,6 @@ def _cone_directions(normals: np.ndarray, half_angle_deg: float, rng) -> np.ndar
     phi = rng.random(n) * 2.0 * np.pi
     t1, t2 = tangent_frame(normals)
     return -(cos_t[:, None] * normals + sin_t[:, None] * (np.cos(phi)[:, None] * t1 + np.sin(phi)[:, None] * t2))
-
-
-def _pair_vectors(points: np.ndarray):
-    """Centred 6-vectors of pinches in both finger orders, for the spread distance."""
-    n = len(points)
-    return points.reshape(n, 6), points[:, ::-1].reshape(n, 6)
-
-
-def spread_order(points: np.ndarray, count: int, nearest: np.ndarray | None = None):
-    """Farthest-point order of pinches, treating (p1, p2) and (p2, p1) as the same.
-
-    points : (n, 2, 3). Each next pick is the pinch farthest from all picked
-    so far, so any prefix covers the graspable regions evenly, without clumps.
-
-    Returns ``(chosen, nearest)``: the indices of up to ``count`` new picks
-    and each pinch's squared distance to its nearest pick (-1 for picks).
-    Pass ``nearest`` back in to continue the same order.
-    """
-    n = len(points)
-    a, b = _pair_vectors(points - points.reshape(-1, 3).mean(axis=0))
-    sq = (a * a).sum(axis=1)  # same for both finger orders
-    if nearest is None:
-        nearest = np.full(n, np.inf)
-        current = 0
-    else:
-        nearest = nearest.copy()
-        current = int(np.argmax(nearest))
-    count = min(count, int((nearest >= 0).sum()))
-    chosen = np.empty(count, dtype=np.int64)
-    for i in range(count):
-        chosen[i] = current
-        q = a[current]
-        # |x - q|² = |x|² + |q|² - 2 x·q, with the better of the two finger orders
-        d = sq + sq[current] - 2.0 * np.maximum(a @ q, b @ q)
-        np.minimum(nearest, d, out=nearest)
-        nearest[current] = -1.0
-        current = int(np.argmax(nearest))
-    return chosen, nearest
-
-
-def _nearest_to(points: np.ndarray, picked: np.ndarray) -> np.ndarray:
-    """Squared spread distance from each pinch to the nearest of ``picked`` (inf when none)."""
-    out = np.full(len(points), np.inf)
-    if len(picked) == 0 or len(points) == 0:
-        return out
-    origin = points.reshape(-1, 3).mean(axis=0)
-    a, b = _pair_vectors(points - origin)
-    q, _ = _pair_vectors(picked - origin)
-    sq_a, sq_q = (a * a).sum(axis=1), (q * q).sum(axis=1)
-    for s in range(0, len(q), 2048):
-        block = q[s:s + 2048]
-        d = sq_a[:, None] + sq_q[None, s:s + 2048] - 2.0 * np.maximum(a @ block.T, b @ block.T)
-        np.minimum(out, d.min(axis=1), out=out)
-    return out
-
-
-@dataclass
-class _Pool:
-    """Candidates that passed the cheap rules, with their spread distance to every pick so far."""
-
-    points: np.ndarray
-    faces: np.ndarray
-    nearest: np.ndarray  # squared spread distance to the nearest pick, -1 once picked
-
-    @classmethod
-    def empty(cls) -> "_Pool":
-        return cls(np.zeros((0, 2, 3)), np.zeros((0, 2), np.int64), np.zeros(0))
-
-    def add(self, points, faces, picked_points):
-        self.nearest = np.concatenate([self.nearest, _nearest_to(points, picked_points)])
-        self.points = np.concatenate([self.points, points])
-        self.faces = np.concatenate([self.faces, faces])
-
-    def pick(self, count: int) -> np.ndarray:
-        if len(self.points) == 0 or count <= 0:
-            return np.zeros(0, np.int64)
-        order, self.nearest = spread_order(self.points, count, self.nearest)
-        return order
-
-    def saw(self, picked_points):
-        """Picks made from another pool count for this one's spread too."""
-        live = self.nearest >= 0
-        self.nearest[live] = np.minimum(self.nearest[live], _nearest_to(self.points[live], picked_points))
 
 
 def _draw(context, p1, face1, settings, rng, rejected):
@@ -231,8 +147,8 @@ def sample_pinches(
     drawn = n_first
     if len(points) == 0:
         raise NoFeasiblePinchError(_no_pinch_message(source, drawn, rejected, settings))
-    uniform = _Pool(points, faces, np.full(len(points), np.inf))
-    local = _Pool.empty()
+    uniform = Pool(points, faces, np.full(len(points), np.inf))
+    local = Pool.empty()
 
     parts: list[Pinches] = []
     picked = np.zeros((0, 2, 3))

@@ -1,0 +1,175 @@
+"""Spreading pinches: a farthest-point order over the pinch space.
+
+A pinch is a point (p1, p2) in 6-D, the same pinch as (p2, p1). Taking next
+always the pinch farthest from all taken so far makes every prefix of the
+order cover the graspable regions evenly, without clumps; a :class:`Pool`
+keeps each candidate's distance to its nearest pick, so that later rounds of
+:mod:`sampling`, and candidates added between rounds, continue one order.
+
+The farthest-point loop is compiled with numba (cached on disk next to this
+file): one pass over the candidates per pick, with no temporary arrays.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import math
+
+import numpy as np
+from numba import njit
+from scipy.spatial import cKDTree
+
+#: pinches per block of the farthest-point loop (a block is skipped when no pick comes near it)
+BLOCK = 64
+
+
+def _pair_vectors(points: np.ndarray):
+    """Centred 6-vectors of pinches in both finger orders, for the spread distance."""
+    n = len(points)
+    return points.reshape(n, 6), points[:, ::-1].reshape(n, 6)
+
+
+def spread_order(points: np.ndarray, count: int, nearest: np.ndarray | None = None):
+    """Farthest-point order of pinches, treating (p1, p2) and (p2, p1) as the same.
+
+    points : (n, 2, 3). Each next pick is the pinch farthest from all picked
+    so far, so any prefix covers the graspable regions evenly, without clumps.
+
+    Returns ``(chosen, nearest)``: the indices of up to ``count`` new picks
+    and each pinch's squared distance to its nearest pick (-1 for picks).
+    Pass ``nearest`` back in to continue the same order. Ties go to the
+    lowest index.
+    """
+    n = len(points)
+    a, b = _pair_vectors(points - points.reshape(-1, 3).mean(axis=0))
+    sq = (a * a).sum(axis=1)  # same for both finger orders
+    if nearest is None:
+        nearest = np.full(n, np.inf)
+        current = 0
+    else:
+        nearest = nearest.copy()
+        current = int(np.argmax(nearest))
+    count = min(count, int((nearest >= 0).sum()))
+    chosen = np.empty(count, dtype=np.int64)
+    if count == 0:
+        return chosen, nearest
+    # blocks of nearby pinches, in the order of a KD-tree's leaves over one finger order
+    perm = cKDTree(a, leafsize=BLOCK // 2).indices.astype(np.int64) if n > BLOCK else np.arange(n)
+    ap, bp = np.ascontiguousarray(a[perm]), np.ascontiguousarray(b[perm])
+    starts = np.arange(0, n + BLOCK, BLOCK).clip(max=n)
+    starts = starts[np.r_[True, np.diff(starts) > 0]]
+    centre = np.add.reduceat(ap, starts[:-1]) / np.diff(starts)[:, None]
+    member = np.repeat(np.arange(len(starts) - 1), np.diff(starts))
+    # the spread distance is a metric (both finger orders are the same pinch), so a block
+    # whose centre is farther from a new pick than its radius plus the square root of its
+    # largest nearest distance holds no pinch that the pick comes nearer to
+    to_centre = np.minimum(np.linalg.norm(ap - centre[member], axis=1), np.linalg.norm(bp - centre[member], axis=1))
+    radius = np.maximum.reduceat(to_centre, starts[:-1])
+    slack = 1e-9 * float(sq.max()) + 1e-12  # the rounding of |x|² + |q|² - 2 x·q
+    nearest_p = nearest[perm]
+    _farthest(ap, bp, sq[perm], nearest_p, int(np.flatnonzero(perm == current)[0]), chosen,
+              perm, starts, centre, radius, slack)
+    nearest[perm] = nearest_p
+    return perm[chosen], nearest
+
+
+@njit(cache=True, nogil=True)
+def _block_max(nearest, perm, lo, hi):
+    """Largest value in nearest[lo:hi] and where (the lowest original index among equals)."""
+    best = lo
+    for j in range(lo + 1, hi):
+        if nearest[j] > nearest[best] or (nearest[j] == nearest[best] and perm[j] < perm[best]):
+            best = j
+    return nearest[best], best
+
+
+@njit(cache=True, nogil=True)
+def _farthest(a, b, sq, nearest, current, chosen, perm, starts, centre, radius, slack):
+    """The farthest-point loop over pinches in block order: ``len(chosen)`` picks from ``current``
+    on, updating ``nearest``; blocks that the pick cannot come nearer to are skipped."""
+    blocks = len(starts) - 1
+    top = np.empty(blocks)
+    top_at = np.empty(blocks, np.int64)
+    for k in range(blocks):
+        top[k], top_at[k] = _block_max(nearest, perm, starts[k], starts[k + 1])
+    for i in range(len(chosen)):
+        chosen[i] = current
+        q = a[current]
+        r = b[current]
+        sq_q = sq[current]
+        for k in range(blocks):
+            if top[k] < 0.0:
+                continue  # every pinch of the block is picked
+            da = 0.0
+            db = 0.0
+            for c in range(6):
+                da += (centre[k, c] - q[c]) ** 2
+                db += (centre[k, c] - r[c]) ** 2
+            gap = math.sqrt(min(da, db)) - radius[k]
+            if gap > 0.0 and gap * gap > top[k] + slack:
+                continue
+            changed = False
+            for j in range(starts[k], starts[k + 1]):
+                # |x - q|² = |x|² + |q|² - 2 x·q, with the better of the two finger orders
+                dot_a = a[j, 0] * q[0] + a[j, 1] * q[1] + a[j, 2] * q[2] + a[j, 3] * q[3] + a[j, 4] * q[4] + a[j, 5] * q[5]
+                dot_b = b[j, 0] * q[0] + b[j, 1] * q[1] + b[j, 2] * q[2] + b[j, 3] * q[3] + b[j, 4] * q[4] + b[j, 5] * q[5]
+                d = sq[j] + sq_q - 2.0 * max(dot_a, dot_b)
+                if d < nearest[j]:
+                    nearest[j] = d
+                    changed = True
+            if changed:
+                top[k], top_at[k] = _block_max(nearest, perm, starts[k], starts[k + 1])
+        nearest[current] = -1.0
+        k = np.searchsorted(starts, current, side="right") - 1
+        top[k], top_at[k] = _block_max(nearest, perm, starts[k], starts[k + 1])
+        best = 0
+        for k in range(1, blocks):
+            if top[k] > top[best] or (top[k] == top[best] and perm[top_at[k]] < perm[top_at[best]]):
+                best = k
+        current = top_at[best]
+
+
+def _nearest_to(points: np.ndarray, picked: np.ndarray) -> np.ndarray:
+    """Squared spread distance from each pinch to the nearest of ``picked`` (inf when none)."""
+    out = np.full(len(points), np.inf)
+    if len(picked) == 0 or len(points) == 0:
+        return out
+    origin = points.reshape(-1, 3).mean(axis=0)
+    a, b = _pair_vectors(points - origin)
+    q, _ = _pair_vectors(picked - origin)
+    sq_a, sq_q = (a * a).sum(axis=1), (q * q).sum(axis=1)
+    for s in range(0, len(q), 2048):
+        block = q[s:s + 2048]
+        d = sq_a[:, None] + sq_q[None, s:s + 2048] - 2.0 * np.maximum(a @ block.T, b @ block.T)
+        np.minimum(out, d.min(axis=1), out=out)
+    return out
+
+
+@dataclass
+class Pool:
+    """Candidates that passed the cheap rules, with their spread distance to every pick so far."""
+
+    points: np.ndarray
+    faces: np.ndarray
+    nearest: np.ndarray  # squared spread distance to the nearest pick, -1 once picked
+
+    @classmethod
+    def empty(cls) -> "Pool":
+        return cls(np.zeros((0, 2, 3)), np.zeros((0, 2), np.int64), np.zeros(0))
+
+    def add(self, points, faces, picked_points):
+        self.nearest = np.concatenate([self.nearest, _nearest_to(points, picked_points)])
+        self.points = np.concatenate([self.points, points])
+        self.faces = np.concatenate([self.faces, faces])
+
+    def pick(self, count: int) -> np.ndarray:
+        if len(self.points) == 0 or count <= 0:
+            return np.zeros(0, np.int64)
+        order, self.nearest = spread_order(self.points, count, self.nearest)
+        return order
+
+    def saw(self, picked_points):
+        """Picks made from another pool count for this one's spread too."""
+        live = self.nearest >= 0
+        self.nearest[live] = np.minimum(self.nearest[live], _nearest_to(self.points[live], picked_points))
