@@ -154,7 +154,7 @@ def test_each_bad_file_fails_cleanly(tmp_path, capsys):
     (["--units", "ft"], "invalid choice: 'ft'"),
     (["--com", "1,2"], "--com: expected three finite numbers"),
     (["--axis", "0,0,0"], "--axis: the axis must be a non-zero vector"),
-    (["--bogus"], "unrecognized arguments: --bogus"),
+    (["--bogus"], "unknown option --bogus"),
 ])
 def test_bad_options_fail_cleanly(tmp_path, capsys, argv, expected):
     out = tmp_path / "o.json"

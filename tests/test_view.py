@@ -171,6 +171,8 @@ def test_view_cli_rewrites_the_page(demo_out, tmp_path, capsys):
     ("bad json", "matches.json: not valid JSON"),
     ("other schema", "not a pinchmatch matches document"),
     ("no scene", "scene missing for"),
+    ("missing field", "field 'cost' is missing or malformed"),
+    ("wrong kind", "is missing or malformed"),
 ])
 def test_view_cli_fails_cleanly(demo_out, tmp_path, capsys, damage, message):
     out = tmp_path / "run"
@@ -185,6 +187,13 @@ def test_view_cli_fails_cleanly(demo_out, tmp_path, capsys, damage, message):
         (out / "matches.json").write_text('{"schema": "pinchmatch.study/1"}')
     elif damage == "no scene":
         next((out / "scenes").glob("*.glb")).unlink()
+    elif damage in ("missing field", "wrong kind"):
+        doc = json.loads((out / "matches.json").read_text())
+        if damage == "missing field":
+            del doc["matches"][0]["cost"]
+        else:
+            doc["matches"][0]["criteria"] = [1, 2]
+        (out / "matches.json").write_text(json.dumps(doc))
     code, stdout, err = run(capsys, "view", out)
     assert code == 2 and message in err and "Traceback" not in err
     assert len(err.strip().splitlines()) == 1
@@ -204,3 +213,55 @@ def test_view_serve_binds_loopback_and_serves_the_page(demo_out):
     finally:
         proc.terminate()
         proc.wait(timeout=10)
+
+
+def test_names_cannot_end_the_script_element(demo_out, tmp_path):
+    """An object named like markup stays text: the page's data element parses back to the names."""
+    from pinchmatch.view import render_page
+
+    doc = read_matches(demo_out)
+    evil = "<!--<script>x</script>&\u2028.stl"
+    doc["matches"][0]["virtual"] = evil
+    html = render_page(page_data(demo_out, doc))
+    start = html.index('id="pinchmatch-data"')
+    body = html[html.index(">", start) + 1:html.index("</script>", start)]
+    assert "<" not in body and ">" not in body and "&" not in body
+    assert json.loads(body)["matches"][0]["virtual"] == evil
+
+
+def _get(url, host=None):
+    request = urllib.request.Request(url, headers={"Host": host} if host else {})
+    try:
+        with urllib.request.urlopen(request, timeout=10) as response:
+            return response.status, response.read()
+    except urllib.error.HTTPError as exc:
+        return exc.code, b""
+
+
+def test_serve_answers_only_its_own_host_lists_no_folder_and_follows_no_link_out(demo_out, tmp_path):
+    import threading
+
+    from pinchmatch.view import make_server
+
+    out = tmp_path / "run"
+    shutil.copytree(demo_out, out)
+    secret = tmp_path / "secret.txt"
+    secret.write_text("not yours")
+    (out / "link.txt").symlink_to(secret)
+    (out / "scenes" / "up").symlink_to(tmp_path, target_is_directory=True)
+    server = make_server(out)
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    try:
+        port = server.server_address[1]
+        base = f"http://127.0.0.1:{port}"
+        assert _get(f"{base}/index.html")[0] == 200
+        assert _get(f"{base}/index.html", host=f"localhost:{port}")[0] == 200
+        assert _get(f"{base}/index.html", host=f"attacker.example:{port}")[0] == 403
+        assert _get(f"{base}/index.html", host="127.0.0.1")[0] == 403  # another port
+        assert _get(f"{base}/scenes/")[0] == 404
+        assert _get(f"{base}/link.txt")[0] == 404
+        assert _get(f"{base}/scenes/up/secret.txt")[0] == 404
+        assert _get(f"{base}/../secret.txt")[0] == 404
+    finally:
+        server.shutdown()
+        server.server_close()

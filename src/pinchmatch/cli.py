@@ -10,6 +10,7 @@ and ``matches.json``), 1 unexpected error (a traceback only with
 from __future__ import annotations
 
 import argparse
+import difflib
 import logging
 import re
 import sys
@@ -31,9 +32,9 @@ from .match import MatchSettings
 from .properties import parse_vector
 from ._console import Presenter
 from .report import (features_document, matches_document, matches_rows, poses_csv, poses_document,
-                     study_document, study_rows, to_json, write_atomic)
+                     scene_stems, study_document, study_rows, to_json, write_atomic)
 from .run import Job, MatchesSink, ObjectTask, RunError, default_jobs, executor, run_match
-from .scenes import scene_stems, write_scenes
+from .scenes import write_scenes
 from .study import ORDERS, run_study
 from .view import make_server, write_page
 
@@ -51,10 +52,34 @@ def example_mesh_path() -> Path:
 
 
 class _Parser(argparse.ArgumentParser):
-    """argparse that raises ConfigError instead of printing usage and exiting."""
+    """argparse that raises ConfigError instead of printing usage and exiting, and never takes
+    an abbreviation or a misspelling for another option."""
+
+    def __init__(self, *args, **kwargs):
+        kwargs.setdefault("allow_abbrev", False)
+        super().__init__(*args, **kwargs)
 
     def error(self, message):
         raise ConfigError(f"{self.prog}: {message}; see '{self.prog} --help'")
+
+
+def _check_option_names(parser: argparse.ArgumentParser, argv: list[str]) -> None:
+    """Refuse an unknown long option first, naming the closest known one (argparse would
+    report a missing required option before it, or take ``--unit`` for ``--units``)."""
+    commands = next(a.choices for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    words = [t for t in argv if not t.startswith("-")]
+    if not words or words[0] not in commands:
+        return
+    sub = commands[words[0]]
+    known = [o for o in sub._option_string_actions if o.startswith("--")]
+    for token in argv[argv.index(words[0]) + 1:]:
+        if token == "--":
+            break
+        name = token.split("=", 1)[0]
+        if name.startswith("--") and name not in known:
+            close = difflib.get_close_matches(name, known, n=1)
+            hint = f"did you mean {close[0]}? " if close else ""
+            raise ConfigError(f"{sub.prog}: unknown option {name}; {hint}see '{sub.prog} --help'")
 
 
 def _join_vector_values(argv: list[str]) -> list[str]:
@@ -452,7 +477,7 @@ def _cmd_demo(args) -> int:
     t1 = time.perf_counter()
     common = {**settings.as_dict(), "candidate_virtual_poses": "17 heights and all sampled" if args.full else "17 heights"}
     study_doc = study_document(study, {**common, **MatchSettings().as_dict()})
-    matches_doc = matches_document(study.scene, {**common, **MatchSettings().as_dict()})
+    matches_doc = matches_document(study.scene, {**common, **MatchSettings().as_dict()}, figures=not args.no_figures)
     write_atomic(out / "study.json", to_json(study_doc))
     write_atomic(out / "matches.json", to_json(matches_doc))
     written = [f"{out / 'study.json'}", f"{out / 'matches.json'}"]
@@ -499,7 +524,9 @@ def main(argv: list[str] | None = None) -> int:
     verbose = "-v" in argv or "--verbose" in argv
     logging.basicConfig(level=logging.INFO if verbose else logging.WARNING, format="%(name)s: %(message)s")
     try:
-        args = build_parser().parse_args(_join_vector_values(argv))
+        parser = build_parser()
+        _check_option_names(parser, argv)
+        args = parser.parse_args(_join_vector_values(argv))
         if args.command is None:
             build_parser().print_help()
             return 2

@@ -75,29 +75,49 @@ def feature_table(features: PinchFeatures) -> np.ndarray:
 
 
 def parse_weights(text: str | None, *, criteria: tuple = CRITERIA) -> dict[str, float]:
-    """Parse ``"width=1,com=0.5"`` into weights for every criterion (default 1).
-
-    Criteria outside ``criteria`` (for instance ``mass`` with ``--criteria paper``)
-    get weight 0 and may not be given.
-    """
-    weights = {c: (1.0 if c in criteria else 0.0) for c in CRITERIA}
-    if not text:
-        return weights
-    for item in str(text).split(","):
+    """Parse ``"width=1,com=0.5"`` into the weights given, checked by :func:`complete_weights`."""
+    given: dict[str, float] = {}
+    for item in str(text or "").split(","):
+        if not item.strip():
+            continue
         name, sep, value = item.partition("=")
         name = name.strip()
+        if name in given:
+            raise ConfigError(f"--weights: {name!r} is named twice; give each criterion once")
+        try:
+            w = float(value) if sep else float("nan")
+        except ValueError:
+            raise ConfigError(f"--weights: {item.strip()!r} needs a weight of 0 or more, as {name}=1") from None
+        given[name] = w
+    return complete_weights(given, criteria=criteria)
+
+
+def complete_weights(given: dict, *, criteria: tuple = CRITERIA) -> dict[str, float]:
+    """Weights for every criterion: those given, 1 for the other criteria in use, 0 for criteria
+    not in use. The one rule for the library's :class:`match.MatchSettings` and ``--weights``.
+
+    Refused: unknown or misspelt names, criteria not in use (unless given as 0), weights that
+    are negative or not finite, and weights that are all zero (nothing would be compared).
+    """
+    weights = {c: (1.0 if c in criteria else 0.0) for c in CRITERIA}
+    for name, w in given.items():
+        if name in CRITERIA and name not in criteria and w == 0:
+            continue  # a criterion not in use, given as off
         if name not in criteria:
-            close = difflib.get_close_matches(name, criteria, n=1)
+            close = difflib.get_close_matches(str(name), criteria, n=1)
             hint = f"did you mean {close[0]!r}? " if close else ""
             extra = " (not part of --criteria paper)" if name in CRITERIA else ""
             raise ConfigError(f"--weights: unknown criterion {name!r}{extra}; {hint}valid: {', '.join(criteria)}")
         try:
-            w = float(value)
-        except ValueError:
+            w = float(w)
+        except (TypeError, ValueError):
             w = float("nan")
-        if not sep or not np.isfinite(w) or w < 0:
-            raise ConfigError(f"--weights: {item.strip()!r} needs a weight of 0 or more, as {name}=1")
+        if not np.isfinite(w) or w < 0:
+            raise ConfigError(f"--weights: {name}={given[name]!r} needs a weight of 0 or more, as {name}=1")
         weights[name] = w
+    if not any(weights[c] > 0 for c in criteria):
+        raise ConfigError("--weights: every weight is 0, so nothing would be compared; give at least one "
+                          "criterion a positive weight")
     return weights
 
 

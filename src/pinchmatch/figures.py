@@ -21,8 +21,7 @@ from matplotlib.colors import LogNorm
 from matplotlib.figure import Figure
 from matplotlib.patches import Rectangle
 
-from .report import write_atomic
-from .scenes import scene_stems
+from .report import figure_file, scene_stems, write_atomic
 
 log = logging.getLogger(__name__)
 
@@ -185,10 +184,10 @@ def write_figures(out: Path, document: dict, *, study=None, progress=None) -> li
             progress(path)
 
     save(cost_matrix_figure(document), folder / "cost_matrix.png")
-    stems = scene_stems([m["virtual"] for m in document["matches"]])
+    stems = scene_stems([m["virtual"] for m in document["matches"]])  # documents that name no figure file
     for stem, match in zip(stems, document["matches"]):
         if match.get("tangible") is not None:
-            save(criteria_figure(match), folder / "criteria" / f"{stem}.png")
+            save(criteria_figure(match), folder.parent / (match.get("figure_file") or figure_file(stem)))
     if study is not None:
         save(study_figure(study.tangible.obj.loaded.mesh, study.tangible.pinches.points,
                           [v.obj.loaded.mesh for v in study.virtuals], study.rows),

@@ -34,8 +34,8 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from .analysis import ObjectAnalysis, find_pinches, score_pinches
-from .cost import (CRITERIA, CostModel, feature_ranges, feature_table, mass_term, pair_cost_blocks,
-                   separable_terms, total)
+from .cost import (CRITERIA, PAPER_CRITERIA, CostModel, complete_weights, feature_ranges, feature_table,
+                   mass_term, pair_cost_blocks, separable_terms, total)
 from .errors import ConfigError, NoFeasiblePinchError
 from .features import PinchFeatures, pinch_features
 from .pinches import PinchSettings, Pinches, concat_pinches, check_pinches
@@ -71,6 +71,11 @@ class MatchSettings:
     block_rows: int = 2048
 
     def __post_init__(self):
+        if tuple(self.criteria) not in (CRITERIA, PAPER_CRITERIA):
+            raise ConfigError(f"criteria: {self.criteria!r} is neither the default set ({', '.join(CRITERIA)}) "
+                              f"nor the paper's ({', '.join(PAPER_CRITERIA)})")
+        object.__setattr__(self, "criteria", tuple(self.criteria))
+        object.__setattr__(self, "weights", complete_weights(dict(self.weights), criteria=self.criteria))
         if not isinstance(self.top_k, int) or self.top_k < 0:
             raise ConfigError(f"--top-k: {self.top_k!r} must be a whole number of 0 or more")
         if not np.isfinite(self.distinct_mm) or self.distinct_mm < 0:

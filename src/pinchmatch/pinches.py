@@ -50,6 +50,16 @@ RULES = ("surface", "width", "antipodal", "clearance", "reach", "patch")
 CLEARANCE_TOLERANCE_MM = PAD_TOLERANCE_MM
 #: pre-filter margin on the friction cone with triangle normals, before patch normals exist
 PREFILTER_MARGIN_DEG = 2.0
+#: fingertip radii a hand (or a gloved hand, or a stylus-like tool) has: 2-25 mm
+FINGERTIP_RADIUS_RANGE_MM = (2.0, 25.0)
+#: the widest thumb-index pinch of a large adult hand, with margin (mm)
+MAX_WIDTH_MM = 300.0
+#: pinches per object at most: memory grows with the count (about 40 candidates are drawn per pinch)
+MAX_COUNT = 100_000
+
+
+def _whole(value) -> bool:
+    return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
 
 
 @dataclass(frozen=True)
@@ -69,24 +79,31 @@ class PinchSettings:
     approach_tilt_deg: float = 30.0
 
     def __post_init__(self):
+        lo, hi = FINGERTIP_RADIUS_RANGE_MM
         checks = [
             ("--friction-cone-deg", self.friction_cone_deg, 0.0 < self.friction_cone_deg < 90.0, "between 0 and 90 (exclusive)"),
             ("--min-width-mm", self.min_width_mm, self.min_width_mm >= 0.0, "0 or more"),
-            ("--max-width-mm", self.max_width_mm, self.max_width_mm > self.min_width_mm, "larger than --min-width-mm"),
-            ("--fingertip-radius-mm", self.fingertip_radius_mm, self.fingertip_radius_mm > 0.0, "positive"),
-            ("--patch-radius-mm", self.patch_radius_mm, self.patch_radius_mm > 0.0, "positive"),
-            ("--count", self.count, int(self.count) == self.count and self.count >= 1, "a whole number of 1 or more"),
+            ("--max-width-mm", self.max_width_mm, self.min_width_mm < self.max_width_mm <= MAX_WIDTH_MM,
+             f"larger than --min-width-mm and at most {MAX_WIDTH_MM:g} (a thumb-index pinch spans at most a hand)"),
+            ("--fingertip-radius-mm", self.fingertip_radius_mm, lo <= self.fingertip_radius_mm <= hi,
+             f"between {lo:g} and {hi:g} (a child's to a large adult's finger pad, with room for gloves and tools)"),
+            ("--patch-radius-mm", self.patch_radius_mm, 0.5 <= self.patch_radius_mm <= 50.0,
+             "between 0.5 and 50 (what a fingertip pad touches)"),
+            ("--count", self.count, _whole(self.count) and 1 <= self.count <= MAX_COUNT,
+             f"a whole number from 1 to {MAX_COUNT:,} (memory grows with it; match objects in several runs instead)"),
+            ("--seed", self.seed, _whole(self.seed) and 0 <= self.seed < 2**63, "a whole number of 0 or more"),
             ("--snap-tolerance-mm", self.snap_tolerance_mm, self.snap_tolerance_mm > 0.0, "positive"),
             ("--finger-radius-mm", self.finger_radius_mm,
              CLEARANCE_TOLERANCE_MM < self.finger_radius_mm <= self.fingertip_radius_mm,
              f"more than {CLEARANCE_TOLERANCE_MM:g} and at most --fingertip-radius-mm (the finger starts "
              "at the fingertip sphere's centre)"),
-            ("--finger-length-mm", self.finger_length_mm, 0.0 < self.finger_length_mm <= 500.0, "between 0 and 500"),
+            ("--finger-length-mm", self.finger_length_mm, 5.0 <= self.finger_length_mm <= 150.0,
+             "between 5 and 150 (a fingertip alone to a whole finger)"),
             ("--approach-tilt-deg", self.approach_tilt_deg, 0.0 <= self.approach_tilt_deg < 90.0,
              "between 0 and 90 (0 included)"),
         ]
         for option, value, ok, want in checks:
-            if not (np.isfinite(value) and ok):
+            if not (ok and np.isfinite(float(value))):
                 raise ConfigError(f"{option}: got {value!r}; it must be {want}")
 
     @property

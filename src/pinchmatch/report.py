@@ -12,6 +12,7 @@ import io
 import json
 import math
 import os
+import re
 import tempfile
 from collections.abc import Iterable
 from pathlib import Path
@@ -292,11 +293,50 @@ def cost_matrix_section(virtual_names: list[str], tangible_names: list[str], val
             "values": [[_num(x, 6) for x in row] for row in values]}
 
 
-def matches_document(scene, settings: dict, *, failed: list | None = None, dump_poses: bool = False) -> dict:
-    """The ``pinchmatch match`` result (schema ``pinchmatch.matches/1``, docs/output-format.md)."""
+def scene_stems(virtual_names: list[str]) -> list[str]:
+    """File stems for the virtual objects' scenes and figures, unique by construction.
+
+    The name's stem, with characters that some file systems refuse (``<>:"/\\|?*``, control
+    characters) as ``_``; a stem already taken (case-insensitively: macOS and Windows fold case)
+    gets ``_2``, ``_3``, ... until it is free, in the order of the names. ``a.obj``, ``a.stl``,
+    ``a_2.stl`` give ``a``, ``a_2``, ``a_2_2``. ``matches.json`` records the file of each object's
+    scene and figure, so readers never derive them again.
+    """
+    taken: set[str] = set()
+    out = []
+    for name in virtual_names:
+        base = re.sub(r'[<>:"/\\|?*\x00-\x1f]', "_", Path(name).stem).strip(" .") or "object"
+        stem, k = base, 1
+        while stem.lower() in taken:
+            k += 1
+            stem = f"{base}_{k}"
+        taken.add(stem.lower())
+        out.append(stem)
+    return out
+
+
+def scene_file(stem: str) -> str:
+    """A scene's path inside OUT, as matches.json records it."""
+    return f"scenes/{stem}.glb"
+
+
+def figure_file(stem: str) -> str:
+    """A criteria figure's path inside OUT, as matches.json records it."""
+    return f"figures/criteria/{stem}.png"
+
+
+def matches_document(scene, settings: dict, *, failed: list | None = None, dump_poses: bool = False,
+                     figures: bool = True) -> dict:
+    """The ``pinchmatch match`` result (schema ``pinchmatch.matches/1``, docs/output-format.md); each
+    match names its scene's and criteria figure's files (``figures``: whether figures are written)."""
+    stems = scene_stems([v.name for v in scene.virtuals])
+    matches = [match_entry(scene, vm) for vm in scene.matches]
+    for stem, m in zip(stems, matches):
+        if m.get("tangible") is not None:
+            m.update(scene_file=scene_file(stem), figure_file=figure_file(stem) if figures else None)
     return matches_header(settings, [object_entry(c, dump_poses=dump_poses) for c in scene.tangibles]) | {
         "virtuals": [object_entry(c, dump_poses=dump_poses) for c in scene.virtuals],
-        "matches": [match_entry(scene, vm) for vm in scene.matches],
+        "matches": matches,
         "failed": list(failed or []),
         "cost_matrix": cost_matrix_section([v.name for v in scene.virtuals], [t.name for t in scene.tangibles],
                                            scene.cost_matrix),

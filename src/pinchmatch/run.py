@@ -41,8 +41,8 @@ from .cost import feature_bounds, ranges_from_bounds
 from .errors import ConfigError, PinchmatchError
 from .match import (Candidates, MatchSettings, allowed_tangibles, cost_model, cost_row, match_virtual, _Search)
 from .pinches import PinchSettings
-from .report import (SCHEMA_MATCH_LINES, _num, cost_matrix_section, match_entry, matches_header, matches_rows,
-                     object_entry, to_json, write_atomic)
+from .report import (SCHEMA_MATCH_LINES, _num, cost_matrix_section, figure_file, match_entry, matches_header,
+                     matches_rows, object_entry, scene_file, to_json, write_atomic)
 from .scenes import match_scene_glb
 
 log = logging.getLogger(__name__)
@@ -460,10 +460,12 @@ class MatchesSink:
     def add(self, k: int, r: VirtualResult) -> None:
         stem = self.stems[k]
         if r.scene_glb is not None:
-            write_atomic(self.out / "scenes" / f"{stem}.glb", r.scene_glb)
+            write_atomic(self.out / scene_file(stem), r.scene_glb)
+            r.match.update(scene_file=scene_file(stem), figure_file=None)
             self.scenes += 1
         if r.figure_png is not None:
-            write_atomic(self.out / "figures" / "criteria" / f"{stem}.png", r.figure_png)
+            write_atomic(self.out / figure_file(stem), r.figure_png)
+            r.match["figure_file"] = figure_file(stem)
         self.objects.append((r.name, "virtual", r.entry["faces"], r.entry["pose_count"]))
         self.rows += matches_rows({"matches": [r.match]})[1:]
         self._names.append(r.name)

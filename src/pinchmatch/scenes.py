@@ -27,7 +27,7 @@ from trimesh.visual.material import PBRMaterial
 from .hand import Hand
 from .match import contact_offset_mm
 from .register import _rotations_between
-from .report import write_atomic
+from .report import scene_stems, write_atomic
 
 #: the fingertip cones: tip on the contact, axis along the pinch line, outside the object
 CONE_HEIGHT_MM, CONE_RADIUS_MM = 20.0, 5.0
@@ -147,12 +147,6 @@ def match_scene_glb(tangible, virtual, choice, *, extras: dict | None = None, ha
                                  "source_up": tangible.obj.loaded.up_label,
                                  "file_mm_to_gltf_m": C.reshape(-1)}))
     return scene.export(file_type="glb")
-
-
-def scene_stems(virtual_names: list[str]) -> list[str]:
-    """File stems for the virtual objects' scenes and figures: the name's stem, numbered when two agree."""
-    stems = [Path(name).stem for name in virtual_names]
-    return [f"{s}_{k + 1}" if stems.count(s) > 1 else s for k, s in enumerate(stems)]
 
 
 def write_scenes(scene, folder, *, progress=None, hand: Hand = Hand()) -> list:

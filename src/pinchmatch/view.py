@@ -21,8 +21,7 @@ from pathlib import Path
 
 from . import __version__
 from .errors import ConfigError
-from .report import matches_from_lines, SCHEMA_MATCHES, write_atomic
-from .scenes import scene_stems
+from .report import SCHEMA_MATCHES, matches_from_lines, scene_file, scene_stems, write_atomic
 
 log = logging.getLogger(__name__)
 
@@ -61,22 +60,36 @@ def read_matches(out: Path) -> dict:
 
 
 def page_data(out: Path, document: dict) -> dict:
-    """What the page shows: one entry per match with its scene as base64 GLB, and the unmatched."""
-    out = Path(out)
+    """What the page shows: one entry per match with its scene as base64 GLB, and the unmatched.
+
+    A document with the right schema but a field missing or of the wrong kind is a ConfigError."""
+    try:
+        return _page_data(Path(out), document)
+    except (KeyError, TypeError, AttributeError, ValueError) as exc:
+        what = f"field {exc}" if isinstance(exc, KeyError) else f"a malformed field ({exc})"
+        raise ConfigError(f"{Path(out) / 'matches.json'}: {what} is missing or malformed; run pinchmatch "
+                          "again to rewrite it") from None
+
+
+def _page_data(out: Path, document: dict) -> dict:
     stems = scene_stems([m["virtual"] for m in document["matches"]])
     matches, unmatched = [], []
     for stem, m in zip(stems, document["matches"]):
         if m.get("tangible") is None:
             unmatched.append({"virtual": m["virtual"], "reason": m.get("reason")})
             continue
-        glb = out / "scenes" / f"{stem}.glb"
+        name = m.get("scene_file") or scene_file(stem)  # documents that name no scene file: derived
+        glb = out / name
+        if Path(name).is_absolute() or ".." in Path(name).parts:
+            raise ConfigError(f"{out / 'matches.json'}: scene file {name!r} of {m['virtual']} is not inside {out}; "
+                              "run pinchmatch again to rewrite it")
         if not glb.is_file():
             raise ConfigError(f"{glb}: scene missing for {m['virtual']}; run pinchmatch again with -o {out}")
         reference = m.get("reference") or {}
         matches.append({
             "virtual": m["virtual"],
             "tangible": m["tangible"],
-            "scene_file": f"scenes/{stem}.glb",
+            "scene_file": Path(name).as_posix(),
             "cost": m["cost"],
             "flipped": m["flipped"],
             "contact_offset_mm": m["contact_offset_mm"],
@@ -97,9 +110,15 @@ def page_data(out: Path, document: dict) -> dict:
     return {"version": document.get("version"), "summary": summary, "matches": matches, "unmatched": unmatched}
 
 
+#: characters that can end or change a <script> element's text, or a line of JavaScript, as JSON escapes
+_SCRIPT_ESCAPES = {"<": "\\u003c", ">": "\\u003e", "&": "\\u0026", "\u2028": "\\u2028", "\u2029": "\\u2029"}
+
+
 def _script_safe_json(data: dict) -> str:
-    """JSON that cannot end its <script> element early."""
-    return json.dumps(data, separators=(",", ":"), allow_nan=False).replace("</", "<\\/")
+    """JSON that reads the same but cannot end its <script> element early or open a comment
+    (``</script>``, ``<!--``), whatever the names in it."""
+    text = json.dumps(data, separators=(",", ":"), allow_nan=False)
+    return re.sub("[<>&\u2028\u2029]", lambda m: _SCRIPT_ESCAPES[m.group(0)], text)
 
 
 def render_page(data: dict, *, normalize: str = "jnd") -> str:
@@ -132,12 +151,40 @@ def write_page(out: Path, *, document: dict | None = None) -> Path:
     return path
 
 
-class _QuietHandler(http.server.SimpleHTTPRequestHandler):
+class _OutHandler(http.server.SimpleHTTPRequestHandler):
+    """Serves the files of OUT: only to requests addressed to this server (a Host header naming
+    another site is refused, against DNS rebinding), never a folder listing, and never a file
+    that a link leads to outside OUT."""
+
+    allowed_hosts: frozenset = frozenset()
+
     def log_message(self, format, *args):  # noqa: A002 - the base class's name
         log.info("%s %s", self.address_string(), format % args)
+
+    def send_head(self):
+        if self.headers.get("Host", "").lower() not in self.allowed_hosts:
+            self.send_error(403, "Host not served here")
+            return None
+        path = Path(self.translate_path(self.path))
+        root = Path(self.directory).resolve()
+        try:
+            inside = path.resolve().is_relative_to(root)
+        except OSError:
+            inside = False
+        if not inside or path.resolve().is_dir() and not (path / "index.html").is_file():
+            self.send_error(404, "File not found")
+            return None
+        return super().send_head()
+
+    def list_directory(self, path):
+        self.send_error(404, "File not found")
+        return None
 
 
 def make_server(out: Path, *, port: int = 0) -> http.server.ThreadingHTTPServer:
     """An HTTP server for ``OUT`` on 127.0.0.1 only; port 0 takes a free port."""
-    handler = functools.partial(_QuietHandler, directory=str(Path(out)))
-    return http.server.ThreadingHTTPServer(("127.0.0.1", port), handler)
+    handler = type("Handler", (_OutHandler,), {})
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", port), functools.partial(handler, directory=str(Path(out))))
+    bound = server.server_address[1]
+    handler.allowed_hosts = frozenset({f"127.0.0.1:{bound}", f"localhost:{bound}"})
+    return server

@@ -1,0 +1,111 @@
+"""The command line's contract under odd input: one line naming the problem, exit 2, nothing written."""
+
+import json
+
+import numpy as np
+import pytest
+import trimesh
+
+from pinchmatch.cli import example_mesh_path, main
+from pinchmatch.errors import ConfigError
+from pinchmatch.match import MatchSettings
+from pinchmatch.shapes import ellipsoid
+
+
+def run(capsys, *argv):
+    code = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def one_line(code, err, *words):
+    assert code == 2 and "Traceback" not in err, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    for word in words:
+        assert word in lines[0], lines[0]
+
+
+@pytest.mark.parametrize("command, argv, words", [
+    ("poses", ["--unit", "mm"], ["unknown option --unit", "did you mean --units?"]),
+    ("poses", ["--count=5", "--see", "1"], ["unknown option --see", "did you mean --seed?"]),
+    ("match", ["--tangibles", "x.stl", "--virtual", "y.stl"], ["unknown option --tangibles", "did you mean --tangible?"]),
+    ("poses", ["--seed", "-1"], ["--seed: got -1", "0 or more"]),
+    ("poses", ["--count", "10000000"], ["--count: got 10000000", "100,000"]),
+    ("poses", ["--fingertip-radius-mm", "1000"], ["--fingertip-radius-mm: got 1000.0", "between 2 and 25"]),
+    ("poses", ["--fingertip-radius-mm", "0.5"], ["--fingertip-radius-mm"]),
+    ("poses", ["--finger-length-mm", "1000"], ["--finger-length-mm: got 1000.0"]),
+    ("poses", ["--max-width-mm", "5000"], ["--max-width-mm: got 5000.0"]),
+    ("poses", ["--patch-radius-mm", "400"], ["--patch-radius-mm: got 400.0"]),
+    ("match", ["--weights", "width=1,width=2"], ["'width' is named twice"]),
+    ("match", ["--weights", "width=0,com=0,tilt=0,normal=0,axis=0,kmax=0,kmin=0,mass=0"], ["every weight is 0"]),
+    ("match", ["--criteria", "paper", "--weights", "width=0,com=0,tilt=0,normal=0,axis=0,kmax=0,kmin=0"],
+     ["every weight is 0"]),
+])
+def test_bad_options_are_refused_in_one_line(tmp_path, capsys, command, argv, words):
+    out = tmp_path / "out"
+    where = ["--example"] if command == "poses" else ["--tangible", example_mesh_path(), "--virtual",
+                                                      example_mesh_path()]
+    if command == "match" and argv[0] == "--tangibles":
+        where = []
+    code, _, err = run(capsys, command, *where, *argv, "-o", out)
+    one_line(code, err, *words)
+    assert not out.exists()
+
+
+def test_the_library_and_the_command_line_share_one_rule_for_weights():
+    assert MatchSettings(weights={"width": 2}).weights == {"width": 2.0, "com": 1.0, "tilt": 1.0, "normal": 1.0,
+                                                           "axis": 1.0, "kmax": 1.0, "kmin": 1.0, "mass": 1.0}
+    paper = ("width", "com", "tilt", "normal", "axis", "kmax", "kmin")
+    assert MatchSettings(weights={}, criteria=paper).weights["mass"] == 0.0
+    for weights, words in [({"widht": 1}, "did you mean 'width'"), ({"width": -1}, "0 or more"),
+                           ({"width": float("nan")}, "0 or more"), ({"tilt": "x"}, "0 or more"),
+                           (dict.fromkeys(paper + ("mass",), 0), "every weight is 0")]:
+        with pytest.raises(ConfigError, match=words):
+            MatchSettings(weights=weights)
+    with pytest.raises(ConfigError, match="mass"):
+        MatchSettings(weights={"mass": 1}, criteria=paper)
+    with pytest.raises(ConfigError, match="criteria"):
+        MatchSettings(criteria=("width",))
+
+
+def _egg(axes, seed):
+    return ellipsoid(axes, faces=1500, triangulation="random", seed=seed).mesh
+
+
+def test_output_names_are_unique_and_each_scene_holds_its_own_object(tmp_path, capsys):
+    """a.obj, a.stl and a_2.stl: three scenes, none overwritten, each with its own geometry."""
+    objects = tmp_path / "v"
+    objects.mkdir()
+    sizes = {"a.obj": (30.0, 20.0, 15.0), "a.stl": (40.0, 25.0, 18.0), "a_2.stl": (26.0, 26.0, 26.0)}
+    for k, (name, axes) in enumerate(sizes.items()):
+        _egg(axes, k).export(objects / name)
+    out = tmp_path / "out"
+    code, _, err = run(capsys, "match", "--tangible", example_mesh_path(), "--virtual", objects / "a.obj",
+                       objects / "a.stl", objects / "a_2.stl", "--count", 120, "-q", "-o", out)
+    assert code == 0, err
+    doc = json.loads((out / "matches.json").read_text())
+    files = [m["scene_file"] for m in doc["matches"]]
+    assert len(set(files)) == 3 and all((out / f).is_file() for f in files)
+    assert len({m["figure_file"] for m in doc["matches"]}) == 3
+    for m in doc["matches"]:
+        scene = trimesh.load(out / m["scene_file"], force="scene")
+        virtual = next(g for name, g in scene.geometry.items() if "virtual" in name)
+        extent = np.sort(virtual.extents)[::-1]
+        want = 2.0 * np.sort(sizes[m["virtual"]])[::-1] / 1000.0  # glTF is in metres
+        assert np.allclose(extent, want, rtol=0.05), (m["virtual"], extent, want)
+
+
+def test_a_failed_object_beside_one_of_the_same_stem_leaves_a_viewable_folder(tmp_path, capsys):
+    objects = tmp_path / "v"
+    objects.mkdir()
+    (objects / "a.obj").write_text("v 0 0 0\nthis is not a mesh\n")
+    _egg((30.0, 20.0, 15.0), 0).export(objects / "a.stl")
+    out = tmp_path / "out"
+    code, _, err = run(capsys, "match", "--tangible", example_mesh_path(), "--virtual", objects / "a.obj",
+                       objects / "a.stl", "--count", 120, "-q", "--no-figures", "-o", out)
+    assert code == 3, err
+    (out / "index.html").unlink()
+    code, _, err = run(capsys, "view", out, "-q")
+    assert code == 0, err
+    assert (out / "index.html").is_file()
