@@ -1,6 +1,7 @@
 import json
 import logging
 from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -188,3 +189,58 @@ def test_when_no_file_of_a_role_can_be_used_the_run_stops(tmp_path, capsys):
     empty.mkdir()
     code, _, err = run(capsys, "match", "--tangible", example_mesh_path(), "--virtual", empty, "-o", out)
     assert code == 2 and "names a folder with no mesh file" in err and len(err.strip().splitlines()) == 1
+
+
+def test_clear_deletes_only_what_the_cache_wrote(tmp_path, capsys, mesh_file):
+    folder = tmp_path / "mine"
+    cached_candidates(mesh_file, cache=FeatureCache(folder), settings=SETTINGS)
+    ours = next(folder.glob("*.npz"))
+    np.savez(folder / "results.npz", a=np.arange(3))  # a user's own files, in the same folder
+    (folder / "notes.tmp").write_text("mine")
+    (folder / ".hidden.tmp").write_text("mine too")
+    impostor = folder / ("ab" * 32 + ".npz")  # named like an entry, holding something else
+    np.savez(impostor, meta=np.array('{"format": 2, "key": "someone else"}'))
+    (folder / ("cd" * 32 + ".npz")).mkdir()  # a folder named like an entry
+    (folder / ".0123456789abcdef.x1y2.tmp").write_bytes(b"half an entry")  # the cache's own temporary
+    code, out, err = run(capsys, "cache", "clear", "--cache", folder)
+    assert code == 0 and "deleted 1 entries" in out, err
+    left = sorted(p.name for p in folder.iterdir())
+    assert left == sorted([".hidden.tmp", "notes.tmp", "results.npz", impostor.name, "cd" * 32 + ".npz"])
+    assert not ours.exists()
+
+
+def test_info_and_clear_on_a_file_say_so(tmp_path, capsys):
+    path = tmp_path / "results.npz"
+    path.write_bytes(b"user data")
+    for action in ("info", "clear"):
+        code, _, err = run(capsys, "cache", action, "--cache", path)
+        assert code == 2 and "a file, not a cache folder" in err and len(err.strip().splitlines()) == 1
+    assert path.read_bytes() == b"user data"
+
+
+def test_the_key_covers_the_algorithm(tmp_path, mesh_file, monkeypatch):
+    from pinchmatch import cache as cache_module
+
+    cache = FeatureCache(tmp_path / "c")
+    key = cache.key(mesh_file, units=None, up=None, patch_radius_mm=8.0, settings=SETTINGS)
+    assert {"jets", "hand", "sampling", "spread", "curvature", "features"} <= set(cache_module.ALGORITHM_MODULES)
+    monkeypatch.setattr(cache_module, "ALGORITHM_DIGEST", "0" * 64)  # as after an edit of any of those modules
+    assert cache.key(mesh_file, units=None, up=None, patch_radius_mm=8.0, settings=SETTINGS) != key
+    # the digest reads every listed module's source
+    for name in cache_module.ALGORITHM_MODULES:
+        assert (Path(cache_module.__file__).parent / f"{name}.py").is_file()
+
+
+def test_a_code_error_while_reading_an_entry_is_raised_not_a_miss(tmp_path, mesh_file, monkeypatch):
+    from pinchmatch import cache as cache_module
+
+    cache = FeatureCache(tmp_path / "c")
+    cached_candidates(mesh_file, cache=cache, settings=SETTINGS)
+
+    def broken(*args, **kwargs):
+        raise TypeError("a bug")
+
+    monkeypatch.setattr(cache_module, "_rebuild", broken)
+    with pytest.raises(TypeError, match="a bug"):
+        cached_candidates(mesh_file, cache=cache, settings=SETTINGS)
+    assert len(list(cache.folder.glob("*.npz"))) == 1  # the entry is not thrown away for a bug

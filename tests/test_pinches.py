@@ -143,8 +143,10 @@ def test_user_pinches_are_snapped_and_checked(box_ctx):
     assert given.broken.shape == (2, len(RULES))
 
 
-def test_without_embree_the_numpy_engine_gives_feasible_pinches(monkeypatch):
+def test_without_embree_the_numpy_engine_gives_feasible_pinches(monkeypatch, caplog):
     import builtins
+
+    from pinchmatch import surface
 
     real_import = builtins.__import__
 
@@ -154,9 +156,13 @@ def test_without_embree_the_numpy_engine_gives_feasible_pinches(monkeypatch):
         return real_import(name, *args, **kwargs)
 
     monkeypatch.setattr(builtins, "__import__", no_embree)
+    monkeypatch.setattr(surface, "_EMBREE", None)
     mesh = trimesh.creation.box(extents=(30.0, 20.0, 10.0)).subdivide_to_size(5.0)
-    ctx = SurfaceContext(mesh)
+    with caplog.at_level("WARNING", logger="pinchmatch.surface"):
+        ctx = SurfaceContext(mesh)
+        assert SurfaceContext(mesh).ray_engine_name == "numpy"
     assert ctx.ray_engine_name == "numpy"
+    assert caplog.text.count("embreex is not installed") == 1  # said once, at warning level
     pinches = sample_pinches(ctx, settings=PinchSettings(count=40, seed=0))
     assert len(pinches) == 40
     assert_rules_hold(mesh, pinches, PinchSettings())

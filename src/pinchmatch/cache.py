@@ -9,7 +9,12 @@ top-k, ...) are not in the key: tuning them reuses the entry.
 - Writes are atomic (a temporary file in the same folder, then ``os.replace``): a reader sees a whole
   entry or none, and two runs writing the same key write the same bytes.
 - An entry that cannot be read, or whose stored key, format or shapes do not match, is a miss: it is
-  deleted and computed again. A cache folder that cannot be written only loses the caching.
+  deleted and computed again. A cache folder that cannot be written only loses the caching. An error
+  of the code itself (not of the file) is raised, never turned into a miss.
+- The key covers the algorithm: ``ALGORITHM_DIGEST`` hashes the source of every module that shapes an
+  object's candidates, so an upgrade (or any edit) that could change them never reads an old entry.
+- ``clear`` deletes only what the cache wrote: files named ``<64 hex digits>.npz`` whose stored key is
+  their name, and its own temporaries; anything else in the folder is left alone.
 - A hit rebuilds exactly what a cold run computes (same arrays, bit for bit), so results do not
   depend on the cache.
 """
@@ -21,8 +26,11 @@ import hashlib
 import json
 import logging
 import os
+import re
 import tempfile
+import zipfile
 from dataclasses import dataclass
+from importlib import resources
 from pathlib import Path
 
 import numpy as np
@@ -34,14 +42,33 @@ from .features import PinchFeatures
 from .load import LoadedMesh, load_mesh
 from .match import Candidates, candidate_poses
 from .cost import feature_table
+from .errors import ConfigError
 from .pinches import ARRAY_FIELDS, PinchSettings, Pinches
 from .properties import object_properties
 from .surface import SurfaceContext
 
 log = logging.getLogger(__name__)
 
-#: bump when what an entry holds, or how candidates are computed, changes
-CACHE_FORMAT = 1
+#: bump when the layout of an entry changes (what it holds and how it is named)
+CACHE_FORMAT = 2
+#: modules whose code shapes an object's candidates: their source is part of every key
+ALGORITHM_MODULES = ("load", "surface", "curvature", "jets", "hand", "pinches", "sampling", "spread", "features",
+                     "properties", "analysis", "match", "cost", "cache")
+ENTRY_NAME = re.compile(r"^[0-9a-f]{64}\.npz$")
+TEMP_NAME = re.compile(r"^\.[0-9a-f]{16}\..+\.tmp$")
+#: what reading a damaged entry can raise; anything else is a bug and is raised
+DAMAGED = (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile)
+
+
+def _algorithm_digest() -> str:
+    h = hashlib.sha256()
+    for name in ALGORITHM_MODULES:
+        h.update(name.encode())
+        h.update((resources.files("pinchmatch") / f"{name}.py").read_bytes())
+    return h.hexdigest()
+
+
+ALGORITHM_DIGEST = _algorithm_digest()
 PINCH_ARRAYS = list(ARRAY_FIELDS)
 FEATURE_ARRAYS = [f.name for f in dataclasses.fields(PinchFeatures)]
 
@@ -89,7 +116,8 @@ class FeatureCache:
             settings: PinchSettings, given: tuple[np.ndarray, np.ndarray] | None = None) -> str:
         h = hashlib.sha256()
         h.update(_file_digest(Path(path)).encode())
-        h.update(json.dumps({"format": CACHE_FORMAT, "version": __version__, "suffix": Path(path).suffix.lower(),
+        h.update(json.dumps({"format": CACHE_FORMAT, "version": __version__, "algorithm": ALGORITHM_DIGEST,
+                             "suffix": Path(path).suffix.lower(),
                              "units": units, "up": up, "patch_radius_mm": float(patch_radius_mm),
                              "settings": settings.as_dict()}, sort_keys=True).encode())
         if given is not None:
@@ -106,16 +134,15 @@ class FeatureCache:
         if not entry.is_file():
             return None
         try:
-            with np.load(entry, allow_pickle=False) as z:
-                meta = json.loads(str(z["meta"]))
-                if meta["key"] != key or meta["format"] != CACHE_FORMAT:
-                    raise ValueError("the entry belongs to another key or format")
-                arrays = {name: z[name] for name in z.files if name != "meta"}
-            return _rebuild(meta, arrays, path, patch_radius_mm=patch_radius_mm)
-        except Exception as exc:  # any damage makes a miss, never a crash or a wrong result
+            meta, arrays = _read_entry(entry)
+            if meta["key"] != key:
+                raise ValueError("the entry belongs to another key")
+            _check_arrays(arrays)
+        except DAMAGED as exc:  # a damaged file is a miss, never a crash or a wrong result
             log.warning("cache entry %s unusable (%s: %s); computing again", entry.name, type(exc).__name__, exc)
             entry.unlink(missing_ok=True)
             return None
+        return _rebuild(meta, arrays, path, patch_radius_mm=patch_radius_mm)
 
     def store(self, key: str, candidates: Candidates) -> None:
         """Write the entry atomically; a folder that cannot be written is logged, not raised."""
@@ -134,18 +161,68 @@ class FeatureCache:
         except OSError as exc:
             log.warning("cannot write the cache in %s (%s); going on without it", self.folder, exc.strerror or exc)
 
+    def _check_folder(self) -> bool:
+        if self.folder.exists() and not self.folder.is_dir():
+            raise ConfigError(f"{self.folder}: a file, not a cache folder; give the folder with --cache")
+        return self.folder.is_dir()
+
+    def _entries(self) -> list[Path]:
+        """The entries this cache wrote: named by a key, a regular file, holding that key."""
+        out = []
+        for p in sorted(self.folder.iterdir()):
+            if not ENTRY_NAME.match(p.name) or p.is_symlink() or not p.is_file():
+                continue
+            try:
+                meta, _ = _read_entry(p, arrays=False)
+                ours = meta.get("key") == p.stem
+            except DAMAGED:
+                ours = False  # damaged, or a user's own file named like an entry: left alone
+            if ours:
+                out.append(p)
+        return out
+
     def info(self) -> CacheInfo:
-        entries = list(self.folder.glob("*.npz")) if self.folder.is_dir() else []
+        entries = self._entries() if self._check_folder() else []
         return CacheInfo(self.folder, len(entries), sum(p.stat().st_size for p in entries))
 
     def clear(self) -> int:
-        """Delete every entry (and stray temporary files); return how many entries went."""
-        if not self.folder.is_dir():
+        """Delete every entry this cache wrote, and its temporary files; return how many entries went."""
+        if not self._check_folder():
             return 0
-        entries = list(self.folder.glob("*.npz"))
-        for p in entries + list(self.folder.glob(".*.tmp")):
+        entries = self._entries()
+        temporaries = [p for p in self.folder.iterdir()
+                       if TEMP_NAME.match(p.name) and p.is_file() and not p.is_symlink()]
+        for p in entries + temporaries:
             p.unlink(missing_ok=True)
         return len(entries)
+
+
+def _read_entry(entry: Path, *, arrays: bool = True) -> tuple[dict, dict]:
+    """(meta, arrays) of an entry file; raises one of ``DAMAGED`` when it is not a whole entry."""
+    z = np.load(entry, allow_pickle=False)
+    if not isinstance(z, np.lib.npyio.NpzFile):
+        raise ValueError("not an .npz archive")
+    with z:
+        if "meta" not in z.files:
+            raise ValueError("not a pinchmatch cache entry")
+        meta = json.loads(str(z["meta"]))
+        if not isinstance(meta, dict) or meta.get("format") != CACHE_FORMAT:
+            raise ValueError("an entry of another format")
+        return meta, ({name: z[name] for name in z.files if name != "meta"} if arrays else {})
+
+
+def _check_arrays(arrays: dict) -> None:
+    """Raise ValueError unless the arrays can make a mesh and candidates (shapes, kinds, indices)."""
+    vertices, faces = arrays["vertices"], arrays["faces"]
+    if vertices.ndim != 2 or vertices.shape[1] != 3 or vertices.dtype.kind != "f" or not np.isfinite(vertices).all():
+        raise ValueError("the stored vertices are not finite (n, 3) floats")
+    if faces.ndim != 2 or faces.shape[1] != 3 or faces.dtype.kind not in "iu" or len(faces) == 0 \
+            or faces.min() < 0 or faces.max() >= len(vertices):
+        raise ValueError("the stored faces do not index the vertices")
+    for name in PINCH_ARRAYS:
+        arrays[f"pinches.{name}"]
+    for name in FEATURE_ARRAYS:
+        arrays[f"features.{name}"]
 
 
 def to_payload(candidates: Candidates) -> tuple[dict, dict]:

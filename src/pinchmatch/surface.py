@@ -30,17 +30,35 @@ MAX_SAMPLES = 400_000
 SAMPLE_SEED = 20190323
 
 
+def _embree_installed() -> bool:
+    """Whether trimesh's Embree engine imports (``embreex`` installed for this platform); the
+    first time it does not, a warning says so once."""
+    global _EMBREE
+    if _EMBREE is None:
+        try:
+            import embreex  # noqa: F401
+
+            _EMBREE = True
+        except ImportError:
+            _EMBREE = False
+            log.warning("embreex is not installed; rays use trimesh's numpy engine, about 10x slower "
+                        "(pip install embreex)")
+    return _EMBREE
+
+
+_EMBREE: bool | None = None
+
+
 def ray_engine(mesh: trimesh.Trimesh):
-    """Return (intersector, name): Embree when ``embreex`` imports, else trimesh's own."""
-    try:
+    """Return (intersector, name): Embree when ``embreex`` is installed, else trimesh's own.
+    Only a missing ``embreex`` falls back; any other failure of the engine is raised."""
+    if _embree_installed():
         from trimesh.ray.ray_pyembree import RayMeshIntersector
 
         return RayMeshIntersector(mesh), "embree"
-    except Exception:  # embreex missing or unusable on this platform
-        from trimesh.ray.ray_triangle import RayMeshIntersector
+    from trimesh.ray.ray_triangle import RayMeshIntersector
 
-        log.info("embreex not available; using trimesh's slower numpy ray engine")
-        return RayMeshIntersector(mesh), "numpy"
+    return RayMeshIntersector(mesh), "numpy"
 
 
 @dataclass(frozen=True)
