@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import os
+import stat
 from dataclasses import dataclass
 
 import numpy as np
@@ -21,6 +22,12 @@ from .pinches import PinchSettings, Pinches, check_pinches
 from .sampling import sample_pinches
 from .properties import ObjectProperties, object_properties
 from .surface import SurfaceContext
+
+#: a poses file holds at most this many poses, and is at most this big (bounded memory)
+MAX_GIVEN_POSES = 100_000
+MAX_POSES_FILE_BYTES = 32 * 2**20
+#: a contact farther than this from the origin (mm, 1 km) is not a contact on a prop
+MAX_COORDINATE_MM = 1e6
 
 
 @dataclass(frozen=True)
@@ -109,20 +116,32 @@ def load_poses_file(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
     """
     path = os.fspath(path)
     try:
-        with open(path, encoding="utf-8") as fh:
-            data = json.load(fh)
+        with open(path, "rb") as fh:
+            if not stat.S_ISREG(os.fstat(fh.fileno()).st_mode):
+                raise ConfigError(f"{path}: not a regular file (a device or a pipe); give a JSON poses file")
+            raw = fh.read(MAX_POSES_FILE_BYTES + 1)
     except FileNotFoundError:
         raise ConfigError(f"{path}: no such poses file; check the path") from None
     except IsADirectoryError:
         raise ConfigError(f"{path}: is a folder; give a JSON poses file") from None
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"{path}: not valid JSON ({exc}); fix the file") from None
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot be read ({exc.strerror or exc}); check its permissions") from None
+    if len(raw) > MAX_POSES_FILE_BYTES:
+        raise ConfigError(f"{path}: larger than {MAX_POSES_FILE_BYTES // 2**20} MiB, more than a poses file of "
+                          f"{MAX_GIVEN_POSES:,} poses needs; split it or give fewer poses")
+    try:
+        data = json.loads(raw.decode("utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError, RecursionError) as exc:
+        raise ConfigError(f"{path}: not valid JSON ({type(exc).__name__}: {str(exc)[:80]}); fix the file") from None
     if isinstance(data, dict) and isinstance(data.get("poses"), list):
         data = data["poses"]
     if not isinstance(data, list) or not data:
         raise ConfigError(
             f'{path}: expected a non-empty JSON list of {{"p1_mm": [x, y, z], "p2_mm": [x, y, z]}}'
         )
+    if len(data) > MAX_GIVEN_POSES:
+        raise ConfigError(f"{path}: {len(data):,} poses, more than the {MAX_GIVEN_POSES:,} a file may give; "
+                          "split it")
     p1, p2 = [], []
     for i, entry in enumerate(data):
         try:
@@ -130,9 +149,11 @@ def load_poses_file(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
             b = np.asarray(entry["p2_mm"], dtype=np.float64)
         except (KeyError, TypeError, ValueError):
             a = b = np.zeros(0)
-        if a.shape != (3,) or b.shape != (3,) or not (np.isfinite(a).all() and np.isfinite(b).all()):
+        if a.shape != (3,) or b.shape != (3,) or not (np.abs(a) < MAX_COORDINATE_MM).all() \
+                or not (np.abs(b) < MAX_COORDINATE_MM).all():
             raise ConfigError(
-                f"{path}: pose {i} needs \"p1_mm\" and \"p2_mm\", each three finite numbers (mm); fix that entry"
+                f"{path}: pose {i} needs \"p1_mm\" and \"p2_mm\", each three finite numbers (mm, below "
+                f"{MAX_COORDINATE_MM:g} in size); fix that entry"
             )
         p1.append(a)
         p2.append(b)

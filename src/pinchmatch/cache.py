@@ -271,9 +271,14 @@ def cached_candidates(path: str | os.PathLike, *, cache: FeatureCache | None, un
     """An object's candidate poses: from ``cache`` when it holds them, else computed (and stored)."""
     key = None
     if cache is not None:
-        if not Path(path).is_file():
+        try:
+            if not Path(path).is_file():
+                raise FileNotFoundError(path)
+            key = cache.key(path, units=units, up=up, patch_radius_mm=patch_radius_mm, settings=settings,
+                            given=given)
+        except OSError:
             load_mesh(path, units=units, up=up)  # raises the loader's one-line error for this path
-        key = cache.key(path, units=units, up=up, patch_radius_mm=patch_radius_mm, settings=settings, given=given)
+            raise
         hit = cache.load(key, path, patch_radius_mm=patch_radius_mm)
         if hit is not None:
             cache.hits += 1

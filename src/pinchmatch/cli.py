@@ -24,7 +24,7 @@ import numpy as np
 from . import __version__
 from .analysis import analyze_object, find_pinches, load_poses_file, score_pinches
 from .cache import FeatureCache
-from .errors import ConfigError, PinchmatchError
+from .errors import ConfigError, PinchmatchError, route_warnings
 from .load import UNITS_MM, UP_VECTORS, mesh_files
 from .pinches import PinchSettings
 from .cost import parse_criteria, parse_weights
@@ -32,7 +32,7 @@ from .match import MatchSettings
 from .properties import parse_vector
 from ._console import Presenter
 from .report import (features_document, matches_document, matches_rows, poses_csv, poses_document,
-                     scene_stems, study_document, study_rows, to_json, write_atomic)
+                     check_writable, scene_stems, study_document, study_rows, to_json, write_atomic)
 from .run import Job, MatchesSink, ObjectTask, RunError, default_jobs, executor, run_match
 from .scenes import write_scenes
 from .study import ORDERS, run_study
@@ -272,6 +272,8 @@ def _emit(args, text: str, summary: str) -> None:
 
 def _cmd_poses(args) -> int:
     settings = _settings(args, count=args.count, seed=args.seed)  # validate options before any work
+    if args.output:
+        check_writable(args.output, folder=False)
     given = load_poses_file(args.poses) if args.poses else None
     ui = Presenter(quiet=args.quiet)
     t0 = time.perf_counter()
@@ -305,8 +307,12 @@ def _cmd_poses(args) -> int:
 
 def _cmd_features(args) -> int:
     settings = _settings(args)
+    if args.output:
+        check_writable(args.output, folder=False)
     p1 = parse_vector(args.p1, option="--p1")
     p2 = parse_vector(args.p2, option="--p2")
+    if np.allclose(p1, p2, rtol=0, atol=1e-9):
+        raise ConfigError(f"--p1 and --p2 are the same point ({args.p1}); a pinch needs two contacts")
     with Presenter(quiet=args.quiet).step("loading and scoring the pinch"):
         obj = _object(args)
         pinches, features = score_pinches(obj, p1, p2, settings=settings)
@@ -353,8 +359,7 @@ def _given_poses(files, paths, option) -> list:
 
 def _out_folder(args) -> Path:
     out = Path(args.output)
-    if out.exists() and not out.is_dir():
-        raise ConfigError(f"{out}: -o names a file; give a folder for the results")
+    check_writable(out, folder=True)  # before any work
     return out
 
 
@@ -494,6 +499,8 @@ def _cmd_view(args) -> int:
     if not 0 <= args.port <= 65535:
         raise ConfigError(f"--port {args.port}: not a port; give 0 (any free port) to 65535")
     ui = Presenter(quiet=args.quiet)
+    if Path(args.folder).is_dir():
+        check_writable(Path(args.folder) / "index.html", folder=False)
     path = write_page(Path(args.folder))
     ui.note(f"wrote {path}")
     if not args.serve:
@@ -523,6 +530,7 @@ def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     verbose = "-v" in argv or "--verbose" in argv
     logging.basicConfig(level=logging.INFO if verbose else logging.WARNING, format="%(name)s: %(message)s")
+    route_warnings(verbose=verbose)
     try:
         parser = build_parser()
         _check_option_names(parser, argv)
@@ -534,6 +542,9 @@ def main(argv: list[str] | None = None) -> int:
     except PinchmatchError as exc:
         print(f"pinchmatch: error: {exc}", file=sys.stderr)
         return 2
+    except RunError as exc:  # not the input's fault: an internal error, in one line
+        print(f"pinchmatch: internal error: {exc}", file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         print("pinchmatch: interrupted", file=sys.stderr)
         return 130

@@ -101,9 +101,11 @@ def parse_up(up: str, *, source: str = "--up") -> tuple[str, np.ndarray]:
 
 def mesh_files(paths, *, option: str) -> list[Path]:
     """Each path as given when it is a file (or missing: loading will say so), and every mesh file
-    below each folder, searched recursively by extension, hidden files and folders skipped, sorted.
+    below each folder, searched recursively by extension (through links to folders, each folder
+    once), hidden files and folders skipped, sorted. A folder that cannot be read is listed as it
+    is, so that loading names it and a run leaves it out under ``failed``.
 
-    Raises ConfigError for a folder that holds no mesh file.
+    Raises ConfigError for a readable folder that holds no mesh file.
     """
     out: list[Path] = []
     for given in paths:
@@ -111,14 +113,31 @@ def mesh_files(paths, *, option: str) -> list[Path]:
         if not path.is_dir():
             out.append(path)
             continue
-        found = sorted(p for p in path.rglob("*")
-                       if p.suffix.lower() in MESH_EXTENSIONS and p.is_file()
-                       and not any(part.startswith(".") for part in p.relative_to(path).parts))
-        if not found:
+        found, unreadable = _walk_meshes(path)
+        if not found and not unreadable:
             raise ConfigError(f"{path}: {option} names a folder with no mesh file in it "
                               f"({', '.join(MESH_EXTENSIONS)}, searched recursively); point it at your meshes")
-        out.extend(found)
+        out.extend(sorted(found + unreadable))
     return out
+
+
+def _walk_meshes(root: Path) -> tuple[list[Path], list[Path]]:
+    """(mesh files, folders that cannot be read) below ``root``."""
+    found: list[Path] = []
+    unreadable: list[Path] = []
+    seen: set[str] = set()
+    for folder, dirs, files in os.walk(root, followlinks=True,
+                                       onerror=lambda exc: unreadable.append(Path(exc.filename))):
+        real = os.path.realpath(folder)
+        if real in seen:  # a link back up the tree
+            dirs[:] = []
+            continue
+        seen.add(real)
+        dirs[:] = sorted(d for d in dirs if not d.startswith("."))
+        found += [Path(folder) / f for f in files
+                  if not f.startswith(".") and Path(f).suffix.lower() in MESH_EXTENSIONS
+                  and (Path(folder) / f).is_file()]
+    return found, unreadable
 
 
 def _file_type(path: Path) -> str:
@@ -317,7 +336,17 @@ def load_mesh(
     if not path.exists():
         raise MeshError(f"{path}: no such file; check the path")
     if path.is_dir():
+        if not os.access(path, os.R_OK | os.X_OK):
+            raise MeshError(f"{path}: a folder that cannot be read (permission denied), so its meshes are "
+                            "left out; check its permissions")
         raise MeshError(f"{path}: is a folder, not a mesh file; give a mesh file inside it")
+    try:
+        with open(path, "rb") as fh:
+            fh.read(1)
+    except OSError as exc:
+        raise MeshError(f"{path}: cannot be read ({exc.strerror or exc}); check its permissions") from None
+    if not path.is_file():
+        raise MeshError(f"{path}: not a regular file (a device or a pipe); give a mesh file")
     file_type = _file_type(path)
     size = path.stat().st_size
     if size == 0:

@@ -85,6 +85,8 @@ def parse_vector(text: str, *, option: str) -> np.ndarray:
         values = np.zeros(0)
     if values.shape != (3,) or not np.isfinite(values).all():
         raise ConfigError(f"{option}: expected three finite numbers X,Y,Z, got {text!r}")
+    if np.abs(values).max() >= 1e6:
+        raise ConfigError(f"{option}: {text!r} is more than a kilometre from the origin; give mm in the file's frame")
     return values
 
 

@@ -38,7 +38,7 @@ import numpy as np
 
 from .cache import FeatureCache, cached_candidates, from_payload, to_payload
 from .cost import feature_bounds, ranges_from_bounds
-from .errors import ConfigError, PinchmatchError
+from .errors import ConfigError, PinchmatchError, route_warnings
 from .match import (Candidates, MatchSettings, allowed_tangibles, cost_model, cost_row, match_virtual, _Search)
 from .pinches import PinchSettings
 from .report import (SCHEMA_MATCH_LINES, _num, cost_matrix_section, figure_file, match_entry, matches_header,
@@ -246,6 +246,7 @@ def _init_worker(threads: int) -> None:
 
     _LIMITS = threadpool_limits(limits=threads)
     logging.getLogger("pinchmatch").setLevel(logging.ERROR)  # the parent reports; workers stay quiet
+    route_warnings(verbose=False)
 
 
 _LIMITS = None
@@ -406,8 +407,8 @@ class _Failed(PinchmatchError):
     """A role's only file failed: its own error, as one line."""
 
 
-class RunError(PinchmatchError):
-    """The run itself broke (a worker died): one line, and what to change."""
+class RunError(Exception):
+    """The run itself broke (a worker died), not the input: one line, exit 1, and what to change."""
 
 
 # --- output, as results come ------------------------------------------------------------------
