@@ -109,3 +109,62 @@ def test_a_failed_object_beside_one_of_the_same_stem_leaves_a_viewable_folder(tm
     code, _, err = run(capsys, "view", out, "-q")
     assert code == 0, err
     assert (out / "index.html").is_file()
+
+
+def _icosphere():
+    return trimesh.creation.icosphere(subdivisions=2, radius=20.0)
+
+
+def _ply_with_fewer_faces_claimed(tmp_path, encoding):
+    mesh = _icosphere()
+    data = trimesh.exchange.ply.export_ply(mesh, encoding=encoding)
+    end = data.index(b"end_header")
+    header = data[:end].replace(f"element face {len(mesh.faces)}".encode(),
+                                f"element face {len(mesh.faces) - 10}".encode())
+    path = tmp_path / f"short_{encoding}.ply"
+    path.write_bytes(header + data[end:])
+    return path
+
+
+@pytest.mark.parametrize("case, words", [
+    ("ascii ply", ["its header counts 162 vertices and 310 faces, but the file holds 482 data lines"]),
+    ("binary ply", ["its header counts 310 faces, but 130 more bytes follow them"]),
+    ("gltf without its buffer", ["its buffer file 'gltf_buffer_0.bin' is missing"]),
+    ("far from the origin", ["32-bit floats cannot hold that detail so far out"]),
+])
+def test_malformed_files_are_named_for_what_they_are(tmp_path, capsys, case, words):
+    if case == "ascii ply":
+        path = _ply_with_fewer_faces_claimed(tmp_path, "ascii")
+    elif case == "binary ply":
+        path = _ply_with_fewer_faces_claimed(tmp_path, "binary")
+    elif case == "gltf without its buffer":
+        _icosphere().export(tmp_path / "s.gltf")
+        (tmp_path / "gltf_buffer_0.bin").unlink()
+        path = tmp_path / "s.gltf"
+    else:
+        far = _icosphere()
+        far.vertices += 1e7
+        path = tmp_path / "far.stl"
+        far.export(path)
+    code, _, err = run(capsys, "poses", path, "-o", tmp_path / "o.json")
+    one_line(code, err, path.name, *words)
+    assert not (tmp_path / "o.json").exists()
+
+
+def test_well_formed_ply_and_gltf_still_load(tmp_path):
+    from pinchmatch.load import load_mesh
+
+    mesh = _icosphere()
+    for name, kwargs in [("a.ply", {"encoding": "ascii"}), ("b.ply", {"encoding": "binary"}), ("c.gltf", {})]:
+        mesh.export(tmp_path / name, **kwargs)
+        assert len(load_mesh(tmp_path / name, units="mm").mesh.faces) == len(mesh.faces)
+
+
+def test_warnings_from_libraries_never_reach_stderr(tmp_path, capsys):
+    """A self-intersecting mesh makes numpy and trimesh warn inside; a normal run prints none of it."""
+    a = trimesh.creation.box(extents=(40.0, 30.0, 20.0))
+    b = trimesh.creation.box(extents=(20.0, 50.0, 10.0))
+    mesh = trimesh.util.concatenate([a, b])  # two overlapping closed shells
+    mesh.export(tmp_path / "crossed.stl")
+    code, _, err = run(capsys, "poses", tmp_path / "crossed.stl", "--count", 50, "-o", tmp_path / "o.json")
+    assert "Warning" not in err and "warn" not in err.lower(), err

@@ -46,7 +46,7 @@ def test_surface_alone(box):
 
 
 def test_patch_alone(box):
-    _only(check_pinches(box, [[-30.0, 0, 0]], [[30.0, 0, 0]], settings=PinchSettings(patch_radius_mm=0.3)), "patch")
+    _only(check_pinches(box, [[-30.0, 0, 0]], [[30.0, 0, 0]], settings=PinchSettings(patch_radius_mm=0.5)), "patch")
 
 
 def test_clearance_alone():

@@ -82,10 +82,11 @@ def test_results_do_not_depend_on_the_cache(meshes, tmp_path):
 
 def test_jsonl_streams_one_line_per_virtual_object_and_holds_the_same_document(meshes, tmp_path, capsys):
     assert run(meshes, tmp_path / "json", "--jobs", "1", "--no-figures") == 0
-    (tmp_path / "lines").mkdir()
-    (tmp_path / "lines" / "matches.json").write_text("{}")  # an earlier run's: stale once jsonl is written
+    assert run(meshes, tmp_path / "lines", "--jobs", "1", "--no-figures") == 0  # an earlier run, in json
+    (tmp_path / "lines" / "notes.json").write_text("{}")  # the user's own file
     assert run(meshes, tmp_path / "lines", "--jobs", "1", "--no-figures", "--format", "jsonl") == 0
-    assert not (tmp_path / "lines" / "matches.json").exists()
+    assert not (tmp_path / "lines" / "matches.json").exists()  # the earlier run's: stale once jsonl is written
+    assert (tmp_path / "lines" / "notes.json").read_text() == "{}"
     lines = (tmp_path / "lines" / "matches.jsonl").read_text().splitlines()
     records = [json.loads(line) for line in lines]
     assert [r["record"] for r in records] == ["header"] + ["match"] * 4 + ["end"]
@@ -150,12 +151,18 @@ def test_a_role_whose_only_file_is_missing_fails_in_one_line(meshes, tmp_path, c
     (["--jobs", "0"], "--jobs"),
     (["--jobs", "2", "--scheduler", "tcp://127.0.0.1:8786"], "give one of them"),
     (["--json", "--format", "jsonl"], "give one of them"),
-    (["--scheduler", "tcp://127.0.0.1:9"], "cannot reach a Dask scheduler"),
+    (["--scheduler", "tcp://127.0.0.1:9"], "nothing answers there"),
+    (["--scheduler", "notaurl:::"], "not a Dask address"),
+    (["--scheduler", "http://127.0.0.1:1"], "'http' is not a Dask protocol"),
 ])
 def test_bad_parallel_options_fail_in_one_line(meshes, tmp_path, capsys, extra, words):
+    import time
+
     argv = ["match", "--tangible", str(meshes / "t"), "--virtual", str(meshes / "v"), "-o", str(tmp_path / "out"),
             "--count", str(COUNT), *extra]
+    start = time.perf_counter()
     assert main(argv) == 2
+    assert time.perf_counter() - start < 15  # no hang
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and words in err[0], err
     assert not (tmp_path / "out").exists()

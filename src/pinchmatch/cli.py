@@ -13,7 +13,9 @@ import argparse
 import difflib
 import logging
 import re
+import signal
 import sys
+import threading
 import time
 from concurrent.futures.process import BrokenProcessPool
 from importlib import resources
@@ -27,6 +29,7 @@ from .cache import FeatureCache
 from .errors import ConfigError, PinchmatchError, route_warnings
 from .load import UNITS_MM, UP_VECTORS, mesh_files
 from .pinches import PinchSettings
+from .publish import OutputFolder, recover
 from .cost import parse_criteria, parse_weights
 from .match import MatchSettings
 from .properties import parse_vector
@@ -363,22 +366,25 @@ def _out_folder(args) -> Path:
     return out
 
 
-def _write_visuals(args, ui: Presenter, out: Path, scene, document: dict, *, study=None) -> list[str]:
-    """The scenes, the figures and the page of a run; returns what was written, for the summary."""
+def _write_visuals(args, ui: Presenter, out: Path, scene, document: dict, *, study=None,
+                   shown: Path) -> list[str]:
+    """The scenes, the figures and the page of a run, written in ``out``; returns what was written,
+    for the summary, as paths in ``shown`` (where they are published)."""
     written = []
     n_matched = sum(vm.best is not None for vm in scene.matches)
     with ui.step("glTF scenes", total=n_matched) as advance:
         write_scenes(scene, out / "scenes", progress=lambda path: advance(path.name))
-    written.append(f"{n_matched} glTF scenes in {out / 'scenes'}")
+    written.append(f"{n_matched} glTF scenes in {shown / 'scenes'}")
     if not args.no_figures:
         from .figures import figure_count, write_figures  # matplotlib: imported when figures are wanted
 
         with ui.step("figures", total=figure_count(document, study=study)) as advance:
             figures = write_figures(out, document, study=study, progress=lambda path: advance(path.name))
-        written.append(f"{len(figures)} figures in {out / 'figures'}")
+        written.append(f"{len(figures)} figures in {shown / 'figures'}")
     if not args.no_view:
         with ui.step("viewer page"):
-            written.append(f"the viewer page {write_page(out, document=document)}")
+            write_page(out, document=document)
+            written.append(f"the viewer page {shown / 'index.html'}")
     return written
 
 
@@ -414,34 +420,36 @@ def _cmd_match(args) -> int:
     ui = Presenter(quiet=args.quiet, json_mode=args.json)
     stems = scene_stems([p.name for p in virtual_paths])
     run_settings = {**settings.as_dict(), **match_settings.as_dict(), "units": args.units, "up": args.up}
-    sink = MatchesSink(out, args.format, stems)
 
     def on_failure(f) -> None:
         ui.error(f"{f.error}; skipped, going on with the other files")
 
     t0 = time.perf_counter()
-    with executor(args.jobs, args.scheduler) as ex, sink:
-        try:
-            result = run_match(tasks("tangible", tangible_paths, given_t, args.tangible_poses),
-                               tasks("virtual", virtual_paths, given_v, args.virtual_poses), job, ex,
-                               on_failure=on_failure, on_result=sink.add, step=ui.step,
-                               header=lambda tangibles: sink.start(run_settings, tangibles, args.dump_poses))
-        except BrokenProcessPool:
-            raise RunError("a worker process died (out of memory?); run again with fewer --jobs") from None
-        doc = sink.finish(result)
-    t1 = time.perf_counter()
-    written = [str(sink.result_path), f"{sink.scenes} glTF scenes in {out / 'scenes'}"]
-    if not args.no_figures:
-        from .figures import _png, cost_matrix_figure  # matplotlib: imported when figures are wanted
+    with OutputFolder(out) as stage:  # published into OUT as a whole at the end, or not at all
+        sink = MatchesSink(stage, args.format, stems)
+        with executor(args.jobs, args.scheduler) as ex, sink:
+            try:
+                result = run_match(tasks("tangible", tangible_paths, given_t, args.tangible_poses),
+                                   tasks("virtual", virtual_paths, given_v, args.virtual_poses), job, ex,
+                                   on_failure=on_failure, on_result=sink.add, step=ui.step,
+                                   header=lambda tangibles: sink.start(run_settings, tangibles, args.dump_poses))
+            except BrokenProcessPool:
+                raise RunError("a worker process died (out of memory?); run again with fewer --jobs") from None
+            doc = sink.finish(result)
+        t1 = time.perf_counter()
+        written = [str(out / sink.result_path.name), f"{sink.scenes} glTF scenes in {out / 'scenes'}"]
+        if not args.no_figures:
+            from .figures import _png, cost_matrix_figure  # matplotlib: imported when figures are wanted
 
-        with ui.step("cost matrix figure"):
-            write_atomic(out / "figures" / "cost_matrix.png", _png(cost_matrix_figure(sink.overview())))
-        written.append(f"{sink.scenes + 1} figures in {out / 'figures'}")
-    if not args.no_view and doc is not None:
-        with ui.step("viewer page"):
-            written.append(f"the viewer page {write_page(out, document=doc)}")
-    elif not args.no_view:
-        written.append(f"no viewer page (build it with: pinchmatch view {out})")
+            with ui.step("cost matrix figure"):
+                write_atomic(stage / "figures" / "cost_matrix.png", _png(cost_matrix_figure(sink.overview())))
+            written.append(f"{sink.scenes + 1} figures in {out / 'figures'}")
+        if not args.no_view and doc is not None:
+            with ui.step("viewer page"):
+                write_page(stage, document=doc)
+                written.append(f"the viewer page {out / 'index.html'}")
+        elif not args.no_view:
+            written.append(f"no viewer page (build it with: pinchmatch view {out})")
     ui.table(_table_rows(sink.objects, "objects"), title="objects")
     ui.table(_table_rows(sink.rows, "matches"), title="matches")
     if result.failed:
@@ -471,23 +479,31 @@ def _cmd_demo(args) -> int:
     out = _out_folder(args)
     ui = Presenter(quiet=args.quiet, json_mode=args.json)
     t0 = time.perf_counter()
-    with ui.step("user study", total=len(ORDERS) + 1) as advance:
-        started = []
+    publisher = OutputFolder(out)
+    with publisher as stage:  # published into OUT as a whole at the end, or not at all
+        with ui.step("user study", total=len(ORDERS) + 1) as advance:
+            started = []
 
-        def starting(note: str) -> None:  # run_study names each part as it starts: the one before is done
-            advance(note, done=bool(started))
-            started.append(note)
+            def starting(note: str) -> None:  # run_study names each part as it starts: the one before is done
+                advance(note, done=bool(started))
+                started.append(note)
 
-        study = run_study(out / "objects", full=args.full, settings=settings, progress=starting)
-    t1 = time.perf_counter()
-    common = {**settings.as_dict(), "candidate_virtual_poses": "17 heights and all sampled" if args.full else "17 heights"}
-    study_doc = study_document(study, {**common, **MatchSettings().as_dict()})
-    matches_doc = matches_document(study.scene, {**common, **MatchSettings().as_dict()}, figures=not args.no_figures)
-    write_atomic(out / "study.json", to_json(study_doc))
-    write_atomic(out / "matches.json", to_json(matches_doc))
-    written = [f"{out / 'study.json'}", f"{out / 'matches.json'}"]
-    written += _write_visuals(args, ui, out, study.scene, matches_doc, study=study)
-    written.append(f"the objects in {out / 'objects'}")
+            # the study's objects are its inputs, the same bytes every run: written in place, so the
+            # documents can name where they stay
+            study = run_study(out / "objects", full=args.full, settings=settings, progress=starting)
+        for path in sorted((out / "objects").glob("*.stl")):
+            publisher.direct(path)
+        t1 = time.perf_counter()
+        common = {**settings.as_dict(),
+                  "candidate_virtual_poses": "17 heights and all sampled" if args.full else "17 heights"}
+        study_doc = study_document(study, {**common, **MatchSettings().as_dict()})
+        matches_doc = matches_document(study.scene, {**common, **MatchSettings().as_dict()},
+                                       figures=not args.no_figures)
+        write_atomic(stage / "study.json", to_json(study_doc))
+        write_atomic(stage / "matches.json", to_json(matches_doc))
+        written = [f"{out / 'study.json'}", f"{out / 'matches.json'}"]
+        written += _write_visuals(args, ui, stage, study.scene, matches_doc, study=study, shown=out)
+        written.append(f"the objects in {out / 'objects'}")
     ui.table(study_rows(study.rows), title="user study (F: flipped)")
     ui.table(matches_rows(matches_doc), title="matches")
     ui.note(f"study {t1 - t0:.2f} s; wrote " + ", ".join(written))
@@ -501,6 +517,7 @@ def _cmd_view(args) -> int:
     ui = Presenter(quiet=args.quiet)
     if Path(args.folder).is_dir():
         check_writable(Path(args.folder) / "index.html", folder=False)
+        recover(Path(args.folder))  # a run that died while publishing: its result, whole
     path = write_page(Path(args.folder))
     ui.note(f"wrote {path}")
     if not args.serve:
@@ -525,9 +542,27 @@ COMMANDS = {"demo": _cmd_demo, "match": _cmd_match, "view": _cmd_view, "cache": 
             "poses": _cmd_poses, "features": _cmd_features}
 
 
+class Terminated(BaseException):
+    """SIGTERM arrived: unwind like Ctrl-C, so that nothing is left half-written."""
+
+
+def _on_sigterm(signum, frame):
+    raise Terminated()
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; return the exit code."""
     argv = list(sys.argv[1:] if argv is None else argv)
+    main_thread = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGTERM, _on_sigterm) if main_thread else None
+    try:
+        return _main(argv)
+    finally:
+        if main_thread:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _main(argv: list[str]) -> int:
     verbose = "-v" in argv or "--verbose" in argv
     logging.basicConfig(level=logging.INFO if verbose else logging.WARNING, format="%(name)s: %(message)s")
     route_warnings(verbose=verbose)
@@ -546,8 +581,11 @@ def main(argv: list[str] | None = None) -> int:
         print(f"pinchmatch: internal error: {exc}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
-        print("pinchmatch: interrupted", file=sys.stderr)
+        print("pinchmatch: interrupted; the output folder holds what it held before", file=sys.stderr)
         return 130
+    except Terminated:
+        print("pinchmatch: terminated; the output folder holds what it held before", file=sys.stderr)
+        return 143
     except Exception as exc:  # an internal error: say so, traceback on request
         if verbose:
             raise

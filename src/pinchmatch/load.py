@@ -7,9 +7,11 @@ they pass to ``--p1``.
 
 from __future__ import annotations
 
+import json
 import logging
 import os
 import struct
+import urllib.parse
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -169,6 +171,89 @@ def _check_binary_stl(path: Path, size: int) -> None:
             f"{path}: truncated binary STL: its header promises {count} triangles "
             f"({expected} bytes) but the file has {size} bytes; re-export or re-download it"
         )
+
+
+_PLY_SIZES = {"char": 1, "uchar": 1, "int8": 1, "uint8": 1, "short": 2, "ushort": 2, "int16": 2, "uint16": 2,
+              "int": 4, "uint": 4, "int32": 4, "uint32": 4, "float": 4, "float32": 4, "double": 8, "float64": 8}
+
+
+def _check_ply_counts(path: Path, size: int) -> None:
+    """Refuse a PLY whose header counts fewer elements than the file holds (a reader would take
+    the first ones and silently drop the rest). Binary files are checked when every face is a
+    triangle and the elements are vertices then faces (what exporters write)."""
+    with open(path, "rb") as fh:
+        head = fh.read(65536)
+    end = head.find(b"end_header")
+    if not head.startswith(b"ply") or end < 0:
+        return  # the reader will say what is wrong
+    body = head.index(b"\n", end) + 1 if b"\n" in head[end:] else len(head)
+    lines = head[:end].decode("ascii", "replace").splitlines()
+    fmt = next((line.split()[1] for line in lines if line.startswith("format ")), "")
+    elements: list[tuple[str, int, list[list[str]]]] = []
+    for line in lines:
+        words = line.split()
+        if words[:1] == ["element"] and len(words) == 3 and words[2].isdigit():
+            elements.append((words[1], int(words[2]), []))
+        elif words[:1] == ["property"] and elements:
+            elements[-1][2].append(words[1:])
+    claimed = {name: count for name, count, _ in elements}
+    if fmt == "ascii":
+        with open(path, "rb") as fh:
+            fh.seek(body)
+            held = sum(1 for line in fh if line.strip())
+        if held > sum(claimed.values()):
+            raise MeshError(f"{path}: its header counts {claimed.get('vertex', 0)} vertices and {claimed.get('face', 0)} "
+                            f"faces, but the file holds {held} data lines; the header is wrong, re-export it")
+        return
+    if fmt not in ("binary_little_endian", "binary_big_endian") or [e[0] for e in elements] != ["vertex", "face"]:
+        return
+    vertex_props, face_props = elements[0][2], elements[1][2]
+    if any(p[0] == "list" or p[0] not in _PLY_SIZES for p in vertex_props) or len(face_props) != 1 \
+            or face_props[0][0] != "list" or face_props[0][1] not in _PLY_SIZES or face_props[0][2] not in _PLY_SIZES:
+        return
+    count_size, index_size = _PLY_SIZES[face_props[0][1]], _PLY_SIZES[face_props[0][2]]
+    start = body + claimed["vertex"] * sum(_PLY_SIZES[p[0]] for p in vertex_props)
+    record = count_size + 3 * index_size
+    expected = start + claimed["face"] * record
+    if size <= expected or count_size != 1:
+        return
+    counts = np.memmap(path, dtype=np.uint8, mode="r", offset=start, shape=(claimed["face"] * record,))[::record]
+    if (counts == 3).all():
+        raise MeshError(f"{path}: its header counts {claimed['face']} faces, but {size - expected} more bytes follow "
+                        "them; the header is wrong, re-export it")
+
+
+def _check_gltf_buffers(path: Path) -> None:
+    """Name the external buffer a .gltf needs and lacks (the reader would only say 'not found')."""
+    try:
+        document = json.loads(path.read_text(encoding="utf-8"))
+        uris = [b.get("uri") for b in document.get("buffers", [])]
+    except (ValueError, UnicodeDecodeError, AttributeError, TypeError):
+        return  # the reader will say what is wrong
+    for uri in uris:
+        if isinstance(uri, str) and not uri.startswith("data:"):
+            buffer = path.parent / urllib.parse.unquote(uri)
+            if not buffer.is_file():
+                raise MeshError(f"{path}: its buffer file {uri!r} is missing (looked for {buffer}); copy it next to "
+                                "the .gltf, or export a .glb, which holds its buffers")
+
+
+#: formats whose coordinates are 32-bit floats (binary STL and glTF always, binary PLY as written)
+FLOAT32_TYPES = ("stl", "glb", "gltf", "ply")
+
+
+def _check_precision(path: Path, file_type: str, mesh: trimesh.Trimesh) -> None:
+    """Refuse coordinates so far from the origin that 32-bit floats cannot resolve the mesh's edges
+    to 1 % (an object placed kilometres away in its scene's units)."""
+    if file_type not in FLOAT32_TYPES or len(mesh.faces) == 0:
+        return
+    vertices = np.asarray(mesh.vertices)
+    edges = np.linalg.norm(vertices[mesh.faces[:, 1]] - vertices[mesh.faces[:, 0]], axis=1)
+    typical = float(np.median(edges[edges > 0])) if (edges > 0).any() else 0.0
+    far = float(np.abs(vertices).max())
+    if typical > 0 and far * 2.0**-23 > 0.01 * typical:
+        raise MeshError(f"{path}: coordinates reach {far:.3g} while its edges are about {typical:.3g} long: 32-bit "
+                        "floats cannot hold that detail so far out; move the object near the origin and re-export")
 
 
 def _read(path: Path, file_type: str) -> trimesh.Trimesh:
@@ -353,9 +438,14 @@ def load_mesh(
         raise MeshError(f"{path}: file is empty (0 bytes); re-export the mesh")
     if file_type == "stl":
         _check_binary_stl(path, size)
+    elif file_type == "ply":
+        _check_ply_counts(path, size)
+    elif file_type == "gltf":
+        _check_gltf_buffers(path)
 
     mesh = _read(path, file_type)
     _validate_arrays(path, mesh)
+    _check_precision(path, file_type, mesh)
 
     is_gltf = file_type in GLTF_TYPES
     units_in = units or ("m" if is_gltf else "mm")

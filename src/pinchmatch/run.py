@@ -28,6 +28,9 @@ import json
 import logging
 import os
 import pickle
+import shutil
+import signal
+import sys
 import tempfile
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
@@ -239,9 +242,27 @@ def _in_order(submit: Callable, items: Iterable, window: int) -> Iterator:
         yield pending.popleft().result()
 
 
+def _die_with_parent() -> None:
+    """Ask Linux to send this process SIGTERM when its parent dies (prctl PR_SET_PDEATHSIG), so a
+    killed run leaves no worker behind; elsewhere nothing happens."""
+    if sys.platform != "linux":
+        return
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(1, signal.SIGTERM, 0, 0, 0)  # 1 = PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        return
+    if os.getppid() == 1:  # the parent died before the request: go now
+        os._exit(1)
+
+
 def _init_worker(threads: int) -> None:
-    """A local worker: numpy's BLAS gets its share of the cores, not all of them."""
+    """A local worker: numpy's BLAS gets its share of the cores, not all of them; it ends when the
+    run that started it ends, however that ends."""
     global _LIMITS
+    _die_with_parent()
     from threadpoolctl import threadpool_limits
 
     _LIMITS = threadpool_limits(limits=threads)
@@ -250,6 +271,25 @@ def _init_worker(threads: int) -> None:
 
 
 _LIMITS = None
+
+
+#: a local run's temporary folder: the prefix, then the pid of the run that owns it
+RUN_FOLDER_PREFIX = "pinchmatch-run-"
+
+
+def _remove_orphaned_run_folders() -> None:
+    """Remove the temporary folders of local runs whose process is gone (killed, so it could not)."""
+    root = Path(tempfile.gettempdir())
+    for folder in root.glob(f"{RUN_FOLDER_PREFIX}*-*"):
+        pid = folder.name[len(RUN_FOLDER_PREFIX):].split("-", 1)[0]
+        if not pid.isdigit() or not folder.is_dir() or folder.is_symlink():
+            continue
+        try:
+            os.kill(int(pid), 0)
+        except ProcessLookupError:
+            shutil.rmtree(folder, ignore_errors=True)
+        except PermissionError:
+            pass  # someone else's live process
 
 
 class LocalExecutor(Executor):
@@ -262,7 +302,8 @@ class LocalExecutor(Executor):
         self.workers = jobs
         self._pool = ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn"),
                                          initializer=_init_worker, initargs=(max(1, default_jobs() // jobs),))
-        self._folder = tempfile.TemporaryDirectory(prefix="pinchmatch-run-")
+        _remove_orphaned_run_folders()
+        self._folder = tempfile.TemporaryDirectory(prefix=f"{RUN_FOLDER_PREFIX}{os.getpid()}-")
 
     def map(self, fn, items, *args):
         return _in_order(lambda item: self._pool.submit(fn, item, *args), items, 2 * self.workers)
@@ -274,8 +315,36 @@ class LocalExecutor(Executor):
         return _token(payloads), str(path)
 
     def close(self):
-        self._pool.shutdown(cancel_futures=True)
+        self._pool.shutdown(wait=True, cancel_futures=True)
         self._folder.cleanup()
+
+
+def _probe_scheduler(address: str, timeout_s: float) -> None:
+    """Refuse, in one line and at once, an address that is not a Dask address or where nothing
+    listens (a Dask client left half-made by such an address hangs for 20 s when it is collected)."""
+    import socket
+
+    from distributed.comm import parse_address, parse_host_port
+    from distributed.comm.registry import backends
+
+    hint = "give it as tcp://HOST:PORT, the address the scheduler prints"
+    try:
+        scheme, location = parse_address(address, strict=True)
+    except (ValueError, TypeError):
+        raise ConfigError(f"--scheduler {address}: not a Dask address; {hint}") from None
+    if scheme not in backends:
+        raise ConfigError(f"--scheduler {address}: {scheme!r} is not a Dask protocol "
+                          f"({', '.join(sorted(backends))}); {hint}")
+    if scheme not in ("tcp", "tls"):
+        return
+    try:
+        host, port = parse_host_port(location)
+        socket.create_connection((host, int(port)), timeout=timeout_s).close()
+    except (ValueError, TypeError):
+        raise ConfigError(f"--scheduler {address}: no host and port in it; {hint}") from None
+    except OSError as exc:
+        raise ConfigError(f"--scheduler {address}: nothing answers there ({exc.strerror or exc}); check the "
+                          "address and that the scheduler runs") from None
 
 
 class DaskExecutor(Executor):
@@ -287,6 +356,7 @@ class DaskExecutor(Executor):
         except ImportError:
             raise ConfigError("--scheduler: Dask is not installed; install it with pip install 'pinchmatch[dask]'") \
                 from None
+        _probe_scheduler(address, timeout_s)
         try:
             self._client = Client(address, timeout=f"{timeout_s}s", set_as_default=False)
         except (OSError, TimeoutError, ValueError) as exc:
@@ -430,7 +500,6 @@ class MatchesSink:
         self._header = None
         self._virtuals, self._matches, self._names, self._cost_rows, self._chosen = [], [], [], [], []
         self._lines = None  # (file, temporary path) while matches.jsonl is being written
-        self._made_out = False
 
     def __enter__(self):
         return self
@@ -441,8 +510,6 @@ class MatchesSink:
             fh.close()
             os.unlink(tmp)
             self._lines = None
-            if self._made_out and not any(self.out.iterdir()):
-                self.out.rmdir()
 
     def _line(self, record: dict) -> None:
         self._lines[0].write(json.dumps(record, allow_nan=False, separators=(",", ":")) + "\n")
@@ -452,7 +519,6 @@ class MatchesSink:
         self.objects += [(e["name"], "tangible", e["faces"], e["pose_count"]) for e in entries]
         self._header = matches_header(settings, entries)
         if self.fmt == "jsonl":
-            self._made_out = not self.out.exists()
             self.out.mkdir(parents=True, exist_ok=True)
             fd, tmp = tempfile.mkstemp(prefix=".matches.jsonl.", suffix=".tmp", dir=self.out)
             self._lines = (os.fdopen(fd, "w", encoding="utf-8", newline=""), tmp)
@@ -488,8 +554,6 @@ class MatchesSink:
     def finish(self, result: RunResult) -> dict | None:
         """Close the result file; return the matches document (None for jsonl, never held whole)."""
         failed = [f.as_dict() for f in result.failed]
-        other = self.out / f"matches.{'json' if self.fmt == 'jsonl' else 'jsonl'}"
-        other.unlink(missing_ok=True)  # the other format's file of an earlier run would be stale
         if self._lines is None:
             doc = self._header | {"virtuals": self._virtuals, "matches": self._matches, "failed": failed,
                                   "cost_matrix": self.overview()["cost_matrix"]}

@@ -1,0 +1,184 @@
+"""An output folder that always holds one whole result: the previous run's or the new one's.
+
+A run that writes a folder OUT (``match``, ``demo``) writes into ``OUT/.pinchmatch/staging`` and
+publishes at the end, in a step that a signal cannot interrupt:
+
+1. a journal ``OUT/.pinchmatch/commit.json`` lists the new files and the old ones no longer needed;
+2. each new file is moved into place (``os.replace``, atomic per file), the old files that the
+   previous result had and this one has not are deleted, and the manifest
+   ``OUT/.pinchmatch/manifest.json`` is rewritten to list exactly the new result's files;
+3. the journal is removed.
+
+If the process dies during step 2 (SIGKILL, a power cut), the next run, or ``pinchmatch view``,
+finishes the journal first, so OUT is again one whole result. A run that stops before step 1
+(Ctrl-C, SIGTERM, an error, a full disk) leaves OUT as it was; its staging folder is removed then,
+or by the next run.
+
+Only files the manifest lists are ever deleted: a file a user put in OUT is never touched. A lock
+(``flock`` on ``OUT/.pinchmatch/lock``) refuses a second run into the same OUT while one is going.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import json
+import os
+import shutil
+import signal
+from contextlib import contextmanager
+from pathlib import Path
+
+from .errors import OutputError
+from .report import write_atomic
+
+CONTROL = ".pinchmatch"
+
+
+class OutputFolder:
+    """``with OutputFolder(out) as stage:`` write the result under ``stage``; it is published into
+    ``out`` when the block ends without an exception, and discarded otherwise.
+
+    ``direct(path)`` records a file written straight into ``out`` (inputs a run generates, the
+    same bytes every time) as part of the result.
+    """
+
+    def __init__(self, out: str | os.PathLike):
+        self.out = Path(out)
+        self.control = self.out / CONTROL
+        self.stage = self.control / "staging"
+        self._lock = None
+        self._direct: list[str] = []
+        self._created = False
+
+    def __enter__(self) -> Path:
+        self._created = not self.out.exists()
+        try:
+            self.control.mkdir(parents=True, exist_ok=True)
+            fd = os.open(self.control / "lock", os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError as exc:
+            raise OutputError(f"{self.out}: cannot write there ({exc.strerror or exc}); choose another -o") from None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            os.close(fd)
+            raise OutputError(f"{self.out}: another pinchmatch run is writing this folder; wait for it to end, "
+                              "or choose another -o") from None
+        self._lock = fd
+        finish_commit(self.out)
+        shutil.rmtree(self.stage, ignore_errors=True)  # what a stopped run left
+        self.stage.mkdir()
+        return self.stage
+
+    def direct(self, path: str | os.PathLike) -> None:
+        self._direct.append(Path(path).relative_to(self.out).as_posix())
+
+    def __exit__(self, exc_type, exc, tb):
+        try:
+            if exc_type is None:
+                with _signals_deferred():
+                    self._publish()
+        finally:
+            if not (self.control / "commit.json").exists():  # a journal still needs what is staged
+                shutil.rmtree(self.stage, ignore_errors=True)
+            if exc_type is not None and self._created:
+                shutil.rmtree(self.out, ignore_errors=True)  # a folder this run made and did not finish
+            fcntl.flock(self._lock, fcntl.LOCK_UN)
+            os.close(self._lock)
+            self._lock = None
+
+    def _publish(self) -> None:
+        new = sorted({p.relative_to(self.stage).as_posix() for p in self.stage.rglob("*") if p.is_file()}
+                     | set(self._direct))
+        old = read_manifest(self.out)
+        journal = {"new": new, "staged": [n for n in new if (self.stage / n).is_file()],
+                   "remove": sorted(set(old) - set(new))}
+        write_atomic(self.control / "commit.json", json.dumps(journal))
+        finish_commit(self.out)
+
+
+def recover(out: str | os.PathLike) -> None:
+    """For readers (``pinchmatch view``): finish a publication that a killed run left half done and
+    remove what a killed run staged, under the folder's lock. While a run is writing the folder,
+    a half-done publication is refused and anything else left alone."""
+    control = Path(out) / CONTROL
+    if not control.is_dir():
+        return
+    fd = os.open(control / "lock", os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            if (control / "commit.json").exists():
+                raise OutputError(f"{out}: a pinchmatch run is writing this folder; wait for it to end") from None
+            return
+        finish_commit(out)
+        shutil.rmtree(control / "staging", ignore_errors=True)
+    finally:
+        os.close(fd)
+
+
+def read_manifest(out: Path) -> list[str]:
+    """The files of the result in ``out``, as its manifest lists them ([] when there is none)."""
+    try:
+        files = json.loads((Path(out) / CONTROL / "manifest.json").read_text(encoding="utf-8"))["files"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return []
+    return [f for f in files if isinstance(f, str) and _inside(f)]
+
+
+def finish_commit(out: str | os.PathLike) -> None:
+    """Carry out a journal left by a publication that did not finish (nothing when there is none)."""
+    out = Path(out)
+    control = out / CONTROL
+    try:
+        journal = json.loads((control / "commit.json").read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        return
+    except (OSError, ValueError) as exc:
+        raise OutputError(f"{control / 'commit.json'}: unreadable ({exc}); delete {control} and run again") from None
+    try:
+        for name in journal["staged"]:
+            source, target = control / "staging" / name, out / name
+            if _inside(name) and source.is_file():
+                target.parent.mkdir(parents=True, exist_ok=True)
+                os.replace(source, target)
+        for name in journal["remove"]:
+            if _inside(name):
+                (out / name).unlink(missing_ok=True)
+                _prune_empty(out, (out / name).parent)
+        write_atomic(control / "manifest.json", json.dumps({"files": journal["new"]}, indent=1))
+        (control / "commit.json").unlink()
+    except OSError as exc:
+        raise OutputError(f"{out}: cannot finish writing the result ({exc.strerror or exc}); free some space "
+                          "and run again") from None
+
+
+def _inside(name: str) -> bool:
+    parts = Path(name).parts
+    return bool(parts) and not Path(name).is_absolute() and ".." not in parts and parts[0] != CONTROL
+
+
+def _prune_empty(out: Path, folder: Path) -> None:
+    """Remove folders that the deletions left empty, up to (not including) ``out``."""
+    while folder != out and folder.is_dir() and not any(folder.iterdir()):
+        folder.rmdir()
+        folder = folder.parent
+
+
+@contextmanager
+def _signals_deferred():
+    """SIGINT and SIGTERM wait until the block is over (publication is not to be cut in half)."""
+    pending = []
+    previous = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        for s in previous:
+            signal.signal(s, lambda signum, frame: pending.append(signum))
+    except ValueError:  # not the main thread: signals cannot arrive here anyway
+        previous = {}
+    try:
+        yield
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+        for s in pending:
+            os.kill(os.getpid(), s)

@@ -1,0 +1,186 @@
+"""An output folder holds one whole result, whatever stops a run: errors, signals, a second run."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from pinchmatch import publish, run as run_module
+from pinchmatch.cli import example_mesh_path, main
+from pinchmatch.publish import OutputFolder, read_manifest, recover
+from pinchmatch.shapes import ellipsoid
+
+
+@pytest.fixture(scope="module")
+def virtuals(tmp_path_factory):
+    root = tmp_path_factory.mktemp("v")
+    for k, axes in enumerate([(30.0, 20.0, 15.0), (40.0, 22.0, 18.0), (26.0, 26.0, 26.0)]):
+        ellipsoid(axes, faces=1500, triangulation="random", seed=k).mesh.export(root / f"e{k}.stl")
+    return root
+
+
+def match(out, virtuals, *extra, jobs=1):
+    return main(["match", "--tangible", str(example_mesh_path()), "--virtual", *map(str, virtuals),
+                 "--count", "120", "-q", "--jobs", str(jobs), "-o", str(out), *extra])
+
+
+def snapshot(out):
+    return {str(p.relative_to(out)): p.read_bytes() for p in sorted(out.rglob("*"))
+            if p.is_file() and p.name != "lock"}
+
+
+def assert_whole(out):
+    """OUT is one whole result: the manifest lists exactly the result's files, every one exists,
+    every scene the document names exists, and nothing is left staged or half-published."""
+    files = read_manifest(out)
+    assert files and all((out / f).is_file() for f in files)
+    doc = json.loads((out / "matches.json").read_text())
+    assert all(m["scene_file"] in files for m in doc["matches"] if m.get("tangible"))
+    assert not (out / ".pinchmatch" / "commit.json").exists()
+    assert not (out / ".pinchmatch" / "staging").exists()
+    assert not list(out.rglob("*.tmp"))
+
+
+def test_a_run_that_fails_midway_leaves_the_previous_result(tmp_path, virtuals, monkeypatch, capsys):
+    out = tmp_path / "out"
+    assert match(out, sorted(virtuals.glob("*.stl"))) == 0
+    before = snapshot(out)
+    calls = []
+    real_add = run_module.MatchesSink.add
+
+    def add_then_stop(self, k, r):
+        calls.append(k)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return real_add(self, k, r)
+
+    monkeypatch.setattr(run_module.MatchesSink, "add", add_then_stop)
+    assert match(out, sorted(virtuals.glob("*.stl")), "--top-k", "1") == 130
+    assert "holds what it held before" in capsys.readouterr().err
+    assert snapshot(out) == before
+    assert_whole(out)
+
+
+def test_files_of_an_earlier_result_go_and_a_users_files_stay(tmp_path, virtuals):
+    out = tmp_path / "out"
+    assert match(out, sorted(virtuals.glob("*.stl"))) == 0
+    assert len(list((out / "scenes").glob("*.glb"))) == 3
+    (out / "notes.txt").write_text("mine")
+    (out / "scenes" / "mine.glb").write_bytes(b"mine")
+    assert match(out, [virtuals / "e1.stl"], "--no-figures") == 0
+    assert sorted(p.name for p in (out / "scenes").iterdir()) == ["e1.glb", "mine.glb"]
+    assert not (out / "figures").exists()  # every figure was the earlier result's
+    assert (out / "notes.txt").read_text() == "mine" and (out / "scenes" / "mine.glb").read_bytes() == b"mine"
+    assert_whole(out)
+
+
+def test_a_second_run_into_the_same_folder_is_refused_while_one_runs(tmp_path, virtuals, capsys):
+    out = tmp_path / "out"
+    with OutputFolder(out) as stage:
+        code = match(out, [virtuals / "e0.stl"])
+        assert list(stage.iterdir()) == [] and not (out / "matches.json").exists()  # the second wrote nothing
+    err = capsys.readouterr().err
+    assert code == 2 and "another pinchmatch run is writing this folder" in err and len(err.strip().splitlines()) == 1
+
+
+def test_a_publication_cut_short_is_finished_by_the_next_reader(tmp_path, virtuals, monkeypatch):
+    out = tmp_path / "out"
+    assert match(out, [virtuals / "e0.stl"]) == 0
+    # the second run dies after its journal is written and one file is moved
+    real_replace = os.replace
+    moved = []
+
+    def replace_once_then_die(src, dst):
+        if ".pinchmatch/staging" in str(src) and ".pinchmatch" not in str(dst):  # publishing
+            if moved:
+                raise SystemExit("killed")
+            moved.append(dst)
+        return real_replace(src, dst)
+
+    monkeypatch.setattr(publish.os, "replace", replace_once_then_die)
+    with pytest.raises(SystemExit):
+        match(out, [virtuals / "e1.stl", virtuals / "e2.stl"])
+    monkeypatch.setattr(publish.os, "replace", real_replace)
+    assert (out / ".pinchmatch" / "commit.json").exists()  # half published
+    assert main(["view", str(out), "-q"]) == 0  # a reader finishes the journal first
+    assert_whole(out)
+    doc = json.loads((out / "matches.json").read_text())
+    assert [m["virtual"] for m in doc["matches"]] == ["e1.stl", "e2.stl"]
+    assert not (out / "scenes" / "e0.glb").exists()
+
+
+def _pgid_members(pgid):
+    members = []
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                with open(f"/proc/{entry}/stat") as fh:
+                    fields = fh.read().rsplit(")", 1)[1].split()
+            except OSError:
+                continue
+            if int(fields[2]) == pgid and fields[0] != "Z":
+                members.append(int(entry))
+    return members
+
+
+@pytest.mark.parametrize("sig, delay_s", [(signal.SIGINT, 2.0), (signal.SIGTERM, 3.0), (signal.SIGKILL, 1.5),
+                                         (signal.SIGKILL, 3.5)])
+def test_signals_leave_a_whole_result_and_no_worker(tmp_path, virtuals, sig, delay_s):
+    out = tmp_path / "out"
+    assert match(out, [virtuals / "e0.stl"], "--no-view") == 0
+    before = snapshot(out)
+    argv = [sys.executable, "-m", "pinchmatch", "match", "--tangible", str(example_mesh_path()), "--virtual",
+            *map(str, sorted(virtuals.glob("*.stl"))), "--count", "400", "-q", "--jobs", "2", "-o", str(out)]
+    proc = subprocess.Popen(argv, start_new_session=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(delay_s)
+    proc.send_signal(sig)
+    _, err = proc.communicate(timeout=120)
+    if proc.returncode == 0:  # finished before the signal: the new result, whole
+        assert_whole(out)
+    else:
+        assert proc.returncode in (-signal.SIGKILL, 130, 143), (proc.returncode, err)
+        if sig != signal.SIGKILL:
+            assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
+        recover(out)  # what any next run or view does first
+        assert snapshot(out) == before or read_manifest(out) != []
+        assert_whole(out)
+    deadline = time.time() + 15
+    while _pgid_members(proc.pid) and time.time() < deadline:
+        time.sleep(0.2)
+    assert _pgid_members(proc.pid) == []  # no worker, no resource tracker outlives the run
+    assert match(out, sorted(virtuals.glob("*.stl")), "--no-view") == 0  # and a rerun completes
+    assert_whole(out)
+
+
+CHILDREN = '''
+import os, sys
+from pinchmatch.cli import main
+if __name__ == "__main__":
+    code = main(sys.argv[1:])
+    states = []
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                fields = open(f"/proc/{entry}/stat").read().rsplit(")", 1)[1].split()
+            except OSError:
+                continue
+            if int(fields[1]) == os.getpid():
+                states.append(fields[0])
+    print(code, " ".join(states))
+'''
+
+
+def test_a_normal_parallel_run_leaves_no_defunct_child(tmp_path, virtuals):
+    script = tmp_path / "children.py"
+    script.write_text(CHILDREN)
+    proc = subprocess.run([sys.executable, str(script), "match", "--tangible", str(example_mesh_path()),
+                           "--virtual", str(virtuals / "e0.stl"), str(virtuals / "e1.stl"), "--count", "120", "-q",
+                           "--jobs", "2", "--no-cache", "-o", str(tmp_path / "out")],
+                          capture_output=True, text=True, timeout=300)
+    code, *states = proc.stdout.split()
+    assert code == "0", proc.stderr
+    assert "Z" not in states  # workers joined; the resource tracker ends with the process
