@@ -201,7 +201,7 @@ def test_clear_deletes_only_what_the_cache_wrote(tmp_path, capsys, mesh_file):
     impostor = folder / ("ab" * 32 + ".npz")  # named like an entry, holding something else
     np.savez(impostor, meta=np.array('{"format": 2, "key": "someone else"}'))
     (folder / ("cd" * 32 + ".npz")).mkdir()  # a folder named like an entry
-    (folder / ".0123456789abcdef.x1y2.tmp").write_bytes(b"half an entry")  # the cache's own temporary
+    (folder / f".{'ef' * 32}.npz.x1y2.tmp").write_bytes(b"half an entry")  # the cache's own temporary
     code, out, err = run(capsys, "cache", "clear", "--cache", folder)
     assert code == 0 and "deleted 1 entries" in out, err
     left = sorted(p.name for p in folder.iterdir())

@@ -168,3 +168,34 @@ def test_warnings_from_libraries_never_reach_stderr(tmp_path, capsys):
     mesh.export(tmp_path / "crossed.stl")
     code, _, err = run(capsys, "poses", tmp_path / "crossed.stl", "--count", 50, "-o", tmp_path / "o.json")
     assert "Warning" not in err and "warn" not in err.lower(), err
+
+
+def test_the_patch_radius_is_one_setting():
+    from pinchmatch.analysis import analyze_object, find_pinches
+    from pinchmatch.pinches import PinchSettings
+
+    obj = analyze_object(example_mesh_path(), patch_radius_mm=6.0)
+    with pytest.raises(ConfigError, match="analysed for 6 mm patches but the pinch settings ask for 8 mm"):
+        find_pinches(obj, settings=PinchSettings(count=20))
+    pinches, _ = find_pinches(obj, settings=PinchSettings(count=20, patch_radius_mm=6.0))
+    assert len(pinches) == 20
+
+
+def test_every_output_file_gets_ordinary_permissions(tmp_path, capsys):
+    """One writer for every file: matches.json, matches.jsonl, scenes, figures and cache entries alike."""
+    import os
+    import stat
+
+    old = os.umask(0o022)
+    try:
+        for fmt in ("json", "jsonl"):
+            code, _, err = run(capsys, "match", "--tangible", example_mesh_path(), "--virtual", example_mesh_path(),
+                               "--count", 80, "-q", "--format", fmt, "--cache", tmp_path / "cache",
+                               "-o", tmp_path / fmt)
+            assert code == 0, err
+        files = [p for p in tmp_path.rglob("*") if p.is_file() and p.name != "lock"]
+        assert {p.name for p in files} >= {"matches.json", "matches.jsonl", "example_prop.glb", "manifest.json"}
+        assert any(p.suffix == ".npz" for p in files)
+        assert {stat.S_IMODE(p.stat().st_mode) for p in files} == {0o644}
+    finally:
+        os.umask(old)

@@ -104,16 +104,16 @@ def test_an_output_that_cannot_be_written_is_refused_before_any_work(tmp_path, t
 
 def test_a_full_disk_met_while_writing_names_the_file(tmp_path, monkeypatch, capsys):
     """ENOSPC injected where the result is written: one line naming it, exit 2, no temporary left."""
-    from pinchmatch import report
+    from pinchmatch import files
 
-    real = report._write_atomic
+    real = files.os.replace
 
-    def full(path, text):
-        if path.name == "o.json":
+    def full(source, target):
+        if os.path.basename(target) == "o.json":
             raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
-        return real(path, text)
+        return real(source, target)
 
-    monkeypatch.setattr(report, "_write_atomic", full)
+    monkeypatch.setattr(files.os, "replace", full)
     code = main(["poses", "--example", "--count", "30", "-o", str(tmp_path / "o.json")])
     _, err = capsys.readouterr()
     assert code == 2

@@ -45,8 +45,10 @@ def test_surface_alone(box):
     _only(check_pinches(box, [[-33.0, 0, 0]], [[30.0, 0, 0]]), "surface")  # 3 mm off, tolerance 2
 
 
-def test_patch_alone(box):
-    _only(check_pinches(box, [[-30.0, 0, 0]], [[30.0, 0, 0]], settings=PinchSettings(patch_radius_mm=0.5)), "patch")
+def test_patch_alone():
+    # the end faces of a 3 x 3 mm rod: 9 mm² of surface facing the fingertip, far too little for an 8 mm patch
+    rod = trimesh.creation.box(extents=(60.0, 3.0, 3.0)).subdivide_to_size(1.0)
+    _only(check_pinches(_ctx(rod), [[-30.0, 0, 0]], [[30.0, 0, 0]]), "patch")
 
 
 def test_clearance_alone():

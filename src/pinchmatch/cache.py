@@ -27,7 +27,6 @@ import json
 import logging
 import os
 import re
-import tempfile
 import zipfile
 from dataclasses import dataclass
 from importlib import resources
@@ -39,10 +38,11 @@ import trimesh
 from . import __version__
 from .analysis import ObjectAnalysis, analyze_object
 from .features import PinchFeatures
+from .files import AtomicFile
 from .load import LoadedMesh, load_mesh
 from .match import Candidates, candidate_poses
 from .cost import feature_table
-from .errors import ConfigError
+from .errors import ConfigError, OutputError
 from .pinches import ARRAY_FIELDS, PinchSettings, Pinches
 from .properties import object_properties
 from .surface import SurfaceContext
@@ -55,7 +55,7 @@ CACHE_FORMAT = 2
 ALGORITHM_MODULES = ("load", "surface", "curvature", "jets", "hand", "pinches", "sampling", "spread", "features",
                      "properties", "analysis", "match", "cost", "cache")
 ENTRY_NAME = re.compile(r"^[0-9a-f]{64}\.npz$")
-TEMP_NAME = re.compile(r"^\.[0-9a-f]{16}\..+\.tmp$")
+TEMP_NAME = re.compile(r"^\.[0-9a-f]{64}\.npz\..+\.tmp$")
 #: what reading a damaged entry can raise; anything else is a bug and is raised
 DAMAGED = (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile)
 
@@ -149,17 +149,15 @@ class FeatureCache:
         meta, arrays = to_payload(candidates)
         arrays = {"meta": np.array(json.dumps(meta | {"key": key, "format": CACHE_FORMAT}))} | arrays
         try:
-            self.folder.mkdir(parents=True, exist_ok=True)
-            fd, tmp = tempfile.mkstemp(prefix=f".{key[:16]}.", suffix=".tmp", dir=self.folder)
+            entry = AtomicFile(self._path(key), binary=True)
             try:
-                with os.fdopen(fd, "wb") as fh:
-                    np.savez(fh, **arrays)
-                os.replace(tmp, self._path(key))
-            finally:
-                if os.path.exists(tmp):
-                    os.unlink(tmp)
-        except OSError as exc:
-            log.warning("cannot write the cache in %s (%s); going on without it", self.folder, exc.strerror or exc)
+                np.savez(entry.file, **arrays)
+            except OSError as exc:
+                entry.abort()
+                raise entry._error(exc) from None
+            entry.commit()
+        except OutputError as exc:
+            log.warning("cannot write the cache in %s (%s); going on without it", self.folder, exc)
 
     def _check_folder(self) -> bool:
         if self.folder.exists() and not self.folder.is_dir():
@@ -265,10 +263,11 @@ def _rebuild(meta: dict, arrays: dict, path, *, patch_radius_mm: float) -> Candi
 
 
 def cached_candidates(path: str | os.PathLike, *, cache: FeatureCache | None, units: str | None = None,
-                      up: str | None = None, patch_radius_mm: float = 8.0,
-                      settings: PinchSettings = PinchSettings(),
+                      up: str | None = None, settings: PinchSettings = PinchSettings(),
                       given: tuple[np.ndarray, np.ndarray] | None = None, source: str | None = None) -> Candidates:
-    """An object's candidate poses: from ``cache`` when it holds them, else computed (and stored)."""
+    """An object's candidate poses: from ``cache`` when it holds them, else computed (and stored).
+    The patch radius is the settings' (the object is analysed for it)."""
+    patch_radius_mm = settings.patch_radius_mm
     key = None
     if cache is not None:
         try:

@@ -27,6 +27,7 @@ from . import __version__
 from .analysis import analyze_object, find_pinches, load_poses_file, score_pinches
 from .cache import FeatureCache
 from .errors import ConfigError, PinchmatchError, route_warnings
+from .files import check_writable, write_atomic
 from .load import UNITS_MM, UP_VECTORS, mesh_files
 from .pinches import PinchSettings
 from .publish import OutputFolder, recover
@@ -35,7 +36,7 @@ from .match import MatchSettings
 from .properties import parse_vector
 from ._console import Presenter
 from .report import (features_document, matches_document, matches_rows, poses_csv, poses_document,
-                     check_writable, scene_stems, study_document, study_rows, to_json, write_atomic)
+                     scene_stems, study_document, study_rows, to_json)
 from .run import Job, MatchesSink, ObjectTask, RunError, default_jobs, executor, run_match
 from .scenes import write_scenes
 from .study import ORDERS, run_study
@@ -412,7 +413,7 @@ def _cmd_match(args) -> int:
     if args.json and args.format == "jsonl":
         raise ConfigError("--json and --format jsonl: give one of them; --json prints the matches.json document")
     cache = None if args.no_cache else FeatureCache(args.cache)
-    job = Job(units=args.units, up=args.up, patch_radius_mm=args.patch_radius_mm, settings=settings,
+    job = Job(units=args.units, up=args.up, settings=settings,
               match=match_settings, cache_folder=None if cache is None else str(cache.folder.resolve()),
               dump_poses=args.dump_poses, scenes=True, figures=not args.no_figures)
     tasks = lambda role, paths, given, files: [  # noqa: E731

@@ -21,7 +21,8 @@ from matplotlib.colors import LogNorm
 from matplotlib.figure import Figure
 from matplotlib.patches import Rectangle
 
-from .report import figure_file, scene_stems, write_atomic
+from .files import write_atomic
+from .report import figure_file, scene_stems
 
 log = logging.getLogger(__name__)
 

@@ -233,6 +233,15 @@ def rule_table(context, points, normals, valid_patch, settings, surface_ok=None,
     return broken, found
 
 
+def check_patch_radius(context: SurfaceContext, settings: PinchSettings) -> None:
+    """The patch radius is one setting: the surface context was sampled for it (about 120 samples
+    per patch) and the fits use it. Raise ConfigError when an object was analysed for another."""
+    if not np.isclose(context.patch_radius_mm, settings.patch_radius_mm, rtol=1e-9, atol=0.0):
+        raise ConfigError(f"--patch-radius-mm: the object was analysed for {context.patch_radius_mm:g} mm patches "
+                          f"but the pinch settings ask for {settings.patch_radius_mm:g} mm; analyse it with "
+                          "patch_radius_mm equal to PinchSettings.patch_radius_mm")
+
+
 def patches(context, points, face_normals, settings) -> PatchGeometry:
     return patch_geometry(
         context, points.reshape(-1, 3), face_normals.reshape(-1, 3), patch_radius_mm=settings.patch_radius_mm
@@ -280,6 +289,7 @@ def check_pinches(
     Pinches
         All n candidates, in order, with ``feasible``, ``broken`` and ``approach`` set.
     """
+    check_patch_radius(context, settings)
     p1_mm = np.asarray(p1_mm, dtype=np.float64).reshape(-1, 3)
     p2_mm = np.asarray(p2_mm, dtype=np.float64).reshape(-1, 3)
     n = len(p1_mm)

@@ -29,7 +29,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from .errors import OutputError
-from .report import write_atomic
+from .files import write_atomic
 
 CONTROL = ".pinchmatch"
 

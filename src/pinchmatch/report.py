@@ -11,9 +11,7 @@ import csv
 import io
 import json
 import math
-import os
 import re
-import tempfile
 from collections.abc import Iterable
 from pathlib import Path
 
@@ -21,7 +19,6 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from . import __version__
-from .errors import OutputError
 from .features import PinchFeatures
 from .load import LoadedMesh
 from .match import contact_offset_mm, criterion_table
@@ -162,59 +159,6 @@ def poses_csv(document: dict) -> str:
 
 def to_json(document: dict) -> str:
     return json.dumps(document, indent=1, allow_nan=False) + "\n"
-
-
-def write_atomic(path: str | os.PathLike, text: str | bytes) -> None:
-    """Write ``text`` (or bytes) to ``path`` via a temporary file and ``os.replace``: never half a file.
-
-    Raises OutputError, naming the file, when it cannot be written (no permission, a read-only or
-    full file system)."""
-    path = Path(path)
-    try:
-        _write_atomic(path, text)
-    except OSError as exc:
-        raise OutputError(f"{path}: cannot write it ({exc.strerror or exc}); free some space, or choose "
-                          "a writable place for the output") from None
-
-
-def check_writable(path: str | os.PathLike, *, folder: bool) -> None:
-    """Before any work: raise OutputError unless ``path`` (a folder when ``folder``, else a file)
-    can be created or written, naming the target."""
-    path = Path(path)
-    if path.exists():
-        if folder and not path.is_dir():
-            raise OutputError(f"{path}: -o names a file; give a folder for the results")
-        if not folder and path.is_dir():
-            raise OutputError(f"{path}: -o names a folder; give a file name for the result")
-        target = path if folder else path.parent
-    else:
-        target = path.parent
-        while not target.exists() and target != target.parent:
-            target = target.parent
-        if not target.is_dir():
-            raise OutputError(f"{path}: {target} is a file, so the output cannot go there; choose another -o")
-    if not os.access(target, os.W_OK | os.X_OK):
-        raise OutputError(f"{path}: cannot write in {target} (no permission, or a read-only file system); "
-                          "choose another -o")
-
-
-def _write_atomic(path: Path, text: str | bytes) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        if isinstance(text, bytes):
-            with os.fdopen(fd, "wb") as fh:
-                fh.write(text)
-        else:
-            with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
-                fh.write(text)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; give the file ordinary permissions
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):  # only when something failed before the replace
-            os.unlink(tmp)
 
 
 SCHEMA_MATCHES = "pinchmatch.matches/1"

@@ -42,10 +42,11 @@ import numpy as np
 from .cache import FeatureCache, cached_candidates, from_payload, to_payload
 from .cost import feature_bounds, ranges_from_bounds
 from .errors import ConfigError, PinchmatchError, route_warnings
+from .files import AtomicFile, write_atomic
 from .match import (Candidates, MatchSettings, allowed_tangibles, cost_model, cost_row, match_virtual, _Search)
 from .pinches import PinchSettings
 from .report import (SCHEMA_MATCH_LINES, _num, cost_matrix_section, figure_file, match_entry, matches_header,
-                     matches_rows, object_entry, scene_file, to_json, write_atomic)
+                     matches_rows, object_entry, scene_file, to_json)
 from .scenes import match_scene_glb
 
 log = logging.getLogger(__name__)
@@ -65,8 +66,7 @@ class Job:
 
     units: str | None
     up: str | None
-    patch_radius_mm: float
-    settings: PinchSettings
+    settings: PinchSettings  # its patch_radius_mm is the run's one patch radius
     match: MatchSettings
     cache_folder: str | None = None  # None: no cache
     dump_poses: bool = False
@@ -120,7 +120,7 @@ class VirtualResult:
 
 def _candidates(task: ObjectTask, job: Job) -> tuple[Candidates, bool]:
     cache = FeatureCache(job.cache_folder) if job.cache_folder is not None else None
-    c = cached_candidates(task.path, cache=cache, units=job.units, up=job.up, patch_radius_mm=job.patch_radius_mm,
+    c = cached_candidates(task.path, cache=cache, units=job.units, up=job.up,
                           settings=job.settings, given=task.given, source=task.source)
     return c, bool(cache is not None and cache.hits)
 
@@ -499,29 +499,25 @@ class MatchesSink:
         self.rows = matches_rows({"matches": []})
         self._header = None
         self._virtuals, self._matches, self._names, self._cost_rows, self._chosen = [], [], [], [], []
-        self._lines = None  # (file, temporary path) while matches.jsonl is being written
+        self._lines = None  # the AtomicFile of matches.jsonl while it is being written
 
     def __enter__(self):
         return self
 
     def __exit__(self, *exc):
         if self._lines is not None:  # stopped before finish: no half-written result
-            fh, tmp = self._lines
-            fh.close()
-            os.unlink(tmp)
+            self._lines.abort()
             self._lines = None
 
     def _line(self, record: dict) -> None:
-        self._lines[0].write(json.dumps(record, allow_nan=False, separators=(",", ":")) + "\n")
+        self._lines.write(json.dumps(record, allow_nan=False, separators=(",", ":")) + "\n")
 
     def start(self, settings: dict, tangibles: list[Candidates], dump_poses: bool) -> None:
         entries = [object_entry(t, dump_poses=dump_poses) for t in tangibles]
         self.objects += [(e["name"], "tangible", e["faces"], e["pose_count"]) for e in entries]
         self._header = matches_header(settings, entries)
         if self.fmt == "jsonl":
-            self.out.mkdir(parents=True, exist_ok=True)
-            fd, tmp = tempfile.mkstemp(prefix=".matches.jsonl.", suffix=".tmp", dir=self.out)
-            self._lines = (os.fdopen(fd, "w", encoding="utf-8", newline=""), tmp)
+            self._lines = AtomicFile(self.result_path)
             self._line({"record": "header", **self._header, "schema": SCHEMA_MATCH_LINES})
 
     def add(self, k: int, r: VirtualResult) -> None:
@@ -563,9 +559,6 @@ class MatchesSink:
             self._line({"record": "failed", **f})
         self._line({"record": "end", "virtual_count": len(self._names),
                     "matched_count": sum(t is not None for t in self._chosen), "failed_count": len(failed)})
-        fh, tmp = self._lines
-        fh.close()
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, self.result_path)
+        self._lines.commit()
         self._lines = None
         return None

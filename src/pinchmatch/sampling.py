@@ -20,7 +20,7 @@ import numpy as np
 
 from .curvature import tangent_frame
 from .errors import NoFeasiblePinchError
-from .pinches import (PREFILTER_MARGIN_DEG, RULES, PinchSettings, Pinches, assemble, cheap_broken,
+from .pinches import (PREFILTER_MARGIN_DEG, RULES, PinchSettings, Pinches, assemble, check_patch_radius, cheap_broken,
                       concat_pinches, patches, reach_rule, rule_table)
 from .spread import Pool
 from .surface import SurfaceContext
@@ -137,6 +137,7 @@ def sample_pinches(
     NoFeasiblePinchError
         No candidate passes; the message says how many each rule rejected.
     """
+    check_patch_radius(context, settings)
     rng = np.random.default_rng(settings.seed)
     count = settings.count
     rejected = dict.fromkeys(RULES, 0)

@@ -27,7 +27,8 @@ from trimesh.visual.material import PBRMaterial
 from .hand import Hand
 from .match import contact_offset_mm
 from .register import _rotations_between
-from .report import scene_stems, write_atomic
+from .files import write_atomic
+from .report import scene_stems
 
 #: the fingertip cones: tip on the contact, axis along the pinch line, outside the object
 CONE_HEIGHT_MM, CONE_RADIUS_MM = 20.0, 5.0

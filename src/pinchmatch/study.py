@@ -31,7 +31,8 @@ from .cost import PAPER_CRITERIA
 from .match import (Candidates, MatchSettings, SceneMatch, candidate_poses, cost_model, evaluate_pairs,
                     line_contacts, match_scene, merge_candidates, reference_cost, reference_pose)
 from .pinches import PinchSettings
-from .report import _num, _vec, write_atomic
+from .files import write_atomic
+from .report import _num, _vec
 from .shapes import stacked_prop
 
 PARTS = ("cylinder", "cube", "cone")

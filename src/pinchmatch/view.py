@@ -21,7 +21,8 @@ from pathlib import Path
 
 from . import __version__
 from .errors import ConfigError
-from .report import SCHEMA_MATCHES, matches_from_lines, scene_file, scene_stems, write_atomic
+from .files import write_atomic
+from .report import SCHEMA_MATCHES, matches_from_lines, scene_file, scene_stems
 
 log = logging.getLogger(__name__)
 

@@ -1,0 +1,94 @@
+"""Writing files whole: every file pinchmatch writes goes through :class:`AtomicFile`.
+
+A temporary file beside the target, renamed over it when complete: a reader sees the old file or
+the new one, never half of one, and an error leaves the old one. Every file gets ordinary
+permissions (0666 less the umask). A file that cannot be written (no permission, a read-only or
+full file system) is an :class:`errors.OutputError` naming it: one line for the command line.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+from .errors import OutputError
+
+
+class AtomicFile:
+    """The one way pinchmatch writes a file: into a temporary file beside it, then renamed over it
+    (``commit``), so a reader sees the old file or the new one, never half of one; ``abort`` (or an
+    error) leaves the old one. Every file gets ordinary permissions (0666 less the umask).
+
+    ``file`` is the open handle (text, UTF-8, or ``binary``); it may be written over time, as a
+    stream is. Raises OutputError, naming the file, when it cannot be written (no permission, a
+    read-only or full file system).
+    """
+
+    def __init__(self, path: str | os.PathLike, *, binary: bool = False):
+        self.path = Path(path)
+        try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            fd, self._tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", suffix=".tmp", dir=self.path.parent)
+        except OSError as exc:
+            raise self._error(exc) from None
+        self.file = os.fdopen(fd, "wb") if binary else os.fdopen(fd, "w", encoding="utf-8", newline="")
+
+    def _error(self, exc: OSError) -> OutputError:
+        return OutputError(f"{self.path}: cannot write it ({exc.strerror or exc}); free some space, or choose "
+                           "a writable place for the output")
+
+    def write(self, data) -> None:
+        try:
+            self.file.write(data)
+        except OSError as exc:
+            self.abort()
+            raise self._error(exc) from None
+
+    def commit(self) -> None:
+        try:
+            self.file.close()
+            umask = os.umask(0)
+            os.umask(umask)
+            os.chmod(self._tmp, 0o666 & ~umask)  # mkstemp makes 0600
+            os.replace(self._tmp, self.path)
+        except OSError as exc:
+            self.abort()
+            raise self._error(exc) from None
+
+    def abort(self) -> None:
+        self.file.close()
+        if os.path.exists(self._tmp):
+            os.unlink(self._tmp)
+
+
+def write_atomic(path: str | os.PathLike, text: str | bytes) -> None:
+    """Write ``text`` (or bytes) to ``path`` whole (:class:`AtomicFile`)."""
+    out = AtomicFile(path, binary=isinstance(text, bytes))
+    try:
+        out.write(text)
+    except BaseException:
+        out.abort()
+        raise
+    out.commit()
+
+
+def check_writable(path: str | os.PathLike, *, folder: bool) -> None:
+    """Before any work: raise OutputError unless ``path`` (a folder when ``folder``, else a file)
+    can be created or written, naming the target."""
+    path = Path(path)
+    if path.exists():
+        if folder and not path.is_dir():
+            raise OutputError(f"{path}: -o names a file; give a folder for the results")
+        if not folder and path.is_dir():
+            raise OutputError(f"{path}: -o names a folder; give a file name for the result")
+        target = path if folder else path.parent
+    else:
+        target = path.parent
+        while not target.exists() and target != target.parent:
+            target = target.parent
+        if not target.is_dir():
+            raise OutputError(f"{path}: {target} is a file, so the output cannot go there; choose another -o")
+    if not os.access(target, os.W_OK | os.X_OK):
+        raise OutputError(f"{path}: cannot write in {target} (no permission, or a read-only file system); "
+                          "choose another -o")
