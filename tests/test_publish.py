@@ -184,3 +184,48 @@ def test_a_normal_parallel_run_leaves_no_defunct_child(tmp_path, virtuals):
     code, *states = proc.stdout.split()
     assert code == "0", proc.stderr
     assert "Z" not in states  # workers joined; the resource tracker ends with the process
+
+
+def test_two_runs_at_once_one_is_refused(tmp_path, virtuals):
+    out = tmp_path / "out"
+    argv = [sys.executable, "-m", "pinchmatch", "match", "--tangible", str(example_mesh_path()), "--virtual",
+            *map(str, sorted(virtuals.glob("*.stl"))), "--count", "300", "-q", "--jobs", "1", "-o", str(out)]
+    first = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 60
+    while not (out / ".pinchmatch" / "staging").exists() and time.time() < deadline:
+        time.sleep(0.05)
+    second = subprocess.run(argv, capture_output=True, text=True, timeout=120)
+    _, first_err = first.communicate(timeout=300)
+    assert first.returncode == 0, first_err
+    assert second.returncode == 2 and "another pinchmatch run is writing this folder" in second.stderr
+    assert len(second.stderr.strip().splitlines()) == 1
+    assert_whole(out)
+
+
+def test_the_next_parallel_run_removes_a_killed_runs_temporary_folder(tmp_path, virtuals):
+    import tempfile
+
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()  # a pid that no longer runs
+    orphan = tempfile.mkdtemp(prefix=f"{run_module.RUN_FOLDER_PREFIX}{dead.pid}-")
+    mine = tempfile.mkdtemp(prefix=f"{run_module.RUN_FOLDER_PREFIX}{os.getpid()}-")  # a live run's
+    try:
+        assert match(tmp_path / "out", [virtuals / "e0.stl"], "--no-figures", "--no-view", jobs=2) == 0
+        assert not os.path.exists(orphan) and os.path.isdir(mine)
+    finally:
+        os.rmdir(mine)
+
+
+def test_a_worker_that_dies_is_an_internal_error_not_bad_input(tmp_path, virtuals, monkeypatch, capsys):
+    from concurrent.futures.process import BrokenProcessPool
+
+    from pinchmatch import cli
+
+    def broken(*args, **kwargs):
+        raise BrokenProcessPool("a child process terminated abruptly")
+
+    monkeypatch.setattr(cli, "run_match", broken)
+    assert match(tmp_path / "out", [virtuals / "e0.stl"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("pinchmatch: internal error: a worker process died") and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "out").exists()

@@ -117,13 +117,13 @@ def _add_pinch_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--friction-cone-deg", type=float, default=30.0, help="antipodal tolerance (default 30)")
     p.add_argument("--min-width-mm", type=float, default=0.5,
                    help="smallest pinch width (default 0.5: a bowl wall, a plate rim, a card)")
-    p.add_argument("--max-width-mm", type=float, default=100.0, help="largest pinch width (default 100)")
-    p.add_argument("--fingertip-radius-mm", type=float, default=8.0, help="fingertip sphere radius (default 8)")
-    p.add_argument("--patch-radius-mm", type=float, default=8.0, help="contact patch radius (default 8)")
+    p.add_argument("--max-width-mm", type=float, default=100.0, help="largest pinch width (default 100; at most 300)")
+    p.add_argument("--fingertip-radius-mm", type=float, default=8.0, help="fingertip sphere radius (default 8; 2 to 25)")
+    p.add_argument("--patch-radius-mm", type=float, default=8.0, help="contact patch radius (default 8; 0.5 to 50)")
     p.add_argument("--finger-radius-mm", type=float, default=8.0,
                    help="radius of the finger capsule behind each fingertip (default 8)")
     p.add_argument("--finger-length-mm", type=float, default=45.0,
-                   help="length of the finger capsule: distal and middle phalanges (default 45)")
+                   help="length of the finger capsule: distal and middle phalanges (default 45; 5 to 150)")
     p.add_argument("--approach-tilt-deg", type=float, default=30.0,
                    help="how far the hand's approach may lean towards either finger from the plane "
                         "perpendicular to the pinch line (default 30)")
@@ -132,8 +132,8 @@ def _add_pinch_options(p: argparse.ArgumentParser) -> None:
 
 
 def _add_sampling_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--count", type=int, default=1000, help="about how many pinches per object (default 1000)")
-    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--count", type=int, default=1000, help="about how many pinches per object (default 1000; at most 100,000)")
+    p.add_argument("--seed", type=int, default=0, help="random seed, 0 or more (default 0)")
 
 
 def _add_match_options(p: argparse.ArgumentParser) -> None:
