@@ -35,10 +35,10 @@ from .cost import parse_criteria, parse_weights
 from .match import MatchSettings
 from .properties import parse_vector
 from ._console import Presenter
-from .report import (features_document, matches_document, matches_rows, poses_csv, poses_document,
+from .report import (features_document, matches_rows, poses_csv, poses_document,
                      scene_stems, study_document, study_rows, to_json)
-from .run import Job, MatchesSink, ObjectTask, RunError, default_jobs, executor, run_match
-from .scenes import write_scenes
+from .run import (Job, MatchesSink, ObjectTask, RunError, RunResult, default_jobs, executor, run_match,
+                  virtual_result)
 from .study import ORDERS, run_study
 from .view import make_server, write_page
 
@@ -367,28 +367,6 @@ def _out_folder(args) -> Path:
     return out
 
 
-def _write_visuals(args, ui: Presenter, out: Path, scene, document: dict, *, study=None,
-                   shown: Path) -> list[str]:
-    """The scenes, the figures and the page of a run, written in ``out``; returns what was written,
-    for the summary, as paths in ``shown`` (where they are published)."""
-    written = []
-    n_matched = sum(vm.best is not None for vm in scene.matches)
-    with ui.step("glTF scenes", total=n_matched) as advance:
-        write_scenes(scene, out / "scenes", progress=lambda path: advance(path.name))
-    written.append(f"{n_matched} glTF scenes in {shown / 'scenes'}")
-    if not args.no_figures:
-        from .figures import figure_count, write_figures  # matplotlib: imported when figures are wanted
-
-        with ui.step("figures", total=figure_count(document, study=study)) as advance:
-            figures = write_figures(out, document, study=study, progress=lambda path: advance(path.name))
-        written.append(f"{len(figures)} figures in {shown / 'figures'}")
-    if not args.no_view:
-        with ui.step("viewer page"):
-            write_page(out, document=document)
-            written.append(f"the viewer page {shown / 'index.html'}")
-    return written
-
-
 #: at most this many rows in the printed tables; the result files hold every one
 TABLE_ROWS = 40
 
@@ -496,14 +474,31 @@ def _cmd_demo(args) -> int:
             publisher.direct(path)
         t1 = time.perf_counter()
         common = {**settings.as_dict(),
-                  "candidate_virtual_poses": "17 heights and all sampled" if args.full else "17 heights"}
-        study_doc = study_document(study, {**common, **MatchSettings().as_dict()})
-        matches_doc = matches_document(study.scene, {**common, **MatchSettings().as_dict()},
-                                       figures=not args.no_figures)
+                  "candidate_virtual_poses": "17 heights and all sampled" if args.full else "17 heights",
+                  **MatchSettings().as_dict()}
+        study_doc = study_document(study, common)
         write_atomic(stage / "study.json", to_json(study_doc))
-        write_atomic(stage / "matches.json", to_json(matches_doc))
-        written = [f"{out / 'study.json'}", f"{out / 'matches.json'}"]
-        written += _write_visuals(args, ui, stage, study.scene, matches_doc, study=study, shown=out)
+        scene = study.scene
+        job = Job(units="mm", up="z", settings=settings, match=MatchSettings(), figures=not args.no_figures)
+        with MatchesSink(stage, "json", scene_stems([v.name for v in scene.virtuals])) as sink:
+            sink.start(common, scene.tangibles, dump_poses=False)
+            with ui.step("glTF scenes", total=len(scene.virtuals)) as advance:
+                for k in range(len(scene.virtuals)):
+                    sink.add(k, virtual_result(scene, k, job))
+                    advance(scene.virtuals[k].name)
+            matches_doc = sink.finish(RunResult(scene.tangibles, {}, [], 0, len(scene.virtuals)))
+        written = [f"{out / 'study.json'}", f"{out / 'matches.json'}", f"{sink.scenes} glTF scenes in {out / 'scenes'}"]
+        if not args.no_figures:
+            from .figures import figure_count, write_figures  # matplotlib: imported when figures are wanted
+
+            total = figure_count(matches_doc, study=study, criteria=False)
+            with ui.step("figures", total=total) as advance:
+                write_figures(stage, matches_doc, study=study, criteria=False, progress=lambda p: advance(p.name))
+            written.append(f"{total + sink.scenes} figures in {out / 'figures'}")
+        if not args.no_view:
+            with ui.step("viewer page"):
+                write_page(stage, document=matches_doc)
+            written.append(f"the viewer page {out / 'index.html'}")
         written.append(f"the objects in {out / 'objects'}")
     ui.table(study_rows(study.rows), title="user study (F: flipped)")
     ui.table(matches_rows(matches_doc), title="matches")

@@ -165,13 +165,15 @@ def study_figure(tangible_mesh, tangible_points_mm: np.ndarray, virtual_meshes: 
     return fig
 
 
-def figure_count(document: dict, *, study=None) -> int:
+def figure_count(document: dict, *, study=None, criteria: bool = True) -> int:
     """How many files ``write_figures`` writes."""
-    return 1 + sum(m.get("tangible") is not None for m in document["matches"]) + (study is not None)
+    return 1 + criteria * sum(m.get("tangible") is not None for m in document["matches"]) + (study is not None)
 
 
-def write_figures(out: Path, document: dict, *, study=None, progress=None) -> list[Path]:
-    """Write the figures of a matches document (and of the demo's study) into ``OUT/figures``.
+def write_figures(out: Path, document: dict, *, study=None, progress=None, criteria: bool = True) -> list[Path]:
+    """Write the figures of a matches document (and of the demo's study) into ``OUT/figures``:
+    the cost matrix, each match's criteria figure (unless ``criteria`` is False: a run's sink
+    wrote them) and the study's.
 
     ``progress``, if given, is called with each path once it is written.
     """
@@ -187,7 +189,7 @@ def write_figures(out: Path, document: dict, *, study=None, progress=None) -> li
     save(cost_matrix_figure(document), folder / "cost_matrix.png")
     stems = scene_stems([m["virtual"] for m in document["matches"]])  # documents that name no figure file
     for stem, match in zip(stems, document["matches"]):
-        if match.get("tangible") is not None:
+        if criteria and match.get("tangible") is not None:
             save(criteria_figure(match), folder.parent / (match.get("figure_file") or figure_file(stem)))
     if study is not None:
         save(study_figure(study.tangible.obj.loaded.mesh, study.tangible.pinches.points,

@@ -179,18 +179,26 @@ def virtual_task(item: tuple, job: Job, shared, model) -> VirtualResult | Failur
     tangibles = _tangibles(shared)
     scene = match_virtual(tangibles, c, model, job.match, allowed=allowed, row=row,
                           pinch_settings=job.settings)
-    vm = scene.matches[0]
+    return virtual_result(scene, 0, job, cached=cached)
+
+
+def virtual_result(scene, k: int, job: Job, *, cached: bool = False) -> VirtualResult:
+    """What the output needs of virtual object ``k`` of a matched scene: its entries, its cost row,
+    and its glTF scene and criteria figure as bytes (when the job wants them). Every command's
+    results reach the output through this and :class:`MatchesSink`."""
+    vm = scene.matches[k]
+    virtual = scene.virtuals[k]
     match = match_entry(scene, vm)
     glb = png = None
     if vm.best is not None:
         if job.scenes:
-            glb = match_scene_glb(tangibles[vm.best.tangible], c, vm.best, hand=job.settings.hand)
+            glb = match_scene_glb(scene.tangibles[vm.best.tangible], virtual, vm.best, hand=job.settings.hand)
         if job.figures:
             from .figures import _png, criteria_figure  # matplotlib: imported when figures are wanted
 
             png = _png(criteria_figure(match))
-    return VirtualResult(c.name, object_entry(c, dump_poses=job.dump_poses), match, scene.cost_matrix[0], glb, png,
-                         cached)
+    return VirtualResult(virtual.name, object_entry(virtual, dump_poses=job.dump_poses), match,
+                         scene.cost_matrix[k], glb, png, cached)
 
 
 # --- executors -------------------------------------------------------------------------------
