@@ -199,3 +199,15 @@ def test_every_output_file_gets_ordinary_permissions(tmp_path, capsys):
         assert {stat.S_IMODE(p.stat().st_mode) for p in files} == {0o644}
     finally:
         os.umask(old)
+
+
+def test_a_mesh_too_large_for_the_free_memory_is_refused_before_reading(tmp_path, capsys, monkeypatch):
+    from pinchmatch import load
+
+    path = tmp_path / "big.stl"
+    _icosphere().export(path)
+    monkeypatch.setattr(load, "available_memory_bytes", lambda: 20 * path.stat().st_size)  # far too little
+    code, _, err = run(capsys, "poses", path, "-o", tmp_path / "o.json")
+    one_line(code, err, "big.stl", "GiB to analyse, more than the", "decimate it")
+    monkeypatch.setattr(load, "available_memory_bytes", lambda: None)  # unknown: not checked
+    assert run(capsys, "poses", path, "--count", 10, "-q", "-o", tmp_path / "o.json")[0] == 0
