@@ -52,8 +52,8 @@ log = logging.getLogger(__name__)
 #: bump when the layout of an entry changes (what it holds and how it is named)
 CACHE_FORMAT = 2
 #: modules whose code shapes an object's candidates: their source is part of every key
-ALGORITHM_MODULES = ("load", "surface", "curvature", "jets", "hand", "pinches", "sampling", "spread", "features",
-                     "properties", "analysis", "match", "cost", "cache")
+ALGORITHM_MODULES = ("load", "surface", "curvature", "jets", "hand", "pinches", "sampling", "spread", "spread_kernel",
+                     "features", "properties", "analysis", "match", "cost", "cache")
 ENTRY_NAME = re.compile(r"^[0-9a-f]{64}\.npz$")
 TEMP_NAME = re.compile(r"^\.[0-9a-f]{64}\.npz\..+\.tmp$")
 #: what reading a damaged entry can raise; anything else is a bug and is raised

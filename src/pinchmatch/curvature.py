@@ -44,7 +44,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .jets import fit_patches
 from .surface import SurfaceContext
 
 #: neighbours considered per contact (the patch is cut from these by radius)
@@ -134,6 +133,8 @@ def patch_geometry(
     out = (np.empty((n, 3)), np.empty((n, 3)), np.empty(n), np.empty(n), np.empty((n, 3)), np.empty((n, 3)),
            np.empty(n, np.int64), np.empty(n))
 
+
+    from .jets import fit_patches  # numba: imported when a patch is first fitted
 
     def run(start):
         fit_patches(context.sample, points_mm, normal, idx, counts, radius, start, min(start + CHUNK, n), out)

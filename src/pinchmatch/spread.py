@@ -6,18 +6,16 @@ order cover the graspable regions evenly, without clumps; a :class:`Pool`
 keeps each candidate's distance to its nearest pick, so that later rounds of
 :mod:`sampling`, and candidates added between rounds, continue one order.
 
-The farthest-point loop is compiled with numba (cached on disk next to this
-file): one pass over the candidates per pick, with no temporary arrays.
+The farthest-point loop is compiled with numba (:mod:`spread_kernel`, cached on
+disk): per pick, one pass over the blocks and over the members of those it may
+change, with no temporary arrays.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-import math
-
 import numpy as np
-from numba import njit
 from scipy.spatial import cKDTree
 
 #: pinches per block of the farthest-point loop (a block is skipped when no pick comes near it)
@@ -67,67 +65,13 @@ def spread_order(points: np.ndarray, count: int, nearest: np.ndarray | None = No
     to_centre = np.minimum(np.linalg.norm(ap - centre[member], axis=1), np.linalg.norm(bp - centre[member], axis=1))
     radius = np.maximum.reduceat(to_centre, starts[:-1])
     slack = 1e-9 * float(sq.max()) + 1e-12  # the rounding of |x|² + |q|² - 2 x·q
+    from .spread_kernel import farthest  # numba: imported when pinches are first spread
+
     nearest_p = nearest[perm]
-    _farthest(ap, bp, sq[perm], nearest_p, int(np.flatnonzero(perm == current)[0]), chosen,
+    farthest(ap, bp, sq[perm], nearest_p, int(np.flatnonzero(perm == current)[0]), chosen,
               perm, starts, centre, radius, slack)
     nearest[perm] = nearest_p
     return perm[chosen], nearest
-
-
-@njit(cache=True, nogil=True)
-def _block_max(nearest, perm, lo, hi):
-    """Largest value in nearest[lo:hi] and where (the lowest original index among equals)."""
-    best = lo
-    for j in range(lo + 1, hi):
-        if nearest[j] > nearest[best] or (nearest[j] == nearest[best] and perm[j] < perm[best]):
-            best = j
-    return nearest[best], best
-
-
-@njit(cache=True, nogil=True)
-def _farthest(a, b, sq, nearest, current, chosen, perm, starts, centre, radius, slack):
-    """The farthest-point loop over pinches in block order: ``len(chosen)`` picks from ``current``
-    on, updating ``nearest``; blocks that the pick cannot come nearer to are skipped."""
-    blocks = len(starts) - 1
-    top = np.empty(blocks)
-    top_at = np.empty(blocks, np.int64)
-    for k in range(blocks):
-        top[k], top_at[k] = _block_max(nearest, perm, starts[k], starts[k + 1])
-    for i in range(len(chosen)):
-        chosen[i] = current
-        q = a[current]
-        r = b[current]
-        sq_q = sq[current]
-        for k in range(blocks):
-            if top[k] < 0.0:
-                continue  # every pinch of the block is picked
-            da = 0.0
-            db = 0.0
-            for c in range(6):
-                da += (centre[k, c] - q[c]) ** 2
-                db += (centre[k, c] - r[c]) ** 2
-            gap = math.sqrt(min(da, db)) - radius[k]
-            if gap > 0.0 and gap * gap > top[k] + slack:
-                continue
-            changed = False
-            for j in range(starts[k], starts[k + 1]):
-                # |x - q|² = |x|² + |q|² - 2 x·q, with the better of the two finger orders
-                dot_a = a[j, 0] * q[0] + a[j, 1] * q[1] + a[j, 2] * q[2] + a[j, 3] * q[3] + a[j, 4] * q[4] + a[j, 5] * q[5]
-                dot_b = b[j, 0] * q[0] + b[j, 1] * q[1] + b[j, 2] * q[2] + b[j, 3] * q[3] + b[j, 4] * q[4] + b[j, 5] * q[5]
-                d = sq[j] + sq_q - 2.0 * max(dot_a, dot_b)
-                if d < nearest[j]:
-                    nearest[j] = d
-                    changed = True
-            if changed:
-                top[k], top_at[k] = _block_max(nearest, perm, starts[k], starts[k + 1])
-        nearest[current] = -1.0
-        k = np.searchsorted(starts, current, side="right") - 1
-        top[k], top_at[k] = _block_max(nearest, perm, starts[k], starts[k + 1])
-        best = 0
-        for k in range(1, blocks):
-            if top[k] > top[best] or (top[k] == top[best] and perm[top_at[k]] < perm[top_at[best]]):
-                best = k
-        current = top_at[best]
 
 
 def _nearest_to(points: np.ndarray, picked: np.ndarray) -> np.ndarray:
