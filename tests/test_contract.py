@@ -211,3 +211,13 @@ def test_a_mesh_too_large_for_the_free_memory_is_refused_before_reading(tmp_path
     one_line(code, err, "big.stl", "GiB to analyse, more than the", "decimate it")
     monkeypatch.setattr(load, "available_memory_bytes", lambda: None)  # unknown: not checked
     assert run(capsys, "poses", path, "--count", 10, "-q", "-o", tmp_path / "o.json")[0] == 0
+
+
+def test_loading_names_each_stage_as_it_starts(tmp_path):
+    from pinchmatch.analysis import analyze_object
+
+    path = tmp_path / "big.stl"
+    trimesh.creation.icosphere(subdivisions=6, radius=30.0).export(path)  # 82k faces, 4 MiB
+    stages = []
+    analyze_object(path, progress=stages.append)
+    assert stages == ["reading 4 MiB", "repairing", "mass properties", "surface sample and index"]

@@ -51,10 +51,15 @@ def analyze_object(
     com_mm: np.ndarray | None = None,
     axis: np.ndarray | None = None,
     patch_radius_mm: float = 8.0,
+    progress=None,
 ) -> ObjectAnalysis:
-    """Load ``path`` and build its properties and surface context (see :func:`load_mesh`)."""
-    loaded = load_mesh(path, units=units, up=up)
+    """Load ``path`` and build its properties and surface context (see :func:`load_mesh`);
+    ``progress``, if given, is called with each stage's name as it starts."""
+    say = progress or (lambda stage: None)
+    loaded = load_mesh(path, units=units, up=up, progress=progress)
+    say("mass properties")
     props = object_properties(loaded.mesh, up=loaded.up, watertight=loaded.watertight, com_mm=com_mm, axis=axis)
+    say("surface sample and index")
     context = SurfaceContext(loaded.mesh, patch_radius_mm=patch_radius_mm)
     return ObjectAnalysis(loaded, props, context)
 

@@ -246,7 +246,7 @@ def _settings(args, **extra) -> PinchSettings:
     )
 
 
-def _object(args):
+def _object(args, progress=None):
     if args.example and args.mesh:
         raise ConfigError(f"{args.mesh}: give either a MESH or --example, not both")
     if not args.example and not args.mesh:
@@ -254,9 +254,8 @@ def _object(args):
     com = parse_vector(args.com, option="--com") if args.com else None
     axis = parse_vector(args.axis, option="--axis") if args.axis else None
     path = example_mesh_path() if args.example else Path(args.mesh)
-    return analyze_object(
-        path, units=args.units, up=args.up, com_mm=com, axis=axis, patch_radius_mm=args.patch_radius_mm
-    )
+    return analyze_object(path, units=args.units, up=args.up, com_mm=com, axis=axis,
+                          patch_radius_mm=args.patch_radius_mm, progress=progress)
 
 
 def _settings_dict(args, settings: PinchSettings, obj) -> dict:
@@ -281,8 +280,8 @@ def _cmd_poses(args) -> int:
     given = load_poses_file(args.poses) if args.poses else None
     ui = Presenter(quiet=args.quiet)
     t0 = time.perf_counter()
-    with ui.step("loading"):
-        obj = _object(args)
+    with ui.step("loading") as stage:  # a large mesh shows which stage its load is in
+        obj = _object(args, progress=lambda name: stage(name, done=False))
     t1 = time.perf_counter()
     with ui.step("poses and features"):
         if given is not None:
@@ -317,8 +316,8 @@ def _cmd_features(args) -> int:
     p2 = parse_vector(args.p2, option="--p2")
     if np.allclose(p1, p2, rtol=0, atol=1e-9):
         raise ConfigError(f"--p1 and --p2 are the same point ({args.p1}); a pinch needs two contacts")
-    with Presenter(quiet=args.quiet).step("loading and scoring the pinch"):
-        obj = _object(args)
+    with Presenter(quiet=args.quiet).step("loading and scoring the pinch") as stage:
+        obj = _object(args, progress=lambda name: stage(name, done=False))
         pinches, features = score_pinches(obj, p1, p2, settings=settings)
     doc = features_document(obj.loaded, obj.props, _settings_dict(args, settings, obj), pinches, features,
                             given=(p1, p2), ray_engine=obj.context.ray_engine_name)

@@ -12,6 +12,7 @@ import logging
 import os
 import struct
 import urllib.parse
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -419,6 +420,7 @@ def load_mesh(
     *,
     units: str | None = None,
     up: str | None = None,
+    progress: Callable[[str], None] | None = None,
 ) -> LoadedMesh:
     """Read one object from a mesh file, in millimetres.
 
@@ -432,6 +434,9 @@ def load_mesh(
         format's rule), millimetres for the others.
     up : {"x", "y", "z", "-x", "-y", "-z"}, optional
         The object's up direction. Default: ``y`` for glTF/GLB, ``z`` otherwise.
+    progress : callable, optional
+        Called with the name of each stage as it starts ("reading 250 MiB", "repairing"), so that
+        a large file shows where its load is.
 
     Raises
     ------
@@ -471,6 +476,8 @@ def load_mesh(
     elif file_type == "gltf":
         _check_gltf_buffers(path)
 
+    say = progress or (lambda stage: None)
+    say(f"reading {size / 2**20:.0f} MiB" if size >= 2**20 else "reading")
     mesh = _read(path, file_type)
     _validate_arrays(path, mesh)
     _check_precision(path, file_type, mesh)
@@ -495,6 +502,7 @@ def load_mesh(
             "to pinch; give it thickness (solidify) and re-export"
         )
 
+    say("repairing")
     repairs = _repair(mesh, indexed=file_type != "stl")
     if len(mesh.faces) == 0:
         raise MeshError(f"{path}: every face is degenerate (zero area); re-export the mesh")
