@@ -184,3 +184,30 @@ def test_the_pool_size_does_not_change_the_result(meshes, monkeypatch):
     for x, y in zip([a.best] + a.alternatives, [b.best] + b.alternatives, strict=True):
         assert (x.tangible, x.t_pose, x.v_pose, x.cost, x.swapped) == (y.tangible, y.t_pose, y.v_pose, y.cost, y.swapped)
         assert np.array_equal(x.transform, y.transform)
+
+
+@pytest.mark.parametrize("jobs", [1, 2])
+def test_workers_report_the_stages_of_loading_each_object(meshes, jobs):
+    """A large mesh shows where its load is, also when it loads in a worker process."""
+    from contextlib import contextmanager
+
+    from pinchmatch.run import Job, ObjectTask, executor, run_match
+
+    notes = []
+
+    @contextmanager
+    def step(description, total):
+        yield lambda note=None, *, done=True: notes.append((description.split(":")[0], note, done))
+
+    settings = PinchSettings(count=60)
+    job = Job(units=None, up=None, settings=settings, match=MatchSettings(), scenes=False, figures=False)
+    tasks = lambda role, folder: [ObjectTask(role, str(p), None, None)  # noqa: E731
+                                  for p in sorted((meshes / folder).glob("*.stl"))]
+    with executor(jobs) as ex:
+        run_match(tasks("tangible", "t"), tasks("virtual", "v")[:2], job, ex, on_failure=lambda f: None,
+                  on_result=lambda k, r: None, step=step)
+    stages = [(what, note) for what, note, done in notes if not done]
+    for name in ("egg.stl", "prop.stl"):
+        assert ("tangibles", f"{name}: reading") in stages and ("tangibles", f"{name}: surface sample and index") \
+            in stages
+    assert "e0.stl: repairing" in [note for what, note in stages if what != "tangibles"]  # the virtual objects' step

@@ -264,9 +264,11 @@ def _rebuild(meta: dict, arrays: dict, path, *, patch_radius_mm: float) -> Candi
 
 def cached_candidates(path: str | os.PathLike, *, cache: FeatureCache | None, units: str | None = None,
                       up: str | None = None, settings: PinchSettings = PinchSettings(),
-                      given: tuple[np.ndarray, np.ndarray] | None = None, source: str | None = None) -> Candidates:
+                      given: tuple[np.ndarray, np.ndarray] | None = None, source: str | None = None,
+                      progress=None) -> Candidates:
     """An object's candidate poses: from ``cache`` when it holds them, else computed (and stored).
-    The patch radius is the settings' (the object is analysed for it)."""
+    The patch radius is the settings' (the object is analysed for it); ``progress`` is called with
+    each stage of loading a computed object."""
     patch_radius_mm = settings.patch_radius_mm
     key = None
     if cache is not None:
@@ -283,7 +285,7 @@ def cached_candidates(path: str | os.PathLike, *, cache: FeatureCache | None, un
             cache.hits += 1
             return hit
         cache.misses += 1
-    obj = analyze_object(path, units=units, up=up, patch_radius_mm=patch_radius_mm)
+    obj = analyze_object(path, units=units, up=up, patch_radius_mm=patch_radius_mm, progress=progress)
     candidates = candidate_poses(obj, settings=settings, given=given, source=source)
     if cache is not None:
         cache.store(key, candidates)

@@ -32,8 +32,10 @@ import shutil
 import signal
 import sys
 import tempfile
+import threading
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -118,10 +120,20 @@ class VirtualResult:
 
 # --- tasks (run in workers: top-level functions, picklable arguments) ---------------------------
 
+#: where a task reports the stage it is in: set in each local worker (a queue to the run's process),
+#: or by the in-process executor; None on Dask workers
+_STAGES = None
+
+
+def _report(task: ObjectTask, stage: str) -> None:
+    if _STAGES is not None:
+        _STAGES.put((Path(task.path).name, stage))
+
+
 def _candidates(task: ObjectTask, job: Job) -> tuple[Candidates, bool]:
     cache = FeatureCache(job.cache_folder) if job.cache_folder is not None else None
-    c = cached_candidates(task.path, cache=cache, units=job.units, up=job.up,
-                          settings=job.settings, given=task.given, source=task.source)
+    c = cached_candidates(task.path, cache=cache, units=job.units, up=job.up, settings=job.settings,
+                          given=task.given, source=task.source, progress=lambda stage: _report(task, stage))
     return c, bool(cache is not None and cache.hits)
 
 
@@ -208,6 +220,17 @@ class Executor:
 
     workers = 1
 
+    @contextmanager
+    def stages(self, show: Callable[[str, str], None]):
+        """While the block runs, ``show(file name, stage)`` is called as a task enters each stage of
+        loading an object (reading, repairing, ...): a large mesh shows where its load is."""
+        global _STAGES
+        previous, _STAGES = _STAGES, _Direct(show)
+        try:
+            yield
+        finally:
+            _STAGES = previous
+
     def map(self, fn: Callable, items: Iterable, *args) -> Iterator:
         """``fn(item, *args)`` for each item, in order."""
         for item in items:
@@ -266,11 +289,22 @@ def _die_with_parent() -> None:
         os._exit(1)
 
 
-def _init_worker(threads: int) -> None:
+class _Direct:
+    """A stage report in this process: shown at once."""
+
+    def __init__(self, show):
+        self.show = show
+
+    def put(self, item) -> None:
+        self.show(*item)
+
+
+def _init_worker(threads: int, stages=None) -> None:
     """A local worker: numpy's BLAS gets its share of the cores, not all of them; it ends when the
-    run that started it ends, however that ends."""
-    global _LIMITS
+    run that started it ends, however that ends; it reports stages on ``stages``."""
+    global _LIMITS, _STAGES
     _die_with_parent()
+    _STAGES = stages
     from threadpoolctl import threadpool_limits
 
     _LIMITS = threadpool_limits(limits=threads)
@@ -308,13 +342,30 @@ class LocalExecutor(Executor):
         from concurrent.futures import ProcessPoolExecutor
 
         self.workers = jobs
-        self._pool = ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn"),
-                                         initializer=_init_worker, initargs=(max(1, default_jobs() // jobs),))
+        context = multiprocessing.get_context("spawn")
+        self._stages = context.SimpleQueue()  # handed to each worker as it starts
+        self._pool = ProcessPoolExecutor(max_workers=jobs, mp_context=context, initializer=_init_worker,
+                                         initargs=(max(1, default_jobs() // jobs), self._stages))
         _remove_orphaned_run_folders()
         self._folder = tempfile.TemporaryDirectory(prefix=f"{RUN_FOLDER_PREFIX}{os.getpid()}-")
 
     def map(self, fn, items, *args):
         return _in_order(lambda item: self._pool.submit(fn, item, *args), items, 2 * self.workers)
+
+    @contextmanager
+    def stages(self, show):
+        """As :meth:`Executor.stages`, the workers' reports read by a thread of this process."""
+        def read():
+            while (item := self._stages.get()) is not None:
+                show(*item)
+
+        reader = threading.Thread(target=read, daemon=True)
+        reader.start()
+        try:
+            yield
+        finally:
+            self._stages.put(None)
+            reader.join(timeout=5)
 
     def share(self, payloads, tangibles):
         path = Path(self._folder.name) / "tangibles.pickle"
@@ -421,7 +472,8 @@ def run_match(tangible_tasks: list[ObjectTask], virtual_tasks: list[ObjectTask],
 
     def each(description: str, fn: Callable, tasks: list[ObjectTask], items: list, *args) -> Iterator:
         """(position, result) of ``fn`` over ``items`` (one per task), in order; failures recorded, left out."""
-        with step(description, len(tasks)) as advance:
+        with step(description, len(tasks)) as advance, \
+                ex.stages(lambda name, stage: advance(f"{name}: {stage}", done=False)):
             for k, (task, r) in enumerate(zip(tasks, ex.map(fn, items, *args))):
                 advance(Path(task.path).name)
                 if not isinstance(r, Failure):
