@@ -14,7 +14,8 @@ finishes the journal first, so OUT is again one whole result. A run that stops b
 (Ctrl-C, SIGTERM, an error, a full disk) leaves OUT as it was; its staging folder is removed then,
 or by the next run.
 
-Only files the manifest lists are ever deleted: a file a user put in OUT is never touched. A lock
+Only files the manifest lists are ever deleted: a file a user put in OUT is never deleted (it is
+replaced only when it sits at the very path of an output). A lock
 (``flock`` on ``OUT/.pinchmatch/lock``) refuses a second run into the same OUT while one is going.
 """
 
