@@ -81,3 +81,18 @@ def test_a_feature_constant_over_the_run_contributes_nothing_in_range_mode():
     assert np.isfinite(cost).all()
     np.testing.assert_allclose(np.diag(cost), 0.0, atol=1e-9)
     assert contributions(t[0], v[0], model, swapped=False)["tilt"] == 0.0
+
+
+def test_jnd_scales_are_the_perception_data_as_literals():
+    """Each criterion's just-noticeable difference, for tangible values above and below its floor,
+    written out from shared/paper/perception.md (not from the code's constants)."""
+    from pinchmatch.cost import CostModel
+
+    model = CostModel(dict.fromkeys(CRITERIA, 1.0), "jnd", None, CRITERIA)
+    # columns: width, com, tilt, normal angle, axis angle, kmax, kmin, mass along the line, mass lever arm
+    above = np.array([[40.0, 12.0, 60.0, 50.0, 70.0, 50.0, 30.0, 60.0, 80.0]])
+    below = np.array([[5.0, 0.0, 10.0, 0.0, 30.0, 1.0, 0.0, 3.0, 4.0]])
+    np.testing.assert_allclose(model.scales(above)[0],
+                               [2.3, 20.0, 26.28, 21.9, 30.66, 33.33, 19.998, 22.0, 22.0], rtol=1e-3)
+    np.testing.assert_allclose(model.scales(below)[0],
+                               [0.4, 20.0, 20.0, 20.0, 20.0, 2.0, 2.0, 20.0, 20.0], rtol=1e-9)

@@ -76,3 +76,20 @@ def test_centre_of_mass_and_volume_of_moved_solids(make):
     np.testing.assert_allclose(props.com_mm, R @ shape.com_mm + t, atol=0.01)
     # faceting makes the mesh a little smaller than the solid it stands for (one-sided)
     assert 0.985 * shape.volume_mm3 <= props.volume_mm3 <= shape.volume_mm3 * (1 + 1e-9)
+
+
+def test_an_open_tube_has_the_closed_form_moments_of_a_thin_shell():
+    """A uniform cylindrical shell without caps, radius R and height H: centroid on the axis at
+    mid-height, variance H²/12 along the axis and R²/2 across (no caps, so not the solid's R²/4)."""
+    radius, height = 20.0, 100.0
+    tube = trimesh.creation.cylinder(radius=radius, height=height, sections=720)
+    tube.update_faces(np.abs(tube.face_normals[:, 2]) < 0.5)  # drop both caps: an open surface
+    tube.remove_unreferenced_vertices()
+    tube.apply_translation((5.0, -3.0, 60.0))
+    props = object_properties(tube, up=np.array([0.0, 0.0, 1.0]), watertight=False)
+    assert props.com_source == "surface"
+    np.testing.assert_allclose(props.com_mm, [5.0, -3.0, 60.0], atol=1e-9)
+    np.testing.assert_allclose(np.abs(props.principal_axis), [0.0, 0.0, 1.0], atol=1e-9)
+    np.testing.assert_allclose(props.variances_mm2[0], height**2 / 12.0, rtol=1e-9)
+    # the 720-gon's shell differs from the circle's by (1 - cos(pi/720))-order terms
+    np.testing.assert_allclose(sorted(props.variances_mm2[1:]), [radius**2 / 2.0] * 2, rtol=1e-4)
