@@ -221,3 +221,23 @@ def test_loading_names_each_stage_as_it_starts(tmp_path):
     stages = []
     analyze_object(path, progress=stages.append)
     assert stages == ["reading 4 MiB", "repairing", "mass properties", "surface sample and index"]
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["view", "OUT", "--port", "70000"], ["--port 70000: not a port; give 0 (any free port) to 65535"]),
+    (["view", "OUT", "--port", "-1"], ["--port -1: not a port"]),
+    (["match", "--tangible", "T", "--virtual", "T", "--cache", "C", "--no-cache"],
+     ["--cache and --no-cache: give one of them"]),
+    (["match", "--tangible", "T", "--virtual", "T", "--json", "--format", "jsonl"],
+     ["--json and --format jsonl: give one of them"]),
+    (["match", "--tangible", "T", "--virtual", "T", "--top-k", "-1"], ["--top-k: -1 must be a whole number of 0 or more"]),
+    (["match", "--tangible", "T", "--virtual", "T", "--distinct-mm", "nan"], ["--distinct-mm: nan must be a distance"]),
+    (["match", "--tangible", "T", "--virtual", "T", "--jobs", "0"], ["--jobs: 0 must be 1 or more"]),
+])
+def test_each_validator_says_what_to_change(tmp_path, capsys, argv, words):
+    argv = [str(example_mesh_path()) if a == "T" else str(tmp_path / "c") if a == "C" else a for a in argv]
+    if argv[0] == "view":
+        argv[1] = str(tmp_path)
+    code, _, err = run(capsys, *argv, *(["-o", tmp_path / "out"] if argv[0] == "match" else []))
+    one_line(code, err, *words)
+    assert not (tmp_path / "out").exists() and not (tmp_path / "c").exists()
