@@ -6,7 +6,6 @@ never exit 1. The example counts keep CI within a minute or two; for a longer ru
     PINCHMATCH_FUZZ_EXAMPLES=2000 python -m pytest tests/test_fuzz.py
 """
 
-import io
 import json
 import math
 import os

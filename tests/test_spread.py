@@ -5,7 +5,6 @@ import pytest
 
 from pinchmatch import shapes
 from pinchmatch.spread import Pool, spread_order
-from pinchmatch.surface import SurfaceContext
 
 
 def plain_spread_order(points, count, nearest=None):

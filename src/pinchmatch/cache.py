@@ -217,10 +217,10 @@ def _check_arrays(arrays: dict) -> None:
     if faces.ndim != 2 or faces.shape[1] != 3 or faces.dtype.kind not in "iu" or len(faces) == 0 \
             or faces.min() < 0 or faces.max() >= len(vertices):
         raise ValueError("the stored faces do not index the vertices")
-    for name in PINCH_ARRAYS:
-        arrays[f"pinches.{name}"]
-    for name in FEATURE_ARRAYS:
-        arrays[f"features.{name}"]
+    missing = [name for name in [f"pinches.{p}" for p in PINCH_ARRAYS] + [f"features.{f}" for f in FEATURE_ARRAYS]
+               if name not in arrays]
+    if missing:
+        raise KeyError(f"the entry lacks {', '.join(missing)}")
 
 
 def to_payload(candidates: Candidates) -> tuple[dict, dict]:
