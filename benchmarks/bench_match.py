@@ -32,12 +32,13 @@ from pathlib import Path
 
 import numpy as np
 
-from pinchmatch.analysis import analyze_object
-from pinchmatch.cli import example_mesh_path
-from pinchmatch.cost import PAPER_CRITERIA
-from pinchmatch.match import MatchSettings, candidate_poses, cost_model, evaluate_pairs, match_scene
-from pinchmatch.pinches import PinchSettings
-from pinchmatch.shapes import ellipsoid
+from pinchmatch.grasp.analysis import analyze_object
+from pinchmatch.cli.commands import example_mesh_path
+from pinchmatch.match.cost import PAPER_CRITERIA
+from pinchmatch.match.search import MatchSettings, cost_model, evaluate_pairs, match_scene
+from pinchmatch.match.candidates import candidate_poses
+from pinchmatch.grasp.pinches import PinchSettings
+from pinchmatch.mesh.shapes import ellipsoid
 
 
 def timed_search(T, V, settings) -> tuple[float, float, float, float]:

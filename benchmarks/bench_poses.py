@@ -33,9 +33,10 @@ import time
 
 import numpy as np
 
-from pinchmatch import PinchSettings, object_properties, pinch_features, sample_pinches, shapes
-from pinchmatch.curvature import patch_geometry
-from pinchmatch.surface import SurfaceContext
+from pinchmatch import PinchSettings, object_properties, pinch_features, sample_pinches
+from pinchmatch.mesh import shapes
+from pinchmatch.grasp.curvature import patch_geometry
+from pinchmatch.mesh.surface import SurfaceContext
 
 UP = np.array([0.0, 0.0, 1.0])
 
@@ -103,7 +104,7 @@ def side_by_side(other: str, faces: int, count: int, rounds: int) -> list[list]:
 
 
 def speed(faces: int, count: int) -> list[list]:
-    from pinchmatch import pinches as pinches_module
+    from pinchmatch.grasp import pinches as pinches_module
 
     rows = []
     # the compiled kernels load once per process (compiled and cached on disk on the first run ever)

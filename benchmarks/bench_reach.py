@@ -33,8 +33,9 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from pinchmatch import PinchSettings, vessels
-from pinchmatch.analysis import analyze_object, find_pinches
+from pinchmatch import PinchSettings
+from pinchmatch.mesh import vessels
+from pinchmatch.grasp.analysis import analyze_object, find_pinches
 from pinchmatch.errors import PinchmatchError
 
 WHEELS = {"robosuite": "robosuite==1.5.2", "pybullet": "pybullet==3.2.7"}

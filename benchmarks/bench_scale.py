@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from pinchmatch.shapes import box, cylinder, ellipsoid, stacked_prop, torus
+from pinchmatch.mesh.shapes import box, cylinder, ellipsoid, stacked_prop, torus
 
 FACES = 20_000
 

@@ -30,7 +30,7 @@ def write_mesh(tmp_path):
 @pytest.fixture(scope="session")
 def demo_out(tmp_path_factory):
     """The folder a quiet ``pinchmatch demo`` wrote: study, matches, scenes, figures and the page."""
-    from pinchmatch.cli import main
+    from pinchmatch.cli.commands import main
 
     out = tmp_path_factory.mktemp("demo") / "out"
     assert main(["demo", "-o", str(out), "-q"]) == 0

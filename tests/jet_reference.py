@@ -8,20 +8,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from pinchmatch.curvature import MAX_PATCH_SAMPLES, MIN_PATCH_SAMPLES, PatchGeometry, tangent_frame
-from pinchmatch.jets import (
-    CHORD_TRUST_MM,
-    EXPONENTS as _EXPONENTS,
-    FIT_PASSES,
-    FLIP_VOTE,
-    HIGH_ORDER,
-    MAX_CENTROID_OFFSET,
-    MIN_QUARTIC_SUPPORT,
-    OUTLIER_FLOOR_MM,
-    QUARTIC_GRAM as _QUARTIC_GRAM,
-    QUARTIC_RIDGE,
-    SAME_SIDE_DEG,
-)
+from pinchmatch.grasp.curvature import MAX_PATCH_SAMPLES, MIN_PATCH_SAMPLES, PatchGeometry, tangent_frame
+from pinchmatch.grasp.jets import (CHORD_TRUST_MM, EXPONENTS as _EXPONENTS, FIT_PASSES, FLIP_VOTE, HIGH_ORDER,
+                                   MAX_CENTROID_OFFSET, MIN_QUARTIC_SUPPORT, OUTLIER_FLOOR_MM,
+                                   QUARTIC_GRAM as _QUARTIC_GRAM, QUARTIC_RIDGE, SAME_SIDE_DEG)
 
 _INDEX = {e: i for i, e in enumerate(_EXPONENTS)}
 _HIGH_ORDER = np.diag(HIGH_ORDER)

@@ -6,10 +6,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pinchmatch.cache import FeatureCache, cached_candidates, default_cache_dir
-from pinchmatch.cli import example_mesh_path, main
-from pinchmatch.pinches import PinchSettings
-from pinchmatch.shapes import ellipsoid
+from pinchmatch.runner.cache import FeatureCache, cached_candidates, default_cache_dir
+from pinchmatch.cli.commands import example_mesh_path, main
+from pinchmatch.grasp.pinches import PinchSettings
+from pinchmatch.mesh.shapes import ellipsoid
 
 SETTINGS = PinchSettings(count=200, seed=3)
 
@@ -76,7 +76,7 @@ def test_a_damaged_entry_is_computed_again(tmp_path, mesh_file, damage, caplog):
         cached_candidates(other, cache=cache, settings=SETTINGS)
         other_entry = next(p for p in cache.folder.glob("*.npz") if p != entry)
         entry.write_bytes(other_entry.read_bytes())
-    with caplog.at_level(logging.WARNING, logger="pinchmatch.cache"):
+    with caplog.at_level(logging.WARNING, logger="pinchmatch.runner.cache"):
         again = cached_candidates(mesh_file, cache=cache, settings=SETTINGS)
     assert "unusable" in caplog.text
     same_candidates(cold, again)
@@ -87,7 +87,7 @@ def test_a_damaged_entry_is_computed_again(tmp_path, mesh_file, damage, caplog):
 def test_an_unwritable_cache_only_loses_the_caching(tmp_path, mesh_file, caplog):
     blocked = tmp_path / "file"
     blocked.write_text("not a folder")
-    with caplog.at_level(logging.WARNING, logger="pinchmatch.cache"):
+    with caplog.at_level(logging.WARNING, logger="pinchmatch.runner.cache"):
         got = cached_candidates(mesh_file, cache=FeatureCache(blocked), settings=SETTINGS)
     assert len(got) > 0 and "cannot write the cache" in caplog.text
 
@@ -219,20 +219,23 @@ def test_info_and_clear_on_a_file_say_so(tmp_path, capsys):
 
 
 def test_the_key_covers_the_algorithm(tmp_path, mesh_file, monkeypatch):
-    from pinchmatch import cache as cache_module
+    from pinchmatch.runner import cache as cache_module
 
     cache = FeatureCache(tmp_path / "c")
     key = cache.key(mesh_file, units=None, up=None, patch_radius_mm=8.0, settings=SETTINGS)
-    assert {"jets", "hand", "sampling", "spread", "curvature", "features"} <= set(cache_module.ALGORITHM_MODULES)
+    package = Path(cache_module.__file__).parents[1]
+    every_grasp_module = {f"grasp/{p.stem}" for p in (package / "grasp").glob("*.py") if p.stem != "__init__"}
+    assert every_grasp_module | {"mesh/load", "mesh/surface", "mesh/properties", "match/candidates"} \
+        <= set(cache_module.ALGORITHM_MODULES)
     monkeypatch.setattr(cache_module, "ALGORITHM_DIGEST", "0" * 64)  # as after an edit of any of those modules
     assert cache.key(mesh_file, units=None, up=None, patch_radius_mm=8.0, settings=SETTINGS) != key
     # the digest reads every listed module's source
     for name in cache_module.ALGORITHM_MODULES:
-        assert (Path(cache_module.__file__).parent / f"{name}.py").is_file()
+        assert (package / f"{name}.py").is_file()
 
 
 def test_a_code_error_while_reading_an_entry_is_raised_not_a_miss(tmp_path, mesh_file, monkeypatch):
-    from pinchmatch import cache as cache_module
+    from pinchmatch.runner import cache as cache_module
 
     cache = FeatureCache(tmp_path / "c")
     cached_candidates(mesh_file, cache=cache, settings=SETTINGS)

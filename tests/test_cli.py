@@ -3,7 +3,7 @@ import json
 import pytest
 import trimesh
 
-from pinchmatch.cli import main
+from pinchmatch.cli.commands import main
 
 
 def run(capsys, *argv):
@@ -81,7 +81,7 @@ def test_features_names_the_approach_and_the_csv_carries_it(capsys):
 def test_a_thinner_finger_reaches_into_a_narrow_tube(tmp_path, capsys):
     # the wall of a test tube (bore 12 mm) pinched 10 mm below its rim: an 8 mm fingertip does not fit
     # in the bore, a 5 mm one does, and its finger leaves upwards
-    from pinchmatch import vessels
+    from pinchmatch.mesh import vessels
 
     path = tmp_path / "tube.stl"
     vessels.tube().export(path)

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 import trimesh
 
-from pinchmatch.cli import example_mesh_path, main
+from pinchmatch.cli.commands import example_mesh_path, main
 from pinchmatch.errors import ConfigError
-from pinchmatch.match import MatchSettings
-from pinchmatch.shapes import ellipsoid
+from pinchmatch.match.search import MatchSettings
+from pinchmatch.mesh.shapes import ellipsoid
 
 
 def run(capsys, *argv):
@@ -152,7 +152,7 @@ def test_malformed_files_are_named_for_what_they_are(tmp_path, capsys, case, wor
 
 
 def test_well_formed_ply_and_gltf_still_load(tmp_path):
-    from pinchmatch.load import load_mesh
+    from pinchmatch.mesh.load import load_mesh
 
     mesh = _icosphere()
     for name, kwargs in [("a.ply", {"encoding": "ascii"}), ("b.ply", {"encoding": "binary"}), ("c.gltf", {})]:
@@ -171,8 +171,8 @@ def test_warnings_from_libraries_never_reach_stderr(tmp_path, capsys):
 
 
 def test_the_patch_radius_is_one_setting():
-    from pinchmatch.analysis import analyze_object, find_pinches
-    from pinchmatch.pinches import PinchSettings
+    from pinchmatch.grasp.analysis import analyze_object, find_pinches
+    from pinchmatch.grasp.pinches import PinchSettings
 
     obj = analyze_object(example_mesh_path(), patch_radius_mm=6.0)
     with pytest.raises(ConfigError, match="analysed for 6 mm patches but the pinch settings ask for 8 mm"):
@@ -202,7 +202,7 @@ def test_every_output_file_gets_ordinary_permissions(tmp_path, capsys):
 
 
 def test_a_mesh_too_large_for_the_free_memory_is_refused_before_reading(tmp_path, capsys, monkeypatch):
-    from pinchmatch import load
+    from pinchmatch.mesh import load
 
     path = tmp_path / "big.stl"
     _icosphere().export(path)
@@ -214,7 +214,7 @@ def test_a_mesh_too_large_for_the_free_memory_is_refused_before_reading(tmp_path
 
 
 def test_loading_names_each_stage_as_it_starts(tmp_path):
-    from pinchmatch.analysis import analyze_object
+    from pinchmatch.grasp.analysis import analyze_object
 
     path = tmp_path / "big.stl"
     trimesh.creation.icosphere(subdivisions=6, radius=30.0).export(path)  # 82k faces, 4 MiB

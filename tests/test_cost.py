@@ -2,8 +2,7 @@ import numpy as np
 import pytest
 
 from pinchmatch import ConfigError
-from pinchmatch.cost import (CRITERIA, CostModel, contributions, feature_ranges, pair_costs,
-                             parse_weights)
+from pinchmatch.match.cost import CRITERIA, CostModel, contributions, feature_ranges, pair_costs, parse_weights
 
 
 def random_table(n, seed):
@@ -86,7 +85,7 @@ def test_a_feature_constant_over_the_run_contributes_nothing_in_range_mode():
 def test_jnd_scales_are_the_perception_data_as_literals():
     """Each criterion's just-noticeable difference, for tangible values above and below its floor,
     written out from shared/paper/perception.md (not from the code's constants)."""
-    from pinchmatch.cost import CostModel
+    from pinchmatch.match.cost import CostModel
 
     model = CostModel(dict.fromkeys(CRITERIA, 1.0), "jnd", None, CRITERIA)
     # columns: width, com, tilt, normal angle, axis angle, kmax, kmin, mass along the line, mass lever arm

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 import trimesh
 
-from pinchmatch import shapes
-from pinchmatch.curvature import patch_geometry
-from pinchmatch.surface import SurfaceContext
+from pinchmatch.mesh import shapes
+from pinchmatch.grasp.curvature import patch_geometry
+from pinchmatch.mesh.surface import SurfaceContext
 
 from conftest import random_rigid, transformed
 

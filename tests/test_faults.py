@@ -14,8 +14,8 @@ import sys
 
 import pytest
 
-from pinchmatch.cli import example_mesh_path, main
-from pinchmatch.shapes import ellipsoid
+from pinchmatch.cli.commands import example_mesh_path, main
+from pinchmatch.mesh.shapes import ellipsoid
 
 SETPRIV = shutil.which("setpriv")
 

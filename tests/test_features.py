@@ -3,8 +3,8 @@ import pytest
 import trimesh
 
 from pinchmatch import PinchSettings, check_pinches, object_properties, pinch_features, sample_pinches
-from pinchmatch import shapes
-from pinchmatch.surface import SurfaceContext
+from pinchmatch.mesh import shapes
+from pinchmatch.mesh.surface import SurfaceContext
 
 from conftest import random_rigid, transformed
 

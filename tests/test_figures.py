@@ -5,7 +5,7 @@ import pytest
 from matplotlib.colors import to_rgb
 from matplotlib.image import imread
 
-from pinchmatch.figures import FIGURE_DPI, LOUD, cost_matrix_figure, criteria_figure
+from pinchmatch.export.figures import FIGURE_DPI, LOUD, cost_matrix_figure, criteria_figure
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 

@@ -15,8 +15,8 @@ import pytest
 import trimesh
 from hypothesis import HealthCheck, given, settings, strategies as st
 
-from pinchmatch.analysis import load_poses_file
-from pinchmatch.cli import _check_option_names, _match_settings, _settings, build_parser, main
+from pinchmatch.grasp.analysis import load_poses_file
+from pinchmatch.cli.commands import _check_option_names, _match_settings, _settings, build_parser, main
 from pinchmatch.errors import ConfigError, PinchmatchError
 
 EXAMPLES = int(os.environ.get("PINCHMATCH_FUZZ_EXAMPLES", "0")) or None

@@ -5,9 +5,9 @@ import pytest
 import trimesh
 
 from pinchmatch import PinchSettings, check_pinches, sample_pinches
-from pinchmatch import shapes, vessels
-from pinchmatch.pinches import RULES
-from pinchmatch.surface import SurfaceContext
+from pinchmatch.mesh import shapes, vessels
+from pinchmatch.grasp.pinches import RULES
+from pinchmatch.mesh.surface import SurfaceContext
 
 from test_pinches import assert_rules_hold
 

@@ -5,9 +5,9 @@ import pytest
 import trimesh
 
 from jet_reference import reference_patch_geometry
-from pinchmatch import shapes, vessels
-from pinchmatch.curvature import patch_geometry
-from pinchmatch.surface import SurfaceContext
+from pinchmatch.mesh import shapes, vessels
+from pinchmatch.grasp.curvature import patch_geometry
+from pinchmatch.mesh.surface import SurfaceContext
 
 
 def _noisy_scan():
@@ -61,7 +61,7 @@ def test_kernel_matches_numpy_reference(case):
 
 
 def test_results_do_not_depend_on_chunking_or_threads(monkeypatch):
-    from pinchmatch import curvature
+    from pinchmatch.grasp import curvature
 
     mesh = shapes.ellipsoid(triangulation="random", faces=6000).mesh
     context = SurfaceContext(mesh)

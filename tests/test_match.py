@@ -5,15 +5,16 @@ import numpy as np
 import pytest
 import trimesh
 
-from pinchmatch import match as match_module
-from pinchmatch.analysis import analyze_object
-from pinchmatch.cli import example_mesh_path, main
-from pinchmatch.cost import CRITERIA, separable_terms
-from pinchmatch.match import (MatchSettings, assign_one_to_one, candidate_poses, cost_model, evaluate_pairs,
-                              match_scene, reference_pose)
-from pinchmatch.pinches import PinchSettings
-from pinchmatch.shapes import ellipsoid
-from pinchmatch.study import PARTS, TANGIBLE_HEIGHTS_MM, run_study
+from pinchmatch.match import search as search_module
+from pinchmatch.grasp.analysis import analyze_object
+from pinchmatch.cli.commands import example_mesh_path, main
+from pinchmatch.match.cost import CRITERIA, separable_terms
+from pinchmatch.match.search import MatchSettings, assign_one_to_one, cost_model, evaluate_pairs, match_scene
+from pinchmatch.match.candidates import candidate_poses
+from pinchmatch.match.reference import reference_pose
+from pinchmatch.grasp.pinches import PinchSettings
+from pinchmatch.mesh.shapes import ellipsoid
+from pinchmatch.runner.study import PARTS, TANGIBLE_HEIGHTS_MM, run_study
 
 from conftest import random_rigid, transformed
 
@@ -107,8 +108,8 @@ def test_the_pooled_search_finds_the_exact_minimum(example, tmp_path, monkeypatc
     mesh = ellipsoid((30.0, 22.0, 14.0), faces=1300).mesh
     mesh.export(tmp_path / "e.stl")
     virtual = candidate_poses(analyze_object(tmp_path / "e.stl"), settings=PinchSettings(count=120))
-    monkeypatch.setattr(match_module, "MIN_POOL", 7)  # force the pool to grow
-    monkeypatch.setattr(match_module, "MAX_POOL", 7)
+    monkeypatch.setattr(search_module, "MIN_POOL", 7)  # force the pool to grow
+    monkeypatch.setattr(search_module, "MAX_POOL", 7)
     settings = MatchSettings(normalize=normalize, keep_upright=keep_upright, top_k=4, distinct_mm=10.0)
     scene = match_scene([example], [virtual], settings)
     it = np.repeat(np.arange(len(example)), len(virtual))
@@ -124,13 +125,13 @@ def test_the_pooled_search_finds_the_exact_minimum(example, tmp_path, monkeypatc
     costs = [c.cost for c in picks]
     assert costs == sorted(costs)
     for a, b in itertools.combinations(picks, 2):  # alternatives are different places
-        dt = match_module._pinch_distance(example.pinches.points[[a.t_pose]], example.pinches.points[b.t_pose])[0]
-        dv = match_module._pinch_distance(virtual.pinches.points[[a.v_pose]], virtual.pinches.points[b.v_pose])[0]
+        dt = search_module.pinch_distance(example.pinches.points[[a.t_pose]], example.pinches.points[b.t_pose])[0]
+        dv = search_module.pinch_distance(virtual.pinches.points[[a.v_pose]], virtual.pinches.points[b.v_pose])[0]
         assert dt >= 10.0 or dv >= 10.0
     # the second pick is the cheapest pair that is not a near duplicate of the first
     far = np.array([
-        match_module._pinch_distance(example.pinches.points[[i]], example.pinches.points[vm.best.t_pose])[0] >= 10.0
-        or match_module._pinch_distance(virtual.pinches.points[[j]], virtual.pinches.points[vm.best.v_pose])[0] >= 10.0
+        search_module.pinch_distance(example.pinches.points[[i]], example.pinches.points[vm.best.t_pose])[0] >= 10.0
+        or search_module.pinch_distance(virtual.pinches.points[[j]], virtual.pinches.points[vm.best.v_pose])[0] >= 10.0
         for i, j in zip(it, iv)
     ])
     assert picks[1].cost == pytest.approx(brute.cost[far].min(), rel=1e-9)

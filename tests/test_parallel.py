@@ -5,12 +5,12 @@ import json
 import numpy as np
 import pytest
 
-from pinchmatch.cache import cached_candidates
-from pinchmatch.cli import main
-from pinchmatch.match import MatchSettings, match_scene
-from pinchmatch.pinches import PinchSettings
-from pinchmatch.report import matches_document, matches_from_lines, to_json
-from pinchmatch.shapes import ellipsoid, stacked_prop
+from pinchmatch.runner.cache import cached_candidates
+from pinchmatch.cli.commands import main
+from pinchmatch.match.search import MatchSettings, match_scene
+from pinchmatch.grasp.pinches import PinchSettings
+from pinchmatch.export.documents import matches_document, matches_from_lines, to_json
+from pinchmatch.mesh.shapes import ellipsoid, stacked_prop
 
 COUNT = 300
 
@@ -169,15 +169,15 @@ def test_bad_parallel_options_fail_in_one_line(meshes, tmp_path, capsys, extra, 
 
 
 def test_the_pool_size_does_not_change_the_result(meshes, monkeypatch):
-    import pinchmatch.match as match_module
+    import pinchmatch.match.search as search_module
 
     pinch = PinchSettings(count=COUNT)
     tangibles = [cached_candidates(p, cache=None, settings=pinch) for p in sorted((meshes / "t").glob("*.stl"))]
     virtual = cached_candidates(meshes / "v" / "e2.stl", cache=None, settings=pinch)
     settings = MatchSettings(top_k=4)
     default = match_scene(tangibles, [virtual], settings, pinch_settings=pinch)
-    monkeypatch.setattr(match_module, "MIN_POOL", 5)
-    monkeypatch.setattr(match_module, "MAX_POOL", 5)
+    monkeypatch.setattr(search_module, "MIN_POOL", 5)
+    monkeypatch.setattr(search_module, "MAX_POOL", 5)
     small = match_scene(tangibles, [virtual], settings, pinch_settings=pinch)
     a, b = default.matches[0], small.matches[0]
     assert np.array_equal(default.cost_matrix, small.cost_matrix)
@@ -191,7 +191,9 @@ def test_workers_report_the_stages_of_loading_each_object(meshes, jobs):
     """A large mesh shows where its load is, also when it loads in a worker process."""
     from contextlib import contextmanager
 
-    from pinchmatch.run import Job, ObjectTask, executor, run_match
+    from pinchmatch.runner.tasks import Job, ObjectTask
+    from pinchmatch.runner.executors import executor
+    from pinchmatch.runner.matching import run_match
 
     notes = []
 

@@ -4,9 +4,9 @@ import trimesh
 from scipy.spatial import cKDTree
 
 from pinchmatch import NoFeasiblePinchError, PinchSettings, check_pinches, sample_pinches
-from pinchmatch.pinches import RULES
-from pinchmatch.surface import SurfaceContext
-from pinchmatch import shapes
+from pinchmatch.grasp.pinches import RULES
+from pinchmatch.mesh.surface import SurfaceContext
+from pinchmatch.mesh import shapes
 
 
 @pytest.fixture(scope="module")
@@ -146,7 +146,7 @@ def test_user_pinches_are_snapped_and_checked(box_ctx):
 def test_without_embree_the_numpy_engine_gives_feasible_pinches(monkeypatch, caplog):
     import builtins
 
-    from pinchmatch import surface
+    from pinchmatch.mesh import surface
 
     real_import = builtins.__import__
 
@@ -158,7 +158,7 @@ def test_without_embree_the_numpy_engine_gives_feasible_pinches(monkeypatch, cap
     monkeypatch.setattr(builtins, "__import__", no_embree)
     monkeypatch.setattr(surface, "_EMBREE", None)
     mesh = trimesh.creation.box(extents=(30.0, 20.0, 10.0)).subdivide_to_size(5.0)
-    with caplog.at_level("WARNING", logger="pinchmatch.surface"):
+    with caplog.at_level("WARNING", logger="pinchmatch.mesh.surface"):
         ctx = SurfaceContext(mesh)
         assert SurfaceContext(mesh).ray_engine_name == "numpy"
     assert ctx.ray_engine_name == "numpy"

@@ -3,8 +3,8 @@ import pytest
 import trimesh
 
 from pinchmatch import ConfigError, object_properties
-from pinchmatch import shapes
-from pinchmatch.shapes import cylinder, stacked_prop
+from pinchmatch.mesh import shapes
+from pinchmatch.mesh.shapes import cylinder, stacked_prop
 
 from conftest import random_rigid, transformed
 
@@ -21,10 +21,17 @@ def test_solid_com_and_axis_of_a_moved_cylinder():
 
 
 def test_com_of_the_solid_not_of_the_surface():
-    # a cone-like stack: the solid's centre of mass differs from the surface centroid
+    """The study stack in closed form: a 64-gon prism (Ø40, z 0-40), a 40 mm cube (z 40-80) and a
+    64-gon frustum (Ø60 -> Ø20, z 80-120). A 64-gon of circumradius r has area k·πr², k = 64/(2π)·sin(2π/64);
+    a frustum's centroid lies h(R² + 2Rr + 3r²) / (4(R² + Rr + r²)) above its base."""
     mesh = stacked_prop(sections=64)
     props = object_properties(mesh, up=np.array([0.0, 0.0, 1.0]), watertight=True)
-    assert props.com_mm == pytest.approx(np.asarray(mesh.center_mass))
+    k = 64 / (2 * np.pi) * np.sin(2 * np.pi / 64)
+    volumes = np.array([k * np.pi * 20.0**2 * 40.0, 40.0**3, k * np.pi * 40.0 / 3 * (30.0**2 + 30.0 * 10.0 + 10.0**2)])
+    heights = np.array([20.0, 60.0, 80.0 + 40.0 * (900.0 + 600.0 + 300.0) / (4 * 1300.0)])
+    np.testing.assert_allclose(props.com_mm, [0.0, 0.0, volumes @ heights / volumes.sum()], atol=1e-6)
+    surface_centroid = (mesh.triangles_center * mesh.area_faces[:, None]).sum(axis=0) / mesh.area
+    assert abs(surface_centroid[2] - props.com_mm[2]) > 0.5  # 58.3 mm: the shell's would be wrong
     np.testing.assert_allclose(props.principal_axis, [0, 0, 1], atol=1e-9)
 
 

@@ -9,10 +9,12 @@ import time
 
 import pytest
 
-from pinchmatch import publish, run as run_module
-from pinchmatch.cli import example_mesh_path, main
-from pinchmatch.publish import OutputFolder, read_manifest, recover
-from pinchmatch.shapes import ellipsoid
+from pinchmatch.export import folder as publish
+from pinchmatch.export import sink
+from pinchmatch.runner import executors
+from pinchmatch.cli.commands import example_mesh_path, main
+from pinchmatch.export.folder import OutputFolder, read_manifest, recover
+from pinchmatch.mesh.shapes import ellipsoid
 
 
 @pytest.fixture(scope="module")
@@ -50,7 +52,7 @@ def test_a_run_that_fails_midway_leaves_the_previous_result(tmp_path, virtuals, 
     assert match(out, sorted(virtuals.glob("*.stl"))) == 0
     before = snapshot(out)
     calls = []
-    real_add = run_module.MatchesSink.add
+    real_add = sink.MatchesSink.add
 
     def add_then_stop(self, k, r):
         calls.append(k)
@@ -58,7 +60,7 @@ def test_a_run_that_fails_midway_leaves_the_previous_result(tmp_path, virtuals, 
             raise KeyboardInterrupt
         return real_add(self, k, r)
 
-    monkeypatch.setattr(run_module.MatchesSink, "add", add_then_stop)
+    monkeypatch.setattr(sink.MatchesSink, "add", add_then_stop)
     assert match(out, sorted(virtuals.glob("*.stl")), "--top-k", "1") == 130
     assert "holds what it held before" in capsys.readouterr().err
     assert snapshot(out) == before
@@ -158,7 +160,7 @@ def test_signals_leave_a_whole_result_and_no_worker(tmp_path, virtuals, sig, del
 
 CHILDREN = '''
 import os, sys
-from pinchmatch.cli import main
+from pinchmatch.cli.commands import main
 if __name__ == "__main__":
     code = main(sys.argv[1:])
     states = []
@@ -207,8 +209,8 @@ def test_the_next_parallel_run_removes_a_killed_runs_temporary_folder(tmp_path, 
 
     dead = subprocess.Popen([sys.executable, "-c", "pass"])
     dead.wait()  # a pid that no longer runs
-    orphan = tempfile.mkdtemp(prefix=f"{run_module.RUN_FOLDER_PREFIX}{dead.pid}-")
-    mine = tempfile.mkdtemp(prefix=f"{run_module.RUN_FOLDER_PREFIX}{os.getpid()}-")  # a live run's
+    orphan = tempfile.mkdtemp(prefix=f"{executors.RUN_FOLDER_PREFIX}{dead.pid}-")
+    mine = tempfile.mkdtemp(prefix=f"{executors.RUN_FOLDER_PREFIX}{os.getpid()}-")  # a live run's
     try:
         assert match(tmp_path / "out", [virtuals / "e0.stl"], "--no-figures", "--no-view", jobs=2) == 0
         assert not os.path.exists(orphan) and os.path.isdir(mine)
@@ -219,7 +221,7 @@ def test_the_next_parallel_run_removes_a_killed_runs_temporary_folder(tmp_path, 
 def test_a_worker_that_dies_is_an_internal_error_not_bad_input(tmp_path, virtuals, monkeypatch, capsys):
     from concurrent.futures.process import BrokenProcessPool
 
-    from pinchmatch import cli
+    from pinchmatch.cli import commands as cli
 
     def broken(*args, **kwargs):
         raise BrokenProcessPool("a child process terminated abruptly")

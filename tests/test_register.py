@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from pinchmatch.register import register_pose
+from pinchmatch.match.register import register_pose
 
 from conftest import random_rigid
 

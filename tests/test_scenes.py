@@ -8,8 +8,12 @@ import numpy as np
 import pytest
 import trimesh
 
-from pinchmatch.scenes import CONE_HEIGHT_MM, gltf_rotation, write_scenes
-from pinchmatch.study import run_study
+from pinchmatch.export.scenes import CONE_HEIGHT_MM, gltf_rotation, write_scenes
+from pinchmatch.runner.study import run_study
+
+
+#: glTF is +Y up: x stays, z becomes y, y becomes -z
+Z_UP_TO_GLTF = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
 
 
 @pytest.fixture(scope="module")
@@ -20,10 +24,7 @@ def written(tmp_path_factory):
 
 
 def test_z_up_becomes_gltf_y_up():
-    Q = gltf_rotation(np.array([0.0, 0.0, 1.0]))
-    np.testing.assert_allclose(Q @ [0, 0, 1], [0, 1, 0], atol=1e-12)
-    np.testing.assert_allclose(Q @ [1, 0, 0], [1, 0, 0], atol=1e-12)
-    assert np.linalg.det(Q) == pytest.approx(1.0)
+    np.testing.assert_allclose(gltf_rotation(np.array([0.0, 0.0, 1.0])), Z_UP_TO_GLTF, atol=1e-12)
 
 
 def test_glb_round_trip_gives_named_nodes_transforms_and_extras(written):
@@ -48,11 +49,14 @@ def test_glb_round_trip_gives_named_nodes_transforms_and_extras(written):
         # the tangible, in metres and +Y up: 120 mm tall along Y
         tangible = scene.geometry["tangible"]
         assert tangible.bounds[:, 1] == pytest.approx([0.0, 0.12], abs=1e-6)
-        # the virtual node's matrix is the registration, converted
+        # the virtual node places the virtual mesh where the registration puts it, in +Y-up metres:
+        # its vertices' centroid (affine maps keep centroids), against the file's in mm, moved by hand
         matrix, _ = scene.graph["virtual"]
         X = vm.best.transform
-        np.testing.assert_allclose(matrix[:3, :3], Q @ X[:3, :3] @ Q.T, atol=1e-6)
-        np.testing.assert_allclose(matrix[:3, 3], Q @ X[:3, 3] / 1000.0, atol=1e-6)
+        local = scene.geometry["virtual"].vertices.mean(axis=0)
+        placed = matrix[:3, :3] @ local + matrix[:3, 3]
+        file_mm = study.scene.virtuals[vm.virtual].obj.loaded.mesh.vertices.mean(axis=0)
+        np.testing.assert_allclose(placed, Z_UP_TO_GLTF @ (X[:3, :3] @ file_mm + X[:3, 3]) / 1000.0, atol=1e-6)
         extras = scene.graph.transforms.edge_data[("world", "virtual")]["metadata"]
         assert extras["pinchmatch:cost"] == pytest.approx(vm.best.cost)
         assert extras["pinchmatch:flipped"] == vm.best.flipped

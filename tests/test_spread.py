@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from pinchmatch import shapes
-from pinchmatch.spread import Pool, spread_order
+from pinchmatch.mesh import shapes
+from pinchmatch.grasp.spread import Pool, spread_order
 
 
 def plain_spread_order(points, count, nearest=None):

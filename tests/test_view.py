@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 from matplotlib.image import imread
 
-from pinchmatch.cli import main
-from pinchmatch.view import page_data, read_matches
+from pinchmatch.cli.commands import main
+from pinchmatch.export.view import page_data, read_matches
 
 CHROMIUM = os.environ.get("PINCHMATCH_CHROMIUM") or shutil.which("chromium") or "/usr/bin/chromium"
 #: the flags this machine needs: no sandbox as root, no GPU, no background connections to a closed network
@@ -217,7 +217,7 @@ def test_view_serve_binds_loopback_and_serves_the_page(demo_out):
 
 def test_names_cannot_end_the_script_element(demo_out, tmp_path):
     """An object named like markup stays text: the page's data element parses back to the names."""
-    from pinchmatch.view import render_page
+    from pinchmatch.export.view import render_page
 
     doc = read_matches(demo_out)
     evil = "<!--<script>x</script>&\u2028.stl"
@@ -241,7 +241,7 @@ def _get(url, host=None):
 def test_serve_answers_only_its_own_host_lists_no_folder_and_follows_no_link_out(demo_out, tmp_path):
     import threading
 
-    from pinchmatch.view import make_server
+    from pinchmatch.export.view import make_server
 
     out = tmp_path / "run"
     shutil.copytree(demo_out, out)

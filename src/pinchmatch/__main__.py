@@ -1,5 +1,5 @@
 """``python -m pinchmatch``: the command line."""
 
-from .cli import console
+from .cli.commands import console
 
 console()

@@ -24,11 +24,11 @@ import numpy as np
 import trimesh
 from trimesh.visual.material import PBRMaterial
 
-from .hand import Hand
-from .match import contact_offset_mm
-from .register import _rotations_between
-from .files import write_atomic
-from .report import scene_stems
+from ..grasp.hand import Hand
+from ..match.search import contact_offset_mm
+from ..match.register import rotations_between
+from ..files import write_atomic
+from .documents import scene_stems
 
 #: the fingertip cones: tip on the contact, axis along the pinch line, outside the object
 CONE_HEIGHT_MM, CONE_RADIUS_MM = 20.0, 5.0
@@ -40,7 +40,7 @@ VIRTUAL_COLOR = [0.25, 0.45, 1.0, 0.45]
 
 def gltf_rotation(up: np.ndarray) -> np.ndarray:
     """Q: the smallest rotation taking ``up`` onto glTF's +Y."""
-    return _rotations_between(np.asarray(up, float)[None], np.array([[0.0, 1.0, 0.0]]))[0]
+    return rotations_between(np.asarray(up, float)[None], np.array([[0.0, 1.0, 0.0]]))[0]
 
 
 def _material(color, *, blend: bool = False) -> PBRMaterial:
@@ -57,7 +57,7 @@ def _styled(mesh: trimesh.Trimesh, vertices: np.ndarray, color, *, blend: bool =
 def _placed(mesh: trimesh.Trimesh, origin_mm: np.ndarray, direction: np.ndarray) -> trimesh.Trimesh:
     """``mesh``, built along +z from the origin, turned onto the unit ``direction`` and moved to ``origin_mm``."""
     T = np.eye(4)
-    T[:3, :3] = _rotations_between(np.array([[0.0, 0.0, 1.0]]), np.asarray(direction, float)[None])[0]
+    T[:3, :3] = rotations_between(np.array([[0.0, 0.0, 1.0]]), np.asarray(direction, float)[None])[0]
     T[:3, 3] = origin_mm
     mesh.apply_transform(T)
     return mesh

@@ -19,11 +19,11 @@ import logging
 import numpy as np
 
 from .curvature import tangent_frame
-from .errors import NoFeasiblePinchError
+from ..errors import NoFeasiblePinchError
 from .pinches import (PREFILTER_MARGIN_DEG, RULES, PinchSettings, Pinches, assemble, check_patch_radius, cheap_broken,
                       concat_pinches, patches, reach_rule, rule_table)
 from .spread import Pool
-from .surface import SurfaceContext
+from ..mesh.surface import SurfaceContext
 
 log = logging.getLogger(__name__)
 

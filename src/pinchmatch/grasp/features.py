@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .pinches import Pinches
-from .properties import ObjectProperties
+from ..mesh.properties import ObjectProperties
 
 #: below this anisotropy (1/m) the κmax direction is undefined: the curvature
 #: discrimination threshold of 2 cm stimuli (about 2 m⁻¹, perception.md)

@@ -29,8 +29,8 @@ import signal
 from contextlib import contextmanager
 from pathlib import Path
 
-from .errors import OutputError
-from .files import write_atomic
+from ..errors import OutputError
+from ..files import write_atomic
 
 CONTROL = ".pinchmatch"
 

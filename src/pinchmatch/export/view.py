@@ -19,10 +19,10 @@ import re
 from importlib import resources
 from pathlib import Path
 
-from . import __version__
-from .errors import ConfigError
-from .files import write_atomic
-from .report import SCHEMA_MATCHES, matches_from_lines, scene_file, scene_stems
+from ..version import __version__
+from ..errors import ConfigError
+from ..files import write_atomic
+from .documents import SCHEMA_MATCHES, matches_from_lines, scene_file, scene_stems
 
 log = logging.getLogger(__name__)
 

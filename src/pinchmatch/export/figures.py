@@ -21,8 +21,8 @@ from matplotlib.colors import LogNorm
 from matplotlib.figure import Figure
 from matplotlib.patches import Rectangle
 
-from .files import write_atomic
-from .report import figure_file, scene_stems
+from ..files import write_atomic
+from .documents import figure_file, scene_stems
 
 log = logging.getLogger(__name__)
 
@@ -34,7 +34,8 @@ LOUD, QUIET = "#d1432f", "#2e9d52"
 COST_FLOOR = 1e-3
 
 
-def _png(fig: Figure) -> bytes:
+def png_bytes(fig: Figure) -> bytes:
+    """The figure as PNG bytes, at FIGURE_DPI."""
     FigureCanvasAgg(fig)
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png", dpi=FIGURE_DPI)
@@ -181,7 +182,7 @@ def write_figures(out: Path, document: dict, *, study=None, progress=None, crite
     written = []
 
     def save(fig: Figure, path: Path) -> None:
-        write_atomic(path, _png(fig))
+        write_atomic(path, png_bytes(fig))
         written.append(path)
         if progress is not None:
             progress(path)

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from .errors import ConfigError, MeshError
+from ..errors import ConfigError, MeshError
 
 log = logging.getLogger(__name__)
 

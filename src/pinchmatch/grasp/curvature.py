@@ -44,7 +44,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .surface import SurfaceContext
+from ..mesh.surface import SurfaceContext
 
 #: neighbours considered per contact (the patch is cut from these by radius)
 MAX_PATCH_SAMPLES = 320

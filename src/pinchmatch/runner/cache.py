@@ -35,25 +35,26 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from . import __version__
-from .analysis import ObjectAnalysis, analyze_object
-from .features import PinchFeatures
-from .files import AtomicFile
-from .load import LoadedMesh, load_mesh
-from .match import Candidates, candidate_poses
-from .cost import feature_table
-from .errors import ConfigError, OutputError
-from .pinches import ARRAY_FIELDS, PinchSettings, Pinches
-from .properties import object_properties
-from .surface import SurfaceContext
+from ..version import __version__
+from ..grasp.analysis import ObjectAnalysis, analyze_object
+from ..grasp.features import PinchFeatures
+from ..files import AtomicFile
+from ..mesh.load import LoadedMesh, load_mesh
+from ..match.candidates import Candidates, candidate_poses
+from ..match.cost import feature_table
+from ..errors import ConfigError, OutputError
+from ..grasp.pinches import ARRAY_FIELDS, PinchSettings, Pinches
+from ..mesh.properties import object_properties
+from ..mesh.surface import SurfaceContext
 
 log = logging.getLogger(__name__)
 
 #: bump when the layout of an entry changes (what it holds and how it is named)
 CACHE_FORMAT = 2
 #: modules whose code shapes an object's candidates: their source is part of every key
-ALGORITHM_MODULES = ("load", "surface", "curvature", "jets", "hand", "pinches", "sampling", "spread", "spread_kernel",
-                     "features", "properties", "analysis", "match", "cost", "cache")
+ALGORITHM_MODULES = ("mesh/load", "mesh/surface", "mesh/properties", "grasp/curvature", "grasp/jets", "grasp/hand",
+                     "grasp/pinches", "grasp/sampling", "grasp/spread", "grasp/spread_kernel", "grasp/features",
+                     "grasp/analysis", "match/candidates", "match/cost", "runner/cache")
 ENTRY_NAME = re.compile(r"^[0-9a-f]{64}\.npz$")
 TEMP_NAME = re.compile(r"^\.[0-9a-f]{64}\.npz\..+\.tmp$")
 #: what reading a damaged entry can raise; anything else is a bug and is raised
@@ -64,7 +65,7 @@ def _algorithm_digest() -> str:
     h = hashlib.sha256()
     for name in ALGORITHM_MODULES:
         h.update(name.encode())
-        h.update((resources.files("pinchmatch") / f"{name}.py").read_bytes())
+        h.update(resources.files("pinchmatch").joinpath(*f"{name}.py".split("/")).read_bytes())
     return h.hexdigest()
 
 

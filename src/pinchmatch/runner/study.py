@@ -26,14 +26,15 @@ from pathlib import Path
 
 import numpy as np
 
-from .analysis import analyze_object
-from .cost import PAPER_CRITERIA
-from .match import (Candidates, MatchSettings, SceneMatch, candidate_poses, cost_model, evaluate_pairs,
-                    line_contacts, match_scene, merge_candidates, reference_cost, reference_pose)
-from .pinches import PinchSettings
-from .files import write_atomic
-from .report import _num, _vec
-from .shapes import stacked_prop
+from ..grasp.analysis import analyze_object
+from ..match.cost import PAPER_CRITERIA
+from ..match.candidates import Candidates, candidate_poses, merge_candidates
+from ..match.search import MatchSettings, SceneMatch, cost_model, evaluate_pairs, match_scene
+from ..match.reference import line_contacts, reference_cost, reference_pose
+from ..grasp.pinches import PinchSettings
+from ..files import write_atomic
+from ..export.documents import json_number, json_vector
+from ..mesh.shapes import stacked_prop
 
 PARTS = ("cylinder", "cube", "cone")
 PART_HEIGHT_MM = 40.0
@@ -91,12 +92,12 @@ def _pose_entry(order, candidates: Candidates, v_pose: int, *, points=None, flip
     height = float(pts[:, 2].mean()) if pts is not None else None
     return {
         "part": part_at(order, height) if height is not None else None,
-        "height_mm": _num(height, 2) if height is not None else None,
-        "p1_mm": _vec(pts[0]) if pts is not None else None,
-        "p2_mm": _vec(pts[1]) if pts is not None else None,
+        "height_mm": json_number(height, 2) if height is not None else None,
+        "p1_mm": json_vector(pts[0]) if pts is not None else None,
+        "p2_mm": json_vector(pts[1]) if pts is not None else None,
         "flipped": flipped,
-        "cost": _num(cost) if cost is not None else None,
-        "cost_paper": _num(cost_paper) if cost_paper is not None else None,
+        "cost": json_number(cost) if cost is not None else None,
+        "cost_paper": json_number(cost_paper) if cost_paper is not None else None,
         "reason": reason,
     }
 

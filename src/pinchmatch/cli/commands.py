@@ -23,24 +23,26 @@ from pathlib import Path
 
 import numpy as np
 
-from . import __version__
-from .analysis import analyze_object, find_pinches, load_poses_file, score_pinches
-from .cache import FeatureCache
-from .errors import ConfigError, PinchmatchError, route_warnings
-from .files import check_writable, write_atomic
-from .load import UNITS_MM, UP_VECTORS, mesh_files
-from .pinches import PinchSettings
-from .publish import OutputFolder, recover
-from .cost import parse_criteria, parse_weights
-from .match import MatchSettings
-from .properties import parse_vector
-from ._console import Presenter
-from .report import (features_document, matches_rows, poses_csv, poses_document,
-                     scene_stems, study_document, study_rows, to_json)
-from .run import (Job, MatchesSink, ObjectTask, RunError, RunResult, default_jobs, executor, run_match,
-                  virtual_result)
-from .study import ORDERS, run_study
-from .view import make_server, write_page
+from ..version import __version__
+from ..grasp.analysis import analyze_object, find_pinches, load_poses_file, score_pinches
+from ..runner.cache import FeatureCache
+from ..errors import ConfigError, PinchmatchError, route_warnings
+from ..files import check_writable, write_atomic
+from ..mesh.load import UNITS_MM, UP_VECTORS, mesh_files
+from ..grasp.pinches import PinchSettings
+from ..export.folder import OutputFolder, recover
+from ..match.cost import parse_criteria, parse_weights
+from ..match.search import MatchSettings
+from ..mesh.properties import parse_vector
+from .console import Presenter
+from ..export.documents import (features_document, matches_rows, poses_csv, poses_document, scene_stems,
+                                study_document, study_rows, to_json)
+from ..runner.tasks import Job, ObjectTask, virtual_result
+from ..export.sink import MatchesSink
+from ..runner.matching import RunError, RunResult, run_match
+from ..runner.executors import default_jobs, executor
+from ..runner.study import ORDERS, run_study
+from ..export.view import make_server, write_page
 
 log = logging.getLogger("pinchmatch")
 
@@ -417,10 +419,10 @@ def _cmd_match(args) -> int:
         t1 = time.perf_counter()
         written = [str(out / sink.result_path.name), f"{sink.scenes} glTF scenes in {out / 'scenes'}"]
         if not args.no_figures:
-            from .figures import _png, cost_matrix_figure  # matplotlib: imported when figures are wanted
+            from ..export.figures import png_bytes, cost_matrix_figure  # matplotlib: imported when figures are wanted
 
             with ui.step("cost matrix figure"):
-                write_atomic(stage / "figures" / "cost_matrix.png", _png(cost_matrix_figure(sink.overview())))
+                write_atomic(stage / "figures" / "cost_matrix.png", png_bytes(cost_matrix_figure(sink.overview())))
             written.append(f"{sink.scenes + 1} figures in {out / 'figures'}")
         if not args.no_view and doc is not None:
             with ui.step("viewer page"):
@@ -488,7 +490,7 @@ def _cmd_demo(args) -> int:
             matches_doc = sink.finish(RunResult(scene.tangibles, {}, [], 0, len(scene.virtuals)))
         written = [f"{out / 'study.json'}", f"{out / 'matches.json'}", f"{sink.scenes} glTF scenes in {out / 'scenes'}"]
         if not args.no_figures:
-            from .figures import figure_count, write_figures  # matplotlib: imported when figures are wanted
+            from ..export.figures import figure_count, write_figures  # matplotlib: imported when figures are wanted
 
             total = figure_count(matches_doc, study=study, criteria=False)
             with ui.step("figures", total=total) as advance:

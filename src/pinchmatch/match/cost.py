@@ -11,7 +11,7 @@ and seen: |R·o_V - o_T|² / s², with o = centre of mass - pinch midpoint and
 R the registration's rotation. It depends on the registration, so the
 search works with its lower bound ((Δ along the line)² + (Δ lever arm)²) / s²,
 which is separable like the paper's terms, and evaluates the exact term on
-the few pairs that the bound cannot rule out (see :mod:`pinchmatch.match`).
+the few pairs that the bound cannot rule out (see :mod:`pinchmatch.match.search`).
 
 Scales (``normalize``):
 
@@ -34,8 +34,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .errors import ConfigError
-from .features import PinchFeatures
+from ..errors import ConfigError
+from ..grasp.features import PinchFeatures
 
 CRITERIA = ("width", "com", "tilt", "normal", "axis", "kmax", "kmin", "mass")
 #: the method paper's seven criteria (``--criteria paper``)

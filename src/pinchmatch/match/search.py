@@ -4,7 +4,7 @@ The search is exact. For each (virtual object, tangible) pair of objects:
 
 1. The separable part of the cost (the paper's seven criteria and the lower
    bound of ``mass``) is computed for every pose pair, blockwise with BLAS
-   (:func:`pinchmatch.cost.pair_cost_blocks`), keeping only the ``pool``
+   (:func:`pinchmatch.match.cost.pair_cost_blocks`), keeping only the ``pool``
    smallest values; ``tau`` is the smallest value left out.
 2. The pooled pairs are registered and get their exact cost (the exact
    ``mass`` term, and ``--keep-upright``). Every pair left out costs at
@@ -33,13 +33,13 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from .analysis import ObjectAnalysis, find_pinches, score_pinches
-from .cost import (CRITERIA, PAPER_CRITERIA, CostModel, complete_weights, feature_ranges, feature_table,
-                   mass_term, pair_cost_blocks, separable_terms, total)
-from .errors import ConfigError, NoFeasiblePinchError
-from .features import PinchFeatures, pinch_features
-from .pinches import PinchSettings, Pinches, concat_pinches, check_pinches
-from .register import register_poses
+from ..errors import ConfigError
+from ..grasp.pinches import PinchSettings
+from .candidates import Candidates
+from .cost import (CRITERIA, PAPER_CRITERIA, CostModel, complete_weights, feature_ranges, mass_term,
+                   pair_cost_blocks, separable_terms, total)
+from .reference import Reference, reference_pose
+from .register import FLIP_COSINE, register_poses
 
 #: pose pairs kept per (virtual, tangible) object pair before the exact evaluation: one per
 #: POOL_PAIRS_PER_KEPT pose pairs, within [MIN_POOL, MAX_POOL]; grows x4 when short
@@ -53,9 +53,6 @@ def initial_pool(n_tangible: int, n_virtual: int) -> int:
     that grows with the pairs keeps the evaluation a small share of the search at every size. The
     result does not depend on it (see the module's notes)."""
     return int(np.clip(n_tangible * n_virtual // POOL_PAIRS_PER_KEPT, MIN_POOL, MAX_POOL))
-#: an up direction turned more than 90° (cosine below this) is ``flipped``
-FLIP_COSINE = -1e-6
-
 
 @dataclass(frozen=True)
 class MatchSettings:
@@ -95,86 +92,9 @@ class MatchSettings:
         }
 
 
-@dataclass(frozen=True)
-class Candidates:
-    """One object's candidate poses: its feasible pinches, their features and feature table.
-
-    ``index`` maps each candidate to its place in the sampled or given list.
-    """
-
-    obj: ObjectAnalysis
-    pinches: Pinches
-    features: PinchFeatures
-    table: np.ndarray
-    index: np.ndarray
-    given: bool
-
-    @property
-    def name(self) -> str:
-        return self.obj.name
-
-    def __len__(self) -> int:
-        return len(self.pinches)
-
-    @property
-    def midpoints(self) -> np.ndarray:
-        return self.pinches.points.mean(axis=1)
-
-    def subset(self, keep) -> "Candidates":
-        """The candidates at positions ``keep`` (their ``index`` kept)."""
-        keep = np.asarray(keep)
-        return Candidates(self.obj, self.pinches.subset(keep), _features_subset(self.features, keep),
-                          self.table[keep], self.index[keep], self.given)
-
-
-def _features_subset(features: PinchFeatures, keep: np.ndarray) -> PinchFeatures:
-    return PinchFeatures(**{f.name: getattr(features, f.name)[keep] for f in dataclasses.fields(features)})
-
-
-def candidate_poses(
-    obj: ObjectAnalysis,
-    *,
-    settings: PinchSettings = PinchSettings(),
-    given: tuple[np.ndarray, np.ndarray] | None = None,
-    source: str | None = None,
-) -> Candidates:
-    """The feasible poses of ``obj``: sampled, or the ``given`` (p1_mm, p2_mm) checked.
-
-    Raises
-    ------
-    NoFeasiblePinchError
-        No sampled pose is feasible, or none of the given ones is.
-    ContactError
-        A given contact is off the surface.
-    """
-    if given is None:
-        pinches, features = find_pinches(obj, settings=settings)
-    else:
-        pinches, features = score_pinches(obj, *given, settings=settings, source=source)
-    keep = np.flatnonzero(pinches.feasible)
-    if not len(keep):
-        reasons = "; ".join(f"pose {i} breaks {', '.join(pinches.broken_rules(i))}" for i in range(min(3, len(pinches))))
-        raise NoFeasiblePinchError(
-            f"{source or obj.loaded.path}: none of the {len(pinches)} given poses is feasible on {obj.name} "
-            f"({reasons}); give poses that a fingertip can hold, or loosen --friction-cone-deg"
-        )
-    pinches, features = pinches.subset(keep), _features_subset(features, keep)
-    return Candidates(obj, pinches, features, feature_table(features), keep, given is not None)
-
-
-def merge_candidates(first: Candidates, second: Candidates) -> Candidates:
-    """The candidates of both (same object); the second's indices follow the first's list."""
-    features = PinchFeatures(**{f.name: np.concatenate([getattr(first.features, f.name), getattr(second.features, f.name)])
-                                for f in dataclasses.fields(first.features)})
-    offset = int(first.index.max()) + 1 if len(first.index) else 0
-    return Candidates(first.obj, concat_pinches([first.pinches, second.pinches]), features,
-                      np.concatenate([first.table, second.table]),
-                      np.concatenate([first.index, second.index + offset]), first.given and second.given)
-
-
 def cost_model(settings: MatchSettings, candidates: list[Candidates], *, ranges: np.ndarray | None = None) -> CostModel:
     """The run's cost model; ``range`` takes each feature's range over every candidate of the run
-    (or ``ranges``, when they were gathered elsewhere, see :func:`pinchmatch.cost.ranges_from_bounds`)."""
+    (or ``ranges``, when they were gathered elsewhere, see :func:`pinchmatch.match.cost.ranges_from_bounds`)."""
     if settings.normalize == "range" and ranges is None:
         ranges = feature_ranges(*[c.table for c in candidates])
     return CostModel(dict(settings.weights), settings.normalize, ranges if settings.normalize == "range" else None,
@@ -286,7 +206,7 @@ class _PairPool:
     size: int
 
 
-def _pinch_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def pinch_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Order-free distance between pinches a (k, 2, 3) and b (2, 3): the larger contact displacement."""
     direct = np.maximum(np.linalg.norm(a[:, 0] - b[0], axis=1), np.linalg.norm(a[:, 1] - b[1], axis=1))
     crossed = np.maximum(np.linalg.norm(a[:, 0] - b[1], axis=1), np.linalg.norm(a[:, 1] - b[0], axis=1))
@@ -295,8 +215,23 @@ def _pinch_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Choice:
-    """One registered pose pair: virtual object ``virtual``'s pose ``v_pose`` on tangible
-    ``tangible``'s pose ``t_pose`` (indices into the candidates), and its exact evaluation."""
+    """One registered pose pair and its exact evaluation.
+
+    Virtual object ``virtual``'s pose ``v_pose`` placed on tangible ``tangible``'s pose ``t_pose``
+    (``int`` indices into the scene's lists and into each object's :class:`Candidates`).
+
+    - ``terms``: ``(8,) float64``, dimensionless, each criterion's contribution (mean over its
+      entries of (difference / scale)², in the run's normalisation; with ``jnd``, 1 is just
+      noticeable), in the order of :data:`pinchmatch.match.cost.CRITERIA`, computed for every
+      criterion (those not in use weigh 0);
+    - ``cost``: ``float``, dimensionless, Σ weight x term;
+    - ``swapped``: ``bool``, the virtual pose's p1 lies on the tangible's p2;
+    - ``transform``: ``(4, 4) float64``, the rigid transform taking the virtual object's frame (mm)
+      to the tangible's, so that the fingertips meet;
+    - ``flipped``: ``bool``, the transform turns the virtual object's up direction more than 90°;
+    - ``mass_delta_mm``: ``(3,) float64``, the centre-of-mass offset from the pinch midpoint as seen
+      (virtual, registered) minus as felt (tangible), in the tangible's frame, mm.
+    """
 
     virtual: int
     tangible: int
@@ -312,28 +247,47 @@ class Choice:
 
 @dataclass
 class VirtualMatch:
-    """The result for one virtual object: best choice (None with ``reason``), alternatives, and
-    the paper's Ref for the best choice's tangible pose."""
+    """The result for one virtual object.
+
+    - ``virtual``: ``int``, its index in the scene's virtual objects;
+    - ``best``: the :class:`Choice` of least cost, or ``None`` (then ``reason``, a one-line ``str``,
+      says why: no allowed registration, or every tangible taken under ``one_to_one``);
+    - ``alternatives``: up to ``top_k`` further ``Choice`` s, by cost, none a near duplicate of an
+      earlier one (both pinches within ``distinct_mm``);
+    - ``reference``: the paper's Ref on the best choice's tangible pose (:class:`Reference`), or
+      ``None`` without a best choice.
+    """
 
     virtual: int
     best: Choice | None
     alternatives: list
     reason: str | None = None
-    reference: "Reference | None" = None
+    reference: Reference | None = None
 
 
 @dataclass
 class SceneMatch:
+    """Every virtual object matched against every tangible.
+
+    - ``tangibles``, ``virtuals``: the ``n`` and ``m`` objects' :class:`Candidates`, in input order;
+    - ``settings``: the :class:`MatchSettings` used; ``model``: the run's
+      :class:`pinchmatch.match.cost.CostModel` (its scales, weights and criteria);
+    - ``cost_matrix``: ``(m, n) float64``, dimensionless: the least exact cost of each virtual object
+      on each tangible, inf where no registration is allowed;
+    - ``matches``: ``m`` :class:`VirtualMatch` es, in the order of ``virtuals``.
+    """
+
     tangibles: list
     virtuals: list
     settings: MatchSettings
     model: CostModel
-    cost_matrix: np.ndarray  # (m, n), inf where no registration is allowed
+    cost_matrix: np.ndarray
     matches: list
 
 
-class _Search:
-    """Pools per (virtual, tangible), grown on demand."""
+class Search:
+    """The exact search of a scene: per (virtual, tangible) a pool of the cheapest pose pairs, exactly
+    evaluated, grown on demand until it provably holds the best pairs (see the module's notes)."""
 
     def __init__(self, tangibles, virtuals, model, settings):
         self.tangibles, self.virtuals, self.model, self.settings = tangibles, virtuals, model, settings
@@ -393,8 +347,8 @@ class _Search:
             r = p.result
             picks.append(Choice(j, p.tangible, int(p.it[k]), int(p.iv[k]), float(r.cost[k]), r.terms[k],
                                 bool(r.swapped[k]), r.transform[k], bool(r.flipped[k]), r.mass_delta_mm[k]))
-            near = (owner == owner[i]) & (_pinch_distance(t_pinch, t_pinch[i]) < self.settings.distinct_mm) \
-                & (_pinch_distance(v_pinch, v_pinch[i]) < self.settings.distinct_mm)
+            near = (owner == owner[i]) & (pinch_distance(t_pinch, t_pinch[i]) < self.settings.distinct_mm) \
+                & (pinch_distance(v_pinch, v_pinch[i]) < self.settings.distinct_mm)
             alive &= ~near
         return picks
 
@@ -411,7 +365,7 @@ def match_scene(tangibles: list[Candidates], virtuals: list[Candidates], setting
     if not virtuals:
         raise ConfigError("no virtual object given; name at least one with --virtual")
     model = model or cost_model(settings, tangibles + virtuals)
-    search = _Search(tangibles, virtuals, model, settings)
+    search = Search(tangibles, virtuals, model, settings)
     m, n = len(virtuals), len(tangibles)
     cost_matrix = np.array([cost_row(search, j) for j in range(m)]).reshape(m, n)
     plan = allowed_tangibles(cost_matrix, settings)
@@ -419,7 +373,7 @@ def match_scene(tangibles: list[Candidates], virtuals: list[Candidates], setting
     return SceneMatch(tangibles, virtuals, settings, model, cost_matrix, matches)
 
 
-def cost_row(search: "_Search", j: int) -> np.ndarray:
+def cost_row(search: "Search", j: int) -> np.ndarray:
     """(n,) exact least cost of virtual j on each tangible (inf where none is allowed)."""
     return np.array([search.best_cost(j, t) for t in range(len(search.tangibles))], dtype=np.float64)
 
@@ -437,7 +391,7 @@ def allowed_tangibles(cost_matrix: np.ndarray, settings: MatchSettings) -> list[
             for j in range(m)]
 
 
-def _match(search: "_Search", j: int, allowed: list[int], reason: str | None, *,
+def _match(search: "Search", j: int, allowed: list[int], reason: str | None, *,
            pinch_settings: PinchSettings) -> VirtualMatch:
     picks = search.choices(j, allowed, search.settings.top_k + 1) if allowed else []
     if not picks and reason is None:
@@ -457,7 +411,7 @@ def match_virtual(tangibles: list[Candidates], virtual: Candidates, model: CostM
     :func:`allowed_tangibles` (default: every tangible, which is right unless ``one_to_one``);
     ``row`` its row of the cost matrix when already known. The result is a one-row scene.
     """
-    search = _Search(tangibles, [virtual], model, settings)
+    search = Search(tangibles, [virtual], model, settings)
     row = cost_row(search, 0) if row is None else np.asarray(row, dtype=np.float64)
     vm = _match(search, 0, *(allowed or (list(range(len(tangibles))), None)), pinch_settings=pinch_settings)
     return SceneMatch(tangibles, [virtual], settings, model, row[None], [vm])
@@ -506,81 +460,3 @@ def criterion_table(tangible: Candidates, virtual: Candidates, choice: Choice, m
         out[c] = {"weight": model.weights[c], "contribution": float(choice.terms[k]), "jnd": size,
                   "noticeable": bool(size >= 1.0)}
     return out
-
-
-def line_contacts(obj: ObjectAnalysis, point: np.ndarray, direction: np.ndarray) -> np.ndarray | None:
-    """(2, 3) where two fingers closing along a line meet the surface of ``obj``, or None.
-
-    The line passes through ``point`` along ``direction``; the first finger comes from the
-    -direction side, the second from the +direction side. None when the line misses.
-    """
-    hits = _line_hits(obj, point, direction)
-    return None if hits is None else hits[0]
-
-
-def _line_hits(obj: ObjectAnalysis, point: np.ndarray, direction: np.ndarray):
-    """:func:`line_contacts` and the (2,) triangles hit, or None."""
-    u = np.asarray(direction, dtype=np.float64)
-    u = u / np.linalg.norm(u)
-    bounds = obj.props.bounds_mm
-    reach = np.linalg.norm(bounds[1] - bounds[0]) + np.linalg.norm(point - bounds.mean(axis=0)) + 1.0
-    origins = np.array([point - reach * u, point + reach * u])
-    face, dist = obj.context.first_hit(origins, np.array([u, -u]))
-    if (face < 0).any():
-        return None
-    points = origins + dist[:, None] * np.array([u, -u])
-    if (points[1] - points[0]) @ u <= 1e-9:
-        return None
-    return points, face
-
-
-@dataclass(frozen=True)
-class Reference:
-    """The paper's Ref: the virtual object superimposed on the tangible as the files place them."""
-
-    pinches: Pinches | None
-    features: PinchFeatures | None
-    terms: np.ndarray | None
-    cost: float | None
-    reason: str | None
-    flipped: bool | None = None
-
-
-def reference_pose(tangible: Candidates, t_pose: int, virtual: Candidates, model: CostModel, *,
-                   settings: PinchSettings = PinchSettings()) -> Reference:
-    """Where the tangible pose's pinch line meets the virtual surface, and its cost.
-
-    Each finger closes along the tangible's pinch line from its own side; its contact is the
-    first virtual surface it meets. The placement is the identity (both files' frames), the
-    finger order p1 on p1. The cost is ``None`` with a reason when a finger meets nothing.
-    Use :func:`reference_cost` for the same pose under another model.
-    """
-    p = tangible.pinches.points[t_pose]
-    hits = _line_hits(virtual.obj, p.mean(axis=0), p[1] - p[0])
-    if hits is None:
-        return Reference(None, None, None, None, "the tangible's pinch line misses the virtual object")
-    points, faces = hits
-    pinches = check_pinches(virtual.obj.context, points[:1], points[1:], settings=settings, faces=faces[None])
-    features = pinch_features(pinches, virtual.obj.props)
-    flipped = bool(virtual.obj.loaded.up @ tangible.obj.loaded.up < FLIP_COSINE)
-    terms = _reference_terms(tangible, t_pose, virtual, pinches, features, model)
-    return Reference(pinches, features, terms, float(total(terms[None], model)[0]), None, flipped)
-
-
-def reference_cost(tangible: Candidates, t_pose: int, virtual: Candidates, ref: Reference,
-                   model: CostModel) -> float | None:
-    """The cost of a reference pose under ``model`` (None where the fingers meet nothing)."""
-    if ref.pinches is None:
-        return None
-    terms = _reference_terms(tangible, t_pose, virtual, ref.pinches, ref.features, model)
-    return float(total(terms[None], model)[0])
-
-
-def _reference_terms(tangible, t_pose, virtual, pinches, features, model) -> np.ndarray:
-    """(8,) contributions of the reference pose, placed by the identity, p1 on p1."""
-    t_row = tangible.table[t_pose][None]
-    terms = separable_terms(t_row, feature_table(features), model)
-    mid = tangible.pinches.points[t_pose].mean(axis=0)
-    delta = (virtual.obj.props.com_mm - pinches.points[0].mean(axis=0)) - (tangible.obj.props.com_mm - mid)
-    terms[:, 7] = mass_term(t_row, delta[None], model)
-    return terms[0]

@@ -23,6 +23,9 @@ MASS_TIE_WEIGHT = 0.1
 AXIS_TIE_WEIGHT = 0.05
 #: a normal this close to the pinch line does not take part in choosing the roll
 NORMAL_ALONG_LINE_DEG = 5.0
+#: a registration that turns the virtual object's up direction more than 90° (cosine below this)
+#: is ``flipped``
+FLIP_COSINE = -1e-6
 
 
 def _skew(v: np.ndarray) -> np.ndarray:
@@ -33,7 +36,7 @@ def _skew(v: np.ndarray) -> np.ndarray:
     return K
 
 
-def _rotations_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def rotations_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """(k, 3, 3) smallest rotations taking unit vectors a (k, 3) onto b (k, 3)."""
     c = np.einsum("kd,kd->k", a, b)
     K = _skew(np.cross(a, b))
@@ -81,7 +84,7 @@ def register_poses(
     tm, vm = tangible_points.mean(axis=1), virtual_points.mean(axis=1)
     ut = _unit(tangible_points[:, 1] - tangible_points[:, 0])
     uv = _unit(virtual_points[:, 1] - virtual_points[:, 0])
-    R1 = _rotations_between(uv, ut)
+    R1 = rotations_between(uv, ut)
 
     def moved(x):
         return np.einsum("kij,kj->ki", R1, x)

@@ -18,25 +18,26 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from . import __version__
-from .features import PinchFeatures
-from .load import LoadedMesh
-from .match import contact_offset_mm, criterion_table
-from .pinches import RULES, Pinches
-from .properties import ObjectProperties
+from ..version import __version__
+from ..grasp.features import PinchFeatures
+from ..mesh.load import LoadedMesh
+from ..match.search import contact_offset_mm, criterion_table
+from ..grasp.pinches import RULES, Pinches
+from ..mesh.properties import ObjectProperties
 
 SCHEMA_POSES = "pinchmatch.poses/1"
 SCHEMA_FEATURES = "pinchmatch.features/1"
 
 
-def _num(x, digits: int = 4):
+def json_number(x, digits: int = 4):
     """A float for JSON: rounded, ``None`` for NaN or inf."""
     x = float(x)
     return round(x, digits) + 0.0 if math.isfinite(x) else None  # + 0.0: no -0.0
 
 
-def _vec(v, digits: int = 4) -> list:
-    return [_num(x, digits) for x in np.asarray(v, dtype=float).ravel()]
+def json_vector(v, digits: int = 4) -> list:
+    """A vector (any shape, flattened) for JSON, each component as :func:`json_number`."""
+    return [json_number(x, digits) for x in np.asarray(v, dtype=float).ravel()]
 
 
 def object_section(loaded: LoadedMesh, props: ObjectProperties, *, ray_engine: str) -> dict:
@@ -46,21 +47,21 @@ def object_section(loaded: LoadedMesh, props: ObjectProperties, *, ray_engine: s
         "file": loaded.path,
         "units_in": loaded.units_in,
         "up": loaded.up_label,
-        "up_vector": _vec(loaded.up, 6),
+        "up_vector": json_vector(loaded.up, 6),
         "faces": int(len(mesh.faces)),
         "vertices": int(len(mesh.vertices)),
         "watertight": loaded.watertight,
         "repairs": list(loaded.repairs),
         "warnings": list(loaded.warnings),
-        "bounds_mm": [_vec(props.bounds_mm[0]), _vec(props.bounds_mm[1])],
-        "extent_mm": _vec(props.bounds_mm[1] - props.bounds_mm[0]),
-        "volume_mm3": _num(props.volume_mm3, 2) if props.volume_mm3 is not None else None,
-        "area_mm2": _num(props.area_mm2, 2),
-        "com_mm": _vec(props.com_mm),
+        "bounds_mm": [json_vector(props.bounds_mm[0]), json_vector(props.bounds_mm[1])],
+        "extent_mm": json_vector(props.bounds_mm[1] - props.bounds_mm[0]),
+        "volume_mm3": json_number(props.volume_mm3, 2) if props.volume_mm3 is not None else None,
+        "area_mm2": json_number(props.area_mm2, 2),
+        "com_mm": json_vector(props.com_mm),
         "com_source": props.com_source,
-        "principal_axis": _vec(props.principal_axis, 6),
+        "principal_axis": json_vector(props.principal_axis, 6),
         "axis_source": props.axis_source,
-        "variances_mm2": _vec(props.variances_mm2, 3),
+        "variances_mm2": json_vector(props.variances_mm2, 3),
         "ray_engine": ray_engine,
     }
 
@@ -71,27 +72,27 @@ def pose_records(pinches: Pinches, features: PinchFeatures) -> list[dict]:
     for i in range(len(pinches)):
         patches = [
             {
-                "normal_angle_deg": _num(features.normal_angle_deg[i, k], 3),
-                "curvature_axis_angle_deg": _num(features.curvature_axis_angle_deg[i, k], 3),
-                "kappa_max_per_m": _num(features.kappa_max_per_m[i, k], 3),
-                "kappa_min_per_m": _num(features.kappa_min_per_m[i, k], 3),
-                "kappa_max_direction": _vec(pinches.dir_max[i, k], 6),
+                "normal_angle_deg": json_number(features.normal_angle_deg[i, k], 3),
+                "curvature_axis_angle_deg": json_number(features.curvature_axis_angle_deg[i, k], 3),
+                "kappa_max_per_m": json_number(features.kappa_max_per_m[i, k], 3),
+                "kappa_min_per_m": json_number(features.kappa_min_per_m[i, k], 3),
+                "kappa_max_direction": json_vector(pinches.dir_max[i, k], 6),
             }
             for k in range(2)
         ]
         records.append(
             {
                 "index": i,
-                "p1_mm": _vec(pinches.points[i, 0]),
-                "p2_mm": _vec(pinches.points[i, 1]),
-                "n1": _vec(pinches.normals[i, 0], 6),
-                "n2": _vec(pinches.normals[i, 1], 6),
+                "p1_mm": json_vector(pinches.points[i, 0]),
+                "p2_mm": json_vector(pinches.points[i, 1]),
+                "n1": json_vector(pinches.normals[i, 0], 6),
+                "n2": json_vector(pinches.normals[i, 1], 6),
                 "face_index": [int(f) for f in pinches.face_index[i]],
-                "width_mm": _num(features.width_mm[i]),
-                "com_distance_mm": _num(features.com_distance_mm[i]),
-                "tilt_deg": _num(features.tilt_deg[i], 3),
-                "approach": _vec(pinches.approach[i], 6),
-                "approach_clearance_mm": _num(pinches.approach_clearance_mm[i], 3),
+                "width_mm": json_number(features.width_mm[i]),
+                "com_distance_mm": json_number(features.com_distance_mm[i]),
+                "tilt_deg": json_number(features.tilt_deg[i], 3),
+                "approach": json_vector(pinches.approach[i], 6),
+                "approach_clearance_mm": json_number(pinches.approach_clearance_mm[i], 3),
                 "patches": patches,
                 "feasible": bool(pinches.feasible[i]),
                 "broken_rules": pinches.broken_rules(i),
@@ -114,9 +115,9 @@ def poses_document(loaded, props, settings: dict, pinches, features, *, ray_engi
 
 def features_document(loaded, props, settings: dict, pinches, features, *, given, ray_engine: str) -> dict:
     record = pose_records(pinches, features)[0]
-    record["given_p1_mm"] = _vec(given[0])
-    record["given_p2_mm"] = _vec(given[1])
-    record["snap_distance_mm"] = _vec(pinches.snap_distance_mm[0])
+    record["given_p1_mm"] = json_vector(given[0])
+    record["given_p2_mm"] = json_vector(given[1])
+    record["snap_distance_mm"] = json_vector(pinches.snap_distance_mm[0])
     return {
         "schema": SCHEMA_FEATURES,
         "version": __version__,
@@ -190,9 +191,9 @@ def _candidate_record(candidates, i: int, *, swapped: bool = False) -> dict:
 
 def _rigid(transform: np.ndarray) -> dict:
     return {
-        "transform_virtual_to_tangible": [_vec(row, 6) for row in transform],
-        "position_mm": _vec(transform[:3, 3]),
-        "quaternion_xyzw": _vec(Rotation.from_matrix(transform[:3, :3]).as_quat(), 6),
+        "transform_virtual_to_tangible": [json_vector(row, 6) for row in transform],
+        "position_mm": json_vector(transform[:3, 3]),
+        "quaternion_xyzw": json_vector(Rotation.from_matrix(transform[:3, :3]).as_quat(), 6),
     }
 
 
@@ -201,22 +202,22 @@ def _choice_record(scene, choice, *, full: bool) -> dict:
     up_t = T.obj.loaded.up
     record = {
         "tangible": T.name,
-        "cost": _num(choice.cost, 6),
+        "cost": json_number(choice.cost, 6),
         "tangible_pose": _candidate_record(T, choice.t_pose) if full else _contacts(T, choice.t_pose),
         "virtual_pose": (_candidate_record(V, choice.v_pose, swapped=choice.swapped) if full
                          else _contacts(V, choice.v_pose, swapped=choice.swapped)),
         **_rigid(choice.transform),
         "flipped": choice.flipped,
-        "contact_offset_mm": _num(contact_offset_mm(T, V, choice)),
-        "mass_mismatch_mm": _vec(choice.mass_delta_mm),
-        "mass_mismatch_vertical_mm": _num(float(choice.mass_delta_mm @ up_t)),
+        "contact_offset_mm": json_number(contact_offset_mm(T, V, choice)),
+        "mass_mismatch_mm": json_vector(choice.mass_delta_mm),
+        "mass_mismatch_vertical_mm": json_number(float(choice.mass_delta_mm @ up_t)),
     }
     return record
 
 
 def _contacts(candidates, i: int, *, swapped: bool = False) -> dict:
     p = candidates.pinches.points[i][::-1] if swapped else candidates.pinches.points[i]
-    return {"index": int(candidates.index[i]), "p1_mm": _vec(p[0]), "p2_mm": _vec(p[1]),
+    return {"index": int(candidates.index[i]), "p1_mm": json_vector(p[0]), "p2_mm": json_vector(p[1]),
             "finger_order_swapped": bool(swapped)}
 
 
@@ -226,8 +227,8 @@ def _reference_record(ref, model) -> dict:
     if ref.pinches is None:
         return {"cost": None, "reason": ref.reason}
     record = pose_records(ref.pinches, ref.features)[0]
-    return {"cost": _num(ref.cost, 6), "reason": None, "flipped": ref.flipped,
-            "transform_virtual_to_tangible": [_vec(row, 6) for row in np.eye(4)], "virtual_pose": record}
+    return {"cost": json_number(ref.cost, 6), "reason": None, "flipped": ref.flipped,
+            "transform_virtual_to_tangible": [json_vector(row, 6) for row in np.eye(4)], "virtual_pose": record}
 
 
 def object_entry(candidates, *, dump_poses: bool = False) -> dict:
@@ -267,7 +268,7 @@ def matches_header(settings: dict, tangibles: list[dict]) -> dict:
 
 def cost_matrix_section(virtual_names: list[str], tangible_names: list[str], values) -> dict:
     return {"rows_virtual": list(virtual_names), "columns_tangible": list(tangible_names),
-            "values": [[_num(x, 6) for x in row] for row in values]}
+            "values": [[json_number(x, 6) for x in row] for row in values]}
 
 
 def scene_stems(virtual_names: list[str]) -> list[str]:

@@ -40,9 +40,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .curvature import PatchGeometry, patch_geometry
-from .errors import ConfigError
+from ..errors import ConfigError
 from .hand import PAD_TOLERANCE_MM, Hand, Reach, reach
-from .surface import SurfaceContext
+from ..mesh.surface import SurfaceContext
 
 RULES = ("surface", "width", "antipodal", "clearance", "reach", "patch")
 

@@ -15,13 +15,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import ConfigError, ContactError
+from ..errors import ConfigError, ContactError
 from .features import PinchFeatures, pinch_features
-from .load import LoadedMesh, load_mesh
+from ..mesh.load import LoadedMesh, load_mesh
 from .pinches import PinchSettings, Pinches, check_pinches
 from .sampling import sample_pinches
-from .properties import ObjectProperties, object_properties
-from .surface import SurfaceContext
+from ..mesh.properties import ObjectProperties, object_properties
+from ..mesh.surface import SurfaceContext
 
 #: a poses file holds at most this many poses, and is at most this big (bounded memory)
 MAX_GIVEN_POSES = 100_000

@@ -1,0 +1,304 @@
+"""Mutation check of the core: plant small bugs, one at a time, and see whether the tests notice.
+
+Run from the repository root (a few minutes per module and worker; prints a table)::
+
+    python benchmarks/mutation.py                  # every core module, 30 mutants each, 2 workers
+    python benchmarks/mutation.py --sample 0       # every mutant (hours)
+    python benchmarks/mutation.py --modules cost,register --sample 50
+
+A mutant is one change of the syntax tree of one module: an arithmetic operator swapped
+(``+``/``-``, ``*``/``/``, ``**``→``*``), a comparison loosened or flipped, a number
+changed (``n``→``n+1``, ``x``→``2x``, ``0.0``→``1.0``), ``True``/``False``, ``and``/``or``
+swapped, a unary minus or ``not`` dropped, an augmented assignment inverted. Docstrings,
+strings, annotations and lines marked ``# pragma: no mutate`` are left alone. The mutants of a
+module are enumerated in source order and a fixed sample of them is drawn (``--seed``), so a
+run is reproducible.
+
+Each mutant is written into a private copy of the repository (one per worker) and that
+module's tests run there with ``pytest -x``; a failure or a time-out (five times the clean
+run) kills it. A mutant that survives is listed with its line, so it can be killed by a new
+test or recorded as equivalent (``EQUIVALENT`` below, with the reason).
+
+Why not mutmut or cosmic-ray: mutmut 3 rewrites every function into a trampoline, which numba
+cannot compile (``jets.py``, ``spread_kernel.py``) and which breaks the pickling of the worker
+tasks; cosmic-ray enumerates every mutant with no sampling, so one module takes hours with
+tests that fit patches and search reach. The operators here are the usual ones of both tools.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import concurrent.futures as cf
+import os
+import random
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGE = ROOT / "src" / "pinchmatch"
+
+#: module (relative to src/pinchmatch) -> the test files that own it
+CORE = {
+    "grasp/curvature.py": ["test_curvature.py", "test_jets.py"],
+    "grasp/jets.py": ["test_jets.py", "test_curvature.py"],
+    "grasp/pinches.py": ["test_pinches.py", "test_contract.py"],
+    "grasp/hand.py": ["test_hand.py", "test_pinches.py"],
+    "grasp/features.py": ["test_features.py"],
+    "match/cost.py": ["test_cost.py"],
+    "match/search.py": ["test_match.py", "test_cost.py"],
+    "match/register.py": ["test_register.py"],
+    "mesh/properties.py": ["test_properties.py"],
+}
+
+#: surviving mutants judged equivalent: (module, source line stripped, description) -> reason
+EQUIVALENT: dict[tuple[str, str, str], str] = {}
+
+BINOPS = {ast.Add: ast.Sub, ast.Sub: ast.Add, ast.Mult: ast.Div, ast.Div: ast.Mult, ast.Pow: ast.Mult,
+          ast.FloorDiv: ast.Div, ast.Mod: ast.FloorDiv}
+COMPARES = {ast.Lt: ast.LtE, ast.LtE: ast.Lt, ast.Gt: ast.GtE, ast.GtE: ast.Gt, ast.Eq: ast.NotEq,
+            ast.NotEq: ast.Eq, ast.Is: ast.IsNot, ast.IsNot: ast.Is, ast.In: ast.NotIn, ast.NotIn: ast.In}
+SYMBOL = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Div: "/", ast.Pow: "**", ast.FloorDiv: "//",
+          ast.Mod: "%", ast.Lt: "<", ast.LtE: "<=", ast.Gt: ">", ast.GtE: ">=", ast.Eq: "==", ast.NotEq: "!=",
+          ast.Is: "is", ast.IsNot: "is not", ast.In: "in", ast.NotIn: "not in", ast.And: "and", ast.Or: "or"}
+
+
+@dataclass(frozen=True)
+class Mutant:
+    module: str
+    index: int  # among the module's mutation sites, in source order
+    line: int
+    description: str
+
+    def label(self) -> str:
+        return f"{self.module}:{self.line} {self.description}"
+
+
+def _skipped_nodes(tree: ast.AST) -> set[int]:
+    """ids of nodes never mutated: docstrings, annotations, decorators, and what lies inside them."""
+    skip: set[int] = set()
+
+    def cover(node):
+        if node is not None:
+            skip.update(id(n) for n in ast.walk(node))
+
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.Module, ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+            body = node.body
+            if body and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant):
+                cover(body[0])
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            cover(node.returns)
+            for d in node.decorator_list:
+                cover(d)
+            for a in node.args.args + node.args.kwonlyargs + node.args.posonlyargs:
+                cover(a.annotation)
+        if isinstance(node, ast.ClassDef):
+            for d in node.decorator_list:
+                cover(d)
+        if isinstance(node, ast.AnnAssign):
+            cover(node.annotation)
+        if isinstance(node, ast.JoinedStr):
+            cover(node)
+    return skip
+
+
+def _sites(tree: ast.AST, source_lines: list[str]):
+    """Every (node, kind, description) that can be mutated, in source order."""
+    skip = _skipped_nodes(tree)
+    found = []
+    for node in ast.walk(tree):
+        if id(node) in skip or not hasattr(node, "lineno"):
+            continue
+        if "pragma: no mutate" in source_lines[node.lineno - 1]:
+            continue
+        if isinstance(node, ast.BinOp) and type(node.op) in BINOPS:
+            found.append((node, "binop", f"{SYMBOL[type(node.op)]} -> {SYMBOL[BINOPS[type(node.op)]]}"))
+        elif isinstance(node, ast.AugAssign) and type(node.op) in BINOPS:
+            found.append((node, "augassign", f"{SYMBOL[type(node.op)]}= -> {SYMBOL[BINOPS[type(node.op)]]}="))
+        elif isinstance(node, ast.Compare):
+            for k, op in enumerate(node.ops):
+                if type(op) in COMPARES:
+                    found.append((node, f"compare{k}", f"{SYMBOL[type(op)]} -> {SYMBOL[COMPARES[type(op)]]}"))
+        elif isinstance(node, ast.BoolOp):
+            other = "or" if isinstance(node.op, ast.And) else "and"
+            found.append((node, "boolop", f"{SYMBOL[type(node.op)]} -> {other}"))
+        elif isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.USub, ast.Not)):
+            found.append((node, "unary", "drop " + ("-" if isinstance(node.op, ast.USub) else "not")))
+        elif isinstance(node, ast.Constant):
+            v = node.value
+            if isinstance(v, bool):
+                found.append((node, "const", f"{v} -> {not v}"))
+            elif isinstance(v, (int, float)) and not isinstance(v, complex):
+                found.append((node, "const", f"{v!r} -> {_new_number(v)!r}"))
+    found.sort(key=lambda s: (s[0].lineno, s[0].col_offset, s[1]))
+    return found
+
+
+def _new_number(v):
+    if isinstance(v, int):
+        return v + 1
+    return 1.0 if v == 0.0 else v * 2.0
+
+
+def _apply(node: ast.AST, kind: str) -> None:
+    if kind in ("binop", "augassign"):
+        node.op = BINOPS[type(node.op)]()
+    elif kind.startswith("compare"):
+        k = int(kind[len("compare"):])
+        node.ops[k] = COMPARES[type(node.ops[k])]()
+    elif kind == "boolop":
+        node.op = ast.Or() if isinstance(node.op, ast.And) else ast.And()
+    elif kind == "const":
+        node.value = (not node.value) if isinstance(node.value, bool) else _new_number(node.value)
+
+
+class _DropUnary(ast.NodeTransformer):
+    def __init__(self, target):
+        self.target = target
+
+    def visit_UnaryOp(self, node):
+        if node is self.target:
+            return self.generic_visit(node).operand
+        return self.generic_visit(node)
+
+
+def enumerate_mutants(module: str) -> list[Mutant]:
+    source = (PACKAGE / module).read_text()
+    sites = _sites(ast.parse(source), source.splitlines())
+    return [Mutant(module, i, node.lineno, desc) for i, (node, _, desc) in enumerate(sites)]
+
+
+def mutated_source(mutant: Mutant) -> str:
+    source = (PACKAGE / mutant.module).read_text()
+    tree = ast.parse(source)
+    node, kind, _ = _sites(tree, source.splitlines())[mutant.index]
+    if kind == "unary":
+        tree = _DropUnary(node).visit(tree)
+    else:
+        _apply(node, kind)
+    return ast.unparse(ast.fix_missing_locations(tree))
+
+
+def _copy_repository(target: Path) -> None:
+    ignore = shutil.ignore_patterns(".git", ".venv", "__pycache__", "*.egg-info", ".pytest_cache", ".hypothesis")
+    for name in ("src", "tests", "pyproject.toml"):
+        src = ROOT / name
+        if src.is_dir():
+            shutil.copytree(src, target / name, ignore=ignore)
+        else:
+            shutil.copy2(src, target / name)
+
+
+def _pytest(workdir: Path, tests: list[str], timeout_s: float | None) -> tuple[str, float]:
+    env = dict(os.environ, PYTHONPATH=str(workdir / "src"), PINCHMATCH_FUZZ_EXAMPLES="10",
+               PYTHONDONTWRITEBYTECODE="1")
+    cmd = [sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider", "-o", "addopts=",
+           *[str(workdir / "tests" / t) for t in tests]]
+    start = time.perf_counter()
+    try:
+        done = subprocess.run(cmd, cwd=workdir, env=env, capture_output=True, timeout=timeout_s)
+    except subprocess.TimeoutExpired:
+        return "timeout", time.perf_counter() - start
+    return ("passed" if done.returncode == 0 else "failed"), time.perf_counter() - start
+
+
+class Worker:
+    """A private copy of the repository in which one mutant at a time is planted."""
+
+    def __init__(self, base: Path, k: int):
+        self.dir = base / f"worker{k}"
+        _copy_repository(self.dir)
+
+    def run(self, mutant: Mutant, tests: list[str], timeout_s: float) -> str:
+        path = self.dir / "src" / "pinchmatch" / mutant.module
+        original = path.read_text()
+        try:
+            path.write_text(mutated_source(mutant))
+            outcome, _ = _pytest(self.dir, tests, timeout_s)
+        finally:
+            path.write_text(original)
+        return "survived" if outcome == "passed" else "killed"
+
+
+def _clean_times(worker: Worker, modules: list[str]) -> dict[str, float]:
+    times = {}
+    for module in modules:
+        outcome, seconds = _pytest(worker.dir, CORE[module], None)
+        if outcome != "passed":
+            raise SystemExit(f"mutation: the tests of {module} fail without any mutant; fix them first")
+        times[module] = seconds
+    return times
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--modules", help="comma-separated modules (default: every core module)")
+    parser.add_argument("--sample", type=int, default=30, help="mutants per module, 0 for all (default 30)")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--workers", type=int, default=2)
+    args = parser.parse_args(argv)
+    modules = args.modules.split(",") if args.modules else list(CORE)
+    unknown = [m for m in modules if m not in CORE]
+    if unknown:
+        parser.error(f"unknown module(s) {', '.join(unknown)}; choose from {', '.join(CORE)}")
+
+    plan: list[Mutant] = []
+    totals = {}
+    for module in modules:
+        every = enumerate_mutants(module)
+        totals[module] = len(every)
+        chosen = every if args.sample <= 0 or args.sample >= len(every) else sorted(
+            random.Random(f"{args.seed}:{module}").sample(every, args.sample), key=lambda m: m.index)
+        plan.extend(chosen)
+
+    with tempfile.TemporaryDirectory(prefix="pinchmatch-mutation-") as tmp:
+        workers = [Worker(Path(tmp), k) for k in range(max(1, args.workers))]
+        clean = _clean_times(workers[0], modules)
+        free = list(workers)
+        results: dict[Mutant, str] = {}
+        with cf.ThreadPoolExecutor(len(workers)) as pool:
+            pending = {}
+            queue = list(plan)
+            while queue or pending:
+                while queue and free:
+                    m, w = queue.pop(0), free.pop()
+                    timeout = 5.0 * clean[m.module] + 10.0
+                    pending[pool.submit(w.run, m, CORE[m.module], timeout)] = (m, w)
+                done, _ = cf.wait(pending, return_when=cf.FIRST_COMPLETED)
+                for f in done:
+                    m, w = pending.pop(f)
+                    results[m] = f.result()
+                    free.append(w)
+                    print(f"  {results[m]:8s} {m.label()}", file=sys.stderr, flush=True)
+
+    print("\n| module | mutants | sampled | killed | survived | killed % |\n|---|---:|---:|---:|---:|---:|")
+    all_killed = all_run = 0
+    survivors = []
+    for module in modules:
+        mine = [m for m in plan if m.module == module]
+        lines = (PACKAGE / module).read_text().splitlines()
+        equivalent = [m for m in mine if results[m] == "survived"
+                      and (module, lines[m.line - 1].strip(), m.description) in EQUIVALENT]
+        killed = sum(results[m] == "killed" for m in mine)
+        run = len(mine) - len(equivalent)
+        all_killed, all_run = all_killed + killed, all_run + run
+        survivors += [m for m in mine if results[m] == "survived" and m not in equivalent]
+        share = 100.0 * killed / run if run else 100.0
+        print(f"| {module} | {totals[module]} | {len(mine)} | {killed} | {run - killed} | {share:.0f} |")
+    print(f"| **all** | {sum(totals.values())} | {len(plan)} | {all_killed} | {all_run - all_killed} | "
+          f"{100.0 * all_killed / max(all_run, 1):.0f} |")
+    if survivors:
+        print("\nsurvivors:")
+        for m in survivors:
+            print(f"  {m.label()}    {(PACKAGE / m.module).read_text().splitlines()[m.line - 1].strip()}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

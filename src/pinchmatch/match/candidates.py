@@ -1,0 +1,96 @@
+"""One object's candidate poses: its feasible pinches, their features and feature table.
+
+The search (:mod:`pinchmatch.match.search`) pairs a virtual object's candidates with each
+tangible's; the cache stores them (:mod:`pinchmatch.runner.cache`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import NoFeasiblePinchError
+from ..grasp.analysis import ObjectAnalysis, find_pinches, score_pinches
+from ..grasp.features import PinchFeatures
+from ..grasp.pinches import Pinches, PinchSettings, concat_pinches
+from .cost import feature_table
+
+
+@dataclass(frozen=True)
+class Candidates:
+    """One object's candidate poses: its feasible pinches, their features and feature table.
+
+    ``index`` maps each candidate to its place in the sampled or given list.
+    """
+
+    obj: ObjectAnalysis
+    pinches: Pinches
+    features: PinchFeatures
+    table: np.ndarray
+    index: np.ndarray
+    given: bool
+
+    @property
+    def name(self) -> str:
+        return self.obj.name
+
+    def __len__(self) -> int:
+        return len(self.pinches)
+
+    @property
+    def midpoints(self) -> np.ndarray:
+        return self.pinches.points.mean(axis=1)
+
+    def subset(self, keep) -> "Candidates":
+        """The candidates at positions ``keep`` (their ``index`` kept)."""
+        keep = np.asarray(keep)
+        return Candidates(self.obj, self.pinches.subset(keep), features_subset(self.features, keep),
+                          self.table[keep], self.index[keep], self.given)
+
+
+def features_subset(features: PinchFeatures, keep: np.ndarray) -> PinchFeatures:
+    """The features of the pinches at positions ``keep``."""
+    return PinchFeatures(**{f.name: getattr(features, f.name)[keep] for f in dataclasses.fields(features)})
+
+
+def candidate_poses(
+    obj: ObjectAnalysis,
+    *,
+    settings: PinchSettings = PinchSettings(),
+    given: tuple[np.ndarray, np.ndarray] | None = None,
+    source: str | None = None,
+) -> Candidates:
+    """The feasible poses of ``obj``: sampled, or the ``given`` (p1_mm, p2_mm) checked.
+
+    Raises
+    ------
+    NoFeasiblePinchError
+        No sampled pose is feasible, or none of the given ones is.
+    ContactError
+        A given contact is off the surface.
+    """
+    if given is None:
+        pinches, features = find_pinches(obj, settings=settings)
+    else:
+        pinches, features = score_pinches(obj, *given, settings=settings, source=source)
+    keep = np.flatnonzero(pinches.feasible)
+    if not len(keep):
+        reasons = "; ".join(f"pose {i} breaks {', '.join(pinches.broken_rules(i))}" for i in range(min(3, len(pinches))))
+        raise NoFeasiblePinchError(
+            f"{source or obj.loaded.path}: none of the {len(pinches)} given poses is feasible on {obj.name} "
+            f"({reasons}); give poses that a fingertip can hold, or loosen --friction-cone-deg"
+        )
+    pinches, features = pinches.subset(keep), features_subset(features, keep)
+    return Candidates(obj, pinches, features, feature_table(features), keep, given is not None)
+
+
+def merge_candidates(first: Candidates, second: Candidates) -> Candidates:
+    """The candidates of both (same object); the second's indices follow the first's list."""
+    features = PinchFeatures(**{f.name: np.concatenate([getattr(first.features, f.name), getattr(second.features, f.name)])
+                                for f in dataclasses.fields(first.features)})
+    offset = int(first.index.max()) + 1 if len(first.index) else 0
+    return Candidates(first.obj, concat_pinches([first.pinches, second.pinches]), features,
+                      np.concatenate([first.table, second.table]),
+                      np.concatenate([first.index, second.index + offset]), first.given and second.given)

@@ -1,0 +1,96 @@
+"""The paper's Ref: the virtual object superimposed on the tangible as the files place them.
+
+Where the tangible pose's pinch line meets the virtual surface gives the reference pose; its cost
+under the run's model is what a matched pose is compared with (the paper's Table 2).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..grasp.analysis import ObjectAnalysis
+from ..grasp.features import PinchFeatures, pinch_features
+from ..grasp.pinches import Pinches, PinchSettings, check_pinches
+from .candidates import Candidates
+from .cost import CostModel, feature_table, mass_term, separable_terms, total
+from .register import FLIP_COSINE
+
+
+def line_contacts(obj: ObjectAnalysis, point: np.ndarray, direction: np.ndarray) -> np.ndarray | None:
+    """(2, 3) where two fingers closing along a line meet the surface of ``obj``, or None.
+
+    The line passes through ``point`` along ``direction``; the first finger comes from the
+    -direction side, the second from the +direction side. None when the line misses.
+    """
+    hits = _line_hits(obj, point, direction)
+    return None if hits is None else hits[0]
+
+
+def _line_hits(obj: ObjectAnalysis, point: np.ndarray, direction: np.ndarray):
+    """:func:`line_contacts` and the (2,) triangles hit, or None."""
+    u = np.asarray(direction, dtype=np.float64)
+    u = u / np.linalg.norm(u)
+    bounds = obj.props.bounds_mm
+    reach = np.linalg.norm(bounds[1] - bounds[0]) + np.linalg.norm(point - bounds.mean(axis=0)) + 1.0
+    origins = np.array([point - reach * u, point + reach * u])
+    face, dist = obj.context.first_hit(origins, np.array([u, -u]))
+    if (face < 0).any():
+        return None
+    points = origins + dist[:, None] * np.array([u, -u])
+    if (points[1] - points[0]) @ u <= 1e-9:
+        return None
+    return points, face
+
+
+@dataclass(frozen=True)
+class Reference:
+    """The paper's Ref: the virtual object superimposed on the tangible as the files place them."""
+
+    pinches: Pinches | None
+    features: PinchFeatures | None
+    terms: np.ndarray | None
+    cost: float | None
+    reason: str | None
+    flipped: bool | None = None
+
+
+def reference_pose(tangible: Candidates, t_pose: int, virtual: Candidates, model: CostModel, *,
+                   settings: PinchSettings = PinchSettings()) -> Reference:
+    """Where the tangible pose's pinch line meets the virtual surface, and its cost.
+
+    Each finger closes along the tangible's pinch line from its own side; its contact is the
+    first virtual surface it meets. The placement is the identity (both files' frames), the
+    finger order p1 on p1. The cost is ``None`` with a reason when a finger meets nothing.
+    Use :func:`reference_cost` for the same pose under another model.
+    """
+    p = tangible.pinches.points[t_pose]
+    hits = _line_hits(virtual.obj, p.mean(axis=0), p[1] - p[0])
+    if hits is None:
+        return Reference(None, None, None, None, "the tangible's pinch line misses the virtual object")
+    points, faces = hits
+    pinches = check_pinches(virtual.obj.context, points[:1], points[1:], settings=settings, faces=faces[None])
+    features = pinch_features(pinches, virtual.obj.props)
+    flipped = bool(virtual.obj.loaded.up @ tangible.obj.loaded.up < FLIP_COSINE)
+    terms = _reference_terms(tangible, t_pose, virtual, pinches, features, model)
+    return Reference(pinches, features, terms, float(total(terms[None], model)[0]), None, flipped)
+
+
+def reference_cost(tangible: Candidates, t_pose: int, virtual: Candidates, ref: Reference,
+                   model: CostModel) -> float | None:
+    """The cost of a reference pose under ``model`` (None where the fingers meet nothing)."""
+    if ref.pinches is None:
+        return None
+    terms = _reference_terms(tangible, t_pose, virtual, ref.pinches, ref.features, model)
+    return float(total(terms[None], model)[0])
+
+
+def _reference_terms(tangible, t_pose, virtual, pinches, features, model) -> np.ndarray:
+    """(8,) contributions of the reference pose, placed by the identity, p1 on p1."""
+    t_row = tangible.table[t_pose][None]
+    terms = separable_terms(t_row, feature_table(features), model)
+    mid = tangible.pinches.points[t_pose].mean(axis=0)
+    delta = (virtual.obj.props.com_mm - pinches.points[0].mean(axis=0)) - (tangible.obj.props.com_mm - mid)
+    terms[:, 7] = mass_term(t_row, delta[None], model)
+    return terms[0]

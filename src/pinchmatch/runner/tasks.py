@@ -1,0 +1,155 @@
+"""The tasks of a run, one object each: top-level functions with picklable arguments.
+
+1. :func:`candidates_task`: a tangible's candidate poses (from the cache, or computed);
+2. :func:`bounds_task`: with ``--normalize range``, a virtual object's feature bounds;
+3. :func:`row_task`: with ``--one-to-one``, a virtual object's row of the cost matrix;
+4. :func:`virtual_task`: a virtual object's candidates, its search against every tangible, its
+   result entry, glTF scene and criteria figure (:class:`VirtualResult`).
+
+A bad file makes a :class:`Failure`, not an exception: the run goes on with the other files.
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import PinchmatchError
+from ..export.documents import match_entry, object_entry
+from ..export.scenes import match_scene_glb
+from ..grasp.pinches import PinchSettings
+from ..match.candidates import Candidates
+from ..match.cost import feature_bounds
+from ..match.search import MatchSettings, Search, cost_row, match_virtual
+from .cache import FeatureCache, cached_candidates, to_payload
+from .worker import report_stage, tangibles
+
+
+@dataclass(frozen=True)
+class Job:
+    """What every task of a run needs to know (small, sent with each task)."""
+
+    units: str | None
+    up: str | None
+    settings: PinchSettings  # its patch_radius_mm is the run's one patch radius
+    match: MatchSettings
+    cache_folder: str | None = None  # None: no cache
+    dump_poses: bool = False
+    scenes: bool = True
+    figures: bool = True
+
+
+@dataclass(frozen=True)
+class ObjectTask:
+    role: str
+    path: str
+    given: tuple | None = None  # (p1_mm, p2_mm) arrays of given poses
+    source: str | None = None  # the poses file they came from
+
+
+@dataclass(frozen=True)
+class Failure:
+    """A file that could not be used, and why (the one-line error)."""
+
+    role: str
+    path: str
+    error: str
+
+    def as_dict(self) -> dict:
+        return {"role": self.role, "path": self.path, "error": self.error}
+
+
+@dataclass(frozen=True)
+class Computed:
+    """One object's candidates as the cache's arrays, and whether they came from the cache."""
+
+    meta: dict
+    arrays: dict
+    cached: bool
+
+
+@dataclass(frozen=True)
+class VirtualResult:
+    """Everything the output needs of one virtual object; its mesh and poses stay in the task."""
+
+    name: str
+    entry: dict  # its object entry in ``virtuals``
+    match: dict  # its entry in ``matches``
+    row: np.ndarray  # (n,) its row of the cost matrix
+    scene_glb: bytes | None
+    figure_png: bytes | None
+    cached: bool
+
+
+
+def _candidates(task: ObjectTask, job: Job) -> tuple[Candidates, bool]:
+    cache = FeatureCache(job.cache_folder) if job.cache_folder is not None else None
+    c = cached_candidates(task.path, cache=cache, units=job.units, up=job.up, settings=job.settings,
+                          given=task.given, source=task.source,
+                          progress=lambda stage: report_stage(Path(task.path).name, stage))
+    return c, bool(cache is not None and cache.hits)
+
+
+def _per_file(fn: Callable) -> Callable:
+    """A task whose item is an ObjectTask (or a tuple starting with one): a bad file makes a Failure."""
+
+    @functools.wraps(fn)
+    def task(item, *args):
+        try:
+            return fn(item, *args)
+        except PinchmatchError as exc:
+            t = item if isinstance(item, ObjectTask) else item[0]
+            return Failure(t.role, t.path, str(exc))
+
+    return task
+
+
+@_per_file
+def candidates_task(task: ObjectTask, job: Job) -> Computed | Failure:
+    c, cached = _candidates(task, job)
+    return Computed(*to_payload(c), cached)
+
+
+@_per_file
+def bounds_task(task: ObjectTask, job: Job) -> np.ndarray | Failure:
+    return feature_bounds(_candidates(task, job)[0].table)
+
+
+@_per_file
+def row_task(task: ObjectTask, job: Job, shared, model) -> np.ndarray | Failure:
+    c, _ = _candidates(task, job)
+    return cost_row(Search(tangibles(shared), [c], model, job.match), 0)
+
+
+@_per_file
+def virtual_task(item: tuple, job: Job, shared, model) -> VirtualResult | Failure:
+    """Item: (task, its entry of :func:`allowed_tangibles` or None, its cost row or None)."""
+    task, allowed, row = item
+    c, cached = _candidates(task, job)
+    scene = match_virtual(tangibles(shared), c, model, job.match, allowed=allowed, row=row,
+                          pinch_settings=job.settings)
+    return virtual_result(scene, 0, job, cached=cached)
+
+
+def virtual_result(scene, k: int, job: Job, *, cached: bool = False) -> VirtualResult:
+    """What the output needs of virtual object ``k`` of a matched scene: its entries, its cost row,
+    and its glTF scene and criteria figure as bytes (when the job wants them). Every command's
+    results reach the output through this and :class:`MatchesSink`."""
+    vm = scene.matches[k]
+    virtual = scene.virtuals[k]
+    match = match_entry(scene, vm)
+    glb = png = None
+    if vm.best is not None:
+        if job.scenes:
+            glb = match_scene_glb(scene.tangibles[vm.best.tangible], virtual, vm.best, hand=job.settings.hand)
+        if job.figures:
+            from ..export.figures import criteria_figure, png_bytes  # matplotlib: imported when figures are wanted
+
+            png = png_bytes(criteria_figure(match))
+    return VirtualResult(virtual.name, object_entry(virtual, dump_poses=job.dump_poses), match,
+                         scene.cost_matrix[k], glb, png, cached)
+

@@ -1,0 +1,125 @@
+"""What each worker process of a run holds: where it reports stages, and the run's tangibles.
+
+A task runs in this process (``--jobs 1``), in a local worker process (``--jobs N``) or on a Dask
+worker. Wherever it runs, it reports the stage of an object's load with :func:`report_stage` and
+finds the run's tangibles with :func:`tangibles`; the executors set both up
+(:mod:`pinchmatch.runner.executors`).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import logging
+import os
+import pickle
+import signal
+import sys
+from collections.abc import Callable
+from contextlib import contextmanager
+
+import numpy as np
+
+from ..errors import route_warnings
+from ..match.candidates import Candidates
+from .cache import from_payload
+
+#: where a task reports the stage it is in: set in each local worker (a queue to the run's process),
+#: or by the in-process executor; None on Dask workers
+_STAGES = None
+
+
+def report_stage(name: str, stage: str) -> None:
+    """Tell the run that the object in file ``name`` entered ``stage`` (nothing when no one listens)."""
+    if _STAGES is not None:
+        _STAGES.put((name, stage))
+
+
+class _Direct:
+    """A stage report in this process: shown at once."""
+
+    def __init__(self, show):
+        self.show = show
+
+    def put(self, item) -> None:
+        self.show(*item)
+
+
+@contextmanager
+def stages_shown_by(show: Callable[[str, str], None]):
+    """While the block runs, the stages reported in this process go to ``show(file name, stage)``."""
+    global _STAGES
+    previous, _STAGES = _STAGES, _Direct(show)
+    try:
+        yield
+    finally:
+        _STAGES = previous
+
+
+#: per worker process: the run's tangibles, by token, rebuilt once from their payloads
+_TANGIBLES: dict[str, list[Candidates]] = {}
+
+
+def payload_token(payloads: list) -> str:
+    """A digest of the tangibles' payloads: the key under which each worker keeps them."""
+    h = hashlib.sha256()
+    for meta, arrays in payloads:
+        h.update(repr(sorted(meta.items())).encode())
+        for name in sorted(arrays):
+            h.update(np.ascontiguousarray(arrays[name]).tobytes())
+    return h.hexdigest()
+
+
+def keep_tangibles(token: str, tangibles: list[Candidates]) -> None:
+    """This process holds the run's tangibles already (the in-process executor)."""
+    _TANGIBLES.clear()
+    _TANGIBLES[token] = tangibles
+
+
+def forget_tangibles() -> None:
+    _TANGIBLES.clear()
+
+
+def tangibles(shared) -> list[Candidates]:
+    """The run's tangibles from a handle of :meth:`Executor.share`: (token, payloads, or the path
+    of a file holding them, or None when this process keeps them already)."""
+    token, source = shared
+    if token not in _TANGIBLES:
+        if isinstance(source, (str, os.PathLike)):  # a local pool: a file the parent wrote
+            with open(source, "rb") as fh:
+                source = pickle.load(fh)
+        _TANGIBLES.clear()
+        _TANGIBLES[token] = [from_payload(meta, arrays) for meta, arrays in source]
+    return _TANGIBLES[token]
+
+
+def _die_with_parent() -> None:
+    """Ask Linux to send this process SIGTERM when its parent dies (prctl PR_SET_PDEATHSIG), so a
+    killed run leaves no worker behind; elsewhere nothing happens."""
+    if sys.platform != "linux":
+        return
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(1, signal.SIGTERM, 0, 0, 0)  # 1 = PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        return
+    if os.getppid() == 1:  # the parent died before the request: go now
+        os._exit(1)
+
+
+
+def init_worker(threads: int, stages=None) -> None:
+    """A local worker: numpy's BLAS gets its share of the cores, not all of them; it ends when the
+    run that started it ends, however that ends; it reports stages on ``stages``."""
+    global _LIMITS, _STAGES
+    _die_with_parent()
+    _STAGES = stages
+    from threadpoolctl import threadpool_limits
+
+    _LIMITS = threadpool_limits(limits=threads)
+    logging.getLogger("pinchmatch").setLevel(logging.ERROR)  # the parent reports; workers stay quiet
+    route_warnings(verbose=False)
+
+
+_LIMITS = None
