@@ -1,3 +1,8 @@
+import contextlib
+import io
+from dataclasses import dataclass
+from pathlib import Path
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -27,14 +32,66 @@ def write_mesh(tmp_path):
     return _write
 
 
+@dataclass
+class DemoRun:
+    out: Path  # the folder it wrote: study, matches, scenes, figures, the page and the objects
+    stdout: str
+    stderr: str
+    study: object  # the Study it computed (pinchmatch.runner.study.Study)
+
+
 @pytest.fixture(scope="session")
-def demo_out(tmp_path_factory):
-    """The folder a quiet ``pinchmatch demo`` wrote: study, matches, scenes, figures and the page."""
-    from pinchmatch.cli.commands import main
+def demo(tmp_path_factory) -> DemoRun:
+    """``pinchmatch demo``, run once per test session: what it wrote and printed, and its study."""
+    from pinchmatch.cli import commands
 
     out = tmp_path_factory.mktemp("demo") / "out"
-    assert main(["demo", "-o", str(out), "-q"]) == 0
-    return out
+    studies = []
+    real = commands.run_study
+
+    def keep(*args, **kwargs):
+        studies.append(real(*args, **kwargs))
+        return studies[-1]
+
+    stdout, stderr = io.StringIO(), io.StringIO()
+    commands.run_study = keep
+    try:
+        with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
+            code = commands.main(["demo", "-o", str(out)])
+    finally:
+        commands.run_study = real
+    assert code == 0, stderr.getvalue()
+    return DemoRun(out, stdout.getvalue(), stderr.getvalue(), studies[0])
+
+
+@pytest.fixture(scope="session")
+def demo_out(demo) -> Path:
+    """The folder ``pinchmatch demo`` wrote."""
+    return demo.out
+
+
+def run_cli(capsys, *argv):
+    """``pinchmatch ARGV`` in this process: (exit code, stdout, stderr)."""
+    from pinchmatch.cli.commands import main
+
+    code = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def assert_one_line(err: str, *words: str) -> str:
+    """The bad-input contract: one line on stderr, no traceback, naming every word given."""
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in err, err
+    for word in words:
+        assert word in lines[0], lines[0]
+    return lines[0]
+
+
+def assert_bad_input(code: int, err: str, *words: str) -> str:
+    """Exit code 2 and :func:`assert_one_line`."""
+    assert code == 2, err
+    return assert_one_line(err, *words)
 
 
 @pytest.fixture(autouse=True)

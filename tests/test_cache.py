@@ -7,9 +7,11 @@ import numpy as np
 import pytest
 
 from pinchmatch.runner.cache import FeatureCache, cached_candidates, default_cache_dir
-from pinchmatch.cli.commands import example_mesh_path, main
+from pinchmatch.cli.commands import example_mesh_path
 from pinchmatch.grasp.pinches import PinchSettings
 from pinchmatch.mesh.shapes import ellipsoid
+
+from conftest import run_cli
 
 SETTINGS = PinchSettings(count=200, seed=3)
 
@@ -116,27 +118,21 @@ def test_default_cache_dir_follows_the_environment(monkeypatch, tmp_path):
     assert default_cache_dir() == tmp_path / "xdg" / "pinchmatch"
 
 
-def run(capsys, *argv):
-    code = main([str(a) for a in argv])
-    out, err = capsys.readouterr()
-    return code, out, err
-
-
 def test_match_reuses_the_cache_when_weights_change_and_gives_the_same_result(tmp_path, capsys, mesh_file):
     base = ["match", "--tangible", example_mesh_path(), "--virtual", mesh_file, "--count", 150,
             "--no-view", "--no-figures"]
-    code, cold_out, err = run(capsys, *base, "-o", tmp_path / "cold")
+    code, cold_out, err = run_cli(capsys, *base, "-o", tmp_path / "cold")
     assert code == 0, err
     assert "0 from the cache, 2 computed" in cold_out
-    code, warm_out, err = run(capsys, *base, "-o", tmp_path / "warm")
+    code, warm_out, err = run_cli(capsys, *base, "-o", tmp_path / "warm")
     assert code == 0 and "2 from the cache, 0 computed" in warm_out
     cold = (tmp_path / "cold" / "matches.json").read_text()
     assert (tmp_path / "warm" / "matches.json").read_text() == cold  # bit for bit
-    code, tuned_out, err = run(capsys, *base, "--weights", "width=3,mass=0", "--normalize", "range",
+    code, tuned_out, err = run_cli(capsys, *base, "--weights", "width=3,mass=0", "--normalize", "range",
                                "-o", tmp_path / "tuned")
     assert code == 0 and "2 from the cache, 0 computed" in tuned_out
     assert json.loads((tmp_path / "tuned" / "matches.json").read_text())["settings"]["weights"]["width"] == 3.0
-    code, fresh_out, err = run(capsys, *base, "--no-cache", "-o", tmp_path / "fresh")
+    code, fresh_out, err = run_cli(capsys, *base, "--no-cache", "-o", tmp_path / "fresh")
     assert code == 0 and "from the cache" not in fresh_out
     assert (tmp_path / "fresh" / "matches.json").read_text() == cold
 
@@ -144,11 +140,11 @@ def test_match_reuses_the_cache_when_weights_change_and_gives_the_same_result(tm
 def test_cache_info_and_clear(tmp_path, capsys, mesh_file):
     folder = tmp_path / "mine"
     cached_candidates(mesh_file, cache=FeatureCache(folder), settings=SETTINGS)
-    code, out, _ = run(capsys, "cache", "info", "--cache", folder)
+    code, out, _ = run_cli(capsys, "cache", "info", "--cache", folder)
     assert code == 0 and f"{folder}: 1 entries" in out
-    code, out, _ = run(capsys, "cache", "clear", "--cache", folder)
+    code, out, _ = run_cli(capsys, "cache", "clear", "--cache", folder)
     assert code == 0 and "deleted 1 entries" in out and FeatureCache(folder).info().entries == 0
-    code, _, err = run(capsys, "cache", "purge")
+    code, _, err = run_cli(capsys, "cache", "purge")
     assert code == 2 and "invalid choice" in err
 
 
@@ -164,7 +160,7 @@ def test_folders_are_searched_recursively_and_a_bad_file_is_left_out(tmp_path, c
     (assets / "notes.txt").write_text("not a mesh")
     (assets / "room" / "broken.stl").write_bytes(b"solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0")
     out = tmp_path / "out"
-    code, stdout, err = run(capsys, "match", "--tangible", props, "--virtual", assets, "--count", 120, "-o", out,
+    code, stdout, err = run_cli(capsys, "match", "--tangible", props, "--virtual", assets, "--count", 120, "-o", out,
                             "--no-view", "--no-figures")
     assert code == 3, err
     assert err.count("pinchmatch: error:") == 1 and "broken.stl" in err and "going on" in err
@@ -181,13 +177,13 @@ def test_when_no_file_of_a_role_can_be_used_the_run_stops(tmp_path, capsys):
     for name in ("a.stl", "b.stl"):
         (bad / name).write_bytes(b"")
     out = tmp_path / "out"
-    code, _, err = run(capsys, "match", "--tangible", example_mesh_path(), "--virtual", bad, "-o", out)
+    code, _, err = run_cli(capsys, "match", "--tangible", example_mesh_path(), "--virtual", bad, "-o", out)
     assert code == 2 and "none of the 2 virtual files could be used" in err and "Traceback" not in err
     assert err.strip().splitlines()[-1].startswith("pinchmatch: error: none of the 2")
     assert not out.exists()
     empty = tmp_path / "empty"
     empty.mkdir()
-    code, _, err = run(capsys, "match", "--tangible", example_mesh_path(), "--virtual", empty, "-o", out)
+    code, _, err = run_cli(capsys, "match", "--tangible", example_mesh_path(), "--virtual", empty, "-o", out)
     assert code == 2 and "names a folder with no mesh file" in err and len(err.strip().splitlines()) == 1
 
 
@@ -202,7 +198,7 @@ def test_clear_deletes_only_what_the_cache_wrote(tmp_path, capsys, mesh_file):
     np.savez(impostor, meta=np.array('{"format": 2, "key": "someone else"}'))
     (folder / ("cd" * 32 + ".npz")).mkdir()  # a folder named like an entry
     (folder / f".{'ef' * 32}.npz.x1y2.tmp").write_bytes(b"half an entry")  # the cache's own temporary
-    code, out, err = run(capsys, "cache", "clear", "--cache", folder)
+    code, out, err = run_cli(capsys, "cache", "clear", "--cache", folder)
     assert code == 0 and "deleted 1 entries" in out, err
     left = sorted(p.name for p in folder.iterdir())
     assert left == sorted([".hidden.tmp", "notes.tmp", "results.npz", impostor.name, "cd" * 32 + ".npz"])
@@ -213,7 +209,7 @@ def test_info_and_clear_on_a_file_say_so(tmp_path, capsys):
     path = tmp_path / "results.npz"
     path.write_bytes(b"user data")
     for action in ("info", "clear"):
-        code, _, err = run(capsys, "cache", action, "--cache", path)
+        code, _, err = run_cli(capsys, "cache", action, "--cache", path)
         assert code == 2 and "a file, not a cache folder" in err and len(err.strip().splitlines()) == 1
     assert path.read_bytes() == b"user data"
 

@@ -3,18 +3,13 @@ import json
 import pytest
 import trimesh
 
-from pinchmatch.cli.commands import main
 
-
-def run(capsys, *argv):
-    code = main(list(argv))
-    out, err = capsys.readouterr()
-    return code, out, err
+from conftest import run_cli
 
 
 def test_poses_on_the_example_writes_a_complete_document(tmp_path, capsys):
     out = tmp_path / "poses.json"
-    code, stdout, err = run(capsys, "poses", "--example", "--count", "150", "-o", str(out))
+    code, stdout, err = run_cli(capsys, "poses", "--example", "--count", "150", "-o", str(out))
     assert code == 0, err
     doc = json.loads(out.read_text())
     assert doc["schema"] == "pinchmatch.poses/1" and doc["version"]
@@ -32,7 +27,7 @@ def test_poses_on_the_example_writes_a_complete_document(tmp_path, capsys):
 
 
 def test_poses_csv_and_stdout(capsys):
-    code, stdout, _ = run(capsys, "poses", "--example", "--count", "20", "--format", "csv")
+    code, stdout, _ = run_cli(capsys, "poses", "--example", "--count", "20", "--format", "csv")
     assert code == 0
     lines = stdout.strip().splitlines()
     assert lines[0].startswith("index,feasible,p1_x_mm") and len(lines) == 21
@@ -45,7 +40,7 @@ def test_given_poses_are_checked_and_infeasible_ones_named(tmp_path, capsys):
         {"p1_mm": [-20, 0, 20], "p2_mm": [0, 20, 20]},   # a quarter turn apart: not antipodal
     ]))
     out = tmp_path / "checked.json"
-    code, stdout, _ = run(capsys, "poses", "--example", "--poses", str(poses), "-o", str(out))
+    code, stdout, _ = run_cli(capsys, "poses", "--example", "--poses", str(poses), "-o", str(out))
     assert code == 0
     doc = json.loads(out.read_text())
     assert [p["feasible"] for p in doc["poses"]] == [True, False]
@@ -56,7 +51,7 @@ def test_given_poses_are_checked_and_infeasible_ones_named(tmp_path, capsys):
 @pytest.mark.parametrize("style", ["equals", "separate"])
 def test_features_accepts_negative_coordinates(capsys, style):
     args = ["--p1=-20,0,20", "--p2=20,0,20"] if style == "equals" else ["--p1", "-20,0,20", "--p2", "20,0,20"]
-    code, stdout, err = run(capsys, "features", "--example", *args, "-q")
+    code, stdout, err = run_cli(capsys, "features", "--example", *args, "-q")
     assert code == 0, err
     doc = json.loads(stdout)
     assert doc["schema"] == "pinchmatch.features/1"
@@ -69,9 +64,9 @@ def test_features_accepts_negative_coordinates(capsys, style):
 
 
 def test_features_names_the_approach_and_the_csv_carries_it(capsys):
-    code, stdout, _ = run(capsys, "features", "--example", "--p1", "-20,0,20", "--p2", "20,0,20")
+    code, stdout, _ = run_cli(capsys, "features", "--example", "--p1", "-20,0,20", "--p2", "20,0,20")
     assert code == 0 and "approach [" in stdout and "fingers clear by" in stdout
-    code, stdout, _ = run(capsys, "poses", "--example", "--count", "5", "--format", "csv")
+    code, stdout, _ = run_cli(capsys, "poses", "--example", "--count", "5", "--format", "csv")
     head, first = stdout.splitlines()[:2]
     columns = dict(zip(head.split(","), first.split(",")))
     h = [float(columns[f"approach_{c}"]) for c in "xyz"]
@@ -86,9 +81,9 @@ def test_a_thinner_finger_reaches_into_a_narrow_tube(tmp_path, capsys):
     path = tmp_path / "tube.stl"
     vessels.tube().export(path)
     argv = ["features", str(path), "--p1", "8,0,90", "--p2", "6,0,90", "-q"]
-    code, stdout, _ = run(capsys, *argv)
+    code, stdout, _ = run_cli(capsys, *argv)
     assert code == 0 and "clearance" in json.loads(stdout)["pose"]["broken_rules"]
-    code, stdout, _ = run(capsys, *argv, "--fingertip-radius-mm", "5", "--finger-radius-mm", "5")
+    code, stdout, _ = run_cli(capsys, *argv, "--fingertip-radius-mm", "5", "--finger-radius-mm", "5")
     pose = json.loads(stdout)["pose"]
     assert code == 0 and pose["feasible"] and abs(pose["approach"][2]) > 0.85  # up, along the bore
 
@@ -129,7 +124,7 @@ def _bad_files(tmp_path):
 def test_each_bad_file_fails_cleanly(tmp_path, capsys):
     for name, expected in _bad_files(tmp_path).items():
         out = tmp_path / f"{name}.out.json"
-        code, stdout, err = run(capsys, "poses", str(tmp_path / name), "-o", str(out))
+        code, stdout, err = run_cli(capsys, "poses", str(tmp_path / name), "-o", str(out))
         assert code == 2, name
         lines = err.strip().splitlines()
         assert len(lines) == 1 and "Traceback" not in err, err
@@ -158,37 +153,37 @@ def test_each_bad_file_fails_cleanly(tmp_path, capsys):
 ])
 def test_bad_options_fail_cleanly(tmp_path, capsys, argv, expected):
     out = tmp_path / "o.json"
-    code, _, err = run(capsys, "poses", "--example", *argv, "-o", str(out))
+    code, _, err = run_cli(capsys, "poses", "--example", *argv, "-o", str(out))
     assert code == 2 and len(err.strip().splitlines()) == 1 and expected in err, err
     assert not out.exists()
 
 
 def test_no_feasible_pinch_fails_cleanly(tmp_path, capsys):
     path = _box(tmp_path, "slab.stl", (300.0, 300.0, 150.0))
-    code, _, err = run(capsys, "poses", str(path), "-o", str(tmp_path / "o.json"))
+    code, _, err = run_cli(capsys, "poses", str(path), "-o", str(tmp_path / "o.json"))
     assert code == 2 and "slab.stl: no feasible pinch" in err and "width" in err
     assert not (tmp_path / "o.json").exists()
 
 
 def test_contact_far_from_the_surface(tmp_path, capsys):
-    code, _, err = run(capsys, "features", "--example", "--p1", "-40,0,20", "--p2", "20,0,20")
+    code, _, err = run_cli(capsys, "features", "--example", "--p1", "-40,0,20", "--p2", "20,0,20")
     assert code == 2 and "p1 (-40, 0, 20) mm is 20.00 mm from the surface" in err
 
 
 def test_bad_poses_file(tmp_path, capsys):
     bad = tmp_path / "p.json"
     bad.write_text("[{\"p1_mm\": [1, 2]")
-    code, _, err = run(capsys, "poses", "--example", "--poses", str(bad))
+    code, _, err = run_cli(capsys, "poses", "--example", "--poses", str(bad))
     assert code == 2 and "p.json: not valid JSON" in err
     bad.write_text(json.dumps([{"p1_mm": [1, 2], "p2_mm": [0, 0, 0]}]))
-    code, _, err = run(capsys, "poses", "--example", "--poses", str(bad))
+    code, _, err = run_cli(capsys, "poses", "--example", "--poses", str(bad))
     assert code == 2 and "pose 0 needs" in err
 
 
 def test_mesh_and_example_together_or_neither(tmp_path, capsys):
-    code, _, err = run(capsys, "poses")
+    code, _, err = run_cli(capsys, "poses")
     assert code == 2 and "no mesh given" in err
-    code, _, err = run(capsys, "poses", str(_box(tmp_path)), "--example")
+    code, _, err = run_cli(capsys, "poses", str(_box(tmp_path)), "--example")
     assert code == 2 and "either a MESH or --example" in err
 
 
@@ -197,7 +192,7 @@ def test_output_has_ordinary_permissions(tmp_path, capsys):
     import stat
 
     out = tmp_path / "p.json"
-    assert run(capsys, "poses", "--example", "--count", "5", "-o", str(out))[0] == 0
+    assert run_cli(capsys, "poses", "--example", "--count", "5", "-o", str(out))[0] == 0
     umask = os.umask(0)
     os.umask(umask)
     assert stat.S_IMODE(out.stat().st_mode) == 0o666 & ~umask

@@ -6,24 +6,12 @@ import numpy as np
 import pytest
 import trimesh
 
-from pinchmatch.cli.commands import example_mesh_path, main
+from pinchmatch.cli.commands import example_mesh_path
 from pinchmatch.errors import ConfigError
 from pinchmatch.match.search import MatchSettings
 from pinchmatch.mesh.shapes import ellipsoid
 
-
-def run(capsys, *argv):
-    code = main([str(a) for a in argv])
-    out, err = capsys.readouterr()
-    return code, out, err
-
-
-def one_line(code, err, *words):
-    assert code == 2 and "Traceback" not in err, err
-    lines = err.strip().splitlines()
-    assert len(lines) == 1, err
-    for word in words:
-        assert word in lines[0], lines[0]
+from conftest import assert_bad_input, run_cli
 
 
 @pytest.mark.parametrize("command, argv, words", [
@@ -48,8 +36,8 @@ def test_bad_options_are_refused_in_one_line(tmp_path, capsys, command, argv, wo
                                                       example_mesh_path()]
     if command == "match" and argv[0] == "--tangibles":
         where = []
-    code, _, err = run(capsys, command, *where, *argv, "-o", out)
-    one_line(code, err, *words)
+    code, _, err = run_cli(capsys, command, *where, *argv, "-o", out)
+    assert_bad_input(code, err, *words)
     assert not out.exists()
 
 
@@ -81,7 +69,7 @@ def test_output_names_are_unique_and_each_scene_holds_its_own_object(tmp_path, c
     for k, (name, axes) in enumerate(sizes.items()):
         _egg(axes, k).export(objects / name)
     out = tmp_path / "out"
-    code, _, err = run(capsys, "match", "--tangible", example_mesh_path(), "--virtual", objects / "a.obj",
+    code, _, err = run_cli(capsys, "match", "--tangible", example_mesh_path(), "--virtual", objects / "a.obj",
                        objects / "a.stl", objects / "a_2.stl", "--count", 120, "-q", "-o", out)
     assert code == 0, err
     doc = json.loads((out / "matches.json").read_text())
@@ -102,11 +90,11 @@ def test_a_failed_object_beside_one_of_the_same_stem_leaves_a_viewable_folder(tm
     (objects / "a.obj").write_text("v 0 0 0\nthis is not a mesh\n")
     _egg((30.0, 20.0, 15.0), 0).export(objects / "a.stl")
     out = tmp_path / "out"
-    code, _, err = run(capsys, "match", "--tangible", example_mesh_path(), "--virtual", objects / "a.obj",
+    code, _, err = run_cli(capsys, "match", "--tangible", example_mesh_path(), "--virtual", objects / "a.obj",
                        objects / "a.stl", "--count", 120, "-q", "--no-figures", "-o", out)
     assert code == 3, err
     (out / "index.html").unlink()
-    code, _, err = run(capsys, "view", out, "-q")
+    code, _, err = run_cli(capsys, "view", out, "-q")
     assert code == 0, err
     assert (out / "index.html").is_file()
 
@@ -146,8 +134,8 @@ def test_malformed_files_are_named_for_what_they_are(tmp_path, capsys, case, wor
         far.vertices += 1e7
         path = tmp_path / "far.stl"
         far.export(path)
-    code, _, err = run(capsys, "poses", path, "-o", tmp_path / "o.json")
-    one_line(code, err, path.name, *words)
+    code, _, err = run_cli(capsys, "poses", path, "-o", tmp_path / "o.json")
+    assert_bad_input(code, err, path.name, *words)
     assert not (tmp_path / "o.json").exists()
 
 
@@ -166,7 +154,7 @@ def test_warnings_from_libraries_never_reach_stderr(tmp_path, capsys):
     b = trimesh.creation.box(extents=(20.0, 50.0, 10.0))
     mesh = trimesh.util.concatenate([a, b])  # two overlapping closed shells
     mesh.export(tmp_path / "crossed.stl")
-    code, _, err = run(capsys, "poses", tmp_path / "crossed.stl", "--count", 50, "-o", tmp_path / "o.json")
+    code, _, err = run_cli(capsys, "poses", tmp_path / "crossed.stl", "--count", 50, "-o", tmp_path / "o.json")
     assert "Warning" not in err and "warn" not in err.lower(), err
 
 
@@ -189,7 +177,7 @@ def test_every_output_file_gets_ordinary_permissions(tmp_path, capsys):
     old = os.umask(0o022)
     try:
         for fmt in ("json", "jsonl"):
-            code, _, err = run(capsys, "match", "--tangible", example_mesh_path(), "--virtual", example_mesh_path(),
+            code, _, err = run_cli(capsys, "match", "--tangible", example_mesh_path(), "--virtual", example_mesh_path(),
                                "--count", 80, "-q", "--format", fmt, "--cache", tmp_path / "cache",
                                "-o", tmp_path / fmt)
             assert code == 0, err
@@ -207,10 +195,10 @@ def test_a_mesh_too_large_for_the_free_memory_is_refused_before_reading(tmp_path
     path = tmp_path / "big.stl"
     _icosphere().export(path)
     monkeypatch.setattr(load, "available_memory_bytes", lambda: 20 * path.stat().st_size)  # far too little
-    code, _, err = run(capsys, "poses", path, "-o", tmp_path / "o.json")
-    one_line(code, err, "big.stl", "GiB to analyse, more than the", "decimate it")
+    code, _, err = run_cli(capsys, "poses", path, "-o", tmp_path / "o.json")
+    assert_bad_input(code, err, "big.stl", "GiB to analyse, more than the", "decimate it")
     monkeypatch.setattr(load, "available_memory_bytes", lambda: None)  # unknown: not checked
-    assert run(capsys, "poses", path, "--count", 10, "-q", "-o", tmp_path / "o.json")[0] == 0
+    assert run_cli(capsys, "poses", path, "--count", 10, "-q", "-o", tmp_path / "o.json")[0] == 0
 
 
 def test_loading_names_each_stage_as_it_starts(tmp_path):
@@ -238,6 +226,6 @@ def test_each_validator_says_what_to_change(tmp_path, capsys, argv, words):
     argv = [str(example_mesh_path()) if a == "T" else str(tmp_path / "c") if a == "C" else a for a in argv]
     if argv[0] == "view":
         argv[1] = str(tmp_path)
-    code, _, err = run(capsys, *argv, *(["-o", tmp_path / "out"] if argv[0] == "match" else []))
-    one_line(code, err, *words)
+    code, _, err = run_cli(capsys, *argv, *(["-o", tmp_path / "out"] if argv[0] == "match" else []))
+    assert_bad_input(code, err, *words)
     assert not (tmp_path / "out").exists() and not (tmp_path / "c").exists()

@@ -17,6 +17,8 @@ import pytest
 from pinchmatch.cli.commands import example_mesh_path, main
 from pinchmatch.mesh.shapes import ellipsoid
 
+from conftest import assert_one_line
+
 SETPRIV = shutil.which("setpriv")
 
 
@@ -29,13 +31,6 @@ def cli(*argv, cwd=None):
         command = [SETPRIV, "--bounding-set=-dac_override,-dac_read_search", *command]
     proc = subprocess.run(command, capture_output=True, text=True, cwd=cwd, timeout=600)
     return proc.returncode, proc.stdout, proc.stderr
-
-
-def one_line(err, *words):
-    lines = err.strip().splitlines()
-    assert len(lines) == 1 and "Traceback" not in err, err
-    for word in words:
-        assert word in lines[0], lines[0]
 
 
 @pytest.fixture
@@ -53,7 +48,7 @@ def objects(tmp_path):
 def test_an_unreadable_mesh_is_one_line_and_exit_2(objects, tmp_path):
     code, _, err = cli("poses", objects / "locked.stl", "-o", tmp_path / "o.json")
     assert code == 2
-    one_line(err, "locked.stl: cannot be read (Permission denied)")
+    assert_one_line(err, "locked.stl: cannot be read (Permission denied)")
     assert not (tmp_path / "o.json").exists()
 
 
@@ -75,7 +70,7 @@ def test_an_unreadable_poses_file_is_one_line(tmp_path):
     os.chmod(poses, 0)
     code, _, err = cli("poses", "--example", "--poses", poses)
     assert code == 2
-    one_line(err, "poses.json: cannot be read (Permission denied)")
+    assert_one_line(err, "poses.json: cannot be read (Permission denied)")
 
 
 @pytest.mark.parametrize("target", ["read-only folder", "a file as OUT", "a folder as FILE"])
@@ -96,7 +91,7 @@ def test_an_output_that_cannot_be_written_is_refused_before_any_work(tmp_path, t
     code, _, err = cli(*argv)
     os.chmod(locked, 0o755)
     assert code == 2
-    one_line(err, *words)
+    assert_one_line(err, *words)
     assert list(locked.iterdir()) == []
     if target == "a file as OUT":
         assert (tmp_path / "file").read_text() == "mine"
@@ -117,7 +112,7 @@ def test_a_full_disk_met_while_writing_names_the_file(tmp_path, monkeypatch, cap
     code = main(["poses", "--example", "--count", "30", "-o", str(tmp_path / "o.json")])
     _, err = capsys.readouterr()
     assert code == 2
-    one_line(err, "o.json: cannot write it (No space left on device)")
+    assert_one_line(err, "o.json: cannot write it (No space left on device)")
     assert list(tmp_path.iterdir()) == []
 
 
@@ -133,6 +128,6 @@ def test_a_full_tmpfs(tmp_path):
                                "--virtual", example_mesh_path(), "--count", "120", "-q", "-o", mount / "out"],
                               capture_output=True, text=True, timeout=600)
         assert proc.returncode == 2, proc.stderr
-        one_line(proc.stderr, "cannot write it (No space left on device)", str(mount / "out"))
+        assert_one_line(proc.stderr, "cannot write it (No space left on device)", str(mount / "out"))
     finally:
         subprocess.run(["umount", str(mount)])

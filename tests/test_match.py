@@ -7,7 +7,7 @@ import trimesh
 
 from pinchmatch.match import search as search_module
 from pinchmatch.grasp.analysis import analyze_object
-from pinchmatch.cli.commands import example_mesh_path, main
+from pinchmatch.cli.commands import example_mesh_path
 from pinchmatch.match.cost import CRITERIA, separable_terms
 from pinchmatch.match.search import MatchSettings, assign_one_to_one, cost_model, evaluate_pairs, match_scene
 from pinchmatch.match.candidates import candidate_poses
@@ -16,7 +16,7 @@ from pinchmatch.grasp.pinches import PinchSettings
 from pinchmatch.mesh.shapes import ellipsoid
 from pinchmatch.runner.study import PARTS, TANGIBLE_HEIGHTS_MM, run_study
 
-from conftest import random_rigid, transformed
+from conftest import random_rigid, run_cli, transformed
 
 
 @pytest.fixture(scope="module")
@@ -25,8 +25,8 @@ def example():
 
 
 @pytest.fixture(scope="module")
-def study(tmp_path_factory):
-    return run_study(tmp_path_factory.mktemp("study"))
+def study(demo):
+    return demo.study
 
 
 def moved_copy(tmp_path, mesh, seed, name):
@@ -221,17 +221,11 @@ def test_study_flips_a_virtual_object_where_the_part_sits_at_the_other_end(study
     assert row["ours"]["part"] == "cylinder" and row["ours"]["flipped"]
 
 
-def run(capsys, *argv):
-    code = main([str(a) for a in argv])
-    out, err = capsys.readouterr()
-    return code, out, err
-
-
 def test_match_cli_writes_matches_json(tmp_path, capsys):
     mesh = ellipsoid((30.0, 22.0, 14.0), faces=1300).mesh
     mesh.export(tmp_path / "e.stl")
     out = tmp_path / "out"
-    code, stdout, err = run(capsys, "match", "--tangible", example_mesh_path(), "--virtual", tmp_path / "e.stl",
+    code, stdout, err = run_cli(capsys, "match", "--tangible", example_mesh_path(), "--virtual", tmp_path / "e.stl",
                             example_mesh_path(), "--count", 150, "--top-k", 2, "-o", out)
     assert code == 0, err
     doc = json.loads((out / "matches.json").read_text())
@@ -259,12 +253,12 @@ def test_match_cli_writes_matches_json(tmp_path, capsys):
 
 def test_match_cli_json_quiet_and_skips(tmp_path, capsys):
     args = ["match", "--tangible", example_mesh_path(), "--virtual", example_mesh_path(), "--count", 120]
-    code, stdout, err = run(capsys, *args, "-o", tmp_path / "a", "--json", "--no-view", "--no-figures")
+    code, stdout, err = run_cli(capsys, *args, "-o", tmp_path / "a", "--json", "--no-view", "--no-figures")
     assert code == 0, err
     assert json.loads(stdout) == json.loads((tmp_path / "a" / "matches.json").read_text())  # stdout: the document only
     assert (tmp_path / "a" / "scenes" / "example_prop.glb").is_file()
     assert not (tmp_path / "a" / "index.html").exists() and not (tmp_path / "a" / "figures").exists()
-    code, stdout, err = run(capsys, *args, "-o", tmp_path / "b", "-q")
+    code, stdout, err = run_cli(capsys, *args, "-o", tmp_path / "b", "-q")
     assert code == 0 and stdout == "" and err == ""
     assert (tmp_path / "b" / "index.html").is_file()
 
@@ -274,7 +268,7 @@ def test_match_cli_paper_criteria_and_given_tangible_poses(tmp_path, capsys):
     poses.write_text(json.dumps([{"p1_mm": [-20, 0, 20], "p2_mm": [20, 0, 20]},
                                  {"p1_mm": [-20, 0, 60], "p2_mm": [20, 0, 60]}]))
     out = tmp_path / "out"
-    code, _, err = run(capsys, "match", "--tangible", example_mesh_path(), "--tangible-poses", poses,
+    code, _, err = run_cli(capsys, "match", "--tangible", example_mesh_path(), "--tangible-poses", poses,
                        "--virtual", example_mesh_path(), "--count", 100, "--criteria", "paper", "--normalize", "range",
                        "-q", "-o", out)
     assert code == 0, err
@@ -292,7 +286,7 @@ def test_match_cli_paper_criteria_and_given_tangible_poses(tmp_path, capsys):
     (["--top-k", "-1"], "--top-k"),
 ])
 def test_match_cli_refuses_bad_options(tmp_path, capsys, argv, message):
-    code, _, err = run(capsys, "match", "--tangible", example_mesh_path(), "--virtual", example_mesh_path(),
+    code, _, err = run_cli(capsys, "match", "--tangible", example_mesh_path(), "--virtual", example_mesh_path(),
                        *argv, "-o", tmp_path / "out")
     assert code == 2 and message in err and "Traceback" not in err
     assert len(err.strip().splitlines()) == 1
@@ -302,31 +296,29 @@ def test_match_cli_refuses_bad_options(tmp_path, capsys, argv, message):
 def test_match_cli_refuses_bad_pose_files(tmp_path, capsys):
     broken = tmp_path / "broken.json"
     broken.write_text('[{"p1_mm": [0, 0')
-    code, _, err = run(capsys, "match", "--tangible", example_mesh_path(), "--tangible-poses", broken,
+    code, _, err = run_cli(capsys, "match", "--tangible", example_mesh_path(), "--tangible-poses", broken,
                        "--virtual", example_mesh_path(), "-o", tmp_path / "out")
     assert code == 2 and "broken.json: not valid JSON" in err
     infeasible = tmp_path / "infeasible.json"  # both fingers on the same face
     infeasible.write_text(json.dumps([{"p1_mm": [-20, -5, 60], "p2_mm": [-20, 5, 60]}]))
-    code, _, err = run(capsys, "match", "--tangible", example_mesh_path(), "--tangible-poses", infeasible,
+    code, _, err = run_cli(capsys, "match", "--tangible", example_mesh_path(), "--tangible-poses", infeasible,
                        "--virtual", example_mesh_path(), "-o", tmp_path / "out")
     assert code == 2 and "infeasible.json: none of the 1 given poses is feasible" in err
-    code, _, err = run(capsys, "match", "--tangible", example_mesh_path(), example_mesh_path(),
+    code, _, err = run_cli(capsys, "match", "--tangible", example_mesh_path(), example_mesh_path(),
                        "--tangible-poses", infeasible, "--virtual", example_mesh_path(), "-o", tmp_path / "out")
     assert code == 2 and "got 1 files for 2 objects" in err
     assert not (tmp_path / "out").exists()
 
 
-def test_demo_writes_the_study_and_the_scene(tmp_path, capsys):
-    code, stdout, err = run(capsys, "demo", "-o", tmp_path / "demo")
-    assert code == 0, err
-    study = json.loads((tmp_path / "demo" / "study.json").read_text())
+def test_demo_writes_the_study_and_the_scene(demo):
+    study = json.loads((demo.out / "study.json").read_text())
     assert study["schema"] == "pinchmatch.study/1" and len(study["rows"]) == 18
     row = study["rows"][0]
     assert {"tangible_part", "virtual", "virtual_order", "ours", "paper", "ref"} <= set(row)
     assert {"part", "height_mm", "flipped", "cost", "cost_paper"} <= set(row["ours"])
-    scene = json.loads((tmp_path / "demo" / "matches.json").read_text())
+    scene = json.loads((demo.out / "matches.json").read_text())
     assert len(scene["matches"]) == 6
-    assert "cylinder/cube/cone" in stdout
+    assert "cylinder/cube/cone" in demo.stdout
 
 
 def test_demo_ends_with_scenes_page_and_figures(demo_out):
@@ -336,11 +328,17 @@ def test_demo_ends_with_scenes_page_and_figures(demo_out):
     assert len(list((demo_out / "figures" / "criteria").glob("*.png"))) == 6
 
 
-def test_demo_json_prints_the_study_document(tmp_path, capsys):
-    code, stdout, err = run(capsys, "demo", "-o", tmp_path / "demo", "--json", "--no-view", "--no-figures")
+def test_demo_json_prints_the_study_document_it_writes(tmp_path, capsys, monkeypatch, demo):
+    """``--json`` prints study.json; the session's study stands in for a second computation."""
+    from pinchmatch.cli import commands
+
+    monkeypatch.setattr(commands, "run_study", lambda *args, **kwargs: demo.study)
+    code, stdout, err = run_cli(capsys, "demo", "-o", tmp_path / "demo", "--json", "--no-view", "--no-figures")
     assert code == 0, err
     doc = json.loads(stdout)
     assert doc["schema"] == "pinchmatch.study/1" and len(doc["rows"]) == 18
+    assert doc["rows"] == json.loads((demo.out / "study.json").read_text())["rows"]
+    assert not (tmp_path / "demo" / "index.html").exists() and not (tmp_path / "demo" / "figures").exists()
 
 
 def test_full_study_adds_sampled_candidates_and_only_gains(tmp_path, study):

@@ -9,7 +9,6 @@ import pytest
 import trimesh
 
 from pinchmatch.export.scenes import CONE_HEIGHT_MM, gltf_rotation, write_scenes
-from pinchmatch.runner.study import run_study
 
 
 #: glTF is +Y up: x stays, z becomes y, y becomes -z
@@ -17,10 +16,8 @@ Z_UP_TO_GLTF = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
 
 
 @pytest.fixture(scope="module")
-def written(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("scenes")
-    study = run_study(folder / "objects")
-    return study, write_scenes(study.scene, folder / "scenes")
+def written(tmp_path_factory, demo):
+    return demo.study, write_scenes(demo.study.scene, tmp_path_factory.mktemp("scenes"))
 
 
 def test_z_up_becomes_gltf_y_up():

@@ -20,8 +20,9 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
 
-from pinchmatch import PinchSettings, sample_pinches, vessels  # noqa: E402
-from pinchmatch.surface import SurfaceContext  # noqa: E402
+from pinchmatch import PinchSettings, sample_pinches  # noqa: E402
+from pinchmatch.mesh import vessels  # noqa: E402
+from pinchmatch.mesh.surface import SurfaceContext  # noqa: E402
 
 def _widest(pinches):
     """Four level pinches across the body (the widest of those within 5 mm of level) and four
