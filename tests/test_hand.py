@@ -61,6 +61,21 @@ def test_clearance_alone():
     _only(check_pinches(_ctx(mesh), [[-20.0, 0, -1.0]], [[20.0, 0, -1.0]], settings=settings), "clearance")
 
 
+@pytest.mark.parametrize("gap_mm, broken", [(7.8, []), (7.5, ["clearance"])])
+def test_the_fingertip_may_press_0_3_mm_into_an_overhang(gap_mm, broken):
+    # a shelf overhangs the left face; its underside is gap_mm above the centre of the 8 mm fingertip
+    # sphere at (-28, 0, 0), so the sphere enters it by 8 - gap_mm: 0.2 mm is within the soft pad's
+    # 0.3 mm, 0.5 mm is not
+    block = trimesh.creation.box(extents=(40.0, 40.0, 20.0))
+    shelf = trimesh.creation.box(extents=(22.0, 40.0, 4.0))
+    shelf.apply_translation((-30.0, 0.0, gap_mm + 2.0))
+    mesh = trimesh.boolean.union([block, shelf], engine="manifold").subdivide_to_size(3.0)
+    settings = PinchSettings(finger_radius_mm=4.0, patch_radius_mm=5.0)
+    given = check_pinches(SurfaceContext(mesh, patch_radius_mm=5.0), [[-20.0, 0, 0]], [[20.0, 0, 0]],
+                          settings=settings)
+    assert given.broken_rules(0) == broken
+
+
 def test_reach_alone():
     # the bottom of a cup pinched through it: the inside finger cannot lie down in a 66 mm cup
     cup = _ctx(vessels.cup())

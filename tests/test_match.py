@@ -137,6 +137,28 @@ def test_the_pooled_search_finds_the_exact_minimum(example, tmp_path, monkeypatc
     assert picks[1].cost == pytest.approx(brute.cost[far].min(), rel=1e-9)
 
 
+def test_kept_upright_an_upside_down_copy_grows_past_pools_of_flipped_pairs(example, tmp_path, monkeypatch):
+    # the cheapest separable pairs of the example against itself turned over are its own places,
+    # which register only upside down: a 5-pair pool holds nothing allowed and must grow
+    R = trimesh.transformations.rotation_matrix(np.pi, [1.0, 0.0, 0.0])[:3, :3]
+    path = tmp_path / "over.stl"
+    transformed(trimesh.load(example_mesh_path(), force="mesh"), R, np.zeros(3)).export(path)
+    virtual = candidate_poses(analyze_object(path), settings=PinchSettings(count=300))
+    monkeypatch.setattr(search_module, "MIN_POOL", 5)
+    monkeypatch.setattr(search_module, "MAX_POOL", 5)
+    settings = MatchSettings(keep_upright=True, top_k=0)
+    scene = match_scene([example], [virtual], settings)
+    it = np.repeat(np.arange(len(example)), len(virtual))
+    iv = np.tile(np.arange(len(virtual)), len(example))
+    brute = evaluate_pairs(example, virtual, it, iv, scene.model, keep_upright=True)
+    free = evaluate_pairs(example, virtual, it, iv, scene.model, keep_upright=False)
+    assert free.cost.min() < brute.cost.min()  # upright costs something here
+    assert np.isfinite(brute.cost.min())
+    assert scene.cost_matrix[0, 0] == pytest.approx(brute.cost.min(), rel=1e-9, abs=1e-12)
+    best = scene.matches[0].best
+    assert best.cost == pytest.approx(brute.cost.min(), rel=1e-9, abs=1e-12) and not best.flipped
+
+
 def test_the_mass_lower_bound_never_exceeds_the_exact_mass_term(example, tmp_path):
     mesh = ellipsoid((30.0, 22.0, 14.0), faces=1300).mesh
     mesh.export(tmp_path / "e.stl")
