@@ -95,3 +95,16 @@ def test_jnd_scales_are_the_perception_data_as_literals():
                                [2.3, 20.0, 26.28, 21.9, 30.66, 33.33, 19.998, 22.0, 22.0], rtol=1e-3)
     np.testing.assert_allclose(model.scales(below)[0],
                                [0.4, 20.0, 20.0, 20.0, 20.0, 2.0, 2.0, 20.0, 20.0], rtol=1e-9)
+
+
+def test_range_mode_spans_every_object_and_the_mass_columns_share_the_offset_length():
+    nan = np.nan
+    # columns: width, com, tilt, normal angle, axis angle, kmax, kmin, mass along the line, mass lever arm
+    first = np.array([[[30.0, 5.0, 10.0, 20.0, 40.0, 50.0, 10.0, 3.0, 4.0],      # offset 5
+                       [30.0, 5.0, 10.0, 30.0, nan, 60.0, -5.0, -6.0, 8.0]]])    # offset 10
+    second = np.array([[[70.0, -15.0, 0.0, 10.0, 80.0, 20.0, 0.0, 0.0, 0.0]] * 2])  # offset 0
+    np.testing.assert_array_equal(feature_ranges(first, second),
+                                  [40.0, 20.0, 10.0, 20.0, 40.0, 40.0, 15.0, 10.0, 10.0])
+    axis_never_defined = first.copy()
+    axis_never_defined[:, :, 4] = nan
+    assert np.isnan(feature_ranges(axis_never_defined)[4])

@@ -73,3 +73,21 @@ def test_results_do_not_depend_on_chunking_or_threads(monkeypatch):
     apart = patch_geometry(context, points, normals)
     for field in together.__dataclass_fields__:
         np.testing.assert_array_equal(getattr(together, field), getattr(apart, field))
+
+
+def test_the_quartic_ridge_is_the_weighted_norm_over_the_disc():
+    # c^T G c against the integral of (1 - rho^2)^2 q(u, v)^2 over the unit disc, divided by that
+    # of (1 - rho^2)^2, by Gauss-Legendre in rho and equal steps in theta (exact for polynomials)
+    from pinchmatch.grasp.jets import EXPONENTS, QUARTIC_GRAM
+
+    x, w = np.polynomial.legendre.leggauss(12)
+    rho, w_rho = 0.5 * (x + 1.0), 0.5 * w
+    theta = np.linspace(0.0, 2.0 * np.pi, 24, endpoint=False)
+    r, t = np.meshgrid(rho, theta, indexing="ij")
+    u, v = r * np.cos(t), r * np.sin(t)
+    weight = (1.0 - r**2) ** 2 * r * w_rho[:, None] * (2.0 * np.pi / len(theta))
+    rng = np.random.default_rng(3)
+    for _ in range(5):
+        c = rng.normal(size=len(EXPONENTS)) * np.array([i + j == 4 for i, j in EXPONENTS])
+        q = sum(ck * u**i * v**j for ck, (i, j) in zip(c, EXPONENTS))
+        assert c @ QUARTIC_GRAM @ c == pytest.approx((weight * q**2).sum() / weight.sum(), rel=1e-10)
