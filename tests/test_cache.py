@@ -1,3 +1,4 @@
+import dataclasses
 import json
 import logging
 from concurrent.futures import ProcessPoolExecutor
@@ -9,6 +10,8 @@ import pytest
 from pinchmatch.runner.cache import FeatureCache, cached_candidates, default_cache_dir
 from pinchmatch.cli.commands import example_mesh_path
 from pinchmatch.grasp.pinches import PinchSettings
+from pinchmatch.mesh.manifest import ObjectSpec
+from pinchmatch.mesh.regions import ContactRegions, Region
 from pinchmatch.mesh.shapes import ellipsoid
 
 from conftest import run_cli
@@ -45,17 +48,22 @@ def test_a_hit_rebuilds_exactly_what_a_cold_run_computes(tmp_path, mesh_file):
 
 def test_the_key_follows_content_and_settings_only(tmp_path, mesh_file):
     cache = FeatureCache(tmp_path / "c")
-    key = cache.key(mesh_file, units=None, up=None, patch_radius_mm=8.0, settings=SETTINGS)
-    same = lambda **kw: cache.key(mesh_file, **({"units": None, "up": None, "patch_radius_mm": 8.0,  # noqa: E731
-                                                "settings": SETTINGS} | kw))
+    spec = ObjectSpec(str(mesh_file))
+    key = cache.key(spec, patch_radius_mm=8.0, settings=SETTINGS)
+    same = lambda spec=spec, **kw: cache.key(spec, **({"patch_radius_mm": 8.0, "settings": SETTINGS} | kw))  # noqa: E731
     assert same() == key
     assert same(settings=PinchSettings(count=200, seed=4)) != key
     assert same(settings=PinchSettings(count=200, seed=3, friction_cone_deg=20)) != key
-    assert same(units="cm") != key and same(up="y") != key and same(patch_radius_mm=6.0) != key
+    assert same(patch_radius_mm=6.0) != key
     assert same(given=(np.zeros((1, 3)), np.ones((1, 3)))) != key
+    # what shapes the candidates is in the key; the name and the mass are not
+    for change in ({"units": "cm"}, {"up": "y"}, {"com_mm": (0.0, 0.0, 5.0)}, {"axis": (1.0, 0.0, 0.0)},
+                   {"node": "handle"}, {"regions": ContactRegions(exclude=(Region.sphere((0, 0, 0), 5.0),))}):
+        assert same(dataclasses.replace(spec, **change)) != key, change
+    assert same(dataclasses.replace(spec, name="can", mass_g=350.0)) == key
     copy = tmp_path / "copy.stl"  # the name does not matter, the bytes do
     copy.write_bytes(mesh_file.read_bytes())
-    assert cache.key(copy, units=None, up=None, patch_radius_mm=8.0, settings=SETTINGS) == key
+    assert cache.key(ObjectSpec(str(copy)), patch_radius_mm=8.0, settings=SETTINGS) == key
     mesh_file.write_bytes(mesh_file.read_bytes()[:-50] + bytes(50))
     assert same() != key
 
@@ -82,8 +90,9 @@ def test_a_damaged_entry_is_computed_again(tmp_path, mesh_file, damage, caplog):
         again = cached_candidates(mesh_file, cache=cache, settings=SETTINGS)
     assert "unusable" in caplog.text
     same_candidates(cold, again)
-    assert cache.load(cache.key(mesh_file, units=None, up=None, patch_radius_mm=8.0, settings=SETTINGS),
-                      mesh_file, patch_radius_mm=8.0) is not None  # rewritten whole
+    spec = ObjectSpec(str(mesh_file))
+    assert cache.load(cache.key(spec, patch_radius_mm=8.0, settings=SETTINGS), spec,
+                      patch_radius_mm=8.0) is not None  # rewritten whole
 
 
 def test_an_unwritable_cache_only_loses_the_caching(tmp_path, mesh_file, caplog):
@@ -184,7 +193,7 @@ def test_when_no_file_of_a_role_can_be_used_the_run_stops(tmp_path, capsys):
     empty = tmp_path / "empty"
     empty.mkdir()
     code, _, err = run_cli(capsys, "match", "--tangible", example_mesh_path(), "--virtual", empty, "-o", out)
-    assert code == 2 and "names a folder with no mesh file" in err and len(err.strip().splitlines()) == 1
+    assert code == 2 and "names a folder that has no mesh file" in err and len(err.strip().splitlines()) == 1
 
 
 def test_clear_deletes_only_what_the_cache_wrote(tmp_path, capsys, mesh_file):
@@ -218,13 +227,13 @@ def test_the_key_covers_the_algorithm(tmp_path, mesh_file, monkeypatch):
     from pinchmatch.runner import cache as cache_module
 
     cache = FeatureCache(tmp_path / "c")
-    key = cache.key(mesh_file, units=None, up=None, patch_radius_mm=8.0, settings=SETTINGS)
+    key = cache.key(ObjectSpec(str(mesh_file)), patch_radius_mm=8.0, settings=SETTINGS)
     package = Path(cache_module.__file__).parents[1]
     every_grasp_module = {f"grasp/{p.stem}" for p in (package / "grasp").glob("*.py") if p.stem != "__init__"}
     assert every_grasp_module | {"mesh/load", "mesh/surface", "mesh/properties", "match/candidates"} \
         <= set(cache_module.ALGORITHM_MODULES)
     monkeypatch.setattr(cache_module, "ALGORITHM_DIGEST", "0" * 64)  # as after an edit of any of those modules
-    assert cache.key(mesh_file, units=None, up=None, patch_radius_mm=8.0, settings=SETTINGS) != key
+    assert cache.key(ObjectSpec(str(mesh_file)), patch_radius_mm=8.0, settings=SETTINGS) != key
     # the digest reads every listed module's source
     for name in cache_module.ALGORITHM_MODULES:
         assert (package / f"{name}.py").is_file()

@@ -117,7 +117,7 @@ def _bad_files(tmp_path):
         "badidx.obj": "refers to a vertex",
         "nan.obj": "NaN or infinite",
         "points.obj": "no faces",
-        tiny.name: "try --units m",
+        tiny.name: "read it with --units m (",
     }
 
 

@@ -76,3 +76,33 @@ def test_criteria_figure_draws_one_bar_per_criterion_and_the_line_at_one():
                                                                pytest.approx(to_rgb("#2e9d52"))]
     assert any(np.allclose(line.get_xdata(), 1.0) for line in ax.lines)
     assert "flipped" in ax.get_title()
+
+
+def test_the_cost_colour_scale_follows_the_data():
+    from pinchmatch.export.figures import cost_color_range
+
+    assert cost_color_range(np.array([[500.0, 628.0], [np.nan, 551.0]])) == (500.0, 628.0)  # not from 1e-3
+    assert cost_color_range(np.array([[0.0, 0.02], [7.0, np.inf]])) == (0.02, 7.0)
+    assert cost_color_range(np.array([[3.0, np.nan]])) == (1.5, 6.0)
+    assert cost_color_range(np.array([[0.0, np.nan]])) == (pytest.approx(1e-3), pytest.approx(1e-2))
+    fig = cost_matrix_figure({"cost_matrix": {"rows_virtual": ["a"], "columns_tangible": ["t1", "t2"],
+                                              "values": [[500.0, 628.0]]}, "matches": []})
+    norm = fig.axes[0].images[0].norm
+    assert (norm.vmin, norm.vmax) == (500.0, 628.0)
+
+
+@pytest.mark.parametrize("jnd", [0.93, 0.97, 1.0, 1.02])
+def test_no_bar_label_sits_on_the_1_jnd_line(jnd):
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    match = {"virtual": "v.stl", "tangible": "t.stl", "cost": 1.0,
+             "criteria": {"width": {"jnd": jnd}, "tilt": {"jnd": 0.2}, "kmax": {"jnd": 3.0}}}
+    fig = criteria_figure(match)
+    renderer = FigureCanvasAgg(fig).get_renderer()
+    ax = fig.axes[0]
+    line_x = ax.transData.transform((1.0, 0.0))[0]
+    labels = [t for t in ax.texts if t.get_text().replace(".", "").isdigit()]
+    assert len(labels) == 3
+    for t in labels:
+        box = t.get_window_extent(renderer)
+        assert not box.x0 - 1 <= line_x <= box.x1 + 1, (t.get_text(), box, line_x)

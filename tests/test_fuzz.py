@@ -16,7 +16,8 @@ import trimesh
 from hypothesis import HealthCheck, given, settings, strategies as st
 
 from pinchmatch.grasp.analysis import load_poses_file
-from pinchmatch.cli.commands import _check_option_names, _match_settings, _settings, build_parser, main
+from pinchmatch.cli.commands import _match_settings, _settings, main
+from pinchmatch.cli.parser import build_parser, check_option_names
 from pinchmatch.errors import ConfigError, PinchmatchError
 
 EXAMPLES = int(os.environ.get("PINCHMATCH_FUZZ_EXAMPLES", "0")) or None
@@ -151,7 +152,7 @@ def test_numeric_options_and_weights_are_taken_or_refused_in_one_line(values, we
         argv.append(f"{option}={value}")
     try:
         parser = build_parser()
-        _check_option_names(parser, argv)
+        check_option_names(parser, argv)
         args = parser.parse_args(argv)
         pinch = _settings(args, count=args.count, seed=args.seed)
         match = _match_settings(args)

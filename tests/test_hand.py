@@ -1,5 +1,7 @@
 """The hand model on objects people hold: cups, mugs, bowls, plates, tubes; and each rule on its own."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 import trimesh
@@ -83,7 +85,9 @@ def test_reach_alone():
 
 
 def test_rules_are_the_documented_ones():
-    assert RULES == ("surface", "width", "antipodal", "clearance", "reach", "patch")
+    assert RULES == ("surface", "region", "width", "antipodal", "clearance", "reach", "patch")
+    table = (Path(__file__).parents[1] / "docs" / "method.md").read_text()
+    assert all(f"| `{rule}` |" in table for rule in RULES)
 
 
 @pytest.fixture(scope="module")

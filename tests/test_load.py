@@ -132,13 +132,23 @@ def test_no_faces(tmp_path):
 
 
 def test_mesh_in_metres_read_as_mm_suggests_units(write_mesh):
-    with pytest.raises(MeshError, match=r"m\.stl: mesh is 0\.06 mm across .*try --units m"):
+    # in Python the fix is a keyword argument; the command line names the flag (tests/test_cli.py)
+    with pytest.raises(MeshError, match=r'm\.stl: mesh is 0\.06 mm across .*read it with units="m" \(60 mm across\)$'):
         load_mesh(write_mesh(box((0.06, 0.04, 0.02)), "m.stl"))
 
 
-def test_huge_mesh_suggests_units(write_mesh):
-    with pytest.raises(MeshError, match=r"big\.glb: mesh is 6e\+04 mm across when read in m .*try --units (mm|cm)"):
-        load_mesh(write_mesh(box((60.0, 40.0, 20.0)), "big.glb"))
+@pytest.mark.parametrize("size, units, fixes", [
+    (0.206, "mm", ['units="m" (206 mm across)']),  # cm would make it 2 mm: not a thing a hand holds
+    (60_000.0, "m", ['units="mm" (60 mm across)']),
+    (0.5, "mm", ['units="m" (500 mm across)', 'units="in" (12.7 mm across)']),  # two fit: both named
+])
+def test_the_units_hint_names_the_units_that_make_a_graspable_size(write_mesh, size, units, fixes):
+    name = "a.stl" if units == "mm" else "a.glb"
+    mesh = box((size, size * 0.6, size * 0.3)) if units == "mm" else box((size / 1000.0, size * 0.6e-3, size * 0.3e-3))
+    with pytest.raises(MeshError) as info:
+        load_mesh(write_mesh(mesh, name), units=units)
+    assert str(info.value).endswith("read it with " + " or ".join(fixes)), str(info.value)
+    assert "--units" in info.value.cli_message() and "units=" not in info.value.cli_message()
 
 
 def test_flat_mesh_has_no_volume(tmp_path):

@@ -50,7 +50,8 @@ def test_a_run_equals_the_library_search_of_the_whole_scene(meshes, tmp_path, ex
     load = lambda folder: [cached_candidates(p, cache=None, settings=pinch)  # noqa: E731
                            for p in sorted((meshes / folder).glob("*.stl"))]
     scene = match_scene(load("t"), load("v"), settings, pinch_settings=pinch)
-    doc = matches_document(scene, {**pinch.as_dict(), **settings.as_dict(), "units": None, "up": None}, figures=False)
+    doc = matches_document(scene, {**pinch.as_dict(), **settings.as_dict(), "units": None, "up": None, "split": "none"},
+                           figures=False)
     assert (tmp_path / "out" / "matches.json").read_text() == to_json(doc)
 
 

@@ -144,8 +144,9 @@ def test_signals_leave_a_whole_result_and_no_worker(tmp_path, virtuals, sig, del
     if proc.returncode == 0:  # finished before the signal: the new result, whole
         assert_whole(out)
     else:
-        assert proc.returncode in (-signal.SIGKILL, 130, 143), (proc.returncode, err)
-        if sig != signal.SIGKILL:
+        # 130/143: pinchmatch's handler ran; -sig: the signal came before Python started it (a slow start)
+        assert proc.returncode in (-signal.SIGKILL, -sig, 130, 143), (proc.returncode, err)
+        if sig != signal.SIGKILL and proc.returncode > 0:
             assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
         recover(out)  # what any next run or view does first
         assert snapshot(out) == before or read_manifest(out) != []

@@ -86,6 +86,24 @@ def test_scene_extras_map_the_virtual_contacts_into_the_scene(written):
         assert (q_scene[1, :3] - q_scene[0, :3]) @ u > 0  # p1 meets p1
 
 
+def test_the_engine_guide_recipes_give_the_scene_placement(written):
+    """docs/engines.md: B·T·B⁻¹ with B = file_mm_to_gltf_m is the virtual node's matrix (three.js), and
+    Unity's mirror S = diag(-1, 1, 1) turns it into a rotation whose quaternion is (x, -y, -z, w)."""
+    from scipy.spatial.transform import Rotation
+
+    study, paths = written
+    for vm, path in zip(study.scene.matches, paths):
+        scene = trimesh.load(path)
+        B = np.reshape(scene.metadata["pinchmatch:file_mm_to_gltf_m"], (4, 4))
+        node, _ = scene.graph["virtual"]
+        np.testing.assert_allclose(B @ vm.best.transform @ np.linalg.inv(B), node, atol=1e-6)  # GLB: float32
+        S = np.diag([-1.0, 1.0, 1.0])
+        unity = S @ node[:3, :3] @ S
+        assert np.linalg.det(unity) == pytest.approx(1.0)
+        x, y, z, w = Rotation.from_matrix(node[:3, :3]).as_quat()
+        np.testing.assert_allclose(Rotation.from_quat([x, -y, -z, w]).as_matrix(), unity, atol=1e-6)
+
+
 BLENDER = shutil.which("blender")
 
 

@@ -165,6 +165,28 @@ def test_view_cli_rewrites_the_page(demo_out, tmp_path, capsys):
     assert (out / "index.html").is_file() and f"wrote {out / 'index.html'}" in stdout
 
 
+def test_view_takes_the_result_document_and_opens_the_page_where_there_is_a_display(demo_out, tmp_path, capsys,
+                                                                                    monkeypatch):
+    import webbrowser
+
+    out = tmp_path / "run"
+    shutil.copytree(demo_out, out)
+    (out / "index.html").unlink()
+    opened = []
+    monkeypatch.setattr(webbrowser, "open", lambda url: opened.append(url) or True)
+    monkeypatch.setenv("DISPLAY", ":0")
+    code, stdout, err = run(capsys, "view", out / "matches.json", "--open")
+    assert code == 0, err
+    assert (out / "index.html").is_file() and opened == [(out / "index.html").resolve().as_uri()]
+    monkeypatch.delenv("DISPLAY")
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    code, stdout, err = run(capsys, "view", out, "--open")
+    assert code == 0 and len(opened) == 1 and "no display to open a browser on; open file://" in stdout
+    (out / "notes.txt").write_text("mine")
+    code, _, err = run(capsys, "view", out / "notes.txt")
+    assert code == 2 and "not a result document of pinchmatch" in err and "matches.json" in err
+
+
 @pytest.mark.parametrize("damage, message", [
     ("no folder", "no such folder"),
     ("no matches", "matches.json: not found; run 'pinchmatch match -o"),

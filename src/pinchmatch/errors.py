@@ -7,11 +7,31 @@ so the command line can show it as one line.
 from __future__ import annotations
 
 import logging
+import re
 import warnings
 
 
+#: an option named in a message: rendered as a keyword argument for Python, as a flag for the command line
+_OPTION = re.compile(r"\{option:([a-z_]+)=([^}]*)\}")
+
+
+def option(name: str, value) -> str:
+    """``name=value`` as a message names it: ``units="m"`` in Python (``str(error)``), ``--units m`` on the
+    command line (:meth:`PinchmatchError.cli_message`)."""
+    return "{option:%s=%s}" % (name, value)
+
+
 class PinchmatchError(Exception):
-    """Base class of every error pinchmatch raises on bad input."""
+    """Base class of every error pinchmatch raises on bad input.
+
+    ``str(error)`` speaks the library's terms (``units="m"``); :meth:`cli_message` the command line's
+    (``--units m``), for the options a message names through :func:`option`."""
+
+    def __str__(self) -> str:
+        return _OPTION.sub(lambda m: f'{m[1]}="{m[2]}"', super().__str__())
+
+    def cli_message(self) -> str:
+        return _OPTION.sub(lambda m: f"--{m[1].replace('_', '-')} {m[2]}", super().__str__())
 
 
 class MeshError(PinchmatchError):

@@ -14,6 +14,14 @@ from pathlib import Path
 
 from .errors import OutputError
 
+#: the control folder of a folder pinchmatch published a result into (``OUT/.pinchmatch``)
+RESULT_CONTROL = ".pinchmatch"
+
+
+def holds_result(folder: str | os.PathLike) -> bool:
+    """Whether ``folder`` holds a result pinchmatch published (its files are outputs, never inputs)."""
+    return (Path(folder) / RESULT_CONTROL / "manifest.json").is_file()
+
 
 class AtomicFile:
     """The one way pinchmatch writes a file: into a temporary file beside it, then renamed over it

@@ -9,10 +9,8 @@ and ``matches.json``), 1 unexpected error (a traceback only with
 
 from __future__ import annotations
 
-import argparse
-import difflib
 import logging
-import re
+import os
 import signal
 import sys
 import threading
@@ -23,24 +21,24 @@ from pathlib import Path
 
 import numpy as np
 
-from ..version import __version__
 from ..grasp.analysis import analyze_object, find_pinches, load_poses_file, score_pinches
 from ..runner.cache import FeatureCache
 from ..errors import ConfigError, PinchmatchError, route_warnings
 from ..files import check_writable, write_atomic
-from ..mesh.load import UNITS_MM, UP_VECTORS, mesh_files
+from ..mesh.manifest import object_specs
 from ..grasp.pinches import PinchSettings
 from ..export.folder import OutputFolder, recover
 from ..match.cost import parse_criteria, parse_weights
 from ..match.search import MatchSettings
 from ..mesh.properties import parse_vector
 from .console import Presenter
+from .parser import build_parser, check_option_names, join_vector_values
 from ..export.documents import (features_document, matches_rows, poses_csv, poses_document, scene_stems,
                                 study_document, study_rows, to_json)
 from ..runner.tasks import Job, ObjectTask, virtual_result
 from ..export.sink import MatchesSink
 from ..runner.matching import RunError, RunResult, run_match
-from ..runner.executors import default_jobs, executor
+from ..runner.executors import executor
 from ..runner.study import ORDERS, run_study
 from ..export.view import make_server, write_page
 
@@ -48,189 +46,9 @@ log = logging.getLogger("pinchmatch")
 
 EXIT_SOME_FAILED = 3
 
-#: options whose value is a vector and may start with a minus sign
-VECTOR_OPTIONS = ("--p1", "--p2", "--com", "--axis")
-
-
 def example_mesh_path() -> Path:
     """The built-in example: the method's study prop (cylinder, cube and cone stacked, 120 mm tall)."""
     return Path(str(resources.files("pinchmatch") / "data" / "example_prop.stl"))
-
-
-class _Parser(argparse.ArgumentParser):
-    """argparse that raises ConfigError instead of printing usage and exiting, and never takes
-    an abbreviation or a misspelling for another option."""
-
-    def __init__(self, *args, **kwargs):
-        kwargs.setdefault("allow_abbrev", False)
-        super().__init__(*args, **kwargs)
-
-    def error(self, message):
-        raise ConfigError(f"{self.prog}: {message}; see '{self.prog} --help'")
-
-
-def _check_option_names(parser: argparse.ArgumentParser, argv: list[str]) -> None:
-    """Refuse an unknown long option first, naming the closest known one (argparse would
-    report a missing required option before it, or take ``--unit`` for ``--units``)."""
-    commands = next(a.choices for a in parser._actions if isinstance(a, argparse._SubParsersAction))
-    words = [t for t in argv if not t.startswith("-")]
-    if not words or words[0] not in commands:
-        return
-    sub = commands[words[0]]
-    known = [o for o in sub._option_string_actions if o.startswith("--")]
-    for token in argv[argv.index(words[0]) + 1:]:
-        if token == "--":
-            break
-        name = token.split("=", 1)[0]
-        if name.startswith("--") and name not in known:
-            close = difflib.get_close_matches(name, known, n=1)
-            hint = f"did you mean {close[0]}? " if close else ""
-            raise ConfigError(f"{sub.prog}: unknown option {name}; {hint}see '{sub.prog} --help'")
-
-
-def _join_vector_values(argv: list[str]) -> list[str]:
-    """Turn ``--p1 -3,0,1`` into ``--p1=-3,0,1`` so argparse does not read -3,0,1 as an option."""
-    out: list[str] = []
-    i = 0
-    while i < len(argv):
-        token = argv[i]
-        if token in VECTOR_OPTIONS and i + 1 < len(argv) and re.match(r"^-?[\d.]", argv[i + 1]):
-            out.append(f"{token}={argv[i + 1]}")
-            i += 2
-            continue
-        out.append(token)
-        i += 1
-    return out
-
-
-def _add_object_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("mesh", nargs="?", help="mesh file (STL, OBJ, PLY, OFF, glTF, GLB)")
-    p.add_argument("--example", action="store_true", help="use the built-in example prop instead of MESH")
-    _add_pinch_options(p)
-    p.add_argument("--com", metavar="X,Y,Z", help="centre of mass override, mm in the file's frame")
-    p.add_argument("--axis", metavar="X,Y,Z", help="principal axis override")
-    p.add_argument("-o", "--output", metavar="FILE", help="write the result here (default: print it)")
-    _add_verbosity(p)
-
-
-def _add_pinch_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--units", choices=sorted(UNITS_MM), help="units of the files (default: m for glTF/GLB, mm otherwise)")
-    p.add_argument("--up", choices=list(UP_VECTORS), help="the objects' up direction (default: y for glTF/GLB, z otherwise)")
-    p.add_argument("--friction-cone-deg", type=float, default=30.0, help="antipodal tolerance (default 30)")
-    p.add_argument("--min-width-mm", type=float, default=0.5,
-                   help="smallest pinch width (default 0.5: a bowl wall, a plate rim, a card)")
-    p.add_argument("--max-width-mm", type=float, default=100.0, help="largest pinch width (default 100; at most 300)")
-    p.add_argument("--fingertip-radius-mm", type=float, default=8.0, help="fingertip sphere radius (default 8; 2 to 25)")
-    p.add_argument("--patch-radius-mm", type=float, default=8.0, help="contact patch radius (default 8; 0.5 to 50)")
-    p.add_argument("--finger-radius-mm", type=float, default=8.0,
-                   help="radius of the finger capsule behind each fingertip (default 8)")
-    p.add_argument("--finger-length-mm", type=float, default=45.0,
-                   help="length of the finger capsule: distal and middle phalanges (default 45; 5 to 150)")
-    p.add_argument("--approach-tilt-deg", type=float, default=30.0,
-                   help="how far the hand's approach may lean towards either finger from the plane "
-                        "perpendicular to the pinch line (default 30)")
-    p.add_argument("--snap-tolerance-mm", type=float, default=2.0,
-                   help="how far a given contact may be from the surface (default 2)")
-
-
-def _add_sampling_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--count", type=int, default=1000, help="about how many pinches per object (default 1000; at most 100,000)")
-    p.add_argument("--seed", type=int, default=0, help="random seed, 0 or more (default 0)")
-
-
-def _add_match_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--weights", metavar="NAME=W,...",
-                   help="weight per criterion, default 1: width,com,tilt,normal,axis,kmax,kmin,mass")
-    p.add_argument("--criteria", choices=("default", "paper"), default="default",
-                   help="default: the paper's seven criteria plus mass; paper: the seven")
-    p.add_argument("--normalize", choices=("jnd", "range"), default="jnd",
-                   help="jnd: differences in just-noticeable differences (default); range: the paper's scaling")
-    p.add_argument("--top-k", type=int, default=3, help="distinct alternatives per virtual object (default 3)")
-    p.add_argument("--distinct-mm", type=float, default=8.0,
-                   help="alternatives differ by at least this much at a contact, on one object or both (default 8)")
-    p.add_argument("--one-to-one", action="store_true", help="each tangible serves at most one virtual object")
-    p.add_argument("--keep-upright", action="store_true", help="never turn a virtual object upside down")
-
-
-def _add_output_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--no-view", action="store_true", help="do not write the viewer page OUT/index.html")
-    p.add_argument("--no-figures", action="store_true", help="do not write the figures in OUT/figures")
-    p.add_argument("--json", action="store_true",
-                   help="print the result document to stdout (and nothing else there)")
-
-
-def _add_verbosity(p: argparse.ArgumentParser) -> None:
-    p.add_argument("-q", "--quiet", action="store_true", help="print only errors")
-    p.add_argument("-v", "--verbose", action="store_true", help="log progress; tracebacks on internal errors")
-
-
-def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="pinchmatch", description="Match thumb-index pinches between tangible props and virtual objects.")
-    parser.add_argument("--version", action="version", version=f"pinchmatch {__version__}")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
-
-    demo = sub.add_parser("demo", help="the method paper's user study, rebuilt in code: 18 rows and the scene's matches")
-    demo.add_argument("-o", "--output", metavar="OUT", default="pinchmatch-demo",
-                      help="folder for study.json, matches.json and the objects (default pinchmatch-demo)")
-    demo.add_argument("--full", action="store_true",
-                      help="candidate virtual poses: every sampled pose as well as the paper's 17")
-    _add_sampling_options(demo)
-    _add_output_options(demo)
-    _add_verbosity(demo)
-
-    match = sub.add_parser("match", help="best tangible, pinch and registration for every virtual object")
-    match.add_argument("--tangible", nargs="+", action="extend", required=True, metavar="PATH",
-                       help="tangible meshes, or folders searched recursively for them")
-    match.add_argument("--virtual", nargs="+", action="extend", required=True, metavar="PATH",
-                       help="virtual meshes, or folders searched recursively for them")
-    match.add_argument("--tangible-poses", action="append", metavar="FILE",
-                       help="use only these poses on a tangible (JSON, as for poses --poses); once per tangible, in order")
-    match.add_argument("--virtual-poses", action="append", metavar="FILE",
-                       help="use only these poses on a virtual object; once per virtual object, in order")
-    _add_pinch_options(match)
-    _add_sampling_options(match)
-    _add_match_options(match)
-    match.add_argument("-o", "--output", metavar="OUT", default="pinchmatch-out",
-                       help="folder for matches.json, the scenes, the figures and the page (default pinchmatch-out)")
-    match.add_argument("--cache", metavar="DIR",
-                       help="keep each object's poses and features here (default: the per-user cache, "
-                            "$PINCHMATCH_CACHE_DIR or ~/.cache/pinchmatch)")
-    match.add_argument("--no-cache", action="store_true", help="compute every object's poses afresh, store nothing")
-    match.add_argument("-j", "--jobs", type=int, metavar="N",
-                       help=f"objects worked on at once, in local processes (default: all {default_jobs()} cores)")
-    match.add_argument("--scheduler", metavar="ADDRESS",
-                       help="run the per-object work on this Dask scheduler, e.g. tcp://10.0.0.5:8786 "
-                            "(needs pinchmatch[dask]; the workers must reach the mesh files)")
-    match.add_argument("--format", choices=("json", "jsonl"), default="json",
-                       help="json: OUT/matches.json (default); jsonl: OUT/matches.jsonl, one line per virtual "
-                            "object, written as they come (memory stays flat for thousands of objects)")
-    match.add_argument("--dump-poses", action="store_true",
-                       help="list every object's feasible poses in the result (large)")
-    _add_output_options(match)
-    _add_verbosity(match)
-
-    cache = sub.add_parser("cache", help="the cache of poses and features: where, how big; clear it")
-    cache.add_argument("action", choices=("info", "clear"), help="info: folder, entries, size; clear: delete them")
-    cache.add_argument("--cache", metavar="DIR", help="the cache folder (default: the per-user cache)")
-    _add_verbosity(cache)
-
-    view = sub.add_parser("view", help="write OUT/index.html, the viewer page of a match or demo run, and serve it")
-    view.add_argument("folder", metavar="OUT", help="the -o folder of a 'pinchmatch match' or 'pinchmatch demo' run")
-    view.add_argument("--serve", action="store_true", help="serve OUT on 127.0.0.1 and print the address")
-    view.add_argument("--port", type=int, default=0, help="port for --serve (default: a free one)")
-    _add_verbosity(view)
-
-    poses = sub.add_parser("poses", help="feasible pinches of one mesh, with their haptic features")
-    _add_object_options(poses)
-    _add_sampling_options(poses)
-    poses.add_argument("--poses", metavar="FILE", help='check these pinches instead: JSON list of {"p1_mm": [...], "p2_mm": [...]}')
-    poses.add_argument("--format", choices=("json", "csv"), default="json", help="output format (default json)")
-
-    features = sub.add_parser("features", help="the features of one given pinch, and whether it is feasible")
-    _add_object_options(features)
-    features.add_argument("--p1", required=True, metavar="X,Y,Z", help="first contact, mm")
-    features.add_argument("--p2", required=True, metavar="X,Y,Z", help="second contact, mm")
-    return parser
 
 
 def _settings(args, **extra) -> PinchSettings:
@@ -383,10 +201,10 @@ def _cmd_match(args) -> int:
     settings = _settings(args, count=args.count, seed=args.seed)
     match_settings = _match_settings(args)
     out = _out_folder(args)
-    tangible_paths = mesh_files(args.tangible, option="--tangible")
-    virtual_paths = mesh_files(args.virtual, option="--virtual")
-    given_t = _given_poses(args.tangible_poses, tangible_paths, "--tangible-poses")
-    given_v = _given_poses(args.virtual_poses, virtual_paths, "--virtual-poses")
+    tangible_specs = object_specs(args.tangible, option="--tangible")
+    virtual_specs = object_specs(args.virtual, option="--virtual", split=args.split)
+    given_t = _given_poses(args.tangible_poses, tangible_specs, "--tangible-poses")
+    given_v = _given_poses(args.virtual_poses, virtual_specs, "--virtual-poses")
     if args.cache and args.no_cache:
         raise ConfigError("--cache and --no-cache: give one of them")
     if args.json and args.format == "jsonl":
@@ -395,11 +213,13 @@ def _cmd_match(args) -> int:
     job = Job(units=args.units, up=args.up, settings=settings,
               match=match_settings, cache_folder=None if cache is None else str(cache.folder.resolve()),
               dump_poses=args.dump_poses, scenes=True, figures=not args.no_figures)
-    tasks = lambda role, paths, given, files: [  # noqa: E731
-        ObjectTask(role, str(p), given[k], files[k] if given[k] is not None else None) for k, p in enumerate(paths)]
+    tasks = lambda role, specs, given, files: [  # noqa: E731
+        ObjectTask(role, spec.path, given[k], files[k] if given[k] is not None else None, spec)
+        for k, spec in enumerate(specs)]
     ui = Presenter(quiet=args.quiet, json_mode=args.json)
-    stems = scene_stems([p.name for p in virtual_paths])
-    run_settings = {**settings.as_dict(), **match_settings.as_dict(), "units": args.units, "up": args.up}
+    stems = scene_stems([spec.display_name for spec in virtual_specs])
+    run_settings = {**settings.as_dict(), **match_settings.as_dict(), "units": args.units, "up": args.up,
+                    "split": args.split or "none"}
 
     def on_failure(f) -> None:
         ui.error(f"{f.error}; skipped, going on with the other files")
@@ -409,8 +229,8 @@ def _cmd_match(args) -> int:
         sink = MatchesSink(stage, args.format, stems)
         with executor(args.jobs, args.scheduler) as ex, sink:
             try:
-                result = run_match(tasks("tangible", tangible_paths, given_t, args.tangible_poses),
-                                   tasks("virtual", virtual_paths, given_v, args.virtual_poses), job, ex,
+                result = run_match(tasks("tangible", tangible_specs, given_t, args.tangible_poses),
+                                   tasks("virtual", virtual_specs, given_v, args.virtual_poses), job, ex,
                                    on_failure=on_failure, on_result=sink.add, step=ui.step,
                                    header=lambda tangibles: sink.start(run_settings, tangibles, args.dump_poses))
             except BrokenProcessPool:
@@ -512,20 +332,30 @@ def _cmd_view(args) -> int:
     if not 0 <= args.port <= 65535:
         raise ConfigError(f"--port {args.port}: not a port; give 0 (any free port) to 65535")
     ui = Presenter(quiet=args.quiet)
-    if Path(args.folder).is_dir():
-        check_writable(Path(args.folder) / "index.html", folder=False)
-        recover(Path(args.folder))  # a run that died while publishing: its result, whole
-    path = write_page(Path(args.folder))
+    folder = Path(args.folder)
+    if folder.is_file():
+        if folder.name not in RESULT_DOCUMENTS:
+            raise ConfigError(f"{folder}: not a result document of pinchmatch; give the -o folder of a match or "
+                              f"demo run, or its {' or '.join(RESULT_DOCUMENTS)}")
+        folder = folder.parent
+    if folder.is_dir():
+        check_writable(folder / "index.html", folder=False)
+        recover(folder)  # a run that died while publishing: its result, whole
+    path = write_page(folder)
     ui.note(f"wrote {path}")
     if not args.serve:
+        if args.open:
+            _open_in_browser(path.resolve().as_uri(), ui)
         return 0
     try:
-        server = make_server(Path(args.folder), port=args.port)
+        server = make_server(folder, port=args.port)
     except OSError as exc:
         raise ConfigError(f"--port {args.port}: cannot serve there ({exc.strerror}); try --port 0") from None
     host, port = server.server_address[:2]
     # the address is printed even with --quiet: it is what --serve is for
-    print(f"serving {args.folder} at http://{host}:{port}/index.html (Ctrl-C stops)", flush=True)
+    print(f"serving {folder} at http://{host}:{port}/index.html (Ctrl-C stops)", flush=True)
+    if args.open:
+        _open_in_browser(f"http://{host}:{port}/index.html", ui)
     try:
         server.serve_forever()
     except KeyboardInterrupt:
@@ -533,6 +363,22 @@ def _cmd_view(args) -> int:
     finally:
         server.server_close()
     return 0
+
+
+#: the documents of a result folder that ``view`` also accepts in its place
+RESULT_DOCUMENTS = ("matches.json", "matches.jsonl", "study.json")
+
+
+def has_display() -> bool:
+    """Whether a browser window can open here: macOS and Windows, or an X11 or Wayland display."""
+    return sys.platform in ("darwin", "win32") or bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
+def _open_in_browser(url: str, ui) -> None:
+    import webbrowser
+
+    if not has_display() or not webbrowser.open(url):
+        ui.note(f"no display to open a browser on; open {url} in one")
 
 
 COMMANDS = {"demo": _cmd_demo, "match": _cmd_match, "view": _cmd_view, "cache": _cmd_cache,
@@ -565,14 +411,14 @@ def _main(argv: list[str]) -> int:
     route_warnings(verbose=verbose)
     try:
         parser = build_parser()
-        _check_option_names(parser, argv)
-        args = parser.parse_args(_join_vector_values(argv))
+        check_option_names(parser, argv)
+        args = parser.parse_args(join_vector_values(argv))
         if args.command is None:
             build_parser().print_help()
             return 2
         return COMMANDS[args.command](args)
     except PinchmatchError as exc:
-        print(f"pinchmatch: error: {exc}", file=sys.stderr)
+        print(f"pinchmatch: error: {exc.cli_message()}", file=sys.stderr)
         return 2
     except RunError as exc:  # not the input's fault: an internal error, in one line
         print(f"pinchmatch: internal error: {exc}", file=sys.stderr)

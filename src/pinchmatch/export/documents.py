@@ -21,6 +21,7 @@ from scipy.spatial.transform import Rotation
 from ..version import __version__
 from ..grasp.features import PinchFeatures
 from ..mesh.load import LoadedMesh
+from ..match.candidates import mass_ratio
 from ..match.search import contact_offset_mm, criterion_table
 from ..grasp.pinches import RULES, Pinches
 from ..mesh.properties import ObjectProperties
@@ -209,6 +210,7 @@ def _choice_record(scene, choice, *, full: bool) -> dict:
         **_rigid(choice.transform),
         "flipped": choice.flipped,
         "contact_offset_mm": json_number(contact_offset_mm(T, V, choice)),
+        "mass_ratio": json_number(mass_ratio(T, V), 6),
         "mass_mismatch_mm": json_vector(choice.mass_delta_mm),
         "mass_mismatch_vertical_mm": json_number(float(choice.mass_delta_mm @ up_t)),
     }
@@ -234,7 +236,12 @@ def _reference_record(ref, model) -> dict:
 def object_entry(candidates, *, dump_poses: bool = False) -> dict:
     """One object of a matches document; with ``dump_poses``, every feasible pose as a record."""
     obj = candidates.obj
-    entry = {"name": candidates.name, **object_section(obj.loaded, obj.props, ray_engine=obj.context.ray_engine_name),
+    spec = obj.spec
+    entry = {"name": candidates.name,
+             "node": obj.loaded.node, "node_path": spec.node_path if spec is not None else None,
+             "manifest": spec.manifest if spec is not None else None, "mass_g": obj.mass_g,
+             "regions": obj.context.regions.as_dict(),
+             **object_section(obj.loaded, obj.props, ray_engine=obj.context.ray_engine_name),
              "pose_count": len(candidates), "poses_given": candidates.given}
     if dump_poses:
         entry["poses"] = pose_records(candidates.pinches, candidates.features)

@@ -53,17 +53,16 @@ def cost_matrix_figure(document: dict) -> Figure:
     height_in = min(1.8 + 0.42 * len(names_v), 30.0)
     fig = Figure(figsize=(width_in, height_in), layout="constrained")
     ax = fig.add_subplot()
-    finite = values[np.isfinite(values)]
-    vmax = max(float(finite.max()) if finite.size else 1.0, 10 * COST_FLOOR)
-    image = ax.imshow(np.clip(values, COST_FLOOR, None), cmap="viridis_r", aspect="auto",
-                      norm=LogNorm(vmin=COST_FLOOR, vmax=vmax))
+    vmin, vmax = cost_color_range(values)
+    image = ax.imshow(np.clip(values, vmin, None), cmap="viridis_r", aspect="auto",
+                      norm=LogNorm(vmin=vmin, vmax=vmax))
     cbar = fig.colorbar(image, ax=ax, shrink=0.9)
     cbar.set_label("cost (log scale)")
     for i in range(len(names_v)):
         for j in range(len(names_t)):
             x = values[i, j]
             text = "none" if not np.isfinite(x) else f"{x:.3g}"
-            dark = np.isfinite(x) and np.log(max(x, COST_FLOOR)) > 0.5 * (np.log(COST_FLOOR) + np.log(vmax))
+            dark = np.isfinite(x) and np.log(max(x, vmin)) > 0.5 * (np.log(vmin) + np.log(vmax))
             ax.text(j, i, text, ha="center", va="center", fontsize=8, color="white" if dark else "black")
         if chosen.get(names_v[i]) in names_t:
             j = names_t.index(chosen[names_v[i]])
@@ -76,8 +75,33 @@ def cost_matrix_figure(document: dict) -> Figure:
     return fig
 
 
+def cost_color_range(values: np.ndarray) -> tuple[float, float]:
+    """(vmin, vmax) of the cost matrix's log colour scale: the data's least positive and greatest cost,
+    so that the colours spread over the costs there are (a cost of 0 takes the lightest colour; one
+    cost alone gets a factor of 2 either side). COST_FLOOR only where no cost is positive."""
+    finite = values[np.isfinite(values)]
+    positive = finite[finite > 0]
+    if not positive.size:
+        return COST_FLOOR, 10 * COST_FLOOR
+    vmin, vmax = float(positive.min()), float(positive.max())
+    return (vmin, vmax) if vmax > vmin else (vmin / 2.0, vmax * 2.0)
+
+
 def _outline(x, y):
     return Rectangle((x - 0.5, y - 0.5), 1, 1, fill=False, edgecolor=LOUD, linewidth=2)
+
+
+#: a bar label's width (4 characters at 8 pt on the 6.4 in figure), as a share of the axis
+LABEL_WIDTH_SHARE = 0.075
+
+
+def _label_x(end: float, top: float) -> float:
+    """Where a bar's value label starts: just after the bar, or just after the 1-JND line where the
+    label would sit on it."""
+    start = end + 0.01 * top
+    if start - 0.01 * top <= 1.0 <= start + LABEL_WIDTH_SHARE * top:
+        start = 1.0 + 0.015 * top
+    return start
 
 
 def criteria_figure(match: dict) -> Figure:
@@ -93,7 +117,7 @@ def criteria_figure(match: dict) -> Figure:
     ax.set_xlim(0, top)
     ax.text(1.0, -0.9, " 1 JND: noticeable", fontsize=8, va="center")
     for k, x in enumerate(jnd):
-        ax.text(min(x, top) + top * 0.01, k, f"{x:.2f}", va="center", fontsize=8)
+        ax.text(_label_x(min(x, top), top), k, f"{x:.2f}", va="center", fontsize=8)
     ax.set_yticks(y, names)
     ax.set_ylim(len(names) - 0.5, -1.3)
     ax.set_xlabel("difference between the tangible and the virtual pose (JND)")

@@ -30,9 +30,9 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from ..errors import OutputError
-from ..files import write_atomic
+from ..files import RESULT_CONTROL, write_atomic
 
-CONTROL = ".pinchmatch"
+CONTROL = RESULT_CONTROL
 
 
 class OutputFolder:

@@ -18,6 +18,7 @@ import numpy as np
 from ..errors import ConfigError, ContactError
 from .features import PinchFeatures, pinch_features
 from ..mesh.load import LoadedMesh, load_mesh
+from ..mesh.manifest import ObjectSpec
 from .pinches import PinchSettings, Pinches, check_pinches
 from .sampling import sample_pinches
 from ..mesh.properties import ObjectProperties, object_properties
@@ -32,15 +33,23 @@ MAX_COORDINATE_MM = 1e6
 
 @dataclass(frozen=True)
 class ObjectAnalysis:
-    """A loaded object with its properties and surface context."""
+    """A loaded object with its properties and surface context, and what its spec says of it
+    (its name, mass and regions: :class:`~pinchmatch.mesh.manifest.ObjectSpec`)."""
 
     loaded: LoadedMesh
     props: ObjectProperties
     context: SurfaceContext
+    spec: ObjectSpec | None = None
 
     @property
     def name(self) -> str:
-        return self.loaded.name
+        """The spec's name, else the scene node's, else the file's name."""
+        return self.spec.name if self.spec is not None and self.spec.name else self.loaded.name
+
+    @property
+    def mass_g(self) -> float | None:
+        """The real or intended mass (g), where the spec gives it."""
+        return self.spec.mass_g if self.spec is not None else None
 
 
 def analyze_object(
@@ -55,13 +64,24 @@ def analyze_object(
 ) -> ObjectAnalysis:
     """Load ``path`` and build its properties and surface context (see :func:`load_mesh`);
     ``progress``, if given, is called with each stage's name as it starts."""
+    spec = ObjectSpec(str(path), units=units, up=up,
+                      com_mm=None if com_mm is None else tuple(np.asarray(com_mm, dtype=np.float64)),
+                      axis=None if axis is None else tuple(np.asarray(axis, dtype=np.float64)))
+    return analyze_spec(spec, patch_radius_mm=patch_radius_mm, progress=progress)
+
+
+def analyze_spec(spec: ObjectSpec, *, patch_radius_mm: float = 8.0, progress=None) -> ObjectAnalysis:
+    """:func:`analyze_object` for an object described by a spec (a manifest entry, a level node):
+    its units, up, centre of mass, axis, node and contact regions."""
     say = progress or (lambda stage: None)
-    loaded = load_mesh(path, units=units, up=up, progress=progress)
+    loaded = load_mesh(spec.path, units=spec.units, up=spec.up, progress=progress, node=spec.node)
     say("mass properties")
-    props = object_properties(loaded.mesh, up=loaded.up, watertight=loaded.watertight, com_mm=com_mm, axis=axis)
+    props = object_properties(loaded.mesh, up=loaded.up, watertight=loaded.watertight,
+                              com_mm=None if spec.com_mm is None else np.array(spec.com_mm),
+                              axis=None if spec.axis is None else np.array(spec.axis))
     say("surface sample and index")
-    context = SurfaceContext(loaded.mesh, patch_radius_mm=patch_radius_mm)
-    return ObjectAnalysis(loaded, props, context)
+    context = SurfaceContext(loaded.mesh, patch_radius_mm=patch_radius_mm, regions=spec.regions)
+    return ObjectAnalysis(loaded, props, context, spec)
 
 
 def find_pinches(obj: ObjectAnalysis, *, settings: PinchSettings = PinchSettings()) -> tuple[Pinches, PinchFeatures]:

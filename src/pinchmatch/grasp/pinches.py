@@ -6,6 +6,9 @@ n1, n2. It is feasible when every rule holds:
 ``surface``
     (user-given contacts only) each point is within ``snap_tolerance_mm``
     of the surface; it is then snapped onto it.
+``region``
+    each contact lies in no ``exclude`` region of the object and, where it has ``only`` regions,
+    in one of them (:mod:`pinchmatch.mesh.regions`; from a manifest).
 ``width``
     ``min_width_mm <= |p1p2| <= max_width_mm``.
 ``antipodal``
@@ -44,7 +47,7 @@ from ..errors import ConfigError
 from .hand import PAD_TOLERANCE_MM, Hand, Reach, reach
 from ..mesh.surface import SurfaceContext
 
-RULES = ("surface", "width", "antipodal", "clearance", "reach", "patch")
+RULES = ("surface", "region", "width", "antipodal", "clearance", "reach", "patch")
 
 #: allowed fingertip-sphere penetration (mm): the pad is soft
 CLEARANCE_TOLERANCE_MM = PAD_TOLERANCE_MM
@@ -190,6 +193,12 @@ def _line(points):
 
 # -- the rules, each written once ------------------------------------------------------------
 
+def region_broken(context: SurfaceContext, points: np.ndarray) -> np.ndarray:
+    if not context.regions:
+        return np.zeros(len(points), dtype=bool)
+    return ~context.regions.allows(points).all(axis=1)
+
+
 def width_broken(points: np.ndarray, settings: PinchSettings) -> np.ndarray:
     width, _ = _line(points)
     return (width < settings.min_width_mm) | (width > settings.max_width_mm)
@@ -216,6 +225,7 @@ def reach_rule(context: SurfaceContext, points: np.ndarray, normals: np.ndarray,
 def cheap_broken(context, points, normals, settings, cone_deg):
     """(n, len(RULES)) bool of the rules that need no patches and no approach search."""
     broken = np.zeros((len(points), len(RULES)), dtype=bool)
+    broken[:, RULES.index("region")] = region_broken(context, points)
     broken[:, RULES.index("width")] = width_broken(points, settings)
     broken[:, RULES.index("antipodal")] = antipodal_broken(points, normals, cone_deg)
     broken[:, RULES.index("clearance")] = clearance_broken(context, points, normals, settings)

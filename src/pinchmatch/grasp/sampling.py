@@ -85,7 +85,7 @@ def _count_first(broken, rejected):
 
 def _uniform_contacts(context, n, rng):
     mesh = context.mesh
-    area = mesh.area_faces
+    area = context.contact_area_mm2  # 0 on triangles the object's regions rule out
     faces = rng.choice(len(area), size=n, p=area / area.sum())
     r = rng.random((n, 2))
     flip = r.sum(axis=1) > 1
@@ -138,6 +138,10 @@ def sample_pinches(
         No candidate passes; the message says how many each rule rejected.
     """
     check_patch_radius(context, settings)
+    if not context.contact_area_mm2.any():
+        raise NoFeasiblePinchError(f"{source}: the object's contact regions leave no surface to touch (every "
+                                   "triangle is in an exclude region or outside the only regions); check "
+                                   "the regions against the file's frame and units")
     rng = np.random.default_rng(settings.seed)
     count = settings.count
     rejected = dict.fromkeys(RULES, 0)
@@ -219,6 +223,7 @@ def _check_picks(context, points, faces, settings, rejected, *, precheck: bool =
 
 
 _RULE_HINTS = {
+    "region": "few contacts fall where the object's regions allow: check exclude and only in its manifest",
     "width": "the object may be too wide or thin for the width limits: check --min-width-mm/--max-width-mm and --units",
     "antipodal": "no opposite surfaces face each other: try a wider --friction-cone-deg",
     "clearance": "a fingertip does not fit: try a smaller --fingertip-radius-mm",

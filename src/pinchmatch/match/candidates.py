@@ -15,7 +15,7 @@ from ..errors import NoFeasiblePinchError
 from ..grasp.analysis import ObjectAnalysis, find_pinches, score_pinches
 from ..grasp.features import PinchFeatures
 from ..grasp.pinches import Pinches, PinchSettings, concat_pinches
-from .cost import feature_table
+from .cost import MASS_COLUMNS, feature_table
 
 
 @dataclass(frozen=True)
@@ -94,3 +94,27 @@ def merge_candidates(first: Candidates, second: Candidates) -> Candidates:
     return Candidates(first.obj, concat_pinches([first.pinches, second.pinches]), features,
                       np.concatenate([first.table, second.table]),
                       np.concatenate([first.index, second.index + offset]), first.given and second.given)
+
+
+def mass_ratio(tangible: Candidates, virtual: Candidates) -> float:
+    """m_V / m_T, the virtual object's mass over the tangible's, where both are known; else 1.
+
+    The weight of an object held in a pinch pulls with a torque m·g × o about the pinch, o being
+    the centre of mass's offset from the pinch midpoint. Felt and seen torques agree when
+    m_T·o_T = m_V·R·o_V, so the ``mass`` criterion compares o_T with (m_V / m_T)·R·o_V: the offset
+    at which the tangible's own mass would pull as the virtual object is seen to. Where a mass is
+    missing on either side, nothing is known about the ratio and the masses are taken as equal:
+    the criterion then compares where the mass sits, as it does with no masses at all.
+    """
+    m_t, m_v = tangible.obj.mass_g, virtual.obj.mass_g
+    return float(m_v / m_t) if m_t and m_v else 1.0
+
+
+def felt_table(table: np.ndarray, ratio: float) -> np.ndarray:
+    """A virtual feature table with its ``mass`` columns scaled by :func:`mass_ratio` (a copy,
+    or the table itself where the ratio is 1)."""
+    if ratio == 1.0:
+        return table
+    out = table.copy()
+    out[..., MASS_COLUMNS] *= ratio
+    return out

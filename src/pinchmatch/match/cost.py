@@ -61,6 +61,8 @@ RANGE_TOLERANCE = 1e-6
 COLUMNS = ("width", "com", "tilt", "normal", "axis", "kmax", "kmin", "mass_along", "mass_perp")
 #: criterion index of each column
 COLUMN_CRITERION = np.array([0, 1, 2, 3, 4, 5, 6, 7, 7])
+#: the columns of the ``mass`` criterion (offset along the pinch line, lever arm)
+MASS_COLUMNS = [7, 8]
 N_COLUMNS = len(COLUMNS)
 
 

@@ -35,7 +35,7 @@ from scipy.optimize import linear_sum_assignment
 
 from ..errors import ConfigError
 from ..grasp.pinches import PinchSettings
-from .candidates import Candidates
+from .candidates import Candidates, felt_table, mass_ratio
 from .cost import (CRITERIA, PAPER_CRITERIA, CostModel, complete_weights, feature_ranges, mass_term,
                    pair_cost_blocks, separable_terms, total)
 from .reference import Reference, reference_pose
@@ -139,15 +139,16 @@ def evaluate_pairs(
     t_rows = tangible.table[it]
     t_props, v_props = tangible.obj.props, virtual.obj.props
     up_t, up_v = tangible.obj.loaded.up, virtual.obj.loaded.up
+    ratio = mass_ratio(tangible, virtual)
     results = []
     for order in (False, True):
-        vp, vn, v_rows = virtual.pinches.points[iv], virtual.pinches.normals[iv], virtual.table[iv]
+        vp, vn, v_rows = virtual.pinches.points[iv], virtual.pinches.normals[iv], felt_table(virtual.table[iv], ratio)
         if order:
             vp, vn, v_rows = vp[:, ::-1], vn[:, ::-1], v_rows[:, ::-1]
         X = register_poses(tp, tn, vp, vn, tangible_com=t_props.com_mm, virtual_com=v_props.com_mm,
                            tangible_axis=t_props.principal_axis, virtual_axis=v_props.principal_axis)
         R = X[:, :3, :3]
-        delta = np.einsum("kij,kj->ki", R, v_props.com_mm - vp.mean(axis=1)) - (t_props.com_mm - tp.mean(axis=1))
+        delta = ratio * np.einsum("kij,kj->ki", R, v_props.com_mm - vp.mean(axis=1)) - (t_props.com_mm - tp.mean(axis=1))
         terms = separable_terms(t_rows, v_rows, model)
         terms[:, 7] = mass_term(t_rows, delta, model)
         flipped = (R @ up_v) @ up_t < FLIP_COSINE
@@ -172,7 +173,8 @@ def _pool(tangible: Candidates, virtual: Candidates, model: CostModel, size: int
     kept_val = np.zeros(0)
     kept_idx = np.zeros(0, dtype=np.int64)
     tau = np.inf
-    blocks = pair_cost_blocks(tangible.table, virtual.table, model, block_rows=block_rows, with_swapped=False)
+    blocks = pair_cost_blocks(tangible.table, felt_table(virtual.table, mass_ratio(tangible, virtual)), model,
+                              block_rows=block_rows, with_swapped=False)
     for start, block, _ in blocks:
         flat = block.ravel()
         if not np.isfinite(tau) and flat.size > 4 * size:
@@ -230,7 +232,10 @@ class Choice:
       to the tangible's, so that the fingertips meet;
     - ``flipped``: ``bool``, the transform turns the virtual object's up direction more than 90°;
     - ``mass_delta_mm``: ``(3,) float64``, the centre-of-mass offset from the pinch midpoint as seen
-      (virtual, registered) minus as felt (tangible), in the tangible's frame, mm.
+      (virtual, registered, its mass relative to the tangible's) minus as felt (tangible), in the
+      tangible's frame, mm;
+    - ``tangible_name``, ``virtual_name``: ``str``, the objects' names (a manifest's ``name``, a level
+      node's, else the file's).
     """
 
     virtual: int
@@ -243,13 +248,15 @@ class Choice:
     transform: np.ndarray
     flipped: bool
     mass_delta_mm: np.ndarray
+    tangible_name: str = ""
+    virtual_name: str = ""
 
 
 @dataclass
 class VirtualMatch:
     """The result for one virtual object.
 
-    - ``virtual``: ``int``, its index in the scene's virtual objects;
+    - ``virtual``: ``int``, its index in the scene's virtual objects; ``name``: ``str``, its name;
     - ``best``: the :class:`Choice` of least cost, or ``None`` (then ``reason``, a one-line ``str``,
       says why: no allowed registration, or every tangible taken under ``one_to_one``);
     - ``alternatives``: up to ``top_k`` further ``Choice`` s, by cost, none a near duplicate of an
@@ -263,6 +270,7 @@ class VirtualMatch:
     alternatives: list
     reason: str | None = None
     reference: Reference | None = None
+    name: str = ""
 
 
 @dataclass
@@ -346,7 +354,8 @@ class Search:
             p, k = entries[owner[i]][0], local[i]
             r = p.result
             picks.append(Choice(j, p.tangible, int(p.it[k]), int(p.iv[k]), float(r.cost[k]), r.terms[k],
-                                bool(r.swapped[k]), r.transform[k], bool(r.flipped[k]), r.mass_delta_mm[k]))
+                                bool(r.swapped[k]), r.transform[k], bool(r.flipped[k]), r.mass_delta_mm[k],
+                                self.tangibles[p.tangible].name, V.name))
             near = (owner == owner[i]) & (pinch_distance(t_pinch, t_pinch[i]) < self.settings.distinct_mm) \
                 & (pinch_distance(v_pinch, v_pinch[i]) < self.settings.distinct_mm)
             alive &= ~near
@@ -399,7 +408,7 @@ def _match(search: "Search", j: int, allowed: list[int], reason: str | None, *,
     best = picks[0] if picks else None
     ref = reference_pose(search.tangibles[best.tangible], best.t_pose, search.virtuals[j], search.model,
                          settings=pinch_settings) if best else None
-    return VirtualMatch(j, best, picks[1:], None if best else reason, ref)
+    return VirtualMatch(j, best, picks[1:], None if best else reason, ref, search.virtuals[j].name)
 
 
 def match_virtual(tangibles: list[Candidates], virtual: Candidates, model: CostModel,
@@ -446,7 +455,7 @@ def criterion_table(tangible: Candidates, virtual: Candidates, choice: Choice, m
     """Per criterion in use: weight, contribution (in the run's normalisation), the difference in
     just-noticeable differences (root mean square over the criterion's entries) and ``noticeable``."""
     t_row = tangible.table[choice.t_pose][None]
-    v_row = virtual.table[choice.v_pose][None]
+    v_row = felt_table(virtual.table[choice.v_pose][None], mass_ratio(tangible, virtual))
     if choice.swapped:
         v_row = v_row[:, ::-1]
     jnd_model = model.as_jnd()

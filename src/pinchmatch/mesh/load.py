@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import logging
+import math
 import os
 import struct
 import urllib.parse
@@ -19,7 +20,9 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from ..errors import ConfigError, MeshError
+from ..errors import ConfigError, MeshError, option
+from ..files import holds_result
+from .level import LevelNode, level_nodes, node_mesh
 
 log = logging.getLogger(__name__)
 
@@ -51,6 +54,8 @@ UP_VECTORS = {
 #: an object whose largest side is outside this range (mm) surely has the wrong units:
 #: nothing smaller than a grain of rice or larger than a room is pinched.
 PLAUSIBLE_SIZE_MM = (2.0, 10_000.0)
+#: the sizes (mm) of objects a hand holds in a pinch, for suggesting units
+GRASPABLE_SIZE_MM = (10.0, 500.0)
 
 #: a connected piece with less than this fraction of the total area is a loose sliver
 SLIVER_AREA_FRACTION = 1e-3
@@ -76,6 +81,8 @@ class LoadedMesh:
         What was repaired, one human-readable entry each.
     warnings : list of str
         What the user should know about the result.
+    node : str or None
+        The scene node it is, for one node of a level (its name is then the object's name).
     """
 
     mesh: trimesh.Trimesh
@@ -86,10 +93,11 @@ class LoadedMesh:
     watertight: bool
     repairs: list = field(default_factory=list)
     warnings: list = field(default_factory=list)
+    node: str | None = None
 
     @property
     def name(self) -> str:
-        return Path(self.path).name
+        return self.node if self.node is not None else Path(self.path).name
 
 
 def parse_up(up: str, *, source: str = "--up") -> tuple[str, np.ndarray]:
@@ -105,7 +113,8 @@ def parse_up(up: str, *, source: str = "--up") -> tuple[str, np.ndarray]:
 def mesh_files(paths, *, option: str) -> list[Path]:
     """Each path as given when it is a file (or missing: loading will say so), and every mesh file
     below each folder, searched recursively by extension (through links to folders, each folder
-    once), hidden files and folders skipped, sorted. A folder that cannot be read is listed as it
+    once), hidden files and folders skipped, and folders holding a pinchmatch result skipped
+    whole (their meshes are its outputs), sorted. A folder that cannot be read is listed as it
     is, so that loading names it and a run leaves it out under ``failed``.
 
     Raises ConfigError for a readable folder that holds no mesh file.
@@ -118,8 +127,9 @@ def mesh_files(paths, *, option: str) -> list[Path]:
             continue
         found, unreadable = _walk_meshes(path)
         if not found and not unreadable:
-            raise ConfigError(f"{path}: {option} names a folder with no mesh file in it "
-                              f"({', '.join(MESH_EXTENSIONS)}, searched recursively); point it at your meshes")
+            what = "holds a pinchmatch result, whose meshes are outputs, not inputs" if holds_result(path) else \
+                f"has no mesh file in it ({', '.join(MESH_EXTENSIONS)}, searched recursively)"
+            raise ConfigError(f"{path}: {option} names a folder that {what}; point it at your meshes")
         out.extend(sorted(found + unreadable))
     return out
 
@@ -136,6 +146,10 @@ def _walk_meshes(root: Path) -> tuple[list[Path], list[Path]]:
             dirs[:] = []
             continue
         seen.add(real)
+        if holds_result(folder):  # pinchmatch's own output (scenes, objects): never an input
+            log.info("%s: holds a pinchmatch result; its meshes are left out", folder)
+            dirs[:] = []
+            continue
         dirs[:] = sorted(d for d in dirs if not d.startswith("."))
         found += [Path(folder) / f for f in files
                   if not f.startswith(".") and Path(f).suffix.lower() in MESH_EXTENSIONS
@@ -284,9 +298,27 @@ def _check_precision(path: Path, file_type: str, mesh: trimesh.Trimesh) -> None:
                         "floats cannot hold that detail so far out; move the object near the origin and re-export")
 
 
-def _read(path: Path, file_type: str) -> trimesh.Trimesh:
+def _check_readable(path: Path) -> None:
+    """Raise MeshError unless ``path`` is a regular file this process can read."""
+    if not path.exists():
+        raise MeshError(f"{path}: no such file; check the path")
+    if path.is_dir():
+        if not os.access(path, os.R_OK | os.X_OK):
+            raise MeshError(f"{path}: a folder that cannot be read (permission denied), so its meshes are "
+                            "left out; check its permissions")
+        raise MeshError(f"{path}: is a folder, not a mesh file; give a mesh file inside it")
     try:
-        loaded = trimesh.load(str(path), file_type=file_type, process=False)
+        with open(path, "rb") as fh:
+            fh.read(1)
+    except OSError as exc:
+        raise MeshError(f"{path}: cannot be read ({exc.strerror or exc}); check its permissions") from None
+    if not path.is_file():
+        raise MeshError(f"{path}: not a regular file (a device or a pipe); give a mesh file")
+
+
+def _load(path: Path, file_type: str, **kwargs):
+    try:
+        return trimesh.load(str(path), file_type=file_type, process=False, **kwargs)
     except (IndexError,) as exc:
         raise MeshError(
             f"{path}: a face refers to a vertex that does not exist ({exc}); "
@@ -299,6 +331,30 @@ def _read(path: Path, file_type: str) -> trimesh.Trimesh:
             "the file is corrupt or truncated, re-export it"
         ) from None
 
+
+def read_level(path: str | os.PathLike) -> list[LevelNode]:
+    """The mesh nodes of a glTF/GLB scene (see :mod:`pinchmatch.mesh.level`), for splitting it into
+    one object per node. Raises MeshError for a file that cannot be read or holds no mesh node."""
+    path = Path(path)
+    _check_readable(path)
+    file_type = _file_type(path)
+    if file_type not in GLTF_TYPES:
+        raise MeshError(f"{path}: only a glTF or GLB scene can be split into its nodes; "
+                        "leave out split = \"nodes\" for this file")
+    nodes = level_nodes(_load(path, file_type, force="scene"))
+    if not nodes:
+        raise MeshError(f"{path}: the scene has no node holding triangles; re-export the level with its meshes")
+    return nodes
+
+
+def _read(path: Path, file_type: str, node: str | None = None) -> trimesh.Trimesh:
+    if node is not None:
+        mesh = node_mesh(_load(path, file_type, force="scene"), node)
+        if mesh is None:
+            raise MeshError(f"{path}: the scene has no mesh node named {node!r}; "
+                            "check the name against the file (pinchmatch names level nodes as the file does)")
+        return mesh
+    loaded = _load(path, file_type)
     if isinstance(loaded, trimesh.Scene):
         meshes = [g for g in loaded.dump() if isinstance(g, trimesh.Trimesh)] if loaded.geometry else []
         meshes = [m for m in meshes if len(m.faces)]
@@ -345,13 +401,24 @@ def _check_units(path: Path, extent_mm: float, units_in: str) -> None:
     if lo <= extent_mm <= hi:
         return
     raw = extent_mm / UNITS_MM[units_in]
-    fits = [u for u, s in UNITS_MM.items() if lo <= raw * s <= hi and u != units_in]
-    hint = f"try --units {fits[0]}" if fits else "scale the mesh to real size"
     problem = "small" if extent_mm < lo else "large"
     raise MeshError(
         f"{path}: mesh is {extent_mm:.4g} mm across when read in {units_in} (too {problem} "
-        f"to pinch; were its units not {units_in}?); {hint}"
+        f"to pinch; were its units not {units_in}?); {_units_hint(raw, units_in)}"
     )
+
+
+def _units_hint(raw: float, units_in: str) -> str:
+    """The units that make an object ``raw`` file units across a size a hand holds, both where two do."""
+    size = {u: raw * s for u, s in UNITS_MM.items() if u != units_in}
+    lo, hi = GRASPABLE_SIZE_MM
+    fits = sorted((u for u, mm in size.items() if lo <= mm <= hi), key=lambda u: abs(math.log(size[u] / 100.0)))
+    if not fits:
+        plausible = [u for u, mm in size.items() if PLAUSIBLE_SIZE_MM[0] <= mm <= PLAUSIBLE_SIZE_MM[1]]
+        fits = sorted(plausible, key=lambda u: abs(math.log(size[u] / 100.0)))[:1]
+    if not fits:
+        return "scale the mesh to real size"
+    return "read it with " + " or ".join(f"{option('units', u)} ({size[u]:.3g} mm across)" for u in fits[:2])
 
 
 def _repair(mesh: trimesh.Trimesh, *, indexed: bool) -> list[str]:
@@ -421,6 +488,7 @@ def load_mesh(
     units: str | None = None,
     up: str | None = None,
     progress: Callable[[str], None] | None = None,
+    node: str | None = None,
 ) -> LoadedMesh:
     """Read one object from a mesh file, in millimetres.
 
@@ -437,6 +505,9 @@ def load_mesh(
     progress : callable, optional
         Called with the name of each stage as it starts ("reading 250 MiB", "repairing"), so that
         a large file shows where its load is.
+    node : str, optional
+        Only this mesh node of a glTF/GLB scene, in world coordinates (a level split into its
+        nodes, :func:`read_level`).
 
     Raises
     ------
@@ -450,20 +521,7 @@ def load_mesh(
         raise ConfigError(f"--units: unknown unit {units!r}; use one of {', '.join(UNITS_MM)}")
     if up is not None:
         parse_up(up)
-    if not path.exists():
-        raise MeshError(f"{path}: no such file; check the path")
-    if path.is_dir():
-        if not os.access(path, os.R_OK | os.X_OK):
-            raise MeshError(f"{path}: a folder that cannot be read (permission denied), so its meshes are "
-                            "left out; check its permissions")
-        raise MeshError(f"{path}: is a folder, not a mesh file; give a mesh file inside it")
-    try:
-        with open(path, "rb") as fh:
-            fh.read(1)
-    except OSError as exc:
-        raise MeshError(f"{path}: cannot be read ({exc.strerror or exc}); check its permissions") from None
-    if not path.is_file():
-        raise MeshError(f"{path}: not a regular file (a device or a pipe); give a mesh file")
+    _check_readable(path)
     file_type = _file_type(path)
     size = path.stat().st_size
     if size == 0:
@@ -478,7 +536,7 @@ def load_mesh(
 
     say = progress or (lambda stage: None)
     say(f"reading {size / 2**20:.0f} MiB" if size >= 2**20 else "reading")
-    mesh = _read(path, file_type)
+    mesh = _read(path, file_type, node)
     _validate_arrays(path, mesh)
     _check_precision(path, file_type, mesh)
 
@@ -525,4 +583,5 @@ def load_mesh(
         watertight=watertight,
         repairs=repairs,
         warnings=warnings,
+        node=node,
     )

@@ -20,6 +20,8 @@ import numpy as np
 import trimesh
 from scipy.spatial import cKDTree
 
+from .regions import ContactRegions
+
 log = logging.getLogger(__name__)
 
 #: samples per patch disc of radius r on a flat surface (sets the sample density)
@@ -166,11 +168,19 @@ class SurfaceContext:
         The surface, in mm.
     patch_radius_mm : float
         Contact patch radius; sets the density of the dense sample.
+    regions : ContactRegions, optional
+        Where contacts may not, or must, lie (:mod:`pinchmatch.mesh.regions`); default: anywhere.
     """
 
-    def __init__(self, mesh: trimesh.Trimesh, *, patch_radius_mm: float = 8.0):
+    def __init__(self, mesh: trimesh.Trimesh, *, patch_radius_mm: float = 8.0,
+                 regions: ContactRegions = ContactRegions()):
         self.mesh = mesh
         self.patch_radius_mm = float(patch_radius_mm)
+        self.regions = regions
+        #: (f,) area of each triangle that contacts may be drawn from: 0 where the regions allow none
+        self.contact_area_mm2 = np.asarray(mesh.area_faces, dtype=np.float64)
+        if regions:
+            self.contact_area_mm2 = self.contact_area_mm2 * regions.faces_that_may_hold_contacts(mesh.triangles)
         area = float(mesh.area)
         per_sample = max(np.pi * patch_radius_mm**2 / SAMPLES_PER_PATCH, area / MAX_SAMPLES)
         self.sample = sample_surface(

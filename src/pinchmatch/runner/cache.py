@@ -36,10 +36,11 @@ import numpy as np
 import trimesh
 
 from ..version import __version__
-from ..grasp.analysis import ObjectAnalysis, analyze_object
+from ..grasp.analysis import ObjectAnalysis, analyze_spec
 from ..grasp.features import PinchFeatures
 from ..files import AtomicFile
 from ..mesh.load import LoadedMesh, load_mesh
+from ..mesh.manifest import ObjectSpec, spec_from_dict, spec_to_dict
 from ..match.candidates import Candidates, candidate_poses
 from ..match.cost import feature_table
 from ..errors import ConfigError, OutputError
@@ -54,7 +55,8 @@ CACHE_FORMAT = 2
 #: modules whose code shapes an object's candidates: their source is part of every key
 ALGORITHM_MODULES = ("mesh/load", "mesh/surface", "mesh/properties", "grasp/curvature", "grasp/jets", "grasp/hand",
                      "grasp/pinches", "grasp/sampling", "grasp/spread", "grasp/spread_kernel", "grasp/features",
-                     "grasp/analysis", "match/candidates", "match/cost", "runner/cache")
+                     "grasp/analysis", "match/candidates", "match/cost", "runner/cache", "mesh/level",
+                     "mesh/regions", "mesh/manifest")
 ENTRY_NAME = re.compile(r"^[0-9a-f]{64}\.npz$")
 TEMP_NAME = re.compile(r"^\.[0-9a-f]{64}\.npz\..+\.tmp$")
 #: what reading a damaged entry can raise; anything else is a bug and is raised
@@ -113,13 +115,15 @@ class FeatureCache:
         self.folder = Path(folder) if folder is not None else default_cache_dir()
         self.hits = self.misses = 0
 
-    def key(self, path: str | os.PathLike, *, units: str | None, up: str | None, patch_radius_mm: float,
-            settings: PinchSettings, given: tuple[np.ndarray, np.ndarray] | None = None) -> str:
+    def key(self, spec: ObjectSpec, *, patch_radius_mm: float, settings: PinchSettings,
+            given: tuple[np.ndarray, np.ndarray] | None = None) -> str:
+        """The entry of an object: its file's bytes, what in its spec shapes its candidates (units,
+        up, centre of mass, axis, regions, scene node), the settings and the given poses."""
         h = hashlib.sha256()
-        h.update(_file_digest(Path(path)).encode())
+        h.update(_file_digest(Path(spec.path)).encode())
         h.update(json.dumps({"format": CACHE_FORMAT, "version": __version__, "algorithm": ALGORITHM_DIGEST,
-                             "suffix": Path(path).suffix.lower(),
-                             "units": units, "up": up, "patch_radius_mm": float(patch_radius_mm),
+                             "suffix": Path(spec.path).suffix.lower(), "object": spec.shape_key(),
+                             "patch_radius_mm": float(patch_radius_mm),
                              "settings": settings.as_dict()}, sort_keys=True).encode())
         if given is not None:
             for array in given:
@@ -129,7 +133,7 @@ class FeatureCache:
     def _path(self, key: str) -> Path:
         return self.folder / f"{key}.npz"
 
-    def load(self, key: str, path: str | os.PathLike, *, patch_radius_mm: float) -> Candidates | None:
+    def load(self, key: str, spec: ObjectSpec, *, patch_radius_mm: float) -> Candidates | None:
         """The candidates stored under ``key``, or None (a missing, unreadable or mismatched entry)."""
         entry = self._path(key)
         if not entry.is_file():
@@ -143,7 +147,7 @@ class FeatureCache:
             log.warning("cache entry %s unusable (%s: %s); computing again", entry.name, type(exc).__name__, exc)
             entry.unlink(missing_ok=True)
             return None
-        return _rebuild(meta, arrays, path, patch_radius_mm=patch_radius_mm)
+        return _rebuild(meta, arrays, spec, patch_radius_mm=patch_radius_mm)
 
     def store(self, key: str, candidates: Candidates) -> None:
         """Write the entry atomically; a folder that cannot be written is logged, not raised."""
@@ -228,7 +232,8 @@ def to_payload(candidates: Candidates) -> tuple[dict, dict]:
     """(meta, arrays): what a cache entry holds, plain JSON and numpy arrays; :func:`from_payload`
     makes the same candidates again. Also how parallel workers hand candidates over."""
     loaded = candidates.obj.loaded
-    meta = {"version": __version__, "path": str(loaded.path), "units_in": loaded.units_in,
+    spec = candidates.obj.spec or ObjectSpec(str(loaded.path))
+    meta = {"version": __version__, "spec": spec_to_dict(spec), "units_in": loaded.units_in,
             "up_label": loaded.up_label, "watertight": bool(loaded.watertight), "repairs": list(loaded.repairs),
             "warnings": list(loaded.warnings), "given": bool(candidates.given),
             "patch_radius_mm": candidates.obj.context.patch_radius_mm,
@@ -240,20 +245,24 @@ def to_payload(candidates: Candidates) -> tuple[dict, dict]:
     return meta, arrays
 
 
-def from_payload(meta: dict, arrays: dict, path=None, *, patch_radius_mm: float | None = None) -> Candidates:
+def from_payload(meta: dict, arrays: dict, *, patch_radius_mm: float | None = None) -> Candidates:
     """Candidates as a cold run makes them, bit for bit, from :func:`to_payload`'s output."""
-    return _rebuild(meta, arrays, meta["path"] if path is None else path,
+    return _rebuild(meta, arrays, spec_from_dict(meta["spec"]),
                     patch_radius_mm=meta["patch_radius_mm"] if patch_radius_mm is None else patch_radius_mm)
 
 
-def _rebuild(meta: dict, arrays: dict, path, *, patch_radius_mm: float) -> Candidates:
-    """Candidates as a cold run makes them, from an entry's arrays."""
+def _rebuild(meta: dict, arrays: dict, spec: ObjectSpec, *, patch_radius_mm: float) -> Candidates:
+    """Candidates as a cold run makes them, from an entry's arrays, described by ``spec`` (its
+    name and mass may differ from the run that stored the entry: they are not in the key)."""
     mesh = trimesh.Trimesh(arrays["vertices"], arrays["faces"], process=False)
-    loaded = LoadedMesh(mesh=mesh, path=str(path), units_in=meta["units_in"], up_label=meta["up_label"],
+    loaded = LoadedMesh(mesh=mesh, path=str(spec.path), units_in=meta["units_in"], up_label=meta["up_label"],
                         up=arrays["up"], watertight=meta["watertight"], repairs=meta["repairs"],
-                        warnings=meta["warnings"])
-    props = object_properties(mesh, up=loaded.up, watertight=loaded.watertight)
-    obj = ObjectAnalysis(loaded, props, SurfaceContext(mesh, patch_radius_mm=patch_radius_mm))
+                        warnings=meta["warnings"], node=spec.node)
+    props = object_properties(mesh, up=loaded.up, watertight=loaded.watertight,
+                              com_mm=None if spec.com_mm is None else np.array(spec.com_mm),
+                              axis=None if spec.axis is None else np.array(spec.axis))
+    obj = ObjectAnalysis(loaded, props, SurfaceContext(mesh, patch_radius_mm=patch_radius_mm, regions=spec.regions),
+                         spec)
     pinches = Pinches(**{name: arrays[f"pinches.{name}"] for name in PINCH_ARRAYS}, rejected=meta["rejected"])
     features = PinchFeatures(**{name: arrays[f"features.{name}"] for name in FEATURE_ARRAYS})
     n = len(pinches)
@@ -263,30 +272,33 @@ def _rebuild(meta: dict, arrays: dict, path, *, patch_radius_mm: float) -> Candi
     return Candidates(obj, pinches, features, feature_table(features), arrays["index"], meta["given"])
 
 
-def cached_candidates(path: str | os.PathLike, *, cache: FeatureCache | None, units: str | None = None,
+def cached_candidates(path: str | os.PathLike | ObjectSpec, *, cache: FeatureCache | None, units: str | None = None,
                       up: str | None = None, settings: PinchSettings = PinchSettings(),
                       given: tuple[np.ndarray, np.ndarray] | None = None, source: str | None = None,
                       progress=None) -> Candidates:
     """An object's candidate poses: from ``cache`` when it holds them, else computed (and stored).
-    The patch radius is the settings' (the object is analysed for it); ``progress`` is called with
-    each stage of loading a computed object."""
+
+    ``path`` is a mesh file, read with ``units`` and ``up``, or an object's spec (a manifest entry,
+    a level node), whose own units and up come first. The patch radius is the settings' (the
+    object is analysed for it); ``progress`` is called with each stage of loading a computed object."""
+    spec = path if isinstance(path, ObjectSpec) else ObjectSpec(str(path))
+    spec = spec.with_defaults(units=units, up=up)
     patch_radius_mm = settings.patch_radius_mm
     key = None
     if cache is not None:
         try:
-            if not Path(path).is_file():
-                raise FileNotFoundError(path)
-            key = cache.key(path, units=units, up=up, patch_radius_mm=patch_radius_mm, settings=settings,
-                            given=given)
+            if not Path(spec.path).is_file():
+                raise FileNotFoundError(spec.path)
+            key = cache.key(spec, patch_radius_mm=patch_radius_mm, settings=settings, given=given)
         except OSError:
-            load_mesh(path, units=units, up=up)  # raises the loader's one-line error for this path
+            load_mesh(spec.path, units=spec.units, up=spec.up)  # raises the loader's one-line error for this path
             raise
-        hit = cache.load(key, path, patch_radius_mm=patch_radius_mm)
+        hit = cache.load(key, spec, patch_radius_mm=patch_radius_mm)
         if hit is not None:
             cache.hits += 1
             return hit
         cache.misses += 1
-    obj = analyze_object(path, units=units, up=up, patch_radius_mm=patch_radius_mm, progress=progress)
+    obj = analyze_spec(spec, patch_radius_mm=patch_radius_mm, progress=progress)
     candidates = candidate_poses(obj, settings=settings, given=given, source=source)
     if cache is not None:
         cache.store(key, candidates)

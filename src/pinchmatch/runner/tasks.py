@@ -25,6 +25,7 @@ from ..grasp.pinches import PinchSettings
 from ..match.candidates import Candidates
 from ..match.cost import feature_bounds
 from ..match.search import MatchSettings, Search, cost_row, match_virtual
+from ..mesh.manifest import ObjectSpec
 from .cache import FeatureCache, cached_candidates, to_payload
 from .worker import report_stage, tangibles
 
@@ -49,6 +50,12 @@ class ObjectTask:
     path: str
     given: tuple | None = None  # (p1_mm, p2_mm) arrays of given poses
     source: str | None = None  # the poses file they came from
+    spec: ObjectSpec | None = None  # a manifest entry or a level node (None: the file, with the job's options)
+
+    @property
+    def label(self) -> str:
+        """How messages name the object: its file, and the scene node for one node of a level."""
+        return f"{self.path}#{self.spec.node}" if self.spec is not None and self.spec.node else self.path
 
 
 @dataclass(frozen=True)
@@ -88,9 +95,9 @@ class VirtualResult:
 
 def _candidates(task: ObjectTask, job: Job) -> tuple[Candidates, bool]:
     cache = FeatureCache(job.cache_folder) if job.cache_folder is not None else None
-    c = cached_candidates(task.path, cache=cache, units=job.units, up=job.up, settings=job.settings,
+    c = cached_candidates(task.spec or task.path, cache=cache, units=job.units, up=job.up, settings=job.settings,
                           given=task.given, source=task.source,
-                          progress=lambda stage: report_stage(Path(task.path).name, stage))
+                          progress=lambda stage: report_stage(Path(task.label).name, stage))
     return c, bool(cache is not None and cache.hits)
 
 
@@ -103,7 +110,7 @@ def _per_file(fn: Callable) -> Callable:
             return fn(item, *args)
         except PinchmatchError as exc:
             t = item if isinstance(item, ObjectTask) else item[0]
-            return Failure(t.role, t.path, str(exc))
+            return Failure(t.role, t.label, exc.cli_message())
 
     return task
 

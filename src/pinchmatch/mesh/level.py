@@ -1,0 +1,59 @@
+"""Game levels: one glTF/GLB scene holding many objects, each mesh node its own object.
+
+A *node object* is one node of the scene graph that carries a mesh, in world coordinates (every
+transform from the scene's root down to it applied). It is named by the node's name, which glTF
+exporters keep from the editor and trimesh makes unique within the scene, so the name is stable
+across runs of the same file. Its *path* is the chain of node names from the root, joined by
+``/``, which an engine can follow to find the node again. An instanced mesh (one mesh under
+several nodes) gives one object per node.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import trimesh
+
+
+@dataclass(frozen=True)
+class LevelNode:
+    """A mesh node of a scene: its name, its path from the root and how many triangles it holds."""
+
+    name: str
+    path: str
+    faces: int
+
+
+def _path(scene: trimesh.Scene, node: str) -> str:
+    parents = scene.graph.transforms.parents
+    chain = [node]
+    while chain[-1] in parents and parents[chain[-1]] != scene.graph.base_frame:
+        chain.append(parents[chain[-1]])
+    return "/".join(reversed(chain))
+
+
+def level_nodes(scene: trimesh.Scene) -> list[LevelNode]:
+    """Every node of ``scene`` that carries triangles, in the order of their paths."""
+    out = []
+    for node in scene.graph.nodes_geometry:
+        _, geometry = scene.graph[node]
+        mesh = scene.geometry.get(geometry)
+        if isinstance(mesh, trimesh.Trimesh) and len(mesh.faces):
+            out.append(LevelNode(str(node), _path(scene, node), int(len(mesh.faces))))
+    return sorted(out, key=lambda n: (n.path, n.name))
+
+
+def node_mesh(scene: trimesh.Scene, node: str) -> trimesh.Trimesh | None:
+    """The triangles of ``node`` in world coordinates, or None when the scene has no such mesh node."""
+    if node not in scene.graph.nodes_geometry:
+        return None
+    transform, geometry = scene.graph[node]
+    mesh = scene.geometry.get(geometry)
+    if not isinstance(mesh, trimesh.Trimesh):
+        return None
+    vertices = np.asarray(mesh.vertices, dtype=np.float64) @ transform[:3, :3].T + transform[:3, 3]
+    faces = np.asarray(mesh.faces, dtype=np.int64)
+    if np.linalg.det(transform[:3, :3]) < 0:  # a mirroring transform turns the winding inside out
+        faces = faces[:, ::-1]
+    return trimesh.Trimesh(vertices=vertices, faces=faces, process=False)

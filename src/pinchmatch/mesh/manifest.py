@@ -1,0 +1,298 @@
+"""Object manifests: per-object loading options, mass and contact regions, in a TOML file.
+
+A manifest lists objects (``[[object]]`` tables) with the file each comes from and what one
+``--units`` and ``--up`` per run cannot say: props in millimetres beside assets in metres, a
+prop with a lead weight inside, a scan with an artefact. Every key but ``file`` is optional; the
+manifest's ``[defaults]`` table, then the command line's options, fill in what an object leaves
+out. The format is in ``docs/manifest.md`` with a JSON Schema in ``docs/manifest.schema.json``::
+
+    [defaults]
+    units = "m"
+
+    [[object]]
+    file = "props/can.stl"           # relative to the manifest's folder
+    name = "can"
+    units = "mm"
+    up = "z"
+    com_mm = [0, 0, 38]              # in the file's frame, mm
+    axis = [0, 0, 1]
+    mass_g = 350
+    exclude = [{ center_mm = [0, 0, 76], radius_mm = 12 }]
+    only = [{ min_mm = [-40, -40, 10], max_mm = [40, 40, 60] }]
+
+    [[object]]
+    file = "level.glb"
+    split = "nodes"                  # every mesh node its own object
+
+The whole manifest is checked before any work: :func:`read_manifest` raises one
+:class:`~pinchmatch.errors.ConfigError` listing every problem, one line each, naming the file,
+the object and the key.
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+import os
+import tomllib
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+from ..errors import ConfigError
+from .load import GLTF_TYPES, MESH_EXTENSIONS, UNITS_MM, UP_VECTORS, mesh_files, read_level
+from .regions import ContactRegions, Region
+
+MANIFEST_SUFFIX = ".toml"
+#: the keys of an object; ``[defaults]`` takes all but ``file`` and ``name``
+OBJECT_KEYS = ("file", "name", "units", "up", "com_mm", "axis", "mass_g", "split", "exclude", "only")
+DEFAULT_KEYS = tuple(k for k in OBJECT_KEYS if k not in ("file", "name"))
+SPLITS = ("none", "nodes")
+#: a manifest is a hand-written list: at most this big
+MAX_MANIFEST_BYTES = 4 * 2**20
+#: the heaviest object a pinch lifts (g), with margin
+MAX_MASS_G = 20_000.0
+
+
+@dataclass(frozen=True)
+class ObjectSpec:
+    """How to read and describe one object: its file and what the manifest or command line says.
+
+    ``None`` means "not given": the loader's default (units, up), the computed value (centre of
+    mass, axis), unknown (mass), the file's or node's name (name).
+    """
+
+    path: str
+    name: str | None = None
+    units: str | None = None
+    up: str | None = None
+    com_mm: tuple | None = None
+    axis: tuple | None = None
+    mass_g: float | None = None
+    regions: ContactRegions = ContactRegions()
+    split: str | None = None  # "nodes": one object per mesh node of a glTF/GLB scene
+    node: str | None = None  # one mesh node of a level
+    node_path: str | None = None
+    manifest: str | None = None  # the manifest it was listed in
+
+    @property
+    def display_name(self) -> str:
+        """Its name: the given one, else the scene node's, else the file's."""
+        return self.name or self.node or Path(self.path).name
+
+    def with_defaults(self, *, units: str | None, up: str | None) -> "ObjectSpec":
+        """The spec with the command line's units and up where it gives none."""
+        return replace(self, units=self.units or units, up=self.up or up)
+
+    def shape_key(self) -> dict:
+        """What shapes the object's candidates (a cache key): not its name or mass."""
+        return {"units": self.units, "up": self.up, "com_mm": self.com_mm, "axis": self.axis,
+                "regions": self.regions.as_dict(), "node": self.node}
+
+
+class _Problems:
+    """Problems found in one manifest, each one line: 'FILE: object K (NAME): KEY: what; fix'."""
+
+    def __init__(self, path: Path):
+        self.path, self.lines = path, []
+
+    def add(self, where: str, key: str | None, text: str) -> None:
+        self.lines.append(f"{self.path}: {where}{f': {key}' if key else ''}: {text}")
+
+    def raise_any(self) -> None:
+        if self.lines:
+            raise ConfigError("\n".join(self.lines))
+
+
+def _number(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def _vector(value) -> tuple | None:
+    if isinstance(value, list) and len(value) == 3 and all(_number(v) for v in value):
+        return tuple(float(v) for v in value)
+    return None
+
+
+def _regions(entries, where: str, key: str, problems: _Problems) -> tuple:
+    if not isinstance(entries, list):
+        problems.add(where, key, "must be a list of regions, e.g. [{ center_mm = [0, 0, 10], radius_mm = 5 }]")
+        return ()
+    out = []
+    for k, item in enumerate(entries):
+        at = f"{key}[{k}]"
+        keys = set(item) if isinstance(item, dict) else set()
+        if keys == {"center_mm", "radius_mm"}:
+            centre, radius = _vector(item["center_mm"]), item["radius_mm"]
+            if centre is None or not _number(radius) or radius <= 0:
+                problems.add(where, at, "a sphere needs center_mm = [x, y, z] and radius_mm > 0, in mm")
+            else:
+                out.append(Region.sphere(centre, radius))
+        elif keys == {"min_mm", "max_mm"}:
+            lo, hi = _vector(item["min_mm"]), _vector(item["max_mm"])
+            if lo is None or hi is None or not all(a < b for a, b in zip(lo, hi)):
+                problems.add(where, at, "a box needs min_mm = [x, y, z] below max_mm = [x, y, z] on every axis, in mm")
+            else:
+                out.append(Region.box(lo, hi))
+        else:
+            problems.add(where, at, "a region is a sphere { center_mm, radius_mm } or a box { min_mm, max_mm }")
+    return tuple(out)
+
+
+def _unknown(table: dict, allowed: tuple, where: str, problems: _Problems) -> None:
+    for key in table:
+        if key not in allowed:
+            close = difflib.get_close_matches(str(key), allowed, n=1)
+            hint = f"did you mean {close[0]!r}?" if close else f"the keys are {', '.join(allowed)}"
+            problems.add(where, str(key), f"unknown key; {hint}")
+
+
+def _options(table: dict, where: str, problems: _Problems) -> dict:
+    """The checked values of the optional keys of an object or of ``[defaults]``."""
+    out = {}
+    if "name" in table:
+        if isinstance(table["name"], str) and table["name"].strip():
+            out["name"] = table["name"].strip()
+        else:
+            problems.add(where, "name", "must be a non-empty string")
+    if "units" in table:
+        if table["units"] in UNITS_MM:
+            out["units"] = table["units"]
+        else:
+            problems.add(where, "units", f"unknown unit {table['units']!r}; use one of {', '.join(UNITS_MM)}")
+    if "up" in table:
+        up = str(table["up"]).strip().lower() if isinstance(table["up"], str) else None
+        if up in UP_VECTORS:
+            out["up"] = up
+        else:
+            problems.add(where, "up", f"unknown up direction {table['up']!r}; use one of {', '.join(UP_VECTORS)}")
+    for key in ("com_mm", "axis"):
+        if key in table:
+            v = _vector(table[key])
+            if v is None or (key == "axis" and not any(v)):
+                problems.add(where, key, "must be three numbers [x, y, z]" + (", not all zero" if key == "axis" else
+                                                                             ", in mm in the file's frame"))
+            else:
+                out[key] = v
+    if "mass_g" in table:
+        m = table["mass_g"]
+        if _number(m) and 0 < m <= MAX_MASS_G:
+            out["mass_g"] = float(m)
+        else:
+            problems.add(where, "mass_g", f"must be a number of grams above 0 and at most {MAX_MASS_G:g}")
+    if "split" in table:
+        if table["split"] in SPLITS:
+            out["split"] = table["split"]
+        else:
+            problems.add(where, "split", f"unknown split {table['split']!r}; use one of {', '.join(SPLITS)}")
+    for key in ("exclude", "only"):
+        if key in table:
+            out[key] = _regions(table[key], where, key, problems)
+    return out
+
+
+def read_manifest(path: str | os.PathLike) -> list[ObjectSpec]:
+    """The objects a manifest lists, checked; every problem in one ConfigError, one line each."""
+    path = Path(path)
+    try:
+        if path.stat().st_size > MAX_MANIFEST_BYTES:
+            raise ConfigError(f"{path}: a manifest of more than {MAX_MANIFEST_BYTES // 2**20} MiB; "
+                              "split the list into several manifests")
+        document = tomllib.loads(path.read_bytes().decode("utf-8"))
+    except FileNotFoundError:
+        raise ConfigError(f"{path}: no such manifest; check the path") from None
+    except OSError as exc:
+        raise ConfigError(f"{path}: the manifest cannot be read ({exc.strerror or exc}); check its permissions") from None
+    except UnicodeDecodeError:
+        raise ConfigError(f"{path}: the manifest is not UTF-8 text; save it as UTF-8 TOML") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{path}: not valid TOML ({exc}); fix the manifest (see docs/manifest.md)") from None
+    problems = _Problems(path)
+    _unknown(document, ("defaults", "object"), "top level", problems)
+    defaults = document.get("defaults", {})
+    if not isinstance(defaults, dict):
+        problems.add("top level", "defaults", "must be a table: [defaults]")
+        defaults = {}
+    _unknown(defaults, DEFAULT_KEYS, "[defaults]", problems)
+    base = _options(defaults, "[defaults]", problems)
+    objects = document.get("object", [])
+    if not isinstance(objects, list) or not objects:
+        problems.add("top level", "object", "the manifest lists no object; add [[object]] tables with file = \"...\"")
+        objects = []
+    specs = []
+    for k, table in enumerate(objects):
+        where = f"object {k + 1}"
+        if not isinstance(table, dict):
+            problems.add(where, None, "must be a table: [[object]]")
+            continue
+        if isinstance(table.get("name"), str):
+            where += f" ({table['name']})"
+        _unknown(table, OBJECT_KEYS, where, problems)
+        given = table.get("file")
+        if not isinstance(given, str) or not given:
+            problems.add(where, "file", "missing; give the mesh file, relative to the manifest's folder")
+            continue
+        file = path.parent / given
+        options = base | _options(table, where, problems)
+        if not file.is_file():
+            problems.add(where, "file", f"{file}: no such file; check the path (relative to the manifest's folder)")
+        elif file.suffix.lower() not in MESH_EXTENSIONS:
+            problems.add(where, "file", f"{file}: not a mesh file; use one of {', '.join(MESH_EXTENSIONS)}")
+        elif options.get("split") == "nodes" and MESH_EXTENSIONS[file.suffix.lower()] not in GLTF_TYPES:
+            problems.add(where, "split", "only a glTF or GLB scene can be split into its nodes")
+        regions = ContactRegions(options.pop("exclude", ()), options.pop("only", ()))
+        specs.append(ObjectSpec(str(file), regions=regions, manifest=str(path), **options))
+    problems.raise_any()
+    return specs
+
+
+def node_specs(spec: ObjectSpec, nodes) -> list[ObjectSpec]:
+    """One spec per mesh node of a level (``nodes`` from :func:`pinchmatch.mesh.load.read_level`),
+    named by the node (after the level's own name, where the manifest gives one)."""
+    return [replace(spec, split="none", node=n.name, node_path=n.path,
+                    name=f"{spec.name}/{n.name}" if spec.name else None) for n in nodes]
+
+
+def is_manifest(path: str | os.PathLike) -> bool:
+    return Path(path).suffix.lower() == MANIFEST_SUFFIX
+
+
+def object_specs(paths, *, option: str, split: str | None = None) -> list[ObjectSpec]:
+    """The objects that command-line paths name: mesh files, folders of them (searched as
+    :func:`~pinchmatch.mesh.load.mesh_files` does) and manifests, in the order given. A glTF/GLB
+    scene whose split is ``"nodes"`` (its manifest entry's, else ``split``) becomes one object per
+    mesh node; other files are not split."""
+    if split is not None and split not in SPLITS:
+        raise ConfigError(f"--split: unknown split {split!r}; use one of {', '.join(SPLITS)}")
+    out: list[ObjectSpec] = []
+    for given in paths:
+        if is_manifest(given):
+            specs = read_manifest(given)
+        else:
+            specs = [ObjectSpec(str(p)) for p in mesh_files([given], option=option)]
+        for spec in specs:
+            how = spec.split or split or "none"
+            level = Path(spec.path).suffix.lower() in MESH_EXTENSIONS and \
+                MESH_EXTENSIONS[Path(spec.path).suffix.lower()] in GLTF_TYPES
+            out.extend(node_specs(spec, read_level(spec.path)) if how == "nodes" and level else [spec])
+    return out
+
+
+def spec_to_dict(spec: ObjectSpec) -> dict:
+    """A spec as plain JSON values (:func:`spec_from_dict` makes it again)."""
+    return {"path": spec.path, "name": spec.name, "units": spec.units, "up": spec.up,
+            "com_mm": None if spec.com_mm is None else [float(c) for c in spec.com_mm],
+            "axis": None if spec.axis is None else [float(c) for c in spec.axis],
+            "mass_g": spec.mass_g, "regions": spec.regions.as_dict(), "split": spec.split,
+            "node": spec.node, "node_path": spec.node_path, "manifest": spec.manifest}
+
+
+def spec_from_dict(d: dict) -> ObjectSpec:
+    def region(r: dict) -> Region:
+        return Region.sphere(r["center_mm"], r["radius_mm"]) if "center_mm" in r else Region.box(r["min_mm"], r["max_mm"])
+
+    return ObjectSpec(d["path"], name=d["name"], units=d["units"], up=d["up"],
+                      com_mm=None if d["com_mm"] is None else tuple(d["com_mm"]),
+                      axis=None if d["axis"] is None else tuple(d["axis"]), mass_g=d["mass_g"],
+                      regions=ContactRegions(tuple(region(r) for r in d["regions"]["exclude"]),
+                                             tuple(region(r) for r in d["regions"]["only"])),
+                      split=d["split"], node=d["node"], node_path=d["node_path"], manifest=d["manifest"])
