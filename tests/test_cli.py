@@ -196,3 +196,20 @@ def test_output_has_ordinary_permissions(tmp_path, capsys):
     umask = os.umask(0)
     os.umask(umask)
     assert stat.S_IMODE(out.stat().st_mode) == 0o666 & ~umask
+
+
+def test_tables_fit_80_columns_and_explain_their_units(tmp_path, capsys, monkeypatch):
+    import trimesh
+
+    long_t = tmp_path / "tangible_prop_with_a_rather_long_descriptive_name_from_the_lab.stl"
+    long_v = tmp_path / "virtual_asset_kitchen_shelf_left_jar_lid_variant_b_final.stl"
+    trimesh.creation.box(extents=(60.0, 40.0, 20.0)).export(long_t)
+    trimesh.creation.box(extents=(58.0, 41.0, 22.0)).export(long_v)
+    monkeypatch.setenv("COLUMNS", "80")
+    code, out, err = run_cli(capsys, "match", "--tangible", long_t, "--virtual", long_v, "--count", "60",
+                             "--no-view", "--no-figures", "-o", tmp_path / "out")
+    assert code == 0, err
+    assert max(len(line) for line in out.splitlines()) <= 80
+    assert "…" not in out  # long names wrap, whole, instead of being cut
+    assert "virtual_asset" in out and "tangible_prop" in out
+    assert "cost: sum of weight x (difference / JND)^2 (1: just noticeable)" in " ".join(out.split())

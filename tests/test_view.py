@@ -11,10 +11,13 @@ import shutil
 import subprocess
 import sys
 import urllib.request
+from pathlib import Path
 
 import numpy as np
 import pytest
 from matplotlib.image import imread
+
+import pinchmatch
 
 from pinchmatch.cli.commands import main
 from pinchmatch.export.view import page_data, read_matches
@@ -287,3 +290,68 @@ def test_serve_answers_only_its_own_host_lists_no_folder_and_follows_no_link_out
     finally:
         server.shutdown()
         server.server_close()
+
+
+def test_the_list_filters_sorts_and_counts_and_the_scene_shows_alternatives_and_a_see_through_prop(page, demo_out):
+    doc = json.loads((demo_out / "matches.json").read_text())
+    matched = [m for m in doc["matches"] if m["tangible"] is not None]
+    loud = sum(any(c["noticeable"] for c in m["criteria"].values()) for m in matched)
+    counts = page.locator("#counts").inner_text()
+    assert counts == f"{len(doc['matches'])} of {len(doc['matches'])} shown; {loud} of them with a noticeable difference"
+    # filter by name: only the entries whose names hold the text
+    page.fill("#filter", "vo3")
+    visible = page.locator("#matches li:not([hidden]) .names").all_inner_texts()
+    assert len(visible) == 1 and "vo3" in visible[0].replace("\u200b", "")
+    page.fill("#filter", "")
+    # sort by cost: the entries in the order of the documents' costs
+    page.select_option("#sort", "cost")
+    names = [t.split("→")[0].strip() for t in page.locator("#matches li.match .names").all_inner_texts()]
+    assert names == [m["virtual"] for m in sorted(matched, key=lambda m: m["cost"])]
+    page.select_option("#sort", "-cost")
+    names = [t.split("→")[0].strip() for t in page.locator("#matches li.match .names").all_inner_texts()]
+    assert names == [m["virtual"] for m in sorted(matched, key=lambda m: -m["cost"])]
+    # the prop can be made see-through
+    page.check("#toggle-prop-transparent")
+    page.wait_for_selector("body[data-prop-opacity='0.3']")
+    page.keyboard.press("t")
+    page.wait_for_selector("body[data-prop-opacity='1']")
+    # an alternative moves the virtual object: the main view changes, and back
+    page.locator("#matches li.match").first.click()
+    page.wait_for_selector("#choices button[data-choice='0']")
+    before = canvas_pixels(page, "#canvas-main")
+    page.click("#choices button[data-choice='0']")
+    page.wait_for_selector("body[data-choice='alternative 1']")
+    after = canvas_pixels(page, "#canvas-main")
+    assert np.abs(after - before).max(axis=-1).mean() > 0.001
+    page.click("#choices button[data-choice='-1']")
+    page.wait_for_selector("body[data-choice='best']")
+    # how far the object was turned, in words; "flipped" only beyond 90 degrees
+    facts = page.locator("#details .facts").inner_text()
+    assert "upright" in facts or "turned" in facts
+    assert not [m for m in page.messages if m[0] in ("error", "pageerror")], page.messages
+
+
+def test_long_names_wrap_at_separators_not_mid_word(browser, tmp_path):
+    # the page's own breakable(): a name breaks after _ - . / and between a lower-case and a capital letter
+    pg = browser.new_page()
+    pg.set_content("<div id='n' style='width:60px'></div>")
+    script = (Path(pinchmatch.__file__).parent / "viewer" / "viewer.js").read_text()
+    body = script[script.index("const escape ="):script.index("const turned =")]
+    html = pg.evaluate(f"(() => {{ {body}; return breakable('kitchen_shelf-LeftJar.001/lid'); }})()")
+    assert html == "kitchen_<wbr>shelf-<wbr>Left<wbr>Jar.<wbr>001/<wbr>lid"
+    pg.close()
+
+
+def test_the_page_says_how_far_an_object_is_turned_and_why_a_reference_is_missing(demo_out, tmp_path):
+    out = tmp_path / "run"
+    shutil.copytree(demo_out, out)
+    doc = json.loads((out / "matches.json").read_text())
+    doc["matches"][0]["reference"] = {**doc["matches"][0]["reference"], "cost": None,
+                                      "reason": "the paper's p2 meets nothing on the virtual object"}
+    (out / "matches.json").write_text(json.dumps(doc))
+    data = page_data(out, read_matches(out))
+    first = data["matches"][0]
+    assert first["reference_cost"] is None and first["reference_reason"].startswith("the paper's p2")
+    turns = {m["virtual"]: m["up_turn_deg"] for m in data["matches"]}
+    flips = {m["virtual"]: m["flipped"] for m in data["matches"]}
+    assert all((turns[v] > 90.0) == flips[v] for v in turns)  # flipped is a turn beyond 90 degrees

@@ -34,7 +34,7 @@ from ..mesh.properties import parse_vector
 from .console import Presenter
 from .parser import build_parser, check_option_names, join_vector_values
 from ..export.documents import (features_document, matches_rows, poses_csv, poses_document, scene_stems,
-                                study_document, study_rows, to_json)
+                                matches_legend, study_document, study_legend, study_rows, to_json)
 from ..runner.tasks import Job, ObjectTask, virtual_result
 from ..export.sink import MatchesSink
 from ..runner.matching import RunError, RunResult, run_match
@@ -251,7 +251,7 @@ def _cmd_match(args) -> int:
         elif not args.no_view:
             written.append(f"no viewer page (build it with: pinchmatch view {out})")
     ui.table(_table_rows(sink.objects, "objects"), title="objects")
-    ui.table(_table_rows(sink.rows, "matches"), title="matches")
+    ui.table(_table_rows(sink.rows, "matches"), title="matches", legend=matches_legend(run_settings))
     if result.failed:
         ui.table(_table_rows([("file", "role", "problem")] + [(f.path, f.role, f.error) for f in result.failed],
                              "files"), title=f"failed: {len(result.failed)} files, left out of the run")
@@ -321,8 +321,8 @@ def _cmd_demo(args) -> int:
                 write_page(stage, document=matches_doc)
             written.append(f"the viewer page {out / 'index.html'}")
         written.append(f"the objects in {out / 'objects'}")
-    ui.table(study_rows(study.rows), title="user study (F: flipped)")
-    ui.table(matches_rows(matches_doc), title="matches")
+    ui.table(study_rows(study.rows), title="user study", legend=study_legend(study.rows))
+    ui.table(matches_rows(matches_doc), title="matches", legend=matches_legend(common))
     ui.note(f"study {t1 - t0:.2f} s; wrote " + ", ".join(written))
     ui.document(to_json(study_doc))
     return 0

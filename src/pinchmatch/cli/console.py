@@ -7,6 +7,7 @@ keeps stdout for the result document alone.
 
 from __future__ import annotations
 
+import os
 import sys
 from contextlib import contextmanager
 
@@ -16,8 +17,15 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn
 from rich.table import Table
 from rich.text import Text
 
-#: width for tables written to a file or a pipe, where no terminal says how wide it is
+#: width for tables written to a file or a pipe, where no terminal says how wide it is (``COLUMNS`` does)
 PIPE_WIDTH = 200
+
+
+def _pipe_width() -> int:
+    try:
+        return max(40, int(os.environ["COLUMNS"]))
+    except (KeyError, ValueError):
+        return PIPE_WIDTH
 
 
 class Presenter:
@@ -26,7 +34,7 @@ class Presenter:
         self.json_mode = json_mode
         self.err = Console(stderr=True, highlight=False)
         self.out = Console(file=sys.stdout, highlight=False,
-                           width=None if sys.stdout.isatty() else PIPE_WIDTH)
+                           width=None if sys.stdout.isatty() else _pipe_width())
         self.show_progress = not quiet and self.err.is_terminal
         self.show_summary = not quiet and not json_mode
 
@@ -52,18 +60,23 @@ class Presenter:
 
             yield advance
 
-    def table(self, rows: list, *, title: str | None = None) -> None:
-        """``rows[0]`` is the header; printed to stdout unless quiet or ``--json``."""
+    def table(self, rows: list, *, title: str | None = None, legend: list | None = None) -> None:
+        """``rows[0]`` is the header; printed to stdout unless quiet or ``--json``, folded to the
+        terminal's width (long names wrap instead of being cut), with the ``legend`` lines below."""
         if not self.show_summary:
             return
-        table = Table(*rows[0], title=title, box=box.SIMPLE_HEAD, title_justify="left", pad_edge=False)
+        table = Table(title=title, box=box.SIMPLE_HEAD, title_justify="left", pad_edge=False, collapse_padding=True)
+        for name in rows[0]:
+            table.add_column(name, overflow="fold")
         for row in rows[1:]:
             table.add_row(*(Text(str(v)) for v in row))  # Text: names are not read as markup
         self.out.print(table)
+        for line in legend or []:
+            self.out.print(Text(line, style="dim"), soft_wrap=False)
 
     def note(self, message: str) -> None:
         if self.show_summary:
-            self.out.print(message, soft_wrap=True, markup=False)
+            self.out.print(message, soft_wrap=False, markup=False)  # wrapped at spaces to the width
 
     def error(self, message: str) -> None:
         """An error line on stderr; shown even with ``--quiet``."""

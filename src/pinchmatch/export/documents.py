@@ -209,12 +209,20 @@ def _choice_record(scene, choice, *, full: bool) -> dict:
                          else _contacts(V, choice.v_pose, swapped=choice.swapped)),
         **_rigid(choice.transform),
         "flipped": choice.flipped,
+        "up_turn_deg": json_number(up_turn_deg(choice.transform, V.obj.loaded.up, up_t), 2),
         "contact_offset_mm": json_number(contact_offset_mm(T, V, choice)),
         "mass_ratio": json_number(mass_ratio(T, V), 6),
         "mass_mismatch_mm": json_vector(choice.mass_delta_mm),
         "mass_mismatch_vertical_mm": json_number(float(choice.mass_delta_mm @ up_t)),
     }
     return record
+
+
+def up_turn_deg(transform: np.ndarray, up_virtual: np.ndarray, up_tangible: np.ndarray) -> float:
+    """How far the placement turns the virtual object from upright: the angle (deg) between its up
+    direction, registered, and the tangible's up. ``flipped`` is this beyond 90°."""
+    seen = np.asarray(transform)[:3, :3] @ np.asarray(up_virtual, dtype=np.float64)
+    return float(np.degrees(np.arccos(np.clip(seen @ np.asarray(up_tangible, dtype=np.float64), -1.0, 1.0))))
 
 
 def _contacts(candidates, i: int, *, swapped: bool = False) -> dict:
@@ -370,19 +378,41 @@ def study_document(study, settings: dict) -> dict:
 
 
 def study_rows(rows: list) -> list[tuple]:
-    """The rows of the study table, header first."""
+    """The rows of the study table, header first, narrow enough for 80 columns (see
+    :func:`study_legend`; study.json holds every number)."""
+    short = {"cylinder": "cyl", "cube": "cube", "cone": "cone"}
+
     def cell(p):
         if p["height_mm"] is None:
-            return "none", "null", "null"
-        where = f"{p['part']} {p['height_mm']:g}" + (" F" if p["flipped"] else "")
-        cost = "null" if p["cost"] is None else f"{p['cost']:.3g}"
-        paper = "null" if p["cost_paper"] is None else f"{p['cost_paper']:.3g}"
-        return where, cost, paper
+            return "none", "null"
+        where = f"{short.get(p['part'], p['part'])} {p['height_mm']:.0f}" + ("F" if p["flipped"] else "")
+        return where, "null" if p["cost"] is None else f"{p['cost']:.3g}"
 
-    head = ("tangible", "VO", "virtual order", "ours", "cost", "cost_paper", "paper", "cost", "cost_paper",
-            "ref", "cost", "cost_paper")
-    out = [head]
+    out = [("part", "VO", "ours", "cost", "paper", "cost", "ref", "cost")]
     for r in rows:
-        out.append((r["tangible_part"], str(r["virtual"]), "/".join(r["virtual_order"]),
-                    *cell(r["ours"]), *cell(r["paper"]), *cell(r["ref"])))
+        out.append((r["tangible_part"], str(r["virtual"]), *cell(r["ours"]), *cell(r["paper"]), *cell(r["ref"])))
     return out
+
+
+def study_legend(rows: list) -> list[str]:
+    """What the study table's columns mean, and each virtual object's parts."""
+    orders = {}
+    for r in rows:
+        orders.setdefault(r["virtual"], "/".join(r["virtual_order"]))
+    return [
+        "VO: the virtual objects, their parts bottom to top: " + ", ".join(f"{k} {v}" for k, v in orders.items()),
+        "ours, paper, ref: where each placement puts the pinch on the virtual object: its part (cyl: cylinder) and "
+        "height in mm; F: turned upside down",
+        "cost: pinchmatch's cost of that placement, sum of weight x (difference / JND)^2 (1: just noticeable); the "
+        "paper's own cost of each is in study.json",
+    ]
+
+
+def matches_legend(settings: dict) -> list[str]:
+    """What the matches table's columns mean, in the run's normalisation."""
+    unit = ("sum of weight x (difference / JND)^2 (1: just noticeable)" if settings.get("normalize", "jnd") == "jnd"
+            else "sum of weight x (difference / range of the run)^2, the paper's scaling")
+    return [f"cost: {unit}; noticeable: the criteria at 1 JND or more; flipped: F where the placement turns the "
+            "virtual object upside down",
+            "offset_mm: each virtual fingertip's offset from the prop's contact along the pinch line; ref_cost: the "
+            "paper's reference placement (null: its fingers meet nothing on the virtual object)"]

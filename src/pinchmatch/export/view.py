@@ -87,6 +87,11 @@ def _page_data(out: Path, document: dict) -> dict:
         if not glb.is_file():
             raise ConfigError(f"{glb}: scene missing for {m['virtual']}; run pinchmatch again with -o {out}")
         reference = m.get("reference") or {}
+        alternatives = [{
+            "tangible": a["tangible"], "cost": a["cost"], "flipped": a["flipped"], "up_turn_deg": a.get("up_turn_deg"),
+            "transform": [x for row in a["transform_virtual_to_tangible"] for x in row],
+            "p1_mm": a["tangible_pose"]["p1_mm"], "p2_mm": a["tangible_pose"]["p2_mm"],
+        } for a in m.get("alternatives", [])]
         matches.append({
             "virtual": m["virtual"],
             "tangible": m["tangible"],
@@ -99,13 +104,18 @@ def _page_data(out: Path, document: dict) -> dict:
             "tangible_width_mm": m["tangible_pose"]["width_mm"],
             "virtual_width_mm": m["virtual_pose"]["width_mm"],
             "reference_cost": reference.get("cost"),
+            "reference_reason": reference.get("reason"),
+            "up_turn_deg": m.get("up_turn_deg"),
+            "alternatives": alternatives,
             "criteria": [{"name": name, **values} for name, values in m["criteria"].items()],
             "glb_base64": base64.b64encode(glb.read_bytes()).decode("ascii"),
         })
     settings = document.get("settings", {})
     n_t, n_v = len(document["tangibles"]), len(document["virtuals"])
     criteria = settings.get("criteria", [])
-    summary = (f"{len(matches)} of {n_v} virtual objects matched on {n_t} tangible{'s' if n_t != 1 else ''}; "
+    loud = sum(any(c["noticeable"] for c in m["criteria"]) for m in matches)
+    summary = (f"{len(matches)} of {n_v} virtual objects matched on {n_t} tangible{'s' if n_t != 1 else ''} "
+               f"({loud} with a noticeable difference); "
                f"criteria {', '.join(criteria) if isinstance(criteria, list) else criteria}; "
                f"normalize {settings.get('normalize', 'jnd')}")
     return {"version": document.get("version"), "summary": summary, "matches": matches, "unmatched": unmatched}

@@ -118,7 +118,8 @@
       main: [root],
       tangible: [tangible.clone(), cones[0].clone(), cones[1].clone(), ...fingers.map((f) => f.clone())],
       virtual: [ownVirtual, cone(green, p1, u), cone(green, p2, u.clone().negate())],
-      virtualNode: virtual,
+      virtualNode: virtual, tangibleNode: tangible, cones, fingers, root, C, green,
+      bestMatrix: virtual.matrix.clone(),
     };
   }
 
@@ -130,6 +131,11 @@
     return String(Number(Number(x).toPrecision(digits)));
   }
   const escape = (text) => String(text).replace(/[&<>"']/g, (c) => `&#${c.charCodeAt(0)};`);
+  // a name that may break after _ - . / and before a capital following a lower-case letter, not mid-word
+  const breakable = (text) => escape(text).replace(/([_\-./])/g, "$1<wbr>").replace(/([a-z])([A-Z])/g, "$1<wbr>$2");
+  const turned = (m) => m.up_turn_deg === null || m.up_turn_deg === undefined ? (m.flipped ? "flipped" : "upright")
+    : m.up_turn_deg < 1 ? "upright"
+    : `turned ${m.up_turn_deg.toFixed(0)}° from upright` + (m.flipped ? " (flipped: beyond 90°)" : "");
 
   function loudCriteria(match) {
     return match.criteria.filter((c) => c.noticeable);
@@ -146,18 +152,44 @@
       badges.push(loud.length
         ? loud.map((c) => `<span class="badge loud">${escape(c.name)} ${c.jnd.toFixed(1)} JND</span>`).join("")
         : `<span class="badge quiet">nothing noticeable</span>`);
-      if (m.flipped) badges.push(`<span class="badge flip" title="the virtual object is turned upside down">F</span>`);
-      li.innerHTML = `<div class="names">${escape(m.virtual)} <span class="arrow">→</span> ${escape(m.tangible)}</div>` +
+      if (m.flipped) badges.push(`<span class="badge flip" title="${escape(turned(m))}">F</span>`);
+      li.innerHTML = `<div class="names">${breakable(m.virtual)} <span class="arrow">→</span> ${breakable(m.tangible)}</div>` +
         `<div class="meta">${badges.join("")}</div>`;
+      li.dataset.name = `${m.virtual} ${m.tangible}`.toLowerCase();
+      li.dataset.cost = m.cost;
+      li.dataset.noticeable = loud.length ? "1" : "0";
       li.addEventListener("click", () => select(index));
       list.appendChild(li);
     });
     for (const u of DATA.unmatched) {
       const li = document.createElement("li");
       li.className = "unmatched";
-      li.innerHTML = `<div class="names">${escape(u.virtual)}</div><div class="meta">no tangible: ${escape(u.reason || "")}</div>`;
+      li.innerHTML = `<div class="names">${breakable(u.virtual)}</div><div class="meta">no tangible: ${escape(u.reason || "")}</div>`;
+      li.dataset.name = String(u.virtual).toLowerCase();
+      li.dataset.cost = Infinity;
+      li.dataset.noticeable = "0";
       list.appendChild(li);
     }
+  }
+
+  // Filter by name and sort; the counts say how many are shown and how many are noticeable.
+  function arrange() {
+    const list = document.getElementById("matches");
+    const text = document.getElementById("filter").value.trim().toLowerCase();
+    const order = document.getElementById("sort").value;
+    const items = [...list.children];
+    const key = (li) => order === "cost" ? Number(li.dataset.cost)
+      : order === "-cost" ? -Number(li.dataset.cost)
+      : order === "noticeable" ? -Number(li.dataset.noticeable) : 0;
+    items.sort((a, b) => (key(a) - key(b)) || (Number(a.dataset.order) - Number(b.dataset.order)));
+    let shown = 0, loud = 0;
+    for (const li of items) {
+      li.hidden = text !== "" && !li.dataset.name.includes(text);
+      if (!li.hidden) { shown += 1; loud += Number(li.dataset.noticeable); }
+      list.appendChild(li);
+    }
+    document.getElementById("counts").textContent =
+      `${shown} of ${items.length} shown; ${loud} of them with a noticeable difference`;
   }
 
   function details(m) {
@@ -170,15 +202,68 @@
     const facts = [
       `<b>${escape(m.virtual)}</b> on <b>${escape(m.tangible)}</b>`,
       `cost ${fmt(m.cost, 4)}`,
-      `reference cost ${fmt(m.reference_cost, 4)}`,
+      m.reference_cost === null || m.reference_cost === undefined
+        ? `reference: none (${escape(m.reference_reason || "no reference pose")})`
+        : `reference cost ${fmt(m.reference_cost, 4)}`,
       `pinch width ${m.tangible_width_mm.toFixed(1)} mm on the tangible, ${m.virtual_width_mm.toFixed(1)} mm on the virtual object`,
       `contact offset ${m.contact_offset_mm.toFixed(2)} mm`,
-      m.flipped ? "flipped: the virtual object is upside down" : "upright",
+      turned(m),
       `position ${m.position_mm.map((x) => x.toFixed(1)).join(", ")} mm`,
     ];
+    const choices = [`<button data-choice="-1" class="on">best, cost ${fmt(m.cost)}</button>`].concat(
+      m.alternatives.map((a, k) => a.tangible === m.tangible
+        ? `<button data-choice="${k}">alternative ${k + 1}, cost ${fmt(a.cost)}</button>`
+        : `<button data-choice="${k}" disabled title="on ${escape(a.tangible)}, whose scene is not this one">` +
+          `alternative ${k + 1} on ${breakable(a.tangible)}, cost ${fmt(a.cost)}</button>`));
     document.getElementById("details").innerHTML =
       `<div class="facts">${facts.map((f) => `<span>${f}</span>`).join("")}</div>` +
-      `<table>${rows}</table>`;
+      `<div id="choices">${choices.join("")}</div><table>${rows}</table>`;
+    document.querySelectorAll("#choices button").forEach((b) =>
+      b.addEventListener("click", () => choose(Number(b.dataset.choice))));
+  }
+
+  // Show the best placement (k = -1) or alternative k on the same tangible: the virtual node gets
+  // C·T·C⁻¹ (docs/engines.md) and the cones move to the alternative's contacts.
+  let shownParts = null, extraCones = [];
+  function choose(k) {
+    const m = DATA.matches[current], p = shownParts;
+    if (!p) return;
+    for (const c of extraCones) c.removeFromParent();
+    extraCones = [];
+    const alt = k >= 0 ? m.alternatives[k] : null;
+    if (alt) {
+      const T = new THREE.Matrix4().fromArray(alt.transform).transpose();
+      const M = p.C.clone().multiply(T).multiply(p.C.clone().invert());
+      p.virtualNode.matrix.copy(M);
+      const q1 = new THREE.Vector3(...alt.p1_mm).applyMatrix4(p.C), q2 = new THREE.Vector3(...alt.p2_mm).applyMatrix4(p.C);
+      const u = q2.clone().sub(q1).normalize();
+      extraCones = [cone(p.green, q1, u), cone(p.green, q2, u.clone().negate())];
+      for (const c of extraCones) p.root.add(c);
+    } else {
+      p.virtualNode.matrix.copy(p.bestMatrix);
+    }
+    p.virtualNode.matrix.decompose(p.virtualNode.position, p.virtualNode.quaternion, p.virtualNode.scale);
+    for (const c of [...p.cones, ...p.fingers]) c.visible = !alt;
+    document.querySelectorAll("#choices button").forEach((b) =>
+      b.classList.toggle("on", Number(b.dataset.choice) === k));
+    document.body.dataset.choice = alt ? `alternative ${k + 1}` : "best";
+    views.main.render();
+  }
+
+  function setPropTransparent(on) {
+    document.getElementById("toggle-prop-transparent").checked = on;
+    if (shownParts) {
+      shownParts.tangibleNode.traverse((o) => {
+        if (!o.isMesh) return;
+        if (!o.userData.opaqueMaterial) { o.userData.opaqueMaterial = o.material; o.material = o.material.clone(); }
+        Object.assign(o.material, on ? { transparent: true, opacity: 0.3, depthWrite: false }
+          : { transparent: o.userData.opaqueMaterial.transparent, opacity: o.userData.opaqueMaterial.opacity,
+              depthWrite: o.userData.opaqueMaterial.depthWrite });
+        o.material.needsUpdate = true;
+      });
+    }
+    document.body.dataset.propOpacity = on ? "0.3" : "1";
+    views.main.render();
   }
 
   let current = -1, virtualNode = null;
@@ -196,9 +281,12 @@
     const p = parts(gltf);
     virtualNode = p.virtualNode;
     virtualNode.visible = document.getElementById("toggle-virtual").checked;
+    shownParts = p;
     views.main.show(p.main);
     views.tangible.show(p.tangible);
     views.virtual.show(p.virtual);
+    choose(-1);
+    setPropTransparent(document.getElementById("toggle-prop-transparent").checked);
     history.replaceState(null, "", `#${encodeURIComponent(m.virtual)}`);
     document.body.dataset.shown = String(index);
   }
@@ -210,8 +298,13 @@
   }
 
   document.getElementById("toggle-virtual").addEventListener("change", (e) => setVirtualVisible(e.target.checked));
+  document.getElementById("toggle-prop-transparent").addEventListener("change", (e) => setPropTransparent(e.target.checked));
+  document.getElementById("filter").addEventListener("input", arrange);
+  document.getElementById("sort").addEventListener("change", arrange);
   window.addEventListener("keydown", (e) => {
+    if (e.target instanceof HTMLInputElement && e.target.type === "search") return; // typing a filter
     if (e.key === "v" || e.key === "V") setVirtualVisible(!document.getElementById("toggle-virtual").checked);
+    if (e.key === "t" || e.key === "T") setPropTransparent(!document.getElementById("toggle-prop-transparent").checked);
     if ((e.key === "ArrowDown" || e.key === "ArrowUp") && DATA.matches.length) {
       const step = e.key === "ArrowDown" ? 1 : -1;
       select((current + step + DATA.matches.length) % DATA.matches.length);
@@ -221,6 +314,8 @@
 
   document.getElementById("summary").textContent = DATA.summary;
   listEntries();
+  [...document.getElementById("matches").children].forEach((li, k) => { li.dataset.order = k; });
+  arrange();
   if (DATA.matches.length) {
     const wanted = decodeURIComponent(location.hash.slice(1));
     const start = Math.max(0, DATA.matches.findIndex((m) => m.virtual === wanted));
