@@ -226,7 +226,7 @@ def mutated_source(mutant: Mutant) -> str:
 
 def _copy_repository(target: Path) -> None:
     ignore = shutil.ignore_patterns(".git", ".venv", "__pycache__", "*.egg-info", ".pytest_cache", ".hypothesis")
-    for name in ("src", "tests", "pyproject.toml"):
+    for name in ("src", "tests", "docs", "README.md", "pyproject.toml"):  # tests read the docs too
         src = ROOT / name
         if src.is_dir():
             shutil.copytree(src, target / name, ignore=ignore)
