@@ -62,6 +62,7 @@ _HELPER = ("any helper direction not along the normal gives a tangent frame, and
 _SCALED = "the helper is only crossed with the normal and the result normalised: a longer helper is the same frame"
 _GUARD = ("a guard against round-off near a degenerate case (opposite or parallel unit vectors); doubling it moves "
           "the switch by a few ulps of inputs no geometry lands on")
+_INFER = "numpy takes any negative size as the one to infer: reshape(-2, k) is reshape(-1, k)"
 EQUIVALENT: dict[tuple[str, str, str], str] = {
     ("grasp/curvature.py", "(np.abs(normal[:, 0]) < 0.9)[:, None], np.array([1.0, 0.0, 0.0]), "
      "np.array([0.0, 1.0, 0.0])", "< -> <="): _HELPER,
@@ -71,12 +72,9 @@ EQUIVALENT: dict[tuple[str, str, str], str] = {
     ("grasp/jets.py", "hx, hy, hz = (1.0, 0.0, 0.0) if abs(n[0]) < 0.9 else (0.0, 1.0, 0.0)", "1.0 -> 2.0"): _SCALED,
     ("match/cost.py", "pose = np.stack([features.width_mm, features.com_distance_mm, features.tilt_deg], "
      "axis=-1)  # (n, 3)", "drop -"): "np.stack of 1-D arrays: axis 1 is the last axis, as -1 is",
-    ("match/cost.py", "stacked = table.reshape(-1, N_COLUMNS)", "1 -> 2"):
-        "numpy takes any negative size as the one to infer: reshape(-2, 9) is reshape(-1, 9)",
-    ("grasp/curvature.py", "points_mm = np.asarray(points_mm, dtype=np.float64).reshape(-1, 3)", "1 -> 2"):
-        "numpy takes any negative size as the one to infer: reshape(-2, 3) is reshape(-1, 3)",
-    ("grasp/curvature.py", "normal = np.asarray(normals, dtype=np.float64).reshape(-1, 3)", "1 -> 2"):
-        "numpy takes any negative size as the one to infer: reshape(-2, 3) is reshape(-1, 3)",
+    ("match/cost.py", "stacked = table.reshape(-1, N_COLUMNS)", "1 -> 2"): _INFER,
+    ("grasp/curvature.py", "points_mm = np.asarray(points_mm, dtype=np.float64).reshape(-1, 3)", "1 -> 2"): _INFER,
+    ("grasp/curvature.py", "normal = np.asarray(normals, dtype=np.float64).reshape(-1, 3)", "1 -> 2"): _INFER,
     ("match/search.py", "return int(np.clip(n_tangible * n_virtual // POOL_PAIRS_PER_KEPT, MIN_POOL, MAX_POOL))",
      "// -> /"): "int() truncates the positive quotient as // does",
     ("match/search.py", "keep = np.flatnonzero(result.cost < tau)", "< -> <="):
