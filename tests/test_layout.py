@@ -77,3 +77,13 @@ def test_every_mutant_listed_as_equivalent_names_a_line_of_the_code():
         source = [s.strip() for s in (PACKAGE / module).read_text().splitlines()]
         assert line in source, (module, line)
         assert mutation.EQUIVALENT[(module, line, description)], "an equivalent mutant needs its reason"
+
+
+@pytest.mark.parametrize("argv", [["--help"], ["match", "--help"], ["--version"], ["match", "--bogus"], []])
+def test_help_version_and_bad_options_answer_without_loading_the_pipeline(argv):
+    code = ("import sys\nfrom pinchmatch.cli.main import main\n"
+            "try:\n    main(sys.argv[1:])\nexcept SystemExit:\n    pass\n"
+            "heavy = [m for m in ('numpy', 'scipy', 'trimesh', 'matplotlib', 'pinchmatch.cli.commands') if m in sys.modules]\n"
+            "print(heavy, file=sys.stderr)")
+    done = subprocess.run([sys.executable, "-c", code, *argv], capture_output=True, text=True, timeout=60)
+    assert done.stderr.strip().splitlines()[-1] == "[]", done.stderr

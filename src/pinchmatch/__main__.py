@@ -1,5 +1,5 @@
 """``python -m pinchmatch``: the command line."""
 
-from .cli.commands import console
+from .cli.main import console
 
 console()

@@ -54,6 +54,10 @@ class OutputError(PinchmatchError):
     """An output that cannot be written: a read-only or full file system, no permission."""
 
 
+class RunError(Exception):
+    """The run itself broke (a worker died), not the input: one line, exit 1, and what to change."""
+
+
 def route_warnings(*, verbose: bool) -> None:
     """Send Python warnings (numpy's and trimesh's RuntimeWarnings) to the log, shown with
     ``--verbose`` only: a run prints one line per problem, never a warning from inside a library."""

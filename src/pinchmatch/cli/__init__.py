@@ -1,6 +1,6 @@
-"""The command line: ``pinchmatch`` and its subcommands (:mod:`.commands`), shown through a console
-presenter (:mod:`.console`)."""
+"""The command line: ``pinchmatch`` (:mod:`.main`: parse and dispatch), its options (:mod:`.parser`),
+its subcommands (:mod:`.commands`) and what they show (:mod:`.console`)."""
 
-from .commands import console, main
+from .main import console, main
 
 __all__ = ["console", "main"]

@@ -1,19 +1,14 @@
-"""Command line: ``pinchmatch demo``, ``match``, ``view``, ``cache``, ``poses`` and ``features``.
+"""The commands: ``pinchmatch demo``, ``match``, ``view``, ``cache``, ``poses`` and ``features``.
 
-Exit codes, in one place: 0 success, 2 bad input or usage (one line on
-stderr naming the file, the problem and the fix), 3 ``match`` finished but
-left out files it could not use (each named on stderr and in the summary
-and ``matches.json``), 1 unexpected error (a traceback only with
-``--verbose``).
+Each takes the parsed options and returns its exit code (:mod:`pinchmatch.cli.main` lists them
+and turns errors into one line). ``main`` is re-exported here for callers that run a command line.
 """
 
 from __future__ import annotations
 
 import logging
 import os
-import signal
 import sys
-import threading
 import time
 from concurrent.futures.process import BrokenProcessPool
 from importlib import resources
@@ -23,7 +18,7 @@ import numpy as np
 
 from ..grasp.analysis import analyze_object, find_pinches, load_poses_file, score_pinches
 from ..runner.cache import FeatureCache
-from ..errors import ConfigError, PinchmatchError, route_warnings
+from ..errors import ConfigError, RunError
 from ..files import check_writable, write_atomic
 from ..mesh.manifest import object_specs
 from ..grasp.pinches import PinchSettings
@@ -32,12 +27,12 @@ from ..match.cost import parse_criteria, parse_weights
 from ..match.search import MatchSettings
 from ..mesh.properties import parse_vector
 from .console import Presenter
-from .parser import build_parser, check_option_names, join_vector_values
+from .main import main  # noqa: F401 (the entry point, re-exported)
 from ..export.documents import (features_document, matches_rows, poses_csv, poses_document, scene_stems,
                                 matches_legend, study_document, study_legend, study_rows, to_json)
 from ..runner.tasks import Job, ObjectTask, virtual_result
 from ..export.sink import MatchesSink
-from ..runner.matching import RunError, RunResult, run_match
+from ..runner.matching import RunResult, run_match
 from ..runner.executors import executor
 from ..runner.study import ORDERS, run_study
 from ..export.view import make_server, write_page
@@ -383,59 +378,3 @@ def _open_in_browser(url: str, ui) -> None:
 
 COMMANDS = {"demo": _cmd_demo, "match": _cmd_match, "view": _cmd_view, "cache": _cmd_cache,
             "poses": _cmd_poses, "features": _cmd_features}
-
-
-class Terminated(BaseException):
-    """SIGTERM arrived: unwind like Ctrl-C, so that nothing is left half-written."""
-
-
-def _on_sigterm(signum, frame):
-    raise Terminated()
-
-
-def main(argv: list[str] | None = None) -> int:
-    """Run the command line; return the exit code."""
-    argv = list(sys.argv[1:] if argv is None else argv)
-    main_thread = threading.current_thread() is threading.main_thread()
-    previous = signal.signal(signal.SIGTERM, _on_sigterm) if main_thread else None
-    try:
-        return _main(argv)
-    finally:
-        if main_thread:
-            signal.signal(signal.SIGTERM, previous)
-
-
-def _main(argv: list[str]) -> int:
-    verbose = "-v" in argv or "--verbose" in argv
-    logging.basicConfig(level=logging.INFO if verbose else logging.WARNING, format="%(name)s: %(message)s")
-    route_warnings(verbose=verbose)
-    try:
-        parser = build_parser()
-        check_option_names(parser, argv)
-        args = parser.parse_args(join_vector_values(argv))
-        if args.command is None:
-            build_parser().print_help()
-            return 2
-        return COMMANDS[args.command](args)
-    except PinchmatchError as exc:
-        print(f"pinchmatch: error: {exc.cli_message()}", file=sys.stderr)
-        return 2
-    except RunError as exc:  # not the input's fault: an internal error, in one line
-        print(f"pinchmatch: internal error: {exc}", file=sys.stderr)
-        return 1
-    except KeyboardInterrupt:
-        print("pinchmatch: interrupted; the output folder holds what it held before", file=sys.stderr)
-        return 130
-    except Terminated:
-        print("pinchmatch: terminated; the output folder holds what it held before", file=sys.stderr)
-        return 143
-    except Exception as exc:  # an internal error: say so, traceback on request
-        if verbose:
-            raise
-        print(f"pinchmatch: internal error: {type(exc).__name__}: {exc}; rerun with --verbose and report it",
-              file=sys.stderr)
-        return 1
-
-
-def console() -> None:
-    sys.exit(main())

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import json
 import logging
-import math
 import os
 import struct
 import urllib.parse
@@ -20,14 +19,12 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from ..errors import ConfigError, MeshError, option
+from ..errors import ConfigError, MeshError
 from ..files import holds_result
+from .frames import UNITS_MM, UP_VECTORS, check_units, parse_up  # noqa: F401 (UP_VECTORS: public here too)
 from .level import LevelNode, level_nodes, node_mesh
 
 log = logging.getLogger(__name__)
-
-#: millimetres per unit
-UNITS_MM = {"mm": 1.0, "cm": 10.0, "m": 1000.0, "in": 25.4}
 
 #: extensions trimesh reads that we accept, mapped to the trimesh file type
 MESH_EXTENSIONS = {
@@ -41,21 +38,6 @@ MESH_EXTENSIONS = {
 
 #: glTF is metres and +Y up by its own specification; other formats carry no units
 GLTF_TYPES = {"glb", "gltf"}
-
-UP_VECTORS = {
-    "x": (1.0, 0.0, 0.0),
-    "y": (0.0, 1.0, 0.0),
-    "z": (0.0, 0.0, 1.0),
-    "-x": (-1.0, 0.0, 0.0),
-    "-y": (0.0, -1.0, 0.0),
-    "-z": (0.0, 0.0, -1.0),
-}
-
-#: an object whose largest side is outside this range (mm) surely has the wrong units:
-#: nothing smaller than a grain of rice or larger than a room is pinched.
-PLAUSIBLE_SIZE_MM = (2.0, 10_000.0)
-#: the sizes (mm) of objects a hand holds in a pinch, for suggesting units
-GRASPABLE_SIZE_MM = (10.0, 500.0)
 
 #: a connected piece with less than this fraction of the total area is a loose sliver
 SLIVER_AREA_FRACTION = 1e-3
@@ -98,16 +80,6 @@ class LoadedMesh:
     @property
     def name(self) -> str:
         return self.node if self.node is not None else Path(self.path).name
-
-
-def parse_up(up: str, *, source: str = "--up") -> tuple[str, np.ndarray]:
-    """Return the label and unit vector of an up direction like ``"z"`` or ``"-y"``."""
-    key = str(up).strip().lower()
-    if key not in UP_VECTORS:
-        raise ConfigError(
-            f"{source}: unknown up direction {up!r}; use one of {', '.join(UP_VECTORS)}"
-        )
-    return key, np.array(UP_VECTORS[key])
 
 
 def mesh_files(paths, *, option: str) -> list[Path]:
@@ -396,31 +368,6 @@ def _validate_arrays(path: Path, mesh: trimesh.Trimesh) -> None:
         )
 
 
-def _check_units(path: Path, extent_mm: float, units_in: str) -> None:
-    lo, hi = PLAUSIBLE_SIZE_MM
-    if lo <= extent_mm <= hi:
-        return
-    raw = extent_mm / UNITS_MM[units_in]
-    problem = "small" if extent_mm < lo else "large"
-    raise MeshError(
-        f"{path}: mesh is {extent_mm:.4g} mm across when read in {units_in} (too {problem} "
-        f"to pinch; were its units not {units_in}?); {_units_hint(raw, units_in)}"
-    )
-
-
-def _units_hint(raw: float, units_in: str) -> str:
-    """The units that make an object ``raw`` file units across a size a hand holds, both where two do."""
-    size = {u: raw * s for u, s in UNITS_MM.items() if u != units_in}
-    lo, hi = GRASPABLE_SIZE_MM
-    fits = sorted((u for u, mm in size.items() if lo <= mm <= hi), key=lambda u: abs(math.log(size[u] / 100.0)))
-    if not fits:
-        plausible = [u for u, mm in size.items() if PLAUSIBLE_SIZE_MM[0] <= mm <= PLAUSIBLE_SIZE_MM[1]]
-        fits = sorted(plausible, key=lambda u: abs(math.log(size[u] / 100.0)))[:1]
-    if not fits:
-        return "scale the mesh to real size"
-    return "read it with " + " or ".join(f"{option('units', u)} ({size[u]:.3g} mm across)" for u in fits[:2])
-
-
 def _repair(mesh: trimesh.Trimesh, *, indexed: bool) -> list[str]:
     """Repair in place what is safe to repair; return what was done.
 
@@ -550,7 +497,7 @@ def load_mesh(
         process=False,
     )
     extent = float(np.ptp(mesh.vertices, axis=0).max())
-    _check_units(path, extent, units_in)
+    check_units(path, extent, units_in)
 
     centred = mesh.vertices - mesh.vertices.mean(axis=0)
     thickness = float(np.linalg.svd(centred, compute_uv=False)[-1] / np.sqrt(len(centred)))

@@ -39,7 +39,8 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from ..errors import ConfigError
-from .load import GLTF_TYPES, MESH_EXTENSIONS, UNITS_MM, UP_VECTORS, mesh_files, read_level
+from .frames import UNITS_MM, UP_VECTORS
+from .load import GLTF_TYPES, MESH_EXTENSIONS, mesh_files, read_level
 from .regions import ContactRegions, Region
 
 MANIFEST_SUFFIX = ".toml"

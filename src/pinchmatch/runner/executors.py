@@ -20,17 +20,9 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from ..errors import ConfigError
+from .cores import default_jobs
 from ..match.candidates import Candidates
 from .worker import forget_tangibles, init_worker, keep_tangibles, payload_token, stages_shown_by
-
-
-def default_jobs() -> int:
-    """All the cores this process may use."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        return os.cpu_count() or 1
-
 
 
 class Executor:

@@ -116,6 +116,4 @@ class RoleFailed(PinchmatchError):
     """A role's only file failed: its own error, as one line."""
 
 
-class RunError(Exception):
-    """The run itself broke (a worker died), not the input: one line, exit 1, and what to change."""
 

@@ -1,0 +1,78 @@
+"""The command line's entry point: parse, dispatch, and turn every ending into an exit code.
+
+Exit codes, in one place: 0 success, 2 bad input or usage (one line on stderr naming the file,
+the problem and the fix), 3 ``match`` finished but left out files it could not use (each named
+on stderr, in the summary and in ``matches.json``), 130 and 143 interrupted or terminated (the
+output folder as it was), 1 unexpected error (a traceback only with ``--verbose``).
+
+Only the parser is imported up front: ``--help``, ``--version`` and a bad option answer without
+loading the pipeline (:mod:`pinchmatch.cli.commands` and everything below it).
+"""
+
+from __future__ import annotations
+
+import logging
+import signal
+import sys
+import threading
+
+from ..errors import PinchmatchError, RunError, route_warnings
+from .parser import build_parser, check_option_names, join_vector_values
+
+
+class Terminated(BaseException):
+    """SIGTERM arrived: unwind like Ctrl-C, so that nothing is left half-written."""
+
+
+def _on_sigterm(signum, frame):
+    raise Terminated()
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the command line; return the exit code."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    main_thread = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGTERM, _on_sigterm) if main_thread else None
+    try:
+        return _main(argv)
+    finally:
+        if main_thread:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _main(argv: list[str]) -> int:
+    verbose = "-v" in argv or "--verbose" in argv
+    logging.basicConfig(level=logging.INFO if verbose else logging.WARNING, format="%(name)s: %(message)s")
+    route_warnings(verbose=verbose)
+    try:
+        parser = build_parser()
+        check_option_names(parser, argv)
+        args = parser.parse_args(join_vector_values(argv))
+        if args.command is None:
+            build_parser().print_help()
+            return 2
+        from .commands import COMMANDS  # the pipeline: loaded for a command, not for --help
+
+        return COMMANDS[args.command](args)
+    except PinchmatchError as exc:
+        print(f"pinchmatch: error: {exc.cli_message()}", file=sys.stderr)
+        return 2
+    except RunError as exc:  # not the input's fault: an internal error, in one line
+        print(f"pinchmatch: internal error: {exc}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print("pinchmatch: interrupted; the output folder holds what it held before", file=sys.stderr)
+        return 130
+    except Terminated:
+        print("pinchmatch: terminated; the output folder holds what it held before", file=sys.stderr)
+        return 143
+    except Exception as exc:  # an internal error: say so, traceback on request
+        if verbose:
+            raise
+        print(f"pinchmatch: internal error: {type(exc).__name__}: {exc}; rerun with --verbose and report it",
+              file=sys.stderr)
+        return 1
+
+
+def console() -> None:
+    sys.exit(main())
