@@ -13,6 +13,7 @@ CAD triangles, a fine scan or a random triangulation.
 
 from __future__ import annotations
 
+import functools
 import logging
 from dataclasses import dataclass
 
@@ -181,26 +182,46 @@ class SurfaceContext:
         self.contact_area_mm2 = np.asarray(mesh.area_faces, dtype=np.float64)
         if regions:
             self.contact_area_mm2 = self.contact_area_mm2 * regions.faces_that_may_hold_contacts(mesh.triangles)
-        area = float(mesh.area)
-        per_sample = max(np.pi * patch_radius_mm**2 / SAMPLES_PER_PATCH, area / MAX_SAMPLES)
-        self.sample = sample_surface(
-            mesh, area_per_sample_mm2=per_sample, max_chord_edge_mm=2.0 * patch_radius_mm
-        )
-        self.tree = cKDTree(self.sample.points)
-        self.rays, self.ray_engine_name = ray_engine(mesh)
         self.face_normals = np.asarray(mesh.face_normals)
         self.scale_mm = float(mesh.scale)
-        #: area-weighted centroid of the surface: "outward" for the hand's approach
-        self.centroid_mm = np.average(self.sample.points, axis=0, weights=self.sample.weight)
-        #: (3, 3) principal directions of the surface, as columns, least spread first
-        #: (a ring's, a plate's or a disc's symmetry axis comes first)
+
+    # The dense sample, its KD-tree and the ray engine are built on first use, each once: an object
+    # read back from the cache for its features alone never needs them.
+
+    @functools.cached_property
+    def sample(self) -> SurfaceSample:
+        per_sample = max(np.pi * self.patch_radius_mm**2 / SAMPLES_PER_PATCH, float(self.mesh.area) / MAX_SAMPLES)
+        sample = sample_surface(self.mesh, area_per_sample_mm2=per_sample,
+                                max_chord_edge_mm=2.0 * self.patch_radius_mm)
+        log.debug("surface context: %d faces, %d samples (%.2f mm apart)", len(self.mesh.faces),
+                  len(sample.points), sample.spacing_mm)
+        return sample
+
+    @functools.cached_property
+    def tree(self) -> cKDTree:
+        return cKDTree(self.sample.points)
+
+    @functools.cached_property
+    def rays(self):
+        return ray_engine(self.mesh)[0]
+
+    @property
+    def ray_engine_name(self) -> str:
+        """``embree`` or ``numpy``: the engine :attr:`rays` is (known without building it)."""
+        return "embree" if _embree_installed() else "numpy"
+
+    @functools.cached_property
+    def centroid_mm(self) -> np.ndarray:
+        """Area-weighted centroid of the surface: "outward" for the hand's approach."""
+        return np.average(self.sample.points, axis=0, weights=self.sample.weight)
+
+    @functools.cached_property
+    def principal_axes(self) -> np.ndarray:
+        """(3, 3) principal directions of the surface, as columns, least spread first (a ring's, a
+        plate's or a disc's symmetry axis comes first)."""
         centred = self.sample.points - self.centroid_mm
         cov = (centred * self.sample.weight[:, None]).T @ centred / self.sample.weight.sum()
-        self.principal_axes = np.linalg.eigh(cov)[1]
-        log.debug(
-            "surface context: %d faces, %d samples (%.2f mm apart), rays by %s",
-            len(mesh.faces), len(self.sample.points), self.sample.spacing_mm, self.ray_engine_name,
-        )
+        return np.linalg.eigh(cov)[1]
 
     def first_hit(self, origins: np.ndarray, directions: np.ndarray):
         """First surface hit along each ray.
