@@ -89,8 +89,6 @@ EQUIVALENT: dict[tuple[str, str, str], str] = {
         "the line before returns only where |along| > 1e-9, so along is never 0 here",
     ("grasp/curvature.py", "CHUNK = 256", "256 -> 257"):
         "the chunk size only splits the work; tests/test_jets.py checks that results do not depend on it",
-    ("grasp/curvature.py", "workers = min(len(starts), os.cpu_count() or 1)", "1 -> 2"):
-        "only where os.cpu_count() is unknown, and results do not depend on the threads (tests/test_jets.py)",
     ("match/register.py", "perp = np.cross(ao, [1.0, 0.0, 0.0])", "0.0 -> 1.0"):
         "a half turn about any axis perpendicular to a takes a onto -a, and all are smallest; a helper along "
         "a itself is caught by the fallback on the next line",

@@ -68,9 +68,14 @@ def test_results_do_not_depend_on_chunking_or_threads(monkeypatch):
     points, faces = trimesh.sample.sample_surface(mesh, 700, seed=1)
     normals = mesh.face_normals[faces]
     together = patch_geometry(context, points, normals)
+    from pinchmatch.cores import set_thread_budget
+
     monkeypatch.setattr(curvature, "CHUNK", 37)
-    monkeypatch.setattr(curvature.os, "cpu_count", lambda: 1)
-    apart = patch_geometry(context, points, normals)
+    before = set_thread_budget(1)
+    try:
+        apart = patch_geometry(context, points, normals)
+    finally:
+        set_thread_budget(before)
     for field in together.__dataclass_fields__:
         np.testing.assert_array_equal(getattr(together, field), getattr(apart, field))
 

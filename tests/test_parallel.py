@@ -214,3 +214,20 @@ def test_workers_report_the_stages_of_loading_each_object(meshes, jobs):
         assert ("tangibles", f"{name}: reading") in stages and ("tangibles", f"{name}: surface sample and index") \
             in stages
     assert "e0.stl: repairing" in [note for what, note in stages if what != "tangibles"]  # the virtual objects' step
+
+
+def test_threads_never_outnumber_the_cores():
+    from threadpoolctl import threadpool_info
+
+    from pinchmatch.cores import default_jobs, set_thread_budget, thread_budget
+    from pinchmatch.runner.executors import executor
+
+    before = thread_budget()
+    with executor(1):  # --jobs 1: one core in all, the patch fits' threads and BLAS included
+        assert thread_budget() == 1
+        assert all(pool["num_threads"] == 1 for pool in threadpool_info())
+    assert thread_budget() == before
+    share = max(1, default_jobs() // 2)
+    with executor(2) as ex:  # --jobs 2: each worker its share (set_thread_budget returns the one it had)
+        budgets = list(ex.map(set_thread_budget, [share] * 4))
+    assert budgets == [share] * 4

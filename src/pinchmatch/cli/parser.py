@@ -14,7 +14,7 @@ import re
 from ..errors import ConfigError
 from ..version import __version__
 from ..mesh.frames import UNITS_MM, UP_VECTORS
-from ..runner.cores import default_jobs
+from ..cores import default_jobs
 
 #: options whose value is a vector and may start with a minus sign
 VECTOR_OPTIONS = ("--p1", "--p2", "--com", "--axis")

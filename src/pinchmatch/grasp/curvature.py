@@ -38,12 +38,12 @@ on spheres, cylinders, tori and ellipsoids in several triangulations
 
 from __future__ import annotations
 
-import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
 
+from ..cores import thread_budget
 from ..mesh.surface import SurfaceContext
 
 #: neighbours considered per contact (the patch is cut from these by radius)
@@ -140,7 +140,7 @@ def patch_geometry(
         fit_patches(context.sample, points_mm, normal, idx, counts, radius, start, min(start + CHUNK, n), out)
 
     starts = range(0, n, CHUNK)
-    workers = min(len(starts), os.cpu_count() or 1)
+    workers = min(len(starts), thread_budget())
     if workers > 1:
         # the kernel releases the GIL: chunks run on every core, each writing its own rows
         with ThreadPoolExecutor(max_workers=workers) as pool:

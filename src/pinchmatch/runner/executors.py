@@ -20,15 +20,22 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from ..errors import ConfigError
-from .cores import default_jobs
+from ..cores import default_jobs, set_thread_budget
 from ..match.candidates import Candidates
 from .worker import forget_tangibles, init_worker, keep_tangibles, payload_token, stages_shown_by
 
 
 class Executor:
-    """Runs tasks in this process, one after another."""
+    """Runs tasks in this process, one after another, on one core: the patch fits' threads and
+    BLAS are held to one while it is open (``--jobs 1`` uses one core in all)."""
 
     workers = 1
+
+    def __init__(self):
+        from threadpoolctl import threadpool_limits
+
+        self._budget_before = set_thread_budget(1)
+        self._blas = threadpool_limits(limits=1)
 
     @contextmanager
     def stages(self, show: Callable[[str, str], None]):
@@ -51,6 +58,10 @@ class Executor:
 
     def close(self) -> None:
         forget_tangibles()
+        if self._blas is not None:
+            self._blas.restore_original_limits()
+            set_thread_budget(self._budget_before)
+            self._blas = None
 
     def __enter__(self):
         return self

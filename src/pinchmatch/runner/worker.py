@@ -19,6 +19,7 @@ from contextlib import contextmanager
 
 import numpy as np
 
+from ..cores import set_thread_budget
 from ..errors import route_warnings
 from ..match.candidates import Candidates
 from .cache import from_payload
@@ -110,7 +111,7 @@ def _die_with_parent() -> None:
 
 
 def init_worker(threads: int, stages=None) -> None:
-    """A local worker: numpy's BLAS gets its share of the cores, not all of them; it ends when the
+    """A local worker: numpy's BLAS and the patch fits get its share of the cores, not all of them; it ends when the
     run that started it ends, however that ends; it reports stages on ``stages``."""
     global _LIMITS, _STAGES
     _die_with_parent()
@@ -118,6 +119,7 @@ def init_worker(threads: int, stages=None) -> None:
     from threadpoolctl import threadpool_limits
 
     _LIMITS = threadpool_limits(limits=threads)
+    set_thread_budget(threads)  # the patch fits' threads too
     logging.getLogger("pinchmatch").setLevel(logging.ERROR)  # the parent reports; workers stay quiet
     route_warnings(verbose=False)
 

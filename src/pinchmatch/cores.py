@@ -1,0 +1,42 @@
+"""How many cores a run may use, and how its threads share them.
+
+A run works on objects in one process (``--jobs 1``) or in several (``--jobs N``, or a Dask
+cluster), and inside each process the patch fits run on a pool of threads and numpy's BLAS on
+its own. Unbounded, every process would start a thread per core and the machine would run N
+times more threads than it has cores. The *thread budget* is how many threads one process may
+use: every core where nothing says otherwise, its share in a worker of a local pool, one with
+``--jobs 1``. The fits read it (:func:`thread_budget`); the runner sets it
+(:func:`set_thread_budget`), together with threadpoolctl's limit on BLAS.
+
+Imports nothing heavy, so that the command line can say the default in its help without loading
+the pipeline.
+"""
+
+from __future__ import annotations
+
+import os
+
+_BUDGET: int | None = None
+
+
+def default_jobs() -> int:
+    """All the cores this process may use (its CPU affinity where the system has one)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+def thread_budget() -> int:
+    """How many threads this process may run at once: the budget set, else every core it may use."""
+    return _BUDGET if _BUDGET is not None else default_jobs()
+
+
+def set_thread_budget(threads: int | None) -> int | None:
+    """Let this process run at most ``threads`` threads at once (None: every core); return the
+    budget before, so that a caller can give it back."""
+    global _BUDGET
+    if threads is not None and threads < 1:
+        raise ValueError(f"a thread budget of {threads}: give 1 or more")
+    before, _BUDGET = _BUDGET, threads
+    return before
