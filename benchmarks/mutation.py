@@ -75,6 +75,9 @@ EQUIVALENT: dict[tuple[str, str, str], str] = {
     ("match/cost.py", "stacked = table.reshape(-1, N_COLUMNS)", "1 -> 2"): _INFER,
     ("grasp/curvature.py", "points_mm = np.asarray(points_mm, dtype=np.float64).reshape(-1, 3)", "1 -> 2"): _INFER,
     ("grasp/curvature.py", "normal = np.asarray(normals, dtype=np.float64).reshape(-1, 3)", "1 -> 2"): _INFER,
+    ("grasp/pinches.py", "raw = np.stack([p1_mm, p2_mm], axis=1).reshape(-1, 3)", "1 -> 2"): _INFER,
+    ("grasp/pinches.py", "closest, distance, face = raw, np.zeros(len(raw)), "
+     "np.asarray(faces, dtype=np.int64).reshape(-1)", "1 -> 2"): _INFER,
     ("match/search.py", "return int(np.clip(n_tangible * n_virtual // POOL_PAIRS_PER_KEPT, MIN_POOL, MAX_POOL))",
      "// -> /"): "int() truncates the positive quotient as // does",
     ("match/search.py", "keep = np.flatnonzero(result.cost < tau)", "< -> <="):

@@ -165,6 +165,8 @@ def test_the_patch_radius_is_one_setting():
     obj = analyze_object(example_mesh_path(), patch_radius_mm=6.0)
     with pytest.raises(ConfigError, match="analysed for 6 mm patches but the pinch settings ask for 8 mm"):
         find_pinches(obj, settings=PinchSettings(count=20))
+    with pytest.raises(ConfigError, match="analysed for 6 mm patches but the pinch settings ask for 6.5 mm"):
+        find_pinches(obj, settings=PinchSettings(count=20, patch_radius_mm=6.5))  # half a millimetre is another
     pinches, _ = find_pinches(obj, settings=PinchSettings(count=20, patch_radius_mm=6.0))
     assert len(pinches) == 20
 
