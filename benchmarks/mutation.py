@@ -85,6 +85,10 @@ EQUIVALENT: dict[tuple[str, str, str], str] = {
         "never picked either way",
     ("match/register.py", "return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-300)", "drop -"):
         "every caller passes (k, 3) vectors, whose last axis is axis 1",
+    ("grasp/features.py", "u = seg / np.maximum(width, 1e-300)[:, None]", "1e-300 -> 2e-300"):
+        "the floor only keeps a zero-width pinch from dividing by zero: any tiny floor gives the same zero vector",
+    ("match/cost.py", "s[..., 7:9] = np.maximum(MASS_JND_FRACTION * np.hypot(t[..., 7], t[..., 8]), "
+     "MASS_JND_FLOOR_MM)[..., None]", "9 -> 10"): "the table has 9 columns: the slice 7:10 is the slice 7:9",
     ("match/register.py", "opposite = c < -1.0 + 1e-12", "1e-12 -> 2e-12"): _GUARD,
     ("match/register.py", "small = np.linalg.norm(perp, axis=1) < 1e-6", "1e-06 -> 2e-06"): _GUARD,
     ("mesh/properties.py", "if abs(along) > 1e-9:", "1e-09 -> 2e-09"): _GUARD,

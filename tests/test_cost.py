@@ -157,3 +157,26 @@ def test_a_model_fills_in_zero_for_unnamed_criteria_and_uses_mass_only_when_weig
     assert not model.uses_mass
     assert not CostModel({"mass": 0.0, "width": 1.0}).uses_mass
     assert CostModel({"mass": 0.5}).uses_mass
+
+
+def test_the_mass_term_is_the_squared_offset_mismatch_over_the_squared_jnd():
+    from pinchmatch.match.cost import mass_term
+
+    model = CostModel(dict.fromkeys(CRITERIA, 1.0), "jnd", None, CRITERIA)
+    # tangible offsets (along, lever arm) (30, 40): |o| = 50 mm, below 20 / 0.22, so s = 20 mm;
+    # (300, 400): |o| = 500 mm, s = 0.22 x 500 = 110 mm
+    rows = np.zeros((2, 2, 9))
+    rows[0, :, 7:] = [30.0, 40.0]
+    rows[1, :, 7:] = [300.0, 400.0]
+    delta = np.array([[10.0, 0.0, 0.0], [0.0, 55.0, 0.0]])
+    np.testing.assert_allclose(mass_term(rows, delta, model), [100.0 / 400.0, 55.0**2 / 110.0**2], rtol=1e-12)
+
+
+def test_a_felt_table_scales_both_mass_columns_and_nothing_else():
+    from pinchmatch.match.candidates import felt_table
+
+    table = np.arange(2 * 2 * 9, dtype=float).reshape(2, 2, 9) + 1.0
+    twice = felt_table(table, 2.0)
+    np.testing.assert_array_equal(twice[..., 7:], 2.0 * table[..., 7:])
+    np.testing.assert_array_equal(twice[..., :7], table[..., :7])
+    assert felt_table(table, 1.0) is table

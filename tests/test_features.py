@@ -140,3 +140,12 @@ def test_a_normal_exactly_along_the_pinch_line_is_0_deg_not_nan():
     pinches = _pinches([[[0, 0, 0], seg]], [[-u, u]], [[0.0, 0.0]], [[0.0, 0.0]], [[[0, 0, 1], [0, 0, 1]]])
     psi = pinch_features(pinches, _props([5.0, 5.0, 5.0])).normal_angle_deg
     np.testing.assert_array_equal(psi, [[0.0, 0.0]])
+
+
+def test_a_pinch_exactly_along_the_axis_is_tilted_90_deg_not_nan():
+    # for this line and this axis the rounded dot product of the unit vectors is -1 - 2e-16
+    seg = np.array([6.0, 0.4, -2.9])
+    x = seg / np.linalg.norm(seg)
+    pinches = _pinches([[[0, 0, 0], seg]], [[-x, x]], [[0.0, 0.0]], [[0.0, 0.0]], [[[0, 0, 1], [0, 0, 1]]])
+    tilt = pinch_features(pinches, _props([0.0, 0.0, 0.0], axis=seg)).tilt_deg
+    np.testing.assert_array_equal(tilt, [90.0])
