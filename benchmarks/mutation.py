@@ -89,6 +89,9 @@ EQUIVALENT: dict[tuple[str, str, str], str] = {
         "the floor only keeps a zero-width pinch from dividing by zero: any tiny floor gives the same zero vector",
     ("match/cost.py", "s[..., 7:9] = np.maximum(MASS_JND_FRACTION * np.hypot(t[..., 7], t[..., 8]), "
      "MASS_JND_FLOOR_MM)[..., None]", "9 -> 10"): "the table has 9 columns: the slice 7:10 is the slice 7:9",
+    ("match/register.py", "has_mass = (np.linalg.norm(perp(dm_v), axis=1) > 1e-9) & "
+     "(np.linalg.norm(perp(dm_t), axis=1) > 1e-9)", "1e-09 -> 2e-09"): _GUARD,
+    ("mesh/properties.py", "if not np.isfinite(norm) or norm < 1e-12:", "1e-12 -> 2e-12"): _GUARD,
     ("match/register.py", "opposite = c < -1.0 + 1e-12", "1e-12 -> 2e-12"): _GUARD,
     ("match/register.py", "small = np.linalg.norm(perp, axis=1) < 1e-6", "1e-06 -> 2e-06"): _GUARD,
     ("mesh/properties.py", "if abs(along) > 1e-9:", "1e-09 -> 2e-09"): _GUARD,
