@@ -97,6 +97,9 @@ EQUIVALENT: dict[tuple[str, str, str], str] = {
     ("mesh/properties.py", "if abs(along) > 1e-9:", "1e-09 -> 2e-09"): _GUARD,
     ("mesh/properties.py", "return axis if along > 0 else -axis", "> -> >="):
         "the line before returns only where |along| > 1e-9, so along is never 0 here",
+    ("grasp/curvature.py", "if workers > 1:", "1 -> 2"):
+        "with two workers the chunks run one after another instead of on two threads, and results do not "
+        "depend on the threads (tests/test_jets.py)",
     ("grasp/curvature.py", "CHUNK = 256", "256 -> 257"):
         "the chunk size only splits the work; tests/test_jets.py checks that results do not depend on it",
     ("match/register.py", "perp = np.cross(ao, [1.0, 0.0, 0.0])", "0.0 -> 1.0"):
