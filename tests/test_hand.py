@@ -185,3 +185,25 @@ def test_a_scan_with_holes_gives_pinches_with_the_closed_surfaces_features():
     assert np.median(np.abs(closed.kappa_max_per_m - pinches.kappa_max_per_m)) < 0.5  # 1/m
     cosine = np.einsum("ij,ij->i", pinches.normals.reshape(-1, 3), truth.normal)
     assert np.degrees(np.arccos(np.clip(cosine, -1, 1))).max() < 1.0
+
+
+@pytest.mark.parametrize("first", [True, False])
+def test_the_hand_is_stuck_whatever_the_index_of_the_triangle_above_it(first):
+    # beyond the fingers' ends the line along h meets a slab: the hand cannot get out, whether the
+    # triangle it meets is the mesh's first or another
+    from pinchmatch.grasp.hand import _hand_free
+
+    slab = trimesh.creation.box(extents=(100.0, 100.0, 4.0))
+    slab.apply_translation((0.0, 0.0, 80.0))
+    above = np.flatnonzero(slab.triangles_center[:, 2] < 79.0)  # the underside, facing the fingers
+    hit = above[0]
+    order = np.r_[hit, np.delete(np.arange(len(slab.faces)), hit)] if first else np.arange(len(slab.faces))
+    slab = trimesh.Trimesh(slab.vertices, slab.faces[order], process=False)
+    context = SurfaceContext(slab)
+    c = slab.triangles_center[0 if first else np.flatnonzero(order == hit)[0]]  # under that triangle
+    tips = np.array([[[c[0] - 1.0, c[1], 0.0], [c[0] + 1.0, c[1], 0.0]]])
+    h = np.array([[0.0, 0.0, 1.0]])
+    face = context.rays.intersects_first(tips.reshape(-1, 3) + 45.0 * h[0], np.repeat(h, 2, axis=0))
+    assert (np.asarray(face) == 0).all() == first  # both lines meet the first triangle, or neither
+    assert not _hand_free(context, tips, h, 45.0)[0]
+    assert _hand_free(context, tips, -h, 45.0)[0]  # downwards nothing is in the way
