@@ -2,6 +2,7 @@
 
     python benchmarks/bench_scale.py           # 200 virtual objects x 5 tangibles (about 15 minutes on 2 cores)
     python benchmarks/bench_scale.py --quick   # 16 virtual objects (about 2 minutes)
+    python benchmarks/bench_scale.py --only startup   # start-up of the command line and a worker (seconds)
 
 It generates the objects (seeded): virtual ellipsoids, cylinders and tori of random sizes, about
 20,000 faces each, randomly rotated; five tangibles (the stacked study prop, an ellipsoid, a
@@ -112,11 +113,41 @@ def run(tangibles, virtuals, *, poses: int, jobs: int, cache: Path, out: Path, f
     return {"seconds": seconds, "main_mib": peak["main"], "worker_mib": peak["worker"], "cache_entries": entries}
 
 
+def _median_seconds(argv: list[str], runs: int = 7) -> float:
+    times = []
+    for _ in range(runs):
+        t0 = time.perf_counter()
+        subprocess.run(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, check=False)
+        times.append(time.perf_counter() - t0)
+    return float(np.median(times))
+
+
+def startup() -> None:
+    """Start-up of the command line and of a worker, against the interpreter's own."""
+    bare = _median_seconds([sys.executable, "-c", "pass"])
+    help_s = _median_seconds([sys.executable, "-m", "pinchmatch", "--help"])
+    bad_s = _median_seconds([sys.executable, "-m", "pinchmatch", "match", "--bogus"])
+    worker = ("import time; t0 = time.perf_counter()\n"
+              "from pinchmatch.runner.executors import executor\n"
+              "from pinchmatch.cores import thread_budget\n"
+              "with executor(2) as ex: list(ex.map(abs, [1, 2]))\n"
+              "print(time.perf_counter() - t0)")
+    worker_s = float(np.median([float(subprocess.run([sys.executable, "-c", worker], capture_output=True,
+                                                     text=True, check=True).stdout) for _ in range(3)]))
+    print(f"start-up, median of 7: python -c pass {bare:.3f} s; pinchmatch --help {help_s:.3f} s "
+          f"({help_s / bare:.1f}x); a bad option {bad_s:.3f} s ({bad_s / bare:.1f}x); two workers started "
+          f"and one task each, median of 3: {worker_s:.2f} s")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="16 virtual objects, 8 for the poses rows")
+    parser.add_argument("--only", choices=("startup",), help="only the start-up figures (seconds)")
     parser.add_argument("--plot", default=str(Path(__file__).with_name("scale.png")), help="where the growth plot goes")
     args = parser.parse_args()
+    startup()
+    if args.only == "startup":
+        return
     n = 16 if args.quick else 200
     steps = [4, 8, 16] if args.quick else [25, 50, 100, 200]
     n_poses_objects = 8 if args.quick else 50
