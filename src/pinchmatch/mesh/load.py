@@ -21,7 +21,7 @@ import trimesh
 
 from ..errors import ConfigError, MeshError
 from ..files import holds_result
-from .frames import UNITS_MM, UP_VECTORS, check_units, parse_up  # noqa: F401 (UP_VECTORS: public here too)
+from .frames import UNITS_MM, check_units, parse_up
 from .level import LevelNode, level_nodes, node_mesh
 
 log = logging.getLogger(__name__)
