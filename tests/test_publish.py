@@ -69,7 +69,7 @@ def test_a_run_that_fails_midway_leaves_the_previous_result(tmp_path, virtuals, 
 
 def test_files_of_an_earlier_result_go_and_a_users_files_stay(tmp_path, virtuals):
     out = tmp_path / "out"
-    assert match(out, sorted(virtuals.glob("*.stl"))) == 0
+    assert match(out, sorted(virtuals.glob("*.stl")), "--figures") == 0
     assert len(list((out / "scenes").glob("*.glb"))) == 3
     (out / "notes.txt").write_text("mine")
     (out / "scenes" / "mine.glb").write_bytes(b"mine")
@@ -192,7 +192,8 @@ def test_a_normal_parallel_run_leaves_no_defunct_child(tmp_path, virtuals):
 def test_two_runs_at_once_one_is_refused(tmp_path, virtuals):
     out = tmp_path / "out"
     argv = [sys.executable, "-m", "pinchmatch", "match", "--tangible", str(example_mesh_path()), "--virtual",
-            *map(str, sorted(virtuals.glob("*.stl"))), "--count", "300", "-q", "--jobs", "1", "-o", str(out)]
+            *map(str, sorted(virtuals.glob("*.stl"))), "--count", "300", "-q", "--jobs", "1", "--no-cache",
+            "--figures", "-o", str(out)]  # computed, with figures: the first run is still writing when the second starts
     first = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.time() + 60
     while not (out / ".pinchmatch" / "staging").exists() and time.time() < deadline:

@@ -40,3 +40,13 @@ def set_thread_budget(threads: int | None) -> int | None:
         raise ValueError(f"a thread budget of {threads}: give 1 or more")
     before, _BUDGET = _BUDGET, threads
     return before
+
+
+#: below this many query points a KD-tree query runs on the calling thread: scipy starts its
+#: threads anew for every call, which costs more than a small batch takes
+PARALLEL_QUERY_POINTS = 20_000
+
+
+def query_workers(points: int) -> int:
+    """``workers=`` for a scipy KD-tree query of ``points`` points, within the thread budget."""
+    return thread_budget() if points >= PARALLEL_QUERY_POINTS else 1

@@ -204,10 +204,12 @@ def _cmd_match(args) -> int:
         raise ConfigError("--cache and --no-cache: give one of them")
     if args.json and args.format == "jsonl":
         raise ConfigError("--json and --format jsonl: give one of them; --json prints the matches.json document")
+    if args.figures and args.no_figures:
+        raise ConfigError("--figures and --no-figures: give one of them")
     cache = None if args.no_cache else FeatureCache(args.cache)
     job = Job(units=args.units, up=args.up, settings=settings,
               match=match_settings, cache_folder=None if cache is None else str(cache.folder.resolve()),
-              dump_poses=args.dump_poses, scenes=True, figures=not args.no_figures)
+              dump_poses=args.dump_poses, scenes=True, figures=args.figures)
     tasks = lambda role, specs, given, files: [  # noqa: E731
         ObjectTask(role, spec.path, given[k], files[k] if given[k] is not None else None, spec)
         for k, spec in enumerate(specs)]
@@ -233,7 +235,7 @@ def _cmd_match(args) -> int:
             doc = sink.finish(result)
         t1 = time.perf_counter()
         written = [str(out / sink.result_path.name), f"{sink.scenes} glTF scenes in {out / 'scenes'}"]
-        if not args.no_figures:
+        if args.figures:
             from ..export.figures import png_bytes, cost_matrix_figure  # matplotlib: imported when figures are wanted
 
             with ui.step("cost matrix figure"):

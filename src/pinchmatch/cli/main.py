@@ -17,6 +17,8 @@ import sys
 import threading
 
 from ..errors import PinchmatchError, RunError, route_warnings
+from ..cores import default_jobs
+from ..runner.forkserver import start_worker_server
 from .parser import build_parser, check_option_names, join_vector_values
 
 
@@ -51,6 +53,8 @@ def _main(argv: list[str]) -> int:
         if args.command is None:
             build_parser().print_help()
             return 2
+        if _wants_local_workers(args):
+            start_worker_server()  # it loads the pipeline for the workers while this process does the same
         from .commands import COMMANDS  # the pipeline: loaded for a command, not for --help
 
         return COMMANDS[args.command](args)
@@ -72,6 +76,14 @@ def _main(argv: list[str]) -> int:
         print(f"pinchmatch: internal error: {type(exc).__name__}: {exc}; rerun with --verbose and report it",
               file=sys.stderr)
         return 1
+
+
+def _wants_local_workers(args) -> bool:
+    """The command will run local worker processes (``match`` with more than one job, no cluster)."""
+    if args.command != "match" or getattr(args, "scheduler", None):
+        return False
+    jobs = default_jobs() if args.jobs is None else args.jobs
+    return jobs > 1
 
 
 def console() -> None:

@@ -115,9 +115,16 @@ def _add_match_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--keep-upright", action="store_true", help="never turn a virtual object upside down")
 
 
-def _add_output_options(p: argparse.ArgumentParser) -> None:
+def _add_output_options(p: argparse.ArgumentParser, *, figures: bool) -> None:
+    """``figures``: the command writes its PNG figures unless told not to (else only when asked)."""
     p.add_argument("--no-view", action="store_true", help="do not write the viewer page OUT/index.html")
-    p.add_argument("--no-figures", action="store_true", help="do not write the figures in OUT/figures")
+    if figures:
+        p.add_argument("--no-figures", action="store_true", help="do not write the figures in OUT/figures")
+    else:
+        p.add_argument("--figures", action="store_true",
+                       help="also write PNG figures in OUT/figures: the cost matrix and each match's criteria "
+                            "(the page draws the same bars itself)")
+        p.add_argument("--no-figures", action="store_true", help="no PNG figures (the default)")
     p.add_argument("--json", action="store_true",
                    help="print the result document to stdout (and nothing else there)")
 
@@ -138,7 +145,7 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--full", action="store_true",
                       help="candidate virtual poses: every sampled pose as well as the paper's 17")
     _add_sampling_options(demo)
-    _add_output_options(demo)
+    _add_output_options(demo, figures=True)
     _add_verbosity(demo)
 
     match = sub.add_parser("match", help="best tangible, pinch and registration for every virtual object")
@@ -158,7 +165,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_sampling_options(match)
     _add_match_options(match)
     match.add_argument("-o", "--output", metavar="OUT", default="pinchmatch-out",
-                       help="folder for matches.json, the scenes, the figures and the page (default pinchmatch-out)")
+                       help="folder for matches.json, the scenes, the page and the figures (default pinchmatch-out)")
     match.add_argument("--cache", metavar="DIR",
                        help="keep each object's poses and features here (default: the per-user cache, "
                             "$PINCHMATCH_CACHE_DIR or ~/.cache/pinchmatch)")
@@ -173,7 +180,7 @@ def build_parser() -> argparse.ArgumentParser:
                             "object, written as they come (memory stays flat for thousands of objects)")
     match.add_argument("--dump-poses", action="store_true",
                        help="list every object's feasible poses in the result (large)")
-    _add_output_options(match)
+    _add_output_options(match, figures=False)
     _add_verbosity(match)
 
     cache = sub.add_parser("cache", help="the cache of poses and features: where, how big; clear it")

@@ -7,7 +7,7 @@ tangible's; the cache stores them (:mod:`pinchmatch.runner.cache`).
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -22,7 +22,9 @@ from .cost import MASS_COLUMNS, feature_table
 class Candidates:
     """One object's candidate poses: its feasible pinches, their features and feature table.
 
-    ``index`` maps each candidate to its place in the sampled or given list.
+    ``index`` maps each candidate to its place in the sampled or given list. ``probes``: pinches
+    checked along given lines (the reference pose's, :func:`pinchmatch.match.reference.line_pinch`),
+    by line, None where the line misses; the cache keeps them with the candidates.
     """
 
     obj: ObjectAnalysis
@@ -31,6 +33,7 @@ class Candidates:
     table: np.ndarray
     index: np.ndarray
     given: bool
+    probes: dict = field(default_factory=dict, compare=False, repr=False)
 
     @property
     def name(self) -> str:
@@ -47,7 +50,7 @@ class Candidates:
         """The candidates at positions ``keep`` (their ``index`` kept)."""
         keep = np.asarray(keep)
         return Candidates(self.obj, self.pinches.subset(keep), features_subset(self.features, keep),
-                          self.table[keep], self.index[keep], self.given)
+                          self.table[keep], self.index[keep], self.given, self.probes)
 
 
 def features_subset(features: PinchFeatures, keep: np.ndarray) -> PinchFeatures:

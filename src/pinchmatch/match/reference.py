@@ -6,6 +6,7 @@ under the run's model is what a matched pose is compared with (the paper's Table
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass
 
 import numpy as np
@@ -44,6 +45,28 @@ def _line_hits(obj: ObjectAnalysis, point: np.ndarray, direction: np.ndarray):
     return points, face
 
 
+def probe_key(point: np.ndarray, direction: np.ndarray) -> str:
+    """The name of a line (a point and a direction, exactly) in :attr:`Candidates.probes`."""
+    data = np.concatenate([np.asarray(point, np.float64).ravel(), np.asarray(direction, np.float64).ravel()])
+    return hashlib.sha256(data.tobytes()).hexdigest()[:32]
+
+
+def line_pinch(virtual: Candidates, point: np.ndarray, direction: np.ndarray, *,
+               settings: PinchSettings = PinchSettings()) -> Pinches | None:
+    """The one pinch (every rule checked) of two fingers closing on ``virtual`` along a line, as
+    :func:`line_contacts` finds its contacts, or None when the line misses.
+
+    Kept in ``virtual.probes`` by line: asked again, and in a warm run read back from the cache
+    (:mod:`pinchmatch.runner.cache`), it needs neither the surface's sample nor its rays. The
+    settings must be those the candidates were made with (the cache's key holds them)."""
+    key = probe_key(point, direction)
+    if key not in virtual.probes:
+        hits = _line_hits(virtual.obj, point, direction)
+        virtual.probes[key] = None if hits is None else check_pinches(
+            virtual.obj.context, hits[0][:1], hits[0][1:], settings=settings, faces=hits[1][None])
+    return virtual.probes[key]
+
+
 @dataclass(frozen=True)
 class Reference:
     """The paper's Ref: the virtual object superimposed on the tangible as the files place them."""
@@ -66,11 +89,9 @@ def reference_pose(tangible: Candidates, t_pose: int, virtual: Candidates, model
     Use :func:`reference_cost` for the same pose under another model.
     """
     p = tangible.pinches.points[t_pose]
-    hits = _line_hits(virtual.obj, p.mean(axis=0), p[1] - p[0])
-    if hits is None:
+    pinches = line_pinch(virtual, p.mean(axis=0), p[1] - p[0], settings=settings)
+    if pinches is None:
         return Reference(None, None, None, None, "the tangible's pinch line misses the virtual object")
-    points, faces = hits
-    pinches = check_pinches(virtual.obj.context, points[:1], points[1:], settings=settings, faces=faces[None])
     features = pinch_features(pinches, virtual.obj.props)
     flipped = bool(virtual.obj.loaded.up @ tangible.obj.loaded.up < FLIP_COSINE)
     terms = _reference_terms(tangible, t_pose, virtual, pinches, features, model)

@@ -21,6 +21,7 @@ import numpy as np
 import trimesh
 from scipy.spatial import cKDTree
 
+from ..cores import query_workers
 from .regions import ContactRegions
 
 log = logging.getLogger(__name__)
@@ -288,5 +289,5 @@ class SurfaceContext:
 
     def min_distance_to_samples(self, points: np.ndarray) -> np.ndarray:
         """Distance (mm) from each point to the nearest dense surface sample."""
-        distance, _ = self.tree.query(points, k=1, workers=-1)
+        distance, _ = self.tree.query(points, k=1, workers=query_workers(len(points)))
         return distance

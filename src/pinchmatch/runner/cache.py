@@ -13,8 +13,11 @@ top-k, ...) are not in the key: tuning them reuses the entry.
   of the code itself (not of the file) is raised, never turned into a miss.
 - The key covers the algorithm: ``ALGORITHM_DIGEST`` hashes the source of every module that shapes an
   object's candidates, so an upgrade (or any edit) that could change them never reads an old entry.
-- ``clear`` deletes only what the cache wrote: files named ``<64 hex digits>.npz`` whose stored key is
-  their name, and its own temporaries; anything else in the folder is left alone.
+- Beside an entry, ``<key>.probes.npz`` keeps the pinches checked along given lines on that object
+  (the reference pose's, :attr:`Candidates.probes`), added to as runs ask for new lines; a warm run
+  reads them back instead of building the surface's sample, index and rays.
+- ``clear`` deletes only what the cache wrote: files named ``<64 hex digits>.npz`` (or ``.probes.npz``)
+  whose stored key is their name, and its own temporaries; anything else in the folder is left alone.
 - A hit rebuilds exactly what a cold run computes (same arrays, bit for bit), so results do not
   depend on the cache.
 """
@@ -45,7 +48,7 @@ from ..match.candidates import Candidates, candidate_poses
 from ..match.cost import feature_table
 from ..errors import ConfigError, OutputError
 from ..grasp.pinches import ARRAY_FIELDS, PinchSettings, Pinches
-from ..mesh.properties import object_properties
+from ..mesh.properties import ObjectProperties
 from ..mesh.surface import SurfaceContext
 
 log = logging.getLogger(__name__)
@@ -55,10 +58,11 @@ CACHE_FORMAT = 2
 #: modules whose code shapes an object's candidates: their source is part of every key
 ALGORITHM_MODULES = ("mesh/load", "mesh/surface", "mesh/properties", "grasp/curvature", "grasp/jets", "grasp/hand",
                      "grasp/pinches", "grasp/sampling", "grasp/spread", "grasp/spread_kernel", "grasp/features",
-                     "grasp/analysis", "match/candidates", "match/cost", "runner/cache", "mesh/level",
-                     "mesh/regions", "mesh/manifest")
-ENTRY_NAME = re.compile(r"^[0-9a-f]{64}\.npz$")
-TEMP_NAME = re.compile(r"^\.[0-9a-f]{64}\.npz\..+\.tmp$")
+                     "grasp/analysis", "match/candidates", "match/cost", "match/reference", "runner/cache",
+                     "mesh/level", "mesh/regions", "mesh/manifest")
+ENTRY_NAME = re.compile(r"^[0-9a-f]{64}(\.probes)?\.npz$")
+TEMP_NAME = re.compile(r"^\.[0-9a-f]{64}(\.probes)?\.npz\..+\.tmp$")
+PROBES = ".probes"
 #: what reading a damaged entry can raise; anything else is a bug and is raised
 DAMAGED = (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile)
 
@@ -73,6 +77,9 @@ def _algorithm_digest() -> str:
 
 ALGORITHM_DIGEST = _algorithm_digest()
 PINCH_ARRAYS = list(ARRAY_FIELDS)
+#: the mass properties an entry holds, as arrays and as plain values
+PROPS_ARRAYS = ("com_mm", "principal_axis", "variances_mm2", "bounds_mm")
+PROPS_VALUES = ("axis_source", "com_source", "volume_mm3", "area_mm2")
 FEATURE_ARRAYS = [f.name for f in dataclasses.fields(PinchFeatures)]
 
 
@@ -114,6 +121,7 @@ class FeatureCache:
     def __init__(self, folder: str | os.PathLike | None = None):
         self.folder = Path(folder) if folder is not None else default_cache_dir()
         self.hits = self.misses = 0
+        self.last_key: str | None = None  # the key of the object last loaded or stored
 
     def key(self, spec: ObjectSpec, *, patch_radius_mm: float, settings: PinchSettings,
             given: tuple[np.ndarray, np.ndarray] | None = None) -> str:
@@ -133,6 +141,51 @@ class FeatureCache:
     def _path(self, key: str) -> Path:
         return self.folder / f"{key}.npz"
 
+    def _write(self, path: Path, arrays: dict) -> None:
+        """One entry file, atomically; a folder that cannot be written is logged, not raised."""
+        try:
+            entry = AtomicFile(path, binary=True)
+            try:
+                np.savez(entry.file, **arrays)
+            except OSError as exc:
+                entry.abort()
+                raise entry._error(exc) from None
+            entry.commit()
+        except OutputError as exc:
+            log.warning("cannot write the cache in %s (%s); going on without it", self.folder, exc)
+
+    def _load_probes(self, key: str, candidates: Candidates) -> None:
+        """Fill ``candidates.probes`` from the key's probes file, if there is a whole one."""
+        path = self._path(key + PROBES)
+        if not path.is_file():
+            return
+        try:
+            meta, arrays = _read_entry(path)
+            if meta["key"] != key + PROBES:
+                raise ValueError("the probes belong to another key")
+            for name, present in meta["probes"].items():
+                candidates.probes[name] = Pinches(**{f: arrays[f"{name}.{f}"] for f in PINCH_ARRAYS}) \
+                    if present else None
+        except DAMAGED as exc:
+            log.warning("cache probes %s unusable (%s: %s); computing again", path.name, type(exc).__name__, exc)
+            _remove(path)
+            candidates.probes.clear()
+
+    def store_probes(self, key: str, candidates: Candidates) -> None:
+        """Keep ``candidates.probes`` beside the key's entry when it holds a line the file lacks."""
+        path = self._path(key + PROBES)
+        try:
+            known = set(_read_entry(path, arrays=False)[0]["probes"]) if path.is_file() else set()
+        except DAMAGED:
+            known = set()
+        if set(candidates.probes) <= known:
+            return
+        meta = {"key": key + PROBES, "format": CACHE_FORMAT,
+                "probes": {name: p is not None for name, p in sorted(candidates.probes.items())}}
+        arrays = {f"{name}.{f}": getattr(p, f) for name, p in sorted(candidates.probes.items()) if p is not None
+                  for f in PINCH_ARRAYS}
+        self._write(path, {"meta": np.array(json.dumps(meta))} | arrays)
+
     def load(self, key: str, spec: ObjectSpec, *, patch_radius_mm: float) -> Candidates | None:
         """The candidates stored under ``key``, or None (a missing, unreadable or mismatched entry)."""
         entry = self._path(key)
@@ -146,23 +199,18 @@ class FeatureCache:
         except DAMAGED as exc:  # a damaged file is a miss, never a crash or a wrong result
             log.warning("cache entry %s unusable (%s: %s); computing again", entry.name, type(exc).__name__, exc)
             entry.unlink(missing_ok=True)
+            _remove(self._path(key + PROBES))
             return None
-        return _rebuild(meta, arrays, spec, patch_radius_mm=patch_radius_mm)
+        candidates = _rebuild(meta, arrays, spec, patch_radius_mm=patch_radius_mm)
+        self._load_probes(key, candidates)
+        return candidates
 
     def store(self, key: str, candidates: Candidates) -> None:
         """Write the entry atomically; a folder that cannot be written is logged, not raised."""
         meta, arrays = to_payload(candidates)
-        arrays = {"meta": np.array(json.dumps(meta | {"key": key, "format": CACHE_FORMAT}))} | arrays
-        try:
-            entry = AtomicFile(self._path(key), binary=True)
-            try:
-                np.savez(entry.file, **arrays)
-            except OSError as exc:
-                entry.abort()
-                raise entry._error(exc) from None
-            entry.commit()
-        except OutputError as exc:
-            log.warning("cannot write the cache in %s (%s); going on without it", self.folder, exc)
+        self._write(self._path(key), {"meta": np.array(json.dumps(meta | {"key": key, "format": CACHE_FORMAT}))}
+                    | arrays)
+        _remove(self._path(key + PROBES))  # a stale file's lines are asked again
 
     def _check_folder(self) -> bool:
         if self.folder.exists() and not self.folder.is_dir():
@@ -177,7 +225,7 @@ class FeatureCache:
                 continue
             try:
                 meta, _ = _read_entry(p, arrays=False)
-                ours = meta.get("key") == p.stem
+                ours = meta.get("key") == p.name[:-len(".npz")]
             except DAMAGED:
                 ours = False  # damaged, or a user's own file named like an entry: left alone
             if ours:
@@ -186,7 +234,8 @@ class FeatureCache:
 
     def info(self) -> CacheInfo:
         entries = self._entries() if self._check_folder() else []
-        return CacheInfo(self.folder, len(entries), sum(p.stat().st_size for p in entries))
+        return CacheInfo(self.folder, sum(not p.name.endswith(PROBES + ".npz") for p in entries),
+                         sum(p.stat().st_size for p in entries))
 
     def clear(self) -> int:
         """Delete every entry this cache wrote, and its temporary files; return how many entries went."""
@@ -198,6 +247,14 @@ class FeatureCache:
         for p in entries + temporaries:
             p.unlink(missing_ok=True)
         return len(entries)
+
+
+def _remove(path: Path) -> None:
+    """Delete a file of the cache if it is there; a folder that cannot be written keeps it."""
+    try:
+        path.unlink(missing_ok=True)
+    except OSError as exc:
+        log.debug("cannot remove %s: %s", path, exc)
 
 
 def _read_entry(entry: Path, *, arrays: bool = True) -> tuple[dict, dict]:
@@ -223,7 +280,7 @@ def _check_arrays(arrays: dict) -> None:
             or faces.min() < 0 or faces.max() >= len(vertices):
         raise ValueError("the stored faces do not index the vertices")
     missing = [name for name in [f"pinches.{p}" for p in PINCH_ARRAYS] + [f"features.{f}" for f in FEATURE_ARRAYS]
-               if name not in arrays]
+               + [f"props.{p}" for p in PROPS_ARRAYS] if name not in arrays]
     if missing:
         raise KeyError(f"the entry lacks {', '.join(missing)}")
 
@@ -237,9 +294,11 @@ def to_payload(candidates: Candidates) -> tuple[dict, dict]:
             "up_label": loaded.up_label, "watertight": bool(loaded.watertight), "repairs": list(loaded.repairs),
             "warnings": list(loaded.warnings), "given": bool(candidates.given),
             "patch_radius_mm": candidates.obj.context.patch_radius_mm,
-            "rejected": {str(k): int(v) for k, v in candidates.pinches.rejected.items()}}
+            "rejected": {str(k): int(v) for k, v in candidates.pinches.rejected.items()},
+            "props": {name: getattr(candidates.obj.props, name) for name in PROPS_VALUES}}
     arrays = {"vertices": loaded.mesh.vertices, "faces": loaded.mesh.faces, "up": loaded.up,
               "index": candidates.index}
+    arrays |= {f"props.{name}": getattr(candidates.obj.props, name) for name in PROPS_ARRAYS}
     arrays |= {f"pinches.{name}": getattr(candidates.pinches, name) for name in PINCH_ARRAYS}
     arrays |= {f"features.{name}": getattr(candidates.features, name) for name in FEATURE_ARRAYS}
     return meta, arrays
@@ -258,9 +317,8 @@ def _rebuild(meta: dict, arrays: dict, spec: ObjectSpec, *, patch_radius_mm: flo
     loaded = LoadedMesh(mesh=mesh, path=str(spec.path), units_in=meta["units_in"], up_label=meta["up_label"],
                         up=arrays["up"], watertight=meta["watertight"], repairs=meta["repairs"],
                         warnings=meta["warnings"], node=spec.node)
-    props = object_properties(mesh, up=loaded.up, watertight=loaded.watertight,
-                              com_mm=None if spec.com_mm is None else np.array(spec.com_mm),
-                              axis=None if spec.axis is None else np.array(spec.axis))
+    props = ObjectProperties(**{name: arrays[f"props.{name}"] for name in PROPS_ARRAYS},
+                             **{name: meta["props"][name] for name in PROPS_VALUES})
     obj = ObjectAnalysis(loaded, props, SurfaceContext(mesh, patch_radius_mm=patch_radius_mm, regions=spec.regions),
                          spec)
     pinches = Pinches(**{name: arrays[f"pinches.{name}"] for name in PINCH_ARRAYS}, rejected=meta["rejected"])
@@ -293,6 +351,7 @@ def cached_candidates(path: str | os.PathLike | ObjectSpec, *, cache: FeatureCac
         except OSError:
             load_mesh(spec.path, units=spec.units, up=spec.up)  # raises the loader's one-line error for this path
             raise
+        cache.last_key = key
         hit = cache.load(key, spec, patch_radius_mm=patch_radius_mm)
         if hit is not None:
             cache.hits += 1

@@ -3,8 +3,7 @@
 Whatever runs them, the results come back in input order and are the same bits as a serial run:
 the search of one virtual object alone equals its row of the whole scene
 (:func:`pinchmatch.match.search.match_virtual`), and candidates cross process boundaries as the
-cache's arrays (:func:`pinchmatch.runner.cache.to_payload`). Only a window of tasks (twice the
-workers) is in flight.
+cache's arrays (:func:`pinchmatch.runner.cache.to_payload`). Only a window of tasks is in flight.
 """
 
 from __future__ import annotations
@@ -22,6 +21,7 @@ from pathlib import Path
 from ..errors import ConfigError
 from ..cores import default_jobs, set_thread_budget
 from ..match.candidates import Candidates
+from .forkserver import worker_context
 from .worker import forget_tangibles, init_worker, keep_tangibles, payload_token, stages_shown_by
 
 
@@ -82,6 +82,10 @@ def _in_order(submit: Callable, items: Iterable, window: int) -> Iterator:
 
 
 
+#: tasks in flight per local worker: enough that a slow task at the head of the order leaves the
+#: other workers busy with those behind it (results come back in order, so they wait there)
+WINDOW = 4
+
 #: a local run's temporary folder: the prefix, then the pid of the run that owns it
 RUN_FOLDER_PREFIX = "pinchmatch-run-"
 
@@ -102,22 +106,23 @@ def _remove_orphaned_run_folders() -> None:
 
 
 class LocalExecutor(Executor):
-    """A pool of ``jobs`` local processes (started fresh, not forked, so that BLAS threads are sane)."""
+    """A pool of ``jobs`` local processes, forked from a server that holds the pipeline loaded
+    (:mod:`pinchmatch.runner.forkserver`), or spawned where there is none; never forked from this
+    process, whose threads would not survive the fork."""
 
     def __init__(self, jobs: int):
-        import multiprocessing
         from concurrent.futures import ProcessPoolExecutor
 
         self.workers = jobs
-        context = multiprocessing.get_context("spawn")
+        context = worker_context()
         self._stages = context.SimpleQueue()  # handed to each worker as it starts
         self._pool = ProcessPoolExecutor(max_workers=jobs, mp_context=context, initializer=init_worker,
-                                         initargs=(max(1, default_jobs() // jobs), self._stages))
+                                         initargs=(max(1, default_jobs() // jobs), self._stages, os.getpid()))
         _remove_orphaned_run_folders()
         self._folder = tempfile.TemporaryDirectory(prefix=f"{RUN_FOLDER_PREFIX}{os.getpid()}-")
 
     def map(self, fn, items, *args):
-        return _in_order(lambda item: self._pool.submit(fn, item, *args), items, 2 * self.workers)
+        return _in_order(lambda item: self._pool.submit(fn, item, *args), items, WINDOW * self.workers)
 
     @contextmanager
     def stages(self, show):

@@ -93,12 +93,13 @@ class VirtualResult:
 
 
 
-def _candidates(task: ObjectTask, job: Job) -> tuple[Candidates, bool]:
+def _candidates(task: ObjectTask, job: Job) -> tuple[Candidates, bool, FeatureCache | None]:
+    """The task's candidates, whether they came from the cache, and the cache (None: none used)."""
     cache = FeatureCache(job.cache_folder) if job.cache_folder is not None else None
     c = cached_candidates(task.spec or task.path, cache=cache, units=job.units, up=job.up, settings=job.settings,
                           given=task.given, source=task.source,
                           progress=lambda stage: report_stage(Path(task.label).name, stage))
-    return c, bool(cache is not None and cache.hits)
+    return c, bool(cache is not None and cache.hits), cache
 
 
 def _per_file(fn: Callable) -> Callable:
@@ -117,7 +118,7 @@ def _per_file(fn: Callable) -> Callable:
 
 @_per_file
 def candidates_task(task: ObjectTask, job: Job) -> Computed | Failure:
-    c, cached = _candidates(task, job)
+    c, cached, _ = _candidates(task, job)
     return Computed(*to_payload(c), cached)
 
 
@@ -128,7 +129,7 @@ def bounds_task(task: ObjectTask, job: Job) -> np.ndarray | Failure:
 
 @_per_file
 def row_task(task: ObjectTask, job: Job, shared, model) -> np.ndarray | Failure:
-    c, _ = _candidates(task, job)
+    c = _candidates(task, job)[0]
     return cost_row(Search(tangibles(shared), [c], model, job.match), 0)
 
 
@@ -136,9 +137,11 @@ def row_task(task: ObjectTask, job: Job, shared, model) -> np.ndarray | Failure:
 def virtual_task(item: tuple, job: Job, shared, model) -> VirtualResult | Failure:
     """Item: (task, its entry of :func:`allowed_tangibles` or None, its cost row or None)."""
     task, allowed, row = item
-    c, cached = _candidates(task, job)
+    c, cached, cache = _candidates(task, job)
     scene = match_virtual(tangibles(shared), c, model, job.match, allowed=allowed, row=row,
                           pinch_settings=job.settings)
+    if cache is not None:
+        cache.store_probes(cache.last_key, c)  # the reference pose's pinch, for the next run
     return virtual_result(scene, 0, job, cached=cached)
 
 

@@ -12,8 +12,11 @@ import hashlib
 import logging
 import os
 import pickle
+import select
 import signal
 import sys
+import threading
+import time
 from collections.abc import Callable
 from contextlib import contextmanager
 
@@ -94,8 +97,8 @@ def tangibles(shared) -> list[Candidates]:
 
 
 def _die_with_parent() -> None:
-    """Ask Linux to send this process SIGTERM when its parent dies (prctl PR_SET_PDEATHSIG), so a
-    killed run leaves no worker behind; elsewhere nothing happens."""
+    """Ask Linux to send this process SIGTERM when its parent dies (prctl PR_SET_PDEATHSIG); elsewhere
+    nothing happens."""
     if sys.platform != "linux":
         return
     try:
@@ -109,12 +112,49 @@ def _die_with_parent() -> None:
         os._exit(1)
 
 
+def _die_with_run(run_pid: int) -> None:
+    """End this worker (SIGTERM) when the run's process ends, however it ends, even killed: a killed
+    run leaves no worker behind. A spawned worker's parent is the run (PR_SET_PDEATHSIG); a worker
+    forked from the fork server has the server as its parent, so a thread waits on the run's process
+    (a pidfd where Linux has them, else polling)."""
+    if os.getppid() == run_pid:
+        _die_with_parent()
+        return
 
-def init_worker(threads: int, stages=None) -> None:
+    def watch():
+        try:
+            fd = os.pidfd_open(run_pid)
+        except (AttributeError, OSError):
+            fd = None
+        if fd is not None:
+            select.select([fd], [], [])  # readable once the process has ended
+        else:
+            while _alive(run_pid):
+                time.sleep(0.2)
+        os.kill(os.getpid(), signal.SIGTERM)
+
+    threading.Thread(target=watch, name="pinchmatch-run-watch", daemon=True).start()
+    if not _alive(run_pid):  # the run ended before the watch began
+        os._exit(1)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+
+def init_worker(threads: int, stages=None, run_pid: int | None = None) -> None:
     """A local worker: numpy's BLAS and the patch fits get its share of the cores, not all of them; it ends when the
-    run that started it ends, however that ends; it reports stages on ``stages``."""
+    run that started it (process ``run_pid``, default the parent) ends, however that ends; it reports stages on
+    ``stages``."""
     global _LIMITS, _STAGES
-    _die_with_parent()
+    _die_with_run(os.getppid() if run_pid is None else run_pid)
     _STAGES = stages
     from threadpoolctl import threadpool_limits
 
