@@ -210,7 +210,9 @@ def test_loading_names_each_stage_as_it_starts(tmp_path):
     trimesh.creation.icosphere(subdivisions=6, radius=30.0).export(path)  # 82k faces, 4 MiB
     stages = []
     analyze_object(path, progress=stages.append)
-    assert stages == ["reading 4 MiB", "repairing", "mass properties", "surface sample and index"]
+    assert stages == ["reading 4 MiB", "repairing: merging vertices", "repairing: degenerate and duplicate faces",
+                      "repairing: edges and bodies", "repairing: orientation", "mass properties",
+                      "surface sample and index"]
 
 
 @pytest.mark.parametrize("argv, words", [

@@ -213,7 +213,7 @@ def test_workers_report_the_stages_of_loading_each_object(meshes, jobs):
     for name in ("egg.stl", "prop.stl"):
         assert ("tangibles", f"{name}: reading") in stages and ("tangibles", f"{name}: surface sample and index") \
             in stages
-    assert "e0.stl: repairing" in [note for what, note in stages if what != "tangibles"]  # the virtual objects' step
+    assert "e0.stl: repairing: merging vertices" in [note for what, note in stages if what != "tangibles"]  # the virtual objects' step
 
 
 def test_threads_never_outnumber_the_cores():
@@ -231,3 +231,43 @@ def test_threads_never_outnumber_the_cores():
     with executor(2) as ex:  # --jobs 2: each worker its share (set_thread_budget returns the one it had)
         budgets = list(ex.map(set_thread_budget, [share] * 4))
     assert budgets == [share] * 4
+
+
+class _RecordingTree:
+    """A KD-tree that records the ``workers`` of every query."""
+
+    def __init__(self, tree):
+        self.tree, self.workers = tree, []
+
+    def query(self, *args, workers=1, **kwargs):
+        self.workers.append(workers)
+        return self.tree.query(*args, workers=workers, **kwargs)
+
+    def __getattr__(self, name):
+        return getattr(self.tree, name)
+
+
+def test_kd_tree_queries_keep_to_the_thread_budget():
+    """Under --jobs 1 every KD-tree query of sampling, the hand and the patch fits runs on one thread;
+    with a budget of two, only batches large enough to gain from it use both."""
+    from pinchmatch.cores import PARALLEL_QUERY_POINTS, query_workers, set_thread_budget
+    from pinchmatch.grasp.sampling import sample_pinches
+    from pinchmatch.mesh.shapes import torus
+    from pinchmatch.mesh.surface import SurfaceContext
+    from pinchmatch.runner.executors import executor
+
+    def queries():
+        context = SurfaceContext(torus(triangulation="regular", faces=8000).mesh)
+        context.tree = _RecordingTree(context.tree)
+        sample_pinches(context, settings=PinchSettings(count=150, seed=1))
+        return context.tree.workers
+
+    with executor(1):
+        workers = queries()
+    assert len(workers) > 10 and set(workers) == {1}
+    before = set_thread_budget(2)
+    try:
+        assert query_workers(PARALLEL_QUERY_POINTS - 1) == 1 and query_workers(PARALLEL_QUERY_POINTS) == 2
+        assert set(queries()) <= {1, 2}
+    finally:
+        set_thread_budget(before)

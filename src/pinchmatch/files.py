@@ -9,7 +9,9 @@ full file system) is an :class:`errors.OutputError` naming it: one line for the 
 from __future__ import annotations
 
 import os
+import signal
 import tempfile
+from contextlib import contextmanager
 from pathlib import Path
 
 from .errors import OutputError
@@ -100,3 +102,23 @@ def check_writable(path: str | os.PathLike, *, folder: bool) -> None:
     if not os.access(target, os.W_OK | os.X_OK):
         raise OutputError(f"{path}: cannot write in {target} (no permission, or a read-only file system); "
                           "choose another -o")
+
+
+@contextmanager
+def signals_deferred():
+    """SIGINT and SIGTERM wait until the block is over: what it does is not to be cut in half (a
+    result's publication, the start of a run's workers)."""
+    pending = []
+    previous = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        for s in previous:
+            signal.signal(s, lambda signum, frame: pending.append(signum))
+    except ValueError:  # not the main thread: signals cannot arrive here anyway
+        previous = {}
+    try:
+        yield
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+        for s in pending:
+            os.kill(os.getpid(), s)

@@ -25,12 +25,10 @@ import fcntl
 import json
 import os
 import shutil
-import signal
-from contextlib import contextmanager
 from pathlib import Path
 
 from ..errors import OutputError
-from ..files import RESULT_CONTROL, write_atomic
+from ..files import RESULT_CONTROL, signals_deferred, write_atomic
 
 CONTROL = RESULT_CONTROL
 
@@ -76,7 +74,7 @@ class OutputFolder:
     def __exit__(self, exc_type, exc, tb):
         try:
             if exc_type is None:
-                with _signals_deferred():
+                with signals_deferred():
                     self._publish()
         finally:
             if not (self.control / "commit.json").exists():  # a journal still needs what is staged
@@ -164,22 +162,3 @@ def _prune_empty(out: Path, folder: Path) -> None:
     while folder != out and folder.is_dir() and not any(folder.iterdir()):
         folder.rmdir()
         folder = folder.parent
-
-
-@contextmanager
-def _signals_deferred():
-    """SIGINT and SIGTERM wait until the block is over (publication is not to be cut in half)."""
-    pending = []
-    previous = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        for s in previous:
-            signal.signal(s, lambda signum, frame: pending.append(signum))
-    except ValueError:  # not the main thread: signals cannot arrive here anyway
-        previous = {}
-    try:
-        yield
-    finally:
-        for s, handler in previous.items():
-            signal.signal(s, handler)
-        for s in pending:
-            os.kill(os.getpid(), s)

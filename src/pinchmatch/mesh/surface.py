@@ -179,15 +179,25 @@ class SurfaceContext:
         self.mesh = mesh
         self.patch_radius_mm = float(patch_radius_mm)
         self.regions = regions
-        #: (f,) area of each triangle that contacts may be drawn from: 0 where the regions allow none
-        self.contact_area_mm2 = np.asarray(mesh.area_faces, dtype=np.float64)
-        if regions:
-            self.contact_area_mm2 = self.contact_area_mm2 * regions.faces_that_may_hold_contacts(mesh.triangles)
-        self.face_normals = np.asarray(mesh.face_normals)
-        self.scale_mm = float(mesh.scale)
 
-    # The dense sample, its KD-tree and the ray engine are built on first use, each once: an object
-    # read back from the cache for its features alone never needs them.
+    # Everything below is computed on first use, each once: an object read back from the cache for
+    # its features and the search alone never needs any of it.
+
+    @functools.cached_property
+    def contact_area_mm2(self) -> np.ndarray:
+        """(f,) area of each triangle that contacts may be drawn from: 0 where the regions allow none."""
+        area = np.asarray(self.mesh.area_faces, dtype=np.float64)
+        if self.regions:
+            area = area * self.regions.faces_that_may_hold_contacts(self.mesh.triangles)
+        return area
+
+    @functools.cached_property
+    def face_normals(self) -> np.ndarray:
+        return np.asarray(self.mesh.face_normals)
+
+    @functools.cached_property
+    def scale_mm(self) -> float:
+        return float(self.mesh.scale)
 
     @functools.cached_property
     def sample(self) -> SurfaceSample:

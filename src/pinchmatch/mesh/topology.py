@@ -1,0 +1,139 @@
+"""A mesh's topology at scale: merged vertices, duplicate faces, edges, bodies, winding and volume.
+
+The loader's repairs (:func:`pinchmatch.mesh.load.load_mesh`) ask the same questions trimesh
+answers (``merge_vertices``, ``unique_faces``, ``face_adjacency``, ``is_watertight``,
+``is_winding_consistent``, ``fix_inversion(multibody=True)``), and get the same answers, vertex
+order and face order included. trimesh groups rows by sorting them as byte strings and computes full mass
+properties for a volume; on a 5-million-face scan that takes a minute and several gigabytes. Here
+rows (a vertex's rounded coordinates, a face's sorted corners, an edge) are grouped in one pass over
+a hash table (:mod:`topology_kernel`, compiled), rows compared whole, groups numbered in the order
+their first rows come; volumes are sums of signed tetrahedra, without the inertia trimesh computes
+alongside. ``tests/test_load.py`` checks every answer against trimesh's.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+def group_rows_first(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Group equal integer rows: ``(first, inverse)``, ``first`` the index of each group's first row,
+    groups in the order their first rows come, ``inverse`` each row's group (exact: rows compared whole)."""
+    from .topology_kernel import group_rows  # numba: imported when a mesh is first repaired
+
+    return group_rows(np.ascontiguousarray(rows, dtype=np.int64))
+
+
+def merge_vertices(vertices: np.ndarray, faces: np.ndarray, digits: int) -> tuple[np.ndarray, np.ndarray]:
+    """trimesh's ``merge_vertices`` on positions alone: vertices equal after rounding to ``digits``
+    decimals become one, kept in the order of their first referenced occurrence.
+
+    Returns ``(mask, inverse)`` for ``Trimesh.update_vertices``.
+    """
+    referenced = np.zeros(len(vertices), dtype=bool)
+    referenced[faces] = True
+    rounded = (vertices[referenced] * 10**digits).round().astype(np.int64)
+    first, inverse_ref = group_rows_first(rounded)
+    inverse = np.zeros(len(vertices), dtype=np.int64)
+    inverse[referenced] = inverse_ref
+    return np.flatnonzero(referenced)[first], inverse
+
+
+def unique_faces(faces: np.ndarray) -> np.ndarray:
+    """(f,) bool: the first of each set of faces on the same three vertices (any order), as
+    trimesh's ``unique_faces``."""
+    keep = np.zeros(len(faces), dtype=bool)
+    keep[group_rows_first(np.sort(faces, axis=1))[0]] = True
+    return keep
+
+
+@dataclass(frozen=True)
+class Edges:
+    """The directed edges of a mesh's faces, three per face in corner order, grouped.
+
+    face : (3f,) int64       the face of each edge
+    group : (3f,) int64      the undirected edge each belongs to
+    count : (g,) int64       how many faces hold each undirected edge
+    directed_dup : (3f,) bool  another face holds the same edge in the same direction
+    """
+
+    face: np.ndarray
+    group: np.ndarray
+    count: np.ndarray
+    directed_dup: np.ndarray
+
+    @property
+    def shared(self) -> np.ndarray:
+        """(3f,) bool: the edge is held by exactly two faces (trimesh's adjacency and watertight rule)."""
+        return self.count[self.group] == 2
+
+
+def edges(faces: np.ndarray) -> Edges:
+    """The faces' edges, grouped."""
+    directed = faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+    a, b = directed[:, 0], directed[:, 1]
+    first, group = group_rows_first(np.column_stack([np.minimum(a, b), np.maximum(a, b)]))
+    count = np.bincount(group, minlength=len(first))
+    # the same edge the same way: the same undirected edge, running from its smaller corner or not
+    way = 2 * group + (a < b)
+    directed_dup = np.bincount(way, minlength=2 * len(first))[way] > 1
+    return Edges(np.repeat(np.arange(len(faces)), 3), group, count, directed_dup)
+
+
+def face_adjacency(e: Edges) -> np.ndarray:
+    """(k, 2) pairs of distinct faces sharing an edge that exactly two faces hold (trimesh's
+    ``face_adjacency``, as a set of rows; each row sorted)."""
+    shared = np.flatnonzero(e.shared)
+    order = shared[np.argsort(e.group[shared], kind="stable")]
+    pairs = e.face[order].reshape(-1, 2)
+    pairs = pairs[pairs[:, 0] != pairs[:, 1]]
+    return np.sort(pairs, axis=1)
+
+
+def component_labels(adjacency: np.ndarray, n_faces: int) -> np.ndarray:
+    """(f,) body of each face over the adjacency (scipy's labels, as trimesh's
+    ``connected_component_labels``)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    matrix = coo_matrix((np.ones(len(adjacency), dtype=bool), (adjacency[:, 0], adjacency[:, 1])),
+                        shape=(n_faces, n_faces))
+    return connected_components(matrix, directed=False)[1]
+
+
+def watertight_and_wound(e: Edges) -> tuple[bool, bool]:
+    """(watertight, winding consistent) as trimesh defines them: every edge held by exactly two
+    faces; every edge two faces hold runs opposite ways in them."""
+    shared = e.shared
+    return bool(shared.all()), not bool((e.directed_dup & shared).any())
+
+
+def signed_volumes(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(f,) signed volume of the tetrahedron from the origin to each face (their sum is the
+    enclosed volume of a closed, outward-wound surface)."""
+    from .topology_kernel import signed_volumes as kernel
+
+    return kernel(np.ascontiguousarray(vertices, dtype=np.float64), np.ascontiguousarray(faces, dtype=np.int64))
+
+
+def inverted_bodies(vertices: np.ndarray, faces: np.ndarray, e: Edges, labels: np.ndarray,
+                    volumes: np.ndarray | None = None) -> np.ndarray:
+    """(f,) bool: faces of the bodies to turn right side out, as trimesh's
+    ``fix_inversion(multibody=True)``: bodies of at least 4 faces, watertight and consistently
+    wound on their own, whose volume is negative. ``volumes``: :func:`signed_volumes`, if known."""
+    bodies = int(labels.max()) + 1 if len(labels) else 0
+    body_of_edge = labels[e.face]
+    # each body's own count of every edge, undirected and directed
+    if watertight_and_wound(e) == (True, True):
+        bad = np.zeros(len(e.face), dtype=bool)  # every body is closed and wound on its own too
+    else:
+        undirected = group_rows_first(np.column_stack([body_of_edge, e.group]))
+        directed = group_rows_first(np.column_stack([body_of_edge, faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)]))
+        bad = (np.bincount(undirected[1])[undirected[1]] != 2) | (np.bincount(directed[1])[directed[1]] > 1)
+    broken = np.bincount(body_of_edge, weights=bad, minlength=bodies) > 0
+    size = np.bincount(labels, minlength=bodies)
+    volumes = signed_volumes(vertices, faces) if volumes is None else volumes
+    volume = np.bincount(labels, weights=volumes, minlength=bodies)
+    flip = (size >= 4) & ~broken & (volume < 0.0)
+    return flip[labels]
