@@ -22,7 +22,10 @@ from pathlib import Path
 
 ONE = """
 import json, sys, time
-from pinchmatch.mesh.load import load_mesh
+try:
+    from pinchmatch.mesh.load import load_mesh
+except ImportError:  # a checkout from before the pipeline's packages
+    from pinchmatch.load import load_mesh
 t0 = time.perf_counter()
 stages = []
 loaded = load_mesh(sys.argv[1], progress=lambda s: stages.append((round(time.perf_counter() - t0, 2), s)))

@@ -38,9 +38,14 @@ import time
 import numpy as np
 
 from pinchmatch import PinchSettings, object_properties, pinch_features, sample_pinches
-from pinchmatch.mesh import shapes
-from pinchmatch.grasp.curvature import patch_geometry
-from pinchmatch.mesh.surface import SurfaceContext
+try:
+    from pinchmatch.mesh import shapes
+    from pinchmatch.grasp.curvature import patch_geometry
+    from pinchmatch.mesh.surface import SurfaceContext
+except ImportError:  # --against a checkout from before the pipeline's packages
+    from pinchmatch import shapes
+    from pinchmatch.curvature import patch_geometry
+    from pinchmatch.surface import SurfaceContext
 
 UP = np.array([0.0, 0.0, 1.0])
 

@@ -22,7 +22,8 @@ def group_rows_first(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     groups in the order their first rows come, ``inverse`` each row's group (exact: rows compared whole)."""
     from .topology_kernel import group_rows  # numba: imported when a mesh is first repaired
 
-    return group_rows(np.ascontiguousarray(rows, dtype=np.int64))
+    first, _, inverse = group_rows(np.ascontiguousarray(rows, dtype=np.int64))
+    return first, inverse
 
 
 def merge_vertices(vertices: np.ndarray, faces: np.ndarray, digits: int) -> tuple[np.ndarray, np.ndarray]:
@@ -55,12 +56,14 @@ class Edges:
     face : (3f,) int64       the face of each edge
     group : (3f,) int64      the undirected edge each belongs to
     count : (g,) int64       how many faces hold each undirected edge
+    ends : (g, 2) int64      the first and the last of each undirected edge's entries
     directed_dup : (3f,) bool  another face holds the same edge in the same direction
     """
 
     face: np.ndarray
     group: np.ndarray
     count: np.ndarray
+    ends: np.ndarray
     directed_dup: np.ndarray
 
     @property
@@ -73,33 +76,31 @@ def edges(faces: np.ndarray) -> Edges:
     """The faces' edges, grouped."""
     directed = faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
     a, b = directed[:, 0], directed[:, 1]
-    first, group = group_rows_first(np.column_stack([np.minimum(a, b), np.maximum(a, b)]))
+    from .topology_kernel import group_rows
+
+    first, last, group = group_rows(np.column_stack([np.minimum(a, b), np.maximum(a, b)]))
     count = np.bincount(group, minlength=len(first))
     # the same edge the same way: the same undirected edge, running from its smaller corner or not
     way = 2 * group + (a < b)
     directed_dup = np.bincount(way, minlength=2 * len(first))[way] > 1
-    return Edges(np.repeat(np.arange(len(faces)), 3), group, count, directed_dup)
+    return Edges(np.repeat(np.arange(len(faces)), 3), group, count, np.column_stack([first, last]), directed_dup)
 
 
 def face_adjacency(e: Edges) -> np.ndarray:
     """(k, 2) pairs of distinct faces sharing an edge that exactly two faces hold (trimesh's
     ``face_adjacency``, as a set of rows; each row sorted)."""
-    shared = np.flatnonzero(e.shared)
-    order = shared[np.argsort(e.group[shared], kind="stable")]
-    pairs = e.face[order].reshape(-1, 2)
-    pairs = pairs[pairs[:, 0] != pairs[:, 1]]
-    return np.sort(pairs, axis=1)
+    ends = e.ends[e.count == 2]  # an edge two faces hold: its first entry's face and its last's
+    a, b = e.face[ends[:, 0]], e.face[ends[:, 1]]
+    keep = a != b
+    return np.column_stack([np.minimum(a[keep], b[keep]), np.maximum(a[keep], b[keep])])
 
 
 def component_labels(adjacency: np.ndarray, n_faces: int) -> np.ndarray:
-    """(f,) body of each face over the adjacency (scipy's labels, as trimesh's
-    ``connected_component_labels``)."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
+    """(f,) body of each face over the adjacency, bodies numbered in the order of their first face:
+    scipy's labels, as trimesh's ``connected_component_labels`` gives them."""
+    from .topology_kernel import component_labels as kernel
 
-    matrix = coo_matrix((np.ones(len(adjacency), dtype=bool), (adjacency[:, 0], adjacency[:, 1])),
-                        shape=(n_faces, n_faces))
-    return connected_components(matrix, directed=False)[1]
+    return kernel(np.ascontiguousarray(adjacency, dtype=np.int64).reshape(-1, 2), int(n_faces))
 
 
 def watertight_and_wound(e: Edges) -> tuple[bool, bool]:
