@@ -44,7 +44,7 @@ def set_thread_budget(threads: int | None) -> int | None:
 
 #: below this many query points a KD-tree query runs on the calling thread: scipy starts its
 #: threads anew for every call, which costs more than a small batch takes
-PARALLEL_QUERY_POINTS = 20_000
+PARALLEL_QUERY_POINTS = 4_000
 
 
 def query_workers(points: int) -> int:
