@@ -3,7 +3,7 @@
     python benchmarks/bench_scale.py                  # all three parts (about 25 minutes on 2 cores)
     python benchmarks/bench_scale.py --quick          # fewer objects (about 4 minutes)
     python benchmarks/bench_scale.py --only startup   # start-up of the command line and of two workers
-    python benchmarks/bench_scale.py --only real      # 5 real props x 40 real virtual objects, every output
+    python benchmarks/bench_scale.py --only real      # 5 real props x 40 real virtual objects, default outputs
     python benchmarks/bench_scale.py --only growth    # generated objects: growth with objects and poses
 
 **start-up**: ``pinchmatch --help`` and a bad option against ``python -c pass`` (median of 7), and
@@ -11,7 +11,8 @@ two local workers started with one task each.
 
 **real**: 5 props and 40 virtual objects from pybullet_data's random_urdfs (third-party meshes,
 subdivided to about 16k faces; see ``assets.py``), matched as users run it, with default options and
-every output (matches.json, scenes, figures, page): cold with ``--jobs 1`` and with the default jobs
+its default outputs (matches.json, scenes, the page; PNG figures only with ``--figures``, and a
+checkout from before that writes them by default): cold with ``--jobs 1`` and with the default jobs
 (empty caches), then warm from the cache with both. Prints the ratios jobs 2 / jobs 1 and warm / cold,
 and each core's busy share over the middle 80 % of each run (/proc/stat).
 
@@ -104,7 +105,7 @@ def _cpu_busy() -> np.ndarray:
 
 def run(tangibles, virtuals, *, poses: int | None, jobs: int | None, cache: Path, out: Path, fmt: str = "json",
         outputs: bool = False) -> dict:
-    """One ``pinchmatch match`` as a user runs it; ``outputs``: every output (figures and page), as by
+    """One ``pinchmatch match`` as a user runs it; ``outputs``: the default outputs (the page, and figures where a checkout writes them by default), as by
     default, else the scenes only. ``poses`` and ``jobs`` None: the defaults."""
     argv = [sys.executable, "-m", "pinchmatch", "match", "--tangible", *map(str, tangibles),
             "--virtual", *map(str, virtuals), "--cache", str(cache), "-o", str(out), "-q"]
@@ -206,7 +207,7 @@ def _table(rows) -> None:
 
 
 def real_runs(root: Path, quick: bool) -> None:
-    """5 real props x 40 real virtual objects of about 16k faces, default options, every output."""
+    """5 real props x 40 real virtual objects of about 16k faces, default options, default outputs."""
     from assets import face_counts, random_objects
 
     n = 10 if quick else 40
@@ -216,7 +217,7 @@ def real_runs(root: Path, quick: bool) -> None:
     faces = face_counts(virtuals + tangibles)
     print(f"\n# {len(tangibles)} props x {len(virtuals)} virtual objects: pybullet_data random_urdfs, "
           f"{faces.min()}-{faces.max()} faces (mean {faces.mean():.0f}), written in {time.perf_counter() - t0:.0f} s; "
-          "pinchmatch match with default options and every output (matches.json, scenes, figures, page)")
+          "pinchmatch match with default options and default outputs (matches.json, scenes, page)")
     rows = []
     for name, jobs, cache in (("cold --jobs 1", 1, "c1"), ("cold default jobs", None, "c2"),
                               ("warm --jobs 1", 1, "c2"), ("warm default jobs", None, "c2")):
@@ -228,7 +229,7 @@ def real_runs(root: Path, quick: bool) -> None:
     cold1, cold2, warm1, warm2 = (r["seconds"] for r in rows)
     print(f"ratio jobs 2 / jobs 1, cold: {cold1 / cold2:.2f}x faster; both cores busy "
           f"{'/'.join(f'{100 * b:.0f}' for b in rows[1]['busy'])} % (middle 80 % of the default run)")
-    print(f"ratio warm / cold, every output: {cold1 / warm1:.1f}x with --jobs 1, {cold2 / warm2:.1f}x by default")
+    print(f"ratio warm / cold, default outputs: {cold1 / warm1:.1f}x with --jobs 1, {cold2 / warm2:.1f}x by default")
 
 
 def growth(quick: bool, plot_path: str) -> None:
