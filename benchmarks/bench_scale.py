@@ -105,8 +105,9 @@ def _cpu_busy() -> np.ndarray:
 
 def run(tangibles, virtuals, *, poses: int | None, jobs: int | None, cache: Path, out: Path, fmt: str = "json",
         outputs: bool = False) -> dict:
-    """One ``pinchmatch match`` as a user runs it; ``outputs``: the default outputs (the page, and figures where a checkout writes them by default), as by
-    default, else the scenes only. ``poses`` and ``jobs`` None: the defaults."""
+    """One ``pinchmatch match`` as a user runs it; ``outputs``: the default outputs (the page, and the
+    figures where a checkout writes them by default), else the scenes only. ``poses`` and ``jobs`` None:
+    the defaults."""
     argv = [sys.executable, "-m", "pinchmatch", "match", "--tangible", *map(str, tangibles),
             "--virtual", *map(str, virtuals), "--cache", str(cache), "-o", str(out), "-q"]
     argv += ["--count", str(poses)] if poses else []
