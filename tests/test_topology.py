@@ -88,3 +88,53 @@ def test_a_loaded_inside_out_solid_is_turned_and_reported(tmp_path):
     loaded = load_mesh(tmp_path / "inside_out.stl")
     assert loaded.watertight and loaded.mesh.volume > 0
     assert loaded.repairs == ["turned the surface right side out (it was inside-out)"]
+
+
+@pytest.mark.parametrize("k, keys", [(2, 50), (3, 400), (2, 3)])
+def test_rows_bucketed_by_their_vertex_group_as_hashed(k, keys):
+    """The bucketed grouping (a vertex's few edges) and the hash give the same groups, numbered alike;
+    with buckets too large for it (three keys) the hash is taken."""
+    rng = np.random.default_rng(k * keys)
+    rows = np.column_stack([rng.integers(0, keys, 20_000), rng.integers(0, 40, (20_000, k - 1))])
+    from pinchmatch.mesh import topology_kernel
+
+    bucketed = topology.group_rows(rows, keys=keys)
+    hashed = topology_kernel.group_rows(np.ascontiguousarray(rows, dtype=np.int64))
+    for a, b in zip(bucketed, hashed):
+        assert np.array_equal(a, b)
+    first, last, inverse = hashed
+    assert np.array_equal(rows[first[inverse]], rows) and np.array_equal(rows[last[inverse]], rows)
+    assert (np.diff(first) > 0).all() and (last >= first).all()
+
+
+def test_degenerate_faces_as_trimesh_finds_them():
+    rng = np.random.default_rng(5)
+    vertices = rng.normal(size=(300, 3)) * 10.0
+    vertices[200:] = vertices[:100] + rng.normal(size=(100, 3)) * 1e-10  # corners a hair apart
+    faces = rng.integers(0, 300, (4000, 3))
+    faces[:50, 2] = faces[:50, 1]  # two corners the same
+    line = np.array([[0.0, 0.0, 0.0], [1.0, 1.0, 1.0], [2.0, 2.0, 2.000000001]])  # all but collinear
+    vertices = np.vstack([vertices, line])
+    faces = np.vstack([faces, [[300, 301, 302]], faces[:100] % 100 + np.array([0, 200, 0])])
+    mesh = trimesh.Trimesh(vertices, faces, process=False)
+    for height in (1e-9, 1e-6, 0.5):
+        want = mesh.nondegenerate_faces(height=height)
+        got = topology.nondegenerate_faces(vertices, faces, height)
+        assert np.array_equal(got, want) and 0 < got.sum() < len(faces), height
+
+
+def test_edges_around_a_vertex_of_huge_valence_are_hashed_alike():
+    """A fan of 3,000 triangles around one corner (a CAD cone's apex): its edges group as a
+    mesh of small valences does, through the hash."""
+    from pinchmatch.mesh.topology_kernel import face_edges
+
+    cone = trimesh.creation.cone(radius=10.0, height=20.0, sections=3000)
+    faces = np.ascontiguousarray(cone.faces, dtype=np.int64)
+    assert not face_edges(faces, len(cone.vertices), float(topology.BUCKET_WORK_PER_ROW))[0]  # too skewed to bucket
+    e = topology.edges(cone.faces)
+    assert np.array_equal(np.sort(topology.face_adjacency(e), axis=0),
+                          np.sort(np.sort(cone.face_adjacency, axis=1), axis=0))
+    assert topology.watertight_and_wound(e) == (cone.is_watertight, cone.is_winding_consistent) == (True, True)
+    doubled = trimesh.Trimesh(cone.vertices, np.vstack([cone.faces, cone.faces[:5, ::-1]]), process=False)
+    assert topology.watertight_and_wound(topology.edges(doubled.faces)) == \
+        (doubled.is_watertight, doubled.is_winding_consistent) == (False, True)

@@ -259,13 +259,18 @@ def _check_gltf_buffers(path: Path) -> None:
 FLOAT32_TYPES = ("stl", "glb", "gltf", "ply")
 
 
+#: the typical edge length is the median of at most about this many faces' first edges, evenly spread
+PRECISION_SAMPLE_FACES = 100_000
+
+
 def _check_precision(path: Path, file_type: str, mesh: trimesh.Trimesh) -> None:
     """Refuse coordinates so far from the origin that 32-bit floats cannot resolve the mesh's edges
     to 1 % (an object placed kilometres away in its scene's units)."""
     if file_type not in FLOAT32_TYPES or len(mesh.faces) == 0:
         return
     vertices = np.asarray(mesh.vertices)
-    edges = np.linalg.norm(vertices[mesh.faces[:, 1]] - vertices[mesh.faces[:, 0]], axis=1)
+    faces = np.asarray(mesh.faces)[::max(1, len(mesh.faces) // PRECISION_SAMPLE_FACES)]  # a typical edge
+    edges = np.linalg.norm(vertices[faces[:, 1]] - vertices[faces[:, 0]], axis=1)
     typical = float(np.median(edges[edges > 0])) if (edges > 0).any() else 0.0
     far = float(np.abs(vertices).max())
     if typical > 0 and far * 2.0**-23 > 0.01 * typical:
@@ -329,6 +334,9 @@ def _read(path: Path, file_type: str, node: str | None = None) -> trimesh.Trimes
             raise MeshError(f"{path}: the scene has no mesh node named {node!r}; "
                             "check the name against the file (pinchmatch names level nodes as the file does)")
         return mesh
+    binary = _binary_stl_triangles(path) if file_type == "stl" else None
+    if binary is not None:
+        return trimesh.Trimesh(vertices=binary, faces=np.arange(len(binary)).reshape(-1, 3), process=False)
     loaded = _load(path, file_type)
     if isinstance(loaded, trimesh.Scene):
         meshes = [g for g in loaded.dump() if isinstance(g, trimesh.Trimesh)] if loaded.geometry else []
@@ -351,6 +359,29 @@ def _read(path: Path, file_type: str, node: str | None = None) -> trimesh.Trimes
     return mesh
 
 
+#: a binary STL triangle: normal, three corners, attribute bytes (the format's fixed 50-byte record)
+_STL_RECORD = np.dtype([("normal", "<f4", (3,)), ("corners", "<f4", (3, 3)), ("attributes", "<u2")])
+
+
+def _binary_stl_triangles(path: Path) -> np.ndarray | None:
+    """(3t, 3) float64 corners of a binary STL's triangles, read straight into an array, or None
+    when the file is not a binary STL with triangles (ASCII, or none: trimesh reads and explains it).
+
+    A file is binary when its size is the header's 84 bytes plus 50 per triangle it counts, as
+    trimesh decides (some binary files begin with "solid" too). The corners are what trimesh reads,
+    without the face normals, colours and cache keys it builds around them.
+    """
+    with open(path, "rb") as fh:
+        head = fh.read(84)
+        if len(head) < 84:
+            return None
+        (count,) = struct.unpack("<I", head[80:84])
+        if count == 0 or os.fstat(fh.fileno()).st_size != 84 + _STL_RECORD.itemsize * count:
+            return None
+        records = np.fromfile(fh, dtype=_STL_RECORD, count=count)
+    return records["corners"].reshape(-1, 3).astype(np.float64)
+
+
 def _validate_arrays(path: Path, mesh: trimesh.Trimesh) -> None:
     vertices = np.asarray(mesh.vertices)
     faces = np.asarray(mesh.faces)
@@ -363,6 +394,8 @@ def _validate_arrays(path: Path, mesh: trimesh.Trimesh) -> None:
             f"{path}: a face refers to vertex {int(faces.max())} but there are only "
             f"{len(vertices)} vertices; the file is corrupt, re-export it"
         )
+    if np.isfinite(vertices).all():  # the common case, without a reduction along the rows
+        return
     bad = ~np.isfinite(vertices).all(axis=1)
     if bad.any():
         raise MeshError(
@@ -371,7 +404,8 @@ def _validate_arrays(path: Path, mesh: trimesh.Trimesh) -> None:
         )
 
 
-def _repair(mesh: trimesh.Trimesh, *, indexed: bool, say: Callable[[str], None] = lambda stage: None) \
+def _repair(mesh: trimesh.Trimesh, *, indexed: bool, scale: float,
+            say: Callable[[str], None] = lambda stage: None) \
         -> tuple[list[str], bool]:
     """Repair in place what is safe to repair; return what was done, and whether the result is a
     closed solid (watertight, consistently wound, enclosing a positive volume).
@@ -396,7 +430,7 @@ def _repair(mesh: trimesh.Trimesh, *, indexed: bool, say: Callable[[str], None] 
         repairs.append(f"merged {n_vertices - len(mesh.vertices)} duplicate vertices")
 
     say("repairing: degenerate and duplicate faces")
-    keep = mesh.nondegenerate_faces(height=1e-9 * max(mesh.scale, 1e-12))
+    keep = topology.nondegenerate_faces(mesh.vertices, mesh.faces, height=1e-9 * max(scale, 1e-12))
     if not keep.all():
         repairs.append(f"removed {int((~keep).sum())} degenerate faces")
         mesh.update_faces(keep)
@@ -522,24 +556,23 @@ def load_mesh(
     units_in = units or ("m" if is_gltf else "mm")
     up_label, up_vector = parse_up(up or ("y" if is_gltf else "z"))
 
-    mesh = trimesh.Trimesh(
-        vertices=np.asarray(mesh.vertices, dtype=np.float64) * UNITS_MM[units_in],
-        faces=np.asarray(mesh.faces, dtype=np.int64),
-        process=False,
-    )
-    extent = float(np.ptp(mesh.vertices, axis=0).max())
+    vertices = np.asarray(mesh.vertices, dtype=np.float64)
+    factor = UNITS_MM[units_in]
+    mesh = trimesh.Trimesh(vertices=vertices * factor if factor != 1.0 else vertices,
+                           faces=np.asarray(mesh.faces, dtype=np.int64), process=False)
+    sizes = topology.extents(mesh.vertices)
+    extent = float(sizes.max())
     check_units(path, extent, units_in)
 
-    centred = mesh.vertices - mesh.vertices.mean(axis=0)
-    # the smallest singular value of the centred vertices, from their 3 x 3 scatter matrix
-    thickness = float(np.sqrt(max(np.linalg.eigvalsh(centred.T @ centred)[0], 0.0) / len(centred)))
-    if thickness < 1e-6 * extent:
+    if topology.thickness(mesh.vertices) < 1e-6 * extent:
         raise MeshError(
             f"{path}: the mesh is flat (all vertices in one plane), so it has no volume "
             "to pinch; give it thickness (solidify) and re-export"
         )
 
-    repairs, watertight = _repair(mesh, indexed=file_type != "stl", say=say)
+    # trimesh's ``scale`` (its bounding box diagonal), for the degenerate-face height
+    scale = float((sizes**2).sum() ** 0.5)
+    repairs, watertight = _repair(mesh, indexed=file_type != "stl", scale=scale, say=say)
     if len(mesh.faces) == 0:
         raise MeshError(f"{path}: every face is degenerate (zero area); re-export the mesh")
 

@@ -17,12 +17,60 @@ from dataclasses import dataclass
 
 import numpy as np
 
-def group_rows_first(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Group equal integer rows: ``(first, inverse)``, ``first`` the index of each group's first row,
-    groups in the order their first rows come, ``inverse`` each row's group (exact: rows compared whole)."""
-    from .topology_kernel import group_rows  # numba: imported when a mesh is first repaired
+def extents(vertices: np.ndarray) -> np.ndarray:
+    """(3,) size of the vertices' axis-aligned bounding box (column by column: numpy reduces an
+    (n, 3) array along its long axis several times slower)."""
+    if len(vertices) == 0:
+        return np.zeros(3)
+    return np.array([np.ptp(vertices[:, axis]) for axis in range(3)], dtype=np.float64)
 
-    first, _, inverse = group_rows(np.ascontiguousarray(rows, dtype=np.int64))
+
+def thickness(vertices: np.ndarray) -> float:
+    """The vertices' spread across their flattest direction: the smallest singular value of the
+    centred vertices over the square root of their count (0 for vertices in one plane)."""
+    from .topology_kernel import scatter
+
+    vertices = np.ascontiguousarray(vertices, dtype=np.float64)
+    mean = np.array([vertices[:, axis].mean() for axis in range(3)])
+    return float(np.sqrt(max(np.linalg.eigvalsh(scatter(vertices, mean))[0], 0.0) / len(vertices)))
+
+
+def nondegenerate_faces(vertices: np.ndarray, faces: np.ndarray, height: float) -> np.ndarray:
+    """(f,) bool: trimesh's ``Trimesh.nondegenerate_faces(height)``, the same arithmetic face by
+    face, without the (f, 3, 3) triangles and the cross products it builds."""
+    from trimesh import tol
+
+    from .topology_kernel import nondegenerate_faces as kernel
+
+    return kernel(np.ascontiguousarray(vertices, dtype=np.float64), np.ascontiguousarray(faces, dtype=np.int64),
+                  float(height), float(tol.merge))
+
+
+#: rows are bucketed by a vertex in their first column while the buckets' comparisons, Σ size²,
+#: stay under this many per row (a mesh's vertex valences); else they are hashed
+BUCKET_WORK_PER_ROW = 64
+
+
+def group_rows(rows: np.ndarray, keys: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Group equal integer rows: ``(first, last, inverse)``, the index of each group's first and last
+    row, groups in the order their first rows come, and each row's group (exact: rows compared whole).
+
+    ``keys``: the first column is a vertex below this number, so rows may be bucketed by it (the
+    same groups, faster, where vertices have few rows each).
+    """
+    from . import topology_kernel as kernel  # numba: imported when a mesh is first repaired
+
+    rows = np.ascontiguousarray(rows, dtype=np.int64)
+    if keys is not None and len(rows) and rows.shape[1] > 1:
+        sizes = np.bincount(rows[:, 0], minlength=keys)
+        if float(sizes @ sizes) <= BUCKET_WORK_PER_ROW * len(rows):
+            return kernel.group_rows_by_key(rows, int(keys))
+    return kernel.group_rows(rows)
+
+
+def group_rows_first(rows: np.ndarray, keys: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`group_rows` without the last rows: ``(first, inverse)``."""
+    first, _, inverse = group_rows(rows, keys)
     return first, inverse
 
 
@@ -32,20 +80,19 @@ def merge_vertices(vertices: np.ndarray, faces: np.ndarray, digits: int) -> tupl
 
     Returns ``(mask, inverse)`` for ``Trimesh.update_vertices``.
     """
+    from .topology_kernel import merge_rounded
+
     referenced = np.zeros(len(vertices), dtype=bool)
     referenced[faces] = True
-    rounded = (vertices[referenced] * 10**digits).round().astype(np.int64)
-    first, inverse_ref = group_rows_first(rounded)
-    inverse = np.zeros(len(vertices), dtype=np.int64)
-    inverse[referenced] = inverse_ref
-    return np.flatnonzero(referenced)[first], inverse
+    return merge_rounded(np.ascontiguousarray(vertices, dtype=np.float64), referenced, float(10**digits))
 
 
 def unique_faces(faces: np.ndarray) -> np.ndarray:
     """(f,) bool: the first of each set of faces on the same three vertices (any order), as
     trimesh's ``unique_faces``."""
     keep = np.zeros(len(faces), dtype=bool)
-    keep[group_rows_first(np.sort(faces, axis=1))[0]] = True
+    if len(faces):
+        keep[group_rows_first(np.sort(faces, axis=1), keys=int(faces.max()) + 1)[0]] = True
     return keep
 
 
@@ -74,15 +121,19 @@ class Edges:
 
 def edges(faces: np.ndarray) -> Edges:
     """The faces' edges, grouped."""
-    directed = faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
-    a, b = directed[:, 0], directed[:, 1]
-    from .topology_kernel import group_rows
+    from .topology_kernel import face_edges
 
-    first, last, group = group_rows(np.column_stack([np.minimum(a, b), np.maximum(a, b)]))
-    count = np.bincount(group, minlength=len(first))
-    # the same edge the same way: the same undirected edge, running from its smaller corner or not
-    way = 2 * group + (a < b)
-    directed_dup = np.bincount(way, minlength=2 * len(first))[way] > 1
+    faces = np.ascontiguousarray(faces, dtype=np.int64)
+    keys = int(faces.max()) + 1 if len(faces) else 0
+    ok, group, first, last, count, directed_dup = face_edges(faces, keys, float(BUCKET_WORK_PER_ROW))
+    if not ok:  # a vertex of huge valence: the edges hashed
+        directed = faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+        a, b = directed[:, 0], directed[:, 1]
+        first, last, group = group_rows(np.column_stack([np.minimum(a, b), np.maximum(a, b)]))
+        count = np.bincount(group, minlength=len(first))
+        # the same edge the same way: the same undirected edge, running from its smaller corner or not
+        way = 2 * group + (a < b)
+        directed_dup = np.bincount(way, minlength=2 * len(first))[way] > 1
     return Edges(np.repeat(np.arange(len(faces)), 3), group, count, np.column_stack([first, last]), directed_dup)
 
 
