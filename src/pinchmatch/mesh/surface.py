@@ -53,6 +53,11 @@ def _embree_installed() -> bool:
 _EMBREE: bool | None = None
 
 
+def ray_engine_name() -> str:
+    """``embree`` or ``numpy``: the ray engine this machine has (known without building one)."""
+    return "embree" if _embree_installed() else "numpy"
+
+
 def ray_engine(mesh: trimesh.Trimesh):
     """Return (intersector, name): Embree when ``embreex`` is installed, else trimesh's own.
     Only a missing ``embreex`` falls back; any other failure of the engine is raised."""
@@ -219,7 +224,7 @@ class SurfaceContext:
     @property
     def ray_engine_name(self) -> str:
         """``embree`` or ``numpy``: the engine :attr:`rays` is (known without building it)."""
-        return "embree" if _embree_installed() else "numpy"
+        return ray_engine_name()
 
     @functools.cached_property
     def centroid_mm(self) -> np.ndarray:

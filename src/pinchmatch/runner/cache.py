@@ -16,7 +16,10 @@ top-k, ...) are not in the key: tuning them reuses the entry.
 - Beside an entry, ``<key>.probes.npz`` keeps the pinches checked along given lines on that object
   (the reference pose's, :attr:`Candidates.probes`), added to as runs ask for new lines; a warm run
   reads them back instead of building the surface's sample, index and rays.
-- ``clear`` deletes only what the cache wrote: files named ``<64 hex digits>.npz`` (or ``.probes.npz``)
+- Beside them, ``<key>.result.npz`` keeps a virtual object's whole result in one run's setting
+  (:mod:`pinchmatch.runner.results`, with its own key that covers the matching settings too).
+- ``clear`` deletes only what the cache wrote: files named ``<64 hex digits>.npz`` (or ``.probes.npz``,
+  ``.result.npz``)
   whose stored key is their name, and its own temporaries; anything else in the folder is left alone.
 - A hit rebuilds exactly what a cold run computes (same arrays, bit for bit), so results do not
   depend on the cache.
@@ -60,9 +63,10 @@ ALGORITHM_MODULES = ("mesh/load", "mesh/surface", "mesh/properties", "grasp/curv
                      "grasp/pinches", "grasp/sampling", "grasp/spread", "grasp/spread_kernel", "grasp/features",
                      "grasp/analysis", "match/candidates", "match/cost", "match/reference", "runner/cache",
                      "mesh/level", "mesh/regions", "mesh/manifest")
-ENTRY_NAME = re.compile(r"^[0-9a-f]{64}(\.probes)?\.npz$")
-TEMP_NAME = re.compile(r"^\.[0-9a-f]{64}(\.probes)?\.npz\..+\.tmp$")
+ENTRY_NAME = re.compile(r"^[0-9a-f]{64}(\.probes|\.result)?\.npz$")
+TEMP_NAME = re.compile(r"^\.[0-9a-f]{64}(\.probes|\.result)?\.npz\..+\.tmp$")
 PROBES = ".probes"
+RESULT = ".result"  # a virtual object's whole result (:mod:`pinchmatch.runner.results`)
 #: what reading a damaged entry can raise; anything else is a bug and is raised
 DAMAGED = (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile)
 
@@ -141,7 +145,7 @@ class FeatureCache:
     def _path(self, key: str) -> Path:
         return self.folder / f"{key}.npz"
 
-    def _write(self, path: Path, arrays: dict) -> None:
+    def write_entry(self, path: Path, arrays: dict) -> None:
         """One entry file, atomically; a folder that cannot be written is logged, not raised."""
         try:
             entry = AtomicFile(path, binary=True)
@@ -160,7 +164,7 @@ class FeatureCache:
         if not path.is_file():
             return
         try:
-            meta, arrays = _read_entry(path)
+            meta, arrays = read_entry(path)
             if meta["key"] != key + PROBES:
                 raise ValueError("the probes belong to another key")
             for name, present in meta["probes"].items():
@@ -168,14 +172,14 @@ class FeatureCache:
                     if present else None
         except DAMAGED as exc:
             log.warning("cache probes %s unusable (%s: %s); computing again", path.name, type(exc).__name__, exc)
-            _remove(path)
+            remove_file(path)
             candidates.probes.clear()
 
     def store_probes(self, key: str, candidates: Candidates) -> None:
         """Keep ``candidates.probes`` beside the key's entry when it holds a line the file lacks."""
         path = self._path(key + PROBES)
         try:
-            known = set(_read_entry(path, arrays=False)[0]["probes"]) if path.is_file() else set()
+            known = set(read_entry(path, arrays=False)[0]["probes"]) if path.is_file() else set()
         except DAMAGED:
             known = set()
         if set(candidates.probes) <= known:
@@ -184,7 +188,7 @@ class FeatureCache:
                 "probes": {name: p is not None for name, p in sorted(candidates.probes.items())}}
         arrays = {f"{name}.{f}": getattr(p, f) for name, p in sorted(candidates.probes.items()) if p is not None
                   for f in PINCH_ARRAYS}
-        self._write(path, {"meta": np.array(json.dumps(meta))} | arrays)
+        self.write_entry(path, {"meta": np.array(json.dumps(meta))} | arrays)
 
     def load(self, key: str, spec: ObjectSpec, *, patch_radius_mm: float) -> Candidates | None:
         """The candidates stored under ``key``, or None (a missing, unreadable or mismatched entry)."""
@@ -192,14 +196,14 @@ class FeatureCache:
         if not entry.is_file():
             return None
         try:
-            meta, arrays = _read_entry(entry)
+            meta, arrays = read_entry(entry)
             if meta["key"] != key:
                 raise ValueError("the entry belongs to another key")
             _check_arrays(arrays)
         except DAMAGED as exc:  # a damaged file is a miss, never a crash or a wrong result
             log.warning("cache entry %s unusable (%s: %s); computing again", entry.name, type(exc).__name__, exc)
             entry.unlink(missing_ok=True)
-            _remove(self._path(key + PROBES))
+            remove_file(self._path(key + PROBES))
             return None
         candidates = _rebuild(meta, arrays, spec, patch_radius_mm=patch_radius_mm)
         self._load_probes(key, candidates)
@@ -208,9 +212,9 @@ class FeatureCache:
     def store(self, key: str, candidates: Candidates) -> None:
         """Write the entry atomically; a folder that cannot be written is logged, not raised."""
         meta, arrays = to_payload(candidates)
-        self._write(self._path(key), {"meta": np.array(json.dumps(meta | {"key": key, "format": CACHE_FORMAT}))}
+        self.write_entry(self._path(key), {"meta": np.array(json.dumps(meta | {"key": key, "format": CACHE_FORMAT}))}
                     | arrays)
-        _remove(self._path(key + PROBES))  # a stale file's lines are asked again
+        remove_file(self._path(key + PROBES))  # a stale file's lines are asked again
 
     def _check_folder(self) -> bool:
         if self.folder.exists() and not self.folder.is_dir():
@@ -224,7 +228,7 @@ class FeatureCache:
             if not ENTRY_NAME.match(p.name) or p.is_symlink() or not p.is_file():
                 continue
             try:
-                meta, _ = _read_entry(p, arrays=False)
+                meta, _ = read_entry(p, arrays=False)
                 ours = meta.get("key") == p.name[:-len(".npz")]
             except DAMAGED:
                 ours = False  # damaged, or a user's own file named like an entry: left alone
@@ -234,7 +238,7 @@ class FeatureCache:
 
     def info(self) -> CacheInfo:
         entries = self._entries() if self._check_folder() else []
-        return CacheInfo(self.folder, sum(not p.name.endswith(PROBES + ".npz") for p in entries),
+        return CacheInfo(self.folder, sum(not p.name.endswith((PROBES + ".npz", RESULT + ".npz")) for p in entries),
                          sum(p.stat().st_size for p in entries))
 
     def clear(self) -> int:
@@ -249,7 +253,7 @@ class FeatureCache:
         return len(entries)
 
 
-def _remove(path: Path) -> None:
+def remove_file(path: Path) -> None:
     """Delete a file of the cache if it is there; a folder that cannot be written keeps it."""
     try:
         path.unlink(missing_ok=True)
@@ -257,18 +261,19 @@ def _remove(path: Path) -> None:
         log.debug("cannot remove %s: %s", path, exc)
 
 
-def _read_entry(entry: Path, *, arrays: bool = True) -> tuple[dict, dict]:
+def read_entry(entry: Path, *, arrays: bool = True) -> tuple[dict, dict]:
     """(meta, arrays) of an entry file; raises one of ``DAMAGED`` when it is not a whole entry."""
-    z = np.load(entry, allow_pickle=False)
-    if not isinstance(z, np.lib.npyio.NpzFile):
-        raise ValueError("not an .npz archive")
-    with z:
-        if "meta" not in z.files:
-            raise ValueError("not a pinchmatch cache entry")
-        meta = json.loads(str(z["meta"]))
-        if not isinstance(meta, dict) or meta.get("format") != CACHE_FORMAT:
-            raise ValueError("an entry of another format")
-        return meta, ({name: z[name] for name in z.files if name != "meta"} if arrays else {})
+    with open(entry, "rb") as fh:  # closed however numpy fails on a damaged file
+        z = np.load(fh, allow_pickle=False)
+        if not isinstance(z, np.lib.npyio.NpzFile):
+            raise ValueError("not an .npz archive")
+        with z:
+            if "meta" not in z.files:
+                raise ValueError("not a pinchmatch cache entry")
+            meta = json.loads(str(z["meta"]))
+            if not isinstance(meta, dict) or meta.get("format") != CACHE_FORMAT:
+                raise ValueError("an entry of another format")
+            return meta, ({name: z[name] for name in z.files if name != "meta"} if arrays else {})
 
 
 def _check_arrays(arrays: dict) -> None:

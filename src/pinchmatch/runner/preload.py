@@ -1,8 +1,8 @@
 """What the fork server of local workers loads before it forks any (:mod:`pinchmatch.runner.forkserver`).
 
 Importing this module imports every module a task runs and compiles (or loads from numba's cache)
-the patch-fit and spread kernels, by sampling a few pinches on a small sphere: each worker forked
-afterwards has them ready. A failure here is only logged: the worker then loads what it needs itself,
+the loader's topology kernels, by repairing a small sphere, and the patch-fit and spread kernels,
+by sampling a few pinches on it: each worker forked afterwards has them ready. A failure here is only logged: the worker then loads what it needs itself,
 and any real error shows in its task.
 """
 
@@ -19,13 +19,23 @@ def warm_kernels() -> None:
     """Run the compiled kernels once, on one thread, so that they are loaded in this process."""
     from ..cores import set_thread_budget
     from ..grasp.pinches import PinchSettings
+    from ..mesh import topology
     from ..grasp.sampling import sample_pinches
     from ..mesh.shapes import sphere
     from ..mesh.surface import SurfaceContext
 
     before = set_thread_budget(1)
     try:
-        sample_pinches(SurfaceContext(sphere(30.0, faces=320).mesh), settings=PinchSettings(count=8, seed=0))
+        mesh = sphere(30.0, faces=320).mesh
+        vertices, faces = mesh.vertices, mesh.faces
+        topology.merge_vertices(vertices, faces, 8)
+        topology.nondegenerate_faces(vertices, faces, 1e-9)
+        topology.unique_faces(faces)
+        topology.thickness(vertices)
+        e = topology.edges(faces)
+        topology.component_labels(topology.face_adjacency(e), len(faces))
+        topology.signed_volumes(vertices, faces)
+        sample_pinches(SurfaceContext(mesh), settings=PinchSettings(count=8, seed=0))
     except Exception as exc:  # noqa: BLE001 - a warm-up only: the worker's own task shows any real error
         log.debug("warming the kernels failed: %s", exc)
     finally:

@@ -4,7 +4,8 @@
 2. :func:`bounds_task`: with ``--normalize range``, a virtual object's feature bounds;
 3. :func:`row_task`: with ``--one-to-one``, a virtual object's row of the cost matrix;
 4. :func:`virtual_task`: a virtual object's candidates, its search against every tangible, its
-   result entry, glTF scene and criteria figure (:class:`VirtualResult`).
+   result entry, glTF scene and criteria figure (:class:`VirtualResult`), or all of these from the
+   cache when an earlier run had the same inputs (:mod:`pinchmatch.runner.results`).
 
 A bad file makes a :class:`Failure`, not an exception: the run goes on with the other files.
 """
@@ -27,6 +28,7 @@ from ..match.cost import feature_bounds
 from ..match.search import MatchSettings, Search, cost_row, match_virtual
 from ..mesh.manifest import ObjectSpec
 from .cache import FeatureCache, cached_candidates, to_payload
+from .results import load_result, result_key, store_result
 from .worker import report_stage, tangibles
 
 
@@ -137,12 +139,24 @@ def row_task(task: ObjectTask, job: Job, shared, model) -> np.ndarray | Failure:
 def virtual_task(item: tuple, job: Job, shared, model) -> VirtualResult | Failure:
     """Item: (task, its entry of :func:`allowed_tangibles` or None, its cost row or None)."""
     task, allowed, row = item
+    key = None
+    if job.cache_folder is not None:  # the whole result of an earlier run with the same inputs
+        try:
+            key = result_key(FeatureCache(job.cache_folder), task, job, shared, model, allowed, row)
+        except OSError:
+            key = None  # the file cannot be read: the candidates' loading says why
+        hit = load_result(FeatureCache(job.cache_folder), key) if key is not None else None
+        if hit is not None:
+            return hit
     c, cached, cache = _candidates(task, job)
     scene = match_virtual(tangibles(shared), c, model, job.match, allowed=allowed, row=row,
                           pinch_settings=job.settings)
+    result = virtual_result(scene, 0, job, cached=cached)
     if cache is not None:
         cache.store_probes(cache.last_key, c)  # the reference pose's pinch, for the next run
-    return virtual_result(scene, 0, job, cached=cached)
+        if key is not None:
+            store_result(cache, key, result)
+    return result
 
 
 def virtual_result(scene, k: int, job: Job, *, cached: bool = False) -> VirtualResult:
