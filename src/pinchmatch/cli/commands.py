@@ -1,4 +1,4 @@
-"""The commands: ``pinchmatch demo``, ``match``, ``view``, ``cache``, ``poses`` and ``features``.
+"""The commands: ``pinchmatch demo``, ``match``, ``select``, ``view``, ``cache``, ``poses`` and ``features``.
 
 Each takes the parsed options and returns its exit code (:mod:`pinchmatch.cli.main` lists them
 and turns errors into one line). ``main`` is re-exported here for callers that run a command line.
@@ -162,7 +162,7 @@ def _cmd_features(args) -> int:
 def _match_settings(args) -> MatchSettings:
     criteria = parse_criteria(args.criteria)
     return MatchSettings(weights=parse_weights(args.weights, criteria=criteria), criteria=criteria,
-                         normalize=args.normalize, top_k=args.top_k, one_to_one=args.one_to_one,
+                         normalize=args.normalize, top_k=args.top_k, one_to_one=getattr(args, "one_to_one", False),
                          keep_upright=args.keep_upright, distinct_mm=args.distinct_mm)
 
 
@@ -192,6 +192,68 @@ def _table_rows(rows: list, what: str) -> list:
     return rows[:TABLE_ROWS + 1] + [(f"... {len(rows) - 1 - TABLE_ROWS} more {what}",) + ("",) * (len(rows[0]) - 1)]
 
 
+def _match_job(args, settings: PinchSettings, match_settings: MatchSettings, cache) -> Job:
+    return Job(units=args.units, up=args.up, settings=settings, match=match_settings,
+               cache_folder=None if cache is None else str(Path(cache.folder).resolve()),
+               dump_poses=getattr(args, "dump_poses", False), scenes=True, figures=args.figures)
+
+
+def _object_tasks(role: str, specs, given, files) -> list[ObjectTask]:
+    return [ObjectTask(role, spec.path, given[k], files[k] if given[k] is not None else None, spec)
+            for k, spec in enumerate(specs)]
+
+
+def _check_match_flags(args) -> None:
+    if args.cache and args.no_cache:
+        raise ConfigError("--cache and --no-cache: give one of them")
+    if args.json and getattr(args, "format", "json") == "jsonl":
+        raise ConfigError("--json and --format jsonl: give one of them; --json prints the matches.json document")
+    if args.figures and args.no_figures:
+        raise ConfigError("--figures and --no-figures: give one of them")
+
+
+def _write_matches(args, stage: Path, out: Path, ui, ex, tangible_tasks, virtual_tasks, job: Job,
+                   run_settings: dict, fmt: str = "json", plan: dict | None = None):
+    """``match``'s run and its outputs into the staging folder ``stage`` of ``out``: matches.json,
+    the scenes, the figures asked for and the page. Returns (result, document, sink, written)."""
+    stems = scene_stems([t.spec.display_name for t in virtual_tasks])
+
+    def on_failure(f) -> None:
+        ui.error(f"{f.error}; skipped, going on with the other files")
+
+    sink = MatchesSink(stage, fmt, stems)
+    with sink:
+        try:
+            result = run_match(tangible_tasks, virtual_tasks, job, ex, on_failure=on_failure, on_result=sink.add,
+                               step=ui.step, plan=plan,
+                               header=lambda tangibles: sink.start(run_settings, tangibles, job.dump_poses))
+        except BrokenProcessPool:
+            raise RunError("a worker process died (out of memory?); run again with fewer --jobs") from None
+        doc = sink.finish(result)
+    written = [str(out / sink.result_path.name), f"{sink.scenes} glTF scenes in {out / 'scenes'}"]
+    if args.figures:
+        from ..export.figures import png_bytes, cost_matrix_figure  # matplotlib: imported when figures are wanted
+
+        with ui.step("cost matrix figure"):
+            write_atomic(stage / "figures" / "cost_matrix.png", png_bytes(cost_matrix_figure(sink.overview())))
+        written.append(f"{sink.scenes + 1} figures in {out / 'figures'}")
+    if not args.no_view and doc is not None:
+        with ui.step("viewer page"):
+            write_page(stage, document=doc)
+            written.append(f"the viewer page {out / 'index.html'}")
+    elif not args.no_view:
+        written.append(f"no viewer page (build it with: pinchmatch view {out})")
+    return result, doc, sink, written
+
+
+def _print_match(ui, sink, result, run_settings) -> None:
+    ui.table(_table_rows(sink.objects, "objects"), title="objects")
+    ui.table(_table_rows(sink.rows, "matches"), title="matches", legend=matches_legend(run_settings))
+    if result.failed:
+        ui.table(_table_rows([("file", "role", "problem")] + [(f.path, f.role, f.error) for f in result.failed],
+                             "files"), title=f"failed: {len(result.failed)} files, left out of the run")
+
+
 def _cmd_match(args) -> int:
     settings = _settings(args, count=args.count, seed=args.seed)
     match_settings = _match_settings(args)
@@ -200,58 +262,20 @@ def _cmd_match(args) -> int:
     virtual_specs = object_specs(args.virtual, option="--virtual", split=args.split)
     given_t = _given_poses(args.tangible_poses, tangible_specs, "--tangible-poses")
     given_v = _given_poses(args.virtual_poses, virtual_specs, "--virtual-poses")
-    if args.cache and args.no_cache:
-        raise ConfigError("--cache and --no-cache: give one of them")
-    if args.json and args.format == "jsonl":
-        raise ConfigError("--json and --format jsonl: give one of them; --json prints the matches.json document")
-    if args.figures and args.no_figures:
-        raise ConfigError("--figures and --no-figures: give one of them")
+    _check_match_flags(args)
     cache = None if args.no_cache else FeatureCache(args.cache)
-    job = Job(units=args.units, up=args.up, settings=settings,
-              match=match_settings, cache_folder=None if cache is None else str(cache.folder.resolve()),
-              dump_poses=args.dump_poses, scenes=True, figures=args.figures)
-    tasks = lambda role, specs, given, files: [  # noqa: E731
-        ObjectTask(role, spec.path, given[k], files[k] if given[k] is not None else None, spec)
-        for k, spec in enumerate(specs)]
+    job = _match_job(args, settings, match_settings, cache)
     ui = Presenter(quiet=args.quiet, json_mode=args.json)
-    stems = scene_stems([spec.display_name for spec in virtual_specs])
     run_settings = {**settings.as_dict(), **match_settings.as_dict(), "units": args.units, "up": args.up,
                     "split": args.split or "none"}
-
-    def on_failure(f) -> None:
-        ui.error(f"{f.error}; skipped, going on with the other files")
-
     t0 = time.perf_counter()
     with OutputFolder(out) as stage:  # published into OUT as a whole at the end, or not at all
-        sink = MatchesSink(stage, args.format, stems)
-        with executor(args.jobs, args.scheduler) as ex, sink:
-            try:
-                result = run_match(tasks("tangible", tangible_specs, given_t, args.tangible_poses),
-                                   tasks("virtual", virtual_specs, given_v, args.virtual_poses), job, ex,
-                                   on_failure=on_failure, on_result=sink.add, step=ui.step,
-                                   header=lambda tangibles: sink.start(run_settings, tangibles, args.dump_poses))
-            except BrokenProcessPool:
-                raise RunError("a worker process died (out of memory?); run again with fewer --jobs") from None
-            doc = sink.finish(result)
+        with executor(args.jobs, args.scheduler) as ex:
+            result, doc, sink, written = _write_matches(
+                args, stage, out, ui, ex, _object_tasks("tangible", tangible_specs, given_t, args.tangible_poses),
+                _object_tasks("virtual", virtual_specs, given_v, args.virtual_poses), job, run_settings, args.format)
         t1 = time.perf_counter()
-        written = [str(out / sink.result_path.name), f"{sink.scenes} glTF scenes in {out / 'scenes'}"]
-        if args.figures:
-            from ..export.figures import png_bytes, cost_matrix_figure  # matplotlib: imported when figures are wanted
-
-            with ui.step("cost matrix figure"):
-                write_atomic(stage / "figures" / "cost_matrix.png", png_bytes(cost_matrix_figure(sink.overview())))
-            written.append(f"{sink.scenes + 1} figures in {out / 'figures'}")
-        if not args.no_view and doc is not None:
-            with ui.step("viewer page"):
-                write_page(stage, document=doc)
-                written.append(f"the viewer page {out / 'index.html'}")
-        elif not args.no_view:
-            written.append(f"no viewer page (build it with: pinchmatch view {out})")
-    ui.table(_table_rows(sink.objects, "objects"), title="objects")
-    ui.table(_table_rows(sink.rows, "matches"), title="matches", legend=matches_legend(run_settings))
-    if result.failed:
-        ui.table(_table_rows([("file", "role", "problem")] + [(f.path, f.role, f.error) for f in result.failed],
-                             "files"), title=f"failed: {len(result.failed)} files, left out of the run")
+    _print_match(ui, sink, result, run_settings)
     where = f"{ex.workers} {'Dask workers' if args.scheduler else 'processes' if ex.workers > 1 else 'process'}"
     cached = (f"; {result.cached} from the cache, {result.computed} computed; cache {cache.folder}"
               if cache is not None else "")
@@ -259,6 +283,95 @@ def _cmd_match(args) -> int:
     if doc is not None:
         ui.document(to_json(doc))
     return EXIT_SOME_FAILED if result.failed else 0
+
+
+def _cmd_select(args) -> int:
+    import tempfile
+
+    from ..export.selection import coverage_rows, selection_document, selection_rows
+    from ..match.select import EXACT_SUBSETS, best_addition, coverage_curve, helpful_props
+    from ..runner.tasks import served_task
+
+    settings = _settings(args, count=args.count, seed=args.seed)
+    match_settings = _match_settings(args)
+    if match_settings.normalize != "jnd":
+        raise ConfigError("--normalize range: select compares the costs of different sets of props, which needs "
+                          "a scale that does not change with the set; use --normalize jnd (the default)")
+    shelf_specs = object_specs(args.tangible, option="--tangible")
+    if not 1 <= args.k <= len(shelf_specs):
+        raise ConfigError(f"-k {args.k}: choose between 1 and the {len(shelf_specs)} props of the shelf")
+    if args.max_k is not None and args.max_k < 1:
+        raise ConfigError(f"--max-k {args.max_k}: give 1 or more")
+    out = _out_folder(args)
+    scene_specs = object_specs(args.virtual, option="--virtual", split=args.split)
+    _check_match_flags(args)
+    ui = Presenter(quiet=args.quiet, json_mode=args.json)
+    run_settings = {**settings.as_dict(), **match_settings.as_dict(), "units": args.units, "up": args.up,
+                    "split": args.split or "none"}
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="pinchmatch-select-") as scratch:
+        # both passes read the same candidates: with --no-cache, from a cache that lives for this run only
+        cache = FeatureCache(scratch if args.no_cache else args.cache)
+        job = _match_job(args, settings, match_settings, cache)
+        shelf_tasks = _object_tasks("tangible", shelf_specs, [None] * len(shelf_specs), [None] * len(shelf_specs))
+        scene_tasks = _object_tasks("virtual", scene_specs, [None] * len(scene_specs), [None] * len(scene_specs))
+        rows: dict[int, object] = {}
+        with executor(args.jobs, args.scheduler) as ex:
+            shelf = run_match(shelf_tasks, scene_tasks, job, ex, step=ui.step, virtual_fn=served_task,
+                              on_failure=lambda f: ui.error(f"{f.error}; skipped, going on with the other files"),
+                              on_result=rows.__setitem__)
+            n = len(shelf.tangibles)
+            if args.k > n:
+                raise ConfigError(f"-k {args.k}: only {n} props of the shelf could be used; choose at most {n}")
+            order = sorted(rows)
+            cost = np.array([rows[j].row for j in order]).reshape(len(order), n)
+            loud = np.array([rows[j].noticeable for j in order]).reshape(len(order), n)
+            if not np.isfinite(cost).any():
+                raise ConfigError("no object of the scene can be placed on any prop of the shelf (every "
+                                  "registration is refused); check --keep-upright and the objects' up directions")
+            with ui.step("choosing the props"):
+                curve = coverage_curve(cost, loud, args.objective, max(args.max_k or n, args.k))
+                chosen = curve[args.k - 1]
+                addition = best_addition(cost, loud, chosen, args.objective)
+                helpful = helpful_props(cost, chosen)
+            names = [t.name for t in shelf.tangibles]
+            shelf_doc = [{"name": t.name, "path": str(t.obj.loaded.path)} for t in shelf.tangibles]
+            selection = selection_document(run_settings | {"k": args.k, "objective": args.objective,
+                                                           "max_k": args.max_k},
+                                           shelf_doc, [rows[j].name for j in order], cost, loud, chosen,
+                                           curve[:args.max_k or n], addition, helpful, EXACT_SUBSETS)
+            failed = {f.path for f in shelf.failed if f.role == "tangible"}
+            usable = [t for t in shelf_tasks if t.label not in failed]  # shelf.tangibles, task by task
+            chosen_tasks = [usable[t] for t in chosen.props]
+            served = [scene_tasks[j] for j in order]
+            with OutputFolder(out) as stage:  # published into OUT as a whole at the end, or not at all
+                write_atomic(stage / "selection.json", to_json(selection))
+                written = [str(out / "selection.json")]
+                if not args.no_figures:
+                    from ..export.figures import coverage_figure, png_bytes
+
+                    write_atomic(stage / "figures" / "coverage.png", png_bytes(coverage_figure(selection)))
+                    written.append(str(out / "figures" / "coverage.png"))
+                plan = None
+                if args.objective == "noticeable":  # each object on the prop the selection gives it (quiet first)
+                    position = {int(t): i for i, t in enumerate(chosen.props)}
+                    plan = {i: ([position[int(chosen.assigned[i])]], None) if chosen.assigned[i] >= 0
+                            else ([], "no registration is allowed on any chosen prop") for i in range(len(order))}
+                result, doc, sink, more = _write_matches(args, stage, out, ui, ex, chosen_tasks, served, job,
+                                                         run_settings, plan=plan)
+                written += more
+        t1 = time.perf_counter()
+    ui.table(_table_rows(coverage_rows(selection), "sizes"), title="coverage: the best set of each size")
+    ui.table(_table_rows(selection_rows(selection), "objects"),
+             title=f"the {args.k} chosen props: {', '.join(names[t] for t in chosen.props)}")
+    if shelf.failed:
+        ui.table(_table_rows([("file", "role", "problem")] + [(f.path, f.role, f.error) for f in shelf.failed],
+                             "files"), title=f"failed: {len(shelf.failed)} files, left out of the run")
+    how = "the best of every subset" if chosen.exact else "greedy and swaps (too many subsets to try every one)"
+    ui.note(f"{args.objective} objective {selection['selection']['value']} ({how}); {t1 - t0:.2f} s; wrote "
+            + ", ".join(written))
+    ui.document(to_json(selection))
+    return EXIT_SOME_FAILED if shelf.failed or result.failed else 0
 
 
 def _cmd_cache(args) -> int:
@@ -378,5 +491,5 @@ def _open_in_browser(url: str, ui) -> None:
         ui.note(f"no display to open a browser on; open {url} in one")
 
 
-COMMANDS = {"demo": _cmd_demo, "match": _cmd_match, "view": _cmd_view, "cache": _cmd_cache,
+COMMANDS = {"demo": _cmd_demo, "match": _cmd_match, "select": _cmd_select, "view": _cmd_view, "cache": _cmd_cache,
             "poses": _cmd_poses, "features": _cmd_features}

@@ -79,8 +79,8 @@ def _main(argv: list[str]) -> int:
 
 
 def _wants_local_workers(args) -> bool:
-    """The command will run local worker processes (``match`` with more than one job, no cluster)."""
-    if args.command != "match" or getattr(args, "scheduler", None):
+    """The command will run local worker processes (``match`` or ``select`` with more than one job, no cluster)."""
+    if args.command not in ("match", "select") or getattr(args, "scheduler", None):
         return False
     jobs = default_jobs() if args.jobs is None else args.jobs
     return jobs > 1

@@ -101,7 +101,7 @@ def _add_sampling_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=0, help="random seed, 0 or more (default 0)")
 
 
-def _add_match_options(p: argparse.ArgumentParser) -> None:
+def _add_match_options(p: argparse.ArgumentParser, *, one_to_one: bool = True) -> None:
     p.add_argument("--weights", metavar="NAME=W,...",
                    help="weight per criterion, default 1: width,com,tilt,normal,axis,kmax,kmin,mass")
     p.add_argument("--criteria", choices=("default", "paper"), default="default",
@@ -111,7 +111,8 @@ def _add_match_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--top-k", type=int, default=3, help="distinct alternatives per virtual object (default 3)")
     p.add_argument("--distinct-mm", type=float, default=8.0,
                    help="alternatives differ by at least this much at a contact, on one object or both (default 8)")
-    p.add_argument("--one-to-one", action="store_true", help="each tangible serves at most one virtual object")
+    if one_to_one:
+        p.add_argument("--one-to-one", action="store_true", help="each tangible serves at most one virtual object")
     p.add_argument("--keep-upright", action="store_true", help="never turn a virtual object upside down")
 
 
@@ -182,6 +183,38 @@ def build_parser() -> argparse.ArgumentParser:
                        help="list every object's feasible poses in the result (large)")
     _add_output_options(match, figures=False)
     _add_verbosity(match)
+
+    select = sub.add_parser("select", help="the K props of a shelf that together serve a scene best")
+    select.add_argument("--tangible", nargs="+", action="extend", required=True, metavar="PATH",
+                        help="the shelf: prop meshes, folders searched recursively for them, or manifests")
+    select.add_argument("--virtual", nargs="+", action="extend", required=True, metavar="PATH",
+                        help="the scene: virtual meshes, folders or manifests")
+    select.add_argument("-k", type=int, required=True, metavar="K", help="how many props to choose")
+    select.add_argument("--objective", choices=("mean", "noticeable", "max"), default="mean",
+                        help="mean: the mean best cost (default); noticeable: the count of objects with a noticeable "
+                             "criterion, ties by the mean; max: the worst object's cost")
+    select.add_argument("--max-k", type=int, metavar="M",
+                        help="the coverage curve goes up to M props (default: the whole shelf)")
+    select.add_argument("--split", choices=("none", "nodes"), default=None,
+                        help="nodes: each mesh node of a virtual glTF/GLB scene is its own object (default none)")
+    _add_pinch_options(select)
+    _add_sampling_options(select)
+    _add_match_options(select, one_to_one=False)
+    select.add_argument("-o", "--output", metavar="OUT", default="pinchmatch-select",
+                        help="folder for selection.json, the coverage figure, and the chosen props' matches.json, "
+                             "scenes and page (default pinchmatch-select)")
+    select.add_argument("--cache", metavar="DIR", help="the cache of poses and features (default: the per-user cache)")
+    select.add_argument("--no-cache", action="store_true",
+                        help="compute every object's poses afresh (kept for this run only), store nothing")
+    select.add_argument("-j", "--jobs", type=int, metavar="N",
+                        help=f"objects worked on at once, in local processes (default: all {default_jobs()} cores)")
+    select.add_argument("--scheduler", metavar="ADDRESS", help="run the per-object work on this Dask scheduler")
+    select.add_argument("--no-view", action="store_true", help="do not write the viewer page OUT/index.html")
+    select.add_argument("--figures", action="store_true",
+                        help="also write match's PNG figures (the cost matrix, each match's criteria)")
+    select.add_argument("--no-figures", action="store_true", help="no PNG figures, not even the coverage curve")
+    select.add_argument("--json", action="store_true", help="print selection.json to stdout (and nothing else there)")
+    _add_verbosity(select)
 
     cache = sub.add_parser("cache", help="the cache of poses and features: where, how big; clear it")
     cache.add_argument("action", choices=("info", "clear"), help="info: folder, entries, size; clear: delete them")

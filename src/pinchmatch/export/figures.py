@@ -75,6 +75,38 @@ def cost_matrix_figure(document: dict) -> Figure:
     return fig
 
 
+def coverage_figure(document: dict) -> Figure:
+    """The coverage curve of a selection document: the best objective for K = 1, 2, … props (filled:
+    the best subset, exhaustively; open: greedy and swaps), and the count of noticeable objects."""
+    curve = document["coverage"]
+    objective = document["settings"]["objective"]
+    k = np.array([c["k"] for c in curve])
+    mean = np.array([np.nan if c["mean_cost"] is None else c["mean_cost"] for c in curve], dtype=float)
+    loud = np.array([c["noticeable_count"] for c in curve], dtype=float)
+    exact = np.array([c["exact"] for c in curve], dtype=bool)
+    fig = Figure(figsize=(6.4, 3.8), layout="constrained")
+    ax = fig.add_subplot()
+    ax.plot(k, mean, color="#1f77b4", lw=1.5, label="mean cost")
+    ax.plot(k[exact], mean[exact], "o", color="#1f77b4", label="best subset (exhaustive)")
+    ax.plot(k[~exact], mean[~exact], "o", mfc="white", color="#1f77b4", label="greedy + swaps")
+    if objective == "max":
+        worst = np.array([np.nan if c["worst_cost"] is None else c["worst_cost"] for c in curve], dtype=float)
+        ax.plot(k, worst, "s--", color="#d62728", label="worst object's cost")
+    ax.axvline(document["selection"]["k"], color="0.6", lw=1, ls=":")
+    ax.set_xlabel("props on the table (K)")
+    ax.set_ylabel("cost (1: just noticeable)")
+    ax.set_xticks(k)
+    right = ax.twinx()
+    right.step(k, loud, where="mid", color="#ff7f0e", lw=1.2, label="noticeable objects")
+    right.set_ylabel("noticeable objects", color="#ff7f0e")
+    right.set_ylim(0, max(1.0, float(np.nanmax(loud)) * 1.1))
+    lines = ax.get_legend_handles_labels()
+    extra = right.get_legend_handles_labels()
+    ax.legend(lines[0] + extra[0], lines[1] + extra[1], fontsize=8, loc="best")
+    ax.set_title(f"best {objective} objective by number of props", fontsize=10)
+    return fig
+
+
 def cost_color_range(values: np.ndarray) -> tuple[float, float]:
     """(vmin, vmax) of the cost matrix's log colour scale: the data's least positive and greatest cost,
     so that the colours spread over the costs there are (a cost of 0 takes the lightest colour; one

@@ -38,8 +38,14 @@ class RunResult:
 
 def run_match(tangible_tasks: list[ObjectTask], virtual_tasks: list[ObjectTask], job: Job, ex: Executor, *,
               on_failure: Callable[[Failure], None], on_result: Callable[[int, VirtualResult], None],
-              step: Callable, header: Callable[[list[Candidates]], None] = lambda tangibles: None) -> RunResult:
+              step: Callable, header: Callable[[list[Candidates]], None] = lambda tangibles: None,
+              virtual_fn: Callable = virtual_task, plan: dict | None = None) -> RunResult:
     """Run every task; hand each virtual object's result, in input order, to ``on_result(k, result)``.
+
+    ``virtual_fn`` is the virtual objects' task: :func:`virtual_task` (the whole result), or
+    :func:`~pinchmatch.runner.tasks.served_task` (the row of the served matrix, for ``select``).
+    ``plan`` gives, per virtual object (by position), the tangibles it may use and why none, as
+    :func:`~pinchmatch.match.search.allowed_tangibles` does (default: every tangible).
 
     ``header(tangibles)`` is called once the tangibles are known, before any virtual object's result.
     ``step(description, total)`` is a context manager yielding ``advance(note, done=...)``, as
@@ -90,7 +96,7 @@ def run_match(tangible_tasks: list[ObjectTask], virtual_tasks: list[ObjectTask],
         ranges = ranges_from_bounds(bounds + [b for _, b in done])
     model = cost_model(job.match, tangibles, ranges=ranges)
 
-    plan: dict[int, tuple] = {k: (None, None) for k in todo}
+    plan = {k: (None if plan is None else plan[k], None) for k in todo}
     if job.match.one_to_one:
         tasks = [virtual_tasks[k] for k in todo]
         done = [(todo[i], row) for i, row in each("virtual objects: cost rows", row_task, tasks, tasks, job, shared,
@@ -103,7 +109,7 @@ def run_match(tangible_tasks: list[ObjectTask], virtual_tasks: list[ObjectTask],
     cost_rows = {}
     tasks = [virtual_tasks[k] for k in todo]
     items = [(virtual_tasks[k], *plan[k]) for k in todo]
-    for i, r in each("virtual objects: poses, features, search", virtual_task, tasks, items, job, shared, model):
+    for i, r in each("virtual objects: poses, features, search", virtual_fn, tasks, items, job, shared, model):
         counts["cached" if r.cached else "computed"] += 1
         cost_rows[todo[i]] = r.row
         on_result(todo[i], r)

@@ -3,7 +3,9 @@
 1. :func:`candidates_task`: a tangible's candidate poses (from the cache, or computed);
 2. :func:`bounds_task`: with ``--normalize range``, a virtual object's feature bounds;
 3. :func:`row_task`: with ``--one-to-one``, a virtual object's row of the cost matrix;
-4. :func:`virtual_task`: a virtual object's candidates, its search against every tangible, its
+4. :func:`served_task` (``pinchmatch select``): a virtual object's row of the served matrix, its
+   least cost and whether it is noticeable on every prop of a shelf;
+5. :func:`virtual_task`: a virtual object's candidates, its search against every tangible, its
    result entry, glTF scene and criteria figure (:class:`VirtualResult`), or all of these from the
    cache when an earlier run had the same inputs (:mod:`pinchmatch.runner.results`).
 
@@ -26,6 +28,7 @@ from ..grasp.pinches import PinchSettings
 from ..match.candidates import Candidates
 from ..match.cost import feature_bounds
 from ..match.search import MatchSettings, Search, cost_row, match_virtual
+from ..match.select import served_row
 from ..mesh.manifest import ObjectSpec
 from .cache import FeatureCache, cached_candidates, to_payload
 from .results import load_result, result_key, store_result
@@ -95,6 +98,16 @@ class VirtualResult:
 
 
 
+@dataclass(frozen=True)
+class ServedRow:
+    """A virtual object's row of the served matrix (:func:`pinchmatch.match.select.served_row`)."""
+
+    name: str
+    row: np.ndarray  # (n,) least cost on each prop, inf where none is allowed
+    noticeable: np.ndarray  # (n,) bool
+    cached: bool
+
+
 def _candidates(task: ObjectTask, job: Job) -> tuple[Candidates, bool, FeatureCache | None]:
     """The task's candidates, whether they came from the cache, and the cache (None: none used)."""
     cache = FeatureCache(job.cache_folder) if job.cache_folder is not None else None
@@ -133,6 +146,14 @@ def bounds_task(task: ObjectTask, job: Job) -> np.ndarray | Failure:
 def row_task(task: ObjectTask, job: Job, shared, model) -> np.ndarray | Failure:
     c = _candidates(task, job)[0]
     return cost_row(Search(tangibles(shared), [c], model, job.match), 0)
+
+
+@_per_file
+def served_task(item: tuple, job: Job, shared, model) -> ServedRow | Failure:
+    """Item: (task, unused, unused), as for :func:`virtual_task`."""
+    c, cached, _ = _candidates(item[0], job)
+    cost, loud = served_row(Search(tangibles(shared), [c], model, job.match), 0)
+    return ServedRow(c.name, cost, loud, cached)
 
 
 @_per_file
