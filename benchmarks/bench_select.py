@@ -35,6 +35,7 @@ def main() -> None:
     parser.add_argument("--max-k", type=int, default=6)
     args = parser.parse_args()
     root = Path(tempfile.mkdtemp(prefix="pinchmatch-bench-select-"))
+    (root / "scene").mkdir(parents=True)
     scene = [p for name, p in real_meshes(DEFAULT_ASSETS, root / "scene") if name.startswith(SCENE_REAL)]
     scene += random_objects(root / "scene", range(10), faces=6000)
     shelf = random_objects(root / "shelf", range(950, 965), faces=6000)
