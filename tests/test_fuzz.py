@@ -16,7 +16,8 @@ import trimesh
 from hypothesis import HealthCheck, given, settings, strategies as st
 
 from pinchmatch.grasp.analysis import load_poses_file
-from pinchmatch.cli.commands import _match_settings, _settings, main
+from pinchmatch.cli.commands import main
+from pinchmatch.cli.runs import match_settings_of, pinch_settings_of
 from pinchmatch.cli.parser import build_parser, check_option_names
 from pinchmatch.errors import ConfigError, PinchmatchError
 
@@ -154,8 +155,8 @@ def test_numeric_options_and_weights_are_taken_or_refused_in_one_line(values, we
         parser = build_parser()
         check_option_names(parser, argv)
         args = parser.parse_args(argv)
-        pinch = _settings(args, count=args.count, seed=args.seed)
-        match = _match_settings(args)
+        pinch = pinch_settings_of(args, count=args.count, seed=args.seed)
+        match = match_settings_of(args)
     except PinchmatchError as exc:
         assert "\n" not in str(exc)
         return

@@ -223,7 +223,7 @@ def test_the_next_parallel_run_removes_a_killed_runs_temporary_folder(tmp_path, 
 def test_a_worker_that_dies_is_an_internal_error_not_bad_input(tmp_path, virtuals, monkeypatch, capsys):
     from concurrent.futures.process import BrokenProcessPool
 
-    from pinchmatch.cli import commands as cli
+    from pinchmatch.cli import runs as cli
 
     def broken(*args, **kwargs):
         raise BrokenProcessPool("a child process terminated abruptly")

@@ -116,8 +116,8 @@ def test_the_key_covers_the_code_that_makes_a_result():
     every_match_and_export_module = {f"{folder}/{p.stem}" for folder in ("match", "export")
                                      for p in (package / folder).glob("*.py")}
     left_out = {"match/__init__", "match/candidates", "export/__init__", "export/folder", "export/sink",
-                "export/view", "match/select", "export/selection"}
-    # candidates: in ALGORITHM_DIGEST; folder, sink, view: write what the results hold; select, selection:
-    # choose props from the served matrix, never part of a virtual object's result
+                "export/view", "match/select", "export/selection", "export/design"}
+    # candidates: in ALGORITHM_DIGEST; folder, sink, view: write what the results hold; select, selection,
+    # design: choose or describe props from the served matrix, never part of a virtual object's result
     assert every_match_and_export_module - left_out <= set(results.RESULT_MODULES)
     assert json.loads(json.dumps(results.RESULT_DIGEST)) == results.RESULT_DIGEST and len(results.RESULT_DIGEST) == 64

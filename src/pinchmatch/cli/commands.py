@@ -10,7 +10,6 @@ import logging
 import os
 import sys
 import time
-from concurrent.futures.process import BrokenProcessPool
 from importlib import resources
 from pathlib import Path
 
@@ -18,47 +17,32 @@ import numpy as np
 
 from ..grasp.analysis import analyze_object, find_pinches, load_poses_file, score_pinches
 from ..runner.cache import FeatureCache
-from ..errors import ConfigError, RunError
+from ..errors import ConfigError
 from ..files import check_writable, write_atomic
 from ..mesh.manifest import object_specs
 from ..grasp.pinches import PinchSettings
 from ..export.folder import OutputFolder, recover
-from ..match.cost import parse_criteria, parse_weights
 from ..match.search import MatchSettings
 from ..mesh.properties import parse_vector
 from .console import Presenter
+from .runs import (EXIT_SOME_FAILED, check_match_flags, given_poses, match_job, match_settings_of, object_tasks,
+                   out_folder, pinch_settings_of, print_match, write_matches)
 from .main import main  # noqa: F401 (the entry point, re-exported)
+from .universal import cmd_design, cmd_select, demo_design
 from ..export.documents import (features_document, matches_rows, poses_csv, poses_document, scene_stems,
                                 matches_legend, study_document, study_legend, study_rows, to_json)
-from ..runner.tasks import Job, ObjectTask, virtual_result
+from ..runner.tasks import Job, virtual_result
 from ..export.sink import MatchesSink
-from ..runner.matching import RunResult, run_match
+from ..runner.matching import RunResult
 from ..runner.executors import executor
 from ..runner.study import ORDERS, run_study
 from ..export.view import make_server, write_page
 
 log = logging.getLogger("pinchmatch")
 
-EXIT_SOME_FAILED = 3
-
 def example_mesh_path() -> Path:
     """The built-in example: the method's study prop (cylinder, cube and cone stacked, 120 mm tall)."""
     return Path(str(resources.files("pinchmatch") / "data" / "example_prop.stl"))
-
-
-def _settings(args, **extra) -> PinchSettings:
-    return PinchSettings(
-        friction_cone_deg=args.friction_cone_deg,
-        min_width_mm=args.min_width_mm,
-        max_width_mm=args.max_width_mm,
-        fingertip_radius_mm=args.fingertip_radius_mm,
-        patch_radius_mm=args.patch_radius_mm,
-        snap_tolerance_mm=args.snap_tolerance_mm,
-        finger_radius_mm=args.finger_radius_mm,
-        finger_length_mm=args.finger_length_mm,
-        approach_tilt_deg=args.approach_tilt_deg,
-        **extra,
-    )
 
 
 def _object(args, progress=None):
@@ -89,7 +73,7 @@ def _emit(args, text: str, summary: str) -> None:
 
 
 def _cmd_poses(args) -> int:
-    settings = _settings(args, count=args.count, seed=args.seed)  # validate options before any work
+    settings = pinch_settings_of(args, count=args.count, seed=args.seed)  # validate options before any work
     if args.output:
         check_writable(args.output, folder=False)
     given = load_poses_file(args.poses) if args.poses else None
@@ -124,7 +108,7 @@ def _cmd_poses(args) -> int:
 
 
 def _cmd_features(args) -> int:
-    settings = _settings(args)
+    settings = pinch_settings_of(args)
     if args.output:
         check_writable(args.output, folder=False)
     p1 = parse_vector(args.p1, option="--p1")
@@ -159,123 +143,28 @@ def _cmd_features(args) -> int:
     return 0
 
 
-def _match_settings(args) -> MatchSettings:
-    criteria = parse_criteria(args.criteria)
-    return MatchSettings(weights=parse_weights(args.weights, criteria=criteria), criteria=criteria,
-                         normalize=args.normalize, top_k=args.top_k, one_to_one=getattr(args, "one_to_one", False),
-                         keep_upright=args.keep_upright, distinct_mm=args.distinct_mm)
-
-
-def _given_poses(files, paths, option) -> list:
-    """Per object, the given poses or None; ``files`` must be one per object."""
-    if not files:
-        return [None] * len(paths)
-    if len(files) != len(paths):
-        raise ConfigError(f"{option}: got {len(files)} files for {len(paths)} objects; give one per object, in order")
-    return [load_poses_file(f) for f in files]
-
-
-def _out_folder(args) -> Path:
-    out = Path(args.output)
-    check_writable(out, folder=True)  # before any work
-    return out
-
-
-#: at most this many rows in the printed tables; the result files hold every one
-TABLE_ROWS = 40
-
-
-def _table_rows(rows: list, what: str) -> list:
-    """The header and at most TABLE_ROWS rows, the rest counted in a last row."""
-    if len(rows) <= TABLE_ROWS + 1:
-        return rows
-    return rows[:TABLE_ROWS + 1] + [(f"... {len(rows) - 1 - TABLE_ROWS} more {what}",) + ("",) * (len(rows[0]) - 1)]
-
-
-def _match_job(args, settings: PinchSettings, match_settings: MatchSettings, cache) -> Job:
-    return Job(units=args.units, up=args.up, settings=settings, match=match_settings,
-               cache_folder=None if cache is None else str(Path(cache.folder).resolve()),
-               dump_poses=getattr(args, "dump_poses", False), scenes=True, figures=args.figures)
-
-
-def _object_tasks(role: str, specs, given, files) -> list[ObjectTask]:
-    return [ObjectTask(role, spec.path, given[k], files[k] if given[k] is not None else None, spec)
-            for k, spec in enumerate(specs)]
-
-
-def _check_match_flags(args) -> None:
-    if args.cache and args.no_cache:
-        raise ConfigError("--cache and --no-cache: give one of them")
-    if args.json and getattr(args, "format", "json") == "jsonl":
-        raise ConfigError("--json and --format jsonl: give one of them; --json prints the matches.json document")
-    if args.figures and args.no_figures:
-        raise ConfigError("--figures and --no-figures: give one of them")
-
-
-def _write_matches(args, stage: Path, out: Path, ui, ex, tangible_tasks, virtual_tasks, job: Job,
-                   run_settings: dict, fmt: str = "json", plan: dict | None = None):
-    """``match``'s run and its outputs into the staging folder ``stage`` of ``out``: matches.json,
-    the scenes, the figures asked for and the page. Returns (result, document, sink, written)."""
-    stems = scene_stems([t.spec.display_name for t in virtual_tasks])
-
-    def on_failure(f) -> None:
-        ui.error(f"{f.error}; skipped, going on with the other files")
-
-    sink = MatchesSink(stage, fmt, stems)
-    with sink:
-        try:
-            result = run_match(tangible_tasks, virtual_tasks, job, ex, on_failure=on_failure, on_result=sink.add,
-                               step=ui.step, plan=plan,
-                               header=lambda tangibles: sink.start(run_settings, tangibles, job.dump_poses))
-        except BrokenProcessPool:
-            raise RunError("a worker process died (out of memory?); run again with fewer --jobs") from None
-        doc = sink.finish(result)
-    written = [str(out / sink.result_path.name), f"{sink.scenes} glTF scenes in {out / 'scenes'}"]
-    if args.figures:
-        from ..export.figures import png_bytes, cost_matrix_figure  # matplotlib: imported when figures are wanted
-
-        with ui.step("cost matrix figure"):
-            write_atomic(stage / "figures" / "cost_matrix.png", png_bytes(cost_matrix_figure(sink.overview())))
-        written.append(f"{sink.scenes + 1} figures in {out / 'figures'}")
-    if not args.no_view and doc is not None:
-        with ui.step("viewer page"):
-            write_page(stage, document=doc)
-            written.append(f"the viewer page {out / 'index.html'}")
-    elif not args.no_view:
-        written.append(f"no viewer page (build it with: pinchmatch view {out})")
-    return result, doc, sink, written
-
-
-def _print_match(ui, sink, result, run_settings) -> None:
-    ui.table(_table_rows(sink.objects, "objects"), title="objects")
-    ui.table(_table_rows(sink.rows, "matches"), title="matches", legend=matches_legend(run_settings))
-    if result.failed:
-        ui.table(_table_rows([("file", "role", "problem")] + [(f.path, f.role, f.error) for f in result.failed],
-                             "files"), title=f"failed: {len(result.failed)} files, left out of the run")
-
-
 def _cmd_match(args) -> int:
-    settings = _settings(args, count=args.count, seed=args.seed)
-    match_settings = _match_settings(args)
-    out = _out_folder(args)
+    settings = pinch_settings_of(args, count=args.count, seed=args.seed)
+    match_settings = match_settings_of(args)
+    out = out_folder(args)
     tangible_specs = object_specs(args.tangible, option="--tangible")
     virtual_specs = object_specs(args.virtual, option="--virtual", split=args.split)
-    given_t = _given_poses(args.tangible_poses, tangible_specs, "--tangible-poses")
-    given_v = _given_poses(args.virtual_poses, virtual_specs, "--virtual-poses")
-    _check_match_flags(args)
+    given_t = given_poses(args.tangible_poses, tangible_specs, "--tangible-poses")
+    given_v = given_poses(args.virtual_poses, virtual_specs, "--virtual-poses")
+    check_match_flags(args)
     cache = None if args.no_cache else FeatureCache(args.cache)
-    job = _match_job(args, settings, match_settings, cache)
+    job = match_job(args, settings, match_settings, cache)
     ui = Presenter(quiet=args.quiet, json_mode=args.json)
     run_settings = {**settings.as_dict(), **match_settings.as_dict(), "units": args.units, "up": args.up,
                     "split": args.split or "none"}
     t0 = time.perf_counter()
     with OutputFolder(out) as stage:  # published into OUT as a whole at the end, or not at all
         with executor(args.jobs, args.scheduler) as ex:
-            result, doc, sink, written = _write_matches(
-                args, stage, out, ui, ex, _object_tasks("tangible", tangible_specs, given_t, args.tangible_poses),
-                _object_tasks("virtual", virtual_specs, given_v, args.virtual_poses), job, run_settings, args.format)
+            result, doc, sink, written = write_matches(
+                args, stage, out, ui, ex, object_tasks("tangible", tangible_specs, given_t, args.tangible_poses),
+                object_tasks("virtual", virtual_specs, given_v, args.virtual_poses), job, run_settings, args.format)
         t1 = time.perf_counter()
-    _print_match(ui, sink, result, run_settings)
+    print_match(ui, sink, result, run_settings)
     where = f"{ex.workers} {'Dask workers' if args.scheduler else 'processes' if ex.workers > 1 else 'process'}"
     cached = (f"; {result.cached} from the cache, {result.computed} computed; cache {cache.folder}"
               if cache is not None else "")
@@ -283,95 +172,6 @@ def _cmd_match(args) -> int:
     if doc is not None:
         ui.document(to_json(doc))
     return EXIT_SOME_FAILED if result.failed else 0
-
-
-def _cmd_select(args) -> int:
-    import tempfile
-
-    from ..export.selection import coverage_rows, selection_document, selection_rows
-    from ..match.select import EXACT_SUBSETS, best_addition, coverage_curve, helpful_props
-    from ..runner.tasks import served_task
-
-    settings = _settings(args, count=args.count, seed=args.seed)
-    match_settings = _match_settings(args)
-    if match_settings.normalize != "jnd":
-        raise ConfigError("--normalize range: select compares the costs of different sets of props, which needs "
-                          "a scale that does not change with the set; use --normalize jnd (the default)")
-    shelf_specs = object_specs(args.tangible, option="--tangible")
-    if not 1 <= args.k <= len(shelf_specs):
-        raise ConfigError(f"-k {args.k}: choose between 1 and the {len(shelf_specs)} props of the shelf")
-    if args.max_k is not None and args.max_k < 1:
-        raise ConfigError(f"--max-k {args.max_k}: give 1 or more")
-    out = _out_folder(args)
-    scene_specs = object_specs(args.virtual, option="--virtual", split=args.split)
-    _check_match_flags(args)
-    ui = Presenter(quiet=args.quiet, json_mode=args.json)
-    run_settings = {**settings.as_dict(), **match_settings.as_dict(), "units": args.units, "up": args.up,
-                    "split": args.split or "none"}
-    t0 = time.perf_counter()
-    with tempfile.TemporaryDirectory(prefix="pinchmatch-select-") as scratch:
-        # both passes read the same candidates: with --no-cache, from a cache that lives for this run only
-        cache = FeatureCache(scratch if args.no_cache else args.cache)
-        job = _match_job(args, settings, match_settings, cache)
-        shelf_tasks = _object_tasks("tangible", shelf_specs, [None] * len(shelf_specs), [None] * len(shelf_specs))
-        scene_tasks = _object_tasks("virtual", scene_specs, [None] * len(scene_specs), [None] * len(scene_specs))
-        rows: dict[int, object] = {}
-        with executor(args.jobs, args.scheduler) as ex:
-            shelf = run_match(shelf_tasks, scene_tasks, job, ex, step=ui.step, virtual_fn=served_task,
-                              on_failure=lambda f: ui.error(f"{f.error}; skipped, going on with the other files"),
-                              on_result=rows.__setitem__)
-            n = len(shelf.tangibles)
-            if args.k > n:
-                raise ConfigError(f"-k {args.k}: only {n} props of the shelf could be used; choose at most {n}")
-            order = sorted(rows)
-            cost = np.array([rows[j].row for j in order]).reshape(len(order), n)
-            loud = np.array([rows[j].noticeable for j in order]).reshape(len(order), n)
-            if not np.isfinite(cost).any():
-                raise ConfigError("no object of the scene can be placed on any prop of the shelf (every "
-                                  "registration is refused); check --keep-upright and the objects' up directions")
-            with ui.step("choosing the props"):
-                curve = coverage_curve(cost, loud, args.objective, max(args.max_k or n, args.k))
-                chosen = curve[args.k - 1]
-                addition = best_addition(cost, loud, chosen, args.objective)
-                helpful = helpful_props(cost, chosen)
-            names = [t.name for t in shelf.tangibles]
-            shelf_doc = [{"name": t.name, "path": str(t.obj.loaded.path)} for t in shelf.tangibles]
-            selection = selection_document(run_settings | {"k": args.k, "objective": args.objective,
-                                                           "max_k": args.max_k},
-                                           shelf_doc, [rows[j].name for j in order], cost, loud, chosen,
-                                           curve[:args.max_k or n], addition, helpful, EXACT_SUBSETS)
-            failed = {f.path for f in shelf.failed if f.role == "tangible"}
-            usable = [t for t in shelf_tasks if t.label not in failed]  # shelf.tangibles, task by task
-            chosen_tasks = [usable[t] for t in chosen.props]
-            served = [scene_tasks[j] for j in order]
-            with OutputFolder(out) as stage:  # published into OUT as a whole at the end, or not at all
-                write_atomic(stage / "selection.json", to_json(selection))
-                written = [str(out / "selection.json")]
-                if not args.no_figures:
-                    from ..export.figures import coverage_figure, png_bytes
-
-                    write_atomic(stage / "figures" / "coverage.png", png_bytes(coverage_figure(selection)))
-                    written.append(str(out / "figures" / "coverage.png"))
-                plan = None
-                if args.objective == "noticeable":  # each object on the prop the selection gives it (quiet first)
-                    position = {int(t): i for i, t in enumerate(chosen.props)}
-                    plan = {i: ([position[int(chosen.assigned[i])]], None) if chosen.assigned[i] >= 0
-                            else ([], "no registration is allowed on any chosen prop") for i in range(len(order))}
-                result, doc, sink, more = _write_matches(args, stage, out, ui, ex, chosen_tasks, served, job,
-                                                         run_settings, plan=plan)
-                written += more
-        t1 = time.perf_counter()
-    ui.table(_table_rows(coverage_rows(selection), "sizes"), title="coverage: the best set of each size")
-    ui.table(_table_rows(selection_rows(selection), "objects"),
-             title=f"the {args.k} chosen props: {', '.join(names[t] for t in chosen.props)}")
-    if shelf.failed:
-        ui.table(_table_rows([("file", "role", "problem")] + [(f.path, f.role, f.error) for f in shelf.failed],
-                             "files"), title=f"failed: {len(shelf.failed)} files, left out of the run")
-    how = "the best of every subset" if chosen.exact else "greedy and swaps (too many subsets to try every one)"
-    ui.note(f"{args.objective} objective {selection['selection']['value']} ({how}); {t1 - t0:.2f} s; wrote "
-            + ", ".join(written))
-    ui.document(to_json(selection))
-    return EXIT_SOME_FAILED if shelf.failed or result.failed else 0
 
 
 def _cmd_cache(args) -> int:
@@ -386,7 +186,7 @@ def _cmd_cache(args) -> int:
 
 def _cmd_demo(args) -> int:
     settings = PinchSettings(count=args.count, seed=args.seed)
-    out = _out_folder(args)
+    out = out_folder(args)
     ui = Presenter(quiet=args.quiet, json_mode=args.json)
     t0 = time.perf_counter()
     publisher = OutputFolder(out)
@@ -431,8 +231,17 @@ def _cmd_demo(args) -> int:
                 write_page(stage, document=matches_doc)
             written.append(f"the viewer page {out / 'index.html'}")
         written.append(f"the objects in {out / 'objects'}")
+        if args.design:
+            designed = demo_design(publisher, stage, out / "objects", settings, budget_s=args.budget_s,
+                                   seed=args.seed, ui=ui)
+            written.append(f"{out / 'props' / 'designed.stl'} and {out / 'design.json'}")
     ui.table(study_rows(study.rows), title="user study", legend=study_legend(study.rows))
     ui.table(matches_rows(matches_doc), title="matches", legend=matches_legend(common))
+    if args.design:
+        c = designed["comparison"]
+        ui.table([("prop", "mean_cost", "noticeable")] + [(name, f"{v['mean_cost']:.4f}", v["noticeable_count"])
+                                                          for name, v in c.items()],
+                 title=f"a prop designed from scratch for the six virtual objects ({designed['evaluations']} judged)")
     ui.note(f"study {t1 - t0:.2f} s; wrote " + ", ".join(written))
     ui.document(to_json(study_doc))
     return 0
@@ -491,5 +300,5 @@ def _open_in_browser(url: str, ui) -> None:
         ui.note(f"no display to open a browser on; open {url} in one")
 
 
-COMMANDS = {"demo": _cmd_demo, "match": _cmd_match, "select": _cmd_select, "view": _cmd_view, "cache": _cmd_cache,
+COMMANDS = {"demo": _cmd_demo, "match": _cmd_match, "select": cmd_select, "design": cmd_design, "view": _cmd_view, "cache": _cmd_cache,
             "poses": _cmd_poses, "features": _cmd_features}

@@ -130,6 +130,21 @@ def _add_output_options(p: argparse.ArgumentParser, *, figures: bool) -> None:
                    help="print the result document to stdout (and nothing else there)")
 
 
+def _add_worker_options(p: argparse.ArgumentParser, *, work: str = "the per-object work") -> None:
+    """The cache and the workers of a command that samples objects: ``work`` is what they run."""
+    p.add_argument("--cache", metavar="DIR",
+                   help="keep each object's poses and features here (default: the per-user cache, "
+                        "$PINCHMATCH_CACHE_DIR or ~/.cache/pinchmatch)")
+    p.add_argument("--no-cache", action="store_true",
+                   help="compute every object's poses afresh (kept for this run only), store nothing")
+    p.add_argument("-j", "--jobs", type=int, metavar="N",
+                   help=f"objects worked on at once in {work}, in local processes (default: all {default_jobs()} "
+                        "cores)")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help=f"run {work} on this Dask scheduler, e.g. tcp://10.0.0.5:8786 "
+                        "(needs pinchmatch[dask]; the workers must reach the mesh files)")
+
+
 def _add_verbosity(p: argparse.ArgumentParser) -> None:
     p.add_argument("-q", "--quiet", action="store_true", help="print only errors")
     p.add_argument("-v", "--verbose", action="store_true", help="log progress; tracebacks on internal errors")
@@ -145,6 +160,10 @@ def build_parser() -> argparse.ArgumentParser:
                       help="folder for study.json, matches.json and the objects (default pinchmatch-demo)")
     demo.add_argument("--full", action="store_true",
                       help="candidate virtual poses: every sampled pose as well as the paper's 17")
+    demo.add_argument("--design", action="store_true",
+                      help="also design a prop from scratch for the six virtual objects and compare it with the "
+                           "study's prop (OUT/props/designed.stl, OUT/design.json)")
+    demo.add_argument("--budget-s", type=float, default=120.0, help="wall time of --design's search (default 120)")
     _add_sampling_options(demo)
     _add_output_options(demo, figures=True)
     _add_verbosity(demo)
@@ -167,15 +186,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_match_options(match)
     match.add_argument("-o", "--output", metavar="OUT", default="pinchmatch-out",
                        help="folder for matches.json, the scenes, the page and the figures (default pinchmatch-out)")
-    match.add_argument("--cache", metavar="DIR",
-                       help="keep each object's poses and features here (default: the per-user cache, "
-                            "$PINCHMATCH_CACHE_DIR or ~/.cache/pinchmatch)")
-    match.add_argument("--no-cache", action="store_true", help="compute every object's poses afresh, store nothing")
-    match.add_argument("-j", "--jobs", type=int, metavar="N",
-                       help=f"objects worked on at once, in local processes (default: all {default_jobs()} cores)")
-    match.add_argument("--scheduler", metavar="ADDRESS",
-                       help="run the per-object work on this Dask scheduler, e.g. tcp://10.0.0.5:8786 "
-                            "(needs pinchmatch[dask]; the workers must reach the mesh files)")
+    _add_worker_options(match)
     match.add_argument("--format", choices=("json", "jsonl"), default="json",
                        help="json: OUT/matches.json (default); jsonl: OUT/matches.jsonl, one line per virtual "
                             "object, written as they come (memory stays flat for thousands of objects)")
@@ -203,18 +214,38 @@ def build_parser() -> argparse.ArgumentParser:
     select.add_argument("-o", "--output", metavar="OUT", default="pinchmatch-select",
                         help="folder for selection.json, the coverage figure, and the chosen props' matches.json, "
                              "scenes and page (default pinchmatch-select)")
-    select.add_argument("--cache", metavar="DIR", help="the cache of poses and features (default: the per-user cache)")
-    select.add_argument("--no-cache", action="store_true",
-                        help="compute every object's poses afresh (kept for this run only), store nothing")
-    select.add_argument("-j", "--jobs", type=int, metavar="N",
-                        help=f"objects worked on at once, in local processes (default: all {default_jobs()} cores)")
-    select.add_argument("--scheduler", metavar="ADDRESS", help="run the per-object work on this Dask scheduler")
+    _add_worker_options(select)
     select.add_argument("--no-view", action="store_true", help="do not write the viewer page OUT/index.html")
     select.add_argument("--figures", action="store_true",
                         help="also write match's PNG figures (the cost matrix, each match's criteria)")
     select.add_argument("--no-figures", action="store_true", help="no PNG figures, not even the coverage curve")
     select.add_argument("--json", action="store_true", help="print selection.json to stdout (and nothing else there)")
     _add_verbosity(select)
+
+    design = sub.add_parser("design", help="new props, ready to print, whose pinches render a scene best")
+    design.add_argument("--virtual", nargs="+", action="extend", required=True, metavar="PATH",
+                        help="the scene: virtual meshes, folders or manifests")
+    design.add_argument("--tangible", nargs="+", action="extend", metavar="PATH",
+                        help="a shelf to compare with: the best K of its props, as select finds them")
+    design.add_argument("-k", type=int, default=1, metavar="K", help="how many props to design together (default 1)")
+    design.add_argument("--max-parts", type=int, default=4, help="parts per prop, 1 to 4 (default 4)")
+    design.add_argument("--max-height-mm", type=float, default=200.0,
+                        help="tallest prop (default 200); its widest part, a box's diagonal included, is at most "
+                             "--max-width-mm, the largest pinch width")
+    design.add_argument("--budget-s", type=float, default=120.0, help="wall time of the whole design (default 120)")
+    design.add_argument("--evaluations", type=int, metavar="N",
+                        help="judge exactly N candidates, whatever the machine's speed (the budget still bounds it)")
+    design.add_argument("--split", choices=("none", "nodes"), default=None,
+                        help="nodes: each mesh node of a virtual glTF/GLB scene is its own object (default none)")
+    _add_pinch_options(design)
+    _add_sampling_options(design)
+    _add_match_options(design, one_to_one=False)
+    design.add_argument("-o", "--output", metavar="OUT", default="pinchmatch-design",
+                        help="folder for props/*.stl, design.json, and the scene's matches.json, scenes and page "
+                             "on the designed props (default pinchmatch-design)")
+    _add_worker_options(design, work="the final match")
+    _add_output_options(design, figures=False)
+    _add_verbosity(design)
 
     cache = sub.add_parser("cache", help="the cache of poses and features: where, how big; clear it")
     cache.add_argument("action", choices=("info", "clear"), help="info: folder, entries, size; clear: delete them")

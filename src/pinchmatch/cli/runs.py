@@ -1,0 +1,141 @@
+"""What the commands that run ``match`` share: options into settings, the run's tasks, its outputs.
+
+``match``, ``select`` and ``design`` all end in a matching run written into an output folder; this
+module turns their options into settings and writes that run (:func:`write_matches`).
+"""
+
+from __future__ import annotations
+
+from concurrent.futures.process import BrokenProcessPool
+from pathlib import Path
+
+from ..errors import ConfigError, RunError
+from ..export.documents import matches_legend, scene_stems
+from ..export.sink import MatchesSink
+from ..export.view import write_page
+from ..files import check_writable, write_atomic
+from ..grasp.analysis import load_poses_file
+from ..grasp.pinches import PinchSettings
+from ..match.cost import parse_criteria, parse_weights
+from ..match.search import MatchSettings
+from ..runner.matching import run_match
+from ..runner.tasks import Job, ObjectTask
+
+#: exit code of a run that went on without some files
+EXIT_SOME_FAILED = 3
+
+
+def pinch_settings_of(args, **extra) -> PinchSettings:
+    """The pinch rules' settings from the command's options."""
+    return PinchSettings(
+        friction_cone_deg=args.friction_cone_deg,
+        min_width_mm=args.min_width_mm,
+        max_width_mm=args.max_width_mm,
+        fingertip_radius_mm=args.fingertip_radius_mm,
+        patch_radius_mm=args.patch_radius_mm,
+        snap_tolerance_mm=args.snap_tolerance_mm,
+        finger_radius_mm=args.finger_radius_mm,
+        finger_length_mm=args.finger_length_mm,
+        approach_tilt_deg=args.approach_tilt_deg,
+        **extra,
+    )
+
+
+def match_settings_of(args) -> MatchSettings:
+    criteria = parse_criteria(args.criteria)
+    return MatchSettings(weights=parse_weights(args.weights, criteria=criteria), criteria=criteria,
+                         normalize=args.normalize, top_k=args.top_k, one_to_one=getattr(args, "one_to_one", False),
+                         keep_upright=args.keep_upright, distinct_mm=args.distinct_mm)
+
+
+def given_poses(files, paths, option) -> list:
+    """Per object, the given poses or None; ``files`` must be one per object."""
+    if not files:
+        return [None] * len(paths)
+    if len(files) != len(paths):
+        raise ConfigError(f"{option}: got {len(files)} files for {len(paths)} objects; give one per object, in order")
+    return [load_poses_file(f) for f in files]
+
+
+def out_folder(args) -> Path:
+    out = Path(args.output)
+    check_writable(out, folder=True)  # before any work
+    return out
+
+
+#: at most this many rows in the printed tables; the result files hold every one
+TABLE_ROWS = 40
+
+
+def table_rows(rows: list, what: str) -> list:
+    """The header and at most TABLE_ROWS rows, the rest counted in a last row."""
+    if len(rows) <= TABLE_ROWS + 1:
+        return rows
+    return rows[:TABLE_ROWS + 1] + [(f"... {len(rows) - 1 - TABLE_ROWS} more {what}",) + ("",) * (len(rows[0]) - 1)]
+
+
+def match_job(args, settings: PinchSettings, match_settings: MatchSettings, cache) -> Job:
+    return Job(units=args.units, up=args.up, settings=settings, match=match_settings,
+               cache_folder=None if cache is None else str(Path(cache.folder).resolve()),
+               dump_poses=getattr(args, "dump_poses", False), scenes=True, figures=args.figures)
+
+
+def object_tasks(role: str, specs, given, files) -> list[ObjectTask]:
+    return [ObjectTask(role, spec.path, given[k], files[k] if given[k] is not None else None, spec)
+            for k, spec in enumerate(specs)]
+
+
+def check_match_flags(args) -> None:
+    if args.cache and args.no_cache:
+        raise ConfigError("--cache and --no-cache: give one of them")
+    if args.json and getattr(args, "format", "json") == "jsonl":
+        raise ConfigError("--json and --format jsonl: give one of them; --json prints the matches.json document")
+    if args.figures and args.no_figures:
+        raise ConfigError("--figures and --no-figures: give one of them")
+
+
+def write_matches(args, stage: Path, out: Path, ui, ex, tangible_tasks, virtual_tasks, job: Job,
+                   run_settings: dict, fmt: str = "json", plan: dict | None = None):
+    """``match``'s run and its outputs into the staging folder ``stage`` of ``out``: matches.json,
+    the scenes, the figures asked for and the page. Returns (result, document, sink, written)."""
+    stems = scene_stems([t.spec.display_name for t in virtual_tasks])
+
+    def on_failure(f) -> None:
+        ui.error(f"{f.error}; skipped, going on with the other files")
+
+    sink = MatchesSink(stage, fmt, stems)
+    with sink:
+        try:
+            result = run_match(tangible_tasks, virtual_tasks, job, ex, on_failure=on_failure, on_result=sink.add,
+                               step=ui.step, plan=plan,
+                               header=lambda tangibles: sink.start(run_settings, tangibles, job.dump_poses))
+        except BrokenProcessPool:
+            raise RunError("a worker process died (out of memory?); run again with fewer --jobs") from None
+        doc = sink.finish(result)
+    written = [str(out / sink.result_path.name), f"{sink.scenes} glTF scenes in {out / 'scenes'}"]
+    if args.figures:
+        from ..export.figures import (  # matplotlib: imported when figures are wanted
+            cost_matrix_figure,
+            png_bytes,
+        )
+
+        with ui.step("cost matrix figure"):
+            write_atomic(stage / "figures" / "cost_matrix.png", png_bytes(cost_matrix_figure(sink.overview())))
+        written.append(f"{sink.scenes + 1} figures in {out / 'figures'}")
+    if not args.no_view and doc is not None:
+        with ui.step("viewer page"):
+            write_page(stage, document=doc)
+            written.append(f"the viewer page {out / 'index.html'}")
+    elif not args.no_view:
+        written.append(f"no viewer page (build it with: pinchmatch view {out})")
+    return result, doc, sink, written
+
+
+def print_match(ui, sink, result, run_settings) -> None:
+    ui.table(table_rows(sink.objects, "objects"), title="objects")
+    ui.table(table_rows(sink.rows, "matches"), title="matches", legend=matches_legend(run_settings))
+    if result.failed:
+        ui.table(table_rows([("file", "role", "problem")] + [(f.path, f.role, f.error) for f in result.failed],
+                             "files"), title=f"failed: {len(result.failed)} files, left out of the run")
+
+

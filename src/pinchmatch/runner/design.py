@@ -1,0 +1,274 @@
+"""Design props for a scene: the search behind ``pinchmatch design``.
+
+The family is :mod:`pinchmatch.mesh.stacks` (coaxial stacks of cylinders, boxes, frusta and barrels).
+Every candidate is judged by the real pipeline: its stack is written as an STL, loaded, sampled for
+feasible pinches with their features, and searched against every scene object with ``match``'s exact
+search; its score is the scene's objective on the props (``mean``: the mean of each object's least
+cost over the K props; ties by the count of noticeable objects).
+
+**The proxy that guides it.** Where a scene object can be pinched, and how wide, is the first thing a
+prop must offer: the first candidates give each part the width of one quantile of the scene's pinch
+widths (each object's feasible widths weighted equally), tallest first, in each part kind. Each
+candidate is then judged for real.
+
+**The search** is a seeded local search. A step changes one prop of the set: a part's kind, width, top
+width or height, a part added, removed or two swapped (each repaired into the limits); the change is
+kept when it lowers the objective. During the search, objects and props are sampled at
+``search_count`` poses (fewer than the final count, for speed); the chosen props are then written and
+matched at the run's full count, and those are the costs reported.
+
+**Determinism.** For a seed, the candidates and their order are the same on every machine; the
+budget decides how many are judged (``evaluations`` fixes the number instead, so that the result
+does not depend on the machine's speed). ``-k 2`` designs two props that work together: each step
+changes one of them, judged on the pair (each object on its better prop).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import tempfile
+import time
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import ConfigError, PinchmatchError
+from ..grasp.pinches import PinchSettings
+from ..match.candidates import Candidates
+from ..match.search import MatchSettings, Search, cost_model
+from ..match.select import served_row
+from ..mesh.stacks import (
+    MIN_PART_HEIGHT_MM,
+    MIN_PART_WIDTH_MM,
+    PART_KINDS,
+    Part,
+    Stack,
+    stack_mesh,
+    stack_problems,
+)
+from .cache import cached_candidates
+
+#: poses per object and prop while searching (the final props are matched at the run's count)
+SEARCH_COUNT = 300
+#: relative step of a width or height change
+STEP = 0.25
+
+
+@dataclass(frozen=True)
+class DesignSettings:
+    k: int = 1
+    max_parts: int = 4
+    max_height_mm: float = 200.0
+    max_width_mm: float = 100.0
+    budget_s: float = 120.0
+    seed: int = 0
+    evaluations: int | None = None
+    search_count: int = SEARCH_COUNT
+
+    def check(self) -> None:
+        """Raise ConfigError for limits no stack of the family can meet, or a bad option."""
+        if self.k < 1:
+            raise ConfigError(f"-k {self.k}: design 1 prop or more")
+        if not 1 <= self.max_parts <= 4:
+            raise ConfigError(f"--max-parts {self.max_parts}: give 1 to 4")
+        if self.max_height_mm < MIN_PART_HEIGHT_MM:
+            raise ConfigError(f"--max-height-mm {self.max_height_mm:g}: no part of the family is that low "
+                              f"(a part is at least {MIN_PART_HEIGHT_MM:g} mm tall); give more")
+        if self.max_width_mm < MIN_PART_WIDTH_MM:
+            raise ConfigError(f"--max-width-mm {self.max_width_mm:g}: no part of the family is that narrow "
+                              f"(a part is at least {MIN_PART_WIDTH_MM:g} mm wide); give more")
+        if not self.budget_s > 0:
+            raise ConfigError(f"--budget-s {self.budget_s:g}: give a time in seconds, more than 0")
+        if self.evaluations is not None and self.evaluations < 1:
+            raise ConfigError(f"--evaluations {self.evaluations}: give 1 or more")
+
+
+def _repair(stack: Stack, s: DesignSettings) -> Stack:
+    """The stack moved into the limits: widths and heights clipped and rounded to 0.1 mm (what a
+    printer resolves, and what ``design.json`` states), heights scaled to the height limit."""
+    parts = []
+    for p in stack.parts[:s.max_parts]:
+        cap = s.max_width_mm / (math.sqrt(2.0) if p.kind == "box" else 1.0)
+        width = float(np.clip(p.width_mm, MIN_PART_WIDTH_MM, cap))
+        top = None
+        if p.kind == "frustum":
+            top = float(np.clip(p.top_width_mm if p.top_width_mm else width / 2, MIN_PART_WIDTH_MM, cap))
+        elif p.kind == "barrel":
+            top = min(max(p.top_width_mm if p.top_width_mm else 0.6 * width, MIN_PART_WIDTH_MM), 0.9 * width)
+            if top < MIN_PART_WIDTH_MM:  # too narrow to bulge: a cylinder
+                p, top = replace(p, kind="cylinder"), None
+        parts.append(Part(p.kind, round(max(p.height_mm, MIN_PART_HEIGHT_MM), 1), round(width, 1),
+                          None if top is None else round(top, 1), round(p.turn_deg, 1) if p.kind == "box" else 0.0))
+    total = sum(p.height_mm for p in parts)
+    if total > s.max_height_mm:
+        scale = s.max_height_mm / total
+        parts = [replace(p, height_mm=max(MIN_PART_HEIGHT_MM, math.floor(p.height_mm * scale * 10) / 10)) for p in parts]
+        while sum(p.height_mm for p in parts) > s.max_height_mm + 1e-9 and len(parts) > 1:
+            parts.pop()
+    return Stack(tuple(parts))
+
+
+def _key(stack: Stack) -> str:
+    return hashlib.sha256(json.dumps(stack.as_dict(), sort_keys=True).encode()).hexdigest()[:16]
+
+
+def initial_stacks(virtuals: list[Candidates], s: DesignSettings) -> list[Stack]:
+    """The first candidates: part widths at the quantiles of the scene's pinch widths (the proxy)."""
+    widths = np.concatenate([v.features.width_mm for v in virtuals])
+    weights = np.concatenate([np.full(len(v), 1.0 / max(len(v), 1)) for v in virtuals])
+    order = np.argsort(widths, kind="stable")
+    cdf = np.cumsum(weights[order]) / weights.sum()
+    out = []
+    for n in range(1, s.max_parts + 1):
+        at = [float(widths[order][np.searchsorted(cdf, (i + 0.5) / n)]) for i in range(n)]
+        height = min(max(s.max_height_mm / n, MIN_PART_HEIGHT_MM), 50.0)
+        for kind in PART_KINDS:
+            parts = [Part(kind, height, w + 2.0, 0.6 * (w + 2.0) if kind in ("frustum", "barrel") else None)
+                     for w in sorted(at, reverse=True)]  # widest at the bottom: no overhang between parts
+            out.append(_repair(Stack(tuple(parts)), s))
+    unique = {}
+    for st in out:
+        unique.setdefault(_key(st), st)
+    return list(unique.values())
+
+
+def mutate(stack: Stack, rng: np.random.Generator, s: DesignSettings) -> Stack:
+    """One seeded change of a stack (see the module notes), repaired into the limits."""
+    parts = list(stack.parts)
+    i = int(rng.integers(len(parts)))
+    move = rng.choice(["kind", "width", "top", "height", "add", "remove", "swap", "turn"])
+    p = parts[i]
+    if move == "kind":
+        kind = str(rng.choice([k for k in PART_KINDS if k != p.kind]))
+        parts[i] = Part(kind, p.height_mm, p.width_mm, p.top_width_mm or 0.6 * p.width_mm if kind in
+                        ("frustum", "barrel") else None)
+    elif move == "width":
+        parts[i] = replace(p, width_mm=p.width_mm * (1.0 + STEP * rng.uniform(-1, 1)))
+    elif move == "top" and p.top_width_mm is not None:
+        parts[i] = replace(p, top_width_mm=p.top_width_mm * (1.0 + STEP * rng.uniform(-1, 1)))
+    elif move == "height":
+        parts[i] = replace(p, height_mm=p.height_mm * (1.0 + STEP * rng.uniform(-1, 1)))
+    elif move == "add" and len(parts) < s.max_parts:
+        parts.insert(i + 1, replace(p, kind=str(rng.choice(PART_KINDS)), width_mm=p.width_mm * rng.uniform(0.5, 1.2),
+                                    top_width_mm=0.6 * p.width_mm))
+    elif move == "remove" and len(parts) > 1:
+        parts.pop(i)
+    elif move == "swap" and len(parts) > 1:
+        j = (i + 1) % len(parts)
+        parts[i], parts[j] = parts[j], parts[i]
+    elif move == "turn" and p.kind == "box":
+        parts[i] = replace(p, turn_deg=float((p.turn_deg + rng.uniform(10, 80)) % 90.0))
+    else:
+        parts[i] = replace(p, width_mm=p.width_mm * (1.0 + STEP * rng.uniform(-1, 1)))
+    return _repair(Stack(tuple(parts)), s)
+
+
+@dataclass
+class Judged:
+    stacks: tuple
+    cost: np.ndarray  # (m, K) each object's least cost on each prop
+    noticeable: np.ndarray  # (m, K)
+
+    @property
+    def score(self) -> tuple[float, int]:
+        best = self.cost.min(axis=1)
+        pick = self.cost.argmin(axis=1)
+        loud = int(self.noticeable[np.arange(len(pick)), pick].sum())
+        return (float(best.mean()) if np.isfinite(best).all() else math.inf, loud)
+
+
+class Judge:
+    """Judges props by the real pipeline, each stack once (written, loaded, sampled, searched)."""
+
+    def __init__(self, virtuals: list[Candidates], match: MatchSettings, pinch: PinchSettings, folder: Path):
+        self.virtuals, self.match, self.pinch, self.folder = virtuals, match, pinch, folder
+        self.model = cost_model(match, virtuals)
+        self.rows: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        self.evaluations = 0
+
+    def prop_rows(self, stack: Stack) -> tuple[np.ndarray, np.ndarray]:
+        key = _key(stack)
+        if key not in self.rows:
+            path = self.folder / f"{key}.stl"
+            path.write_bytes(stack_mesh(stack).export(file_type="stl"))
+            try:
+                prop = cached_candidates(str(path), cache=None, settings=self.pinch)
+            except PinchmatchError:  # a prop with no feasible pinch serves nothing
+                self.rows[key] = (np.full(len(self.virtuals), np.inf), np.ones(len(self.virtuals), bool))
+            else:
+                search = Search([prop], self.virtuals, self.model, self.match)
+                rows = [served_row(search, j) for j in range(len(self.virtuals))]
+                self.rows[key] = (np.array([r[0][0] for r in rows]), np.array([r[1][0] for r in rows]))
+            self.evaluations += 1
+        return self.rows[key]
+
+    def judge(self, stacks: tuple) -> Judged:
+        rows = [self.prop_rows(st) for st in stacks]
+        return Judged(stacks, np.column_stack([r[0] for r in rows]), np.column_stack([r[1] for r in rows]))
+
+
+@dataclass
+class DesignResult:
+    best: Judged
+    history: list  # (evaluations, seconds, mean cost) after each improvement
+    evaluations: int
+    seconds: float
+    first_evaluation_s: float
+
+
+def design_props(virtuals: list[Candidates], s: DesignSettings, *, match: MatchSettings, pinch: PinchSettings,
+                 reserve_s: float = 0.0, progress=None) -> DesignResult:
+    """The best set of ``s.k`` stacks found for the scene (see the module notes). ``reserve_s``: time
+    kept for what follows the search (the final match) out of the budget; ``progress(done, total,
+    note)`` is called after each judged candidate."""
+    rng = np.random.default_rng(s.seed)
+    search_pinch = replace(pinch, count=min(pinch.count, s.search_count))
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="pinchmatch-design-") as folder:
+        judge = Judge(virtuals, match, search_pinch, Path(folder))
+        starts = initial_stacks(virtuals, s)
+        judge.judge((starts[0],))
+        first_s = time.perf_counter() - t0
+        if first_s * (1 + s.k) + reserve_s > s.budget_s and s.evaluations is None:
+            raise ConfigError(f"--budget-s {s.budget_s:g}: judging one candidate takes {first_s:.1f} s here, and the "
+                              f"search needs at least {first_s * (1 + s.k) + reserve_s:.0f} s; give more")
+        total = s.evaluations or max(1, int((s.budget_s - reserve_s) / max(first_s, 1e-3)))
+
+        def left() -> bool:
+            if s.evaluations is not None:
+                return judge.evaluations < s.evaluations
+            per = (time.perf_counter() - t0) / max(judge.evaluations, 1)
+            return time.perf_counter() - t0 + per + reserve_s < s.budget_s
+
+        # the proxy's candidates, one prop at a time; for k > 1 the best ones side by side
+        singles = []
+        for st in starts:
+            if not left():
+                break
+            singles.append((judge.judge((st,)).score, len(singles), st))
+            if progress:
+                progress(judge.evaluations, total, "proxy candidates")
+        singles.sort(key=lambda x: (x[0], x[1]))
+        chosen = tuple(st for _, _, st in singles[:s.k]) if singles else (starts[0],)
+        while len(chosen) < s.k:
+            chosen += (mutate(chosen[-1], rng, s),)
+        best = judge.judge(chosen)
+        history = [(judge.evaluations, time.perf_counter() - t0, best.score[0])]
+        while left():
+            which = int(rng.integers(s.k))
+            trial = list(best.stacks)
+            trial[which] = mutate(trial[which], rng, s)
+            judged = judge.judge(tuple(trial))
+            if judged.score < best.score:
+                best = judged
+                history.append((judge.evaluations, time.perf_counter() - t0, best.score[0]))
+            if progress:
+                progress(judge.evaluations, total, f"mean cost {best.score[0]:.3g}")
+        for st in best.stacks:  # the repair keeps every candidate in the limits
+            problems = stack_problems(st, max_height_mm=s.max_height_mm, max_width_mm=s.max_width_mm)
+            if problems:
+                raise RuntimeError(f"a designed stack is out of the limits: {'; '.join(problems)}")
+        return DesignResult(best, history, judge.evaluations, time.perf_counter() - t0, first_s)
