@@ -4,17 +4,21 @@ A temporary file beside the target, renamed over it when complete: a reader sees
 the new one, never half of one, and an error leaves the old one. Every file gets ordinary
 permissions (0666 less the umask). A file that cannot be written (no permission, a read-only or
 full file system) is an :class:`errors.OutputError` naming it: one line for the command line.
+
+Small input files that are not meshes (poses, ratings, weights) are read whole by :func:`read_input`,
+which turns every way of failing into one :class:`errors.ConfigError` line naming the file.
 """
 
 from __future__ import annotations
 
 import os
 import signal
+import stat
 import tempfile
 from contextlib import contextmanager
 from pathlib import Path
 
-from .errors import OutputError
+from .errors import ConfigError, OutputError
 
 #: the control folder of a folder pinchmatch published a result into (``OUT/.pinchmatch``)
 RESULT_CONTROL = ".pinchmatch"
@@ -70,6 +74,28 @@ class AtomicFile:
         self.file.close()
         if os.path.exists(self._tmp):
             os.unlink(self._tmp)
+
+
+def read_input(path: str | os.PathLike, what: str, *, limit_bytes: int, too_big: str = "") -> bytes:
+    """The bytes of a small input file (``what``: "poses file", "ratings table"...), or a ConfigError
+    naming the file: missing, a folder, not a regular file, unreadable, or larger than ``limit_bytes``
+    (``too_big`` adds what to do then)."""
+    path = os.fspath(path)
+    try:
+        with open(path, "rb") as fh:
+            if not stat.S_ISREG(os.fstat(fh.fileno()).st_mode):
+                raise ConfigError(f"{path}: not a regular file (a device or a pipe); give a {what}")
+            raw = fh.read(limit_bytes + 1)
+    except FileNotFoundError:
+        raise ConfigError(f"{path}: no such {what}; check the path") from None
+    except IsADirectoryError:
+        raise ConfigError(f"{path}: is a folder; give a {what}") from None
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot be read ({exc.strerror or exc}); check its permissions") from None
+    if len(raw) > limit_bytes:
+        raise ConfigError(f"{path}: larger than {limit_bytes // 2**20} MiB, too big for a {what}"
+                          + (f"; {too_big}" if too_big else ""))
+    return raw
 
 
 def write_atomic(path: str | os.PathLike, text: str | bytes) -> None:

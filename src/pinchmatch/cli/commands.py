@@ -1,4 +1,5 @@
-"""The commands: ``pinchmatch demo``, ``match``, ``select``, ``view``, ``cache``, ``poses`` and ``features``.
+"""The commands: ``pinchmatch demo``, ``match``, ``select``, ``design``, ``calibrate``, ``view``, ``cache``,
+``poses`` and ``features``.
 
 Each takes the parsed options and returns its exit code (:mod:`pinchmatch.cli.main` lists them
 and turns errors into one line). ``main`` is re-exported here for callers that run a command line.
@@ -18,7 +19,7 @@ import numpy as np
 from ..grasp.analysis import analyze_object, find_pinches, load_poses_file, score_pinches
 from ..runner.cache import FeatureCache
 from ..errors import ConfigError
-from ..files import check_writable, write_atomic
+from ..files import check_writable, read_input, write_atomic
 from ..mesh.manifest import object_specs
 from ..grasp.pinches import PinchSettings
 from ..export.folder import OutputFolder, recover
@@ -26,7 +27,7 @@ from ..match.search import MatchSettings
 from ..mesh.properties import parse_vector
 from .console import Presenter
 from .runs import (EXIT_SOME_FAILED, check_match_flags, given_poses, match_job, match_settings_of, object_tasks,
-                   out_folder, pinch_settings_of, print_match, write_matches)
+                   out_folder, pinch_settings_of, print_match, table_rows, write_matches)
 from .main import main  # noqa: F401 (the entry point, re-exported)
 from .universal import cmd_design, cmd_select, demo_design
 from ..export.documents import (features_document, matches_rows, poses_csv, poses_document, scene_stems,
@@ -174,6 +175,36 @@ def _cmd_match(args) -> int:
     return EXIT_SOME_FAILED if result.failed else 0
 
 
+def _cmd_calibrate(args) -> int:
+    from ..match.calibrate import calibrate, read_ratings
+    from ..match.cost import CRITERIA
+
+    criteria = None
+    if args.criteria:
+        criteria = tuple(c.strip() for c in args.criteria.split(",") if c.strip())
+        unknown = [c for c in criteria if c not in CRITERIA]
+        if unknown or not criteria:
+            raise ConfigError(f"--criteria {args.criteria}: unknown {', '.join(unknown) or 'nothing given'}; "
+                              f"valid: {', '.join(CRITERIA)}")
+    check_writable(args.output, folder=False)
+    ui = Presenter(quiet=args.quiet, json_mode=args.json)
+    text = read_input(args.ratings, "ratings table (CSV)", limit_bytes=64 * 2**20)
+    try:
+        decoded = text.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        raise ConfigError(f"{args.ratings}: not UTF-8 text; save the table as a UTF-8 CSV") from None
+    ratings = read_ratings(decoded, args.ratings, criteria=criteria)
+    fit = calibrate(ratings, seed=args.seed)
+    document = fit.as_dict(str(args.ratings))
+    write_atomic(args.output, to_json(document))
+    rows = [("criterion", "weight")] + [(c, f"{fit.weights[c]:.3f}") for c in ratings.criteria]
+    ui.table(table_rows(rows, "criteria"), title=f"weights fitted to {fit.rows} ratings of {fit.pairs} pose pairs")
+    ui.note(f"held-out rank correlation of cost and rating ({fit.folds} folds by pose pair; -1 is perfect): "
+            f"fitted {fit.held_out_spearman:+.3f}, default weights {fit.default_spearman:+.3f}; wrote {args.output}")
+    ui.document(to_json(document))
+    return 0
+
+
 def _cmd_cache(args) -> int:
     cache, ui = FeatureCache(args.cache), Presenter(quiet=args.quiet)
     if args.action == "clear":
@@ -300,5 +331,5 @@ def _open_in_browser(url: str, ui) -> None:
         ui.note(f"no display to open a browser on; open {url} in one")
 
 
-COMMANDS = {"demo": _cmd_demo, "match": _cmd_match, "select": cmd_select, "design": cmd_design, "view": _cmd_view, "cache": _cmd_cache,
+COMMANDS = {"calibrate": _cmd_calibrate, "demo": _cmd_demo, "match": _cmd_match, "select": cmd_select, "design": cmd_design, "view": _cmd_view, "cache": _cmd_cache,
             "poses": _cmd_poses, "features": _cmd_features}

@@ -104,6 +104,8 @@ def _add_sampling_options(p: argparse.ArgumentParser) -> None:
 def _add_match_options(p: argparse.ArgumentParser, *, one_to_one: bool = True) -> None:
     p.add_argument("--weights", metavar="NAME=W,...",
                    help="weight per criterion, default 1: width,com,tilt,normal,axis,kmax,kmin,mass")
+    p.add_argument("--weights-file", metavar="FILE",
+                   help="the weights of a weights.json that 'pinchmatch calibrate' wrote (instead of --weights)")
     p.add_argument("--criteria", choices=("default", "paper"), default="default",
                    help="default: the paper's seven criteria plus mass; paper: the seven")
     p.add_argument("--normalize", choices=("jnd", "range"), default="jnd",
@@ -246,6 +248,17 @@ def build_parser() -> argparse.ArgumentParser:
     _add_worker_options(design, work="the final match")
     _add_output_options(design, figures=False)
     _add_verbosity(design)
+
+    calibrate = sub.add_parser("calibrate", help="criterion weights fitted to rated pose pairs (a study's CSV)")
+    calibrate.add_argument("ratings", metavar="RATINGS.csv",
+                           help="one row per rated trial: rating and <criterion>_jnd columns (docs/study.md)")
+    calibrate.add_argument("--criteria", metavar="NAME,...",
+                           help="fit only these criteria (default: every <criterion>_jnd column); the others get 0")
+    calibrate.add_argument("--seed", type=int, default=0, help="seed of the cross-validation's folds (default 0)")
+    calibrate.add_argument("-o", "--output", metavar="FILE", default="weights.json",
+                           help="the fitted weights, for match --weights-file (default weights.json)")
+    calibrate.add_argument("--json", action="store_true", help="print weights.json to stdout (and nothing else there)")
+    _add_verbosity(calibrate)
 
     cache = sub.add_parser("cache", help="the cache of poses and features: where, how big; clear it")
     cache.add_argument("action", choices=("info", "clear"), help="info: folder, entries, size; clear: delete them")

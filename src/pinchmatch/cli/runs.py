@@ -13,10 +13,10 @@ from ..errors import ConfigError, RunError
 from ..export.documents import matches_legend, scene_stems
 from ..export.sink import MatchesSink
 from ..export.view import write_page
-from ..files import check_writable, write_atomic
+from ..files import check_writable, read_input, write_atomic
 from ..grasp.analysis import load_poses_file
 from ..grasp.pinches import PinchSettings
-from ..match.cost import parse_criteria, parse_weights
+from ..match.cost import complete_weights, parse_criteria, parse_weights
 from ..match.search import MatchSettings
 from ..runner.matching import run_match
 from ..runner.tasks import Job, ObjectTask
@@ -43,7 +43,17 @@ def pinch_settings_of(args, **extra) -> PinchSettings:
 
 def match_settings_of(args) -> MatchSettings:
     criteria = parse_criteria(args.criteria)
-    return MatchSettings(weights=parse_weights(args.weights, criteria=criteria), criteria=criteria,
+    if getattr(args, "weights_file", None):
+        if args.weights:
+            raise ConfigError("--weights and --weights-file: give one of them")
+        from ..match.calibrate import read_weights_file
+
+        given = read_weights_file(read_input(args.weights_file, "weights file (JSON)", limit_bytes=2**20),
+                                  args.weights_file)
+        weights = complete_weights(given, criteria=criteria)
+    else:
+        weights = parse_weights(args.weights, criteria=criteria)
+    return MatchSettings(weights=weights, criteria=criteria,
                          normalize=args.normalize, top_k=args.top_k, one_to_one=getattr(args, "one_to_one", False),
                          keep_upright=args.keep_upright, distinct_mm=args.distinct_mm)
 

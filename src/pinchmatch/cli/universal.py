@@ -3,7 +3,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import tempfile
 import time
 from pathlib import Path
@@ -30,6 +29,10 @@ from .runs import (
     table_rows,
     write_matches,
 )
+
+
+#: the design's budget keeps this much for writing the results: props, documents, scenes and page
+WRITE_RESERVE_S, WRITE_RESERVE_S_PER_OBJECT = 2.0, 0.3
 
 
 def _jnd_settings(args, why: str):
@@ -156,13 +159,13 @@ def cmd_design(args) -> int:
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="pinchmatch-design-") as scratch:
         cache = FeatureCache(scratch if args.no_cache else args.cache)
-        search_pinch = dataclasses.replace(settings, count=min(settings.count, design.search_count))
         virtuals, failures, used = [], [], []
         with ui.step("scene: poses and features", len(scene_specs)) as advance:
             for spec in scene_specs:
                 try:
+                    # at the full count, in the run's cache: the final match reads them back
                     virtuals.append(cached_candidates(spec.with_defaults(units=args.units, up=args.up), cache=cache,
-                                                      settings=search_pinch))
+                                                      settings=settings))
                     used.append(spec)
                 except PinchmatchError as exc:
                     failures.append(exc.cli_message())
@@ -174,7 +177,8 @@ def cmd_design(args) -> int:
                               f"none of the {len(failures)} scene files could be used (first: {failures[0]}); "
                               "fix or remove them")
         with ui.step("designing", None) as advance:
-            found = design_props(virtuals, design, match=matching, pinch=settings, reserve_s=0.15 * args.budget_s,
+            found = design_props(virtuals, design, match=matching, pinch=settings, started=t0,
+                                 reserve_s=WRITE_RESERVE_S + WRITE_RESERVE_S_PER_OBJECT * len(virtuals),
                                  progress=lambda done, total, note: advance(f"{done} judged: {note}", done=False))
         t1 = time.perf_counter()
         job = match_job(args, settings, matching, cache)
@@ -253,6 +257,7 @@ def demo_design(publisher, stage: Path, objects: Path, settings, *, budget_s: fl
     virtual_paths = sorted(objects.glob("vo*.stl"))
     study_prop = next(objects.glob("tangible_*.stl"))
     matching = MatchSettings()
+    started = time.perf_counter()
     with ui.step("design: the scene's poses", len(virtual_paths)) as advance:
         virtuals = []
         for p in virtual_paths:
@@ -260,7 +265,8 @@ def demo_design(publisher, stage: Path, objects: Path, settings, *, budget_s: fl
             advance(p.name)
     design = DesignSettings(k=1, max_width_mm=settings.max_width_mm, budget_s=budget_s, seed=seed)
     with ui.step("designing", None) as advance:
-        found = design_props(virtuals, design, match=matching, pinch=settings, reserve_s=0.15 * budget_s,
+        found = design_props(virtuals, design, match=matching, pinch=settings, started=started,
+                             reserve_s=WRITE_RESERVE_S + WRITE_RESERVE_S_PER_OBJECT * len(virtuals),
                              progress=lambda done, total, note: advance(f"{done} judged: {note}", done=False))
     (publisher.out / "props").mkdir(parents=True, exist_ok=True)
     designed_path = publisher.out / "props" / "designed.stl"

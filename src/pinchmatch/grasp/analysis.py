@@ -10,12 +10,12 @@ from __future__ import annotations
 
 import json
 import os
-import stat
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..errors import ConfigError, ContactError
+from ..files import read_input
 from .features import PinchFeatures, pinch_features
 from ..mesh.load import LoadedMesh, load_mesh
 from ..mesh.manifest import ObjectSpec
@@ -140,20 +140,8 @@ def load_poses_file(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
         Missing file, invalid JSON, or an entry without two finite 3-vectors.
     """
     path = os.fspath(path)
-    try:
-        with open(path, "rb") as fh:
-            if not stat.S_ISREG(os.fstat(fh.fileno()).st_mode):
-                raise ConfigError(f"{path}: not a regular file (a device or a pipe); give a JSON poses file")
-            raw = fh.read(MAX_POSES_FILE_BYTES + 1)
-    except FileNotFoundError:
-        raise ConfigError(f"{path}: no such poses file; check the path") from None
-    except IsADirectoryError:
-        raise ConfigError(f"{path}: is a folder; give a JSON poses file") from None
-    except OSError as exc:
-        raise ConfigError(f"{path}: cannot be read ({exc.strerror or exc}); check its permissions") from None
-    if len(raw) > MAX_POSES_FILE_BYTES:
-        raise ConfigError(f"{path}: larger than {MAX_POSES_FILE_BYTES // 2**20} MiB, more than a poses file of "
-                          f"{MAX_GIVEN_POSES:,} poses needs; split it or give fewer poses")
+    raw = read_input(path, "JSON poses file", limit_bytes=MAX_POSES_FILE_BYTES,
+                     too_big=f"more than a poses file of {MAX_GIVEN_POSES:,} poses needs; split it or give fewer poses")
     try:
         data = json.loads(raw.decode("utf-8"))
     except (json.JSONDecodeError, UnicodeDecodeError, RecursionError) as exc:

@@ -13,9 +13,13 @@ candidate is then judged for real.
 
 **The search** is a seeded local search. A step changes one prop of the set: a part's kind, width, top
 width or height, a part added, removed or two swapped (each repaired into the limits); the change is
-kept when it lowers the objective. During the search, objects and props are sampled at
-``search_count`` poses (fewer than the final count, for speed); the chosen props are then written and
-matched at the run's full count, and those are the costs reported.
+kept when it lowers the objective. The scene's objects are sampled once, at the run's full count; during
+the search the props are sampled at ``search_count`` poses (fewer, for speed); the chosen props are
+then written and matched at the full count, and those are the costs reported.
+
+**The budget** is wall time from the start of the run (``started``): the search stops when one more
+candidate would leave too little for the final match, estimated from the first candidate's time
+scaled to the full count, plus ``reserve_s`` for writing the results.
 
 **Determinism.** For a seed, the candidates and their order are the same on every machine; the
 budget decides how many are judged (``evaluations`` fixes the number instead, so that the result
@@ -220,28 +224,38 @@ class DesignResult:
 
 
 def design_props(virtuals: list[Candidates], s: DesignSettings, *, match: MatchSettings, pinch: PinchSettings,
-                 reserve_s: float = 0.0, progress=None) -> DesignResult:
-    """The best set of ``s.k`` stacks found for the scene (see the module notes). ``reserve_s``: time
-    kept for what follows the search (the final match) out of the budget; ``progress(done, total,
-    note)`` is called after each judged candidate."""
+                 reserve_s: float = 0.0, started: float | None = None, progress=None) -> DesignResult:
+    """The best set of ``s.k`` stacks found for the scene (see the module notes). ``started``: the
+    ``time.perf_counter()`` the budget counts from (default: now); ``reserve_s``: time kept out of the
+    budget for writing the results, beside the final match's; ``progress(done, total, note)`` is called
+    after each judged candidate."""
     rng = np.random.default_rng(s.seed)
     search_pinch = replace(pinch, count=min(pinch.count, s.search_count))
     t0 = time.perf_counter()
+    clock0 = t0 if started is None else started
+
+    def spent() -> float:
+        return time.perf_counter() - clock0
+
     with tempfile.TemporaryDirectory(prefix="pinchmatch-design-") as folder:
         judge = Judge(virtuals, match, search_pinch, Path(folder))
         starts = initial_stacks(virtuals, s)
         judge.judge((starts[0],))
         first_s = time.perf_counter() - t0
-        if first_s * (1 + s.k) + reserve_s > s.budget_s and s.evaluations is None:
-            raise ConfigError(f"--budget-s {s.budget_s:g}: judging one candidate takes {first_s:.1f} s here, and the "
-                              f"search needs at least {first_s * (1 + s.k) + reserve_s:.0f} s; give more")
-        total = s.evaluations or max(1, int((s.budget_s - reserve_s) / max(first_s, 1e-3)))
+        # the chosen props sampled and searched at the full count, and the results written
+        final_s = reserve_s + s.k * first_s * pinch.count / search_pinch.count
+        needed = spent() + first_s * s.k + final_s
+        if needed > s.budget_s and s.evaluations is None:
+            raise ConfigError(f"--budget-s {s.budget_s:g}: judging one candidate takes {first_s:.1f} s here, and "
+                              f"the design needs at least {needed:.0f} s with the scene's sampling and the final "
+                              "match; give more")
+        total = s.evaluations or max(1, int((s.budget_s - spent() - final_s) / max(first_s, 1e-3)) + 1)
 
         def left() -> bool:
             if s.evaluations is not None:
                 return judge.evaluations < s.evaluations
             per = (time.perf_counter() - t0) / max(judge.evaluations, 1)
-            return time.perf_counter() - t0 + per + reserve_s < s.budget_s
+            return spent() + per + final_s < s.budget_s
 
         # the proxy's candidates, one prop at a time; for k > 1 the best ones side by side
         singles = []

@@ -1,0 +1,119 @@
+// The immersive page's pure logic, as the page runs it: node --test tests/js/
+import { test } from "node:test";
+import assert from "node:assert/strict";
+import { createRequire } from "node:module";
+
+const require = createRequire(import.meta.url);
+const XR = require("../../src/pinchmatch/viewer/xr_core.js");
+
+const mm = (v) => v.map((x) => x / 1000);
+const P1 = mm([10, 50, 0]), P2 = mm([-30, 50, 0]); // a 40 mm pinch along -x
+
+// a point `d_mm` from p, moved along the unit vector u
+const off = (p, u, d_mm) => p.map((x, k) => x + (u[k] * d_mm) / 1000);
+// rotate v about z by deg
+const turnZ = (v, deg) => {
+  const a = (deg * Math.PI) / 180;
+  return [v[0] * Math.cos(a) - v[1] * Math.sin(a), v[0] * Math.sin(a) + v[1] * Math.cos(a), v[2]];
+};
+
+test("on target: both fingertips on their targets, in either order", () => {
+  assert.equal(XR.checkPinch(P1, P2, P1, P2).ok, true);
+  const swapped = XR.checkPinch(P2, P1, P1, P2);
+  assert.equal(swapped.ok, true);
+  assert.equal(swapped.order, "thumb on p2");
+  assert.ok(swapped.angle_error_deg < 1e-6);
+});
+
+test("a fingertip 4.9 mm off passes, 5.1 mm or 6 mm off fails", () => {
+  const up = [0, 0, 1];
+  assert.equal(XR.checkPinch(off(P1, up, 4.9), off(P2, up, 4.9), P1, P2).ok, true);
+  assert.equal(XR.checkPinch(off(P1, up, 5.1), P2, P1, P2).ok, false);
+  const six = XR.checkPinch(P1, off(P2, up, 6), P1, P2);
+  assert.equal(six.ok, false);
+  assert.ok(Math.abs(six.index_error_mm - 6) < 1e-9);
+});
+
+test("the direction: 13 degrees passes, 15 degrees fails, with the fingertips kept near the targets", () => {
+  // the pinch turned about its midpoint; a 15 degree turn moves each fingertip more than 5 mm, so the
+  // position limit is loosened here and the angle alone decides
+  const mid = P1.map((x, k) => (x + P2[k]) / 2);
+  const half = P1.map((x, k) => x - mid[k]);
+  for (const [deg, ok] of [[13, true], [15, false]]) {
+    const h = turnZ(half, deg);
+    const thumb = mid.map((x, k) => x + h[k]), index = mid.map((x, k) => x - h[k]);
+    const r = XR.checkPinch(thumb, index, P1, P2, { pos_mm: 50, angle_deg: 14, hold_s: 1 });
+    assert.ok(Math.abs(r.angle_error_deg - deg) < 1e-6, r.angle_error_deg);
+    assert.equal(r.ok, ok, `${deg} degrees`);
+  }
+});
+
+test("the hold: validated after 1 s on target without a break, not before", () => {
+  const h = new XR.HoldTimer(1);
+  assert.equal(h.update(true, 10.0), 0);
+  h.update(true, 10.5);
+  assert.equal(h.validated, false);
+  h.update(false, 10.6); // a break restarts the count
+  h.update(true, 10.7);
+  h.update(true, 11.69);
+  assert.equal(h.validated, false);
+  h.update(true, 11.7);
+  assert.equal(h.validated, true);
+  assert.equal(h.validatedAt, 11.7);
+  h.update(false, 12); // stays validated until reset
+  assert.equal(h.validated, true);
+  h.reset();
+  assert.equal(h.validated, false);
+});
+
+test("thresholds from the URL: numbers taken, bad values reported and ignored", () => {
+  const { limits, errors } = XR.limitsFromQuery("?pos_mm=3&angle_deg=abc&hold_s=0.5");
+  assert.deepEqual(limits, { pos_mm: 3, angle_deg: 14, hold_s: 0.5 });
+  assert.equal(errors.length, 1);
+  assert.match(errors[0], /angle_deg=abc/);
+  assert.deepEqual(XR.limitsFromQuery("").limits, XR.DEFAULT_LIMITS);
+  assert.equal(XR.limitsFromQuery("?hold_s=-1").errors.length, 1);
+});
+
+test("the rigid fit recovers a known motion, with the residual of noisy touches", () => {
+  const P = [[0, 0.12, 0], [0.02, 0, 0.02], [-0.02, 0, 0.02], [0.02, 0.04, -0.02], [-0.03, 0.08, -0.01]];
+  const axis = [1, 2, 3].map((x) => x / Math.sqrt(14)), angle = 1.1;
+  const c = Math.cos(angle), s = Math.sin(angle), [x, y, z] = axis;
+  const R = [[c + x * x * (1 - c), x * y * (1 - c) - z * s, x * z * (1 - c) + y * s],
+             [y * x * (1 - c) + z * s, c + y * y * (1 - c), y * z * (1 - c) - x * s],
+             [z * x * (1 - c) - y * s, z * y * (1 - c) + x * s, c + z * z * (1 - c)]];
+  const t = [0.4, 0.9, -0.3];
+  const move = (p) => [0, 1, 2].map((r) => R[r][0] * p[0] + R[r][1] * p[1] + R[r][2] * p[2] + t[r]);
+  const Q = P.map(move);
+  const fit = XR.rigidFit(P, Q);
+  assert.ok(fit.rms_mm < 1e-6, fit.rms_mm);
+  const m = fit.matrix; // column-major
+  for (let r = 0; r < 3; r++) {
+    for (let k = 0; k < 3; k++) assert.ok(Math.abs(m[4 * k + r] - R[r][k]) < 1e-9);
+    assert.ok(Math.abs(m[12 + r] - t[r]) < 1e-9);
+  }
+  // touches 2 mm off in alternating directions: an rms near 2 mm, below the refusal limit
+  const noisy = Q.map((q, i) => q.map((v, k) => v + (k === i % 3 ? (i % 2 ? 0.002 : -0.002) : 0)));
+  const rough = XR.rigidFit(P, noisy);
+  assert.ok(rough.rms_mm > 0.5 && rough.rms_mm < XR.MAX_CALIBRATION_RMS_MM, rough.rms_mm);
+  // a touch on the wrong point: far above it
+  const wrong = Q.slice();
+  wrong[0] = Q[1];
+  assert.ok(XR.rigidFit(P, wrong).rms_mm > XR.MAX_CALIBRATION_RMS_MM);
+});
+
+test("marked points: the highest vertex first, then spread out, and collinear points refused", () => {
+  // a 40 mm box, its base on y = 0
+  const v = [];
+  for (const x of [-0.02, 0.02]) for (const y of [0, 0.04]) for (const z of [-0.02, 0.02]) v.push(x, y, z);
+  const pts = XR.calibrationPoints(new Float64Array(v), 4);
+  assert.equal(pts.length, 4);
+  assert.equal(pts[0][1], 0.04);
+  assert.ok(XR.spreadOk(pts));
+  assert.equal(XR.spreadOk([[0, 0, 0], [0, 0.05, 0], [0, 0.1, 0]]), false);
+});
+
+test("CSV: a header, quoted fields where needed, numbers to 4 decimals", () => {
+  const text = XR.toCSV([{ a: 1, b: "x,y", c: 0.123456 }, { a: 2, b: 'say "hi"', c: null }], ["a", "b", "c"]);
+  assert.equal(text, 'a,b,c\r\n1,"x,y",0.1235\r\n2,"say ""hi""",\r\n');
+});
