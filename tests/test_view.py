@@ -37,16 +37,23 @@ def run(capsys, *argv):
 
 @pytest.fixture(scope="module")
 def browser():
+    yield from chromium()
+
+
+def chromium(*needs: tuple):
+    """Headless Chromium through playwright, for a module's ``browser`` fixture; ``needs``: more
+    (path, how to install it) that the tests need. Outside CI a missing piece skips, in CI it fails."""
     try:
         from playwright.sync_api import sync_playwright
     except ImportError:
         if os.environ.get("CI"):
             raise
         pytest.skip("playwright is not installed (pip install -e '.[test]')")
-    if not os.path.exists(CHROMIUM):
-        if os.environ.get("CI"):
-            pytest.fail(f"{CHROMIUM} missing; .ci/run installs Debian's chromium")
-        pytest.skip(f"no Chromium at {CHROMIUM} (apt-get install chromium)")
+    for need, how in ((Path(CHROMIUM), "apt-get install chromium"), *needs):
+        if not Path(need).exists():
+            if os.environ.get("CI"):
+                pytest.fail(f"{need} missing; .ci/run installs it ({how})")
+            pytest.skip(f"{need} missing ({how})")
     with sync_playwright() as p:
         b = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
         yield b

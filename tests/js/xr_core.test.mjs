@@ -117,3 +117,19 @@ test("CSV: a header, quoted fields where needed, numbers to 4 decimals", () => {
   const text = XR.toCSV([{ a: 1, b: "x,y", c: 0.123456 }, { a: 2, b: 'say "hi"', c: null }], ["a", "b", "c"]);
   assert.equal(text, 'a,b,c\r\n1,"x,y",0.1235\r\n2,"say ""hi""",\r\n');
 });
+
+test("a steady touch: one point after 1 s within 3 mm, none while moving, none again until moved away", () => {
+  const touch = new XR.SteadyTouch({ radius_mm: 3, hold_s: 1, away_mm: 20 });
+  const at = (x_mm) => [x_mm / 1000, 0.9, -0.4];
+  let got = null;
+  for (let k = 0; k <= 20; k++) got = touch.update(at(k * 5), k * 0.1) || got; // sliding: 5 mm per step
+  assert.equal(got, null);
+  const wobble = [0, 1, -1, 2, -2, 1, 0, -1, 1, 0, 2, -1];
+  const found = wobble.map((d, k) => touch.update(at(100 + d), 3 + k * 0.1)).filter(Boolean);
+  assert.equal(found.length, 1);
+  assert.ok(Math.abs(found[0][0] * 1000 - 100) < 1.5);
+  assert.equal(touch.update(at(100), 5), null); // still there: not a second point
+  touch.update(at(130), 5.1); // moved away
+  assert.equal(touch.update(at(130), 5.2), null);
+  assert.ok(touch.update(at(130), 6.25));
+});

@@ -34,6 +34,7 @@ from ..export.documents import (features_document, matches_rows, poses_csv, pose
                                 matches_legend, study_document, study_legend, study_rows, to_json)
 from ..runner.tasks import Job, virtual_result
 from ..export.sink import MatchesSink
+from ..export.study_plan import study_plan
 from ..runner.matching import RunResult
 from ..runner.executors import executor
 from ..runner.study import ORDERS, run_study
@@ -240,6 +241,8 @@ def _cmd_demo(args) -> int:
                   **MatchSettings().as_dict()}
         study_doc = study_document(study, common)
         write_atomic(stage / "study.json", to_json(study_doc))
+        plan = study_plan(study.rows, [v.name for v in study.virtuals], seed=args.seed)
+        write_atomic(stage / "study_plan.json", to_json(plan))
         scene = study.scene
         job = Job(units="mm", up="z", settings=settings, match=MatchSettings(), figures=not args.no_figures)
         with MatchesSink(stage, "json", scene_stems([v.name for v in scene.virtuals])) as sink:
@@ -249,7 +252,8 @@ def _cmd_demo(args) -> int:
                     sink.add(k, virtual_result(scene, k, job))
                     advance(scene.virtuals[k].name)
             matches_doc = sink.finish(RunResult(scene.tangibles, {}, [], 0, len(scene.virtuals)))
-        written = [f"{out / 'study.json'}", f"{out / 'matches.json'}", f"{sink.scenes} glTF scenes in {out / 'scenes'}"]
+        written = [f"{out / 'study.json'}", f"{out / 'study_plan.json'} ({len(plan['trials'])} trials for the headset)",
+                   f"{out / 'matches.json'}", f"{sink.scenes} glTF scenes in {out / 'scenes'}"]
         if not args.no_figures:
             from ..export.figures import figure_count, write_figures  # matplotlib: imported when figures are wanted
 

@@ -23,6 +23,7 @@ from ..version import __version__
 from ..errors import ConfigError
 from ..files import write_atomic
 from .documents import SCHEMA_MATCHES, matches_from_lines, scene_file, scene_stems
+from .study_plan import SCHEMA_PLAN
 
 log = logging.getLogger(__name__)
 
@@ -50,13 +51,18 @@ def read_matches(out: Path) -> dict:
                               "run pinchmatch match again to rewrite it") from None
     if not path.is_file():
         raise ConfigError(f"{path}: not found; run 'pinchmatch match -o {out}' (or 'pinchmatch demo -o {out}') first")
+    return _document(path, SCHEMA_MATCHES, "matches document", "run pinchmatch again to rewrite it",
+                     "point view at the folder a match or demo run wrote")
+
+
+def _document(path: Path, schema: str, what: str, rewrite: str, otherwise: str) -> dict:
+    """A JSON document pinchmatch wrote, with the schema it must have, or a ConfigError naming the file."""
     try:
         document = json.loads(path.read_text(encoding="utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise ConfigError(f"{path}: not valid JSON ({exc}); run pinchmatch again to rewrite it") from None
-    if not isinstance(document, dict) or document.get("schema") != SCHEMA_MATCHES:
-        raise ConfigError(f"{path}: not a pinchmatch matches document (schema {SCHEMA_MATCHES!r} expected); "
-                          "point view at the folder a match or demo run wrote")
+        raise ConfigError(f"{path}: not valid JSON ({exc}); {rewrite}") from None
+    if not isinstance(document, dict) or document.get("schema") != schema:
+        raise ConfigError(f"{path}: not a pinchmatch {what} (schema {schema!r} expected); {otherwise}")
     return document
 
 
@@ -118,7 +124,28 @@ def _page_data(out: Path, document: dict) -> dict:
                f"({loud} with a noticeable difference); "
                f"criteria {', '.join(criteria) if isinstance(criteria, list) else criteria}; "
                f"normalize {settings.get('normalize', 'jnd')}")
-    return {"version": document.get("version"), "summary": summary, "matches": matches, "unmatched": unmatched}
+    return {"version": document.get("version"), "summary": summary, "matches": matches, "unmatched": unmatched,
+            "study": _study_plan(out, {m["virtual"] for m in matches})}
+
+
+def _study_plan(out: Path, matched: set) -> dict | None:
+    """``OUT/study_plan.json`` for the headset's study mode, when the run wrote one (``demo``). A pair
+    shows its virtual object in that object's match scene, so the pairs of objects without a match
+    here are left out with their trials (listed in ``left_out``); no pair left, no study."""
+    path = out / "study_plan.json"
+    if not path.is_file():
+        return None
+    plan = _document(path, SCHEMA_PLAN, "study plan", "run pinchmatch demo again to rewrite it",
+                     "remove it or run pinchmatch demo again")
+    missing = sorted({p["virtual"] for p in plan["pairs"]} - matched)
+    if missing:
+        log.warning("%s: %s has no match in this folder; its trials are left out of the page's study",
+                    path, ", ".join(missing))
+        kept = [p for p in plan["pairs"] if p["virtual"] in matched]
+        index = {p["pair"]: k for k, p in enumerate(kept)}
+        trials = [dict(t, pair=index[t["pair"]]) for t in plan["trials"] if t["pair"] in index]
+        plan = dict(plan, pairs=[dict(p, pair=index[p["pair"]]) for p in kept], trials=trials, left_out=missing)
+    return plan if plan["trials"] else None
 
 
 #: characters that can end or change a <script> element's text, or a line of JavaScript, as JSON escapes
@@ -145,6 +172,8 @@ def render_page(data: dict, *, normalize: str = "jnd") -> str:
         "DATA": _script_safe_json(data),
         "THREE": _asset("three.bundle.min.js"),
         "VIEWER": _asset("viewer.js"),
+        "XR_CORE": _asset("xr_core.js"),
+        "IMMERSIVE": _asset("immersive.js"),
     }
     # one pass, so nothing inserted is read as a placeholder again
     return re.sub(r"\{\{([A-Z_]+)\}\}", lambda m: values[m.group(1)], _asset("page.html"))

@@ -132,8 +132,10 @@ def evaluate_pairs(
     model: CostModel,
     *,
     keep_upright: bool = False,
+    swapped: bool | None = None,
 ) -> PairResult:
-    """Register k pose pairs (tangible pose ``it[i]``, virtual pose ``iv[i]``) and give their exact cost."""
+    """Register k pose pairs (tangible pose ``it[i]``, virtual pose ``iv[i]``) and give their exact cost,
+    in the better finger order, or in the order ``swapped`` when it is given."""
     it, iv = np.asarray(it, dtype=np.int64), np.asarray(iv, dtype=np.int64)
     tp, tn = tangible.pinches.points[it], tangible.pinches.normals[it]
     t_rows = tangible.table[it]
@@ -141,7 +143,7 @@ def evaluate_pairs(
     up_t, up_v = tangible.obj.loaded.up, virtual.obj.loaded.up
     ratio = mass_ratio(tangible, virtual)
     results = []
-    for order in (False, True):
+    for order in (False, True) if swapped is None else (swapped,):
         vp, vn, v_rows = virtual.pinches.points[iv], virtual.pinches.normals[iv], felt_table(virtual.table[iv], ratio)
         if order:
             vp, vn, v_rows = vp[:, ::-1], vn[:, ::-1], v_rows[:, ::-1]
@@ -155,6 +157,8 @@ def evaluate_pairs(
         allowed = ~flipped if keep_upright else np.ones(len(it), dtype=bool)
         cost = np.where(allowed, total(terms, model), np.inf)
         results.append(PairResult(cost, terms, np.full(len(it), order), X, flipped, delta, allowed))
+    if len(results) == 1:
+        return results[0]
     a, b = results
     pick_b = b.cost < a.cost
     return PairResult(**{

@@ -26,14 +26,20 @@ from pathlib import Path
 
 import numpy as np
 
-from ..grasp.analysis import analyze_object
-from ..match.cost import PAPER_CRITERIA
-from ..match.candidates import Candidates, candidate_poses, merge_candidates
-from ..match.search import MatchSettings, SceneMatch, cost_model, evaluate_pairs, match_scene
-from ..match.reference import line_contacts, reference_cost, reference_pose
-from ..grasp.pinches import PinchSettings
-from ..files import write_atomic
 from ..export.documents import json_number, json_vector
+from ..files import write_atomic
+from ..grasp.analysis import analyze_object
+from ..grasp.pinches import PinchSettings
+from ..match.candidates import Candidates, candidate_poses, merge_candidates
+from ..match.cost import CRITERIA, PAPER_CRITERIA
+from ..match.reference import line_contacts, reference_cost, reference_pose
+from ..match.search import (
+    MatchSettings,
+    SceneMatch,
+    cost_model,
+    evaluate_pairs,
+    match_scene,
+)
 from ..mesh.shapes import stacked_prop
 
 PARTS = ("cylinder", "cube", "cone")
@@ -87,10 +93,13 @@ def write_study_meshes(folder: Path, *, sections: int = 96) -> tuple[Path, list[
 
 
 def _pose_entry(order, candidates: Candidates, v_pose: int, *, points=None, flipped, cost, cost_paper,
-                reason=None) -> dict:
+                reason=None, transform=None, swapped=False, terms=None) -> dict:
+    """One virtual pose of a row. ``transform`` (virtual -> tangible, mm), ``swapped`` (the virtual p1
+    lies on the tangible's p2) and ``terms`` (each criterion's contribution in JND², under our
+    criteria) describe the pose pair as the headset's study shows and rates it."""
     pts = candidates.pinches.points[v_pose] if points is None else points
     height = float(pts[:, 2].mean()) if pts is not None else None
-    return {
+    entry = {
         "part": part_at(order, height) if height is not None else None,
         "height_mm": json_number(height, 2) if height is not None else None,
         "p1_mm": json_vector(pts[0]) if pts is not None else None,
@@ -100,6 +109,11 @@ def _pose_entry(order, candidates: Candidates, v_pose: int, *, points=None, flip
         "cost_paper": json_number(cost_paper) if cost_paper is not None else None,
         "reason": reason,
     }
+    if transform is not None and terms is not None:
+        entry["finger_order_swapped"] = bool(swapped)
+        entry["transform_virtual_to_tangible"] = [json_vector(row, 6) for row in transform]
+        entry["criteria_jnd"] = {c: json_number(np.sqrt(max(t, 0.0))) for c, t in zip(CRITERIA, terms)}
+    return entry
 
 
 def run_study(folder: Path, *, full: bool = False, settings: PinchSettings = PinchSettings(),
@@ -137,19 +151,28 @@ def run_study(folder: Path, *, full: bool = False, settings: PinchSettings = Pin
             paper = evaluate_pairs(tangible, V, it, iv, paper_model)
             k_ours, k_paper = int(np.argmin(ours.cost)), int(np.argmin(paper.cost))
             ref = reference_pose(tangible, i, V, ours_model, settings=settings)
+            # the paper's pose in the paper's finger order, judged by our criteria
+            paper_pair = evaluate_pairs(tangible, V, it[:1], iv[k_paper:k_paper + 1], ours_model,
+                                        swapped=bool(paper.swapped[k_paper]))
             rows.append({
                 "tangible_part": t_part,
                 "tangible_height_mm": float(TANGIBLE_HEIGHTS_MM[i]),
                 "virtual": j + 1,
                 "virtual_order": list(order),
+                "tangible_p1_mm": json_vector(tangible.pinches.points[i, 0]),
+                "tangible_p2_mm": json_vector(tangible.pinches.points[i, 1]),
                 "ours": _pose_entry(order, V, k_ours, flipped=bool(ours.flipped[k_ours]),
-                                    cost=ours.cost[k_ours], cost_paper=paper.cost[k_ours]),
+                                    cost=ours.cost[k_ours], cost_paper=paper.cost[k_ours],
+                                    transform=ours.transform[k_ours], swapped=ours.swapped[k_ours],
+                                    terms=ours.terms[k_ours]),
                 "paper": _pose_entry(order, V, k_paper, flipped=bool(paper.flipped[k_paper]),
-                                     cost=ours.cost[k_paper], cost_paper=paper.cost[k_paper]),
+                                     cost=paper_pair.cost[0], cost_paper=paper.cost[k_paper],
+                                     transform=paper_pair.transform[0], swapped=paper_pair.swapped[0],
+                                     terms=paper_pair.terms[0]),
                 "ref": _pose_entry(order, V, 0, points=ref.pinches.points[0] if ref.pinches is not None else None,
                                    flipped=ref.flipped,
                                    cost=ref.cost, cost_paper=reference_cost(tangible, i, V, ref, paper_model),
-                                   reason=ref.reason),
+                                   reason=ref.reason, transform=np.eye(4), terms=ref.terms),
             })
     say("matching the scene")
     scene = match_scene([tangible], virtuals, match_settings, model=ours_model)

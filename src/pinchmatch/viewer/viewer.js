@@ -29,6 +29,7 @@
     }
 
     resize() {
+      if (this.renderer.xr.isPresenting) return; // the headset sizes its own views
       const w = this.canvas.clientWidth, h = this.canvas.clientHeight;
       if (w === 0 || h === 0) return;
       this.renderer.setSize(w, h, false);
@@ -56,6 +57,7 @@
     }
 
     render() {
+      if (this.renderer.xr.isPresenting) return; // the headset draws its own scene (immersive.js)
       this.renderer.render(this.scene, this.camera);
     }
   }
@@ -311,6 +313,9 @@
       e.preventDefault();
     }
   });
+
+  // what the headset mode (immersive.js) builds on
+  window.pinchmatchViewer = { DATA, view: views.main, loadScene, cone, current: () => current, select };
 
   document.getElementById("summary").textContent = DATA.summary;
   listEntries();

@@ -67,6 +67,44 @@
     }
   }
 
+  // A fingertip held still on a point: update(p, t_s) returns the mean position once the tip has stayed
+  // within radius_mm of where it settled for hold_s, then nothing until it has moved away_mm off it
+  // (so that one touch is one point).
+  class SteadyTouch {
+    constructor({ radius_mm = 3, hold_s = 1, away_mm = 20 } = {}) {
+      Object.assign(this, { radius_mm, hold_s, away_mm });
+      this.anchor = null;
+      this.samples = [];
+      this.last = null;
+    }
+
+    // nothing is touched until the tip has moved away_mm from p (a hand resting where it already was)
+    ignoreUntilMovedFrom(p) {
+      this.last = p;
+      this.anchor = null;
+      this.samples = [];
+    }
+
+    update(p, t_s) {
+      if (this.last) {
+        if (norm(sub(p, this.last)) * 1000 < this.away_mm) return null;
+        this.last = null;
+      }
+      if (!this.anchor || norm(sub(p, this.anchor.p)) * 1000 > this.radius_mm) {
+        this.anchor = { p, t: t_s };
+        this.samples = [];
+      }
+      this.samples.push(p);
+      if (t_s - this.anchor.t < this.hold_s) return null;
+      const n = this.samples.length;
+      const mean = [0, 1, 2].map((k) => this.samples.reduce((s, q) => s + q[k], 0) / n);
+      this.last = mean;
+      this.anchor = null;
+      this.samples = [];
+      return mean;
+    }
+  }
+
   // Thresholds from a URL's query (?pos_mm=5&angle_deg=14&hold_s=1); anything else keeps its default.
   // A value that is not a positive number is an error, reported, never silently used.
   function limitsFromQuery(search, defaults = DEFAULT_LIMITS) {
@@ -200,6 +238,6 @@
     return [columns.join(","), ...rows.map((r) => columns.map((c) => cell(r[c])).join(","))].join("\r\n") + "\r\n";
   }
 
-  return { DEFAULT_LIMITS, MAX_CALIBRATION_RMS_MM, checkPinch, HoldTimer, limitsFromQuery, rigidFit, spreadOk,
+  return { DEFAULT_LIMITS, MAX_CALIBRATION_RMS_MM, checkPinch, HoldTimer, SteadyTouch, limitsFromQuery, rigidFit, spreadOk,
            calibrationPoints, toCSV, angleDeg };
 });
