@@ -3,6 +3,7 @@
     python benchmarks/bench_design.py                 # budget 120 s
     python benchmarks/bench_design.py --budget-s 300
     python benchmarks/bench_design.py --picture docs/images/designed_prop.png
+    python benchmarks/bench_design.py --no-supports    # also a prop printable without supports
 
 The scene and the shelf are `bench_select.py`'s: twenty objects (robosuite's seven household objects,
 pybullet_data's duck, teddy and Lego brick, ten ``random_urdfs`` objects) and fifteen more
@@ -40,6 +41,7 @@ def main() -> None:
     parser.add_argument("--budget-s", type=float, default=120.0)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--picture", metavar="PNG", help="also draw the designed prop with the scene's pinches on it")
+    parser.add_argument("--no-supports", action="store_true", help="also design a prop printable without supports")
     args = parser.parse_args()
     root = Path(tempfile.mkdtemp(prefix="pinchmatch-bench-design-"))
     (root / "scene").mkdir(parents=True)
@@ -60,6 +62,13 @@ def main() -> None:
     prop = doc["props"][0]
     parts = " / ".join(f"{p['kind']} {p['width_mm']:g}" for p in prop["parts"])
     rows.append(("designed, 1 prop", parts, doc["mean_cost"], doc["noticeable_count"], f"{design_s:.0f}"))
+    if args.no_supports:
+        flat_s = _run(["design", *common, "--budget-s", str(args.budget_s), "--seed", str(args.seed), "--no-supports",
+                       "-o", str(root / "design-no-supports")])
+        flat = json.loads((root / "design-no-supports" / "design.json").read_text())
+        flat_parts = " / ".join(f"{p['kind']} {p['width_mm']:g}" for p in flat["props"][0]["parts"])
+        rows.append(("designed, no supports", f"{flat_parts} (overhang {flat['props'][0]['overhang_area_mm2']} mm2)",
+                     flat["mean_cost"], flat["noticeable_count"], f"{flat_s:.0f}"))
     print(f"# a scene of {len(scene)} objects; a shelf of {len(shelf)} props; design --budget-s {args.budget_s:g}")
     print(f"{'set':>22} {'mean_cost':>10} {'noticeable':>10} {'seconds':>18}  props")
     for name, props, mean, loud, secs in rows:

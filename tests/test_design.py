@@ -47,6 +47,34 @@ def test_overhangs_are_measured_where_a_part_hangs_over_the_one_below():
     assert stacks.overhang_area_mm2(ledge) == pytest.approx(np.pi * (20**2 - 10**2), rel=0.01)
 
 
+def test_supported_stacks_print_without_supports_and_only_shrink():
+    """Random stacks of every kind, turned boxes on boxes, widening frusta and flat barrels included:
+    reshaped, none has a downward face flatter than 45 degrees, each stays in the family's limits, and
+    reshaping twice changes nothing."""
+    rng = np.random.default_rng(11)
+    for _ in range(120):
+        parts = []
+        for _ in range(int(rng.integers(1, 5))):
+            kind, width, height = str(rng.choice(stacks.PART_KINDS)), rng.uniform(12, 70), rng.uniform(12, 50)
+            top = rng.uniform(10, 0.9 * width) if kind == "barrel" else rng.uniform(10, 80) if kind == "frustum" else None
+            parts.append(Part(kind, round(height, 1), round(width, 1), None if top is None else round(top, 1),
+                              rng.uniform(0, 90) if kind == "box" else 0.0))
+        before = Stack(tuple(parts))
+        after = stacks.supported(before)
+        assert 1 <= len(after.parts) and stacks.supported(after) == after
+        assert not stack_problems(after, max_height_mm=1e9, max_width_mm=1e9), after
+        assert stacks.overhang_area_mm2(stack_mesh(after)) < 1e-6, after
+        assert after.widest_mm <= before.widest_mm + 1e-9 and after.height_mm <= before.height_mm
+    # what it keeps: a tower that already prints, and what it changes: a ledge, a box's corners, a flat barrel
+    tower = Stack((Part("cylinder", 30, 40), Part("box", 20, 28), Part("frustum", 30, 25, 12)))
+    assert stacks.supported(tower) == tower
+    assert stacks.supported(Stack((Part("cylinder", 30, 20), Part("cylinder", 30, 40)))).parts[1].width_mm < 20
+    assert stacks.supported(Stack((Part("cylinder", 30, 40), Part("box", 20, 40)))).parts[1].width_mm <= 40 / 2**0.5
+    flat = stacks.supported(Stack((Part("barrel", 20, 60, 20),))).parts[0]
+    a, e = flat.width_mm / 2, (flat.top_width_mm or flat.width_mm) / 2
+    assert a * a - e * e <= e * flat.height_mm / 2 + 1e-9
+
+
 def test_repaired_and_mutated_stacks_stay_in_the_limits():
     s = DesignSettings(max_parts=3, max_height_mm=90.0, max_width_mm=60.0)
     rng = np.random.default_rng(4)
@@ -105,6 +133,22 @@ def test_design_covers_a_scene_of_stacks_and_its_costs_are_a_match_runs(tmp_path
     assert code == 0, err
     check = {m["virtual"]: m["cost"] for m in json.loads((tmp_path / "check" / "matches.json").read_text())["matches"]}
     assert {o["virtual"]: o["cost"] for o in doc["objects"]} == pytest.approx(check, abs=1e-9)
+
+
+def test_without_supports_every_candidate_and_the_output_print_standing(tmp_path, capsys, scene):
+    s = DesignSettings(supports=False)
+    rng = np.random.default_rng(2)
+    stack = _repair(Stack((Part("cylinder", 30, 20), Part("box", 30, 60, turn_deg=30), Part("barrel", 40, 60, 20))), s)
+    for _ in range(100):
+        assert stacks.overhang_area_mm2(stack_mesh(stack)) < 1e-6, stack
+        stack = mutate(stack, rng, s)
+    out = tmp_path / "out"
+    code, _, err = run_cli(capsys, "design", "--virtual", scene, "--count", 150, "--evaluations", 8, "--no-supports",
+                           "-o", out, "--jobs", 1, "--no-view")
+    assert code == 0, err
+    doc = json.loads((out / "design.json").read_text())
+    assert doc["settings"]["supports"] is False
+    assert all(p["overhang_area_mm2"] == 0 and p["printable_without_supports"] for p in doc["props"])
 
 
 def test_design_is_deterministic_for_a_seed_and_a_count_of_evaluations(tmp_path, capsys, scene):

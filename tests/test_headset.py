@@ -152,6 +152,9 @@ def test_calibrate_then_validate_after_one_second_and_not_before(headset):
     s = state(pg)
     assert s["validation"]["time_s"] >= 1.0 and s["phase"] == "done"
     canvas_shot(pg, "headset_validated.png")
+    # then the next match of the page, not yet validated
+    pg.wait_for_function("pinchmatchXR.state().phase === 'guiding' && pinchmatchViewer.current() === 1", timeout=8000)
+    assert state(pg)["validated"] is False
 
 
 def test_a_fingertip_6_mm_off_or_a_direction_15_degrees_off_is_not_validated(headset):

@@ -234,6 +234,10 @@ def build_parser() -> argparse.ArgumentParser:
     design.add_argument("--max-height-mm", type=float, default=200.0,
                         help="tallest prop (default 200); its widest part, a box's diagonal included, is at most "
                              "--max-width-mm, the largest pinch width")
+    design.add_argument("--no-supports", action="store_true",
+                        help="every prop printable standing on its base without supports: no part hangs over "
+                             "the one below, no downward face flatter than 45 degrees (default: overhangs "
+                             "allowed and reported)")
     design.add_argument("--budget-s", type=float, default=120.0, help="wall time of the whole design (default 120)")
     design.add_argument("--evaluations", type=int, metavar="N",
                         help="judge exactly N candidates, whatever the machine's speed (the budget still bounds it)")

@@ -147,7 +147,8 @@ def cmd_design(args) -> int:
     settings, matching, run_settings = _jnd_settings(args, "a designed prop is judged against the scene alone")
     design = DesignSettings(k=args.k, max_parts=args.max_parts, max_height_mm=args.max_height_mm,
                             max_width_mm=settings.max_width_mm,
-                            budget_s=args.budget_s, seed=args.seed, evaluations=args.evaluations)
+                            budget_s=args.budget_s, seed=args.seed, evaluations=args.evaluations,
+                            supports=not args.no_supports)
     design.check()
     scene_specs = object_specs(args.virtual, option="--virtual", split=args.split)
     shelf_specs = object_specs(args.tangible, option="--tangible") if args.tangible else []
@@ -204,6 +205,7 @@ def cmd_design(args) -> int:
                                                        "max_height_mm": design.max_height_mm,
                                                        "max_width_mm": design.max_width_mm, "budget_s": design.budget_s,
                                                        "evaluations": design.evaluations,
+                                                       "supports": design.supports,
                                                        "search_count": design.search_count},
                                        found, props, out, doc, shelf, seconds=time.perf_counter() - t0)
             write_atomic(stage / "design.json", to_json(document))

@@ -19,12 +19,13 @@ construction (and checked).
 barrel's lower half, hang over: :func:`overhang_area_mm2` measures the area of every downward face
 steeper than ``OVERHANG_DEG`` from vertical (the usual limit of printing without supports), which
 ``design.json`` reports; zero means printable without supports, standing on its base.
+:func:`supported` reshapes a stack so that it has none (``design --no-supports``).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 import trimesh
@@ -112,6 +113,63 @@ def stack_problems(stack: Stack, *, max_height_mm: float, max_width_mm: float) -
         if p.kind == "barrel" and p.top_width_mm >= p.width_mm:
             out.append(f"part {k + 1}: a barrel's cut faces are narrower than its middle")
     return out
+
+
+#: a footprint fits inside the one below when it is this much smaller (the round parts are 96-gons)
+FIT_MARGIN = math.cos(math.pi / SECTIONS) * 0.999
+
+
+def _top_reach(part: Part, rel_turn_deg: float, box_above: bool) -> float:
+    """How far from the axis the part above may reach and stand on ``part``'s top face: its radius
+    (a box's inscribed half-side; for a box above a box, turned ``rel_turn_deg``, the half-side that its
+    corners may span, measured along the upper box's own axes)."""
+    if part.kind == "box":
+        half = part.width_mm / 2.0
+        if box_above:
+            phi = math.radians(rel_turn_deg)
+            return half / (abs(math.cos(phi)) + abs(math.sin(phi)))
+        return half
+    return part.radius_at("top")
+
+
+def supported(stack: Stack) -> Stack:
+    """The stack changed as little as needed to print standing on its base without supports: every
+    part's bottom footprint inside the top face below it (a box's corners included), a frustum that
+    widens upward at most 45° from vertical, and a barrel's lower half no flatter than 45° at its cut
+    (a² - e² <= e·h/2, a and e its middle and cut radii, h its height: the surface is flattest at the
+    cut). Widths only shrink, so the limits still hold; a box that cannot stand on what is below
+    becomes a cylinder of the largest width that can, and a part that would be narrower than
+    ``MIN_PART_WIDTH_MM`` ends the stack below it."""
+    parts = []
+    for k, p in enumerate(stack.parts):
+        if k > 0:
+            below = parts[-1]
+            rel = (p.turn_deg - below.turn_deg) if (p.kind == "box" and below.kind == "box") else 0.0
+            reach = _top_reach(below, rel, p.kind == "box") * FIT_MARGIN
+            if p.kind == "box":
+                allowed = 2.0 * reach if below.kind == "box" else math.sqrt(2.0) * reach
+                if allowed < MIN_PART_WIDTH_MM:  # corners would hang over: a cylinder instead
+                    round_reach = _top_reach(below, 0.0, False) * FIT_MARGIN
+                    p = Part("cylinder", p.height_mm, math.floor(min(p.width_mm, 2.0 * round_reach) * 10) / 10)
+                else:
+                    p = replace(p, width_mm=min(p.width_mm, math.floor(allowed * 10) / 10))
+            elif p.kind == "barrel":
+                p = replace(p, top_width_mm=min(p.top_width_mm, math.floor(2.0 * reach * 10) / 10))
+            else:
+                p = replace(p, width_mm=min(p.width_mm, math.floor(2.0 * reach * 10) / 10))
+        if p.kind == "frustum" and p.top_width_mm > p.width_mm + 2.0 * p.height_mm:
+            p = replace(p, top_width_mm=math.floor((p.width_mm + 2.0 * p.height_mm) * 10) / 10)
+        if p.kind == "barrel":
+            a, e, h = p.width_mm / 2.0, p.top_width_mm / 2.0, p.height_mm
+            if a * a - e * e > e * h / 2.0:  # too flat at the cut: the middle narrows to what the cut carries
+                a = math.sqrt(e * e + e * h / 2.0) * 0.999
+                p = replace(p, width_mm=math.floor(2.0 * a * 10) / 10)
+            if p.top_width_mm >= p.width_mm:  # no bulge left: a cylinder
+                p = Part("cylinder", p.height_mm, p.top_width_mm)
+        if min(p.width_mm, p.top_width_mm or p.width_mm) < MIN_PART_WIDTH_MM - 1e-9:
+            break  # too narrow to pinch on what carries it: the stack ends below
+        parts.append(p)
+    return Stack(tuple(parts))
 
 
 def _profile(part: Part, z0: float) -> np.ndarray:

@@ -52,6 +52,7 @@ from ..mesh.stacks import (
     Stack,
     stack_mesh,
     stack_problems,
+    supported,
 )
 from .cache import cached_candidates
 
@@ -71,6 +72,8 @@ class DesignSettings:
     seed: int = 0
     evaluations: int | None = None
     search_count: int = SEARCH_COUNT
+    supports: bool = True  # False: every candidate printable standing on its base without supports
+    anneal: float = 0.0  # starting temperature of the acceptance rule (relative cost); 0: only improvements
 
     def check(self) -> None:
         """Raise ConfigError for limits no stack of the family can meet, or a bad option."""
@@ -92,7 +95,8 @@ class DesignSettings:
 
 def _repair(stack: Stack, s: DesignSettings) -> Stack:
     """The stack moved into the limits: widths and heights clipped and rounded to 0.1 mm (what a
-    printer resolves, and what ``design.json`` states), heights scaled to the height limit."""
+    printer resolves, and what ``design.json`` states), heights scaled to the height limit; without
+    supports, reshaped so that nothing hangs over (:func:`pinchmatch.mesh.stacks.supported`)."""
     parts = []
     for p in stack.parts[:s.max_parts]:
         cap = s.max_width_mm / (math.sqrt(2.0) if p.kind == "box" else 1.0)
@@ -112,7 +116,7 @@ def _repair(stack: Stack, s: DesignSettings) -> Stack:
         parts = [replace(p, height_mm=max(MIN_PART_HEIGHT_MM, math.floor(p.height_mm * scale * 10) / 10)) for p in parts]
         while sum(p.height_mm for p in parts) > s.max_height_mm + 1e-9 and len(parts) > 1:
             parts.pop()
-    return Stack(tuple(parts))
+    return Stack(tuple(parts)) if s.supports else supported(Stack(tuple(parts)))
 
 
 def _key(stack: Stack) -> str:
@@ -168,6 +172,18 @@ def mutate(stack: Stack, rng: np.random.Generator, s: DesignSettings) -> Stack:
     else:
         parts[i] = replace(p, width_mm=p.width_mm * (1.0 + STEP * rng.uniform(-1, 1)))
     return _repair(Stack(tuple(parts)), s)
+
+
+def _accept(new: float, old: float, temperature: float, rng: np.random.Generator) -> bool:
+    """Simulated annealing's rule on the mean cost: better is kept; worse by a relative r with
+    probability exp(-r / temperature), the temperature falling to 0 over the search (one draw per
+    step either way, so the sequence of changes does not depend on the costs' values)."""
+    draw = rng.random()
+    if new <= old:
+        return True
+    if not np.isfinite(new) or temperature <= 0:
+        return False
+    return draw < math.exp(-(new - old) / max(old, 1e-12) / temperature)
 
 
 @dataclass
@@ -269,13 +285,15 @@ def design_props(virtuals: list[Candidates], s: DesignSettings, *, match: MatchS
         chosen = tuple(st for _, _, st in singles[:s.k]) if singles else (starts[0],)
         while len(chosen) < s.k:
             chosen += (mutate(chosen[-1], rng, s),)
-        best = judge.judge(chosen)
+        best = current = judge.judge(chosen)
         history = [(judge.evaluations, time.perf_counter() - t0, best.score[0])]
         while left():
             which = int(rng.integers(s.k))
-            trial = list(best.stacks)
+            trial = list(current.stacks)
             trial[which] = mutate(trial[which], rng, s)
             judged = judge.judge(tuple(trial))
+            if _accept(judged.score[0], current.score[0], s.anneal * (1.0 - judge.evaluations / total), rng):
+                current = judged
             if judged.score < best.score:
                 best = judged
                 history.append((judge.evaluations, time.perf_counter() - t0, best.score[0]))

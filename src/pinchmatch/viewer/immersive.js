@@ -15,6 +15,7 @@
   const renderer = V.view.renderer;
   const TIP_RADIUS_M = 0.004, MARKER_RADIUS_M = 0.005, BUTTON_SIZE_M = 0.03, BUTTON_PRESS_M = 0.018;
   const LIFT_M = 0.08; // the dynamic task: lift this high, then put the prop back
+  const NEXT_MATCH_S = 3; // outside a study, the next match is guided this long after a validation
   const GREEN = 0x2fbf4f, BLUE = 0x3f7fff;
   // where the prop is shown before it is calibrated: in front of a standing user, on a table
   const DEFAULT_PROP_POSE = new THREE.Matrix4().makeTranslation(0, 0.9, -0.4);
@@ -311,11 +312,20 @@
     state.validated = true;
     validation = { time_s: t - trialStart, ...best };
     state.validation = { ...validation, hand: undefined, handIndex: undefined };
-    if (!state.study) {
+    if (!state.study) { // then the page's next match, so that every object can be tried in one session
       paint(GREEN);
+      const next = (Math.max(V.current(), 0) + 1) % DATA.matches.length;
       say(`Validated in ${validation.time_s.toFixed(2)} s: thumb ${best.thumb_error_mm.toFixed(1)} mm, index ` +
-          `${best.index_error_mm.toFixed(1)} mm and ${best.angle_error_deg.toFixed(1)} degrees off the targets.`);
+          `${best.index_error_mm.toFixed(1)} mm and ${best.angle_error_deg.toFixed(1)} degrees off the targets.` +
+          (DATA.matches.length > 1 ? ` Next: ${DATA.matches[next].virtual}.` : ""));
       state.phase = "done";
+      if (DATA.matches.length > 1) {
+        setTimeout(() => {
+          if (!session || state.phase !== "done") return;
+          V.select(next).catch(() => {});
+          beginGuiding();
+        }, NEXT_MATCH_S * 1000);
+      }
       return;
     }
     if (state.lift) {
