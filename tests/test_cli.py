@@ -212,4 +212,5 @@ def test_tables_fit_80_columns_and_explain_their_units(tmp_path, capsys, monkeyp
     assert max(len(line) for line in out.splitlines()) <= 80
     assert "…" not in out  # long names wrap, whole, instead of being cut
     assert "virtual_asset" in out and "tangible_prop" in out
-    assert "cost: sum of weight x (difference / JND)^2 (1: just noticeable)" in " ".join(out.split())
+    assert "cost: the differences in JND pooled by probability summation (1: noticed half of the time)" \
+        in " ".join(out.split())

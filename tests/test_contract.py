@@ -42,13 +42,14 @@ def test_bad_options_are_refused_in_one_line(tmp_path, capsys, command, argv, wo
 
 
 def test_the_library_and_the_command_line_share_one_rule_for_weights():
-    assert MatchSettings(weights={"width": 2}).weights == {"width": 2.0, "com": 1.0, "tilt": 1.0, "normal": 1.0,
+    assert MatchSettings(weights={"width": 2}).weights == {"width": 2.0, "com": 0.0, "tilt": 1.0, "normal": 1.0,
                                                            "axis": 1.0, "kmax": 1.0, "kmin": 1.0, "mass": 1.0}
     paper = ("width", "com", "tilt", "normal", "axis", "kmax", "kmin")
     assert MatchSettings(weights={}, criteria=paper).weights["mass"] == 0.0
     for weights, words in [({"widht": 1}, "did you mean 'width'"), ({"width": -1}, "0 or more"),
                            ({"width": float("nan")}, "0 or more"), ({"tilt": "x"}, "0 or more"),
-                           (dict.fromkeys(paper + ("mass",), 0), "every weight is 0")]:
+                           (dict.fromkeys(paper + ("mass",), 0), "every weight is 0"),
+                           ({"com": 1}, "not part of --criteria default")]:
         with pytest.raises(ConfigError, match=words):
             MatchSettings(weights=weights)
     with pytest.raises(ConfigError, match="mass"):

@@ -36,7 +36,7 @@ def brute_force(tang, virt, model):
 def test_blockwise_costs_equal_brute_force(mode):
     tang, virt = random_table(23, 1), random_table(17, 2)
     model = CostModel(weights=dict(zip(CRITERIA, [1, 0.5, 2, 1, 1, 3, 1, 2])), normalize=mode,
-                      ranges=feature_ranges(tang, virt))
+                      ranges=feature_ranges(tang, virt), criteria=CRITERIA, pooling="sum")
     cost, _ = pair_costs(tang, virt, model, block_rows=5)
     np.testing.assert_allclose(cost, brute_force(tang, virt, model), rtol=1e-9, atol=1e-9)
 
@@ -140,7 +140,9 @@ def test_the_feature_table_lays_out_pose_and_patch_features():
 def test_weights_default_to_one_for_criteria_in_use_and_zero_for_the_rest():
     from pinchmatch.match.cost import PAPER_CRITERIA, complete_weights
 
-    assert complete_weights({}) == dict.fromkeys(CRITERIA, 1.0)
+    assert complete_weights({}) == {**dict.fromkeys(CRITERIA, 1.0), "com": 0.0}  # mass carries the lever arm
+    with pytest.raises(ConfigError, match="not part of --criteria default"):
+        complete_weights({"com": 1})
     paper = complete_weights({"width": 2.0}, criteria=PAPER_CRITERIA)
     assert paper == {**dict.fromkeys(PAPER_CRITERIA, 1.0), "width": 2.0, "mass": 0.0}
     assert complete_weights({"mass": 0}, criteria=PAPER_CRITERIA)["mass"] == 0.0  # off, though not in use
@@ -155,6 +157,8 @@ def test_a_model_fills_in_zero_for_unnamed_criteria_and_uses_mass_only_when_weig
     model = CostModel({"width": 2.0}, "jnd", None, ("width",))
     assert model.weights == {**dict.fromkeys(CRITERIA, 0.0), "width": 2.0}
     assert not model.uses_mass
+    with pytest.raises(TypeError):
+        model.weights["width"] = 3.0  # a frozen record's weights stay as made
     assert not CostModel({"mass": 0.0, "width": 1.0}).uses_mass
     assert CostModel({"mass": 0.5}).uses_mass
 
@@ -180,3 +184,47 @@ def test_a_felt_table_scales_both_mass_columns_and_nothing_else():
     np.testing.assert_array_equal(twice[..., 7:], 2.0 * table[..., 7:])
     np.testing.assert_array_equal(twice[..., :7], table[..., :7])
     assert felt_table(table, 1.0) is table
+
+
+def test_a_model_completes_omitted_weights_and_refuses_unknown_or_negative_ones():
+    model = CostModel(weights={"width": 2})
+    assert model.weights == {**dict.fromkeys(CRITERIA, 1.0), "com": 0.0, "width": 2.0}
+    with pytest.raises(ConfigError, match="unknown criterion 'grip'"):
+        CostModel(weights={"grip": 1.0})
+    with pytest.raises(ConfigError, match="needs a weight of 0 or more"):
+        CostModel(weights={"width": -1.0})
+
+
+def test_quick_pooling_is_probability_summation_of_weibull_detections():
+    model = CostModel(weights={"width": 2.0})
+    terms = np.zeros((3, 8))
+    terms[0, 0] = 1.0  # 1 JND of width, weight 2
+    terms[1, [3, 5]] = [0.25, 4.0]  # 0.5 JND of normal, 2 JND of kmax
+    terms[2, 2] = 1.0  # 1 JND of tilt alone: noticed half of the time
+    expected = np.array([2.0, 0.5 ** 3.5 + 2.0 ** 3.5, 1.0]) ** (1 / 3.5)
+    cost = model.pool(terms)
+    np.testing.assert_allclose(cost, expected, rtol=1e-12)
+    # P = 1 - prod over criteria (1 - P_c), P_c = 1 - 2^(-w x^3.5)
+    p_c = 1.0 - 2.0 ** -(np.array([2.0, 1, 1, 1, 1, 1, 1]) * np.sqrt(terms[:, [0, 2, 3, 4, 5, 6, 7]]) ** 3.5)
+    np.testing.assert_allclose(model.p_noticed(cost), 1.0 - np.prod(1.0 - p_c, axis=1), rtol=1e-12)
+    assert model.p_noticed(1.0) == pytest.approx(0.5)
+    # one large difference is not outweighed by several small ones, unlike the sum of squares
+    many_small, one_large = np.zeros(8), np.zeros(8)
+    many_small[[0, 2, 3, 4, 5, 6]] = 0.8 ** 2
+    one_large[5] = 1.5 ** 2
+    assert model.pool(one_large) > model.pool(many_small)
+    summed = CostModel(pooling="sum")
+    assert summed.pool(one_large) < summed.pool(many_small)
+
+
+@pytest.mark.parametrize("pooling", ["quick", "sum"])
+def test_the_bound_from_the_separable_sum_never_exceeds_the_pooled_cost(pooling):
+    rng = np.random.default_rng(7)
+    model = CostModel(weights={"width": 2.0, "kmax": 0.5, "mass": 3.0}, pooling=pooling)
+    terms = rng.exponential(1.0, (5000, 8)) * (rng.random((5000, 8)) < 0.6)
+    separable = terms @ model.weight_vector()
+    assert (model.bound_from_separable(separable) <= model.pool(terms) * (1 + 1e-12)).all()
+    one = np.zeros((1, 8))
+    one[0, 0] = 1.0  # equal differences everywhere make the bound tight
+    equal = np.where(model.weight_vector() > 0, 1.0, 0.0)[None]
+    np.testing.assert_allclose(model.bound_from_separable(equal @ model.weight_vector()), model.pool(equal))

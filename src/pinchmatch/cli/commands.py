@@ -35,6 +35,7 @@ from ..export.documents import (features_document, matches_rows, poses_csv, pose
 from ..runner.tasks import Job, virtual_result
 from ..export.sink import MatchesSink
 from ..export.study_plan import study_plan
+from ..export.study_ratings import static_ratings_table
 from ..runner.matching import RunResult
 from ..runner.executors import executor
 from ..runner.study import ORDERS, run_study
@@ -195,13 +196,19 @@ def _cmd_calibrate(args) -> int:
     except UnicodeDecodeError:
         raise ConfigError(f"{args.ratings}: not UTF-8 text; save the table as a UTF-8 CSV") from None
     ratings = read_ratings(decoded, args.ratings, criteria=criteria)
-    fit = calibrate(ratings, seed=args.seed)
+    fit = calibrate(ratings, pooling=args.pooling, seed=args.seed, hold_out=args.hold_out, force=args.force)
     document = fit.as_dict(str(args.ratings))
     write_atomic(args.output, to_json(document))
-    rows = [("criterion", "weight")] + [(c, f"{fit.weights[c]:.3f}") for c in ratings.criteria]
-    ui.table(table_rows(rows, "criteria"), title=f"weights fitted to {fit.rows} ratings of {fit.pairs} pose pairs")
-    ui.note(f"held-out rank correlation of cost and rating ({fit.folds} folds by pose pair; -1 is perfect): "
+    rows = [("criterion", "fitted", "written")] + [(c, f"{fit.fitted_weights[c]:.3f}", f"{fit.weights[c]:.3f}")
+                                                   for c in ratings.criteria]
+    ui.table(table_rows(rows, "criteria"),
+             title=f"weights fitted to {fit.rows} ratings of {fit.pairs} placements ({fit.pooling} pooling)")
+    by = "by placement" if fit.hold_out == "placement" else "one virtual object out at a time"
+    ui.note(f"held-out rank correlation of cost and rating ({fit.folds} folds, {by}; -1 is perfect): "
             f"fitted {fit.held_out_spearman:+.3f}, default weights {fit.default_spearman:+.3f}; wrote {args.output}")
+    if fit.kept == "defaults":
+        ui.warn(f"the fitted weights rank held-out ratings worse than the default weights, so {args.output} keeps "
+                "the defaults (the fitted ones are under fit.fitted_weights); --force writes the fitted weights")
     ui.document(to_json(document))
     return 0
 
@@ -218,6 +225,7 @@ def _cmd_cache(args) -> int:
 
 def _cmd_demo(args) -> int:
     settings = PinchSettings(count=args.count, seed=args.seed)
+    match = match_settings_of(args)
     out = out_folder(args)
     ui = Presenter(quiet=args.quiet, json_mode=args.json)
     t0 = time.perf_counter()
@@ -232,19 +240,22 @@ def _cmd_demo(args) -> int:
 
             # the study's objects are its inputs, the same bytes every run: written in place, so the
             # documents can name where they stay
-            study = run_study(out / "objects", full=args.full, settings=settings, progress=starting)
+            study = run_study(out / "objects", full=args.full, settings=settings, match_settings=match,
+                              progress=starting)
         for path in sorted((out / "objects").glob("*.stl")):
             publisher.direct(path)
         t1 = time.perf_counter()
         common = {**settings.as_dict(),
                   "candidate_virtual_poses": "17 heights and all sampled" if args.full else "17 heights",
-                  **MatchSettings().as_dict()}
+                  **match.as_dict()}
         study_doc = study_document(study, common)
         write_atomic(stage / "study.json", to_json(study_doc))
         plan = study_plan(study.rows, [v.name for v in study.virtuals], seed=args.seed)
         write_atomic(stage / "study_plan.json", to_json(plan))
+        write_atomic(stage / "ratings_static.csv",
+                     static_ratings_table(study.rows, [v.name for v in study.virtuals]).encode("utf-8"))
         scene = study.scene
-        job = Job(units="mm", up="z", settings=settings, match=MatchSettings(), figures=not args.no_figures)
+        job = Job(units="mm", up="z", settings=settings, match=match, figures=not args.no_figures)
         with MatchesSink(stage, "json", scene_stems([v.name for v in scene.virtuals])) as sink:
             sink.start(common, scene.tangibles, dump_poses=False)
             with ui.step("glTF scenes", total=len(scene.virtuals)) as advance:
@@ -253,6 +264,8 @@ def _cmd_demo(args) -> int:
                     advance(scene.virtuals[k].name)
             matches_doc = sink.finish(RunResult(scene.tangibles, {}, [], 0, len(scene.virtuals)))
         written = [f"{out / 'study.json'}", f"{out / 'study_plan.json'} ({len(plan['trials'])} trials for the headset)",
+                   f"{out / 'ratings_static.csv'} (the method's static ratings with this run's differences, for "
+                   "calibrate)",
                    f"{out / 'matches.json'}", f"{sink.scenes} glTF scenes in {out / 'scenes'}"]
         if not args.no_figures:
             from ..export.figures import figure_count, write_figures  # matplotlib: imported when figures are wanted

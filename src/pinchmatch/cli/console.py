@@ -78,6 +78,10 @@ class Presenter:
         if self.show_summary:
             self.out.print(message, soft_wrap=False, markup=False)  # wrapped at spaces to the width
 
+    def warn(self, message: str) -> None:
+        """A warning line on stderr; shown even with ``--quiet``."""
+        self.err.print(f"pinchmatch: warning: {message}", soft_wrap=True, markup=False, highlight=False)
+
     def error(self, message: str) -> None:
         """An error line on stderr; shown even with ``--quiet``."""
         self.err.print(f"pinchmatch: error: {message}", soft_wrap=True, markup=False, highlight=False)

@@ -101,13 +101,20 @@ def _add_sampling_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=0, help="random seed, 0 or more (default 0)")
 
 
-def _add_match_options(p: argparse.ArgumentParser, *, one_to_one: bool = True) -> None:
-    p.add_argument("--weights", metavar="NAME=W,...",
-                   help="weight per criterion, default 1: width,com,tilt,normal,axis,kmax,kmin,mass")
+def _add_cost_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--weights-file", metavar="FILE",
                    help="the weights of a weights.json that 'pinchmatch calibrate' wrote (instead of --weights)")
     p.add_argument("--criteria", choices=("default", "paper"), default="default",
-                   help="default: the paper's seven criteria plus mass; paper: the seven")
+                   help="default: the paper's criteria with mass (the lever arm) for com; paper: the paper's seven")
+    p.add_argument("--pooling", choices=("quick", "sum"), default="quick",
+                   help="quick: probability summation of the criteria in JND (default); sum: the paper's sum of "
+                        "squares")
+
+
+def _add_match_options(p: argparse.ArgumentParser, *, one_to_one: bool = True) -> None:
+    p.add_argument("--weights", metavar="NAME=W,...",
+                   help="weight per criterion, default 1: width,tilt,normal,axis,kmax,kmin,mass (com with --criteria paper)")
+    _add_cost_options(p)
     p.add_argument("--normalize", choices=("jnd", "range"), default="jnd",
                    help="jnd: differences in just-noticeable differences (default); range: the paper's scaling")
     p.add_argument("--top-k", type=int, default=3, help="distinct alternatives per virtual object (default 3)")
@@ -166,6 +173,7 @@ def build_parser() -> argparse.ArgumentParser:
                       help="also design a prop from scratch for the six virtual objects and compare it with the "
                            "study's prop (OUT/props/designed.stl, OUT/design.json)")
     demo.add_argument("--budget-s", type=float, default=120.0, help="wall time of --design's search (default 120)")
+    _add_cost_options(demo)
     _add_sampling_options(demo)
     _add_output_options(demo, figures=True)
     _add_verbosity(demo)
@@ -259,6 +267,12 @@ def build_parser() -> argparse.ArgumentParser:
     calibrate.add_argument("--criteria", metavar="NAME,...",
                            help="fit only these criteria (default: every <criterion>_jnd column); the others get 0")
     calibrate.add_argument("--seed", type=int, default=0, help="seed of the cross-validation's folds (default 0)")
+    calibrate.add_argument("--pooling", choices=("quick", "sum"), default="quick",
+                           help="the pooling the weights are for (default quick, as match's default)")
+    calibrate.add_argument("--hold-out", choices=("placement", "object"), default="placement",
+                           help="cross-validate by placement (5 folds, default) or one virtual object at a time")
+    calibrate.add_argument("--force", action="store_true",
+                           help="write the fitted weights even where the defaults rank held-out ratings better")
     calibrate.add_argument("-o", "--output", metavar="FILE", default="weights.json",
                            help="the fitted weights, for match --weights-file (default weights.json)")
     calibrate.add_argument("--json", action="store_true", help="print weights.json to stdout (and nothing else there)")

@@ -44,18 +44,23 @@ def pinch_settings_of(args, **extra) -> PinchSettings:
 def match_settings_of(args) -> MatchSettings:
     criteria = parse_criteria(args.criteria)
     if getattr(args, "weights_file", None):
-        if args.weights:
+        if getattr(args, "weights", None):
             raise ConfigError("--weights and --weights-file: give one of them")
         from ..match.calibrate import read_weights_file
 
-        given = read_weights_file(read_input(args.weights_file, "weights file (JSON)", limit_bytes=2**20),
-                                  args.weights_file)
+        given, pooling = read_weights_file(read_input(args.weights_file, "weights file (JSON)", limit_bytes=2**20),
+                                           args.weights_file)
+        if pooling is not None and pooling != args.pooling:
+            raise ConfigError(f"{args.weights_file}: its weights were fitted for --pooling {pooling}; run with "
+                              f"--pooling {pooling}, or calibrate again with --pooling {args.pooling}")
         weights = complete_weights(given, criteria=criteria)
     else:
-        weights = parse_weights(args.weights, criteria=criteria)
-    return MatchSettings(weights=weights, criteria=criteria,
-                         normalize=args.normalize, top_k=args.top_k, one_to_one=getattr(args, "one_to_one", False),
-                         keep_upright=args.keep_upright, distinct_mm=args.distinct_mm)
+        weights = parse_weights(getattr(args, "weights", None), criteria=criteria)
+    return MatchSettings(weights=weights, criteria=criteria, normalize=getattr(args, "normalize", "jnd"),
+                         pooling=args.pooling, top_k=getattr(args, "top_k", 3),
+                         one_to_one=getattr(args, "one_to_one", False),
+                         keep_upright=getattr(args, "keep_upright", False),
+                         distinct_mm=getattr(args, "distinct_mm", 8.0))
 
 
 def given_poses(files, paths, option) -> list:

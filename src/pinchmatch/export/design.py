@@ -37,7 +37,8 @@ def design_document(settings: dict, found, props: list[Path], out: Path, matches
     objects = []
     for m in (matches or {}).get("matches", []):
         loud = [c for c, v in (m.get("criteria") or {}).items() if v["noticeable"]]
-        objects.append({"virtual": m["virtual"], "prop": m["tangible"], "cost": m["cost"], "noticeable": loud})
+        objects.append({"virtual": m["virtual"], "prop": m["tangible"], "cost": m["cost"],
+                        "p_noticed": m.get("p_noticed"), "noticeable": loud})
     costs = np.array([o["cost"] for o in objects if o["cost"] is not None], dtype=float)
     doc = {
         "schema": SCHEMA_DESIGN, "version": __version__, "settings": settings,
@@ -45,7 +46,7 @@ def design_document(settings: dict, found, props: list[Path], out: Path, matches
         "props": [prop_record(st, p, out) for st, p in zip(found.best.stacks, props)],
         "objects": objects,
         "mean_cost": json_number(costs.mean(), 6) if len(costs) else None,
-        "noticeable_count": sum(bool(o["noticeable"]) for o in objects),
+        "noticeable_count": sum(bool(m.get("noticeable")) for m in (matches or {}).get("matches", [])),
         "search": {"evaluations": found.evaluations, "seconds": round(found.seconds, 2),
                    "first_evaluation_s": round(found.first_evaluation_s, 3),
                    "history": [{"evaluations": e, "seconds": round(t, 2), "mean_cost": json_number(c, 6)}

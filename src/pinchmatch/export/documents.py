@@ -22,7 +22,7 @@ from ..version import __version__
 from ..grasp.features import PinchFeatures
 from ..mesh.load import LoadedMesh
 from ..match.candidates import mass_ratio
-from ..match.search import contact_offset_mm, criterion_table
+from ..match.search import contact_offset_mm, criterion_table, p_noticed
 from ..grasp.pinches import RULES, Pinches
 from ..mesh.properties import ObjectProperties
 
@@ -164,6 +164,8 @@ def to_json(document: dict) -> str:
 
 
 SCHEMA_MATCHES = "pinchmatch.matches/1"
+#: a placement is ``noticeable`` when its difference is noticed at least this often (p_noticed)
+NOTICED_LEVEL = 0.5
 SCHEMA_STUDY = "pinchmatch.study/1"
 #: ``--format jsonl``: a header line, one line per virtual object, failed files, an end line
 SCHEMA_MATCH_LINES = "pinchmatch.matches.jsonl/1"
@@ -201,9 +203,12 @@ def _rigid(transform: np.ndarray) -> dict:
 def _choice_record(scene, choice, *, full: bool) -> dict:
     T, V = scene.tangibles[choice.tangible], scene.virtuals[choice.virtual]
     up_t = T.obj.loaded.up
+    chance = p_noticed(T, V, choice, scene.model)
     record = {
         "tangible": T.name,
         "cost": json_number(choice.cost, 6),
+        "p_noticed": json_number(chance, 4),
+        "noticeable": bool(chance >= NOTICED_LEVEL),
         "tangible_pose": _candidate_record(T, choice.t_pose) if full else _contacts(T, choice.t_pose),
         "virtual_pose": (_candidate_record(V, choice.v_pose, swapped=choice.swapped) if full
                          else _contacts(V, choice.v_pose, swapped=choice.swapped)),
@@ -271,7 +276,8 @@ def match_entry(scene, vm) -> dict:
     entry["alternatives"] = [_choice_record(scene, a, full=False) for a in vm.alternatives]
     entry["reference"] = _reference_record(vm.reference, scene.model)
     # keys in a stable, readable order
-    order = ["virtual", "tangible", "cost", "reason", "criteria", "tangible_pose", "virtual_pose"]
+    order = ["virtual", "tangible", "cost", "p_noticed", "noticeable", "reason", "criteria", "tangible_pose",
+             "virtual_pose"]
     return {k: entry[k] for k in order} | {k: v for k, v in entry.items() if k not in order}
 
 
@@ -360,14 +366,14 @@ def matches_from_lines(lines: Iterable[str]) -> dict:
 
 def matches_rows(document: dict) -> list[tuple]:
     """The rows of the matches table, header first."""
-    rows = [("virtual", "tangible", "cost", "noticeable", "flipped", "offset_mm", "ref_cost")]
+    rows = [("virtual", "tangible", "cost", "p_noticed", "criteria >= 1 JND", "flipped", "offset_mm", "ref_cost")]
     for m in document["matches"]:
         if m.get("tangible") is None:
-            rows.append((m["virtual"], "-", "-", m.get("reason") or "", "", "", ""))
+            rows.append((m["virtual"], "-", "-", "-", m.get("reason") or "", "", "", ""))
             continue
         loud = [c for c, v in m["criteria"].items() if v["noticeable"]]
         ref = m["reference"]
-        rows.append((m["virtual"], m["tangible"], f"{m['cost']:.4g}", ",".join(loud) or "none",
+        rows.append((m["virtual"], m["tangible"], f"{m['cost']:.4g}", f"{m['p_noticed']:.2f}", ",".join(loud) or "none",
                      "F" if m["flipped"] else "", f"{m['contact_offset_mm']:+.2f}",
                      f"{ref['cost']:.4g}" if ref and ref["cost"] is not None else "null"))
     return rows
@@ -403,16 +409,26 @@ def study_legend(rows: list) -> list[str]:
         "VO: the virtual objects, their parts bottom to top: " + ", ".join(f"{k} {v}" for k, v in orders.items()),
         "ours, paper, ref: where each placement puts the pinch on the virtual object: its part (cyl: cylinder) and "
         "height in mm; F: turned upside down",
-        "cost: pinchmatch's cost of that placement, sum of weight x (difference / JND)^2 (1: just noticeable); the "
-        "paper's own cost of each is in study.json",
+        f"cost: pinchmatch's cost of that placement, {cost_unit({'normalize': 'jnd'})}; the paper's own cost of "
+        "each is in study.json",
     ]
+
+
+def cost_unit(settings: dict) -> str:
+    """What a cost is, in a run's normalisation and pooling."""
+    if settings.get("normalize", "jnd") == "range":
+        scale = "(difference / range of the run)"
+        return (f"sum of weight x {scale}^2, the paper's scaling" if settings.get("pooling") == "sum" else
+                f"probability summation of weight x {scale}^3.5, in range units")
+    if settings.get("pooling") == "sum":
+        return "sum of weight x (difference / JND)^2 (1: just noticeable)"
+    return "the differences in JND pooled by probability summation (1: noticed half of the time)"
 
 
 def matches_legend(settings: dict) -> list[str]:
     """What the matches table's columns mean, in the run's normalisation."""
-    unit = ("sum of weight x (difference / JND)^2 (1: just noticeable)" if settings.get("normalize", "jnd") == "jnd"
-            else "sum of weight x (difference / range of the run)^2, the paper's scaling")
-    return [f"cost: {unit}; noticeable: the criteria at 1 JND or more; flipped: F where the placement turns the "
+    return [f"cost: {cost_unit(settings)}; p_noticed: the probability that the difference is noticed; "
+            "criteria >= 1 JND: those noticeable on their own; flipped: F where the placement turns the "
             "virtual object upside down",
             "offset_mm: each virtual fingertip's offset from the prop's contact along the pinch line; ref_cost: the "
             "paper's reference placement (null: its fingers meet nothing on the virtual object)"]

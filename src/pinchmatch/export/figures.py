@@ -147,15 +147,16 @@ def criteria_figure(match: dict) -> Figure:
     ax.axvline(1.0, color="black", linestyle="--", linewidth=1)
     top = max(2.0, float(jnd.max()) * 1.18)
     ax.set_xlim(0, top)
-    ax.text(1.0, -0.9, " 1 JND: noticeable", fontsize=8, va="center")
+    ax.text(1.0, -0.9, " 1 JND: noticed half of the time", fontsize=8, va="center")
     for k, x in enumerate(jnd):
         ax.text(_label_x(min(x, top), top), k, f"{x:.2f}", va="center", fontsize=8)
     ax.set_yticks(y, names)
     ax.set_ylim(len(names) - 0.5, -1.3)
     ax.set_xlabel("difference between the tangible and the virtual pose (JND)")
     flip = ", flipped" if match.get("flipped") else ""
+    noticed = f", noticed {100 * match['p_noticed']:.0f} %" if match.get("p_noticed") is not None else ""
     ax.set_title(f"{Path(match['virtual']).stem} on {Path(match['tangible']).stem}: "
-                 f"cost {match['cost']:.3g}{flip}", fontsize=10)
+                 f"cost {match['cost']:.3g}{noticed}{flip}", fontsize=10)
     return fig
 
 

@@ -22,7 +22,7 @@ from pathlib import Path
 from ..version import __version__
 from ..errors import ConfigError
 from ..files import write_atomic
-from .documents import SCHEMA_MATCHES, matches_from_lines, scene_file, scene_stems
+from .documents import SCHEMA_MATCHES, cost_unit, matches_from_lines, scene_file, scene_stems
 from .study_plan import SCHEMA_PLAN
 
 log = logging.getLogger(__name__)
@@ -103,6 +103,8 @@ def _page_data(out: Path, document: dict) -> dict:
             "tangible": m["tangible"],
             "scene_file": Path(name).as_posix(),
             "cost": m["cost"],
+            "p_noticed": m.get("p_noticed"),
+            "noticeable": bool(m.get("noticeable", any(c["noticeable"] for c in m["criteria"].values()))),
             "flipped": m["flipped"],
             "contact_offset_mm": m["contact_offset_mm"],
             "position_mm": m["position_mm"],
@@ -119,11 +121,11 @@ def _page_data(out: Path, document: dict) -> dict:
     settings = document.get("settings", {})
     n_t, n_v = len(document["tangibles"]), len(document["virtuals"])
     criteria = settings.get("criteria", [])
-    loud = sum(any(c["noticeable"] for c in m["criteria"]) for m in matches)
+    loud = sum(m["noticeable"] for m in matches)
     summary = (f"{len(matches)} of {n_v} virtual objects matched on {n_t} tangible{'s' if n_t != 1 else ''} "
                f"({loud} with a noticeable difference); "
                f"criteria {', '.join(criteria) if isinstance(criteria, list) else criteria}; "
-               f"normalize {settings.get('normalize', 'jnd')}")
+               f"normalize {settings.get('normalize', 'jnd')}; pooling {settings.get('pooling', 'sum')}")
     return {"version": document.get("version"), "summary": summary, "matches": matches, "unmatched": unmatched,
             "study": _study_plan(out, {m["virtual"] for m in matches})}
 
@@ -160,10 +162,9 @@ def _script_safe_json(data: dict) -> str:
     return text.translate(_SCRIPT_ESCAPES)
 
 
-def render_page(data: dict, *, normalize: str = "jnd") -> str:
+def render_page(data: dict, *, settings: dict | None = None) -> str:
     """The page as one HTML string."""
-    cost_note = ("squared differences in just-noticeable differences (JND), weighted and summed"
-                 if normalize == "jnd" else "differences scaled by the run's ranges, weighted and summed")
+    cost_note = cost_unit(settings or {})
     values = {
         "VERSION": __version__,
         "TITLE": f"pinchmatch: {len(data['matches'])} matches",
@@ -187,7 +188,7 @@ def write_page(out: Path, *, document: dict | None = None) -> Path:
         document = read_matches(out)
     data = page_data(out, document)
     path = out / "index.html"
-    write_atomic(path, render_page(data, normalize=document.get("settings", {}).get("normalize", "jnd")))
+    write_atomic(path, render_page(data, settings=document.get("settings", {})))
     log.info("wrote %s: %d matches", path, len(data["matches"]))
     return path
 

@@ -4,26 +4,33 @@ The method weighs its criteria equally and says the weights "can (and should) be
 to their perceptual importance". Given rated pose pairs, where each pair's difference per criterion
 is known in just-noticeable differences (``<criterion>_jnd``, as ``matches.json`` reports it under
 ``criteria``) and each rating says how well the prop corresponded to the virtual object (higher:
-better, the study's 7-point scale), the cost of a pair is
+better, the study's 7-point scale), calibrate fits the model the cost itself uses
+(:mod:`pinchmatch.match.cost`): the probability that the difference is noticed,
 
-    cost = sum over criteria of  w_c * jnd_c**2          (the cost of ``--normalize jnd``)
+    P = 1 - 2^(-Σ_c w_c x_c^β)          (β = 3.5 for ``quick`` pooling, 2 for ``sum``)
 
-and the fit is the least-squares line ``rating = a - cost`` with every ``w_c >= 0`` (scipy's
-non-negative least squares on the centred table, so the intercept ``a`` is free). The weights are
-then scaled so that they add up to the number of fitted criteria, as the defaults (all 1) do: costs
-keep their size, and the ranking of pose pairs, all a match needs, is unchanged by the scale.
+and a rating that falls with it, ``rating = a - b·P`` (``a``: the rating of a perfect match, ``b``: how
+much a surely noticed difference costs on the scale). The weights are absolute: w_c = 1 keeps the
+literature's JND of criterion c, w_c = 2^β would halve it; a criterion not fitted (no column, or left
+out of ``criteria``) keeps its default, 1 for the default criteria and 0 for ``com``. The fit is nonlinear least squares (scipy's
+``least_squares``, analytic Jacobian, w ≥ 0 and b ≥ 0) started from several points.
 
-**Held-out agreement.** Pairs rated several times (repetitions, participants) are kept together:
-the folds of the cross-validation split whole pairs (``pair`` column, else ``object`` and
-``pose_source``, else each row is its own pair), so no pair is fitted and scored at once. Each
-pair's held-out cost comes from the weights fitted without it; the report is Spearman's rank
-correlation between held-out cost and rating (negative: costlier pairs are rated lower; -1 is
-perfect), beside the same correlation for the default weights on the same rows.
+**Held-out agreement.** Rows that rate the same placement are kept together: the folds of the
+cross-validation split whole groups, a group joining the rows of one ``pair`` (else ``object`` and
+``pose_source``) and the rows whose differences are identical (one placement reached from two pairs is
+one placement; nothing in the table tells them apart). ``hold_out="object"`` instead leaves one virtual
+object (``object`` column) out at a time. Each row's held-out prediction comes from the weights fitted
+without its group; the report is Spearman's rank correlation between the held-out predicted drop
+(b·P) and the rating (negative: costlier pairs are rated lower; -1 is perfect), beside the same
+correlation for the default weights (all 1, whose ranking needs no fit).
 
-**Refused** (:class:`~pinchmatch.errors.ConfigError`): fewer rows than criteria + 2, fewer than 3
-pairs, ratings that never change, a criterion whose column never changes or is a combination of
-the others (its weight cannot be told apart), and data where no criterion makes ratings fall: every
-fitted weight 0, or a held-out rank correlation that is not negative.
+**Kept defaults.** When the fitted weights rank the held-out rows worse than the defaults do, the
+default weights are written (the fitted ones reported beside them) unless ``force``.
+
+**Refused** (:class:`~pinchmatch.errors.ConfigError`): fewer rows than criteria + 3, fewer than 3
+groups, ratings that never change, a criterion whose column never changes or is a combination of the
+others (its weight cannot be told apart), and criteria that do not predict the ratings (no fitted
+weight above 0, or a held-out rank correlation that is not negative).
 """
 
 from __future__ import annotations
@@ -34,48 +41,74 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import nnls
+from scipy.optimize import least_squares
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 from scipy.stats import spearmanr
 
 from ..errors import ConfigError
-from .cost import CRITERIA
+from .cost import CRITERIA, DEFAULT_CRITERIA, QUICK_EXPONENT
 
-#: folds of the cross-validation (fewer when there are fewer pairs)
+#: folds of the cross-validation by placement (fewer when there are fewer groups)
 FOLDS = 5
-#: a column whose spread is below this (JND², after centring) does not change
+#: a column whose spread is below this (JND^β) does not change
 CONSTANT_TOLERANCE = 1e-9
+#: a criterion whose differences stay below this (JND) everywhere in the table is never near noticeable
+#: there: its weight would be a guess (and a huge one fits as well as any)
+SMALLEST_FITTED_JND = 0.1
+#: where the fit starts: every weight at each of these (the best end is kept)
+STARTS = (1.0, 0.25, 4.0)
+#: ways of holding rows out
+HOLD_OUTS = ("placement", "object")
+
+
+def exponent_of(pooling: str) -> float:
+    """β of a pooling: :data:`pinchmatch.match.cost.QUICK_EXPONENT` for ``quick``, 2 for ``sum``."""
+    if pooling not in ("quick", "sum"):
+        raise ConfigError(f"--pooling: unknown pooling {pooling!r}; use quick or sum")
+    return QUICK_EXPONENT if pooling == "quick" else 2.0
 
 
 @dataclass(frozen=True)
 class Ratings:
-    """A ratings table: per row the rating, the difference per criterion (JND) and the pair it rates."""
+    """A ratings table: per row the rating, the difference per criterion (JND), the group of rows that
+    rate one placement, and the virtual object rated (-1 where the table names none)."""
 
     criteria: tuple
     jnd: np.ndarray  # (n, len(criteria))
     rating: np.ndarray  # (n,)
-    pair: np.ndarray  # (n,) int: rows of one pose pair share a number
+    pair: np.ndarray  # (n,) int: rows of one placement share a number
     source: str
+    obj: np.ndarray | None = None  # (n,) int, the ``object`` column numbered; None without it
 
 
 @dataclass(frozen=True)
 class Calibration:
-    weights: dict  # every criterion of CRITERIA; 0 for those not fitted
-    intercept: float
-    scale: float  # rating points per unit of (rescaled) cost
+    weights: dict  # every criterion of CRITERIA: the fitted ones, and the defaults for the others (1 for the
+    # default criteria: the literature's JND, about which the table says nothing; 0 for com)
+    fitted_weights: dict  # what the fit found, kept or not
+    kept: str  # "fitted" or "defaults"
+    pooling: str
+    intercept: float  # a: the rating of a match with nothing noticed
+    drop: float  # b: how far a surely noticed difference lowers the rating
     held_out_spearman: float
     default_spearman: float
     folds: int
+    hold_out: str
     rows: int
     pairs: int
 
     def as_dict(self, source: str) -> dict:
-        return {"schema": "pinchmatch.weights/1", "source": source,
+        return {"schema": "pinchmatch.weights/1", "source": source, "pooling": self.pooling,
+                "exponent": exponent_of(self.pooling),
                 "weights": {c: round(w, 6) for c, w in self.weights.items()},
-                "fit": {"rows": self.rows, "pairs": self.pairs, "folds": self.folds,
+                "fit": {"rows": self.rows, "placements": self.pairs, "folds": self.folds, "hold_out": self.hold_out,
                         "intercept_rating": round(self.intercept, 6),
-                        "rating_per_cost": round(self.scale, 6),
+                        "rating_drop_when_noticed": round(self.drop, 6),
                         "held_out_spearman_fitted": round(self.held_out_spearman, 4),
-                        "held_out_spearman_default": round(self.default_spearman, 4)}}
+                        "held_out_spearman_default": round(self.default_spearman, 4),
+                        "kept": self.kept,
+                        "fitted_weights": {c: round(w, 6) for c, w in self.fitted_weights.items()}}}
 
 
 def read_ratings(text: str, source: str, *, criteria: tuple | None = None) -> Ratings:
@@ -115,29 +148,57 @@ def read_ratings(text: str, source: str, *, criteria: tuple | None = None) -> Ra
         keys = [(r["object"], r["pose_source"]) for r in rated]
     else:
         keys = list(range(len(rated)))
+    objects = None
+    if "object" in header:
+        names: dict = {}
+        objects = np.array([names.setdefault(r["object"], len(names)) for r in rated], dtype=np.int64)
+    return Ratings(present, values[:, 1:], values[:, 0], placement_groups(keys, values[:, 1:]), source, objects)
+
+
+def placement_groups(keys: list, jnd: np.ndarray) -> np.ndarray:
+    """(n,) group of each row: rows of one key, and rows whose differences are identical (to 1e-6 JND),
+    are one group (connected components: two keys sharing a placement are one group)."""
+    n = len(keys)
+    if not n:
+        return np.zeros(0, dtype=np.int64)
     index: dict = {}
-    pair = np.array([index.setdefault(k, len(index)) for k in keys], dtype=np.int64)
-    return Ratings(present, values[:, 1:], values[:, 0], pair, source)
+    by_key = np.array([index.setdefault(k, len(index)) for k in keys], dtype=np.int64)
+    _, by_values = np.unique(np.round(jnd, 6), axis=0, return_inverse=True)
+    by_values = by_values.reshape(-1)
+    # nodes: the rows, then the keys, then the distinct difference vectors; a row joins its key and vector
+    key_node, value_node = n + by_key, n + len(index) + by_values
+    size = n + len(index) + int(by_values.max()) + 1
+    rows = np.arange(n)
+    graph = coo_matrix((np.ones(2 * n), (np.concatenate([rows, rows]), np.concatenate([key_node, value_node]))),
+                       shape=(size, size))
+    _, label = connected_components(graph, directed=False)
+    first: dict = {}
+    return np.array([first.setdefault(g, len(first)) for g in label[:n].tolist()], dtype=np.int64)
 
 
-def _check(r: Ratings) -> None:
+def _check(r: Ratings, beta: float) -> None:
     n, m = r.jnd.shape
-    if n < m + 2:
+    if n < m + 3:
         raise ConfigError(f"{r.source}: {n} rated rows cannot fix {m} weights and the rating scale; "
-                          f"rate at least {m + 2} trials, or fit fewer criteria with --criteria")
+                          f"rate at least {m + 3} trials, or fit fewer criteria with --criteria")
     if r.pair.max() + 1 < 3:
-        raise ConfigError(f"{r.source}: {r.pair.max() + 1} distinct pose pairs; rate at least 3 to fit and "
+        raise ConfigError(f"{r.source}: {r.pair.max() + 1} distinct placements; rate at least 3 to fit and "
                           "check the weights")
     if np.ptp(r.rating) == 0:
         raise ConfigError(f"{r.source}: every rating is {r.rating[0]:g}, so they say nothing about the "
                           "criteria; rate pairs that differ")
-    x = r.jnd ** 2
+    x = r.jnd ** beta
     xc = x - x.mean(axis=0)
     flat = [c for c, s in zip(r.criteria, np.abs(xc).max(axis=0)) if s < CONSTANT_TOLERANCE]
     if flat:
         raise ConfigError(f"{r.source}: {', '.join(flat)} never changes in the table, so its weight cannot be "
                           f"determined; leave it out with --criteria "
                           f"{','.join(c for c in r.criteria if c not in flat)}")
+    faint = [c for c, top in zip(r.criteria, r.jnd.max(axis=0)) if top < SMALLEST_FITTED_JND]
+    if faint:
+        raise ConfigError(f"{r.source}: {', '.join(faint)} never differs by {SMALLEST_FITTED_JND} JND or more in the "
+                          f"table, so its weight cannot be determined; leave it out with --criteria "
+                          f"{','.join(c for c in r.criteria if c not in faint)}")
     scaled = xc / np.linalg.norm(xc, axis=0)
     if np.linalg.matrix_rank(scaled, tol=1e-8) < m:
         _, _, vt = np.linalg.svd(scaled, full_matrices=False)
@@ -146,11 +207,33 @@ def _check(r: Ratings) -> None:
                           "weights cannot be told apart; rate pairs where they differ, or leave one out with --criteria")
 
 
-def _fit(x: np.ndarray, rating: np.ndarray) -> tuple[np.ndarray, float]:
-    """Non-negative ``w`` and free ``a`` minimising |rating - (a - x @ w)|²."""
-    xm, rm = x.mean(axis=0), rating.mean()
-    w, _ = nnls(-(x - xm), rating - rm)
-    return w, float(rm + xm @ w)
+def noticed(x_beta: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """P = 1 - 2^(-Σ w x^β) for rows of x^β."""
+    return -np.expm1(-math.log(2.0) * (x_beta @ w))
+
+
+def _fit(x_beta: np.ndarray, rating: np.ndarray) -> tuple[np.ndarray, float, float]:
+    """Weights w >= 0, intercept a and drop b >= 0 minimising |rating - (a - b·P(w))|²."""
+    m = x_beta.shape[1]
+    ln2 = math.log(2.0)
+
+    def residual(theta):
+        return theta[0] - theta[1] * noticed(x_beta, theta[2:]) - rating
+
+    def jacobian(theta):
+        survive = np.exp(-ln2 * (x_beta @ theta[2:]))
+        return np.column_stack([np.ones(len(rating)), -(1.0 - survive), -theta[1] * ln2 * survive[:, None] * x_beta])
+
+    lower = np.r_[-np.inf, 0.0, np.zeros(m)]
+    best = None
+    for start in STARTS:
+        theta0 = np.r_[rating.max(), max(np.ptp(rating), 1e-3), np.full(m, start)]
+        found = least_squares(residual, theta0, jac=jacobian, bounds=(lower, np.inf), xtol=1e-15, ftol=1e-15,
+                              gtol=1e-15, max_nfev=2000)
+        if best is None or found.cost < best.cost - 1e-15:
+            best = found
+    theta = best.x
+    return theta[2:], float(theta[0]), float(theta[1])
 
 
 def _spearman(cost: np.ndarray, rating: np.ndarray) -> float:
@@ -159,40 +242,67 @@ def _spearman(cost: np.ndarray, rating: np.ndarray) -> float:
     return float(spearmanr(cost, rating).statistic)
 
 
-def calibrate(r: Ratings, *, seed: int = 0) -> Calibration:
-    """Fit the weights of ``r.criteria`` and cross-validate them by pose pair (module notes)."""
-    _check(r)
-    x = r.jnd ** 2
-    w, intercept = _fit(x, r.rating)
-    if not (w > 0).any():
-        raise ConfigError(f"{r.source}: the ratings do not fall as any criterion's difference grows, so no "
-                          "non-negative weights fit them; check the rating scale (higher: the prop corresponds "
-                          "better)")
+def _folds(r: Ratings, hold_out: str, seed: int) -> tuple[np.ndarray, int]:
+    """(n,) fold of each row, and the number of folds."""
+    if hold_out == "object":
+        if r.obj is None:
+            raise ConfigError(f"{r.source}: no 'object' column, so no virtual object can be held out; "
+                              "use --hold-out placement")
+        groups = int(r.obj.max()) + 1
+        if groups < 3:
+            raise ConfigError(f"{r.source}: {groups} virtual objects; hold out by object needs at least 3")
+        return r.obj, groups
     pairs = int(r.pair.max() + 1)
     folds = min(FOLDS, pairs)
-    fold_of_pair = np.random.default_rng(seed).permutation(pairs) % folds
-    fold = fold_of_pair[r.pair]
+    return (np.random.default_rng(seed).permutation(pairs) % folds)[r.pair], folds
+
+
+def calibrate(r: Ratings, *, pooling: str = "quick", seed: int = 0, hold_out: str = "placement",
+              force: bool = False) -> Calibration:
+    """Fit the weights of ``r.criteria`` under ``pooling`` and cross-validate them (module notes)."""
+    if hold_out not in HOLD_OUTS:
+        raise ConfigError(f"--hold-out: unknown {hold_out!r}; use placement or object")
+    if not isinstance(seed, int) or seed < 0:
+        raise ConfigError(f"--seed: {seed!r} must be a whole number of 0 or more")
+    beta = exponent_of(pooling)
+    _check(r, beta)
+    x = r.jnd ** beta
+    default_rho = _spearman(x.sum(axis=1), r.rating)
+    w, intercept, drop = _fit(x, r.rating)
+    if not (w > 0).any() or drop <= 0:
+        raise ConfigError(_unpredictive(r, default_rho, "no weight above 0 fits them"))
+    fold, folds = _folds(r, hold_out, seed)
     held_out = np.empty(len(r.rating))
     for f in range(folds):
         test = fold == f
-        wf, _ = _fit(x[~test], r.rating[~test])
-        held_out[test] = x[test] @ wf
+        if not test.any():
+            continue
+        wf, _, bf = _fit(x[~test], r.rating[~test])
+        held_out[test] = bf * noticed(x[test], wf)
     held = _spearman(held_out, r.rating)
     if not held < 0:
-        raise ConfigError(f"{r.source}: on held-out pose pairs the fitted cost does not fall with the rating (rank "
-                          f"correlation {held:+.2f}), so the ratings do not fall as the criteria's differences grow; "
-                          "check the rating scale (higher: the prop corresponds better) and rate more pairs")
-    scale = len(r.criteria) / w.sum()
-    weights = dict.fromkeys(CRITERIA, 0.0)
-    weights.update({c: float(v * scale) for c, v in zip(r.criteria, w)})
-    return Calibration(weights=weights, intercept=intercept, scale=1.0 / scale,
-                       held_out_spearman=held,
-                       default_spearman=_spearman(x.sum(axis=1), r.rating), folds=folds,
-                       rows=len(r.rating), pairs=pairs)
+        raise ConfigError(_unpredictive(r, default_rho, f"held out, the fitted cost does not fall with the rating "
+                                                        f"(rank correlation {held:+.2f})"))
+    defaults = {c: (1.0 if c in DEFAULT_CRITERIA else 0.0) for c in CRITERIA}
+    fitted = defaults | {c: float(v) for c, v in zip(r.criteria, w)}
+    kept = "fitted" if force or held <= default_rho else "defaults"
+    weights = fitted if kept == "fitted" else defaults
+    return Calibration(weights=weights, fitted_weights=fitted, kept=kept, pooling=pooling, intercept=intercept,
+                       drop=drop, held_out_spearman=held, default_spearman=default_rho, folds=folds,
+                       hold_out=hold_out, rows=len(r.rating), pairs=int(r.pair.max() + 1))
 
 
-def read_weights_file(text: str, source: str) -> dict:
-    """The weights of a ``weights.json`` that ``calibrate`` wrote (or any ``{"weights": {...}}``)."""
+def _unpredictive(r: Ratings, default_rho: float, why: str) -> str:
+    if default_rho > 0.3:
+        return (f"{r.source}: the ratings rise as the differences grow (rank correlation {default_rho:+.2f}); "
+                "check the rating scale (higher: the prop corresponds better)")
+    return (f"{r.source}: these criteria do not predict the ratings ({why}); rate more placements that "
+            "differ in them, or fit other criteria with --criteria")
+
+
+def read_weights_file(text: str, source: str) -> tuple[dict, str | None]:
+    """The weights of a ``weights.json`` that ``calibrate`` wrote (or any ``{"weights": {...}}``), and the
+    pooling they were fitted for (None where the file does not say)."""
     import json
 
     try:
@@ -205,4 +315,8 @@ def read_weights_file(text: str, source: str) -> dict:
                                                 and math.isfinite(v) for v in weights.values()):
         raise ConfigError(f"{source}: needs a 'weights' object of criterion: number; give the weights.json "
                           "that 'pinchmatch calibrate' writes")
-    return {str(k): float(v) for k, v in weights.items()}
+    pooling = doc.get("pooling")
+    if pooling is not None and pooling not in ("quick", "sum"):
+        raise ConfigError(f"{source}: pooling {pooling!r} is neither quick nor sum; give the weights.json that "
+                          "'pinchmatch calibrate' writes")
+    return {str(k): float(v) for k, v in weights.items()}, pooling

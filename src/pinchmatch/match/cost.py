@@ -1,10 +1,21 @@
-"""How different two pinches feel: the method's 14-number comparison (Step #3).
+"""How different two pinches feel: the method's 14-number comparison (Step #3), pooled.
 
 A pose is described by 14 numbers, the 7 features of each patch, the pose
 features (width, com distance, tilt) appearing in both. Each difference is
-divided by a scale; a criterion's *contribution* is the mean over its
-entries of (difference / scale)², and the cost is the weighted sum of the
-contributions.
+divided by a scale; a criterion's *contribution* t_c is the mean over its
+entries of (difference / scale)², so that x_c = √t_c is the criterion's
+difference in scale units (in just-noticeable differences with ``jnd``).
+
+The criteria are pooled (``pooling``):
+
+- ``"quick"`` (default): probability summation of independent cues (Quick
+  1974). Each criterion is detected with the Weibull psychometric function
+  P_c = 1 - 2^(-w_c x_c^β), 1 JND being the 50 % detection level; detecting
+  any of them is P = 1 - Π(1 - P_c) = 1 - 2^(-D^β) with the cost
+  D = (Σ w_c x_c^β)^(1/β), β = :data:`QUICK_EXPONENT`. D is in JND: D = 1
+  is noticed half of the time, whatever the number of criteria behind it.
+- ``"sum"``: the paper's weighted sum of squares Σ w_c t_c (with
+  ``--criteria paper --normalize range``, the paper's algorithm exactly).
 
 Beyond the paper, the ``mass`` criterion compares where the mass is felt
 and seen: |R·o_V - o_T|² / s², with o = centre of mass - pinch midpoint and
@@ -30,6 +41,7 @@ finger order: exact, and fast enough for 10,000 x 10,000 pairs.
 from __future__ import annotations
 
 import difflib
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -40,6 +52,20 @@ from ..grasp.features import PinchFeatures
 CRITERIA = ("width", "com", "tilt", "normal", "axis", "kmax", "kmin", "mass")
 #: the method paper's seven criteria (``--criteria paper``)
 PAPER_CRITERIA = CRITERIA[:7]
+#: the default set: the paper's criteria with ``mass`` for ``com``. Both measure how far the pinch
+#: sits from the centre of mass (d is the part of the offset o along the principal axis); ``mass``
+#: compares the whole offset, or the felt torque where both masses are known, so ``com`` would charge
+#: the same lever arm twice
+DEFAULT_CRITERIA = ("width", "tilt", "normal", "axis", "kmax", "kmin", "mass")
+#: ways of pooling the criteria into one cost (module notes)
+POOLINGS = ("quick", "sum")
+#: Quick pooling's exponent, the common slope of the criteria's Weibull psychometric functions: 3.5,
+#: the slope at which a Weibull function matches a cumulative Gaussian (Quick 1974), within the 3-4
+#: that detection studies find when they pool independent cues (Graham 1989; Robson & Graham 1981)
+QUICK_EXPONENT = 3.5
+#: the probability that a difference of 1 JND is noticed: every threshold of the JND table is a 50 %
+#: detection level (a 75 %-correct two-alternative threshold, corrected for guessing)
+DETECTION_AT_ONE_JND = 0.5
 
 #: width: 5.75 % of the reference width (de Tinguy et al., WHC 2019), floor: 0.4 mm (Ho & Srinivasan)
 WIDTH_JND_FRACTION, WIDTH_JND_FLOOR_MM = 0.0575, 0.4
@@ -76,7 +102,7 @@ def feature_table(features: PinchFeatures) -> np.ndarray:
     return np.concatenate([np.broadcast_to(pose[:, None, :], (n, 2, 3)), patch], axis=-1)
 
 
-def parse_weights(text: str | None, *, criteria: tuple = CRITERIA) -> dict[str, float]:
+def parse_weights(text: str | None, *, criteria: tuple = DEFAULT_CRITERIA) -> dict[str, float]:
     """Parse ``"width=1,com=0.5"`` into the weights given, checked by :func:`complete_weights`."""
     given: dict[str, float] = {}
     for item in str(text or "").split(","):
@@ -94,7 +120,7 @@ def parse_weights(text: str | None, *, criteria: tuple = CRITERIA) -> dict[str, 
     return complete_weights(given, criteria=criteria)
 
 
-def complete_weights(given: dict, *, criteria: tuple = CRITERIA) -> dict[str, float]:
+def complete_weights(given: Mapping, *, criteria: tuple = DEFAULT_CRITERIA) -> dict[str, float]:
     """Weights for every criterion: those given, 1 for the other criteria in use, 0 for criteria
     not in use. The one rule for the library's :class:`match.MatchSettings` and ``--weights``.
 
@@ -108,7 +134,8 @@ def complete_weights(given: dict, *, criteria: tuple = CRITERIA) -> dict[str, fl
         if name not in criteria:
             close = difflib.get_close_matches(str(name), criteria, n=1)
             hint = f"did you mean {close[0]!r}? " if close else ""
-            extra = " (not part of --criteria paper)" if name in CRITERIA else ""
+            which = "paper" if tuple(criteria) == PAPER_CRITERIA else "default"
+            extra = f" (not part of --criteria {which})" if name in CRITERIA else ""
             raise ConfigError(f"--weights: unknown criterion {name!r}{extra}; {hint}valid: {', '.join(criteria)}")
         try:
             w = float(w)
@@ -124,44 +151,126 @@ def complete_weights(given: dict, *, criteria: tuple = CRITERIA) -> dict[str, fl
 
 
 def parse_criteria(text: str | None) -> tuple:
-    """``"default"`` (the paper's seven plus mass) or ``"paper"`` (the seven)."""
+    """``"default"`` (the paper's seven with mass for com) or ``"paper"`` (the seven)."""
     if text in (None, "default"):
-        return CRITERIA
+        return DEFAULT_CRITERIA
     if text == "paper":
         return PAPER_CRITERIA
-    raise ConfigError(f"--criteria: unknown set {text!r}; use default (the paper's seven plus mass) or paper")
+    raise ConfigError(f"--criteria: unknown set {text!r}; use default (the paper's seven with mass for com) or paper")
+
+
+class Weights(Mapping):
+    """A read-only mapping of criterion -> weight (a frozen record's weights stay as they were made);
+    picklable, so a model travels to worker processes."""
+
+    def __init__(self, values: Mapping):
+        self._values = dict(values)
+
+    def __getitem__(self, key):
+        return self._values[key]
+
+    def __iter__(self):
+        return iter(self._values)
+
+    def __len__(self) -> int:
+        return len(self._values)
+
+    def __eq__(self, other) -> bool:
+        return isinstance(other, Mapping) and dict(self) == dict(other)
+
+    def __hash__(self) -> int:
+        return hash(tuple(sorted(self._values.items())))
+
+    def __repr__(self) -> str:
+        return f"Weights({self._values!r})"
+
+    def __reduce__(self):
+        return (Weights, (self._values,))
 
 
 @dataclass(frozen=True)
 class CostModel:
     """How pose differences are scaled and weighted.
 
-    weights : dict criterion -> float >= 0 (0 for criteria left out)
+    weights : criterion -> float >= 0, completed by :func:`complete_weights` (1 for the criteria in
+        use that are not given, 0 for the others); held as a read-only mapping
     normalize : ``"jnd"`` or ``"range"``
     ranges : (9,) float64, per column, for ``"range"`` (see :func:`feature_ranges`)
     criteria : the criteria in use (reported); the others have weight 0
+    pooling : ``"quick"`` or ``"sum"`` (module notes)
+
+    >>> model = CostModel({"width": 2.0})
+    >>> model.weights["width"], model.weights["com"], model.weights["kmax"]
+    (2.0, 0.0, 1.0)
+    >>> round(model.p_noticed(1.0), 3)
+    0.5
     """
 
-    weights: dict = field(default_factory=lambda: dict.fromkeys(CRITERIA, 1.0))
+    weights: Mapping = field(default_factory=dict)
     normalize: str = "jnd"
     ranges: np.ndarray | None = None
-    criteria: tuple = CRITERIA
+    criteria: tuple = DEFAULT_CRITERIA
+    pooling: str = "quick"
 
     def __post_init__(self):
         if self.normalize not in ("jnd", "range"):
             raise ConfigError(f"--normalize: unknown mode {self.normalize!r}; use jnd or range")
         if self.normalize == "range" and self.ranges is None:
             raise ConfigError("range normalisation needs the feature ranges of the run")
-        full = {c: float(self.weights.get(c, 0.0)) for c in CRITERIA}
-        object.__setattr__(self, "weights", full)
+        if self.pooling not in POOLINGS:
+            raise ConfigError(f"--pooling: unknown pooling {self.pooling!r}; use quick (probability summation, "
+                              "the default) or sum (the paper's sum of squares)")
+        object.__setattr__(self, "criteria", tuple(self.criteria))
+        full = complete_weights(dict(self.weights), criteria=self.criteria)
+        object.__setattr__(self, "weights", Weights(full))
 
     @property
     def uses_mass(self) -> bool:
         return self.weights["mass"] > 0
 
+    @property
+    def exponent(self) -> float:
+        """β: the pooling's exponent (2 for ``sum``, whose cost is Σ w x²)."""
+        return QUICK_EXPONENT if self.pooling == "quick" else 2.0
+
     def as_jnd(self) -> "CostModel":
-        """The same criteria and weights, in just-noticeable differences (for ``noticeable``)."""
-        return CostModel(self.weights, "jnd", None, self.criteria)
+        """The same criteria, weights and pooling, in just-noticeable differences (for ``p_noticed``)."""
+        return CostModel(self.weights, "jnd", None, self.criteria, self.pooling)
+
+    def weight_vector(self) -> np.ndarray:
+        """(8,) the weights in the order of :data:`CRITERIA`."""
+        return np.array([self.weights[c] for c in CRITERIA])
+
+    def pool(self, terms: np.ndarray) -> np.ndarray:
+        """The cost of (..., 8) contributions t_c: Σ w t (``sum``) or (Σ w t^(β/2))^(1/β) (``quick``)."""
+        terms = np.maximum(np.asarray(terms, dtype=np.float64), 0.0)
+        w = self.weight_vector()
+        if self.pooling == "sum":
+            return terms @ w
+        beta = self.exponent
+        scale = np.sqrt(terms.max(axis=-1, keepdims=True))  # pooled relative to the largest: no overflow
+        safe = np.where(scale > 0, scale, 1.0)
+        return scale[..., 0] * (((np.sqrt(terms) / safe) ** beta) @ w) ** (1.0 / beta)
+
+    def bound_from_separable(self, separable) -> np.ndarray:
+        """A lower bound of the cost from S = Σ w t, the sum that the blockwise pass computes.
+
+        ``sum``: S itself. ``quick``: with W = Σ w, the power means give Σ w x^β ≥ W (S / W)^(β/2)
+        for β ≥ 2 (Jensen), so D ≥ W^(1/β - 1/2) √S; increasing in S, so the pairs of least S are
+        the ones to pool."""
+        separable = np.maximum(np.asarray(separable, dtype=np.float64), 0.0)
+        if self.pooling == "sum":
+            return separable
+        total_weight = float(self.weight_vector().sum())
+        return total_weight ** (1.0 / self.exponent - 0.5) * np.sqrt(separable)
+
+    def p_noticed(self, jnd_cost) -> np.ndarray:
+        """The probability that a difference of pooled cost ``jnd_cost`` (in JND, under this pooling) is
+        noticed: 1 - (1 - p₁)^(D^β) for ``quick`` (p₁ = :data:`DETECTION_AT_ONE_JND`), and the same with
+        β = 2 for ``sum`` (whose cost is already D²)."""
+        d = np.asarray(jnd_cost, dtype=np.float64)
+        power = d if self.pooling == "sum" else np.power(d, self.exponent)
+        return -np.expm1(power * np.log1p(-DETECTION_AT_ONE_JND))
 
     def scales(self, table: np.ndarray) -> np.ndarray:
         """Scale of each entry of a tangible feature table (..., 9), same shape (never 0)."""
@@ -311,5 +420,5 @@ def contributions(tangible_row: np.ndarray, virtual_row: np.ndarray, model: Cost
 
 
 def total(terms: np.ndarray, model: CostModel) -> np.ndarray:
-    """Weighted sum of (..., 8) contributions."""
-    return terms @ np.array([model.weights[c] for c in CRITERIA])
+    """The model's cost of (..., 8) contributions (:meth:`CostModel.pool`)."""
+    return model.pool(terms)

@@ -36,8 +36,8 @@ from scipy.optimize import linear_sum_assignment
 from ..errors import ConfigError
 from ..grasp.pinches import PinchSettings
 from .candidates import Candidates, felt_table, mass_ratio
-from .cost import (CRITERIA, PAPER_CRITERIA, CostModel, complete_weights, feature_ranges, mass_term,
-                   pair_cost_blocks, separable_terms, total)
+from .cost import (CRITERIA, DEFAULT_CRITERIA, PAPER_CRITERIA, POOLINGS, CostModel, complete_weights,
+                   feature_ranges, mass_term, pair_cost_blocks, separable_terms, total)
 from .reference import Reference, reference_pose
 from .register import FLIP_COSINE, register_poses
 
@@ -58,9 +58,10 @@ def initial_pool(n_tangible: int, n_virtual: int) -> int:
 class MatchSettings:
     """Options of the search (the cost model is built from the candidates, see :func:`cost_model`)."""
 
-    weights: dict = field(default_factory=lambda: dict.fromkeys(CRITERIA, 1.0))
-    criteria: tuple = CRITERIA
+    weights: dict = field(default_factory=dict)
+    criteria: tuple = DEFAULT_CRITERIA
     normalize: str = "jnd"
+    pooling: str = "quick"
     top_k: int = 3
     one_to_one: bool = False
     keep_upright: bool = False
@@ -68,8 +69,8 @@ class MatchSettings:
     block_rows: int = 2048
 
     def __post_init__(self):
-        if tuple(self.criteria) not in (CRITERIA, PAPER_CRITERIA):
-            raise ConfigError(f"criteria: {self.criteria!r} is neither the default set ({', '.join(CRITERIA)}) "
+        if tuple(self.criteria) not in (DEFAULT_CRITERIA, PAPER_CRITERIA):
+            raise ConfigError(f"criteria: {self.criteria!r} is neither the default set ({', '.join(DEFAULT_CRITERIA)}) "
                               f"nor the paper's ({', '.join(PAPER_CRITERIA)})")
         object.__setattr__(self, "criteria", tuple(self.criteria))
         object.__setattr__(self, "weights", complete_weights(dict(self.weights), criteria=self.criteria))
@@ -79,12 +80,16 @@ class MatchSettings:
             raise ConfigError(f"--distinct-mm: {self.distinct_mm!r} must be a distance of 0 mm or more")
         if self.normalize not in ("jnd", "range"):
             raise ConfigError(f"--normalize: unknown mode {self.normalize!r}; use jnd or range")
+        if self.pooling not in POOLINGS:
+            raise ConfigError(f"--pooling: unknown pooling {self.pooling!r}; use quick (probability summation, "
+                              "the default) or sum (the paper's sum of squares)")
 
     def as_dict(self) -> dict:
         return {
             "criteria": list(self.criteria),
             "weights": {c: self.weights[c] for c in self.criteria},
             "normalize": self.normalize,
+            "pooling": self.pooling,
             "top_k": self.top_k,
             "one_to_one": self.one_to_one,
             "keep_upright": self.keep_upright,
@@ -98,7 +103,7 @@ def cost_model(settings: MatchSettings, candidates: list[Candidates], *, ranges:
     if settings.normalize == "range" and ranges is None:
         ranges = feature_ranges(*[c.table for c in candidates])
     return CostModel(dict(settings.weights), settings.normalize, ranges if settings.normalize == "range" else None,
-                     tuple(settings.criteria))
+                     tuple(settings.criteria), settings.pooling)
 
 
 @dataclass(frozen=True)
@@ -169,9 +174,9 @@ def evaluate_pairs(
 
 
 def _pool(tangible: Candidates, virtual: Candidates, model: CostModel, size: int, block_rows: int):
-    """The ``size`` pose pairs with the smallest separable cost, and tau, the smallest left out.
+    """The ``size`` pose pairs with the smallest separable sum, and tau, a cost no pair left out is below.
 
-    Returns (it, iv, bound, tau); tau is inf when no pair was left out.
+    Returns (it, iv, separable sum, tau); tau is inf when no pair was left out.
     """
     nv = len(virtual)
     kept_val = np.zeros(0)
@@ -197,7 +202,8 @@ def _pool(tangible: Candidates, virtual: Candidates, model: CostModel, size: int
             keep = part[:size]
             vals, idx = vals[keep], idx[keep]
         kept_val, kept_idx = vals, idx
-    return kept_idx // nv, kept_idx % nv, kept_val, tau
+    # every pair left out has a separable sum of at least tau, so a cost of at least its bound
+    return kept_idx // nv, kept_idx % nv, kept_val, float(model.bound_from_separable(tau))
 
 
 @dataclass
@@ -455,16 +461,30 @@ def contact_offset_mm(tangible: Candidates, virtual: Candidates, choice: Choice)
     return float(virtual.features.width_mm[choice.v_pose] - tangible.features.width_mm[choice.t_pose]) / 2.0
 
 
-def criterion_table(tangible: Candidates, virtual: Candidates, choice: Choice, model: CostModel) -> dict:
-    """Per criterion in use: weight, contribution (in the run's normalisation), the difference in
-    just-noticeable differences (root mean square over the criterion's entries) and ``noticeable``."""
+def jnd_terms(tangible: Candidates, virtual: Candidates, choice: Choice) -> np.ndarray:
+    """(8,) each criterion's contribution for a choice in just-noticeable differences (JND²)."""
     t_row = tangible.table[choice.t_pose][None]
     v_row = felt_table(virtual.table[choice.v_pose][None], mass_ratio(tangible, virtual))
     if choice.swapped:
         v_row = v_row[:, ::-1]
-    jnd_model = model.as_jnd()
+    jnd_model = CostModel(normalize="jnd", criteria=CRITERIA, weights=dict.fromkeys(CRITERIA, 1.0))
     jnd = separable_terms(t_row, v_row, jnd_model)[0]
     jnd[7] = mass_term(t_row, choice.mass_delta_mm[None], jnd_model)[0]
+    return jnd
+
+
+def p_noticed(tangible: Candidates, virtual: Candidates, choice: Choice, model: CostModel) -> float:
+    """The probability that the choice's remaining difference is noticed: the model's criteria,
+    weights and pooling, in JND (:meth:`pinchmatch.match.cost.CostModel.p_noticed`)."""
+    jnd_model = model.as_jnd()
+    return float(jnd_model.p_noticed(jnd_model.pool(jnd_terms(tangible, virtual, choice))))
+
+
+def criterion_table(tangible: Candidates, virtual: Candidates, choice: Choice, model: CostModel) -> dict:
+    """Per criterion in use: weight, contribution (in the run's normalisation), the difference in
+    just-noticeable differences (root mean square over the criterion's entries) and ``noticeable``
+    (that criterion alone at 1 JND or more)."""
+    jnd = jnd_terms(tangible, virtual, choice)
     out = {}
     for k, c in enumerate(CRITERIA):
         if c not in model.criteria:

@@ -227,14 +227,13 @@ def helpful_props(cost: np.ndarray, selection: Selection) -> np.ndarray:
 
 def served_row(search, j: int) -> tuple[np.ndarray, np.ndarray]:
     """Virtual object j's row of the served matrix: its exact least cost on each prop (inf where no
-    registration is allowed) and whether that best placement is noticeable (some criterion at 1 JND
-    or more), from the same exact search as ``match``."""
-    from .search import cost_row, criterion_table
+    registration is allowed) and whether that best placement is noticeable (its pooled difference
+    noticed at least half of the time), from the same exact search as ``match``."""
+    from .search import cost_row, p_noticed
 
     cost = cost_row(search, j)
     loud = np.zeros(len(cost), dtype=bool)
     for t in np.flatnonzero(np.isfinite(cost)):
         best = search.choices(j, [int(t)], 1)[0]
-        table = criterion_table(search.tangibles[t], search.virtuals[j], best, search.model)
-        loud[t] = any(entry["noticeable"] for entry in table.values())
+        loud[t] = p_noticed(search.tangibles[t], search.virtuals[j], best, search.model) >= 0.5
     return cost, loud

@@ -151,15 +151,19 @@
       li.dataset.index = index;
       const loud = loudCriteria(m);
       const badges = [`<span class="badge">cost ${fmt(m.cost)}</span>`];
+      if (m.p_noticed !== null && m.p_noticed !== undefined) {
+        badges.push(`<span class="badge ${m.noticeable ? "loud" : "quiet"}" title="the probability that the difference is noticed">` +
+          `noticed ${(100 * m.p_noticed).toFixed(0)} %</span>`);
+      }
       badges.push(loud.length
         ? loud.map((c) => `<span class="badge loud">${escape(c.name)} ${c.jnd.toFixed(1)} JND</span>`).join("")
-        : `<span class="badge quiet">nothing noticeable</span>`);
+        : (m.noticeable ? "" : `<span class="badge quiet">nothing noticeable</span>`));
       if (m.flipped) badges.push(`<span class="badge flip" title="${escape(turned(m))}">F</span>`);
       li.innerHTML = `<div class="names">${breakable(m.virtual)} <span class="arrow">→</span> ${breakable(m.tangible)}</div>` +
         `<div class="meta">${badges.join("")}</div>`;
       li.dataset.name = `${m.virtual} ${m.tangible}`.toLowerCase();
       li.dataset.cost = m.cost;
-      li.dataset.noticeable = loud.length ? "1" : "0";
+      li.dataset.noticeable = m.noticeable ? "1" : "0";
       li.addEventListener("click", () => select(index));
       list.appendChild(li);
     });
@@ -200,7 +204,10 @@
       return `<tr><th>${escape(c.name)}</th><td>${c.jnd.toFixed(2)} JND</td>` +
         `<td><div class="jnd-bar"><span class="${c.noticeable ? "loud" : ""}" style="width:${width}%"></span>` +
         `<i style="left:33.3%"></i></div></td><td>weight ${c.weight}</td></tr>`;
-    }).join("");
+    }).join("") + (m.p_noticed === null || m.p_noticed === undefined ? "" :
+      `<tr class="pooled"><th>noticed</th><td>${(100 * m.p_noticed).toFixed(0)} %</td>` +
+      `<td><div class="jnd-bar"><span class="${m.noticeable ? "loud" : ""}" style="width:${100 * m.p_noticed}%"></span>` +
+      `<i style="left:50%"></i></div></td><td>all criteria pooled</td></tr>`);
     const facts = [
       `<b>${escape(m.virtual)}</b> on <b>${escape(m.tangible)}</b>`,
       `cost ${fmt(m.cost, 4)}`,
