@@ -233,3 +233,38 @@ def test_a_worker_that_dies_is_an_internal_error_not_bad_input(tmp_path, virtual
     err = capsys.readouterr().err
     assert err.startswith("pinchmatch: internal error: a worker process died") and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("link", ["scenes", "figures"])
+def test_a_folder_of_out_linked_elsewhere_is_never_written_or_pruned_through(tmp_path, virtuals, capsys, link):
+    out, elsewhere = tmp_path / "out", tmp_path / "elsewhere"
+    assert match(out, [virtuals / "e0.stl"], "--figures") == 0
+    elsewhere.mkdir()
+    (elsewhere / "e0.glb").write_bytes(b"someone else's scene")
+    (elsewhere / "e0.png").write_bytes(b"someone else's figure")
+    victims = snapshot(elsewhere)
+    import shutil
+
+    shutil.rmtree(out / link)
+    (out / link).symlink_to(elsewhere, target_is_directory=True)
+    before = snapshot(out)
+    capsys.readouterr()
+    assert match(out, [virtuals / "e1.stl"], "--figures") == 2  # would prune e0's files and write e1's there
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "symbolic link out of the output folder" in err[0] and link in err[0], err
+    assert snapshot(elsewhere) == victims and snapshot(out) == before
+
+
+@pytest.mark.parametrize("name", ["../victim.txt", "{abs}", "scenes/../../victim.txt", "linked/victim.txt"])
+def test_a_journal_naming_a_path_outside_out_leaves_it_in_place(tmp_path, virtuals, name):
+    out = tmp_path / "out"
+    assert match(out, [virtuals / "e0.stl"], "--no-view") == 0
+    victim = tmp_path / "victim.txt"
+    victim.write_text("keep me")
+    (out / "linked").symlink_to(tmp_path, target_is_directory=True)
+    name = name.format(abs=str(victim))
+    control = out / ".pinchmatch"
+    (control / "commit.json").write_text(json.dumps({"new": [name], "staged": [], "remove": [name]}))
+    (control / "manifest.json").write_text(json.dumps({"files": [name]}))
+    publish.finish_commit(out)
+    assert victim.read_text() == "keep me"

@@ -54,6 +54,10 @@ class OutputError(PinchmatchError):
     """An output that cannot be written: a read-only or full file system, no permission."""
 
 
+class Terminated(BaseException):
+    """SIGTERM arrived: unwind like Ctrl-C, so that nothing is left half-written."""
+
+
 class RunError(Exception):
     """The run itself broke (a worker died), not the input: one line, exit 1, and what to change."""
 

@@ -12,34 +12,20 @@ loading the pipeline (:mod:`pinchmatch.cli.commands` and everything below it).
 from __future__ import annotations
 
 import logging
-import signal
 import sys
-import threading
 
-from ..errors import PinchmatchError, RunError, route_warnings
+from .. import signals
+from ..errors import PinchmatchError, RunError, Terminated, route_warnings
 from ..cores import default_jobs
 from ..runner.forkserver import start_worker_server
 from .parser import build_parser, check_option_names, join_vector_values
 
 
-class Terminated(BaseException):
-    """SIGTERM arrived: unwind like Ctrl-C, so that nothing is left half-written."""
-
-
-def _on_sigterm(signum, frame):
-    raise Terminated()
-
-
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; return the exit code."""
     argv = list(sys.argv[1:] if argv is None else argv)
-    main_thread = threading.current_thread() is threading.main_thread()
-    previous = signal.signal(signal.SIGTERM, _on_sigterm) if main_thread else None
-    try:
+    with signals.handled():
         return _main(argv)
-    finally:
-        if main_thread:
-            signal.signal(signal.SIGTERM, previous)
 
 
 def _main(argv: list[str]) -> int:
@@ -57,6 +43,7 @@ def _main(argv: list[str]) -> int:
             start_worker_server()  # it loads the pipeline for the workers while this process does the same
         from .commands import COMMANDS  # the pipeline: loaded for a command, not for --help
 
+        signals.arm()  # the pipeline is loaded: a signal that came meanwhile ends the run now
         return COMMANDS[args.command](args)
     except PinchmatchError as exc:
         print(f"pinchmatch: error: {exc.cli_message()}", file=sys.stderr)

@@ -28,6 +28,7 @@ import shutil
 from pathlib import Path
 
 from ..errors import OutputError
+from .. import signals
 from ..files import RESULT_CONTROL, signals_deferred, write_atomic
 
 CONTROL = RESULT_CONTROL
@@ -63,6 +64,13 @@ class OutputFolder:
             raise OutputError(f"{self.out}: another pinchmatch run is writing this folder; wait for it to end, "
                               "or choose another -o") from None
         self._lock = fd
+        try:
+            _refuse_links_out(self.out, read_manifest(self.out))
+        except BaseException:
+            fcntl.flock(fd, fcntl.LOCK_UN)
+            os.close(fd)
+            self._lock = None
+            raise
         finish_commit(self.out)
         shutil.rmtree(self.stage, ignore_errors=True)  # what a stopped run left
         self.stage.mkdir()
@@ -72,23 +80,33 @@ class OutputFolder:
         self._direct.append(Path(path).relative_to(self.out).as_posix())
 
     def __exit__(self, exc_type, exc, tb):
+        lost = None
+        if exc_type is None:
+            try:
+                signals.check()  # a signal whose exception was swallowed on the way: nothing is published
+            except BaseException as caught:  # KeyboardInterrupt or Terminated
+                lost = caught
+        failed = exc_type is not None or lost is not None
         try:
-            if exc_type is None:
+            if not failed:
                 with signals_deferred():
                     self._publish()
         finally:
             if not (self.control / "commit.json").exists():  # a journal still needs what is staged
                 shutil.rmtree(self.stage, ignore_errors=True)
-            if exc_type is not None and self._created:
+            if failed and self._created:
                 shutil.rmtree(self.out, ignore_errors=True)  # a folder this run made and did not finish
             fcntl.flock(self._lock, fcntl.LOCK_UN)
             os.close(self._lock)
             self._lock = None
+        if lost is not None:
+            raise lost
 
     def _publish(self) -> None:
         new = sorted({p.relative_to(self.stage).as_posix() for p in self.stage.rglob("*") if p.is_file()}
                      | set(self._direct))
         old = read_manifest(self.out)
+        _refuse_links_out(self.out, new + old)  # a link made while the run worked
         journal = {"new": new, "staged": [n for n in new if (self.stage / n).is_file()],
                    "remove": sorted(set(old) - set(new))}
         write_atomic(self.control / "commit.json", json.dumps(journal))
@@ -138,11 +156,11 @@ def finish_commit(out: str | os.PathLike) -> None:
     try:
         for name in journal["staged"]:
             source, target = control / "staging" / name, out / name
-            if _inside(name) and source.is_file():
+            if _really_inside(out, name) and source.is_file():
                 target.parent.mkdir(parents=True, exist_ok=True)
                 os.replace(source, target)
         for name in journal["remove"]:
-            if _inside(name):
+            if _really_inside(out, name):
                 (out / name).unlink(missing_ok=True)
                 _prune_empty(out, (out / name).parent)
         write_atomic(control / "manifest.json", json.dumps({"files": journal["new"]}, indent=1))
@@ -155,6 +173,30 @@ def finish_commit(out: str | os.PathLike) -> None:
 def _inside(name: str) -> bool:
     parts = Path(name).parts
     return bool(parts) and not Path(name).is_absolute() and ".." not in parts and parts[0] != CONTROL
+
+
+def _really_inside(out: Path, name: str) -> bool:
+    """``name`` is a path inside ``out`` and the folder that holds it is too, links followed: writing or
+    deleting it touches nothing outside ``out``."""
+    if not _inside(name):
+        return False
+    base = os.path.realpath(out)
+    parent = os.path.realpath(Path(out) / Path(name).parent)
+    return parent == base or parent.startswith(base + os.sep)
+
+
+def _refuse_links_out(out: Path, names: list[str]) -> None:
+    """Refuse a folder of ``out`` that is a link out of it: one of its entries, or a folder on the
+    way to a result file (``names``)."""
+    out = Path(out)
+    folders = {out / p.name for p in out.iterdir() if p.is_symlink() and p.is_dir()} if out.is_dir() else set()
+    folders |= {(out / n).parent for n in names if _inside(n)}
+    base = os.path.realpath(out)
+    for folder in sorted(folders):
+        real = os.path.realpath(folder)
+        if not (real == base or real.startswith(base + os.sep)):
+            raise OutputError(f"{folder}: a symbolic link out of the output folder (to {real}); pinchmatch never "
+                              "writes or deletes through one; remove the link, or choose another -o")
 
 
 def _prune_empty(out: Path, folder: Path) -> None:

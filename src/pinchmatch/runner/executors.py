@@ -19,6 +19,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from ..errors import ConfigError
+from .. import signals
 from ..files import signals_deferred
 from ..cores import default_jobs, set_thread_budget
 from ..match.candidates import Candidates
@@ -78,8 +79,10 @@ def _in_order(submit: Callable, items: Iterable, window: int) -> Iterator:
         pending.append(submit(item))
         if len(pending) >= window:
             yield pending.popleft().result()
+            signals.check()
     while pending:
         yield pending.popleft().result()
+        signals.check()
 
 
 
@@ -132,17 +135,25 @@ class LocalExecutor(Executor):
 
     @contextmanager
     def stages(self, show):
-        """As :meth:`Executor.stages`, the workers' reports read by a thread of this process."""
+        """As :meth:`Executor.stages`, the workers' reports read by a thread of this process.
+
+        This process never puts on the queue: a worker killed while it puts holds the queue's write
+        lock for ever, and a put here would wait for it."""
+        done = threading.Event()
+
         def read():
-            while (item := self._stages.get()) is not None:
-                show(*item)
+            while True:
+                if not self._stages.empty():
+                    show(*self._stages.get())
+                elif done.wait(0.02):
+                    return
 
         reader = threading.Thread(target=read, daemon=True)
         reader.start()
         try:
             yield
         finally:
-            self._stages.put(None)
+            done.set()
             reader.join(timeout=5)
 
     def share(self, payloads, tangibles):
