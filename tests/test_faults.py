@@ -131,3 +131,50 @@ def test_a_full_tmpfs(tmp_path):
         assert_one_line(proc.stderr, "cannot write it (No space left on device)", str(mount / "out"))
     finally:
         subprocess.run(["umount", str(mount)])
+
+
+def test_a_full_cache_disk_costs_only_the_caching(tmp_path):
+    """The cache is an optimisation: on a full disk the run goes on without it, says so once, leaves no
+    temporary file there and writes the same result as a run without a cache."""
+    mount = tmp_path / "cache"
+    mount.mkdir()
+    if os.geteuid() != 0 or subprocess.run(["mount", "-t", "tmpfs", "-o", "size=100k", "tmpfs", str(mount)],
+                                           capture_output=True).returncode != 0:
+        pytest.skip("cannot mount a tmpfs here")
+    try:
+        (mount / "filler").write_bytes(b"\0" * 90_000)
+        argv = [sys.executable, "-m", "pinchmatch", "match", "--tangible", example_mesh_path(), "--virtual",
+                example_mesh_path(), "--count", "120", "-q", "--jobs", "1", "--no-view"]
+        proc = subprocess.run(argv + ["-o", tmp_path / "out", "--cache", mount], capture_output=True, text=True,
+                              timeout=600)
+        assert proc.returncode == 0, proc.stderr
+        lines = proc.stderr.strip().splitlines()
+        assert len(lines) == 1 and "cache" in lines[0] and "going on without it" in lines[0], lines
+        assert not [p.name for p in mount.iterdir() if p.name.endswith(".tmp")]  # what fitted is whole, no more
+        plain = subprocess.run(argv + ["-o", tmp_path / "plain", "--no-cache"], capture_output=True, timeout=600)
+        assert plain.returncode == 0
+        assert (tmp_path / "out" / "matches.json").read_bytes() == (tmp_path / "plain" / "matches.json").read_bytes()
+    finally:
+        subprocess.run(["umount", str(mount)])
+
+
+def test_clearing_a_read_only_cache_is_one_line(tmp_path, capsys):
+    cache = tmp_path / "cache"
+    assert main(["match", "--tangible", str(example_mesh_path()), "--virtual", str(example_mesh_path()), "--count",
+                 "60", "-q", "--jobs", "1", "--no-view", "-o", str(tmp_path / "out"), "--cache", str(cache)]) == 0
+    capsys.readouterr()
+    cache.chmod(0o555)
+    try:
+        if os.access(cache, os.W_OK) and os.geteuid() == 0:
+            mount_ro = subprocess.run(["mount", "--bind", "-o", "ro", str(cache), str(cache)], capture_output=True)
+            if mount_ro.returncode != 0:
+                pytest.skip("cannot make a read-only folder here")
+            subprocess.run(["mount", "-o", "remount,ro,bind", str(cache)], capture_output=True)
+        try:
+            assert main(["cache", "clear", "--cache", str(cache)]) == 2
+            assert_one_line(capsys.readouterr().err, "cannot delete", str(cache))
+        finally:
+            if os.geteuid() == 0:
+                subprocess.run(["umount", str(cache)], capture_output=True)
+    finally:
+        cache.chmod(0o755)

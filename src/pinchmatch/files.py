@@ -71,9 +71,15 @@ class AtomicFile:
             raise self._error(exc) from None
 
     def abort(self) -> None:
-        self.file.close()
-        if os.path.exists(self._tmp):
+        """Drop the temporary file; on a full disk, closing it fails again, and it goes all the same."""
+        try:
+            self.file.close()
+        except OSError:
+            pass
+        try:
             os.unlink(self._tmp)
+        except FileNotFoundError:
+            pass
 
 
 def read_input(path: str | os.PathLike, what: str, *, limit_bytes: int, too_big: str = "") -> bytes:

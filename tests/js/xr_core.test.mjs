@@ -118,6 +118,14 @@ test("CSV: a header, quoted fields where needed, numbers to 4 decimals", () => {
   assert.equal(text, 'a,b,c\r\n1,"x,y",0.1235\r\n2,"say ""hi""",\r\n');
 });
 
+test("CSV: text that a spreadsheet would run as a formula is neutralised, numbers are not", () => {
+  const rows = [{ who: "=HYPERLINK(\"http://x\")", obj: "+cmd", note: "-2+3", at: "@SUM(A1)", tab: "\tx", n: -0.5 },
+                { who: "ada", obj: "mug=1", note: "a-b", at: "x@y", tab: "t", n: -3 }];
+  const text = XR.toCSV(rows, ["who", "obj", "note", "at", "tab", "n"]);
+  assert.equal(text, 'who,obj,note,at,tab,n\r\n"\'=HYPERLINK(""http://x"")",\'+cmd,\'-2+3,\'@SUM(A1),\'\tx,-0.5000\r\n' +
+    "ada,mug=1,a-b,x@y,t,-3\r\n");
+});
+
 test("a steady touch: one point after 1 s within 3 mm, none while moving, none again until moved away", () => {
   const touch = new XR.SteadyTouch({ radius_mm: 3, hold_s: 1, away_mm: 20 });
   const at = (x_mm) => [x_mm / 1000, 0.9, -0.4];

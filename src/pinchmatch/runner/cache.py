@@ -55,6 +55,8 @@ from ..mesh.properties import ObjectProperties
 from ..mesh.surface import SurfaceContext
 
 log = logging.getLogger(__name__)
+#: cache folders found unwritable in this process: said once each
+_UNWRITABLE: set[str] = set()
 
 #: bump when the layout of an entry changes (what it holds and how it is named)
 CACHE_FORMAT = 2
@@ -146,17 +148,23 @@ class FeatureCache:
         return self.folder / f"{key}.npz"
 
     def write_entry(self, path: Path, arrays: dict) -> None:
-        """One entry file, atomically; a folder that cannot be written is logged, not raised."""
+        """One entry file, atomically; a folder that cannot be written (no permission, a full disk) is
+        said once, not raised: the run goes on without caching."""
         try:
             entry = AtomicFile(path, binary=True)
             try:
                 np.savez(entry.file, **arrays)
-            except OSError as exc:
+            except BaseException as exc:
                 entry.abort()
-                raise entry._error(exc) from None
+                if isinstance(exc, OSError):
+                    raise entry._error(exc) from None
+                raise
             entry.commit()
         except OutputError as exc:
-            log.warning("cannot write the cache in %s (%s); going on without it", self.folder, exc)
+            if str(self.folder) not in _UNWRITABLE:
+                reason = str(exc).split("(", 1)[-1].split(")", 1)[0]
+                log.warning("cannot write the cache in %s (%s); going on without it", self.folder, reason)
+            _UNWRITABLE.add(str(self.folder))
 
     def _load_probes(self, key: str, candidates: Candidates) -> None:
         """Fill ``candidates.probes`` from the key's probes file, if there is a whole one."""
@@ -249,7 +257,11 @@ class FeatureCache:
         temporaries = [p for p in self.folder.iterdir()
                        if TEMP_NAME.match(p.name) and p.is_file() and not p.is_symlink()]
         for p in entries + temporaries:
-            p.unlink(missing_ok=True)
+            try:
+                p.unlink(missing_ok=True)
+            except OSError as exc:
+                raise OutputError(f"{self.folder}: cannot delete its entries ({exc.strerror or exc}); make the folder "
+                                  "writable, or give another with --cache") from None
         return len(entries)
 
 

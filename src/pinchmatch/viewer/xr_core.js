@@ -232,7 +232,9 @@
   function toCSV(rows, columns) {
     const cell = (v) => {
       if (v === null || v === undefined) return "";
-      const text = typeof v === "number" ? (Number.isInteger(v) ? String(v) : v.toFixed(4)) : String(v);
+      let text = typeof v === "number" ? (Number.isInteger(v) ? String(v) : v.toFixed(4)) : String(v);
+      // a text cell that a spreadsheet would read as a formula is neutralised with a leading quote
+      if (typeof v !== "number" && /^[=+\-@\t\r]/.test(text)) text = `'${text}`;
       return /[",\r\n]/.test(text) ? `"${text.replace(/"/g, '""')}"` : text;
     };
     return [columns.join(","), ...rows.map((r) => columns.map((c) => cell(r[c])).join(","))].join("\r\n") + "\r\n";
