@@ -7,11 +7,9 @@ they pass to ``--p1``.
 
 from __future__ import annotations
 
-import json
 import logging
 import os
 import struct
-import urllib.parse
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -22,6 +20,7 @@ import trimesh
 from ..errors import ConfigError, MeshError
 from ..files import holds_result
 from .frames import UNITS_MM, check_units, parse_up
+from .gltf_check import PercentDecoding, check_gltf
 from . import topology
 from .level import LevelNode, level_nodes, node_mesh
 
@@ -240,21 +239,6 @@ def _check_ply_counts(path: Path, size: int) -> None:
                         "them; the header is wrong, re-export it")
 
 
-def _check_gltf_buffers(path: Path) -> None:
-    """Name the external buffer a .gltf needs and lacks (the reader would only say 'not found')."""
-    try:
-        document = json.loads(path.read_text(encoding="utf-8"))
-        uris = [b.get("uri") for b in document.get("buffers", [])]
-    except (ValueError, UnicodeDecodeError, AttributeError, TypeError):
-        return  # the reader will say what is wrong
-    for uri in uris:
-        if isinstance(uri, str) and not uri.startswith("data:"):
-            buffer = path.parent / urllib.parse.unquote(uri)
-            if not buffer.is_file():
-                raise MeshError(f"{path}: its buffer file {uri!r} is missing (looked for {buffer}); copy it next to "
-                                "the .gltf, or export a .glb, which holds its buffers")
-
-
 #: formats whose coordinates are 32-bit floats (binary STL and glTF always, binary PLY as written)
 FLOAT32_TYPES = ("stl", "glb", "gltf", "ply")
 
@@ -297,6 +281,10 @@ def _check_readable(path: Path) -> None:
 
 
 def _load(path: Path, file_type: str, **kwargs):
+    if file_type in GLTF_TYPES:
+        check_gltf(path, file_type)
+    if file_type == "gltf":
+        kwargs.setdefault("resolver", PercentDecoding(str(path)))
     try:
         return trimesh.load(str(path), file_type=file_type, process=False, **kwargs)
     except (IndexError,) as exc:
@@ -543,8 +531,6 @@ def load_mesh(
         _check_binary_stl(path, size)
     elif file_type == "ply":
         _check_ply_counts(path, size)
-    elif file_type == "gltf":
-        _check_gltf_buffers(path)
 
     say = progress or (lambda stage: None)
     say(f"reading {size / 2**20:.0f} MiB" if size >= 2**20 else "reading")

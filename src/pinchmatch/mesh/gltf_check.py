@@ -1,0 +1,124 @@
+"""A glTF or GLB document checked before trimesh reads it: its node hierarchy and its buffers.
+
+trimesh builds a level's scene graph from the document's ``nodes`` without checking that they form a
+forest: a cycle of children makes it (and any walk up the hierarchy) loop for ever, and its world
+transforms cost more than linear time in the depth (a chain 1,000 nodes deep takes minutes). So the
+document is read first, and refused in one line when a node names a child that does not exist, when a
+node has two parents or the children form a cycle, or when the level is larger than
+:data:`MAX_NODES` nodes or deeper than :data:`MAX_DEPTH` (real levels are a few dozen deep). The walk is
+iterative and linear in the number of nodes. A ``.gltf``'s external buffers are looked for as the
+specification says, their URIs percent-decoded.
+"""
+
+from __future__ import annotations
+
+import json
+import struct
+import urllib.parse
+from pathlib import Path
+
+import trimesh
+
+from ..errors import MeshError
+
+#: the most nodes a level may hold
+MAX_NODES = 100_000
+#: the deepest chain of nodes a level may hold (root at depth 1)
+MAX_DEPTH = 256
+#: a GLB's JSON chunk larger than this is not read ahead of trimesh (its own reader bounds it)
+MAX_JSON_BYTES = 64 * 2**20
+
+
+def gltf_document(path: Path, file_type: str) -> dict | None:
+    """The JSON document of a .gltf, or of a .glb's first chunk; None where it cannot be read (the
+    reader then says what is wrong)."""
+    try:
+        if file_type == "gltf":
+            if path.stat().st_size > MAX_JSON_BYTES:
+                return None
+            document = json.loads(path.read_text(encoding="utf-8"))
+        else:
+            with open(path, "rb") as fh:
+                header = fh.read(20)
+                if len(header) < 20 or header[:4] != b"glTF":
+                    return None
+                length, kind = struct.unpack("<I4s", header[12:20])
+                if kind != b"JSON" or length > MAX_JSON_BYTES:
+                    return None
+                document = json.loads(fh.read(length).decode("utf-8"))
+    except (OSError, ValueError, UnicodeDecodeError, RecursionError):
+        return None
+    return document if isinstance(document, dict) else None
+
+
+def check_hierarchy(path: Path, document: dict) -> None:
+    """Refuse a node hierarchy that is not a forest of bounded size and depth (module notes)."""
+    nodes = document.get("nodes", [])
+    if not isinstance(nodes, list):
+        raise MeshError(f"{path}: 'nodes' is not a list; the file is corrupt, re-export it")
+    n = len(nodes)
+    if n > MAX_NODES:
+        raise MeshError(f"{path}: the level holds {n} nodes, more than {MAX_NODES}; split it into smaller levels")
+    parent = [-1] * n
+    children: list[list[int]] = []
+    for i, node in enumerate(nodes):
+        kids = node.get("children", []) if isinstance(node, dict) else []
+        if not isinstance(kids, list) or not all(isinstance(k, int) and not isinstance(k, bool) for k in kids):
+            raise MeshError(f"{path}: node {i}'s children are not a list of node indices; re-export the level")
+        for k in kids:
+            if not 0 <= k < n:
+                raise MeshError(f"{path}: node {i} names child node {k}, and the level has nodes 0 to {n - 1}; "
+                                "the file is corrupt, re-export it")
+            if parent[k] != -1 or k == i:
+                raise MeshError(f"{path}: node {k} is a child of two nodes ({parent[k] if k != i else i} and {i}) or "
+                                "of itself, so the nodes do not form a tree; re-export the level")
+            parent[k] = i
+        children.append(kids)
+    depth = [0] * n
+    stack = [i for i in range(n) if parent[i] == -1]
+    for root in stack:
+        depth[root] = 1
+    reached = 0
+    while stack:
+        i = stack.pop()
+        reached += 1
+        if depth[i] > MAX_DEPTH:
+            raise MeshError(f"{path}: the level's nodes nest more than {MAX_DEPTH} deep (node {i}); flatten the "
+                            "hierarchy when exporting it")
+        for k in children[i]:
+            depth[k] = depth[i] + 1
+            stack.append(k)
+    if reached < n:
+        loop = next(i for i in range(n) if depth[i] == 0)
+        raise MeshError(f"{path}: the nodes' children form a cycle (through node {loop}), so the level is not a "
+                        "tree; re-export it")
+
+
+def check_buffers(path: Path, document: dict) -> None:
+    """Name the external buffer a .gltf needs and lacks (the reader would only say 'not found')."""
+    buffers = document.get("buffers", [])
+    uris = [b.get("uri") for b in buffers if isinstance(b, dict)] if isinstance(buffers, list) else []
+    for uri in uris:
+        if isinstance(uri, str) and not uri.startswith("data:"):
+            buffer = path.parent / urllib.parse.unquote(uri)
+            if not buffer.is_file():
+                raise MeshError(f"{path}: its buffer file {uri!r} is missing (looked for {buffer}); copy it next to "
+                                "the .gltf, or export a .glb, which holds its buffers")
+
+
+def check_gltf(path: Path, file_type: str) -> None:
+    """Check a glTF or GLB document before it is read (hierarchy, and a .gltf's buffers)."""
+    document = gltf_document(path, file_type)
+    if document is None:
+        return  # the reader will say what is wrong
+    check_hierarchy(path, document)
+    if file_type == "gltf":
+        check_buffers(path, document)
+
+
+class PercentDecoding(trimesh.resolvers.FilePathResolver):
+    """trimesh's resolver of a .gltf's files, with the URIs percent-decoded as the specification says
+    (``a%20b.bin`` is the file ``a b.bin``)."""
+
+    def get(self, name: str):
+        return super().get(urllib.parse.unquote(name))

@@ -1,0 +1,100 @@
+"""Levels that are not trees, or too deep, are refused in one line before trimesh reads them."""
+
+import json
+import struct
+import time
+
+import numpy as np
+import pytest
+import trimesh
+
+from pinchmatch.cli.commands import main
+from pinchmatch.errors import MeshError
+from pinchmatch.mesh.gltf_check import MAX_DEPTH, check_hierarchy
+from pinchmatch.mesh.load import read_level
+
+from conftest import assert_one_line
+
+
+def glb(nodes: list[dict], scenes_roots: list[int]) -> bytes:
+    """A GLB of one box mesh (metres) and the given nodes (each may carry ``mesh`` and ``children``)."""
+    box = trimesh.creation.box(extents=(0.05, 0.04, 0.03))
+    v = np.asarray(box.vertices, np.float32).tobytes()
+    f = np.asarray(box.faces, np.uint32).ravel().tobytes()
+    blob = v + f
+    doc = {"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": scenes_roots}], "nodes": nodes,
+           "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
+           "buffers": [{"byteLength": len(blob)}],
+           "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": len(v)},
+                           {"buffer": 0, "byteOffset": len(v), "byteLength": len(f)}],
+           "accessors": [{"bufferView": 0, "componentType": 5126, "count": len(box.vertices), "type": "VEC3",
+                          "min": box.vertices.min(axis=0).tolist(), "max": box.vertices.max(axis=0).tolist()},
+                         {"bufferView": 1, "componentType": 5125, "count": box.faces.size, "type": "SCALAR"}]}
+    text = json.dumps(doc).encode()
+    text += b" " * (-len(text) % 4)
+    blob += b"\0" * (-len(blob) % 4)
+    body = struct.pack("<I4s", len(text), b"JSON") + text + struct.pack("<I4s", len(blob), b"BIN\0") + blob
+    return struct.pack("<4sII", b"glTF", 2, 12 + len(body)) + body
+
+
+def chain(depth: int) -> list[dict]:
+    """Nodes 0 -> 1 -> ... -> depth-1, the last holding the mesh, each moved 1 cm."""
+    nodes = [{"name": f"n{i}", "translation": [0.01, 0, 0], "children": [i + 1]} for i in range(depth - 1)]
+    return nodes + [{"name": f"n{depth - 1}", "mesh": 0}]
+
+
+@pytest.mark.parametrize("nodes, roots, words", [
+    ([{"name": "a", "mesh": 0, "children": [1]}, {"name": "b", "children": [0]}], [0], "cycle"),
+    ([{"name": "a", "mesh": 0, "children": [0]}], [0], "of itself"),
+    ([{"name": "a", "children": [2]}, {"name": "b", "children": [2]}, {"name": "c", "mesh": 0}], [0, 1],
+     "child of two nodes"),
+    ([{"name": "a", "mesh": 0, "children": [7]}], [0], "names child node 7"),
+    ([{"name": "a", "mesh": 0, "children": ["1"]}], [0], "not a list of node indices"),
+    (chain(MAX_DEPTH + 1), [0], f"nest more than {MAX_DEPTH} deep"),
+])
+@pytest.mark.parametrize("split", [True, False])
+def test_a_level_that_is_not_a_bounded_tree_is_one_line(tmp_path, capsys, nodes, roots, words, split):
+    level = tmp_path / "level.glb"
+    level.write_bytes(glb(nodes, roots))
+    argv = ["match", "--tangible", str(level) if not split else str(tmp_path / "prop.stl"), "--virtual", str(level),
+            "--count", "60", "-q", "--no-cache", "-o", str(tmp_path / "out")]
+    trimesh.creation.box(extents=(40.0, 30.0, 20.0)).export(tmp_path / "prop.stl")
+    if split:
+        argv += ["--split", "nodes"]
+    t0 = time.perf_counter()
+    assert main(argv) == 2
+    assert time.perf_counter() - t0 < 30
+    assert_one_line(capsys.readouterr().err, str(level), words)
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_deep_but_bounded_level_is_read_in_reasonable_time(tmp_path):
+    level = tmp_path / "deep.glb"
+    level.write_bytes(glb(chain(MAX_DEPTH), [0]))
+    t0 = time.perf_counter()
+    nodes = read_level(level)
+    assert time.perf_counter() - t0 < 20
+    assert [n.name for n in nodes] == [f"n{MAX_DEPTH - 1}"]
+
+
+def test_the_hierarchy_walk_is_linear_in_the_nodes():
+    """100,000 nodes, a forest of short chains, checked in well under a second each way."""
+    nodes = [{"children": [i + 1]} if i % 10 != 9 else {} for i in range(100_000)]
+    t0 = time.perf_counter()
+    check_hierarchy("big.glb", {"nodes": nodes})
+    assert time.perf_counter() - t0 < 2.0
+    with pytest.raises(MeshError, match="more than 100000"):
+        check_hierarchy("big.glb", {"nodes": nodes + [{}]})
+
+
+def test_a_gltf_buffer_uri_is_percent_decoded_as_the_specification_says(tmp_path):
+    from pinchmatch.mesh.load import load_mesh
+
+    files = trimesh.exchange.gltf.export_gltf(trimesh.Scene(trimesh.creation.box(extents=(0.04, 0.03, 0.02))))
+    doc = json.loads(files["model.gltf"])
+    for i, buffer in enumerate(doc["buffers"]):
+        (tmp_path / f"a b{i}.bin").write_bytes(files[buffer["uri"]])
+        buffer["uri"] = f"a%20b{i}.bin"
+    (tmp_path / "m.gltf").write_text(json.dumps(doc))
+    mesh = load_mesh(tmp_path / "m.gltf")
+    np.testing.assert_allclose(mesh.mesh.extents, [40.0, 30.0, 20.0], atol=1e-4)  # metres read as mm
