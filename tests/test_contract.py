@@ -1,12 +1,14 @@
 """The command line's contract under odd input: one line naming the problem, exit 2, nothing written."""
 
 import json
+import os
+import time
 
 import numpy as np
 import pytest
 import trimesh
 
-from pinchmatch.cli.commands import example_mesh_path
+from pinchmatch.cli.commands import example_mesh_path, main
 from pinchmatch.errors import ConfigError
 from pinchmatch.match.search import MatchSettings
 from pinchmatch.mesh.shapes import ellipsoid
@@ -234,3 +236,52 @@ def test_each_validator_says_what_to_change(tmp_path, capsys, argv, words):
     code, _, err = run_cli(capsys, *argv, *(["-o", tmp_path / "out"] if argv[0] == "match" else []))
     assert_bad_input(code, err, *words)
     assert not (tmp_path / "out").exists() and not (tmp_path / "c").exists()
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["match", "--tangible", "{prop}", "--virtual", "{prop}", "--weights", "width=1e308"], "more than 1e+06"),
+    (["match", "--tangible", "{prop}", "--virtual", "{prop}", "--weights-file", "{deep}"], "nested too deep"),
+    (["match", "--tangible", "{prop}", "--virtual", "{prop}", "--weights-file", "{twice}"], "given twice"),
+    (["match", "--tangible", "{far}", "--virtual", "{prop}"], "within 1e+06 mm"),
+    (["match", "--tangible", "{nested}", "--virtual", "{prop}"], "nested too deep"),
+    (["design", "--virtual", "{prop}", "--budget-s", "inf"], "at most 86400"),
+    (["design", "--virtual", "{prop}", "--budget-s", "1e12"], "at most 86400"),
+    (["design", "--virtual", "{prop}", "-k", "100"], "at most 8 props"),
+    (["design", "--virtual", "{prop}", "--max-height-mm", "1e9"], "at most 1000 mm"),
+    (["calibrate", "{pipe}"], "not a regular file"),
+    (["calibrate", "{ragged}"], "row 3 has 2 cells"),
+    (["calibrate", "{quote}"], "check its quotes"),
+    (["calibrate", "{dupcol}"], "appears twice"),
+    (["calibrate", "{unknown}"], "unknown column 'grip_jnd'"),
+    (["calibrate", "{huge}"], "beyond"),
+    (["calibrate", "{ok}", "--seed", "-3"], "--seed"),
+    (["select", "--tangible", "{prop}", "{prop}", "--virtual", "{prop}", "-k", "2", "--max-k", "1"], "--max-k 1"),
+])
+def test_every_input_is_bounded_and_refused_in_one_line(tmp_path, capsys, argv, words):
+    prop = tmp_path / "prop.stl"
+    trimesh.creation.box(extents=(40.0, 30.0, 20.0)).export(prop)
+    files = {"prop": prop, "deep": tmp_path / "deep.json", "twice": tmp_path / "twice.json",
+             "far": tmp_path / "far.toml", "nested": tmp_path / "nested.toml", "pipe": tmp_path / "pipe.csv",
+             "ragged": tmp_path / "ragged.csv", "quote": tmp_path / "quote.csv", "dupcol": tmp_path / "dup.csv",
+             "unknown": tmp_path / "unknown.csv", "huge": tmp_path / "huge.csv", "ok": tmp_path / "ok.csv"}
+    files["deep"].write_text('{"weights": ' + "[" * 100_000 + "]" * 100_000 + "}")
+    files["twice"].write_text('{"weights": {"width": 1, "width": 2}}')
+    files["far"].write_text(f'[[object]]\nfile = "{prop}"\ncom_mm = [1e300, 0, 0]\n')
+    files["nested"].write_text("a = " + "[" * 50_000 + "]" * 50_000 + "\n")
+    os.mkfifo(files["pipe"])
+    rows = "\n".join(f"{r},{w},{k}" for r, w, k in [(6, 0.1, 0.2), (5, 0.5, 0.9), (3, 1.2, 0.3), (2, 1.5, 1.4),
+                                                    (4, 0.8, 0.4), (6.5, 0.0, 0.1)])
+    files["ok"].write_text("rating,width_jnd,kmax_jnd\n" + rows + "\n")
+    files["ragged"].write_text("rating,width_jnd,kmax_jnd\n6,0.1,0.2\n5,0.5\n")
+    files["quote"].write_text('rating,width_jnd,kmax_jnd\n6,0.1,"0.2\n')
+    files["dupcol"].write_text("rating,width_jnd,width_jnd\n" + rows + "\n")
+    files["unknown"].write_text("rating,width_jnd,grip_jnd\n" + rows + "\n")
+    files["huge"].write_text("rating,width_jnd,kmax_jnd\n1e300,0.1,0.2\n" + rows + "\n")
+    out = tmp_path / ("o.json" if argv[0] == "calibrate" else "o")
+    argv = [a.format(**files) for a in argv] + ["-o", str(out), "-q"]
+    t0 = time.perf_counter()
+    assert main(argv) == 2
+    assert time.perf_counter() - t0 < 20
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and words in err[0] and "Traceback" not in err[0], err
+    assert not out.exists()

@@ -88,7 +88,8 @@ def read_input(path: str | os.PathLike, what: str, *, limit_bytes: int, too_big:
     (``too_big`` adds what to do then)."""
     path = os.fspath(path)
     try:
-        with open(path, "rb") as fh:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)  # a named pipe opens at once instead of waiting
+        with open(fd, "rb") as fh:
             if not stat.S_ISREG(os.fstat(fh.fileno()).st_mode):
                 raise ConfigError(f"{path}: not a regular file (a device or a pipe); give a {what}")
             raw = fh.read(limit_bytes + 1)

@@ -66,6 +66,9 @@ def cmd_select(args) -> int:
         raise ConfigError(f"-k {args.k}: choose between 1 and the {len(shelf_specs)} props of the shelf")
     if args.max_k is not None and args.max_k < 1:
         raise ConfigError(f"--max-k {args.max_k}: give 1 or more")
+    if args.max_k is not None and args.max_k < args.k:
+        raise ConfigError(f"--max-k {args.max_k}: the coverage curve must reach -k {args.k}; give --max-k {args.k} "
+                          "or more")
     out = out_folder(args)
     scene_specs = object_specs(args.virtual, option="--virtual", split=args.split)
     check_match_flags(args)

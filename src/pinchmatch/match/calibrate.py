@@ -56,6 +56,8 @@ CONSTANT_TOLERANCE = 1e-9
 #: a criterion whose differences stay below this (JND) everywhere in the table is never near noticeable
 #: there: its weight would be a guess (and a huge one fits as well as any)
 SMALLEST_FITTED_JND = 0.1
+#: the bounds of a table's numbers: a rating scale's points, and differences in JND
+MAX_RATING, MAX_JND = 1e6, 1e4
 #: where the fit starts: every weight at each of these (the best end is kept)
 STARTS = (1.0, 0.25, 4.0)
 #: ways of holding rows out
@@ -114,10 +116,26 @@ class Calibration:
 def read_ratings(text: str, source: str, *, criteria: tuple | None = None) -> Ratings:
     """Parse a ratings CSV: a ``rating`` column and one ``<criterion>_jnd`` column per criterion
     (only ``criteria`` if given); optional ``pair`` or ``object`` + ``pose_source`` group the rows."""
-    rows = list(csv.DictReader(io.StringIO(text)))
-    if not rows:
+    try:
+        table = list(csv.reader(io.StringIO(text), strict=True))
+    except csv.Error as exc:
+        raise ConfigError(f"{source}: not a CSV table ({exc}); check its quotes") from None
+    table = [row for row in table if row]  # blank lines
+    if len(table) < 2:
         raise ConfigError(f"{source}: no rated rows; give a CSV with a header and one row per rated trial")
-    header = set(rows[0])
+    names = [n.strip() for n in table[0]]
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise ConfigError(f"{source}: the column {', '.join(map(repr, twice))} appears twice; give each column once")
+    unknown = [n for n in names if n.endswith("_jnd") and n[:-4] not in CRITERIA]
+    if unknown:
+        raise ConfigError(f"{source}: unknown column {', '.join(map(repr, unknown))}; the criteria are "
+                          f"{', '.join(CRITERIA)}")
+    for line, row in enumerate(table[1:], start=2):
+        if len(row) != len(names):
+            raise ConfigError(f"{source}: row {line} has {len(row)} cells and the header {len(names)}; fix that row")
+    rows = [dict(zip(names, row)) for row in table[1:]]
+    header = set(names)
     if "rating" not in header:
         raise ConfigError(f"{source}: no 'rating' column; the table needs rating and <criterion>_jnd columns "
                           "(docs/study.md)")
@@ -142,6 +160,9 @@ def read_ratings(text: str, source: str, *, criteria: tuple | None = None) -> Ra
     if not np.isfinite(values).all() or (values[:, 1:] < 0).any():
         raise ConfigError(f"{source}: a rating or a difference is not finite, or a difference is negative; "
                           "the <criterion>_jnd columns are sizes in JND (0 or more)")
+    if (np.abs(values[:, 0]) > MAX_RATING).any() or (values[:, 1:] > MAX_JND).any():
+        raise ConfigError(f"{source}: a rating beyond ±{MAX_RATING:g} or a difference over {MAX_JND:g} JND; "
+                          "ratings are points of a scale and differences sizes in JND")
     if "pair" in header:
         keys = [r["pair"] for r in rated]
     elif {"object", "pose_source"} <= header:
@@ -305,10 +326,20 @@ def read_weights_file(text: str, source: str) -> tuple[dict, str | None]:
     pooling they were fitted for (None where the file does not say)."""
     import json
 
+    def unique(pairs):
+        keys = [k for k, _ in pairs]
+        twice = sorted({k for k in keys if keys.count(k) > 1})
+        if twice:
+            raise ConfigError(f"{source}: {', '.join(map(repr, twice))} given twice; give each key once")
+        return dict(pairs)
+
     try:
-        doc = json.loads(text)
+        doc = json.loads(text, object_pairs_hook=unique)
     except json.JSONDecodeError as exc:
         raise ConfigError(f"{source}: not JSON ({exc.msg}, line {exc.lineno}); give the weights.json that "
+                          "'pinchmatch calibrate' writes") from None
+    except RecursionError:
+        raise ConfigError(f"{source}: nested too deep to be a weights file; give the weights.json that "
                           "'pinchmatch calibrate' writes") from None
     weights = doc.get("weights") if isinstance(doc, dict) else None
     if not isinstance(weights, dict) or not all(isinstance(v, (int, float)) and not isinstance(v, bool)

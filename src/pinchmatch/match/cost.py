@@ -57,6 +57,8 @@ PAPER_CRITERIA = CRITERIA[:7]
 #: compares the whole offset, or the felt torque where both masses are known, so ``com`` would charge
 #: the same lever arm twice
 DEFAULT_CRITERIA = ("width", "tilt", "normal", "axis", "kmax", "kmin", "mass")
+#: the largest weight: beyond it, costs in JND^3.5 leave the range of a float for ordinary differences
+MAX_WEIGHT = 1e6
 #: ways of pooling the criteria into one cost (module notes)
 POOLINGS = ("quick", "sum")
 #: Quick pooling's exponent, the common slope of the criteria's Weibull psychometric functions: 3.5,
@@ -143,6 +145,9 @@ def complete_weights(given: Mapping, *, criteria: tuple = DEFAULT_CRITERIA) -> d
             w = float("nan")
         if not np.isfinite(w) or w < 0:
             raise ConfigError(f"--weights: {name}={given[name]!r} needs a weight of 0 or more, as {name}=1")
+        if w > MAX_WEIGHT:
+            raise ConfigError(f"--weights: {name}={given[name]!r} is more than {MAX_WEIGHT:g}; weights say how much "
+                              f"each criterion counts against the others, give them between 0 and {MAX_WEIGHT:g}")
         weights[name] = w
     if not any(weights[c] > 0 for c in criteria):
         raise ConfigError("--weights: every weight is 0, so nothing would be compared; give at least one "

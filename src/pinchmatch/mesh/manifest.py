@@ -34,6 +34,7 @@ from __future__ import annotations
 import difflib
 import math
 import os
+import stat
 import tomllib
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -45,6 +46,9 @@ from .regions import ContactRegions, Region
 
 MANIFEST_SUFFIX = ".toml"
 #: the keys of an object; ``[defaults]`` takes all but ``file`` and ``name``
+#: a centre of mass farther than this from the file's origin (mm, 1 km) is not an object's
+MAX_COORDINATE_MM = 1e6
+
 OBJECT_KEYS = ("file", "name", "units", "up", "com_mm", "axis", "mass_g", "split", "exclude", "only")
 DEFAULT_KEYS = tuple(k for k in OBJECT_KEYS if k not in ("file", "name"))
 SPLITS = ("none", "nodes")
@@ -169,6 +173,10 @@ def _options(table: dict, where: str, problems: _Problems) -> dict:
     for key in ("com_mm", "axis"):
         if key in table:
             v = _vector(table[key])
+            if v is not None and key == "com_mm" and max(abs(c) for c in v) > MAX_COORDINATE_MM:
+                problems.add(where, key, f"must be three numbers [x, y, z] within {MAX_COORDINATE_MM:g} mm of the "
+                                         "file's origin")
+                continue
             if v is None or (key == "axis" and not any(v)):
                 problems.add(where, key, "must be three numbers [x, y, z]" + (", not all zero" if key == "axis" else
                                                                              ", in mm in the file's frame"))
@@ -195,6 +203,8 @@ def read_manifest(path: str | os.PathLike) -> list[ObjectSpec]:
     """The objects a manifest lists, checked; every problem in one ConfigError, one line each."""
     path = Path(path)
     try:
+        if not stat.S_ISREG(path.stat().st_mode):
+            raise ConfigError(f"{path}: not a regular file (a folder, a device or a pipe); give a manifest file")
         if path.stat().st_size > MAX_MANIFEST_BYTES:
             raise ConfigError(f"{path}: a manifest of more than {MAX_MANIFEST_BYTES // 2**20} MiB; "
                               "split the list into several manifests")
@@ -207,6 +217,8 @@ def read_manifest(path: str | os.PathLike) -> list[ObjectSpec]:
         raise ConfigError(f"{path}: the manifest is not UTF-8 text; save it as UTF-8 TOML") from None
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"{path}: not valid TOML ({exc}); fix the manifest (see docs/manifest.md)") from None
+    except RecursionError:
+        raise ConfigError(f"{path}: nested too deep to be a manifest; fix the manifest (see docs/manifest.md)") from None
     problems = _Problems(path)
     _unknown(document, ("defaults", "object"), "top level", problems)
     defaults = document.get("defaults", {})

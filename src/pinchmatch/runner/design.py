@@ -62,6 +62,10 @@ SEARCH_COUNT = 300
 STEP = 0.25
 
 
+#: the bounds of design's options: a day's budget, a search of a million candidates, 8 props, 1 m tall
+MAX_BUDGET_S, MAX_EVALUATIONS, MAX_PROPS, MAX_HEIGHT_MM = 86_400.0, 1_000_000, 8, 1000.0
+
+
 @dataclass(frozen=True)
 class DesignSettings:
     k: int = 1
@@ -81,16 +85,22 @@ class DesignSettings:
             raise ConfigError(f"-k {self.k}: design 1 prop or more")
         if not 1 <= self.max_parts <= 4:
             raise ConfigError(f"--max-parts {self.max_parts}: give 1 to 4")
-        if self.max_height_mm < MIN_PART_HEIGHT_MM:
+        if not math.isfinite(self.max_height_mm) or self.max_height_mm < MIN_PART_HEIGHT_MM:
             raise ConfigError(f"--max-height-mm {self.max_height_mm:g}: no part of the family is that low "
                               f"(a part is at least {MIN_PART_HEIGHT_MM:g} mm tall); give more")
         if self.max_width_mm < MIN_PART_WIDTH_MM:
             raise ConfigError(f"--max-width-mm {self.max_width_mm:g}: no part of the family is that narrow "
                               f"(a part is at least {MIN_PART_WIDTH_MM:g} mm wide); give more")
-        if not self.budget_s > 0:
-            raise ConfigError(f"--budget-s {self.budget_s:g}: give a time in seconds, more than 0")
-        if self.evaluations is not None and self.evaluations < 1:
-            raise ConfigError(f"--evaluations {self.evaluations}: give 1 or more")
+        if not 0 < self.budget_s <= MAX_BUDGET_S:
+            raise ConfigError(f"--budget-s {self.budget_s:g}: give a time in seconds, more than 0 and at most "
+                              f"{MAX_BUDGET_S:g} (a day)")
+        if self.evaluations is not None and not 1 <= self.evaluations <= MAX_EVALUATIONS:
+            raise ConfigError(f"--evaluations {self.evaluations}: give 1 to {MAX_EVALUATIONS}")
+        if self.k > MAX_PROPS:
+            raise ConfigError(f"-k {self.k}: design at most {MAX_PROPS} props at once")
+        if self.max_height_mm > MAX_HEIGHT_MM:
+            raise ConfigError(f"--max-height-mm {self.max_height_mm:g}: a prop held in one hand is at most "
+                              f"{MAX_HEIGHT_MM:g} mm tall; give less")
 
 
 def _repair(stack: Stack, s: DesignSettings) -> Stack:
