@@ -363,3 +363,47 @@ def test_the_page_says_how_far_an_object_is_turned_and_why_a_reference_is_missin
     turns = {m["virtual"]: m["up_turn_deg"] for m in data["matches"]}
     flips = {m["virtual"]: m["flipped"] for m in data["matches"]}
     assert all((turns[v] > 90.0) == flips[v] for v in turns)  # flipped is a turn beyond 90 degrees
+
+
+def test_serve_answers_a_nul_byte_and_departing_clients_without_a_traceback(demo_out, tmp_path, capsys):
+    import socket
+    import threading
+
+    from pinchmatch.export.view import make_server
+
+    server = make_server(demo_out)
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    try:
+        port = server.server_address[1]
+        with socket.create_connection(("127.0.0.1", port), timeout=5) as s:
+            s.sendall(f"GET /index%00.html HTTP/1.0\r\nHost: 127.0.0.1:{port}\r\n\r\n".encode())
+            assert s.recv(64).startswith(b"HTTP/1.0 404")
+        for _ in range(40):  # clients that ask for the page and leave before the answer
+            s = socket.create_connection(("127.0.0.1", port), timeout=5)
+            s.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, b"\x01\x00\x00\x00\x00\x00\x00\x00")
+            s.sendall(f"GET /index.html HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\n\r\n".encode())
+            s.close()
+        assert _get(f"http://127.0.0.1:{port}/index.html")[0] == 200
+    finally:
+        server.shutdown()
+        server.server_close()
+    err = capsys.readouterr().err
+    assert "Traceback" not in err, err
+
+
+def test_view_does_not_rewrite_the_page_of_a_folder_a_run_is_writing(demo_out, tmp_path, capsys):
+    import fcntl
+
+    out = tmp_path / "run"
+    shutil.copytree(demo_out, out)
+    page = (out / "index.html").read_bytes()
+    fd = os.open(out / ".pinchmatch" / "lock", os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)  # as a running pinchmatch holds it
+        assert main(["view", str(out), "-q"]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "a pinchmatch run is writing this folder" in err[0], err
+        assert (out / "index.html").read_bytes() == page
+    finally:
+        os.close(fd)
+    assert main(["view", str(out), "-q"]) == 0

@@ -7,6 +7,7 @@ and turns errors into one line). ``main`` is re-exported here for callers that r
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 import sys
@@ -22,7 +23,7 @@ from ..errors import ConfigError
 from ..files import check_writable, read_input, write_atomic
 from ..mesh.manifest import object_specs
 from ..grasp.pinches import PinchSettings
-from ..export.folder import OutputFolder, recover
+from ..export.folder import OutputFolder, exclusive
 from ..match.search import MatchSettings
 from ..mesh.properties import parse_vector
 from .console import Presenter
@@ -307,8 +308,8 @@ def _cmd_view(args) -> int:
         folder = folder.parent
     if folder.is_dir():
         check_writable(folder / "index.html", folder=False)
-        recover(folder)  # a run that died while publishing: its result, whole
-    path = write_page(folder)
+    with exclusive(folder) if folder.is_dir() else contextlib.nullcontext():
+        path = write_page(folder)  # after a run that died while publishing is finished: its result, whole
     ui.note(f"wrote {path}")
     if not args.serve:
         if args.open:

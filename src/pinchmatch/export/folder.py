@@ -25,6 +25,7 @@ import fcntl
 import json
 import os
 import shutil
+from contextlib import contextmanager
 from pathlib import Path
 
 from ..errors import OutputError
@@ -114,22 +115,34 @@ class OutputFolder:
 
 
 def recover(out: str | os.PathLike) -> None:
-    """For readers (``pinchmatch view``): finish a publication that a killed run left half done and
-    remove what a killed run staged, under the folder's lock. While a run is writing the folder,
-    a half-done publication is refused and anything else left alone."""
+    """For readers: finish a publication that a killed run left half done and remove what a killed
+    run staged, under the folder's lock. While a run is writing the folder, a half-done publication
+    is refused and anything else left alone."""
+    try:
+        with exclusive(out):
+            pass
+    except OutputError:
+        if (Path(out) / CONTROL / "commit.json").exists():
+            raise
+
+
+@contextmanager
+def exclusive(out: str | os.PathLike):
+    """Hold the folder's lock while the block writes into it (``pinchmatch view`` rewriting the page),
+    after finishing what a killed run left; a folder that a run is writing is refused in one line."""
     control = Path(out) / CONTROL
     if not control.is_dir():
+        yield
         return
     fd = os.open(control / "lock", os.O_RDWR | os.O_CREAT, 0o644)
     try:
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
-            if (control / "commit.json").exists():
-                raise OutputError(f"{out}: a pinchmatch run is writing this folder; wait for it to end") from None
-            return
+            raise OutputError(f"{out}: a pinchmatch run is writing this folder; wait for it to end") from None
         finish_commit(out)
         shutil.rmtree(control / "staging", ignore_errors=True)
+        yield
     finally:
         os.close(fd)
 

@@ -16,6 +16,7 @@ import http.server
 import json
 import logging
 import re
+import sys
 from importlib import resources
 from pathlib import Path
 
@@ -207,12 +208,12 @@ class _OutHandler(http.server.SimpleHTTPRequestHandler):
         if self.headers.get("Host", "").lower() not in self.allowed_hosts:
             self.send_error(403, "Host not served here")
             return None
-        path = Path(self.translate_path(self.path))
         root = Path(self.directory).resolve()
         try:
+            path = Path(self.translate_path(self.path))
             inside = path.resolve().is_relative_to(root)
-        except OSError:
-            inside = False
+        except (OSError, ValueError):  # ValueError: a NUL byte in the path
+            path, inside = root, False
         if not inside or path.resolve().is_dir() and not (path / "index.html").is_file():
             self.send_error(404, "File not found")
             return None
@@ -223,10 +224,20 @@ class _OutHandler(http.server.SimpleHTTPRequestHandler):
         return None
 
 
+class _QuietServer(http.server.ThreadingHTTPServer):
+    """A client that goes away mid-answer is logged (with --verbose), not printed as a traceback."""
+
+    def handle_error(self, request, client_address):
+        if isinstance(sys.exc_info()[1], (ConnectionError, TimeoutError)):
+            log.info("%s went away: %s", client_address[0], sys.exc_info()[1])
+            return
+        super().handle_error(request, client_address)
+
+
 def make_server(out: Path, *, port: int = 0) -> http.server.ThreadingHTTPServer:
     """An HTTP server for ``OUT`` on 127.0.0.1 only; port 0 takes a free port."""
     handler = type("Handler", (_OutHandler,), {})
-    server = http.server.ThreadingHTTPServer(("127.0.0.1", port), functools.partial(handler, directory=str(Path(out))))
+    server = _QuietServer(("127.0.0.1", port), functools.partial(handler, directory=str(Path(out))))
     bound = server.server_address[1]
     handler.allowed_hosts = frozenset({f"127.0.0.1:{bound}", f"localhost:{bound}"})
     return server
