@@ -139,7 +139,7 @@ def run_study(folder: Path, *, full: bool = False, settings: PinchSettings = Pin
     everything = [tangible] + virtuals
     ours_model = cost_model(match_settings, everything)
     paper_settings = MatchSettings(weights=dict.fromkeys(PAPER_CRITERIA, 1.0), criteria=PAPER_CRITERIA,
-                                   normalize="range")
+                                   normalize="range", pooling="sum")  # the paper's algorithm, exactly
     paper_model = cost_model(paper_settings, everything)
 
     rows = []
