@@ -256,6 +256,8 @@ def test_each_validator_says_what_to_change(tmp_path, capsys, argv, words):
     (["calibrate", "{huge}"], "beyond"),
     (["calibrate", "{ok}", "--seed", "-3"], "--seed"),
     (["select", "--tangible", "{prop}", "{prop}", "--virtual", "{prop}", "-k", "2", "--max-k", "1"], "--max-k 1"),
+    (["match", "--tangible", "{prop}", "--virtual", "{prop}", "--tangible-poses", "{text_poses}"], "pose 0 needs"),
+    (["match", "--tangible", "{prop}", "--virtual", "{prop}", "--tangible-poses", "{bool_poses}"], "pose 1 needs"),
 ])
 def test_every_input_is_bounded_and_refused_in_one_line(tmp_path, capsys, argv, words):
     prop = tmp_path / "prop.stl"
@@ -263,7 +265,11 @@ def test_every_input_is_bounded_and_refused_in_one_line(tmp_path, capsys, argv, 
     files = {"prop": prop, "deep": tmp_path / "deep.json", "twice": tmp_path / "twice.json",
              "far": tmp_path / "far.toml", "nested": tmp_path / "nested.toml", "pipe": tmp_path / "pipe.csv",
              "ragged": tmp_path / "ragged.csv", "quote": tmp_path / "quote.csv", "dupcol": tmp_path / "dup.csv",
-             "unknown": tmp_path / "unknown.csv", "huge": tmp_path / "huge.csv", "ok": tmp_path / "ok.csv"}
+             "unknown": tmp_path / "unknown.csv", "huge": tmp_path / "huge.csv", "ok": tmp_path / "ok.csv",
+             "text_poses": tmp_path / "text.json", "bool_poses": tmp_path / "bool.json"}
+    files["text_poses"].write_text(json.dumps([{"p1_mm": ["-20", 0, 0], "p2_mm": [20, 0, 0]}]))
+    files["bool_poses"].write_text(json.dumps([{"p1_mm": [-20, 0, 0], "p2_mm": [20, 0, 0]},
+                                               {"p1_mm": [-20, 0, 0], "p2_mm": [20, True, 0]}]))
     files["deep"].write_text('{"weights": ' + "[" * 100_000 + "]" * 100_000 + "}")
     files["twice"].write_text('{"weights": {"width": 1, "width": 2}}')
     files["far"].write_text(f'[[object]]\nfile = "{prop}"\ncom_mm = [1e300, 0, 0]\n')

@@ -125,6 +125,13 @@ def score_pinches(
     return pinches, pinch_features(pinches, obj.props)
 
 
+def _three_numbers(value) -> np.ndarray:
+    """A JSON list of three numbers as an array; text ("20") and booleans are not numbers."""
+    if not isinstance(value, list) or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
+        raise ValueError(value)
+    return np.asarray(value, dtype=np.float64)
+
+
 def load_poses_file(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
     """Read user-given pinches: a JSON list of ``{"p1_mm": [x, y, z], "p2_mm": [x, y, z]}``.
 
@@ -158,8 +165,7 @@ def load_poses_file(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
     p1, p2 = [], []
     for i, entry in enumerate(data):
         try:
-            a = np.asarray(entry["p1_mm"], dtype=np.float64)
-            b = np.asarray(entry["p2_mm"], dtype=np.float64)
+            a, b = (_three_numbers(entry[key]) for key in ("p1_mm", "p2_mm"))
         except (KeyError, TypeError, ValueError):
             a = b = np.zeros(0)
         if a.shape != (3,) or b.shape != (3,) or not (np.abs(a) < MAX_COORDINATE_MM).all() \
