@@ -92,3 +92,19 @@ def test_the_end_of_the_stage_reports_never_waits_on_a_lock_a_killed_worker_hold
     finally:
         executor._stages._wlock.release()
         executor.close()
+
+
+def test_an_interrupted_calibrate_says_nothing_was_written(tmp_path, monkeypatch, capsys):
+    from pinchmatch.cli.main import main
+    from pinchmatch.match import calibrate as calibrate_module
+
+    table = tmp_path / "r.csv"
+    table.write_text("rating,width_jnd\n6,0.1\n5,0.5\n3,1.2\n2,1.5\n4,0.8\n")
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(calibrate_module, "calibrate", interrupted)
+    assert main(["calibrate", str(table), "-o", str(tmp_path / "w.json")]) == 130
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["pinchmatch: interrupted; nothing was written"] and not (tmp_path / "w.json").exists()

@@ -32,10 +32,12 @@ def _main(argv: list[str]) -> int:
     verbose = "-v" in argv or "--verbose" in argv
     logging.basicConfig(level=logging.INFO if verbose else logging.WARNING, format="%(name)s: %(message)s")
     route_warnings(verbose=verbose)
+    command = None
     try:
         parser = build_parser()
         check_option_names(parser, argv)
         args = parser.parse_args(join_vector_values(argv))
+        command = args.command
         if args.command is None:
             build_parser().print_help()
             return 2
@@ -52,10 +54,10 @@ def _main(argv: list[str]) -> int:
         print(f"pinchmatch: internal error: {exc}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
-        print("pinchmatch: interrupted; the output folder holds what it held before", file=sys.stderr)
+        print(f"pinchmatch: interrupted; {_left_as_it_was(command)}", file=sys.stderr)
         return 130
     except Terminated:
-        print("pinchmatch: terminated; the output folder holds what it held before", file=sys.stderr)
+        print(f"pinchmatch: terminated; {_left_as_it_was(command)}", file=sys.stderr)
         return 143
     except Exception as exc:  # an internal error: say so, traceback on request
         if verbose:
@@ -63,6 +65,21 @@ def _main(argv: list[str]) -> int:
         print(f"pinchmatch: internal error: {type(exc).__name__}: {exc}; rerun with --verbose and report it",
               file=sys.stderr)
         return 1
+
+
+#: the commands that write one file (-o FILE), not an output folder
+FILE_COMMANDS = ("calibrate", "poses", "features")
+
+
+def _left_as_it_was(command: str | None) -> str:
+    """What an interruption leaves, in the command's words."""
+    if command in FILE_COMMANDS:
+        return "nothing was written"
+    if command is None:
+        return "nothing was changed"
+    if command == "cache":
+        return "the entries not yet deleted stay in the cache"
+    return "the output folder holds what it held before"
 
 
 def _wants_local_workers(args) -> bool:
