@@ -293,3 +293,12 @@ def test_the_readme_python_example_runs(tmp_path, monkeypatch):
     best = scope["best"]
     assert best.tangible_name == ["block.stl", "bottle.obj", "stack"][best.tangible]
     assert scope["scene"].matches[0].name == "mug.glb"
+
+
+def test_a_file_key_that_is_not_text_is_not_called_missing(tmp_path):
+    from pinchmatch.mesh.manifest import read_manifest
+
+    manifest = tmp_path / "m.toml"
+    manifest.write_text("[[object]]\nfile = 42\n")
+    with pytest.raises(ConfigError, match="42 is not a path; give the mesh file as text"):
+        read_manifest(manifest)

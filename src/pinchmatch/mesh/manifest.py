@@ -45,10 +45,9 @@ from .load import GLTF_TYPES, MESH_EXTENSIONS, mesh_files, read_level
 from .regions import ContactRegions, Region
 
 MANIFEST_SUFFIX = ".toml"
-#: the keys of an object; ``[defaults]`` takes all but ``file`` and ``name``
 #: a centre of mass farther than this from the file's origin (mm, 1 km) is not an object's
 MAX_COORDINATE_MM = 1e6
-
+#: the keys of an object; ``[defaults]`` takes all but ``file`` and ``name``
 OBJECT_KEYS = ("file", "name", "units", "up", "com_mm", "axis", "mass_g", "split", "exclude", "only")
 DEFAULT_KEYS = tuple(k for k in OBJECT_KEYS if k not in ("file", "name"))
 SPLITS = ("none", "nodes")
@@ -241,8 +240,12 @@ def read_manifest(path: str | os.PathLike) -> list[ObjectSpec]:
             where += f" ({table['name']})"
         _unknown(table, OBJECT_KEYS, where, problems)
         given = table.get("file")
-        if not isinstance(given, str) or not given:
+        if given is None or given == "":
             problems.add(where, "file", "missing; give the mesh file, relative to the manifest's folder")
+            continue
+        if not isinstance(given, str):
+            problems.add(where, "file", f"{given!r} is not a path; give the mesh file as text in quotes, relative "
+                                        "to the manifest's folder")
             continue
         file = path.parent / given
         options = base | _options(table, where, problems)
