@@ -98,3 +98,35 @@ def test_a_gltf_buffer_uri_is_percent_decoded_as_the_specification_says(tmp_path
     (tmp_path / "m.gltf").write_text(json.dumps(doc))
     mesh = load_mesh(tmp_path / "m.gltf")
     np.testing.assert_allclose(mesh.mesh.extents, [40.0, 30.0, 20.0], atol=1e-4)  # metres read as mm
+
+
+def test_a_gltf_buffer_outside_its_folder_is_one_clear_line(tmp_path):
+    from pinchmatch.mesh.load import load_mesh
+
+    files = trimesh.exchange.gltf.export_gltf(trimesh.Scene(trimesh.creation.box(extents=(0.04, 0.03, 0.02))))
+    doc = json.loads(files["model.gltf"])
+    (tmp_path / "inner").mkdir()
+    for i, buffer in enumerate(doc["buffers"]):
+        (tmp_path / f"b{i}.bin").write_bytes(files[buffer["uri"]])
+        buffer["uri"] = f"../b{i}.bin"
+    (tmp_path / "inner" / "m.gltf").write_text(json.dumps(doc))
+    with pytest.raises(MeshError, match="lies outside the .gltf's folder"):
+        load_mesh(tmp_path / "inner" / "m.gltf")
+
+
+def test_a_bad_node_mesh_index_speaks_of_indices_not_of_vertices(tmp_path):
+    from pinchmatch.mesh.load import load_mesh
+
+    level = tmp_path / "bad.glb"
+    level.write_bytes(glb([{"name": "a", "mesh": 5}], [0]))
+    with pytest.raises(MeshError) as info:
+        load_mesh(level)
+    assert "a face refers to a vertex" not in str(info.value) and str(level) in str(info.value)
+
+
+def test_a_level_whose_mesh_nodes_share_a_name_is_not_split_under_made_up_names(tmp_path):
+    level = tmp_path / "dup.glb"
+    level.write_bytes(glb([{"name": "crate", "mesh": 0, "translation": [0.1, 0, 0]}, {"name": "crate", "mesh": 0}],
+                          [0, 1]))
+    with pytest.raises(MeshError, match="several mesh nodes are named 'crate'"):
+        read_level(level)

@@ -94,13 +94,33 @@ def check_hierarchy(path: Path, document: dict) -> None:
                         "tree; re-export it")
 
 
+def check_unique_names(path: Path, file_type: str) -> None:
+    """Refuse a level to be split whose mesh nodes share a name: each becomes an object named by its
+    node, and trimesh would make up ``name_1`` for the second, a name the file does not have."""
+    document = gltf_document(path, file_type)
+    nodes = document.get("nodes", []) if document is not None else []
+    names = [n.get("name") for n in nodes if isinstance(n, dict) and "mesh" in n] if isinstance(nodes, list) else []
+    seen, twice = set(), []
+    for name in names:
+        if isinstance(name, str) and name in seen and name not in twice:
+            twice.append(name)
+        seen.add(name)
+    if twice:
+        raise MeshError(f"{path}: several mesh nodes are named {', '.join(map(repr, twice[:3]))}; each node becomes an "
+                        "object named by its node, so give them distinct names in the editor and export again")
+
+
 def check_buffers(path: Path, document: dict) -> None:
     """Name the external buffer a .gltf needs and lacks (the reader would only say 'not found')."""
     buffers = document.get("buffers", [])
     uris = [b.get("uri") for b in buffers if isinstance(b, dict)] if isinstance(buffers, list) else []
+    folder = path.parent.resolve()
     for uri in uris:
         if isinstance(uri, str) and not uri.startswith("data:"):
             buffer = path.parent / urllib.parse.unquote(uri)
+            if not buffer.resolve().is_relative_to(folder):
+                raise MeshError(f"{path}: its buffer file {uri!r} lies outside the .gltf's folder ({folder}); a glTF "
+                                "names its files beside it: copy the buffer there, or export a .glb")
             if not buffer.is_file():
                 raise MeshError(f"{path}: its buffer file {uri!r} is missing (looked for {buffer}); copy it next to "
                                 "the .gltf, or export a .glb, which holds its buffers")

@@ -20,7 +20,7 @@ import trimesh
 from ..errors import ConfigError, MeshError
 from ..files import holds_result
 from .frames import UNITS_MM, check_units, parse_up
-from .gltf_check import PercentDecoding, check_gltf
+from .gltf_check import PercentDecoding, check_gltf, check_unique_names
 from . import topology
 from .level import LevelNode, level_nodes, node_mesh
 
@@ -288,10 +288,9 @@ def _load(path: Path, file_type: str, **kwargs):
     try:
         return trimesh.load(str(path), file_type=file_type, process=False, **kwargs)
     except (IndexError,) as exc:
-        raise MeshError(
-            f"{path}: a face refers to a vertex that does not exist ({exc}); "
-            "the file is corrupt, re-export it"
-        ) from None
+        what = ("an index (of a node, mesh, accessor or vertex) points past its list" if file_type in GLTF_TYPES
+                else "a face refers to a vertex that does not exist")
+        raise MeshError(f"{path}: {what} ({exc}); the file is corrupt, re-export it") from None
     except Exception as exc:  # trimesh raises many types on malformed input
         reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise MeshError(
@@ -309,6 +308,7 @@ def read_level(path: str | os.PathLike) -> list[LevelNode]:
     if file_type not in GLTF_TYPES:
         raise MeshError(f"{path}: only a glTF or GLB scene can be split into its nodes; "
                         "leave out split = \"nodes\" for this file")
+    check_unique_names(path, file_type)
     nodes = level_nodes(_load(path, file_type, force="scene"))
     if not nodes:
         raise MeshError(f"{path}: the scene has no node holding triangles; re-export the level with its meshes")
