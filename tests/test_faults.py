@@ -5,6 +5,7 @@ they run as root, as CI does; the full-disk test mounts a small tmpfs and is ski
 machine does not allow it.
 """
 
+import contextlib
 import errno
 import json
 import os
@@ -116,32 +117,33 @@ def test_a_full_disk_met_while_writing_names_the_file(tmp_path, monkeypatch, cap
     assert list(tmp_path.iterdir()) == []
 
 
-def test_a_full_tmpfs(tmp_path):
-    """A real full disk: a 300 KB tmpfs cannot hold a match run's outputs."""
-    mount = tmp_path / "small"
+@contextlib.contextmanager
+def small_tmpfs(mount, size: str):
+    """A real, small file system at ``mount`` (root only; skipped where it cannot be mounted)."""
     mount.mkdir()
-    if os.geteuid() != 0 or subprocess.run(["mount", "-t", "tmpfs", "-o", "size=300k", "tmpfs", str(mount)],
+    if os.geteuid() != 0 or subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(mount)],
                                            capture_output=True).returncode != 0:
         pytest.skip("cannot mount a tmpfs here")
     try:
+        yield mount
+    finally:
+        subprocess.run(["umount", str(mount)])
+
+
+def test_a_full_tmpfs(tmp_path):
+    """A real full disk: a 300 KB tmpfs cannot hold a match run's outputs."""
+    with small_tmpfs(tmp_path / "small", "300k") as mount:
         proc = subprocess.run([sys.executable, "-m", "pinchmatch", "match", "--tangible", example_mesh_path(),
                                "--virtual", example_mesh_path(), "--count", "120", "-q", "-o", mount / "out"],
                               capture_output=True, text=True, timeout=600)
         assert proc.returncode == 2, proc.stderr
         assert_one_line(proc.stderr, "cannot write it (No space left on device)", str(mount / "out"))
-    finally:
-        subprocess.run(["umount", str(mount)])
 
 
 def test_a_full_cache_disk_costs_only_the_caching(tmp_path):
     """The cache is an optimisation: on a full disk the run goes on without it, says so once, leaves no
     temporary file there and writes the same result as a run without a cache."""
-    mount = tmp_path / "cache"
-    mount.mkdir()
-    if os.geteuid() != 0 or subprocess.run(["mount", "-t", "tmpfs", "-o", "size=100k", "tmpfs", str(mount)],
-                                           capture_output=True).returncode != 0:
-        pytest.skip("cannot mount a tmpfs here")
-    try:
+    with small_tmpfs(tmp_path / "cache", "100k") as mount:
         (mount / "filler").write_bytes(b"\0" * 90_000)
         argv = [sys.executable, "-m", "pinchmatch", "match", "--tangible", example_mesh_path(), "--virtual",
                 example_mesh_path(), "--count", "120", "-q", "--jobs", "1", "--no-view"]
@@ -154,8 +156,6 @@ def test_a_full_cache_disk_costs_only_the_caching(tmp_path):
         plain = subprocess.run(argv + ["-o", tmp_path / "plain", "--no-cache"], capture_output=True, timeout=600)
         assert plain.returncode == 0
         assert (tmp_path / "out" / "matches.json").read_bytes() == (tmp_path / "plain" / "matches.json").read_bytes()
-    finally:
-        subprocess.run(["umount", str(mount)])
 
 
 def test_clearing_a_read_only_cache_is_one_line(tmp_path, capsys):
