@@ -399,6 +399,9 @@ def test_demo_writes_the_study_and_the_scene(demo):
     scene = json.loads((demo.out / "matches.json").read_text())
     assert len(scene["matches"]) == 6
     assert "cylinder/cube/cone" in demo.stdout
+    flipped = sum(m["flipped"] for m in scene["matches"])
+    assert flipped and f"{flipped} of 6 placements turn the virtual object upside down" in " ".join(demo.stdout.split())
+    assert "--keep-upright keeps every one upright" in " ".join(demo.stdout.split())
 
 
 def test_demo_ends_with_scenes_page_and_figures(demo_out):

@@ -196,3 +196,13 @@ def test_under_noticeable_the_matches_place_each_object_where_the_selection_does
         assert matches[o["virtual"]]["tangible"] == o["tangible"]
         assert matches[o["virtual"]]["cost"] == pytest.approx(o["cost"], abs=1e-6)
         assert matches[o["virtual"]]["noticeable"] == o["noticeable"]  # the pooled difference, noticed or not
+
+
+def test_the_coverage_table_shows_the_mean_once_under_the_mean_objective():
+    from pinchmatch.export.selection import coverage_rows
+
+    curve = [{"k": 1, "value": 2.5, "mean_cost": 2.5, "noticeable_count": 3, "exact": True, "props": ["a"]}]
+    mean = coverage_rows({"settings": {"objective": "mean"}, "coverage": curve})
+    assert mean[0] == ("K", "mean_cost", "noticeable", "exact", "props") and mean[1] == (1, 2.5, 3, "yes", "a")
+    worst = coverage_rows({"settings": {"objective": "max"}, "coverage": curve})
+    assert worst[0] == ("K", "max", "mean_cost", "noticeable", "exact", "props")

@@ -31,7 +31,7 @@ from .runs import (EXIT_SOME_FAILED, check_match_flags, given_poses, match_job, 
                    out_folder, pinch_settings_of, print_match, table_rows, write_matches)
 from .main import main  # noqa: F401 (the entry point, re-exported)
 from .universal import cmd_design, cmd_select, demo_design
-from ..export.documents import (features_document, matches_rows, poses_csv, poses_document, scene_stems,
+from ..export.documents import (features_document, flipped_note, matches_rows, poses_csv, poses_document, scene_stems,
                                 matches_legend, study_document, study_legend, study_rows, to_json)
 from ..runner.tasks import Job, virtual_result
 from ..export.sink import MatchesSink
@@ -286,6 +286,8 @@ def _cmd_demo(args) -> int:
             written.append(f"{out / 'props' / 'designed.stl'} and {out / 'design.json'}")
     ui.table(study_rows(study.rows), title="user study", legend=study_legend(study.rows))
     ui.table(matches_rows(matches_doc), title="matches", legend=matches_legend(common))
+    if note := flipped_note(matches_rows(matches_doc), common):
+        ui.note(note)
     if args.design:
         c = designed["comparison"]
         ui.table([("prop", "mean_cost", "noticeable")] + [(name, f"{v['mean_cost']:.4f}", v["noticeable_count"])

@@ -10,7 +10,7 @@ from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 
 from ..errors import ConfigError, RunError
-from ..export.documents import matches_legend, scene_stems
+from ..export.documents import flipped_note, matches_legend, scene_stems
 from ..export.sink import MatchesSink
 from ..export.view import write_page
 from ..files import check_writable, read_input, write_atomic
@@ -149,6 +149,8 @@ def write_matches(args, stage: Path, out: Path, ui, ex, tangible_tasks, virtual_
 def print_match(ui, sink, result, run_settings) -> None:
     ui.table(table_rows(sink.objects, "objects"), title="objects")
     ui.table(table_rows(sink.rows, "matches"), title="matches", legend=matches_legend(run_settings))
+    if note := flipped_note(sink.rows, run_settings):
+        ui.note(note)
     if result.failed:
         ui.table(table_rows([("file", "role", "problem")] + [(f.path, f.role, f.error) for f in result.failed],
                              "files"), title=f"failed: {len(result.failed)} files, left out of the run")

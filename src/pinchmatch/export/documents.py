@@ -425,6 +425,17 @@ def cost_unit(settings: dict) -> str:
     return "the differences in JND pooled by probability summation (1: noticed half of the time)"
 
 
+def flipped_note(rows: list[tuple], settings: dict) -> str | None:
+    """How many placements of a matches table turn their virtual object upside down, and the option
+    that keeps them upright (None when none does, or the run already keeps them upright)."""
+    column = rows[0].index("flipped")
+    flipped = sum(r[column] == "F" for r in rows[1:])
+    if not flipped or settings.get("keep_upright"):
+        return None
+    return (f"{flipped} of {len(rows) - 1} placements turn the virtual object upside down (F); --keep-upright "
+            "keeps every one upright, at some cost")
+
+
 def matches_legend(settings: dict) -> list[str]:
     """What the matches table's columns mean, in the run's normalisation."""
     return [f"cost: {cost_unit(settings)}; p_noticed: the probability that the difference is noticed; "

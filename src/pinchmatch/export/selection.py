@@ -71,9 +71,12 @@ def selection_document(settings: dict, shelf: list[dict], scene: list[str], cost
 
 def coverage_rows(document: dict) -> list[tuple]:
     """The printed coverage table: K, objective, mean cost, noticeable objects, props."""
-    rows = [("K", document["settings"]["objective"], "mean_cost", "noticeable", "exact", "props")]
+    objective = document["settings"]["objective"]
+    mean = objective == "mean"  # its value is the mean cost: one column, not two
+    rows = [("K",) + (() if mean else (objective,)) + ("mean_cost", "noticeable", "exact", "props")]
     for c in document["coverage"]:
-        rows.append((c["k"], c["value"], c["mean_cost"], c["noticeable_count"], "yes" if c["exact"] else "no",
+        rows.append((c["k"],) + (() if mean else (c["value"],)) + (c["mean_cost"], c["noticeable_count"],
+                                                                   "yes" if c["exact"] else "no",
                      ", ".join(c["props"])))
     return rows
 
