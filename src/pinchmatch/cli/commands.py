@@ -24,7 +24,6 @@ from ..files import check_writable, read_input, write_atomic
 from ..mesh.manifest import object_specs
 from ..grasp.pinches import PinchSettings
 from ..export.folder import OutputFolder, exclusive
-from ..match.search import MatchSettings
 from ..mesh.properties import parse_vector
 from .console import Presenter
 from .runs import (EXIT_SOME_FAILED, check_match_flags, given_poses, match_job, match_settings_of, object_tasks,
@@ -285,8 +284,9 @@ def _cmd_demo(args) -> int:
                                    seed=args.seed, ui=ui)
             written.append(f"{out / 'props' / 'designed.stl'} and {out / 'design.json'}")
     ui.table(study_rows(study.rows), title="user study", legend=study_legend(study.rows))
-    ui.table(matches_rows(matches_doc), title="matches", legend=matches_legend(common))
-    if note := flipped_note(matches_rows(matches_doc), common):
+    rows = matches_rows(matches_doc)
+    ui.table(rows, title="matches", legend=matches_legend(common))
+    if note := flipped_note(rows, common):
         ui.note(note)
     if args.design:
         c = designed["comparison"]

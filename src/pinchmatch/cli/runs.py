@@ -56,11 +56,10 @@ def match_settings_of(args) -> MatchSettings:
         weights = complete_weights(given, criteria=criteria)
     else:
         weights = parse_weights(getattr(args, "weights", None), criteria=criteria)
-    return MatchSettings(weights=weights, criteria=criteria, normalize=getattr(args, "normalize", "jnd"),
-                         pooling=args.pooling, top_k=getattr(args, "top_k", 3),
-                         one_to_one=getattr(args, "one_to_one", False),
-                         keep_upright=getattr(args, "keep_upright", False),
-                         distinct_mm=getattr(args, "distinct_mm", 8.0))
+    # a command without an option (demo has no --top-k) keeps the settings' default
+    given = {k: getattr(args, k) for k in ("normalize", "top_k", "one_to_one", "keep_upright", "distinct_mm")
+             if hasattr(args, k)}
+    return MatchSettings(weights=weights, criteria=criteria, pooling=args.pooling, **given)
 
 
 def given_poses(files, paths, option) -> list:

@@ -47,7 +47,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.stats import spearmanr
 
 from ..errors import ConfigError
-from .cost import CRITERIA, DEFAULT_CRITERIA, QUICK_EXPONENT
+from .cost import CRITERIA, CostModel, complete_weights
 
 #: folds of the cross-validation by placement (fewer when there are fewer groups)
 FOLDS = 5
@@ -65,10 +65,8 @@ HOLD_OUTS = ("placement", "object")
 
 
 def exponent_of(pooling: str) -> float:
-    """β of a pooling: :data:`pinchmatch.match.cost.QUICK_EXPONENT` for ``quick``, 2 for ``sum``."""
-    if pooling not in ("quick", "sum"):
-        raise ConfigError(f"--pooling: unknown pooling {pooling!r}; use quick or sum")
-    return QUICK_EXPONENT if pooling == "quick" else 2.0
+    """β of a pooling, as the cost uses it (:attr:`pinchmatch.match.cost.CostModel.exponent`)."""
+    return CostModel(pooling=pooling).exponent
 
 
 @dataclass(frozen=True)
@@ -304,7 +302,7 @@ def calibrate(r: Ratings, *, pooling: str = "quick", seed: int = 0, hold_out: st
     if not held < 0:
         raise ConfigError(_unpredictive(r, default_rho, f"held out, the fitted cost does not fall with the rating "
                                                         f"(rank correlation {held:+.2f})"))
-    defaults = {c: (1.0 if c in DEFAULT_CRITERIA else 0.0) for c in CRITERIA}
+    defaults = complete_weights({})
     fitted = defaults | {c: float(v) for c, v in zip(r.criteria, w)}
     kept = "fitted" if force or held <= default_rho else "defaults"
     weights = fitted if kept == "fitted" else defaults

@@ -94,11 +94,10 @@ def check_hierarchy(path: Path, document: dict) -> None:
                         "tree; re-export it")
 
 
-def check_unique_names(path: Path, file_type: str) -> None:
+def check_unique_names(path: Path, document: dict) -> None:
     """Refuse a level to be split whose mesh nodes share a name: each becomes an object named by its
     node, and trimesh would make up ``name_1`` for the second, a name the file does not have."""
-    document = gltf_document(path, file_type)
-    nodes = document.get("nodes", []) if document is not None else []
+    nodes = document.get("nodes", [])
     names = [n.get("name") for n in nodes if isinstance(n, dict) and "mesh" in n] if isinstance(nodes, list) else []
     seen, twice = set(), []
     for name in names:
@@ -126,12 +125,15 @@ def check_buffers(path: Path, document: dict) -> None:
                                 "the .gltf, or export a .glb, which holds its buffers")
 
 
-def check_gltf(path: Path, file_type: str) -> None:
-    """Check a glTF or GLB document before it is read (hierarchy, and a .gltf's buffers)."""
+def check_gltf(path: Path, file_type: str, *, split: bool = False) -> None:
+    """Check a glTF or GLB document before it is read (hierarchy, a .gltf's buffers, and for a level
+    to be split, its mesh nodes' names)."""
     document = gltf_document(path, file_type)
     if document is None:
         return  # the reader will say what is wrong
     check_hierarchy(path, document)
+    if split:
+        check_unique_names(path, document)
     if file_type == "gltf":
         check_buffers(path, document)
 

@@ -20,7 +20,7 @@ import trimesh
 from ..errors import ConfigError, MeshError
 from ..files import holds_result
 from .frames import UNITS_MM, check_units, parse_up
-from .gltf_check import PercentDecoding, check_gltf, check_unique_names
+from .gltf_check import PercentDecoding, check_gltf
 from . import topology
 from .level import LevelNode, level_nodes, node_mesh
 
@@ -280,9 +280,9 @@ def _check_readable(path: Path) -> None:
         raise MeshError(f"{path}: not a regular file (a device or a pipe); give a mesh file")
 
 
-def _load(path: Path, file_type: str, **kwargs):
+def _load(path: Path, file_type: str, *, split: bool = False, **kwargs):
     if file_type in GLTF_TYPES:
-        check_gltf(path, file_type)
+        check_gltf(path, file_type, split=split)
     if file_type == "gltf":
         kwargs.setdefault("resolver", PercentDecoding(str(path)))
     try:
@@ -308,8 +308,7 @@ def read_level(path: str | os.PathLike) -> list[LevelNode]:
     if file_type not in GLTF_TYPES:
         raise MeshError(f"{path}: only a glTF or GLB scene can be split into its nodes; "
                         "leave out split = \"nodes\" for this file")
-    check_unique_names(path, file_type)
-    nodes = level_nodes(_load(path, file_type, force="scene"))
+    nodes = level_nodes(_load(path, file_type, split=True, force="scene"))
     if not nodes:
         raise MeshError(f"{path}: the scene has no node holding triangles; re-export the level with its meshes")
     return nodes
