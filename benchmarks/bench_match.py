@@ -35,7 +35,8 @@ import numpy as np
 from pinchmatch.grasp.analysis import analyze_object
 from pinchmatch.cli.commands import example_mesh_path
 from pinchmatch.match.cost import PAPER_CRITERIA
-from pinchmatch.match.search import MatchSettings, cost_model, evaluate_pairs, match_scene
+from pinchmatch.match.scene import match_scene
+from pinchmatch.match.search import MatchSettings, cost_model, evaluate_pairs
 from pinchmatch.match.candidates import candidate_poses
 from pinchmatch.grasp.pinches import PinchSettings
 from pinchmatch.mesh.shapes import ellipsoid

@@ -256,13 +256,17 @@ def test_a_code_error_while_reading_an_entry_is_raised_not_a_miss(tmp_path, mesh
 
 def test_the_reference_pose_comes_from_the_cache_in_a_warm_run(tmp_path, mesh_file):
     """A warm run reads the reference pose's pinch back: the same pinch and cost, no surface sample or rays built."""
-    from pinchmatch.match.search import MatchSettings, cost_model, match_virtual
+    from pinchmatch.match.scene import match_virtual
+    from pinchmatch.match.search import MatchSettings, cost_model
 
     cache = FeatureCache(tmp_path / "c")
     tangible = cached_candidates(mesh_file, cache=None, settings=SETTINGS)  # itself: the pinch line meets it
     cold = cached_candidates(mesh_file, cache=cache, settings=SETTINGS)
-    model = cost_model(MatchSettings(), [tangible, cold])
-    match = lambda c: match_virtual([tangible], c, model, pinch_settings=SETTINGS).matches[0].reference  # noqa: E731
+    # neither refined nor landed: both need the surface (a warm run of the same settings reads its whole
+    # result from the cache instead)
+    settings = MatchSettings(refine=False, landing_mm=0.0)
+    model = cost_model(settings, [tangible, cold])
+    match = lambda c: match_virtual([tangible], c, model, settings, pinch_settings=SETTINGS).matches[0].reference  # noqa: E731
     ref_cold = match(cold)
     assert len(cold.probes) == 1 and ref_cold.cost is not None
     cache.store_probes(cache.last_key, cold)

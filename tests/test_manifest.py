@@ -12,7 +12,8 @@ from pinchmatch import ConfigError, PinchSettings
 from pinchmatch.grasp.analysis import analyze_spec
 from pinchmatch.grasp.sampling import sample_pinches
 from pinchmatch.match.candidates import candidate_poses
-from pinchmatch.match.search import MatchSettings, evaluate_pairs, match_scene
+from pinchmatch.match.scene import match_scene
+from pinchmatch.match.search import MatchSettings, evaluate_pairs
 from pinchmatch.mesh.load import mesh_files
 from pinchmatch.mesh.manifest import object_specs, read_manifest
 from pinchmatch.mesh.shapes import stacked_prop

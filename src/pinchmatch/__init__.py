@@ -59,8 +59,8 @@ _API = {
     "analyze_spec": "grasp.analysis",
     "score_pinches": "grasp.analysis",
     "Candidates": "match.candidates", "candidate_poses": "match.candidates",
-    "MatchSettings": "match.search", "match_scene": "match.search", "SceneMatch": "match.search",
-    "VirtualMatch": "match.search", "Choice": "match.search",
+    "MatchSettings": "match.search", "match_scene": "match.scene", "SceneMatch": "match.scene",
+    "VirtualMatch": "match.scene", "Choice": "match.search",
 }
 
 __all__ = sorted(_API) + ["__version__"]

@@ -141,3 +141,15 @@ test("a steady touch: one point after 1 s within 3 mm, none while moving, none a
   assert.equal(touch.update(at(130), 5.2), null);
   assert.ok(touch.update(at(130), 6.25));
 });
+
+test("landing notes: steady, fragile, noticed, none", () => {
+  const landing = (p) => ({ radius_mm: 5, axis_deg: 14, p_noticed_worst: p, noticeable_worst: p >= 0.5 });
+  assert.equal(XR.landingNote({ noticeable: false, landing: landing(0.2) }).word, "steady");
+  const fragile = XR.landingNote({ noticeable: false, landing: landing(0.93) });
+  assert.equal(fragile.word, "fragile");
+  assert.equal(fragile.worst_percent, 93);
+  assert.match(fragile.text, /within 5 mm/);
+  assert.equal(XR.landingNote({ noticeable: true, landing: landing(0.99) }).word, "noticed");
+  assert.equal(XR.landingNote({ noticeable: false }), null);
+  assert.equal(XR.landingNote({ noticeable: false, landing: null }), null);
+});

@@ -123,6 +123,14 @@ def _add_match_options(p: argparse.ArgumentParser, *, one_to_one: bool = True) -
     if one_to_one:
         p.add_argument("--one-to-one", action="store_true", help="each tangible serves at most one virtual object")
     p.add_argument("--keep-upright", action="store_true", help="never turn a virtual object upside down")
+    p.add_argument("--refine", choices=("on", "off"), default="on",
+                   help="on: follow the best pairs on both surfaces past the sample until the cost settles, so "
+                        "that the answer does not hang on --seed (default); off: the best sampled pair")
+    p.add_argument("--landing-mm", type=float, default=5.0,
+                   help="each match says what it costs when a fingertip lands up to this far off its target, the "
+                        "pinch axis up to 14 degrees off (default 5, as the headset allows; 0 to 20)")
+    p.add_argument("--robust", action="store_true",
+                   help="rank the best choices by their worst landing instead of their cost on target")
 
 
 def _add_output_options(p: argparse.ArgumentParser, *, figures: bool) -> None:

@@ -57,8 +57,10 @@ def match_settings_of(args) -> MatchSettings:
     else:
         weights = parse_weights(getattr(args, "weights", None), criteria=criteria)
     # a command without an option (demo has no --top-k) keeps the settings' default
-    given = {k: getattr(args, k) for k in ("normalize", "top_k", "one_to_one", "keep_upright", "distinct_mm")
-             if hasattr(args, k)}
+    given = {k: getattr(args, k) for k in ("normalize", "top_k", "one_to_one", "keep_upright", "distinct_mm",
+                                           "landing_mm", "robust") if hasattr(args, k)}
+    if hasattr(args, "refine"):
+        given["refine"] = args.refine == "on"
     return MatchSettings(weights=weights, criteria=criteria, pooling=args.pooling, **given)
 
 

@@ -253,7 +253,8 @@ def demo_design(publisher, stage: Path, objects: Path, settings, *, budget_s: fl
     the exact search against the six objects' sampled poses). Writes OUT/props/designed.stl and
     OUT/design.json; returns the comparison."""
     from ..export.design import prop_record
-    from ..match.search import MatchSettings, Search, cost_model
+    from ..match.refine import refined_search
+    from ..match.search import MatchSettings, cost_model
     from ..match.select import served_row
     from ..mesh.stacks import stack_mesh
     from ..runner.cache import cached_candidates
@@ -281,8 +282,9 @@ def demo_design(publisher, stage: Path, objects: Path, settings, *, budget_s: fl
     judged = {}
     for name, path in (("study prop", study_prop), ("designed prop", designed_path)):
         prop = cached_candidates(str(path), cache=None, settings=settings)
-        search = Search([prop], virtuals, model, matching)
-        rows = [served_row(search, j) for j in range(len(virtuals))]
+        # judged as match judges (refined unless --refine off); the design's own search ranks its
+        # many candidate props on the sampled poses
+        rows = [served_row(refined_search([prop], v, model, matching, pinch_settings=settings), 0) for v in virtuals]
         judged[name] = {"file": path.relative_to(publisher.out).as_posix(),
                         "costs": {v.name: float(r[0][0]) for v, r in zip(virtuals, rows)},
                         "mean_cost": float(np.mean([r[0][0] for r in rows])),

@@ -182,7 +182,7 @@ def _candidate_record(candidates, i: int, *, swapped: bool = False) -> dict:
     """A candidate pose as a record; with ``swapped`` its contacts are given in the other order."""
     one = candidates.subset([i])
     record = pose_records(one.pinches, one.features)[0]
-    record["index"] = int(one.index[0])
+    record.update(_index(candidates, i))
     if swapped:
         record["p1_mm"], record["p2_mm"] = record["p2_mm"], record["p1_mm"]
         record["n1"], record["n2"] = record["n2"], record["n1"]
@@ -190,6 +190,13 @@ def _candidate_record(candidates, i: int, *, swapped: bool = False) -> dict:
         record["patches"] = record["patches"][::-1]
     record["finger_order_swapped"] = bool(swapped)
     return record
+
+
+def _index(candidates, i: int) -> dict:
+    """A pose's place in its object's sampled (or given) list, and whether refinement found it
+    instead (then it has no place: ``index`` is null)."""
+    refined = bool(candidates.index[i] < 0)
+    return {"index": None if refined else int(candidates.index[i]), "refined": refined}
 
 
 def _rigid(transform: np.ndarray) -> dict:
@@ -200,8 +207,9 @@ def _rigid(transform: np.ndarray) -> dict:
     }
 
 
-def _choice_record(scene, choice, *, full: bool) -> dict:
-    T, V = scene.tangibles[choice.tangible], scene.virtuals[choice.virtual]
+def _choice_record(scene, vm, choice, *, full: bool) -> dict:
+    tangibles, V = scene.objects(vm)
+    T = tangibles[choice.tangible]
     up_t = T.obj.loaded.up
     chance = p_noticed(T, V, choice, scene.model)
     record = {
@@ -232,8 +240,19 @@ def up_turn_deg(transform: np.ndarray, up_virtual: np.ndarray, up_tangible: np.n
 
 def _contacts(candidates, i: int, *, swapped: bool = False) -> dict:
     p = candidates.pinches.points[i][::-1] if swapped else candidates.pinches.points[i]
-    return {"index": int(candidates.index[i]), "p1_mm": json_vector(p[0]), "p2_mm": json_vector(p[1]),
+    return {**_index(candidates, i), "p1_mm": json_vector(p[0]), "p2_mm": json_vector(p[1]),
             "finger_order_swapped": bool(swapped)}
+
+
+def _landing_record(landing) -> dict | None:
+    """A match's landing tolerance (:class:`pinchmatch.match.landing.Landing`), costs to 6 digits."""
+    if landing is None:
+        return None
+    record = landing.as_dict()
+    for key in ("cost_nominal", "cost_mean", "cost_worst"):
+        record[key] = json_number(record[key], 6)
+    record["p_noticed_worst"] = json_number(record["p_noticed_worst"], 4)
+    return record
 
 
 def _reference_record(ref, model) -> dict:
@@ -265,16 +284,17 @@ def object_entry(candidates, *, dump_poses: bool = False) -> dict:
 
 def match_entry(scene, vm) -> dict:
     """One virtual object's entry in ``matches``."""
-    V = scene.virtuals[vm.virtual]
+    tangibles, V = scene.objects(vm)
     entry = {"virtual": V.name}
     if vm.best is None:
         return entry | {"tangible": None, "cost": None, "reason": vm.reason}
     best = vm.best
-    entry.update(_choice_record(scene, best, full=True))
+    entry.update(_choice_record(scene, vm, best, full=True))
     entry["reason"] = None
-    entry["criteria"] = criterion_table(scene.tangibles[best.tangible], V, best, scene.model)
-    entry["alternatives"] = [_choice_record(scene, a, full=False) for a in vm.alternatives]
+    entry["criteria"] = criterion_table(tangibles[best.tangible], V, best, scene.model)
+    entry["alternatives"] = [_choice_record(scene, vm, a, full=False) for a in vm.alternatives]
     entry["reference"] = _reference_record(vm.reference, scene.model)
+    entry["landing"] = _landing_record(vm.landing)
     # keys in a stable, readable order
     order = ["virtual", "tangible", "cost", "p_noticed", "noticeable", "reason", "criteria", "tangible_pose",
              "virtual_pose"]

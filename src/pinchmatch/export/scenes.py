@@ -162,7 +162,8 @@ def write_scenes(scene, folder, *, progress=None, hand: Hand = Hand()) -> list:
         if vm.best is None:
             continue
         path = folder / f"{stems[vm.virtual]}.glb"
-        T, V = scene.tangibles[vm.best.tangible], scene.virtuals[vm.virtual]
+        tangibles, V = scene.objects(vm)
+        T = tangibles[vm.best.tangible]
         write_atomic(path, match_scene_glb(T, V, vm.best, hand=hand))
         paths.append(path)
         if progress is not None:

@@ -105,6 +105,7 @@ def _page_data(out: Path, document: dict) -> dict:
             "scene_file": Path(name).as_posix(),
             "cost": m["cost"],
             "p_noticed": m.get("p_noticed"),
+            "landing": m.get("landing"),
             "noticeable": bool(m.get("noticeable", any(c["noticeable"] for c in m["criteria"].values()))),
             "flipped": m["flipped"],
             "contact_offset_mm": m["contact_offset_mm"],

@@ -205,7 +205,7 @@ def _hand_free(context, tips, h, length):
 
 
 def reach(context, points: np.ndarray, normals: np.ndarray, hand: Hand,
-          *, approach: np.ndarray | None = None) -> Reach:
+          *, approach: np.ndarray | None = None, thorough: bool = True) -> Reach:
     """The reach rule for n pinches.
 
     Parameters
@@ -216,6 +216,10 @@ def reach(context, points: np.ndarray, normals: np.ndarray, hand: Hand,
     approach : (n, 3) float64, optional
         A direction to try first (an earlier answer for nearly the same pinch); where it
         clears it is kept and nothing else is searched.
+    thorough : bool
+        False: only the quick directions (step 1) are tried, no branch and bound; a pinch found
+        reachable is reachable, but a few reachable ones are missed (for candidates that need
+        not all be found: refinement's moves).
     """
     n = len(points)
     tips = points + hand.fingertip_radius_mm * normals
@@ -275,7 +279,7 @@ def reach(context, points: np.ndarray, normals: np.ndarray, hand: Hand,
         pending = pending[~ok[pending]]
 
     # 2. branch and bound over the whole band
-    if len(pending):
+    if len(pending) and thorough:
         found_rows, found_h, found_margin = _search_band(context, tips, u, e1, e2, pending, hand,
                                                          offsets, rho, cap)
         ok[found_rows] = True

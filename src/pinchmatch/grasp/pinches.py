@@ -218,8 +218,8 @@ def clearance_broken(context: SurfaceContext, points: np.ndarray, normals: np.nd
 
 
 def reach_rule(context: SurfaceContext, points: np.ndarray, normals: np.ndarray, settings: PinchSettings,
-               approach: np.ndarray | None = None) -> Reach:
-    return reach(context, points, normals, settings.hand, approach=approach)
+               approach: np.ndarray | None = None, thorough: bool = True) -> Reach:
+    return reach(context, points, normals, settings.hand, approach=approach, thorough=thorough)
 
 
 def cheap_broken(context, points, normals, settings, cone_deg):
@@ -232,12 +232,13 @@ def cheap_broken(context, points, normals, settings, cone_deg):
     return broken
 
 
-def rule_table(context, points, normals, valid_patch, settings, surface_ok=None, approach=None):
-    """Which rules each pinch breaks, (n, len(RULES)) bool, and its reach."""
+def rule_table(context, points, normals, valid_patch, settings, surface_ok=None, approach=None, thorough=True):
+    """Which rules each pinch breaks, (n, len(RULES)) bool, and its reach (``thorough``: see
+    :func:`pinchmatch.grasp.hand.reach`)."""
     broken = cheap_broken(context, points, normals, settings, settings.friction_cone_deg)
     if surface_ok is not None:
         broken[:, RULES.index("surface")] = ~surface_ok
-    found = reach_rule(context, points, normals, settings, approach)
+    found = reach_rule(context, points, normals, settings, approach, thorough)
     broken[:, RULES.index("reach")] = ~found.ok
     broken[:, RULES.index("patch")] = ~valid_patch.reshape(-1, 2).all(axis=1)
     return broken, found
@@ -283,6 +284,8 @@ def check_pinches(
     *,
     settings: PinchSettings = PinchSettings(),
     faces: np.ndarray | None = None,
+    approach: np.ndarray | None = None,
+    thorough: bool = True,
 ) -> Pinches:
     """Snap user-given contacts onto the surface and check every rule.
 
@@ -293,6 +296,12 @@ def check_pinches(
     faces : (n, 2) int, optional
         The triangles the contacts lie on, when they are known to be on the surface (ray hits):
         they are then taken as they are, with no closest-point search.
+    approach : (n, 3) float, optional
+        A hand direction to try first for each pinch (a nearby pinch's): where it clears, the
+        reach search stops there (:func:`pinchmatch.grasp.hand.reach`).
+    thorough : bool
+        False: the reach search tries its quick directions only, and a pinch it does not reach
+        that way counts as unreachable (never the other way round).
 
     Returns
     -------
@@ -312,7 +321,7 @@ def check_pinches(
     geom = patches(context, closest, context.face_normals[face], settings)
     points = closest.reshape(n, 2, 3)
     normals = geom.normal.reshape(n, 2, 3)
-    broken, found = rule_table(context, points, normals, geom.valid, settings, surface_ok)
+    broken, found = rule_table(context, points, normals, geom.valid, settings, surface_ok, approach, thorough)
     return assemble(points, face, geom, broken, found, {}, distance)
 
 

@@ -1,6 +1,7 @@
-"""Step #3: for every virtual object, the best tangible and pinch pair, registered.
+"""Step #3: the exact search for a virtual object's best tangibles and pinch pairs, registered.
 
-The search is exact. For each (virtual object, tangible) pair of objects:
+The search is exact over the poses it is given (sampled, and refined: :mod:`pinchmatch.match.refine`;
+:mod:`pinchmatch.match.scene` runs it for a whole scene). For each (virtual object, tangible) pair of objects:
 
 1. The separable part of the cost (the paper's seven criteria and the lower
    bound of ``mass``) is computed for every pose pair, blockwise with BLAS
@@ -19,7 +20,7 @@ virtual's, lie within ``distinct_mm`` of the other's (each contact, in the
 better finger order).
 
 The result does not depend on the pool sizes, so a search of one virtual
-object alone (:func:`match_virtual`, what parallel runs do) gives the same
+object alone (what parallel runs do) gives the same
 bits as a search of the whole scene: every pair cheaper than tau is pooled,
 the greedy pick walks pairs by cost, and ties go to the lower (tangible,
 tangible pose, virtual pose).
@@ -31,14 +32,11 @@ import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 from ..errors import ConfigError
-from ..grasp.pinches import PinchSettings
 from .candidates import Candidates, felt_table, mass_ratio
 from .cost import (CRITERIA, DEFAULT_CRITERIA, PAPER_CRITERIA, POOLINGS, CostModel, complete_weights,
                    feature_ranges, mass_term, pair_cost_blocks, separable_terms, total)
-from .reference import Reference, reference_pose
 from .register import FLIP_COSINE, register_poses
 
 #: pose pairs kept per (virtual, tangible) object pair before the exact evaluation: one per
@@ -67,6 +65,9 @@ class MatchSettings:
     keep_upright: bool = False
     distinct_mm: float = 8.0
     block_rows: int = 2048
+    refine: bool = True
+    landing_mm: float = 5.0
+    robust: bool = False
 
     def __post_init__(self):
         if tuple(self.criteria) not in (DEFAULT_CRITERIA, PAPER_CRITERIA):
@@ -80,6 +81,11 @@ class MatchSettings:
             raise ConfigError(f"--distinct-mm: {self.distinct_mm!r} must be a distance of 0 mm or more")
         if self.normalize not in ("jnd", "range"):
             raise ConfigError(f"--normalize: unknown mode {self.normalize!r}; use jnd or range")
+        if not (isinstance(self.landing_mm, (int, float)) and 0.0 <= self.landing_mm <= 20.0):
+            raise ConfigError(f"--landing-mm: {self.landing_mm!r} must be from 0 to 20 mm (how far off its target "
+                              "a fingertip may land; the headset allows 5)")
+        if not isinstance(self.refine, bool):
+            raise ConfigError(f"--refine: {self.refine!r} must be on or off")
         if self.pooling not in POOLINGS:
             raise ConfigError(f"--pooling: unknown pooling {self.pooling!r}; use quick (probability summation, "
                               "the default) or sum (the paper's sum of squares)")
@@ -94,6 +100,9 @@ class MatchSettings:
             "one_to_one": self.one_to_one,
             "keep_upright": self.keep_upright,
             "distinct_mm": self.distinct_mm,
+            "refine": self.refine,
+            "landing_mm": self.landing_mm,
+            "robust": self.robust,
         }
 
 
@@ -262,47 +271,6 @@ class Choice:
     virtual_name: str = ""
 
 
-@dataclass
-class VirtualMatch:
-    """The result for one virtual object.
-
-    - ``virtual``: ``int``, its index in the scene's virtual objects; ``name``: ``str``, its name;
-    - ``best``: the :class:`Choice` of least cost, or ``None`` (then ``reason``, a one-line ``str``,
-      says why: no allowed registration, or every tangible taken under ``one_to_one``);
-    - ``alternatives``: up to ``top_k`` further ``Choice`` s, by cost, none a near duplicate of an
-      earlier one (both pinches within ``distinct_mm``);
-    - ``reference``: the paper's Ref on the best choice's tangible pose (:class:`Reference`), or
-      ``None`` without a best choice.
-    """
-
-    virtual: int
-    best: Choice | None
-    alternatives: list
-    reason: str | None = None
-    reference: Reference | None = None
-    name: str = ""
-
-
-@dataclass
-class SceneMatch:
-    """Every virtual object matched against every tangible.
-
-    - ``tangibles``, ``virtuals``: the ``n`` and ``m`` objects' :class:`Candidates`, in input order;
-    - ``settings``: the :class:`MatchSettings` used; ``model``: the run's
-      :class:`pinchmatch.match.cost.CostModel` (its scales, weights and criteria);
-    - ``cost_matrix``: ``(m, n) float64``, dimensionless: the least exact cost of each virtual object
-      on each tangible, inf where no registration is allowed;
-    - ``matches``: ``m`` :class:`VirtualMatch` es, in the order of ``virtuals``.
-    """
-
-    tangibles: list
-    virtuals: list
-    settings: MatchSettings
-    model: CostModel
-    cost_matrix: np.ndarray
-    matches: list
-
-
 class Search:
     """The exact search of a scene: per (virtual, tangible) a pool of the cheapest pose pairs, exactly
     evaluated, grown on demand until it provably holds the best pairs (see the module's notes)."""
@@ -323,6 +291,30 @@ class Search:
         pool = _PairPool(t, it[keep], iv[keep], _take(result, keep), tau, size)
         self.pools[(j, t)] = pool
         return pool
+
+    def grown(self, tangibles: list, virtuals: list) -> "Search":
+        """The search over the same objects with poses appended to their candidates (each list
+        starts with this search's): pools known here carry over, so that only the pairs with a
+        new pose are searched (blockwise, as :meth:`pool` does) and evaluated."""
+        out = Search(tangibles, virtuals, self.model, self.settings)
+        for (j, t), old in self.pools.items():
+            T, V = tangibles[t], virtuals[j]
+            n_t, n_v = len(self.tangibles[t]), len(self.virtuals[j])
+            parts, tau = [(old.it, old.iv, old.result)], old.tau
+            for t_rows, v_rows in ((np.arange(n_t, len(T)), np.arange(len(V))), (np.arange(n_t), np.arange(n_v, len(V)))):
+                if not len(t_rows) or not len(v_rows):
+                    continue
+                it, iv, _, block_tau = _pool(T.subset(t_rows), V.subset(v_rows), self.model, old.size,
+                                             self.settings.block_rows)
+                it, iv = t_rows[it], v_rows[iv]
+                parts.append((it, iv, evaluate_pairs(T, V, it, iv, self.model, keep_upright=self.settings.keep_upright)))
+                tau = min(tau, block_tau)
+            it, iv = np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
+            result = PairResult(**{f.name: np.concatenate([getattr(p[2], f.name) for p in parts])
+                                   for f in dataclasses.fields(PairResult)})
+            keep = np.flatnonzero(result.cost < tau)
+            out.pools[(j, t)] = _PairPool(t, it[keep], iv[keep], _take(result, keep), tau, old.size)
+        return out
 
     def best_cost(self, j: int, t: int) -> float:
         """Exact minimum cost of virtual j on tangible t (inf if no pair is allowed)."""
@@ -372,88 +364,9 @@ class Search:
         return picks
 
 
-def match_scene(tangibles: list[Candidates], virtuals: list[Candidates], settings: MatchSettings = MatchSettings(),
-                model: CostModel | None = None, *, pinch_settings: PinchSettings = PinchSettings()) -> SceneMatch:
-    """For every virtual object, the best tangible, pose pair and registration, with alternatives.
-
-    ``model`` defaults to :func:`cost_model` over all candidates; ``pinch_settings`` are used to
-    check the reference poses.
-    """
-    if not tangibles:
-        raise ConfigError("no tangible object given; name at least one with --tangible")
-    if not virtuals:
-        raise ConfigError("no virtual object given; name at least one with --virtual")
-    model = model or cost_model(settings, tangibles + virtuals)
-    search = Search(tangibles, virtuals, model, settings)
-    m, n = len(virtuals), len(tangibles)
-    cost_matrix = np.array([cost_row(search, j) for j in range(m)]).reshape(m, n)
-    plan = allowed_tangibles(cost_matrix, settings)
-    matches = [_match(search, j, *plan[j], pinch_settings=pinch_settings) for j in range(m)]
-    return SceneMatch(tangibles, virtuals, settings, model, cost_matrix, matches)
-
-
 def cost_row(search: "Search", j: int) -> np.ndarray:
     """(n,) exact least cost of virtual j on each tangible (inf where none is allowed)."""
     return np.array([search.best_cost(j, t) for t in range(len(search.tangibles))], dtype=np.float64)
-
-
-def allowed_tangibles(cost_matrix: np.ndarray, settings: MatchSettings) -> list[tuple[list[int], str | None]]:
-    """Per virtual object, the tangibles it may use and, when none, why: all of them, or the one
-    ``--one-to-one`` assigns."""
-    m, n = cost_matrix.shape
-    if not settings.one_to_one:
-        return [(list(range(n)), None)] * m
-    assigned = assign_one_to_one(cost_matrix)
-    return [([int(assigned[j])], None) if assigned[j] >= 0 else
-            ([], "every tangible serves another virtual object (--one-to-one)"
-             if np.isfinite(cost_matrix[j]).any() else "no upright registration on any tangible")
-            for j in range(m)]
-
-
-def _match(search: "Search", j: int, allowed: list[int], reason: str | None, *,
-           pinch_settings: PinchSettings) -> VirtualMatch:
-    picks = search.choices(j, allowed, search.settings.top_k + 1) if allowed else []
-    if not picks and reason is None:
-        reason = "no registration is allowed: every one flips the virtual object (--keep-upright)"
-    best = picks[0] if picks else None
-    ref = reference_pose(search.tangibles[best.tangible], best.t_pose, search.virtuals[j], search.model,
-                         settings=pinch_settings) if best else None
-    return VirtualMatch(j, best, picks[1:], None if best else reason, ref, search.virtuals[j].name)
-
-
-def match_virtual(tangibles: list[Candidates], virtual: Candidates, model: CostModel,
-                  settings: MatchSettings = MatchSettings(), *, allowed: tuple[list[int], str | None] | None = None,
-                  row: np.ndarray | None = None, pinch_settings: PinchSettings = PinchSettings()) -> SceneMatch:
-    """One virtual object's row of :func:`match_scene`, bit for bit, searched on its own.
-
-    ``model`` must be the run's (built over every object); ``allowed`` is its entry of
-    :func:`allowed_tangibles` (default: every tangible, which is right unless ``one_to_one``);
-    ``row`` its row of the cost matrix when already known. The result is a one-row scene.
-    """
-    search = Search(tangibles, [virtual], model, settings)
-    row = cost_row(search, 0) if row is None else np.asarray(row, dtype=np.float64)
-    vm = _match(search, 0, *(allowed or (list(range(len(tangibles))), None)), pinch_settings=pinch_settings)
-    return SceneMatch(tangibles, [virtual], settings, model, row[None], [vm])
-
-
-def assign_one_to_one(cost_matrix: np.ndarray) -> np.ndarray:
-    """(m,) tangible of each virtual object, -1 for none: the assignment of least total cost in
-    which each tangible serves at most one virtual object and as many as possible are served.
-
-    Pairs with no allowed registration (inf) are never assigned.
-    """
-    m, n = cost_matrix.shape
-    finite = np.isfinite(cost_matrix)
-    out = np.full(m, -1, dtype=np.int64)
-    if not finite.any():
-        return out
-    # serve as many as possible first, then least cost: a forbidden pair costs more than any full set
-    big = (np.abs(cost_matrix[finite]).sum() + 1.0) * (min(m, n) + 1)
-    rows, cols = linear_sum_assignment(np.where(finite, cost_matrix, big))
-    for r, c in zip(rows, cols):
-        if finite[r, c]:
-            out[r] = c
-    return out
 
 
 def contact_offset_mm(tangible: Candidates, virtual: Candidates, choice: Choice) -> float:

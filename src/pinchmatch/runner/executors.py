@@ -2,7 +2,7 @@
 
 Whatever runs them, the results come back in input order and are the same bits as a serial run:
 the search of one virtual object alone equals its row of the whole scene
-(:func:`pinchmatch.match.search.match_virtual`), and candidates cross process boundaries as the
+(:func:`pinchmatch.match.scene.match_virtual`), and candidates cross process boundaries as the
 cache's arrays (:func:`pinchmatch.runner.cache.to_payload`). Only a window of tasks is in flight.
 """
 

@@ -21,7 +21,8 @@ import numpy as np
 from ..errors import ConfigError, PinchmatchError
 from ..match.candidates import Candidates
 from ..match.cost import feature_bounds, ranges_from_bounds
-from ..match.search import allowed_tangibles, cost_model
+from ..match.scene import allowed_tangibles
+from ..match.search import cost_model
 from .cache import from_payload
 from .executors import Executor
 from .tasks import Failure, Job, ObjectTask, VirtualResult, bounds_task, candidates_task, row_task, virtual_task
@@ -45,7 +46,7 @@ def run_match(tangible_tasks: list[ObjectTask], virtual_tasks: list[ObjectTask],
     ``virtual_fn`` is the virtual objects' task: :func:`virtual_task` (the whole result), or
     :func:`~pinchmatch.runner.tasks.served_task` (the row of the served matrix, for ``select``).
     ``plan`` gives, per virtual object (by position), the tangibles it may use and why none, as
-    :func:`~pinchmatch.match.search.allowed_tangibles` does (default: every tangible).
+    :func:`~pinchmatch.match.scene.allowed_tangibles` does (default: every tangible).
 
     ``header(tangibles)`` is called once the tangibles are known, before any virtual object's result.
     ``step(description, total)`` is a context manager yielding ``advance(note, done=...)``, as

@@ -44,8 +44,9 @@ log = logging.getLogger(__name__)
 #: bump when the layout of a result entry changes
 RESULT_FORMAT = 1
 #: modules whose code turns candidates into a result (besides ALGORITHM_DIGEST's)
-RESULT_MODULES = ("match/search", "match/register", "match/cost", "match/reference", "export/documents",
-                  "export/scenes", "export/figures", "runner/tasks", "runner/results")
+RESULT_MODULES = ("match/search", "match/refine", "match/landing", "match/scene", "match/register", "match/cost",
+                  "match/reference", "export/documents", "export/scenes", "export/figures", "runner/tasks",
+                  "runner/results")
 
 
 def _result_digest() -> str:

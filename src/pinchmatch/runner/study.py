@@ -33,13 +33,8 @@ from ..grasp.pinches import PinchSettings
 from ..match.candidates import Candidates, candidate_poses, merge_candidates
 from ..match.cost import CRITERIA, PAPER_CRITERIA
 from ..match.reference import line_contacts, reference_cost, reference_pose
-from ..match.search import (
-    MatchSettings,
-    SceneMatch,
-    cost_model,
-    evaluate_pairs,
-    match_scene,
-)
+from ..match.scene import SceneMatch, match_scene
+from ..match.search import MatchSettings, cost_model, evaluate_pairs
 from ..mesh.shapes import stacked_prop
 
 PARTS = ("cylinder", "cube", "cone")

@@ -27,7 +27,9 @@ from ..export.scenes import match_scene_glb
 from ..grasp.pinches import PinchSettings
 from ..match.candidates import Candidates
 from ..match.cost import feature_bounds
-from ..match.search import MatchSettings, Search, cost_row, match_virtual
+from ..match.refine import refined_search
+from ..match.scene import match_virtual
+from ..match.search import MatchSettings, cost_row
 from ..match.select import served_row
 from ..mesh.manifest import ObjectSpec
 from .cache import FeatureCache, cached_candidates, to_payload
@@ -145,14 +147,14 @@ def bounds_task(task: ObjectTask, job: Job) -> np.ndarray | Failure:
 @_per_file
 def row_task(task: ObjectTask, job: Job, shared, model) -> np.ndarray | Failure:
     c = _candidates(task, job)[0]
-    return cost_row(Search(tangibles(shared), [c], model, job.match), 0)
+    return cost_row(refined_search(tangibles(shared), c, model, job.match, pinch_settings=job.settings), 0)
 
 
 @_per_file
 def served_task(item: tuple, job: Job, shared, model) -> ServedRow | Failure:
     """Item: (task, unused, unused), as for :func:`virtual_task`."""
     c, cached, _ = _candidates(item[0], job)
-    cost, loud = served_row(Search(tangibles(shared), [c], model, job.match), 0)
+    cost, loud = served_row(refined_search(tangibles(shared), c, model, job.match, pinch_settings=job.settings), 0)
     return ServedRow(c.name, cost, loud, cached)
 
 
@@ -185,16 +187,16 @@ def virtual_result(scene, k: int, job: Job, *, cached: bool = False) -> VirtualR
     and its glTF scene and criteria figure as bytes (when the job wants them). Every command's
     results reach the output through this and :class:`MatchesSink`."""
     vm = scene.matches[k]
-    virtual = scene.virtuals[k]
+    tangibles_k, virtual = scene.objects(vm)
     match = match_entry(scene, vm)
     glb = png = None
     if vm.best is not None:
         if job.scenes:
-            glb = match_scene_glb(scene.tangibles[vm.best.tangible], virtual, vm.best, hand=job.settings.hand)
+            glb = match_scene_glb(tangibles_k[vm.best.tangible], virtual, vm.best, hand=job.settings.hand)
         if job.figures:
             from ..export.figures import criteria_figure, png_bytes  # matplotlib: imported when figures are wanted
 
             png = png_bytes(criteria_figure(match))
-    return VirtualResult(virtual.name, object_entry(virtual, dump_poses=job.dump_poses), match,
+    return VirtualResult(virtual.name, object_entry(scene.virtuals[k], dump_poses=job.dump_poses), match,
                          scene.cost_matrix[k], glb, png, cached)
 

@@ -284,7 +284,9 @@
       say(`Trial ${trial.trial} of ${trialCount()}: pinch the object where the green cones show.`);
     } else {
       await show(Math.max(V.current(), 0), null);
-      say(`Pinch ${DATA.matches[Math.max(V.current(), 0)].virtual} where the green cones show.`);
+      const match = DATA.matches[Math.max(V.current(), 0)];
+      const note = XR.landingNote(match);
+      say(`Pinch ${match.virtual} where the green cones show.` + (note ? ` This match is ${note.text}.` : ""));
     }
     if (state.calibration && !state.calibration.refused) applyCalibration();
     hold.hold_s = limits.hold_s;

@@ -139,6 +139,21 @@
     : m.up_turn_deg < 1 ? "upright"
     : `turned ${m.up_turn_deg.toFixed(0)}° from upright` + (m.flipped ? " (flipped: beyond 90°)" : "");
 
+  // the landing tolerance's words (xr_core.js, which the page loads first)
+  const landingNote = (m) => (typeof PinchmatchXR !== "undefined" ? PinchmatchXR.landingNote(m) : null);
+
+  // the pooled row's band: the chance of being noticed on target, and up to the worst landing
+  function landingRow(m) {
+    const landed = landingNote(m);
+    if (!landed) return "";
+    const lo = 100 * (m.p_noticed || 0), hi = 100 * m.landing.p_noticed_worst;
+    return `<tr class="pooled"><th>landing</th><td>${landed.worst_percent} %</td>` +
+      `<td><div class="jnd-bar" title="${escape(landed.text)}"><span class="${m.noticeable ? "loud" : ""}" ` +
+      `style="width:${lo}%"></span><b class="band ${landed.word}" style="left:${lo}%;width:${Math.max(hi - lo, 0.5)}%"></b>` +
+      `<i style="left:50%"></i></div></td><td>${escape(landed.word)} within ${m.landing.radius_mm} mm, ` +
+      `${m.landing.axis_deg}°; cost ${fmt(m.landing.cost_mean)} mean, ${fmt(m.landing.cost_worst)} worst</td></tr>`;
+  }
+
   function loudCriteria(match) {
     return match.criteria.filter((c) => c.noticeable);
   }
@@ -158,6 +173,11 @@
       badges.push(loud.length
         ? loud.map((c) => `<span class="badge loud">${escape(c.name)} ${c.jnd.toFixed(1)} JND</span>`).join("")
         : (m.noticeable ? "" : `<span class="badge quiet">nothing noticeable</span>`));
+      const landed = landingNote(m);
+      if (landed) {
+        badges.push(`<span class="badge ${landed.word === "steady" ? "quiet" : "loud"}" title="${escape(landed.text)}">` +
+          `${landed.word}</span>`);
+      }
       if (m.flipped) badges.push(`<span class="badge flip" title="${escape(turned(m))}">F</span>`);
       li.innerHTML = `<div class="names">${breakable(m.virtual)} <span class="arrow">→</span> ${breakable(m.tangible)}</div>` +
         `<div class="meta">${badges.join("")}</div>`;
@@ -207,7 +227,7 @@
     }).join("") + (m.p_noticed === null || m.p_noticed === undefined ? "" :
       `<tr class="pooled"><th>noticed</th><td>${(100 * m.p_noticed).toFixed(0)} %</td>` +
       `<td><div class="jnd-bar"><span class="${m.noticeable ? "loud" : ""}" style="width:${100 * m.p_noticed}%"></span>` +
-      `<i style="left:50%"></i></div></td><td>all criteria pooled</td></tr>`);
+      `<i style="left:50%"></i></div></td><td>all criteria pooled</td></tr>`) + landingRow(m);
     const facts = [
       `<b>${escape(m.virtual)}</b> on <b>${escape(m.tangible)}</b>`,
       `cost ${fmt(m.cost, 4)}`,

@@ -240,6 +240,19 @@
     return [columns.join(","), ...rows.map((r) => columns.map((c) => cell(r[c])).join(","))].join("\r\n") + "\r\n";
   }
 
+  // How a match holds when the fingers land off target (matches.json's "landing"): "steady" when even
+  // its worst landing is noticed less than half the time, "fragile" when a landing within the tolerance
+  // is noticed though the match on target is not, "noticed" when the match is noticed on target too;
+  // null without a landing. The words and the worst chance, for the page and the headset.
+  function landingNote(match) {
+    const landing = match && match.landing;
+    if (!landing || landing.p_noticed_worst === null || landing.p_noticed_worst === undefined) return null;
+    const worst = Math.round(100 * landing.p_noticed_worst);
+    const word = !landing.noticeable_worst ? "steady" : match.noticeable ? "noticed" : "fragile";
+    return { word, worst_percent: worst,
+             text: `${word}: within ${landing.radius_mm} mm of the targets it is noticed at most ${worst} % of the time` };
+  }
+
   return { DEFAULT_LIMITS, MAX_CALIBRATION_RMS_MM, checkPinch, HoldTimer, SteadyTouch, limitsFromQuery, rigidFit, spreadOk,
-           calibrationPoints, toCSV, angleDeg };
+           calibrationPoints, toCSV, angleDeg, landingNote };
 });

@@ -1,0 +1,120 @@
+"""Does the answer converge? The best prop and cost over three seeds, with and without refinement.
+
+    python benchmarks/bench_converge.py              # 3 seeds, the default count (1,000)
+    python benchmarks/bench_converge.py --quick      # 2 seeds, 300 poses, 6 virtual objects
+    python benchmarks/bench_converge.py --count 500  # another base count
+
+The scene: robosuite's seven household objects (bottle, bread, can, cereal, handles, lemon, milk),
+pybullet_data's duck, teddy and Lego brick and four of its ``random_urdfs`` objects (000-003): 14
+virtual objects nobody here made. The props: four more ``random_urdfs`` objects (950-953). All are
+read from the wheels on PyPI (``benchmarks/assets.py``), the random objects subdivided to about
+6,000 faces.
+
+Three settings run side by side, each once per seed, as ``pinchmatch match`` runs from the command
+line (no cache, default jobs): the default (refined), ``--refine off`` at the base count and
+``--refine off`` at four times the count. Per object and setting it prints the best prop of each
+seed, the spread of the best cost across seeds ((max - min) / median) and the mean best cost; then
+per setting the objects whose best prop changes with the seed, the median spread, the mean cost and
+the mean wall time of a run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).parent))
+from assets import DEFAULT_ASSETS, random_objects  # noqa: E402
+from bench_reach import real_meshes  # noqa: E402
+from bench_select import SCENE_REAL  # noqa: E402
+
+
+def settings(count: int, refine_known: bool) -> list[tuple[str, list[str]]]:
+    """(label, options) of the three settings; a pinchmatch without --refine runs only the unrefined ones."""
+    off = ["--refine", "off"] if refine_known else []
+    out = [(f"refine off, {count}", off + ["--count", str(count)]),
+           (f"refine off, {4 * count}", off + ["--count", str(4 * count)])]
+    if refine_known:
+        out.insert(0, (f"default, {count}", ["--count", str(count)]))
+    return out
+
+
+def run(tangibles, virtuals, options, seed, out: Path) -> tuple[dict, float]:
+    """{virtual name: (best prop, cost)} of one run, and its wall time."""
+    argv = [sys.executable, "-m", "pinchmatch", "match", "--tangible", *map(str, tangibles), "--virtual",
+            *map(str, virtuals), "--seed", str(seed), "--no-cache", "--no-view", "--no-figures", "-q",
+            "-o", str(out), *options]
+    t0 = time.perf_counter()
+    proc = subprocess.run(argv, capture_output=True, text=True)
+    seconds = time.perf_counter() - t0
+    if proc.returncode not in (0, 3):
+        raise SystemExit(f"match failed ({proc.returncode}): {proc.stderr.strip()}")
+    doc = json.loads((out / "matches.json").read_text())
+    return {m["virtual"]: (m["tangible"], m["cost"]) for m in doc["matches"]}, seconds
+
+
+def spread(costs) -> float:
+    costs = np.asarray(costs, dtype=float)
+    median = float(np.median(costs))
+    return float((costs.max() - costs.min()) / median) if median > 0 else 0.0
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="2 seeds, 300 poses, 6 virtual objects")
+    parser.add_argument("--count", type=int, help="the base count (default 1000, 300 with --quick)")
+    parser.add_argument("--seeds", type=int, help="how many seeds (default 3, 2 with --quick)")
+    args = parser.parse_args(argv)
+    count = args.count or (300 if args.quick else 1000)
+    seeds = range(args.seeds or (2 if args.quick else 3))
+    root = Path(tempfile.mkdtemp(prefix="pinchmatch-bench-converge-"))
+    (root / "scene").mkdir(parents=True)
+    virtuals = [p for name, p in real_meshes(DEFAULT_ASSETS, root / "scene") if name.startswith(SCENE_REAL)]
+    virtuals += random_objects(root / "scene", range(4), faces=6000)
+    if args.quick:
+        virtuals = virtuals[::2][:6]
+    props = random_objects(root / "props", range(950, 954), faces=6000)
+    help_text = subprocess.run([sys.executable, "-m", "pinchmatch", "match", "--help"], capture_output=True,
+                               text=True).stdout
+    plan = settings(count, "--refine" in help_text)
+    print(f"# {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}; "
+          f"{len(props)} props, {len(virtuals)} virtual objects, seeds {list(seeds)}")
+    results: dict[str, list[dict]] = {}
+    times: dict[str, list[float]] = {}
+    for seed in seeds:  # the settings interleaved, so that the machine's drift falls on all alike
+        for k, (label, options) in enumerate(plan):
+            found, seconds = run(props, virtuals, options, seed, root / f"out-{k}-{seed}")
+            results.setdefault(label, []).append(found)
+            times.setdefault(label, []).append(seconds)
+            print(f"  seed {seed}, {label}: {seconds:.1f} s", flush=True)
+    names = sorted(results[plan[0][0]][0])
+    print()
+    print(f"{'object':<28}" + "".join(f"{label:>44}" for label, _ in plan))
+    for name in names:
+        cells = []
+        for label, _ in plan:
+            runs = [r[name] for r in results[label]]
+            props_seen = "/".join(p.split("_")[-1].split(".")[0] for p, _ in runs)
+            cells.append(f"{props_seen} {spread([c for _, c in runs]):6.1%} {np.mean([c for _, c in runs]):8.3f}")
+        print(f"{name:<28}" + "".join(f"{c:>44}" for c in cells))
+    print()
+    print(f"{'setting':<24} {'prop changes':>12} {'median spread':>14} {'mean cost':>10} {'wall s':>8}")
+    for label, _ in plan:
+        changes = sum(len({r[name][0] for r in results[label]}) > 1 for name in names)
+        spreads = [spread([r[name][1] for r in results[label]]) for name in names]
+        mean = np.mean([r[name][1] for r in results[label] for name in names])
+        print(f"{label:<24} {changes:>12} {np.median(spreads):>14.1%} {mean:>10.3f} {np.mean(times[label]):>8.1f}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,183 @@
+"""Landing tolerance: what a match costs when the fingers land a little off their targets.
+
+In the headset a pinch counts when each fingertip is within ``LANDING_MM`` of its target and the
+pinch axis within ``LANDING_AXIS_DEG`` of the target's (the page's validation). A match whose cost
+rises steeply within that tolerance feels different from what was promised; :func:`landing`
+says by how much.
+
+Model (the placement does not move while the hand closes):
+
+- each finger lands on the virtual object's surface within the radius of its target: the
+  target, ``RING_POINTS[0]`` points on a ring at half the radius and ``RING_POINTS[1]`` on a ring
+  at the radius, in the plane perpendicular to the pinch line, each put on the surface where a
+  finger closing along the pinch line meets it (as refinement's moves are: from the pinch and
+  the object's axis, never the file's frame);
+- every pair of landing points whose axis is within the axis tolerance is a landing;
+- there the hand sees the virtual pinch through the landing points, and feels the tangible where
+  its fingers stop: closing along the same line, registered into the tangible's frame, each
+  finger stops at the first tangible surface facing it. Where a finger meets no tangible surface
+  within reach the landing is a *miss*, counted apart;
+- the landing's cost is the run's cost of the felt against the seen pinch, with the mass offset
+  taken under the match's own registration.
+
+The nominal landing (both on target) costs what the match costs. ``cost_worst`` is the largest
+cost over the landings, ``cost_mean`` their mean, ``p_noticed_worst`` the chance that the worst
+is noticed; ``criteria_noticeable`` names the criteria that reach 1 JND in some landing.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..grasp.features import pinch_features
+from ..grasp.pinches import PinchSettings, Pinches, patches
+from .candidates import Candidates, felt_table, mass_ratio
+from .cost import CRITERIA, CostModel, feature_table, mass_term, separable_terms
+from .refine import move_directions
+from .search import criterion_table, p_noticed
+
+#: the headset's tolerance: each fingertip within this of its target (mm) ...
+LANDING_MM = 5.0
+#: ... and the pinch axis within this of the target's (degrees)
+LANDING_AXIS_DEG = 14.0
+#: landing points per finger besides the target: on a ring at half the radius, and at the radius
+RING_POINTS = (6, 12)
+#: the largest radius ``--landing-mm`` takes (mm): a fingertip pad is about 16 mm across
+MAX_LANDING_MM = 20.0
+
+
+@dataclass(frozen=True)
+class Landing:
+    """A match's cost over its landings (see the module's notes); costs dimensionless, as the match's."""
+
+    radius_mm: float
+    axis_deg: float
+    cost_nominal: float
+    cost_mean: float
+    cost_worst: float
+    p_noticed_worst: float
+    criteria_noticeable: tuple
+    landings: int
+    missed: int
+
+    def as_dict(self) -> dict:
+        return {"radius_mm": self.radius_mm, "axis_deg": self.axis_deg, "cost_nominal": self.cost_nominal,
+                "cost_mean": self.cost_mean, "cost_worst": self.cost_worst, "p_noticed_worst": self.p_noticed_worst,
+                "noticeable_worst": bool(self.p_noticed_worst >= 0.5),
+                "criteria_noticeable": list(self.criteria_noticeable), "landings": self.landings,
+                "missed": self.missed}
+
+
+def disc_offsets(radius_mm: float, rings=RING_POINTS) -> np.ndarray:
+    """(1 + Σ rings, 2) offsets in a disc: the centre, then each ring's points evenly around it,
+    the rings at ``radius·(i+1)/len(rings)``."""
+    out = [np.zeros((1, 2))]
+    for i, count in enumerate(rings):
+        angle = 2.0 * np.pi * (np.arange(count) + 0.5 * (i % 2)) / count
+        out.append(radius_mm * (i + 1) / len(rings) * np.stack([np.cos(angle), np.sin(angle)], axis=1))
+    return np.concatenate(out)
+
+
+def _close(context, points: np.ndarray, toward: np.ndarray, back_mm: float) -> tuple[np.ndarray, np.ndarray]:
+    """Where fingers closing along ``toward`` from ``back_mm`` behind ``points`` first meet a surface
+    facing them, within twice that: (n, 3) contacts and (n,) triangles, -1 where they meet none."""
+    origin = points - back_mm * toward
+    face, dist = context.first_hit(origin, toward)
+    met = (face >= 0) & (dist <= 2.0 * back_mm)
+    met[met] = np.einsum("ij,ij->i", context.face_normals[face[met]], toward[met]) < 0
+    contact = origin + np.where(np.isfinite(dist), dist, 0.0)[:, None] * toward
+    return contact, np.where(met, face, -1)
+
+
+def _described(context, points: np.ndarray, faces: np.ndarray, settings: PinchSettings) -> Pinches:
+    """Pinches (n, 2) at given surface points, with their patches (no rule is checked)."""
+    n = len(points)
+    geom = patches(context, points, context.face_normals[faces], settings)
+    return Pinches(points=points, normals=geom.normal.reshape(n, 2, 3), face_index=faces,
+                   kappa_max_per_m=geom.kappa_max_per_m.reshape(n, 2), kappa_min_per_m=geom.kappa_min_per_m.reshape(n, 2),
+                   dir_max=geom.dir_max.reshape(n, 2, 3), feasible=np.ones(n, dtype=bool),
+                   broken=np.zeros((n, 7), dtype=bool), snap_distance_mm=np.zeros((n, 2)),
+                   approach=np.full((n, 3), np.nan), approach_clearance_mm=np.full(n, np.nan))
+
+
+def landing_pinches(virtual: Candidates, v_pose: int, swapped: bool, radius_mm: float, axis_deg: float,
+                    rings=RING_POINTS) -> np.ndarray:
+    """(k, 2, 3) the landings on the virtual object (target first), in the tangible's finger
+    order, and (k, 2) their triangles."""
+    p = virtual.pinches.points[v_pose]
+    f = virtual.pinches.face_index[v_pose]
+    if swapped:
+        p, f = p[::-1], f[::-1]
+    dirs = move_directions(p[None], virtual.obj.props.principal_axis)[0]  # (2, 3)
+    offsets = disc_offsets(radius_mm, rings)
+    u = (p[1] - p[0]) / np.linalg.norm(p[1] - p[0])
+    back = radius_mm * np.tan(np.radians(axis_deg)) + radius_mm + 1.0
+    context = virtual.obj.context
+    landed, faces = [], []
+    for k, toward in ((0, u), (1, -u)):
+        moved = p[k] + offsets @ dirs
+        contact, face = _close(context, moved, np.broadcast_to(toward, moved.shape).copy(), back)
+        contact[0], face[0] = p[k], f[k]  # the target itself
+        landed.append(contact)
+        faces.append(face)
+    i, j = np.meshgrid(np.arange(len(offsets)), np.arange(len(offsets)), indexing="ij")
+    i, j = i.ravel(), j.ravel()
+    ok = (faces[0][i] >= 0) & (faces[1][j] >= 0)
+    points = np.stack([landed[0][i], landed[1][j]], axis=1)[ok]
+    faces = np.stack([faces[0][i], faces[1][j]], axis=1)[ok]
+    axis = points[:, 1] - points[:, 0]
+    cos = axis @ u / np.maximum(np.linalg.norm(axis, axis=1), 1e-300)
+    keep = cos >= np.cos(np.radians(axis_deg)) - 1e-12
+    return points[keep], faces[keep]
+
+
+def landing(tangible: Candidates, virtual: Candidates, choice, model: CostModel, *, settings: PinchSettings,
+            radius_mm: float = LANDING_MM, axis_deg: float = LANDING_AXIS_DEG, rings=RING_POINTS) -> Landing:
+    """The cost of ``choice`` (a :class:`pinchmatch.match.search.Choice`) over its landings; with a
+    radius of 0, the choice itself (nothing of either surface is built)."""
+    if radius_mm == 0:
+        chance = p_noticed(tangible, virtual, choice, model)
+        loud = tuple(c for c, row in criterion_table(tangible, virtual, choice, model).items() if row["noticeable"])
+        return Landing(0.0, float(axis_deg), choice.cost, choice.cost, choice.cost, chance, loud, 1, 0)
+    seen_points, seen_faces = landing_pinches(virtual, choice.v_pose, choice.swapped, radius_mm, axis_deg, rings)
+    X = choice.transform
+    R, t = X[:3, :3], X[:3, 3]
+    placed = seen_points @ R.T + t  # the landings in the tangible's frame
+    u = placed[:, 1] - placed[:, 0]
+    u = u / np.linalg.norm(u, axis=1, keepdims=True)
+    tp = tangible.pinches.points[choice.t_pose]
+    # the fingers close from outside either surface: far enough back to pass the larger width
+    back = 0.5 * abs(float(np.linalg.norm(tp[1] - tp[0])) - float(np.linalg.norm(seen_points[0, 1] - seen_points[0, 0]))) \
+        + radius_mm + settings.fingertip_radius_mm
+    felt, felt_faces = [], []
+    for k, toward in ((0, u), (1, -u)):
+        contact, face = _close(tangible.obj.context, placed[:, k], toward, back)
+        felt.append(contact)
+        felt_faces.append(face)
+    hit = (felt_faces[0] >= 0) & (felt_faces[1] >= 0)
+    hit[0] = True  # the nominal landing is the match itself
+    felt_points = np.stack(felt, axis=1)[hit]
+    felt_points[0] = tp
+    felt_f = np.stack(felt_faces, axis=1)[hit]
+    felt_f[0] = tangible.pinches.face_index[choice.t_pose]
+    seen = _described(virtual.obj.context, seen_points[hit], seen_faces[hit], settings)
+    felt_p = _described(tangible.obj.context, felt_points, felt_f, settings)
+    t_rows = feature_table(pinch_features(felt_p, tangible.obj.props))
+    ratio = mass_ratio(tangible, virtual)
+    v_rows = felt_table(feature_table(pinch_features(seen, virtual.obj.props)), ratio)
+    v_mid = seen.points.mean(axis=1)
+    delta = ratio * ((virtual.obj.props.com_mm - v_mid) @ R.T) - (tangible.obj.props.com_mm - felt_p.points.mean(axis=1))
+    terms = separable_terms(t_rows, v_rows, model)
+    terms[:, 7] = mass_term(t_rows, delta, model)
+    cost = model.pool(terms)
+    jnd = model.as_jnd()
+    jnd_all = CostModel(normalize="jnd", criteria=CRITERIA, weights=dict.fromkeys(CRITERIA, 1.0))
+    jnd_terms = separable_terms(t_rows, v_rows, jnd_all)
+    jnd_terms[:, 7] = mass_term(t_rows, delta, jnd_all)
+    loud = tuple(c for k, c in enumerate(CRITERIA) if c in model.criteria and (jnd_terms[:, k] >= 1.0).any())
+    worst = int(np.argmax(cost))
+    jnd_worst = jnd.pool(jnd_terms[worst])
+    return Landing(float(radius_mm), float(axis_deg), float(cost[0]), float(cost.mean()), float(cost[worst]),
+                   float(jnd.p_noticed(jnd_worst)), loud, int(hit.sum()), int((~hit).sum()))

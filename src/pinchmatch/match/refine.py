@@ -1,0 +1,236 @@
+"""Refinement after the search: the best pairs followed on both surfaces until the cost settles.
+
+The exact search (:mod:`pinchmatch.match.search`) finds the cheapest pairs among the sampled
+poses; a sample is a sample, so another seed finds other pairs. Refinement takes, on every
+tangible that could serve the virtual object (its sampled least cost within ``CONTENDER_RATIO``
+of the best tangible's), the ``SEEDS`` best distinct pairs, and improves each by a pattern
+search over the four degrees of freedom of each pinch:
+
+- the contacts move by ``step`` along the object's axis (projected off the pinch line) and
+  across it, both ways: each alone, both together (the pinch slides) and both opposite (the
+  pinch turns), sixteen moves per pose (a positive spanning set of the contacts' four
+  dimensions, twice over), the same on the tangible and on the virtual object;
+- a moved contact is put back on the surface where a finger closing along the pinch line
+  meets it (a ray towards the other finger); every rule and the hand model then check the new
+  pinch as any other (:func:`pinchmatch.grasp.pinches.check_pinches`), the hand tried first along
+  the pose's own approach, then along the quick directions only: a move that only the full
+  search of hand directions would reach is not taken;
+- every pair of (the pose and its moves) on both objects is evaluated exactly; the pair moves
+  to the cheapest when that is cheaper by more than ``IMPROVEMENT`` (relative), else the step
+  halves; a pair stops when its step falls below ``LAST_STEP_MM``.
+
+The moves are built from the pinch itself and the object's principal axis, never from the
+file's frame or the seed, so a rotated copy of an object moves alike. The new feasible poses
+join the sampled ones, and the search runs again, exactly, over the union: the answer is the
+best pair of the refined set, with alternatives, cost row and everything else as before.
+
+A side whose poses were given (``--tangible-poses``, ``--virtual-poses``) is not moved.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..grasp.curvature import tangent_frame
+from ..grasp.features import pinch_features
+from ..grasp.pinches import PinchSettings, Pinches, check_pinches, concat_pinches
+from .candidates import Candidates, features_subset
+from .cost import CostModel, feature_table
+from .search import Search, cost_row, evaluate_pairs
+
+#: distinct best pairs refined per tangible
+SEEDS = 2
+#: tangibles whose sampled least cost is at most this times the best tangible's are refined
+CONTENDER_RATIO = 1.5
+#: the first and the smallest step of a contact (mm)
+FIRST_STEP_MM, LAST_STEP_MM = 4.0, 0.5
+#: a move is taken when it lowers the pair's cost by more than this share
+IMPROVEMENT = 1e-3
+#: rounds at most (each either moves a pair or halves its step)
+MAX_ROUNDS = 16
+#: refined poses have no place in the sampled list: their ``index``
+REFINED_INDEX = -1
+
+
+@dataclass
+class _Grown:
+    """One object's candidates with the poses refinement added so far (after the sampled ones)."""
+
+    current: Candidates
+
+    def add(self, pinches: Pinches) -> np.ndarray:
+        """Append feasible ``pinches``; their indices in the grown list."""
+        start = len(self.current)
+        self.current = extend(self.current, pinches)
+        return start + np.arange(len(pinches))
+
+
+def extend(base: Candidates, pinches: Pinches) -> Candidates:
+    """``base`` with feasible ``pinches`` added (features computed, index ``REFINED_INDEX``)."""
+    features = pinch_features(pinches, base.obj.props)
+    extra = Candidates(base.obj, pinches, features, feature_table(features),
+                       np.full(len(pinches), REFINED_INDEX, dtype=base.index.dtype), base.given, base.probes)
+    return Candidates(base.obj, concat_pinches([base.pinches, pinches], base.pinches.rejected),
+                      features_concat(base, extra), np.concatenate([base.table, extra.table]),
+                      np.concatenate([base.index, extra.index]), base.given, base.probes)
+
+
+def features_concat(a: Candidates, b: Candidates):
+    both = [a.features, b.features]
+    return type(a.features)(**{name: np.concatenate([getattr(f, name) for f in both])
+                               for name in a.features.__dataclass_fields__})
+
+
+def move_directions(points: np.ndarray, axis: np.ndarray) -> np.ndarray:
+    """(k, 2, 3) unit directions perpendicular to each pinch line: along the object's ``axis``
+    projected off the line, and across it (the line x that). Where the axis lies along the line,
+    any perpendicular pair."""
+    u = points[:, 1] - points[:, 0]
+    u = u / np.maximum(np.linalg.norm(u, axis=1, keepdims=True), 1e-300)
+    along = axis[None, :] - (u @ axis)[:, None] * u
+    size = np.linalg.norm(along, axis=1)
+    fallback = tangent_frame(u)[0]
+    along = np.where((size > 1e-3)[:, None], along / np.maximum(size, 1e-300)[:, None], fallback)
+    across = np.cross(u, along)
+    return np.stack([along, across], axis=1)
+
+
+#: the moves of a pose, per contact (p1, p2): which direction (0: e1, 1: e2) and how far in steps.
+#: Each contact alone, both together (the pinch slides) and both opposite (the pinch turns),
+#: along e1 and e2, both ways: 16 moves
+MOVES = np.array([(d, sign * a, sign * b) for a, b in ((1, 0), (0, 1), (1, 1), (1, -1)) for d in (0, 1)
+                  for sign in (1, -1)], dtype=np.int64)
+
+
+def moved_poses(c: Candidates, poses: np.ndarray, steps: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The moves of each pose (``MOVES``): (m, 2, 3) contacts, (m, 2) triangles and (m,) which
+    pose each came from, for the moves whose moved contacts a closing finger meets.
+
+    A contact moves by its pose's step along e1 or e2 (:func:`move_directions`); its finger then
+    closes along the new pinch line from its own side, from ``2·step + 1`` mm back, and the
+    contact is the first surface the finger meets facing it. A contact that does not move stays."""
+    points = c.pinches.points[poses]
+    dirs = move_directions(points, c.obj.props.principal_axis)  # (k, 2, 3)
+    k, n_moves = len(poses), len(MOVES)
+    which = np.repeat(np.arange(k), n_moves)
+    move = np.tile(MOVES, (k, 1))
+    step = steps[which]
+    offset = dirs[which, move[:, 0]]  # (m, 3)
+    new = points[which] + (move[:, 1:, None] * step[:, None, None]) * offset[:, None, :]
+    faces = c.pinches.face_index[which].copy()
+    u = new[:, 1] - new[:, 0]
+    u = u / np.maximum(np.linalg.norm(u, axis=1, keepdims=True), 1e-300)
+    back = 2.0 * step + 1.0
+    ok = np.ones(len(which), dtype=bool)
+    context = c.obj.context
+    for contact, toward in ((0, u), (1, -u)):  # the first finger closes along +u, the second along -u
+        rows = np.flatnonzero(move[:, 1 + contact] != 0)
+        origin = new[rows, contact] - back[rows, None] * toward[rows]
+        face, dist = context.first_hit(origin, toward[rows])
+        met = (face >= 0) & (dist <= 2.0 * back[rows])
+        met[met] = np.einsum("ij,ij->i", context.face_normals[face[met]], toward[rows[met]]) < 0  # from outside
+        ok[rows[~met]] = False
+        new[rows[met], contact] = origin[met] + dist[met, None] * toward[rows[met]]
+        faces[rows[met], contact] = face[met]
+    return new[ok], faces[ok], which[ok]
+
+
+def feasible_moves(c: Candidates, poses: np.ndarray, steps: np.ndarray,
+                   settings: PinchSettings) -> tuple[Pinches, np.ndarray]:
+    """The feasible moves of each pose (every rule checked) and which pose each came from."""
+    points, faces, which = moved_poses(c, poses, steps)
+    if not len(points):
+        return None, which
+    checked = check_pinches(c.obj.context, points[:, 0], points[:, 1], settings=settings, faces=faces,
+                            approach=c.pinches.approach[poses][which], thorough=False)
+    keep = np.flatnonzero(checked.feasible)
+    return checked.subset(keep), which[keep]
+
+
+@dataclass
+class _Pair:
+    """One refined pair: its tangible, its poses in the grown lists, its cost and step."""
+
+    tangible: int
+    t_pose: int
+    v_pose: int
+    cost: float
+    step: float
+
+
+def refine(tangibles: list[Candidates], virtual: Candidates, seeds: list[tuple[int, int, int, float]],
+           model: CostModel, *, keep_upright: bool, settings: PinchSettings) -> tuple[list, Candidates]:
+    """Pattern search from ``seeds`` (tangible, tangible pose, virtual pose, cost); returns every
+    tangible's candidates and the virtual object's, with the feasible poses the search visited."""
+    grown_t = [_Grown(t) for t in tangibles]
+    grown_v = _Grown(virtual)
+    pairs = [_Pair(t, it, iv, cost, FIRST_STEP_MM) for t, it, iv, cost in seeds]
+    for _ in range(MAX_ROUNDS):
+        live = [p for p in pairs if p.step >= LAST_STEP_MM]
+        if not live:
+            break
+        t_moves = {}
+        for t in sorted({p.tangible for p in live}):
+            mine = [p for p in live if p.tangible == t]
+            t_moves[t] = _grow(grown_t[t], [p.t_pose for p in mine], [p.step for p in mine], settings,
+                               fixed=tangibles[t].given)
+        v_new = _grow(grown_v, [p.v_pose for p in live], [p.step for p in live], settings, fixed=virtual.given)
+        V = grown_v.current
+        for t, moves in t_moves.items():
+            T = grown_t[t].current
+            mine = [(i, p) for i, p in enumerate(live) if p.tangible == t]
+            its, ivs, owner = [], [], []
+            for k, (i, p) in enumerate(mine):
+                ts = np.concatenate([[p.t_pose], moves[moves[:, 0] == k, 1]])
+                vs = np.concatenate([[p.v_pose], v_new[v_new[:, 0] == i, 1]])
+                its.append(np.repeat(ts, len(vs)))
+                ivs.append(np.tile(vs, len(ts)))
+                owner.append(np.full(len(ts) * len(vs), k))
+            it, iv, owner = np.concatenate(its), np.concatenate(ivs), np.concatenate(owner)
+            cost = evaluate_pairs(T, V, it, iv, model, keep_upright=keep_upright).cost
+            for k, (_, p) in enumerate(mine):
+                rows = np.flatnonzero(owner == k)
+                best = rows[np.argmin(cost[rows])]
+                if cost[best] < p.cost * (1.0 - IMPROVEMENT):
+                    p.t_pose, p.v_pose, p.cost = int(it[best]), int(iv[best]), float(cost[best])
+                else:
+                    p.step /= 2.0
+    return [g.current for g in grown_t], grown_v.current
+
+
+def _grow(grown: _Grown, poses: list[int], steps: list[float], settings: PinchSettings, *,
+          fixed: bool) -> np.ndarray:
+    """Add the feasible moves of ``poses`` to ``grown``; (m, 2) rows of (which of ``poses``, new pose's
+    index in the grown list)."""
+    if fixed or not poses:
+        return np.zeros((0, 2), dtype=np.int64)
+    pinches, which = feasible_moves(grown.current, np.asarray(poses, dtype=np.int64), np.asarray(steps, dtype=np.float64),
+                                    settings)
+    if pinches is None or not len(pinches):
+        return np.zeros((0, 2), dtype=np.int64)
+    return np.stack([which, grown.add(pinches)], axis=1)
+
+
+def refined_search(tangibles: list[Candidates], virtual: Candidates, model: CostModel, settings, *,
+                   pinch_settings: PinchSettings) -> Search:
+    """The exact search of one virtual object against every tangible, over the sampled poses and,
+    unless ``settings.refine`` is off, the poses refinement found (see the module's notes).
+
+    Which tangibles are refined depends on the sampled costs alone, not on which tangibles the
+    object may use in the end (``--one-to-one``), so a cost row and a result agree."""
+    search = Search(tangibles, [virtual], model, settings)
+    if not settings.refine or (virtual.given and all(t.given for t in tangibles)):
+        return search
+    row = cost_row(search, 0)
+    finite = np.isfinite(row)
+    if not finite.any():
+        return search
+    best = float(row[finite].min())
+    seeds = [(int(t), c.t_pose, c.v_pose, c.cost)
+             for t in np.flatnonzero(finite & (row <= CONTENDER_RATIO * best))
+             for c in search.choices(0, [int(t)], SEEDS)]
+    grown_t, grown_v = refine(tangibles, virtual, seeds, model, keep_upright=settings.keep_upright,
+                              settings=pinch_settings)
+    return search.grown(grown_t, [grown_v])

@@ -1,0 +1,176 @@
+"""Step #3 for a whole scene: every virtual object's best tangible, pose pair and registration.
+
+Each virtual object is searched on its own (:class:`pinchmatch.match.search.Search`, refined
+unless ``refine`` is off: :mod:`pinchmatch.match.refine`), so a scene matched at once and one
+matched an object at a time, as parallel runs do, give the same bits. With ``one_to_one`` the
+assignment of least total cost (scipy's ``linear_sum_assignment``) decides which tangible each
+object may use.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+from ..errors import ConfigError
+from ..grasp.pinches import PinchSettings
+from .candidates import Candidates
+from .cost import CostModel
+from .landing import Landing, landing
+from .reference import Reference, reference_pose
+from .refine import refined_search
+from .search import Choice, MatchSettings, Search, cost_model, cost_row
+
+
+#: with ``robust``, this many distinct best choices (or top_k + 1, if more) are ranked by their landings
+ROBUST_CHOICES = 8
+
+
+@dataclass
+class VirtualMatch:
+    """The result for one virtual object.
+
+    - ``virtual``: ``int``, its index in the scene's virtual objects; ``name``: ``str``, its name;
+    - ``best``: the :class:`Choice` of least cost, or ``None`` (then ``reason``, a one-line ``str``,
+      says why: no allowed registration, or every tangible taken under ``one_to_one``);
+    - ``alternatives``: up to ``top_k`` further ``Choice`` s, by cost, none a near duplicate of an
+      earlier one (both pinches within ``distinct_mm``);
+    - ``reference``: the paper's Ref on the best choice's tangible pose (:class:`Reference`), or
+      ``None`` without a best choice;
+    - ``tangibles``, ``candidates``: the candidates its choices' pose indices point into: every
+      tangible's and its own, with the poses refinement added (after the sampled ones);
+    - ``landing``: the best choice's cost when the fingers land within ``landing_mm`` of its
+      targets (:class:`pinchmatch.match.landing.Landing`), or ``None`` without a best choice.
+    """
+
+    virtual: int
+    best: Choice | None
+    alternatives: list
+    reason: str | None = None
+    reference: Reference | None = None
+    name: str = ""
+    tangibles: list | None = None
+    candidates: Candidates | None = None
+    landing: Landing | None = None
+
+
+@dataclass
+class SceneMatch:
+    """Every virtual object matched against every tangible.
+
+    - ``tangibles``, ``virtuals``: the ``n`` and ``m`` objects' :class:`Candidates`, in input order,
+      as sampled (a match's own, refined, are on its :class:`VirtualMatch`: :meth:`objects`);
+    - ``settings``: the :class:`MatchSettings` used; ``model``: the run's
+      :class:`pinchmatch.match.cost.CostModel` (its scales, weights and criteria);
+    - ``cost_matrix``: ``(m, n) float64``, dimensionless: the least exact cost of each virtual object
+      on each tangible, inf where no registration is allowed;
+    - ``matches``: ``m`` :class:`VirtualMatch` es, in the order of ``virtuals``.
+    """
+
+    tangibles: list
+    virtuals: list
+    settings: MatchSettings
+    model: CostModel
+    cost_matrix: np.ndarray
+    matches: list
+
+    def objects(self, vm: VirtualMatch) -> tuple[list, Candidates]:
+        """The tangibles' and the virtual object's candidates that ``vm``'s choices index."""
+        return (vm.tangibles if vm.tangibles is not None else self.tangibles,
+                vm.candidates if vm.candidates is not None else self.virtuals[vm.virtual])
+
+
+def match_scene(tangibles: list[Candidates], virtuals: list[Candidates], settings: MatchSettings = MatchSettings(),
+                model: CostModel | None = None, *, pinch_settings: PinchSettings = PinchSettings()) -> SceneMatch:
+    """For every virtual object, the best tangible, pose pair and registration, with alternatives.
+
+    ``model`` defaults to :func:`cost_model` over all candidates; ``pinch_settings`` check the
+    refined and the reference poses.
+    """
+    if not tangibles:
+        raise ConfigError("no tangible object given; name at least one with --tangible")
+    if not virtuals:
+        raise ConfigError("no virtual object given; name at least one with --virtual")
+    model = model or cost_model(settings, tangibles + virtuals)
+    searches = [refined_search(tangibles, v, model, settings, pinch_settings=pinch_settings) for v in virtuals]
+    m, n = len(virtuals), len(tangibles)
+    cost_matrix = np.array([cost_row(s, 0) for s in searches]).reshape(m, n)
+    plan = allowed_tangibles(cost_matrix, settings)
+    matches = [_match(searches[j], *plan[j], pinch_settings=pinch_settings, index=j) for j in range(m)]
+    return SceneMatch(tangibles, virtuals, settings, model, cost_matrix, matches)
+
+
+def allowed_tangibles(cost_matrix: np.ndarray, settings: MatchSettings) -> list[tuple[list[int], str | None]]:
+    """Per virtual object, the tangibles it may use and, when none, why: all of them, or the one
+    ``--one-to-one`` assigns."""
+    m, n = cost_matrix.shape
+    if not settings.one_to_one:
+        return [(list(range(n)), None)] * m
+    assigned = assign_one_to_one(cost_matrix)
+    return [([int(assigned[j])], None) if assigned[j] >= 0 else
+            ([], "every tangible serves another virtual object (--one-to-one)"
+             if np.isfinite(cost_matrix[j]).any() else "no upright registration on any tangible")
+            for j in range(m)]
+
+
+def _match(search: Search, allowed: list[int], reason: str | None, *, pinch_settings: PinchSettings,
+           index: int = 0) -> VirtualMatch:
+    """The result of a one-virtual-object search, as the scene's virtual object ``index``."""
+    settings, virtual = search.settings, search.virtuals[0]
+    count = settings.top_k + 1
+    picks = search.choices(0, allowed, max(count, ROBUST_CHOICES) if settings.robust else count) if allowed else []
+    picks = [dataclasses.replace(p, virtual=index) for p in picks]
+
+    def landed(choice):
+        return landing(search.tangibles[choice.tangible], virtual, choice, search.model, settings=pinch_settings,
+                       radius_mm=settings.landing_mm)
+
+    landings = [landed(p) for p in picks[:len(picks) if settings.robust else 1]]
+    if settings.robust:  # by the worst landing, then the nominal cost (the picks' own order)
+        order = sorted(range(len(picks)), key=lambda k: (landings[k].cost_worst, k))[:count]
+        picks, landings = [picks[k] for k in order], [landings[k] for k in order]
+    if not picks and reason is None:
+        reason = "no registration is allowed: every one flips the virtual object (--keep-upright)"
+    best = picks[0] if picks else None
+    ref = reference_pose(search.tangibles[best.tangible], best.t_pose, virtual, search.model,
+                         settings=pinch_settings) if best else None
+    return VirtualMatch(index, best, picks[1:], None if best else reason, ref, virtual.name,
+                        list(search.tangibles), virtual, landings[0] if landings else None)
+
+
+def match_virtual(tangibles: list[Candidates], virtual: Candidates, model: CostModel,
+                  settings: MatchSettings = MatchSettings(), *, allowed: tuple[list[int], str | None] | None = None,
+                  row: np.ndarray | None = None, pinch_settings: PinchSettings = PinchSettings()) -> SceneMatch:
+    """One virtual object's row of :func:`match_scene`, bit for bit, searched on its own.
+
+    ``model`` must be the run's (built over every object); ``allowed`` is its entry of
+    :func:`allowed_tangibles` (default: every tangible, which is right unless ``one_to_one``);
+    ``row`` its row of the cost matrix when already known. The result is a one-row scene.
+    """
+    search = refined_search(tangibles, virtual, model, settings, pinch_settings=pinch_settings)
+    row = cost_row(search, 0) if row is None else np.asarray(row, dtype=np.float64)
+    vm = _match(search, *(allowed or (list(range(len(tangibles))), None)), pinch_settings=pinch_settings)
+    return SceneMatch(tangibles, [virtual], settings, model, row[None], [vm])
+
+
+def assign_one_to_one(cost_matrix: np.ndarray) -> np.ndarray:
+    """(m,) tangible of each virtual object, -1 for none: the assignment of least total cost in
+    which each tangible serves at most one virtual object and as many as possible are served.
+
+    Pairs with no allowed registration (inf) are never assigned.
+    """
+    m, n = cost_matrix.shape
+    finite = np.isfinite(cost_matrix)
+    out = np.full(m, -1, dtype=np.int64)
+    if not finite.any():
+        return out
+    # serve as many as possible first, then least cost: a forbidden pair costs more than any full set
+    big = (np.abs(cost_matrix[finite]).sum() + 1.0) * (min(m, n) + 1)
+    rows, cols = linear_sum_assignment(np.where(finite, cost_matrix, big))
+    for r, c in zip(rows, cols):
+        if finite[r, c]:
+            out[r] = c
+    return out
