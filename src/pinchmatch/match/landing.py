@@ -43,7 +43,7 @@ LANDING_MM = 5.0
 #: ... and the pinch axis within this of the target's (degrees)
 LANDING_AXIS_DEG = 14.0
 #: landing points per finger besides the target: on a ring at half the radius, and at the radius
-RING_POINTS = (6, 12)
+RING_POINTS = (8, 16)
 #: the largest radius ``--landing-mm`` takes (mm): a fingertip pad is about 16 mm across
 MAX_LANDING_MM = 20.0
 
