@@ -96,6 +96,8 @@ def test_page_has_one_entry_per_match_and_no_console_errors(page, demo_out):
         loud = [c for c, v in m["criteria"].items() if v["noticeable"]]
         assert all(c in text for c in loud) and (("nothing noticeable" in text) == (not loud and not m["noticeable"]))
         assert f"noticed {100 * m['p_noticed']:.0f} %" in text
+        landing = m["landing"]  # how it holds when the fingers land off target
+        assert ("steady" if not landing["noticeable_worst"] else "noticed" if m["noticeable"] else "fragile") in text
     errors = [m for m in page.messages if m[0] in ("error", "pageerror")]
     assert errors == []
     # self-contained: nothing but the file itself (and data: URLs) is requested

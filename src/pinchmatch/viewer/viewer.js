@@ -139,19 +139,22 @@
     : m.up_turn_deg < 1 ? "upright"
     : `turned ${m.up_turn_deg.toFixed(0)}° from upright` + (m.flipped ? " (flipped: beyond 90°)" : "");
 
-  // the landing tolerance's words (xr_core.js, which the page loads first)
-  const landingNote = (m) => (typeof PinchmatchXR !== "undefined" ? PinchmatchXR.landingNote(m) : null);
+  // the landing tolerance's words (xr_core.js, which the page loads before this)
+  const landingNote = (m) => PinchmatchXR.landingNote(m);
 
   // the pooled row's band: the chance of being noticed on target, and up to the worst landing
   function landingRow(m) {
     const landed = landingNote(m);
     if (!landed) return "";
-    const lo = 100 * (m.p_noticed || 0), hi = 100 * m.landing.p_noticed_worst;
+    // the band inside the bar, at least half a percent wide, never past its end
+    const lo = Math.min(100 * (m.p_noticed || 0), 99.5);
+    const hi = Math.min(Math.max(100 * m.landing.p_noticed_worst, lo + 0.5), 100);
     return `<tr class="pooled"><th>landing</th><td>${landed.worst_percent} %</td>` +
       `<td><div class="jnd-bar" title="${escape(landed.text)}"><span class="${m.noticeable ? "loud" : ""}" ` +
-      `style="width:${lo}%"></span><b class="band ${landed.word}" style="left:${lo}%;width:${Math.max(hi - lo, 0.5)}%"></b>` +
-      `<i style="left:50%"></i></div></td><td>${escape(landed.word)} within ${m.landing.radius_mm} mm, ` +
-      `${m.landing.axis_deg}°; cost ${fmt(m.landing.cost_mean)} mean, ${fmt(m.landing.cost_worst)} worst</td></tr>`;
+      `style="width:${lo}%"></span><b class="band ${landed.word}" style="left:${lo}%;width:${hi - lo}%"></b>` +
+      `<i style="left:50%"></i></div></td><td title="cost ${fmt(m.landing.cost_mean)} mean, ` +
+      `${fmt(m.landing.cost_worst)} worst over ${m.landing.landings} landings ${m.landing.radius_mm} mm off">` +
+      `${escape(landed.word)}</td></tr>`;
   }
 
   function loudCriteria(match) {
