@@ -36,8 +36,8 @@ import numpy as np
 from ..grasp.curvature import tangent_frame
 from ..grasp.features import pinch_features
 from ..grasp.pinches import PinchSettings, Pinches, check_pinches, concat_pinches
-from .candidates import Candidates, features_subset
-from .cost import CostModel, feature_table
+from .candidates import Candidates, features_subset, felt_table, mass_ratio
+from .cost import CostModel, feature_table, separable_terms
 from .search import Search, cost_row, evaluate_pairs
 
 #: distinct best pairs refined per tangible
@@ -189,7 +189,14 @@ def refine(tangibles: list[Candidates], virtual: Candidates, seeds: list[tuple[i
                 ivs.append(np.tile(vs, len(ts)))
                 owner.append(np.full(len(ts) * len(vs), k))
             it, iv, owner = np.concatenate(its), np.concatenate(ivs), np.concatenate(owner)
-            cost = evaluate_pairs(T, V, it, iv, model, keep_upright=keep_upright).cost
+            # exactly evaluated only where the separable bound leaves room for an improvement: a pair
+            # left out costs at least its bound, so it could not have been taken
+            needed = np.array([p.cost for _, p in mine])[owner] * (1.0 - IMPROVEMENT)
+            bound = model.bound_from_separable(separable_sums(T, V, it, iv, model)) * (1.0 - 1e-9)  # round-off
+            ask = np.flatnonzero(bound < needed)
+            cost = np.full(len(it), np.inf)
+            if len(ask):
+                cost[ask] = evaluate_pairs(T, V, it[ask], iv[ask], model, keep_upright=keep_upright).cost
             for k, (_, p) in enumerate(mine):
                 rows = np.flatnonzero(owner == k)
                 best = rows[np.argmin(cost[rows])]
@@ -198,6 +205,15 @@ def refine(tangibles: list[Candidates], virtual: Candidates, seeds: list[tuple[i
                 else:
                     p.step /= 2.0
     return [g.current for g in grown_t], grown_v.current
+
+
+def separable_sums(T: Candidates, V: Candidates, it: np.ndarray, iv: np.ndarray, model: CostModel) -> np.ndarray:
+    """(k,) S = Σ w·t of each pair in its better finger order, with the ``mass`` term's lower bound:
+    what the blockwise pass computes (:func:`pinchmatch.match.cost.pair_cost_blocks`), for given pairs."""
+    t_rows = T.table[it]
+    v_rows = felt_table(V.table[iv], mass_ratio(T, V))
+    w = model.weight_vector()
+    return np.minimum(separable_terms(t_rows, v_rows, model) @ w, separable_terms(t_rows, v_rows[:, ::-1], model) @ w)
 
 
 def _grow(grown: _Grown, poses: list[int], steps: list[float], settings: PinchSettings, *,
