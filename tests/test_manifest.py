@@ -303,3 +303,22 @@ def test_a_file_key_that_is_not_text_is_not_called_missing(tmp_path):
     manifest.write_text("[[object]]\nfile = 42\n")
     with pytest.raises(ConfigError, match="42 is not a path; give the mesh file as text"):
         read_manifest(manifest)
+
+
+def test_a_bad_node_of_a_level_is_named_with_its_file(tmp_path, capsys):
+    """One node of a split level is a flat sheet: the run goes on with the others, and the failure names
+    the file and the node."""
+    scene = trimesh.Scene()
+    scene.add_geometry(trimesh.creation.box(extents=(0.05, 0.04, 0.03)), node_name="crate", geom_name="crate")
+    sheet = trimesh.Trimesh([[0, 0, 0], [0.05, 0, 0], [0, 0.05, 0], [0.05, 0.05, 0]], [[0, 1, 2], [1, 3, 2]])
+    scene.add_geometry(sheet, node_name="sheet", geom_name="sheet")
+    (tmp_path / "level.glb").write_bytes(scene.export(file_type="glb"))
+    stacked_prop().export(tmp_path / "prop.stl")
+    code, _, err = run_cli(capsys, "match", "--tangible", str(tmp_path / "prop.stl"), "--virtual",
+                           str(tmp_path / "level.glb"), "--split", "nodes", "-o", str(tmp_path / "out"), "--count",
+                           "60", "--no-cache", "--no-figures", "--no-view", "-q", "--jobs", "1")
+    assert code == 3, err  # a result, with a failed object
+    assert f"{tmp_path / 'level.glb'}#sheet" in err and "flat" in err
+    doc = json.loads((tmp_path / "out" / "matches.json").read_text())
+    assert [m["virtual"] for m in doc["matches"]] == ["crate"]
+    assert "#sheet: the mesh is flat" in doc["failed"][0]["error"]

@@ -534,8 +534,9 @@ def load_mesh(
     say = progress or (lambda stage: None)
     say(f"reading {size / 2**20:.0f} MiB" if size >= 2**20 else "reading")
     mesh = _read(path, file_type, node)
-    _validate_arrays(path, mesh)
-    _check_precision(path, file_type, mesh)
+    shown = Path(f"{path}#{node}") if node else path  # what the messages name: the file, and its node
+    _validate_arrays(shown, mesh)
+    _check_precision(shown, file_type, mesh)
 
     is_gltf = file_type in GLTF_TYPES
     units_in = units or ("m" if is_gltf else "mm")
@@ -547,11 +548,11 @@ def load_mesh(
                            faces=np.asarray(mesh.faces, dtype=np.int64), process=False)
     sizes = topology.extents(mesh.vertices)
     extent = float(sizes.max())
-    check_units(path, extent, units_in)
+    check_units(shown, extent, units_in)
 
     if topology.thickness(mesh.vertices) < 1e-6 * extent:
         raise MeshError(
-            f"{path}: the mesh is flat (all vertices in one plane), so it has no volume "
+            f"{shown}: the mesh is flat (all vertices in one plane), so it has no volume "
             "to pinch; give it thickness (solidify) and re-export"
         )
 
@@ -559,16 +560,16 @@ def load_mesh(
     scale = float((sizes**2).sum() ** 0.5)
     repairs, watertight = _repair(mesh, indexed=file_type != "stl", scale=scale, say=say)
     if len(mesh.faces) == 0:
-        raise MeshError(f"{path}: every face is degenerate (zero area); re-export the mesh")
+        raise MeshError(f"{shown}: every face is degenerate (zero area); re-export the mesh")
 
     warnings: list[str] = []
     if not watertight:
         warnings.append(
-            f"{path.name}: surface is not closed; centre of mass is that of the surface, and pinches "
+            f"{shown.name}: surface is not closed; centre of mass is that of the surface, and pinches "
             "come only from where the ray along the pinch line leaves through a surface"
         )
     for line in repairs:
-        log.info("%s: %s", path.name, line)
+        log.info("%s: %s", shown.name, line)
     return LoadedMesh(
         mesh=mesh,
         path=str(path),
