@@ -16,6 +16,7 @@ from pinchmatch.match.candidates import candidate_poses
 from pinchmatch.match.reference import reference_pose
 from pinchmatch.grasp.pinches import PinchSettings
 from pinchmatch.mesh.manifest import ObjectSpec
+from pinchmatch.mesh import vessels
 from pinchmatch.mesh.shapes import ellipsoid
 from pinchmatch.runner.study import PARTS, TANGIBLE_HEIGHTS_MM, run_study
 
@@ -456,3 +457,19 @@ def test_the_papers_algorithm_reproduces_its_own_costs_unchanged(study):
     got = [(r["tangible_part"], r["virtual"], r["paper"]["cost_paper"], r["ref"]["cost_paper"]) for r in study.rows]
     assert [g[:2] for g in got] == [e[:2] for e in PAPER_COSTS]
     np.testing.assert_allclose([g[2:] for g in got], [e[2:] for e in PAPER_COSTS], atol=6e-5)
+
+
+@pytest.mark.parametrize("make", [vessels.cup, vessels.bowl])
+def test_the_reference_of_an_object_on_itself_costs_nothing_across_walls_too(tmp_path, make):
+    """Each finger closes from where it holds the tangible: on a rim pinch the finger inside the cup meets
+    the inner wall, so a vessel on itself at the identity is its own reference, wall and body pinches alike."""
+    make().export(tmp_path / "v.stl")
+    settings = PinchSettings(count=120)
+    c = candidate_poses(analyze_object(tmp_path / "v.stl"), settings=settings)
+    model = cost_model(MatchSettings(), [c])
+    width = np.linalg.norm(c.pinches.points[:, 1] - c.pinches.points[:, 0], axis=1)
+    assert (width < 10.0).sum() >= 20  # pinches across a wall are among them
+    for i in range(len(c)):
+        ref = reference_pose(c, i, c, model, settings=settings)
+        assert ref.cost == pytest.approx(0.0, abs=1e-9), (i, width[i])
+        np.testing.assert_allclose(ref.pinches.points[0], c.pinches.points[i], atol=1e-6)
