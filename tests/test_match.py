@@ -110,6 +110,25 @@ def test_swapping_p1_and_p2_in_the_inputs_changes_no_cost(example, tmp_path):
     assert (a.swapped != b.swapped).all()
 
 
+def order_free_mm(a, b) -> float:
+    """The test's own oracle for two pinches (2, 3): the larger contact displacement, in the better order."""
+    direct = max(np.linalg.norm(a[0] - b[0]), np.linalg.norm(a[1] - b[1]))
+    crossed = max(np.linalg.norm(a[0] - b[1]), np.linalg.norm(a[1] - b[0]))
+    return float(min(direct, crossed))
+
+
+def test_pinch_distance_with_literals():
+    a = np.array([[0.0, 0.0, 0.0], [40.0, 0.0, 0.0]])
+    assert search_module.pinch_distance(a[None], a)[0] == 0.0
+    assert search_module.pinch_distance(a[::-1][None], a)[0] == 0.0  # the same pinch, fingers swapped
+    moved = a + [0.0, 3.0, 0.0]
+    assert search_module.pinch_distance(moved[None], a)[0] == pytest.approx(3.0)
+    assert search_module.pinch_distance(moved[::-1][None], a)[0] == pytest.approx(3.0)
+    one = a.copy()
+    one[1] += [0.0, 0.0, 5.0]  # one contact 5 mm away: the larger displacement
+    assert search_module.pinch_distance(one[::-1][None], a)[0] == pytest.approx(5.0)
+
+
 @pytest.mark.parametrize("keep_upright", [False, True])
 @pytest.mark.parametrize("normalize", ["jnd", "range"])
 def test_the_pooled_search_finds_the_exact_minimum(example, tmp_path, monkeypatch, keep_upright, normalize):
@@ -134,13 +153,13 @@ def test_the_pooled_search_finds_the_exact_minimum(example, tmp_path, monkeypatc
     costs = [c.cost for c in picks]
     assert costs == sorted(costs)
     for a, b in itertools.combinations(picks, 2):  # alternatives are different places
-        dt = search_module.pinch_distance(example.pinches.points[[a.t_pose]], example.pinches.points[b.t_pose])[0]
-        dv = search_module.pinch_distance(virtual.pinches.points[[a.v_pose]], virtual.pinches.points[b.v_pose])[0]
+        dt = order_free_mm(example.pinches.points[a.t_pose], example.pinches.points[b.t_pose])
+        dv = order_free_mm(virtual.pinches.points[a.v_pose], virtual.pinches.points[b.v_pose])
         assert dt >= 10.0 or dv >= 10.0
     # the second pick is the cheapest pair that is not a near duplicate of the first
     far = np.array([
-        search_module.pinch_distance(example.pinches.points[[i]], example.pinches.points[vm.best.t_pose])[0] >= 10.0
-        or search_module.pinch_distance(virtual.pinches.points[[j]], virtual.pinches.points[vm.best.v_pose])[0] >= 10.0
+        order_free_mm(example.pinches.points[i], example.pinches.points[vm.best.t_pose]) >= 10.0
+        or order_free_mm(virtual.pinches.points[j], virtual.pinches.points[vm.best.v_pose]) >= 10.0
         for i, j in zip(it, iv)
     ])
     assert picks[1].cost == pytest.approx(brute.cost[far].min(), rel=1e-9)

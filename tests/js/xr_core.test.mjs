@@ -153,3 +153,8 @@ test("landing notes: steady, fragile, noticed, none", () => {
   assert.equal(XR.landingNote({ noticeable: false }), null);
   assert.equal(XR.landingNote({ noticeable: false, landing: null }), null);
 });
+
+test("the study's numbers, as literals: 5 mm, 14 degrees, held 1 s; calibrations above 6 mm refused", () => {
+  assert.deepEqual({ ...XR.DEFAULT_LIMITS }, { pos_mm: 5, angle_deg: 14, hold_s: 1 });
+  assert.equal(XR.MAX_CALIBRATION_RMS_MM, 6);
+});
