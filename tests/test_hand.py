@@ -207,3 +207,31 @@ def test_the_hand_is_stuck_whatever_the_index_of_the_triangle_above_it(first):
     assert (np.asarray(face) == 0).all() == first  # both lines meet the first triangle, or neither
     assert not _hand_free(context, tips, h, 45.0)[0]
     assert _hand_free(context, tips, -h, 45.0)[0]  # downwards nothing is in the way
+
+
+def _in_band(pinches, tilt_deg):
+    """|h . u| of every pinch against the band's bound (literal arithmetic, not the module's)."""
+    u = pinches.points[:, 1] - pinches.points[:, 0]
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    lean = np.abs(np.einsum("ij,ij->i", pinches.approach, u))
+    return lean, np.sin(np.radians(tilt_deg))
+
+
+@pytest.mark.parametrize("name", ["cup", "bowl", "ring"])
+def test_every_approach_keeps_within_the_band_on_both_sides(name):
+    """The hand leans at most approach_tilt_deg towards either finger: never along the pinch line."""
+    mesh = {"cup": vessels.cup, "bowl": vessels.bowl,
+            "ring": lambda: shapes.torus(30.0, 8.0, faces=20000).mesh}[name]()
+    pinches = sample_pinches(_ctx(mesh), settings=PinchSettings(count=150, seed=1))
+    lean, bound = _in_band(pinches, 30.0)
+    assert len(pinches) > 50 and (lean <= bound + 1e-9).all(), lean.max()
+
+
+def test_a_ring_held_across_its_hole_with_no_tilt_is_approached_square_on():
+    """--approach-tilt-deg 0: every approach is perpendicular to its pinch line."""
+    mesh = shapes.torus(30.0, 8.0, faces=20000).mesh
+    pinches = sample_pinches(_ctx(mesh), settings=PinchSettings(count=150, seed=2, approach_tilt_deg=0.0))
+    lean, _ = _in_band(pinches, 0.0)
+    width = np.linalg.norm(pinches.points[:, 1] - pinches.points[:, 0], axis=1)
+    assert (width > 40.0).sum() >= 5  # across the hole
+    assert (lean <= 1e-9).all(), lean.max()
