@@ -89,6 +89,22 @@ def test_a_second_run_into_the_same_folder_is_refused_while_one_runs(tmp_path, v
     assert code == 2 and "another pinchmatch run is writing this folder" in err and len(err.strip().splitlines()) == 1
 
 
+def test_view_leaves_the_page_alone_while_a_run_holds_the_folder(tmp_path, virtuals, capsys):
+    out = tmp_path / "out"
+    assert match(out, [virtuals / "e0.stl"]) == 0
+    def page():
+        return (out / "index.html").read_bytes() if (out / "index.html").exists() else None
+
+    before = page()
+    capsys.readouterr()
+    with OutputFolder(out):
+        code = main(["view", str(out), "-q"])
+        after = page()  # (the run, when it ends, publishes its own folder)
+    err = capsys.readouterr().err
+    assert code == 2 and "a pinchmatch run is writing this folder" in err and len(err.strip().splitlines()) == 1
+    assert after == before is not None
+
+
 def test_a_publication_cut_short_is_finished_by_the_next_reader(tmp_path, virtuals, monkeypatch):
     out = tmp_path / "out"
     assert match(out, [virtuals / "e0.stl"]) == 0
