@@ -135,6 +135,23 @@ def test_design_covers_a_scene_of_stacks_and_its_costs_are_a_match_runs(tmp_path
     assert {o["virtual"]: o["cost"] for o in doc["objects"]} == pytest.approx(check, abs=1e-9)
 
 
+def test_a_scene_in_metres_is_matched_on_the_props_designed_for_it(tmp_path, capsys, scene):
+    """The props are written in mm standing on +Z and read back so, whatever the scene's --units and --up."""
+    metres = tmp_path / "metres"
+    metres.mkdir()
+    for path in sorted(scene.glob("*.stl")):
+        mesh = trimesh.load(path, force="mesh")
+        mesh.apply_scale(0.001)
+        mesh.export(metres / path.name)
+    out = tmp_path / "out"
+    code, _, err = run_cli(capsys, "design", "--virtual", metres, "--units", "m", "--count", 150, "--evaluations", 8,
+                           "-o", out, "--jobs", 1, "--no-view")
+    assert code == 0, err
+    doc = json.loads((out / "design.json").read_text())
+    assert len(doc["objects"]) == 2 and all(o["cost"] is not None for o in doc["objects"])
+    assert trimesh.load(out / doc["props"][0]["file"], force="mesh").extents.max() > 20.0  # mm, as written
+
+
 def test_without_supports_every_candidate_and_the_output_print_standing(tmp_path, capsys, scene):
     s = DesignSettings(supports=False)
     rng = np.random.default_rng(2)

@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import tempfile
 import time
 from pathlib import Path
@@ -195,8 +197,10 @@ def cmd_design(args) -> int:
                 write_atomic(path, stack_mesh(stack).export(file_type="stl"))
                 publisher.direct(path)
                 props.append(path)
-            prop_tasks = object_tasks("tangible", object_specs([str(p) for p in props], option="--tangible"),
-                                      [None] * len(props), [None] * len(props))
+            # the props are read as they were written, in mm and standing on +Z, whatever the scene's --units and --up
+            prop_specs = [dataclasses.replace(s, units="mm", up="z")
+                          for s in object_specs([str(p) for p in props], option="--tangible")]
+            prop_tasks = object_tasks("tangible", prop_specs, [None] * len(props), [None] * len(props))
             scene_tasks = object_tasks("virtual", used, [None] * len(used), [None] * len(used))
             with executor(args.jobs, args.scheduler) as ex:
                 result, doc, _sink, written = write_matches(args, stage, out, ui, ex, prop_tasks, scene_tasks, job,
