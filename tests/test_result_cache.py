@@ -123,3 +123,38 @@ def test_the_key_covers_the_code_that_makes_a_result():
     # trials and the weights fitted to its ratings; study_ratings: the method's ratings beside the study; none is part of a virtual object's result
     assert every_match_and_export_module - left_out <= set(results.RESULT_MODULES)
     assert json.loads(json.dumps(results.RESULT_DIGEST)) == results.RESULT_DIGEST and len(results.RESULT_DIGEST) == 64
+
+
+def test_the_refined_poses_are_kept_under_their_own_key(tmp_path, capsys, meshes, monkeypatch):
+    """A --one-to-one run refines each object once (its cost row, then its result, read the same
+    poses); a rerun with other alternatives and landing options refines nothing and gives what a run
+    without the cache gives, bit for bit."""
+    from pinchmatch.runner import refined
+
+    cache = tmp_path / "cache"
+    calls = []
+    inner = refined.refined_search
+    monkeypatch.setattr(refined, "refined_search", lambda *a, **k: calls.append(1) or inner(*a, **k))
+    _match(capsys, meshes, tmp_path / "first", cache, "--one-to-one")
+    assert len(calls) == 2 and len(list(cache.glob("*.refined.npz"))) == 2
+    _match(capsys, meshes, tmp_path / "second", cache, "--one-to-one", "--top-k", "1", "--landing-mm", "3")
+    assert len(calls) == 2  # the refined poses came from the cache
+    _match(capsys, meshes, tmp_path / "fresh", tmp_path / "other-cache", "--one-to-one", "--top-k", "1",
+           "--landing-mm", "3")
+    assert len(calls) == 4  # the run with a new cache refined each object once too
+    assert _outputs(tmp_path / "second") == _outputs(tmp_path / "fresh")
+    code, _, err = run_cli(capsys, "match", "--tangible", example_mesh_path(), "--virtual", *meshes, "--count", 150,
+                           "--jobs", 1, "--no-cache", "-o", tmp_path / "uncached", "--one-to-one", "--top-k", "1",
+                           "--landing-mm", "3")
+    assert code == 0, err
+    assert _outputs(tmp_path / "uncached") == _outputs(tmp_path / "fresh")  # refined in each task: the same bits
+    calls.clear()
+    calls.extend([1] * 4)
+    # other weights refine again
+    _match(capsys, meshes, tmp_path / "tuned", cache, "--one-to-one", "--weights", "width=3")
+    assert len(calls) == 6
+    # a damaged entry is a miss: refined again, the same result
+    for entry in cache.glob("*.refined.npz"):
+        entry.write_bytes(b"not an archive")
+    _match(capsys, meshes, tmp_path / "again", cache, "--one-to-one", "--top-k", "1", "--landing-mm", "3")
+    assert _outputs(tmp_path / "again") == _outputs(tmp_path / "fresh")

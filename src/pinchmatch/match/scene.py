@@ -143,14 +143,17 @@ def _match(search: Search, allowed: list[int], reason: str | None, *, pinch_sett
 
 def match_virtual(tangibles: list[Candidates], virtual: Candidates, model: CostModel,
                   settings: MatchSettings = MatchSettings(), *, allowed: tuple[list[int], str | None] | None = None,
-                  row: np.ndarray | None = None, pinch_settings: PinchSettings = PinchSettings()) -> SceneMatch:
+                  row: np.ndarray | None = None, pinch_settings: PinchSettings = PinchSettings(),
+                  search: Search | None = None) -> SceneMatch:
     """One virtual object's row of :func:`match_scene`, bit for bit, searched on its own.
 
     ``model`` must be the run's (built over every object); ``allowed`` is its entry of
     :func:`allowed_tangibles` (default: every tangible, which is right unless ``one_to_one``);
-    ``row`` its row of the cost matrix when already known. The result is a one-row scene.
+    ``row`` its row of the cost matrix when already known; ``search`` its refined search when
+    already made (:func:`pinchmatch.match.refine.refined_search`, as the cache keeps it). The result
+    is a one-row scene.
     """
-    search = refined_search(tangibles, virtual, model, settings, pinch_settings=pinch_settings)
+    search = search or refined_search(tangibles, virtual, model, settings, pinch_settings=pinch_settings)
     row = cost_row(search, 0) if row is None else np.asarray(row, dtype=np.float64)
     vm = _match(search, *(allowed or (list(range(len(tangibles))), None)), pinch_settings=pinch_settings)
     return SceneMatch(tangibles, [virtual], settings, model, row[None], [vm])

@@ -17,7 +17,9 @@ top-k, ...) are not in the key: tuning them reuses the entry.
   (the reference pose's, :attr:`Candidates.probes`), added to as runs ask for new lines; a warm run
   reads them back instead of building the surface's sample, index and rays.
 - Beside them, ``<key>.result.npz`` keeps a virtual object's whole result in one run's setting
-  (:mod:`pinchmatch.runner.results`, with its own key that covers the matching settings too).
+  (:mod:`pinchmatch.runner.results`, with its own key that covers the matching settings too), and
+  ``<key>.refined.npz`` the poses refinement added for a virtual object against a run's tangibles
+  (:mod:`pinchmatch.runner.refined`, keyed by what refinement depends on).
 - ``clear`` deletes only what the cache wrote: files named ``<64 hex digits>.npz`` (or ``.probes.npz``,
   ``.result.npz``)
   whose stored key is their name, and its own temporaries; anything else in the folder is left alone.
@@ -65,10 +67,11 @@ ALGORITHM_MODULES = ("mesh/load", "mesh/surface", "mesh/properties", "grasp/curv
                      "grasp/pinches", "grasp/sampling", "grasp/spread", "grasp/spread_kernel", "grasp/features",
                      "grasp/analysis", "match/candidates", "match/cost", "match/reference", "runner/cache",
                      "mesh/level", "mesh/regions", "mesh/manifest")
-ENTRY_NAME = re.compile(r"^[0-9a-f]{64}(\.probes|\.result)?\.npz$")
-TEMP_NAME = re.compile(r"^\.[0-9a-f]{64}(\.probes|\.result)?\.npz\..+\.tmp$")
+ENTRY_NAME = re.compile(r"^[0-9a-f]{64}(\.probes|\.result|\.refined)?\.npz$")
+TEMP_NAME = re.compile(r"^\.[0-9a-f]{64}(\.probes|\.result|\.refined)?\.npz\..+\.tmp$")
 PROBES = ".probes"
 RESULT = ".result"  # a virtual object's whole result (:mod:`pinchmatch.runner.results`)
+REFINED = ".refined"  # the poses refinement added for a virtual object (:mod:`pinchmatch.runner.refined`)
 #: what reading a damaged entry can raise; anything else is a bug and is raised
 DAMAGED = (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile)
 
@@ -246,7 +249,8 @@ class FeatureCache:
 
     def info(self) -> CacheInfo:
         entries = self._entries() if self._check_folder() else []
-        return CacheInfo(self.folder, sum(not p.name.endswith((PROBES + ".npz", RESULT + ".npz")) for p in entries),
+        return CacheInfo(self.folder, sum(not p.name.endswith((PROBES + ".npz", RESULT + ".npz", REFINED + ".npz"))
+                                           for p in entries),
                          sum(p.stat().st_size for p in entries))
 
     def clear(self) -> int:

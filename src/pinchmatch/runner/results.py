@@ -46,7 +46,7 @@ RESULT_FORMAT = 1
 #: modules whose code turns candidates into a result (besides ALGORITHM_DIGEST's)
 RESULT_MODULES = ("match/search", "match/refine", "match/landing", "match/scene", "match/register", "match/cost",
                   "match/reference", "export/documents", "export/scenes", "export/figures", "runner/tasks",
-                  "runner/results")
+                  "runner/results", "runner/refined")
 
 
 def _result_digest() -> str:
@@ -60,14 +60,14 @@ def _result_digest() -> str:
 RESULT_DIGEST = _result_digest()
 
 
-def _plain(value):
+def plain(value):
     """A settings value as JSON can hold it (dataclasses as dicts, arrays as lists)."""
     if dataclasses.is_dataclass(value):
-        return {f.name: _plain(getattr(value, f.name)) for f in dataclasses.fields(value)}
+        return {f.name: plain(getattr(value, f.name)) for f in dataclasses.fields(value)}
     if isinstance(value, dict):
-        return {str(k): _plain(v) for k, v in value.items()}
+        return {str(k): plain(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
+        return [plain(v) for v in value]
     if isinstance(value, np.ndarray):
         return {"dtype": str(value.dtype), "shape": list(value.shape), "sha256": hashlib.sha256(
             np.ascontiguousarray(value).tobytes()).hexdigest()}
@@ -86,9 +86,9 @@ def result_key(cache: FeatureCache, task, job, shared, model, allowed, row) -> s
     described = {"format": RESULT_FORMAT, "cache_format": CACHE_FORMAT, "version": __version__,
                  "code": RESULT_DIGEST, "candidates": candidate_key, "label": task.label, "path": task.path,
                  "role": task.role, "source": task.source, "spec": spec_to_dict(spec), "tangibles": shared[0],
-                 "model": _plain(model), "match": _plain(job.match), "pinch": _plain(job.settings),
+                 "model": plain(model), "match": plain(job.match), "pinch": plain(job.settings),
                  "writes": {"scenes": job.scenes, "figures": job.figures, "poses": job.dump_poses},
-                 "allowed": _plain(allowed), "row": _plain(row), "rays": ray_engine_name()}
+                 "allowed": plain(allowed), "row": plain(row), "rays": ray_engine_name()}
     return hashlib.sha256(json.dumps(described, sort_keys=True, default=repr).encode()).hexdigest()
 
 

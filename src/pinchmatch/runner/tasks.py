@@ -27,12 +27,12 @@ from ..export.scenes import match_scene_glb
 from ..grasp.pinches import PinchSettings
 from ..match.candidates import Candidates
 from ..match.cost import feature_bounds
-from ..match.refine import refined_search
 from ..match.scene import match_virtual
-from ..match.search import MatchSettings, cost_row
+from ..match.search import MatchSettings, Search, cost_row
 from ..match.select import served_row
 from ..mesh.manifest import ObjectSpec
 from .cache import FeatureCache, cached_candidates, to_payload
+from .refined import cached_refined_search, refined_key
 from .results import load_result, result_key, store_result
 from .worker import report_stage, tangibles
 
@@ -144,17 +144,25 @@ def bounds_task(task: ObjectTask, job: Job) -> np.ndarray | Failure:
     return feature_bounds(_candidates(task, job)[0].table)
 
 
+def _search(c: Candidates, cache: FeatureCache | None, job: Job, shared, model) -> Search:
+    """The virtual object's search against the run's tangibles, refined (its added poses from the
+    cache when an earlier task or run stored them)."""
+    key = None if cache is None or cache.last_key is None else \
+        refined_key(cache.last_key, shared[0], model, job.match, job.settings)
+    return cached_refined_search(cache, key, tangibles(shared), c, model, job.match, pinch_settings=job.settings)
+
+
 @_per_file
 def row_task(task: ObjectTask, job: Job, shared, model) -> np.ndarray | Failure:
-    c = _candidates(task, job)[0]
-    return cost_row(refined_search(tangibles(shared), c, model, job.match, pinch_settings=job.settings), 0)
+    c, _, cache = _candidates(task, job)
+    return cost_row(_search(c, cache, job, shared, model), 0)
 
 
 @_per_file
 def served_task(item: tuple, job: Job, shared, model) -> ServedRow | Failure:
     """Item: (task, unused, unused), as for :func:`virtual_task`."""
-    c, cached, _ = _candidates(item[0], job)
-    cost, loud = served_row(refined_search(tangibles(shared), c, model, job.match, pinch_settings=job.settings), 0)
+    c, cached, cache = _candidates(item[0], job)
+    cost, loud = served_row(_search(c, cache, job, shared, model), 0)
     return ServedRow(c.name, cost, loud, cached)
 
 
@@ -173,7 +181,7 @@ def virtual_task(item: tuple, job: Job, shared, model) -> VirtualResult | Failur
             return hit
     c, cached, cache = _candidates(task, job)
     scene = match_virtual(tangibles(shared), c, model, job.match, allowed=allowed, row=row,
-                          pinch_settings=job.settings)
+                          pinch_settings=job.settings, search=_search(c, cache, job, shared, model))
     result = virtual_result(scene, 0, job, cached=cached)
     if cache is not None:
         cache.store_probes(cache.last_key, c)  # the reference pose's pinch, for the next run
