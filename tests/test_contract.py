@@ -161,6 +161,22 @@ def test_warnings_from_libraries_never_reach_stderr(tmp_path, capsys):
     assert "Warning" not in err and "warn" not in err.lower(), err
 
 
+def test_trimesh_log_notes_are_shown_only_when_verbose():
+    """trimesh logs its fallbacks (with the traceback of the exception it caught, a signal's too): a run's
+    stderr holds one line per problem, so they show only with --verbose."""
+    import logging
+
+    from pinchmatch.errors import route_warnings
+
+    try:
+        route_warnings(verbose=False)
+        assert not logging.getLogger("trimesh.util").isEnabledFor(logging.WARNING)
+        route_warnings(verbose=True)
+        assert logging.getLogger("trimesh.util").isEnabledFor(logging.WARNING)
+    finally:
+        route_warnings(verbose=False)
+
+
 def test_the_patch_radius_is_one_setting():
     from pinchmatch.grasp.analysis import analyze_object, find_pinches
     from pinchmatch.grasp.pinches import PinchSettings

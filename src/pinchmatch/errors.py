@@ -67,4 +67,7 @@ def route_warnings(*, verbose: bool) -> None:
     ``--verbose`` only: a run prints one line per problem, never a warning from inside a library."""
     logging.captureWarnings(True)
     logging.getLogger("py.warnings").setLevel(logging.WARNING if verbose else logging.CRITICAL)
+    # trimesh logs its own fallbacks ("unable to use sparse matrix, falling back!"), with a traceback when
+    # an exception it caught was a signal's: notes for its developers, not for a run's one line
+    logging.getLogger("trimesh").setLevel(logging.WARNING if verbose else logging.CRITICAL)
     warnings.simplefilter("default")

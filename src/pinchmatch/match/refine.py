@@ -1,10 +1,10 @@
 """Refinement after the search: the best pairs followed on both surfaces until the cost settles.
 
 The exact search (:mod:`pinchmatch.match.search`) finds the cheapest pairs among the sampled
-poses; a sample is a sample, so another seed finds other pairs. Refinement takes, on every
-tangible that could serve the virtual object (its sampled least cost within ``CONTENDER_RATIO``
-of the best tangible's), the ``SEEDS`` best distinct pairs, and improves each by a pattern
-search over the four degrees of freedom of each pinch:
+poses; a sample is a sample, so another seed finds other pairs. Refinement takes the ``SEEDS``
+best distinct pairs on the best tangible and the ``OTHER_SEEDS`` best on every other tangible that
+could serve the virtual object (its sampled least cost within ``CONTENDER_RATIO`` of the best
+tangible's), and improves each by a pattern search over the four degrees of freedom of each pinch:
 
 - the contacts move by ``step`` along the object's axis (projected off the pinch line) and
   across it, both ways: each alone, both together (the pinch slides) and both opposite (the
@@ -42,6 +42,8 @@ from .search import Search, cost_row, evaluate_pairs
 
 #: distinct best pairs refined per tangible
 SEEDS = 2
+#: on the other contending tangibles, this many
+OTHER_SEEDS = 1
 #: tangibles whose sampled least cost is at most this times the best tangible's are refined
 CONTENDER_RATIO = 1.5
 #: the first and the smallest step of a contact (mm)
@@ -246,7 +248,7 @@ def refined_search(tangibles: list[Candidates], virtual: Candidates, model: Cost
     best = float(row[finite].min())
     seeds = [(int(t), c.t_pose, c.v_pose, c.cost)
              for t in np.flatnonzero(finite & (row <= CONTENDER_RATIO * best))
-             for c in search.choices(0, [int(t)], SEEDS)]
+             for c in search.choices(0, [int(t)], SEEDS if row[t] == best else OTHER_SEEDS)]
     grown_t, grown_v = refine(tangibles, virtual, seeds, model, keep_upright=settings.keep_upright,
                               settings=pinch_settings)
     return search.grown(grown_t, [grown_v])
