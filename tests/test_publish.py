@@ -284,3 +284,31 @@ def test_a_journal_naming_a_path_outside_out_leaves_it_in_place(tmp_path, virtua
     (control / "manifest.json").write_text(json.dumps({"files": [name]}))
     publish.finish_commit(out)
     assert victim.read_text() == "keep me"
+
+
+def test_a_journal_or_manifest_naming_files_outside_out_touches_none_of_them(tmp_path, virtuals):
+    """A journal left half done, or a manifest of the last result, that names ``../victim``, an absolute
+    path, a path climbing out through a subfolder or a file behind a folder linked out of OUT: finishing
+    the journal and the next run's pruning leave every one of them in place."""
+    out = tmp_path / "out"
+    assert match(out, [virtuals / "e0.stl"]) == 0
+    outside = tmp_path / "outside"
+    outside.mkdir()
+    victims = {name: outside / name for name in ("a.txt", "b.txt", "c.txt", "d.txt")}
+    for path in victims.values():
+        path.write_text("keep me")
+    (out / "linked").symlink_to(outside, target_is_directory=True)
+    names = ["../outside/a.txt", str(victims["b.txt"]), "scenes/../../outside/c.txt", "linked/d.txt"]
+    control = out / ".pinchmatch"
+    (control / "commit.json").write_text(json.dumps({"new": [], "staged": names, "remove": names}))
+    publish.finish_commit(out)
+    assert all(p.read_text() == "keep me" for p in victims.values())
+    assert not (control / "commit.json").exists()
+    # the manifest of the last result names them too: the next run prunes only what is inside OUT
+    manifest = json.loads((control / "manifest.json").read_text())
+    (control / "manifest.json").write_text(json.dumps({"files": manifest["files"] + names}))
+    (out / "linked").unlink()  # (a folder linked out of OUT is refused outright; its own test)
+    (out / "linked").mkdir()
+    assert match(out, [virtuals / "e1.stl"]) == 0
+    assert all(p.read_text() == "keep me" for p in victims.values())
+    assert_whole(out)
