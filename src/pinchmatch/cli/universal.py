@@ -35,6 +35,15 @@ from .runs import (
 
 #: the design's budget keeps this much for writing the results: props, documents, scenes and page
 WRITE_RESERVE_S, WRITE_RESERVE_S_PER_OBJECT = 2.0, 0.3
+#: and this much per object for refining the final match (about 0.9 s of one core per object on the
+#: benchmark's real objects: benchmarks/RESULTS.md)
+REFINE_RESERVE_S_PER_OBJECT = 1.0
+
+
+def reserve_s(matching, objects: int) -> float:
+    """What the design's budget keeps for its final match and the writing, for ``objects`` objects."""
+    per = WRITE_RESERVE_S_PER_OBJECT + (REFINE_RESERVE_S_PER_OBJECT if matching.refine else 0.0)
+    return WRITE_RESERVE_S + per * objects
 
 
 def _jnd_settings(args, why: str):
@@ -184,7 +193,7 @@ def cmd_design(args) -> int:
                               "fix or remove them")
         with ui.step("designing", None) as advance:
             found = design_props(virtuals, design, match=matching, pinch=settings, started=t0,
-                                 reserve_s=WRITE_RESERVE_S + WRITE_RESERVE_S_PER_OBJECT * len(virtuals),
+                                 reserve_s=reserve_s(matching, len(virtuals)),
                                  progress=lambda done, total, note: advance(f"{done} judged: {note}", done=False))
         t1 = time.perf_counter()
         job = match_job(args, settings, matching, cache)
@@ -276,7 +285,7 @@ def demo_design(publisher, stage: Path, objects: Path, settings, *, budget_s: fl
     design = DesignSettings(k=1, max_width_mm=settings.max_width_mm, budget_s=budget_s, seed=seed)
     with ui.step("designing", None) as advance:
         found = design_props(virtuals, design, match=matching, pinch=settings, started=started,
-                             reserve_s=WRITE_RESERVE_S + WRITE_RESERVE_S_PER_OBJECT * len(virtuals),
+                             reserve_s=reserve_s(matching, len(virtuals)),
                              progress=lambda done, total, note: advance(f"{done} judged: {note}", done=False))
     (publisher.out / "props").mkdir(parents=True, exist_ok=True)
     designed_path = publisher.out / "props" / "designed.stl"
