@@ -307,3 +307,16 @@ def test_every_input_is_bounded_and_refused_in_one_line(tmp_path, capsys, argv, 
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and words in err[0] and "Traceback" not in err[0], err
     assert not out.exists()
+
+
+def test_with_no_usable_prop_the_virtual_files_are_checked_in_the_same_run(tmp_path, capsys):
+    """Both roles' files in metres, read as mm: one line names the prop's problem and the virtual
+    object's, so that one run shows every file to fix."""
+    for name, extents in (("prop.stl", (0.05, 0.04, 0.03)), ("thing.stl", (0.06, 0.03, 0.02))):
+        trimesh.creation.box(extents=extents).export(tmp_path / name)
+    code, _, err = run_cli(capsys, "match", "--tangible", tmp_path / "prop.stl", "--virtual", tmp_path / "thing.stl",
+                           "-o", tmp_path / "out", "--count", 40, "--no-cache", "--jobs", 1)
+    lines = err.strip().splitlines()
+    assert code == 2 and len(lines) == 1, err
+    assert "prop.stl" in lines[0] and "thing.stl" in lines[0] and "--units" in lines[0]
+    assert not (tmp_path / "out").exists()

@@ -25,7 +25,8 @@ from ..match.scene import allowed_tangibles
 from ..match.search import cost_model
 from .cache import from_payload
 from .executors import Executor
-from .tasks import Failure, Job, ObjectTask, VirtualResult, bounds_task, candidates_task, row_task, virtual_task
+from .tasks import (Failure, Job, ObjectTask, VirtualResult, bounds_task, candidates_task, load_task, row_task,
+                    virtual_task)
 
 
 @dataclass
@@ -69,21 +70,26 @@ def run_match(tangible_tasks: list[ObjectTask], virtual_tasks: list[ObjectTask],
                 if len(tangible_tasks if r.role == "tangible" else virtual_tasks) > 1:
                     on_failure(r)  # a role's only file: the run stops, and its error says it once
 
-    def none_usable(role: str):
+    def none_usable(role: str, also: str = ""):
         errors = [f for f in failed if f.role == role]
         if not errors:
-            return ConfigError(f"no {role} object given; name at least one with --{role}")
+            return ConfigError(f"no {role} object given; name at least one with --{role}{also}")
         if len(errors) == 1:
-            return RoleFailed(errors[0].error)
+            return RoleFailed(errors[0].error + also)
         return ConfigError(f"none of the {len(errors)} {role} files could be used (first: {errors[0].error}); "
-                           "fix or remove them")
+                           f"fix or remove them{also}")
 
     payloads = []
     for _, r in each("tangibles: poses and features", candidates_task, tangible_tasks, tangible_tasks, job):
         payloads.append((r.meta, r.arrays))
         counts["cached" if r.cached else "computed"] += 1
     if not payloads:
-        raise none_usable("tangible")
+        # the virtual files are read too, so that one run shows every file's problem (units, say)
+        bad = [f for f in ex.map(load_task, virtual_tasks, job) if isinstance(f, Failure)]
+        also = "" if not bad else (f"; the virtual file {bad[0].error}" if len(bad) == 1 else
+                                   f"; {len(bad)} of the {len(virtual_tasks)} virtual files cannot be used "
+                                   f"either (first: {bad[0].error})")
+        raise none_usable("tangible", also)
     tangibles = [from_payload(meta, arrays) for meta, arrays in payloads]
     shared = ex.share(payloads, tangibles)
     header(tangibles)

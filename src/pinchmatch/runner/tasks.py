@@ -1,6 +1,8 @@
 """The tasks of a run, one object each: top-level functions with picklable arguments.
 
 1. :func:`candidates_task`: a tangible's candidate poses (from the cache, or computed);
+   :func:`load_task` only reads a file (when no tangible could be used, every virtual file is read
+   too, so that one run shows every file's problem);
 2. :func:`bounds_task`: with ``--normalize range``, a virtual object's feature bounds;
 3. :func:`row_task`: with ``--one-to-one``, a virtual object's row of the cost matrix;
 4. :func:`served_task` (``pinchmatch select``): a virtual object's row of the served matrix, its
@@ -30,6 +32,7 @@ from ..match.cost import feature_bounds
 from ..match.scene import match_virtual
 from ..match.search import MatchSettings, Search, cost_row
 from ..match.select import served_row
+from ..mesh.load import load_mesh
 from ..mesh.manifest import ObjectSpec
 from .cache import FeatureCache, cached_candidates, to_payload
 from .refined import cached_refined_search, refined_key
@@ -137,6 +140,14 @@ def _per_file(fn: Callable) -> Callable:
 def candidates_task(task: ObjectTask, job: Job) -> Computed | Failure:
     c, cached, _ = _candidates(task, job)
     return Computed(*to_payload(c), cached)
+
+
+@_per_file
+def load_task(task: ObjectTask, job: Job) -> None | Failure:
+    """Only read the object's file (and node) as the run would: a Failure says what is wrong with it."""
+    spec = (task.spec or ObjectSpec(task.path)).with_defaults(units=job.units, up=job.up)
+    load_mesh(spec.path, units=spec.units, up=spec.up, node=spec.node)
+    return None
 
 
 @_per_file
