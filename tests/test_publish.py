@@ -312,3 +312,31 @@ def test_a_journal_or_manifest_naming_files_outside_out_touches_none_of_them(tmp
     assert match(out, [virtuals / "e1.stl"]) == 0
     assert all(p.read_text() == "keep me" for p in victims.values())
     assert_whole(out)
+
+
+def test_files_written_straight_into_out_are_taken_back_when_the_run_does_not_finish(tmp_path):
+    """design's props and the demo's objects are written where they stay, before the result is published:
+    a run that stops (a signal, an error) puts back the files they replaced and removes those it added."""
+    out = tmp_path / "out"
+    (out / "props").mkdir(parents=True)
+    (out / "props" / "prop_1.stl").write_bytes(b"the last result's prop")
+    (out / "notes.txt").write_text("the user's own file")
+    publisher = OutputFolder(out)
+    with pytest.raises(KeyboardInterrupt):
+        with publisher:
+            publisher.write_direct(out / "props" / "prop_1.stl", b"new prop 1")
+            publisher.write_direct(out / "props" / "prop_2.stl", b"new prop 2")
+            (out / "objects").mkdir()
+            (out / "objects" / "a.stl").write_bytes(b"added")
+            publisher.direct(out / "objects" / "a.stl", new=True)
+            raise KeyboardInterrupt
+    assert (out / "props" / "prop_1.stl").read_bytes() == b"the last result's prop"
+    assert not (out / "props" / "prop_2.stl").exists() and not (out / "objects").exists()
+    assert (out / "notes.txt").read_text() == "the user's own file"
+    assert not (out / ".pinchmatch" / "replaced").exists()
+    # finished, the new files stay and nothing is kept aside
+    publisher = OutputFolder(out)
+    with publisher:
+        publisher.write_direct(out / "props" / "prop_1.stl", b"new prop 1")
+    assert (out / "props" / "prop_1.stl").read_bytes() == b"new prop 1"
+    assert not (out / ".pinchmatch" / "replaced").exists()

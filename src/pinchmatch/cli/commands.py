@@ -239,11 +239,14 @@ def _cmd_demo(args) -> int:
                 started.append(note)
 
             # the study's objects are its inputs, the same bytes every run: written in place, so the
-            # documents can name where they stay
-            study = run_study(out / "objects", full=args.full, settings=settings, match_settings=match,
-                              progress=starting)
-        for path in sorted((out / "objects").glob("*.stl")):
-            publisher.direct(path)
+            # documents can name where they stay; a run that does not finish takes back those it added
+            before = {p.name for p in (out / "objects").glob("*.stl")}
+            try:
+                study = run_study(out / "objects", full=args.full, settings=settings, match_settings=match,
+                                  progress=starting)
+            finally:
+                for path in sorted((out / "objects").glob("*.stl")):
+                    publisher.direct(path, new=path.name not in before)
         t1 = time.perf_counter()
         common = {**settings.as_dict(),
                   "candidate_virtual_poses": "17 heights and all sampled" if args.full else "17 heights",

@@ -199,12 +199,10 @@ def cmd_design(args) -> int:
         job = match_job(args, settings, matching, cache)
         publisher = OutputFolder(out)
         with publisher as stage:
-            (out / "props").mkdir(parents=True, exist_ok=True)
             props = []
             for i, stack in enumerate(found.best.stacks, start=1):
                 path = out / "props" / f"prop_{i}.stl"
-                write_atomic(path, stack_mesh(stack).export(file_type="stl"))
-                publisher.direct(path)
+                publisher.write_direct(path, stack_mesh(stack).export(file_type="stl"))
                 props.append(path)
             # the props are read as they were written, in mm and standing on +Z, whatever the scene's --units and --up
             prop_specs = [dataclasses.replace(s, units="mm", up="z")
@@ -287,10 +285,8 @@ def demo_design(publisher, stage: Path, objects: Path, settings, *, budget_s: fl
         found = design_props(virtuals, design, match=matching, pinch=settings, started=started,
                              reserve_s=reserve_s(matching, len(virtuals)),
                              progress=lambda done, total, note: advance(f"{done} judged: {note}", done=False))
-    (publisher.out / "props").mkdir(parents=True, exist_ok=True)
     designed_path = publisher.out / "props" / "designed.stl"
-    write_atomic(designed_path, stack_mesh(found.best.stacks[0]).export(file_type="stl"))
-    publisher.direct(designed_path)
+    publisher.write_direct(designed_path, stack_mesh(found.best.stacks[0]).export(file_type="stl"))
     model = cost_model(matching, virtuals)
     judged = {}
     for name, path in (("study prop", study_prop), ("designed prop", designed_path)):

@@ -49,6 +49,7 @@ class OutputFolder:
         self.stage = self.control / "staging"
         self._lock = None
         self._direct: list[str] = []
+        self._undo: list[tuple[str, Path | None]] = []  # direct writes: (name, the file it replaced)
         self._created = False
 
     def __enter__(self) -> Path:
@@ -77,8 +78,40 @@ class OutputFolder:
         self.stage.mkdir()
         return self.stage
 
-    def direct(self, path: str | os.PathLike) -> None:
-        self._direct.append(Path(path).relative_to(self.out).as_posix())
+    def direct(self, path: str | os.PathLike, *, new: bool = False) -> None:
+        """Record a file written straight into ``out``; ``new``: it was not there before the run, so it
+        goes when the run does not finish."""
+        name = Path(path).relative_to(self.out).as_posix()
+        self._direct.append(name)
+        if new:
+            self._undo.append((name, None))
+
+    def write_direct(self, path: str | os.PathLike, data: bytes) -> None:
+        """Write a file straight into ``out`` (an input the run's later steps read where it stays). A run
+        that does not finish leaves ``out`` as it was: a new file goes, a file it replaced comes back."""
+        name = Path(path).relative_to(self.out).as_posix()
+        if not _really_inside(self.out, name):
+            raise OutputError(f"{path}: outside the output folder {self.out}; choose another -o")
+        target = self.out / name
+        kept = None
+        if target.exists():
+            kept = self.control / "replaced" / name
+            kept.parent.mkdir(parents=True, exist_ok=True)
+            os.replace(target, kept)
+        self._undo.append((name, kept))
+        target.parent.mkdir(parents=True, exist_ok=True)
+        write_atomic(target, data)
+        self._direct.append(name)
+
+    def _put_back(self) -> None:
+        """Undo the direct writes of a run that did not finish."""
+        for name, kept in reversed(self._undo):
+            target = self.out / name
+            if kept is not None and kept.exists():
+                os.replace(kept, target)
+            else:
+                target.unlink(missing_ok=True)
+                _prune_empty(self.out, target.parent)
 
     def __exit__(self, exc_type, exc, tb):
         lost = None
@@ -97,6 +130,9 @@ class OutputFolder:
                 shutil.rmtree(self.stage, ignore_errors=True)
             if failed and self._created:
                 shutil.rmtree(self.out, ignore_errors=True)  # a folder this run made and did not finish
+            elif failed:
+                self._put_back()
+            shutil.rmtree(self.control / "replaced", ignore_errors=True)
             fcntl.flock(self._lock, fcntl.LOCK_UN)
             os.close(self._lock)
             self._lock = None
