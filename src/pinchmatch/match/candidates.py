@@ -89,10 +89,15 @@ def candidate_poses(
     return Candidates(obj, pinches, features, feature_table(features), keep, given is not None)
 
 
+def concat_features(parts: list[PinchFeatures]) -> PinchFeatures:
+    """The features of ``parts``' pinches, in order."""
+    return PinchFeatures(**{f.name: np.concatenate([getattr(p, f.name) for p in parts])
+                            for f in dataclasses.fields(PinchFeatures)})
+
+
 def merge_candidates(first: Candidates, second: Candidates) -> Candidates:
     """The candidates of both (same object); the second's indices follow the first's list."""
-    features = PinchFeatures(**{f.name: np.concatenate([getattr(first.features, f.name), getattr(second.features, f.name)])
-                                for f in dataclasses.fields(first.features)})
+    features = concat_features([first.features, second.features])
     offset = int(first.index.max()) + 1 if len(first.index) else 0
     return Candidates(first.obj, concat_pinches([first.pinches, second.pinches]), features,
                       np.concatenate([first.table, second.table]),

@@ -35,7 +35,7 @@ from ..grasp.features import pinch_features
 from ..grasp.pinches import PinchSettings, Pinches, patches
 from .candidates import Candidates, felt_table, mass_ratio
 from .cost import CRITERIA, CostModel, feature_table, mass_term, separable_terms
-from .refine import move_directions
+from .refine import close_fingers, move_directions
 from .search import criterion_table, p_noticed
 
 #: the headset's tolerance: each fingertip within this of its target (mm) ...
@@ -80,17 +80,6 @@ def disc_offsets(radius_mm: float, rings=RING_POINTS) -> np.ndarray:
     return np.concatenate(out)
 
 
-def _close(context, points: np.ndarray, toward: np.ndarray, back_mm: float) -> tuple[np.ndarray, np.ndarray]:
-    """Where fingers closing along ``toward`` from ``back_mm`` behind ``points`` first meet a surface
-    facing them, within twice that: (n, 3) contacts and (n,) triangles, -1 where they meet none."""
-    origin = points - back_mm * toward
-    face, dist = context.first_hit(origin, toward)
-    met = (face >= 0) & (dist <= 2.0 * back_mm)
-    met[met] = np.einsum("ij,ij->i", context.face_normals[face[met]], toward[met]) < 0
-    contact = origin + np.where(np.isfinite(dist), dist, 0.0)[:, None] * toward
-    return contact, np.where(met, face, -1)
-
-
 def _described(context, points: np.ndarray, faces: np.ndarray, settings: PinchSettings) -> Pinches:
     """Pinches (n, 2) at given surface points, with their patches (no rule is checked)."""
     n = len(points)
@@ -118,7 +107,7 @@ def landing_pinches(virtual: Candidates, v_pose: int, swapped: bool, radius_mm: 
     landed, faces = [], []
     for k, toward in ((0, u), (1, -u)):
         moved = p[k] + offsets @ dirs
-        contact, face = _close(context, moved, np.broadcast_to(toward, moved.shape).copy(), back)
+        contact, face = close_fingers(context, moved, np.broadcast_to(toward, moved.shape).copy(), back)
         contact[0], face[0] = p[k], f[k]  # the target itself
         landed.append(contact)
         faces.append(face)
@@ -153,7 +142,7 @@ def landing(tangible: Candidates, virtual: Candidates, choice, model: CostModel,
         + radius_mm + settings.fingertip_radius_mm
     felt, felt_faces = [], []
     for k, toward in ((0, u), (1, -u)):
-        contact, face = _close(tangible.obj.context, placed[:, k], toward, back)
+        contact, face = close_fingers(tangible.obj.context, placed[:, k], toward, back)
         felt.append(contact)
         felt_faces.append(face)
     hit = (felt_faces[0] >= 0) & (felt_faces[1] >= 0)

@@ -36,7 +36,7 @@ import numpy as np
 from ..grasp.curvature import tangent_frame
 from ..grasp.features import pinch_features
 from ..grasp.pinches import PinchSettings, Pinches, check_pinches, concat_pinches
-from .candidates import Candidates, features_subset, felt_table, mass_ratio
+from .candidates import Candidates, concat_features, felt_table, mass_ratio
 from .cost import CostModel, feature_table, separable_terms
 from .search import Search, cost_row, evaluate_pairs
 
@@ -75,14 +75,8 @@ def extend(base: Candidates, pinches: Pinches) -> Candidates:
     extra = Candidates(base.obj, pinches, features, feature_table(features),
                        np.full(len(pinches), REFINED_INDEX, dtype=base.index.dtype), base.given, base.probes)
     return Candidates(base.obj, concat_pinches([base.pinches, pinches], base.pinches.rejected),
-                      features_concat(base, extra), np.concatenate([base.table, extra.table]),
+                      concat_features([base.features, extra.features]), np.concatenate([base.table, extra.table]),
                       np.concatenate([base.index, extra.index]), base.given, base.probes)
-
-
-def features_concat(a: Candidates, b: Candidates):
-    both = [a.features, b.features]
-    return type(a.features)(**{name: np.concatenate([getattr(f, name) for f in both])
-                               for name in a.features.__dataclass_fields__})
 
 
 def move_directions(points: np.ndarray, axis: np.ndarray) -> np.ndarray:
@@ -126,17 +120,27 @@ def moved_poses(c: Candidates, poses: np.ndarray, steps: np.ndarray) -> tuple[np
     u = u / np.maximum(np.linalg.norm(u, axis=1, keepdims=True), 1e-300)
     back = 2.0 * step + 1.0
     ok = np.ones(len(which), dtype=bool)
-    context = c.obj.context
     for contact, toward in ((0, u), (1, -u)):  # the first finger closes along +u, the second along -u
         rows = np.flatnonzero(move[:, 1 + contact] != 0)
-        origin = new[rows, contact] - back[rows, None] * toward[rows]
-        face, dist = context.first_hit(origin, toward[rows])
-        met = (face >= 0) & (dist <= 2.0 * back[rows])
-        met[met] = np.einsum("ij,ij->i", context.face_normals[face[met]], toward[rows[met]]) < 0  # from outside
+        point, face = close_fingers(c.obj.context, new[rows, contact], toward[rows], back[rows])
+        met = face >= 0
         ok[rows[~met]] = False
-        new[rows[met], contact] = origin[met] + dist[met, None] * toward[rows[met]]
+        new[rows[met], contact] = point[met]
         faces[rows[met], contact] = face[met]
     return new[ok], faces[ok], which[ok]
+
+
+def close_fingers(context, points: np.ndarray, toward: np.ndarray, back_mm) -> tuple[np.ndarray, np.ndarray]:
+    """Where fingers closing along ``toward`` from ``back_mm`` (a number, or one per point) behind
+    ``points`` first meet a surface facing them, within twice that: (n, 3) contacts and (n,)
+    triangles, -1 where they meet none."""
+    back = np.broadcast_to(np.asarray(back_mm, dtype=np.float64), (len(points),))
+    origin = points - back[:, None] * toward
+    face, dist = context.first_hit(origin, toward)
+    met = (face >= 0) & (dist <= 2.0 * back)
+    met[met] = np.einsum("ij,ij->i", context.face_normals[face[met]], toward[met]) < 0  # met from outside
+    contact = origin + np.where(np.isfinite(dist), dist, 0.0)[:, None] * toward
+    return contact, np.where(met, face, -1)
 
 
 def feasible_moves(c: Candidates, poses: np.ndarray, steps: np.ndarray,

@@ -76,15 +76,17 @@ REFINED = ".refined"  # the poses refinement added for a virtual object (:mod:`p
 DAMAGED = (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile)
 
 
-def _algorithm_digest() -> str:
-    h = hashlib.sha256()
-    for name in ALGORITHM_MODULES:
+def source_digest(modules, start: str = "") -> str:
+    """SHA-256 of ``start`` and of the name and source of each module (``"grasp/hand"``, ...): the
+    part of a key that changes whenever that code does."""
+    h = hashlib.sha256(start.encode())
+    for name in modules:
         h.update(name.encode())
         h.update(resources.files("pinchmatch").joinpath(*f"{name}.py".split("/")).read_bytes())
     return h.hexdigest()
 
 
-ALGORITHM_DIGEST = _algorithm_digest()
+ALGORITHM_DIGEST = source_digest(ALGORITHM_MODULES)
 PINCH_ARRAYS = list(ARRAY_FIELDS)
 #: the mass properties an entry holds, as arrays and as plain values
 PROPS_ARRAYS = ("com_mm", "principal_axis", "variances_mm2", "bounds_mm")

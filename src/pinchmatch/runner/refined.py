@@ -16,7 +16,6 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
-from importlib import resources
 
 import numpy as np
 
@@ -25,7 +24,8 @@ from ..match.candidates import Candidates
 from ..match.refine import extend, refined_search
 from ..match.search import Search
 from ..version import __version__
-from .cache import ALGORITHM_DIGEST, CACHE_FORMAT, DAMAGED, PINCH_ARRAYS, REFINED, FeatureCache, read_entry, remove_file
+from .cache import (ALGORITHM_DIGEST, CACHE_FORMAT, DAMAGED, PINCH_ARRAYS, REFINED, FeatureCache, read_entry,
+                    remove_file, source_digest)
 from .results import plain
 
 log = logging.getLogger(__name__)
@@ -36,15 +36,7 @@ REFINED_MODULES = ("match/refine", "match/search", "match/register", "match/cost
 REFINE_SETTINGS = ("criteria", "weights", "normalize", "pooling", "keep_upright", "refine")
 
 
-def _digest() -> str:
-    h = hashlib.sha256(ALGORITHM_DIGEST.encode())
-    for name in REFINED_MODULES:
-        h.update(name.encode())
-        h.update(resources.files("pinchmatch").joinpath(*f"{name}.py".split("/")).read_bytes())
-    return h.hexdigest()
-
-
-REFINED_DIGEST = _digest()
+REFINED_DIGEST = source_digest(REFINED_MODULES, ALGORITHM_DIGEST)
 
 
 def refined_key(candidate_key: str, tangibles_token: str, model, match, pinch: PinchSettings) -> str:

@@ -30,14 +30,13 @@ import dataclasses
 import hashlib
 import json
 import logging
-from importlib import resources
 
 import numpy as np
 
 from ..mesh.manifest import ObjectSpec, spec_to_dict
 from ..mesh.surface import ray_engine_name
 from ..version import __version__
-from .cache import ALGORITHM_DIGEST, CACHE_FORMAT, DAMAGED, RESULT, FeatureCache, read_entry, remove_file
+from .cache import ALGORITHM_DIGEST, CACHE_FORMAT, DAMAGED, RESULT, FeatureCache, read_entry, remove_file, source_digest
 
 log = logging.getLogger(__name__)
 
@@ -49,15 +48,7 @@ RESULT_MODULES = ("match/search", "match/refine", "match/landing", "match/scene"
                   "runner/results", "runner/refined")
 
 
-def _result_digest() -> str:
-    h = hashlib.sha256(ALGORITHM_DIGEST.encode())
-    for name in RESULT_MODULES:
-        h.update(name.encode())
-        h.update(resources.files("pinchmatch").joinpath(*f"{name}.py".split("/")).read_bytes())
-    return h.hexdigest()
-
-
-RESULT_DIGEST = _result_digest()
+RESULT_DIGEST = source_digest(RESULT_MODULES, ALGORITHM_DIGEST)
 
 
 def plain(value):
