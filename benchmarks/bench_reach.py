@@ -53,7 +53,8 @@ REAL = [
     ("pybullet lego", "pybullet", "pybullet_data/lego/lego.obj", 0.1),
     ("pybullet tray", "pybullet", "pybullet_data/tray/tray_textured4.obj", 0.5),
 ]
-HOLLOW = [("cup", vessels.cup), ("mug", vessels.mug), ("bowl", vessels.bowl), ("plate", vessels.plate),
+HOLLOW = [("cup", vessels.cup), ("mug", vessels.mug), ("bowl", vessels.bowl),
+          ("scanned bowl", vessels.scanned_bowl), ("plate", vessels.plate),
           ("test tube", vessels.tube)]
 
 

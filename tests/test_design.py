@@ -2,6 +2,7 @@
 and the command."""
 
 import json
+import time
 
 import numpy as np
 import pytest
@@ -190,6 +191,34 @@ def test_bad_design_options_end_in_one_line_and_write_nothing(tmp_path, capsys, 
     out = tmp_path / "out"
     code, _, err = run_cli(capsys, "design", "--virtual", scene, "--count", 100, *argv, "-o", out, "--jobs", 1)
     assert code == 2 and message in err and len(err.strip().splitlines()) == 1, err
+    assert not out.exists()
+
+
+def test_a_budget_too_small_is_refused_after_the_first_candidate_not_after_the_budget(
+        tmp_path, capsys, scene, monkeypatch):
+    """Each judged candidate takes 20 s of a fake clock: a 50 s budget cannot hold the first, one more
+    and the final match, and the run says so after judging one, without spending the budget."""
+    from types import SimpleNamespace
+
+    from pinchmatch.runner import design
+
+    offset = [0.0]
+    judged = []
+    real_rows = design.Judge.prop_rows
+
+    def slow_rows(self, stack):
+        if design._key(stack) not in self.rows:
+            judged.append(stack)
+            offset[0] += 20.0
+        return real_rows(self, stack)
+
+    monkeypatch.setattr(design, "time", SimpleNamespace(perf_counter=lambda: time.perf_counter() + offset[0]))
+    monkeypatch.setattr(design.Judge, "prop_rows", slow_rows)
+    out = tmp_path / "out"
+    code, _, err = run_cli(capsys, "design", "--virtual", scene, "--count", 100, "--budget-s", 50, "-o", out,
+                           "--jobs", 1)
+    assert code == 2 and "judging one candidate takes 20." in err, err
+    assert len(judged) == 1
     assert not out.exists()
 
 

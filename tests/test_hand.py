@@ -137,6 +137,21 @@ def test_bowl_gives_most_of_the_asked_pinches_at_its_rim():
     assert_rules_hold(mesh, pinches, PinchSettings())
 
 
+def test_a_shallow_scanned_bowl_gives_most_of_the_asked_pinches_at_its_rim():
+    mesh = vessels.scanned_bowl()  # 161 across, 55 tall, 1.5 mm wall, rounded rim, rough triangles
+    assert mesh.is_volume
+    assert np.allclose(mesh.extents, (161.0, 161.0, 55.0), atol=1.5)
+    pinches = sample_pinches(_ctx(mesh), settings=PinchSettings(count=500, seed=0))
+    assert len(pinches) >= 300
+    # held by the rim: one finger inside, one outside, within a finger's reach of the edge
+    radial = np.hypot(pinches.points[..., 0], pinches.points[..., 1])
+    near_rim = (pinches.points[..., 2] > 55.0 - 20.0).all(axis=1)
+    assert near_rim.mean() > 0.5
+    across_wall = np.abs(radial[:, 0] - radial[:, 1]) < 5.0
+    assert (near_rim & across_wall).mean() > 0.3
+    assert_rules_hold(mesh, pinches, PinchSettings())
+
+
 def test_mug_handle_is_pinched():
     mesh = vessels.mug()
     pinches = sample_pinches(_ctx(mesh), settings=PinchSettings(count=300, seed=0))

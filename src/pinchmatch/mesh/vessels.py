@@ -62,6 +62,35 @@ def bowl(outer_diameter_mm: float = 160.0, wall_mm: float = 1.5, *, subdivisions
     return _fine(half, 6.0)
 
 
+def scanned_bowl(diameter_mm: float = 161.0, height_mm: float = 55.0, wall_mm: float = 1.5, *,
+                 edge_mm: float = 2.5, noise_mm: float = 0.05, seed: int = 0) -> trimesh.Trimesh:
+    """A shallow bowl as a scan gives it: a spherical cap ``wall_mm`` thick with a rounded rim.
+
+    The outer surface is the cap of the sphere through the bottom (z = 0) and the rim (the
+    diameter at ``height_mm``); the inner one is ``wall_mm`` inside it; a half circle joins them
+    at the rim. Triangles split to ``edge_mm`` and every vertex moved by Gaussian noise of
+    ``noise_mm`` (seeded) stand for a scan's dense, slightly rough triangulation.
+    """
+    a, h = diameter_mm / 2.0, height_mm
+    radius = (a * a + h * h) / (2.0 * h)
+    theta = np.linspace(0.0, np.arcsin(a / radius), 80)
+    outer = np.c_[radius * np.sin(theta), radius * (1.0 - np.cos(theta))]
+    r_in = radius - wall_mm
+    inner = np.c_[r_in * np.sin(theta), radius - r_in * np.cos(theta)][::-1]
+    centre, half = (outer[-1] + inner[0]) / 2.0, wall_mm / 2.0
+    start = np.arctan2(*(outer[-1] - centre)[::-1])
+    turn = start + np.linspace(0.0, np.pi, 12)[1:-1]
+    rim = centre + half * np.c_[np.cos(turn), np.sin(turn)]
+    profile = np.vstack([outer, rim, inner])
+    profile[[0, -1], 0] = 0.0
+    mesh = trimesh.creation.revolve(profile, sections=256)
+    v, f = trimesh.remesh.subdivide_to_size(mesh.vertices, mesh.faces, max_edge=edge_mm)
+    v = v + np.random.default_rng(seed).normal(0.0, noise_mm, v.shape)
+    out = trimesh.Trimesh(v, f)
+    out.fix_normals()
+    return out
+
+
 def plate(diameter_mm: float = 260.0, thickness_mm: float = 2.5, *, well_diameter_mm: float = 200.0,
           rim_height_mm: float = 15.0, sections: int = 256) -> trimesh.Trimesh:
     """A plate: a flat well and a raised, sloping rim, one sheet ``thickness_mm`` thick."""
