@@ -40,6 +40,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from ..errors import ConfigError
+from .described import read_shape, shape_file
 from .frames import UNITS_MM, UP_VECTORS
 from .load import GLTF_TYPES, MESH_EXTENSIONS, mesh_files, read_level
 from .regions import ContactRegions, Region
@@ -48,8 +49,8 @@ MANIFEST_SUFFIX = ".toml"
 #: a centre of mass farther than this from the file's origin (mm, 1 km) is not an object's
 MAX_COORDINATE_MM = 1e6
 #: the keys of an object; ``[defaults]`` takes all but ``file`` and ``name``
-OBJECT_KEYS = ("file", "name", "units", "up", "com_mm", "axis", "mass_g", "split", "exclude", "only")
-DEFAULT_KEYS = tuple(k for k in OBJECT_KEYS if k not in ("file", "name"))
+OBJECT_KEYS = ("file", "shape", "name", "units", "up", "com_mm", "axis", "mass_g", "split", "exclude", "only")
+DEFAULT_KEYS = tuple(k for k in OBJECT_KEYS if k not in ("file", "shape", "name"))
 SPLITS = ("none", "nodes")
 #: a manifest is a hand-written list: at most this big
 MAX_MANIFEST_BYTES = 4 * 2**20
@@ -240,8 +241,15 @@ def read_manifest(path: str | os.PathLike) -> list[ObjectSpec]:
             where += f" ({table['name']})"
         _unknown(table, OBJECT_KEYS, where, problems)
         given = table.get("file")
+        if "shape" in table:
+            spec = _described(table, where, base, path, problems)
+            if spec is not None:
+                specs.append(spec)
+            continue
         if given is None or given == "":
-            problems.add(where, "file", "missing; give the mesh file, relative to the manifest's folder")
+            problems.add(where, "file", "missing; give the mesh file, relative to the manifest's folder, or the "
+                                        "prop's sizes as shape = { kind = \"cylinder\", diameter_mm = 54, "
+                                        "height_mm = 66 }")
             continue
         if not isinstance(given, str):
             problems.add(where, "file", f"{given!r} is not a path; give the mesh file as text in quotes, relative "
@@ -259,6 +267,34 @@ def read_manifest(path: str | os.PathLike) -> list[ObjectSpec]:
         specs.append(ObjectSpec(str(file), regions=regions, manifest=str(path), **options))
     problems.raise_any()
     return specs
+
+
+def _described(table: dict, where: str, base: dict, manifest: Path, problems: _Problems) -> ObjectSpec | None:
+    """The spec of an object known by its sizes (:mod:`pinchmatch.mesh.described`): mm, +Z up."""
+    clash = [k for k in ("file", "units", "up", "split") if k in table]
+    if clash:
+        problems.add(where, "shape", f"a shape has no file: its sizes are in mm and its axis is +Z; drop "
+                                     f"{', '.join(clash)}")
+    if not isinstance(table.get("name"), str):
+        problems.add(where, "name", "a shape needs a name (it has no file to be named after)")
+    stack, lines = read_shape(table["shape"], where)
+    for line in lines:
+        problems.add(line.split(": ", 1)[0], None, line.split(": ", 1)[1])
+    options = {k: v for k, v in (base | _options(table, where, problems)).items()
+               if k not in ("units", "up", "split")}
+    if stack is None or clash or "name" not in options:
+        return None
+    try:
+        file = shape_file(stack)
+    except ValueError as exc:
+        problems.add(where, "shape", f"{exc}; check that each part rests on the one below")
+        return None
+    except OSError as exc:
+        problems.add(where, "shape", f"the prop's solid cannot be written to the temporary folder "
+                                     f"({exc.strerror or exc}); free some space or set TMPDIR")
+        return None
+    regions = ContactRegions(options.pop("exclude", ()), options.pop("only", ()))
+    return ObjectSpec(str(file), regions=regions, manifest=str(manifest), units="mm", up="z", **options)
 
 
 def node_specs(spec: ObjectSpec, nodes) -> list[ObjectSpec]:

@@ -4,7 +4,8 @@ A stack is up to ``MAX_PARTS`` parts, bottom to top along +Z, each centred on th
 on the one below; the first stands on z = 0 with a flat face. A part is one of
 
 - ``cylinder``: diameter ``width_mm``;
-- ``box``: a square prism of side ``width_mm``, turned ``turn_deg`` about Z;
+- ``box``: a square prism of side ``width_mm`` (``depth_mm`` along Y makes it oblong), turned
+  ``turn_deg`` about Z;
 - ``frustum``: a cone frustum from diameter ``width_mm`` at its bottom to ``top_width_mm`` at its top;
 - ``barrel``: the middle zone of an ellipsoid of revolution (a sphere's when the numbers make it one):
   diameter ``width_mm`` at mid-height and ``top_width_mm`` at both cut faces;
@@ -51,6 +52,7 @@ class Part:
     width_mm: float
     top_width_mm: float | None = None  # frustum: top diameter; barrel: diameter at the cut faces
     turn_deg: float = 0.0  # box: turned about Z
+    depth_mm: float | None = None  # box: its side along Y before the turn (default: width_mm)
 
     def __post_init__(self):
         if self.kind not in PART_KINDS:
@@ -62,19 +64,22 @@ class Part:
     def widest_mm(self) -> float:
         """The part's largest extent across the axis (a box's diagonal)."""
         if self.kind == "box":
-            return self.width_mm * math.sqrt(2.0)
+            return math.hypot(self.width_mm, self.depth_mm or self.width_mm)
         return max(self.width_mm, self.top_width_mm or 0.0)
 
     def radius_at(self, where: str) -> float:
         """Radius (mm) of the part's round outline at its ``bottom`` or ``top`` face (a box's inscribed)."""
-        if self.kind in ("cylinder", "box"):
+        if self.kind == "box":
+            return min(self.width_mm, self.depth_mm or self.width_mm) / 2.0
+        if self.kind == "cylinder":
             return self.width_mm / 2.0
         if self.kind == "frustum":
             return (self.width_mm if where == "bottom" else self.top_width_mm) / 2.0
         return self.top_width_mm / 2.0  # barrel: both cut faces
 
     def as_dict(self) -> dict:
-        return {k: v for k, v in asdict(self).items() if v is not None and not (k == "turn_deg" and self.kind != "box")}
+        return {k: v for k, v in asdict(self).items()
+                if v is not None and not (k == "turn_deg" and self.kind != "box")}
 
 
 @dataclass(frozen=True)
@@ -185,13 +190,15 @@ def _profile(part: Part, z0: float) -> np.ndarray:
         c = (h / 2.0) / math.sqrt(1.0 - (e / a) ** 2)
         t = np.linspace(-h / 2.0, h / 2.0, 33)
         rim = list(zip(a * np.sqrt(np.clip(1.0 - (t / c) ** 2, 0.0, 1.0)), z0 + h / 2.0 + t))
-    return np.array([(0.0, z0)] + rim + [(0.0, z0 + h)], dtype=np.float64)
+    outline = np.array([(0.0, z0)] + rim + [(0.0, z0 + h)], dtype=np.float64)
+    # a cone's apex or a sphere's poles lie on the axis already: each point once
+    return outline[np.r_[True, np.any(np.diff(outline, axis=0) != 0.0, axis=1)]]
 
 
 def part_mesh(part: Part, z0: float) -> trimesh.Trimesh:
     """One part as a closed surface, its bottom at ``z0``."""
     if part.kind == "box":
-        mesh = trimesh.creation.box(extents=(part.width_mm, part.width_mm, part.height_mm))
+        mesh = trimesh.creation.box(extents=(part.width_mm, part.depth_mm or part.width_mm, part.height_mm))
         mesh.apply_transform(trimesh.transformations.rotation_matrix(math.radians(part.turn_deg), [0, 0, 1]))
         mesh.apply_translation((0.0, 0.0, z0 + part.height_mm / 2.0))
         return mesh
