@@ -45,15 +45,15 @@ from pinchmatch.mesh.shapes import ellipsoid
 def timed_search(T, V, settings) -> tuple[float, float, float, float]:
     model = cost_model(settings, [T, V])
     t0 = time.perf_counter()
-    scene = match_scene([T], [V], settings, model=model)
+    scene = match_scene([T], [V], settings=settings, model=model)
     first_s = time.perf_counter() - t0
     times = []
     for _ in range(3):
         t0 = time.perf_counter()
-        match_scene([T], [V], settings, model=model)
+        match_scene([T], [V], settings=settings, model=model)
         times.append(time.perf_counter() - t0)
     tracemalloc.start()
-    match_scene([T], [V], settings, model=model)
+    match_scene([T], [V], settings=settings, model=model)
     _, peak = tracemalloc.get_traced_memory()
     tracemalloc.stop()
     return first_s, statistics.median(times), peak / 2**20, scene.matches[0].best.cost
@@ -88,7 +88,7 @@ def main() -> None:
             if n == sizes[0]:
                 it = np.repeat(np.arange(len(t)), len(v))
                 iv = np.tile(np.arange(len(v)), len(t))
-                brute = evaluate_pairs(t, v, it, iv, cost_model(settings, [t, v])).cost.min()
+                brute = evaluate_pairs(t, v, it, iv, model=cost_model(settings, [t, v])).cost.min()
                 exact = "yes" if abs(brute - best) <= 1e-9 * max(1.0, brute) else f"NO ({brute:.6g} vs {best:.6g})"
             pairs = len(t) * len(v) / 1e6
             rows.append([len(t), len(v), f"{pairs:.1f}", label, f"{first_s:.3f}", f"{median_s:.3f}",

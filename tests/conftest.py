@@ -44,6 +44,7 @@ class DemoRun:
 def demo(tmp_path_factory) -> DemoRun:
     """``pinchmatch demo``, run once per test session: what it wrote and printed, and its study."""
     from pinchmatch.cli import commands
+    from pinchmatch.cli.main import main
 
     out = tmp_path_factory.mktemp("demo") / "out"
     studies = []
@@ -57,7 +58,7 @@ def demo(tmp_path_factory) -> DemoRun:
     commands.run_study = keep
     try:
         with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
-            code = commands.main(["demo", "-o", str(out)])
+            code = main(["demo", "-o", str(out)])
     finally:
         commands.run_study = real
     assert code == 0, stderr.getvalue()
@@ -72,7 +73,7 @@ def demo_out(demo) -> Path:
 
 def run_cli(capsys, *argv):
     """``pinchmatch ARGV`` in this process: (exit code, stdout, stderr)."""
-    from pinchmatch.cli.commands import main
+    from pinchmatch.cli.main import main
 
     code = main([str(a) for a in argv])
     out, err = capsys.readouterr()

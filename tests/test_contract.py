@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from pinchmatch.cli.commands import example_mesh_path, main
+from pinchmatch.cli.commands import example_mesh_path
+from pinchmatch.cli.main import main
 from pinchmatch.errors import ConfigError
 from pinchmatch.match.search import MatchSettings
 from pinchmatch.mesh.shapes import ellipsoid

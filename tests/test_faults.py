@@ -15,7 +15,8 @@ import sys
 
 import pytest
 
-from pinchmatch.cli.commands import example_mesh_path, main
+from pinchmatch.cli.commands import example_mesh_path
+from pinchmatch.cli.main import main
 from pinchmatch.mesh.shapes import ellipsoid
 
 from conftest import assert_one_line

@@ -16,7 +16,7 @@ import trimesh
 from hypothesis import HealthCheck, given, settings, strategies as st
 
 from pinchmatch.grasp.analysis import load_poses_file
-from pinchmatch.cli.commands import main
+from pinchmatch.cli.main import main
 from pinchmatch.cli.runs import match_settings_of, pinch_settings_of
 from pinchmatch.cli.parser import build_parser, check_option_names
 from pinchmatch.errors import ConfigError, PinchmatchError

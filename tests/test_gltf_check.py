@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from pinchmatch.cli.commands import main
+from pinchmatch.cli.main import main
 from pinchmatch.errors import MeshError
 from pinchmatch.mesh.gltf_check import MAX_DEPTH, check_hierarchy
 from pinchmatch.mesh.load import read_level

@@ -24,7 +24,7 @@ def given(tmp_path, name, mesh, p1, p2):
 
 
 def matched(tangible, virtual, **options):
-    scene = match_scene([tangible], [virtual], MatchSettings(**options), pinch_settings=SETTINGS)
+    scene = match_scene([tangible], [virtual], settings=MatchSettings(**options), pinch_settings=SETTINGS)
     vm = scene.matches[0]
     return scene, vm
 

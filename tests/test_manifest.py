@@ -175,14 +175,14 @@ def test_the_mass_criterion_compares_torques_where_both_masses_are_known(tmp_pat
     stacked_prop(sections=48).export(tmp_path / "prop.stl")
     light, heavy, unknown = _with_mass(tmp_path, "light", 100), _with_mass(tmp_path, "heavy", 200), \
         _with_mass(tmp_path, "unknown", None)
-    model = match_scene([light], [light], MatchSettings()).model
+    model = match_scene([light], [light], settings=MatchSettings()).model
     i = np.arange(len(light))
-    same = evaluate_pairs(light, light, i, i, model)  # each pose on itself: identity, no offset mismatch
+    same = evaluate_pairs(light, light, i, i, model=model)  # each pose on itself: identity, no offset mismatch
     np.testing.assert_allclose(same.terms[:, 7], 0.0, atol=1e-12)
-    np.testing.assert_allclose(evaluate_pairs(light, unknown, i, i, model).terms[:, 7], 0.0, atol=1e-12)
+    np.testing.assert_allclose(evaluate_pairs(light, unknown, i, i, model=model).terms[:, 7], 0.0, atol=1e-12)
     # twice the mass seen: the felt offset must double, so the mismatch is the offset itself,
     # |o_T|^2 / s^2 with s = max(22 % of |o_T|, 20 mm)
-    doubled = evaluate_pairs(light, heavy, i, i, model)
+    doubled = evaluate_pairs(light, heavy, i, i, model=model)
     offset = np.linalg.norm(light.obj.props.com_mm - light.pinches.points.mean(axis=1), axis=1)
     scale = np.maximum(0.22 * offset, 20.0)
     np.testing.assert_allclose(doubled.terms[:, 7], offset**2 / scale**2, rtol=1e-6)

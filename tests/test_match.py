@@ -89,7 +89,7 @@ def test_an_ellipsoid_registers_onto_its_moved_copy_sampled_anew(tmp_path):
 
 def test_a_pose_against_itself_costs_nothing_and_registers_to_the_identity(example):
     idx = np.arange(len(example))
-    result = evaluate_pairs(example, example, idx, idx, cost_model(MatchSettings(), [example]))
+    result = evaluate_pairs(example, example, idx, idx, model=cost_model(MatchSettings(), [example]))
     np.testing.assert_allclose(result.cost, 0.0, atol=1e-9)
     np.testing.assert_allclose(result.transform, np.broadcast_to(np.eye(4), result.transform.shape), atol=1e-6)
     assert not result.flipped.any()
@@ -103,8 +103,8 @@ def test_swapping_p1_and_p2_in_the_inputs_changes_no_cost(example, tmp_path):
     model = cost_model(MatchSettings(), [example])
     it = np.repeat(np.arange(len(example)), len(given))
     iv = np.tile(np.arange(len(given)), len(example))
-    a = evaluate_pairs(example, given, it, iv, model)
-    b = evaluate_pairs(example, swapped, it, iv, model)
+    a = evaluate_pairs(example, given, it, iv, model=model)
+    b = evaluate_pairs(example, swapped, it, iv, model=model)
     np.testing.assert_allclose(a.cost, b.cost, rtol=1e-9, atol=1e-9)
     np.testing.assert_allclose(a.transform, b.transform, atol=1e-6)
     assert (a.swapped != b.swapped).all()
@@ -138,11 +138,11 @@ def test_the_pooled_search_finds_the_exact_minimum(example, tmp_path, monkeypatc
     monkeypatch.setattr(search_module, "MIN_POOL", 7)  # force the pool to grow
     monkeypatch.setattr(search_module, "MAX_POOL", 7)
     settings = MatchSettings(normalize=normalize, keep_upright=keep_upright, top_k=4, distinct_mm=10.0)
-    scene = match_scene([example], [virtual], settings)
+    scene = match_scene([example], [virtual], settings=settings)
     (example,), virtual = scene.objects(scene.matches[0])  # with the refined poses: exact within them
     it = np.repeat(np.arange(len(example)), len(virtual))
     iv = np.tile(np.arange(len(virtual)), len(example))
-    brute = evaluate_pairs(example, virtual, it, iv, scene.model, keep_upright=keep_upright)
+    brute = evaluate_pairs(example, virtual, it, iv, model=scene.model, keep_upright=keep_upright)
     vm = scene.matches[0]
     assert vm.best.cost == pytest.approx(brute.cost.min(), rel=1e-9, abs=1e-12)
     assert scene.cost_matrix[0, 0] == pytest.approx(brute.cost.min(), rel=1e-9, abs=1e-12)
@@ -175,12 +175,12 @@ def test_kept_upright_an_upside_down_copy_grows_past_pools_of_flipped_pairs(exam
     monkeypatch.setattr(search_module, "MIN_POOL", 5)
     monkeypatch.setattr(search_module, "MAX_POOL", 5)
     settings = MatchSettings(keep_upright=True, top_k=0)
-    scene = match_scene([example], [virtual], settings)
+    scene = match_scene([example], [virtual], settings=settings)
     (example,), virtual = scene.objects(scene.matches[0])  # with the refined poses: exact within them
     it = np.repeat(np.arange(len(example)), len(virtual))
     iv = np.tile(np.arange(len(virtual)), len(example))
-    brute = evaluate_pairs(example, virtual, it, iv, scene.model, keep_upright=True)
-    free = evaluate_pairs(example, virtual, it, iv, scene.model, keep_upright=False)
+    brute = evaluate_pairs(example, virtual, it, iv, model=scene.model, keep_upright=True)
+    free = evaluate_pairs(example, virtual, it, iv, model=scene.model, keep_upright=False)
     assert free.cost.min() < brute.cost.min()  # upright costs something here
     assert np.isfinite(brute.cost.min())
     assert scene.cost_matrix[0, 0] == pytest.approx(brute.cost.min(), rel=1e-9, abs=1e-12)
@@ -212,7 +212,7 @@ def test_the_pooled_lower_bound_holds_for_every_pair_with_unequal_masses(example
         model = cost_model(MatchSettings(pooling=pooling), [T, V])
         it, iv, separable, tau = search_module._pool(T, V, model, 50, 64)
         exact = evaluate_pairs(T, V, np.repeat(np.arange(len(T)), len(V)), np.tile(np.arange(len(V)), len(T)),
-                               model).cost.reshape(len(T), len(V))
+                               model=model).cost.reshape(len(T), len(V))
         left_out = np.ones(exact.shape, dtype=bool)
         left_out[it, iv] = False
         assert (exact[left_out] >= tau * (1 - 1e-9)).all(), (m_t, factor)
@@ -228,16 +228,16 @@ def test_the_pooled_search_with_masses_on_both_sides_equals_brute_force(example,
     tangible = with_mass(example, 100.0)
     monkeypatch.setattr(search_module, "MIN_POOL", 7)  # force the pool to grow
     monkeypatch.setattr(search_module, "MAX_POOL", 7)
-    scene = match_scene([tangible], [virtual], MatchSettings(pooling=pooling, top_k=2, distinct_mm=10.0))
+    scene = match_scene([tangible], [virtual], settings=MatchSettings(pooling=pooling, top_k=2, distinct_mm=10.0))
     (tangible,), virtual = scene.objects(scene.matches[0])  # with the refined poses: exact within them
     it = np.repeat(np.arange(len(tangible)), len(virtual))
     iv = np.tile(np.arange(len(virtual)), len(tangible))
-    brute = evaluate_pairs(tangible, virtual, it, iv, scene.model)
+    brute = evaluate_pairs(tangible, virtual, it, iv, model=scene.model)
     best = scene.matches[0].best
     assert best.cost == pytest.approx(brute.cost.min(), rel=1e-9, abs=1e-12)
     k = int(np.argmin(brute.cost))
     assert (best.t_pose, best.v_pose) == (int(it[k]), int(iv[k]))
-    unweighed = match_scene([example], [with_mass(virtual, None)], MatchSettings(pooling=pooling))
+    unweighed = match_scene([example], [with_mass(virtual, None)], settings=MatchSettings(pooling=pooling))
     assert unweighed.matches[0].best.cost != pytest.approx(best.cost)  # the masses change the answer's cost
 
 
@@ -248,7 +248,7 @@ def test_the_mass_lower_bound_never_exceeds_the_exact_mass_term(example, tmp_pat
     model = cost_model(MatchSettings(), [example, virtual])
     it = np.repeat(np.arange(len(example)), len(virtual))
     iv = np.tile(np.arange(len(virtual)), len(example))
-    exact = evaluate_pairs(example, virtual, it, iv, model)
+    exact = evaluate_pairs(example, virtual, it, iv, model=model)
     v_rows = virtual.table[iv]
     v_rows = np.where(exact.swapped[:, None, None], v_rows[:, ::-1], v_rows)
     bound = separable_terms(example.table[it], v_rows, model)[:, 7]
@@ -286,7 +286,7 @@ def test_one_to_one_in_a_scene_gives_each_tangible_to_one_virtual_object(example
     mesh = ellipsoid((30.0, 22.0, 14.0), faces=1300).mesh
     mesh.export(tmp_path / "e.stl")
     egg = candidate_poses(analyze_object(tmp_path / "e.stl"), settings=PinchSettings(count=80))
-    scene = match_scene([example, egg], [egg, example, egg], MatchSettings(one_to_one=True, top_k=1))
+    scene = match_scene([example, egg], [egg, example, egg], settings=MatchSettings(one_to_one=True, top_k=1))
     tangibles = [vm.best.tangible if vm.best else None for vm in scene.matches]
     assert sorted(t for t in tangibles if t is not None) == [0, 1]
     assert tangibles[1] == 0 and 1 in (tangibles[0], tangibles[2])  # each object goes to its own kind

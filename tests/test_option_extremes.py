@@ -9,7 +9,7 @@ import argparse
 
 import pytest
 
-from pinchmatch.cli.commands import main
+from pinchmatch.cli.main import main
 from pinchmatch.cli.parser import build_parser
 from pinchmatch.mesh.shapes import box
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from pinchmatch.runner.cache import cached_candidates
-from pinchmatch.cli.commands import main
+from pinchmatch.cli.main import main
 from pinchmatch.match.scene import match_scene
 from pinchmatch.match.search import MatchSettings
 from pinchmatch.grasp.pinches import PinchSettings
@@ -50,7 +50,7 @@ def test_a_run_equals_the_library_search_of_the_whole_scene(meshes, tmp_path, ex
     pinch = PinchSettings(count=COUNT)
     load = lambda folder: [cached_candidates(p, cache=None, settings=pinch)  # noqa: E731
                            for p in sorted((meshes / folder).glob("*.stl"))]
-    scene = match_scene(load("t"), load("v"), settings, pinch_settings=pinch)
+    scene = match_scene(load("t"), load("v"), settings=settings, pinch_settings=pinch)
     doc = matches_document(scene, {**pinch.as_dict(), **settings.as_dict(), "units": None, "up": None, "split": "none"},
                            figures=False)
     assert (tmp_path / "out" / "matches.json").read_text() == to_json(doc)
@@ -178,10 +178,10 @@ def test_the_pool_size_does_not_change_the_result(meshes, monkeypatch):
     tangibles = [cached_candidates(p, cache=None, settings=pinch) for p in sorted((meshes / "t").glob("*.stl"))]
     virtual = cached_candidates(meshes / "v" / "e2.stl", cache=None, settings=pinch)
     settings = MatchSettings(top_k=4)
-    default = match_scene(tangibles, [virtual], settings, pinch_settings=pinch)
+    default = match_scene(tangibles, [virtual], settings=settings, pinch_settings=pinch)
     monkeypatch.setattr(search_module, "MIN_POOL", 5)
     monkeypatch.setattr(search_module, "MAX_POOL", 5)
-    small = match_scene(tangibles, [virtual], settings, pinch_settings=pinch)
+    small = match_scene(tangibles, [virtual], settings=settings, pinch_settings=pinch)
     a, b = default.matches[0], small.matches[0]
     assert np.array_equal(default.cost_matrix, small.cost_matrix)
     for x, y in zip([a.best] + a.alternatives, [b.best] + b.alternatives, strict=True):

@@ -12,7 +12,8 @@ import pytest
 from pinchmatch.export import folder as publish
 from pinchmatch.export import sink
 from pinchmatch.runner import executors
-from pinchmatch.cli.commands import example_mesh_path, main
+from pinchmatch.cli.commands import example_mesh_path
+from pinchmatch.cli.main import main
 from pinchmatch.export.folder import OutputFolder, read_manifest, recover
 from pinchmatch.mesh.shapes import ellipsoid
 
@@ -177,7 +178,7 @@ def test_signals_leave_a_whole_result_and_no_worker(tmp_path, virtuals, sig, del
 
 CHILDREN = '''
 import os, sys
-from pinchmatch.cli.commands import main
+from pinchmatch.cli.main import main
 if __name__ == "__main__":
     code = main(sys.argv[1:])
     states = []

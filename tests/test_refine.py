@@ -60,7 +60,7 @@ def test_the_answer_hangs_less_on_the_seed(objects):
     """Three seeds: refined, the best costs agree far better than the sampled ones do."""
     def best(seed, refine):
         tangibles, virtual = [objects["oval"][seed], objects["rod"][seed]], objects["egg"][seed]
-        scene = match_scene(tangibles, [virtual], MatchSettings(refine=refine, landing_mm=0.0),
+        scene = match_scene(tangibles, [virtual], settings=MatchSettings(refine=refine, landing_mm=0.0),
                             pinch_settings=settings_for(seed))
         return scene.matches[0].best
 

@@ -19,7 +19,7 @@ from matplotlib.image import imread
 
 import pinchmatch
 
-from pinchmatch.cli.commands import main
+from pinchmatch.cli.main import main
 from pinchmatch.export.view import page_data, read_matches
 
 CHROMIUM = os.environ.get("PINCHMATCH_CHROMIUM") or shutil.which("chromium") or "/usr/bin/chromium"

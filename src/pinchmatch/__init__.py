@@ -34,34 +34,77 @@ package stays cheap):
   :func:`score_pinches` (given poses);
 - matching: :func:`candidate_poses` -> :class:`Candidates`; :class:`MatchSettings`;
   :func:`match_scene` -> :class:`SceneMatch` (per virtual object a :class:`VirtualMatch` holding
-  :class:`Choice` s);
-- errors: :class:`PinchmatchError` and its kinds :class:`ConfigError`, :class:`MeshError`,
-  :class:`ContactError`, :class:`NoFeasiblePinchError`.
+  :class:`Choice` s); one virtual object: :func:`match_virtual`; given pose pairs:
+  :func:`evaluate_pairs` -> :class:`PairResult`;
+- registration: :func:`register_poses`, :func:`register_pose` (the rigid placement of a pose pair),
+  :func:`rotations_between`;
+- the cost: :class:`CostModel` (criteria, JNDs, pooling, read-only :class:`Weights` completed by
+  :func:`complete_weights`), :func:`cost_model` (a run's);
+- a shelf of props: :func:`select_props` -> :class:`Selection`, :func:`coverage_curve`;
+  :func:`design_props` (:class:`DesignSettings`) -> :class:`DesignResult`;
+- weights from people's ratings: :func:`read_ratings` -> :class:`Ratings`, :func:`calibrate` ->
+  :class:`Calibration`, :func:`read_weights_file` (what ``calibrate`` wrote);
+- errors: :class:`PinchmatchError` and its kinds :class:`ConfigError` (a bad argument, option or
+  options file), :class:`MeshError`, :class:`ContactError`, :class:`NoFeasiblePinchError`,
+  :class:`OutputError`; a broken invariant of pinchmatch's own (a bug) raises
+  :class:`InternalError`.
 """
 
 from importlib import import_module
+from typing import TYPE_CHECKING
 
 from .version import __version__
 
 #: public name -> the module that defines it
 _API = {
-    "ConfigError": "errors", "ContactError": "errors", "MeshError": "errors",
-    "NoFeasiblePinchError": "errors", "PinchmatchError": "errors",
+    "ConfigError": "errors", "ContactError": "errors", "InternalError": "errors", "MeshError": "errors",
+    "NoFeasiblePinchError": "errors", "OutputError": "errors", "PinchmatchError": "errors",
     "LoadedMesh": "mesh.load", "load_mesh": "mesh.load",
     "ObjectProperties": "mesh.properties", "object_properties": "mesh.properties",
     "SurfaceContext": "mesh.surface",
-    "ObjectSpec": "mesh.manifest", "read_manifest": "mesh.manifest", "object_specs": "mesh.manifest",
+    "ObjectSpec": "mesh.manifest", "object_specs": "mesh.manifest", "read_manifest": "mesh.manifest",
+    "rotations_between": "mesh.frames",
     "PatchGeometry": "grasp.curvature", "patch_geometry": "grasp.curvature",
     "PinchSettings": "grasp.pinches", "Pinches": "grasp.pinches", "check_pinches": "grasp.pinches",
     "sample_pinches": "grasp.sampling",
     "PinchFeatures": "grasp.features", "pinch_features": "grasp.features",
-    "ObjectAnalysis": "grasp.analysis", "analyze_object": "grasp.analysis", "find_pinches": "grasp.analysis",
-    "analyze_spec": "grasp.analysis",
-    "score_pinches": "grasp.analysis",
+    "ObjectAnalysis": "grasp.analysis", "analyze_object": "grasp.analysis", "analyze_spec": "grasp.analysis",
+    "find_pinches": "grasp.analysis", "score_pinches": "grasp.analysis",
+    "CostModel": "match.cost", "Weights": "match.cost", "complete_weights": "match.cost",
     "Candidates": "match.candidates", "candidate_poses": "match.candidates",
-    "MatchSettings": "match.search", "match_scene": "match.scene", "SceneMatch": "match.scene",
-    "VirtualMatch": "match.scene", "Choice": "match.search",
+    "register_pose": "match.register", "register_poses": "match.register",
+    "Choice": "match.search", "MatchSettings": "match.search", "PairResult": "match.search",
+    "cost_model": "match.search", "evaluate_pairs": "match.search",
+    "SceneMatch": "match.scene", "VirtualMatch": "match.scene", "match_scene": "match.scene",
+    "match_virtual": "match.scene",
+    "Selection": "match.select", "coverage_curve": "match.select", "select_props": "match.select",
+    "Calibration": "match.calibrate", "Ratings": "match.calibrate", "calibrate": "match.calibrate",
+    "read_ratings": "match.calibrate", "read_weights_file": "match.calibrate",
+    "DesignResult": "runner.design", "DesignSettings": "runner.design", "design_props": "runner.design",
 }
+
+if TYPE_CHECKING:  # what static tools see; at run time each name is imported on first use
+    from .errors import (
+        ConfigError, ContactError, InternalError, MeshError, NoFeasiblePinchError, OutputError, PinchmatchError,
+    )
+    from .mesh.load import LoadedMesh, load_mesh
+    from .mesh.properties import ObjectProperties, object_properties
+    from .mesh.surface import SurfaceContext
+    from .mesh.manifest import ObjectSpec, object_specs, read_manifest
+    from .mesh.frames import rotations_between
+    from .grasp.curvature import PatchGeometry, patch_geometry
+    from .grasp.pinches import PinchSettings, Pinches, check_pinches
+    from .grasp.sampling import sample_pinches
+    from .grasp.features import PinchFeatures, pinch_features
+    from .grasp.analysis import ObjectAnalysis, analyze_object, analyze_spec, find_pinches, score_pinches
+    from .match.cost import CostModel, Weights, complete_weights
+    from .match.candidates import Candidates, candidate_poses
+    from .match.register import register_pose, register_poses
+    from .match.search import Choice, MatchSettings, PairResult, cost_model, evaluate_pairs
+    from .match.scene import SceneMatch, VirtualMatch, match_scene, match_virtual
+    from .match.select import Selection, coverage_curve, select_props
+    from .match.calibrate import Calibration, Ratings, calibrate, read_ratings, read_weights_file
+    from .runner.design import DesignResult, DesignSettings, design_props
 
 __all__ = sorted(_API) + ["__version__"]
 

@@ -58,6 +58,10 @@ class Terminated(BaseException):
     """SIGTERM arrived: unwind like Ctrl-C, so that nothing is left half-written."""
 
 
+class InternalError(RuntimeError):
+    """An invariant of pinchmatch's own broke (a bug, not the input's fault): report it."""
+
+
 class RunError(Exception):
     """The run itself broke (a worker died), not the input: one line, exit 1, and what to change."""
 

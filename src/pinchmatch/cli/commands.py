@@ -2,7 +2,7 @@
 ``poses`` and ``features``.
 
 Each takes the parsed options and returns its exit code (:mod:`pinchmatch.cli.main` lists them
-and turns errors into one line). ``main`` is re-exported here for callers that run a command line.
+and turns errors into one line; callers that run a command line use :func:`pinchmatch.cli.main.main`).
 """
 
 from __future__ import annotations
@@ -28,7 +28,6 @@ from ..mesh.properties import parse_vector
 from .console import Presenter
 from .runs import (EXIT_SOME_FAILED, check_match_flags, given_poses, match_job, match_settings_of, object_tasks,
                    out_folder, pinch_settings_of, print_match, table_rows, write_matches)
-from .main import main  # noqa: F401 (the entry point, re-exported)
 from .universal import cmd_design, cmd_select, demo_design
 from ..export.documents import (features_document, flipped_note, matches_rows, poses_csv, poses_document, scene_stems,
                                 matches_legend, study_document, study_legend, study_rows, to_json)

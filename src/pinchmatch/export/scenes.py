@@ -26,7 +26,7 @@ from trimesh.visual.material import PBRMaterial
 
 from ..grasp.hand import Hand
 from ..match.search import contact_offset_mm
-from ..match.register import rotations_between
+from ..mesh.frames import rotations_between
 from ..files import write_atomic
 from .documents import scene_stems
 

@@ -63,7 +63,12 @@ def analyze_object(
     progress=None,
 ) -> ObjectAnalysis:
     """Load ``path`` and build its properties and surface context (see :func:`load_mesh`);
-    ``progress``, if given, is called with each stage's name as it starts."""
+    ``progress``, if given, is called with each stage's name as it starts.
+
+    >>> obj = analyze_object(box_stl)
+    >>> obj.name, obj.props.com_mm.round(1).tolist(), obj.loaded.mesh.extents.round(1).tolist()
+    ('box.stl', [0.0, 0.0, 0.0], [60.0, 40.0, 20.0])
+    """
     spec = ObjectSpec(str(path), units=units, up=up,
                       com_mm=None if com_mm is None else tuple(np.asarray(com_mm, dtype=np.float64)),
                       axis=None if axis is None else tuple(np.asarray(axis, dtype=np.float64)))
@@ -72,7 +77,13 @@ def analyze_object(
 
 def analyze_spec(spec: ObjectSpec, *, patch_radius_mm: float = 8.0, progress=None) -> ObjectAnalysis:
     """:func:`analyze_object` for an object described by a spec (a manifest entry, a level node):
-    its units, up, centre of mass, axis, node and contact regions."""
+    its units, up, centre of mass, axis, node and contact regions.
+
+    >>> from pinchmatch import read_manifest
+    >>> box, can = [analyze_spec(spec) for spec in read_manifest(props_toml)]
+    >>> can.name, can.loaded.mesh.extents.round(1).tolist()  # the manifest says it is in metres
+    ('can', [54.0, 54.0, 66.0])
+    """
     say = progress or (lambda stage: None)
     loaded = load_mesh(spec.path, units=spec.units, up=spec.up, progress=progress, node=spec.node)
     say("mass properties")
@@ -85,7 +96,13 @@ def analyze_spec(spec: ObjectSpec, *, patch_radius_mm: float = 8.0, progress=Non
 
 
 def find_pinches(obj: ObjectAnalysis, *, settings: PinchSettings = PinchSettings()) -> tuple[Pinches, PinchFeatures]:
-    """Feasible pinches spread over ``obj`` and their features."""
+    """Feasible pinches spread over ``obj`` and their features.
+
+    >>> obj = analyze_object(box_stl)
+    >>> pinches, features = find_pinches(obj, settings=PinchSettings(count=50, seed=0))
+    >>> len(pinches), features.width_mm.shape, features.kappa_max_per_m.shape
+    (50, (50,), (50, 2))
+    """
     pinches = sample_pinches(obj.context, settings=settings, source=obj.loaded.path)
     return pinches, pinch_features(pinches, obj.props)
 
@@ -107,6 +124,11 @@ def score_pinches(
     ------
     ContactError
         A contact is farther than ``settings.snap_tolerance_mm`` from the surface.
+
+    >>> obj = analyze_object(box_stl)  # 20 mm tall: a pinch from the top face to the bottom one
+    >>> pinches, features = score_pinches(obj, np.array([[0.0, 0.0, 10.0]]), np.array([[0.0, 0.0, -10.0]]))
+    >>> pinches.feasible.tolist(), features.width_mm.tolist(), features.com_distance_mm.round(6).tolist()
+    ([True], [20.0], [0.0])
     """
     p1_mm = np.asarray(p1_mm, dtype=np.float64).reshape(-1, 3)
     p2_mm = np.asarray(p2_mm, dtype=np.float64).reshape(-1, 3)

@@ -110,6 +110,12 @@ def patch_geometry(
         Initial outward normal at each contact (the hit triangle's normal).
     patch_radius_mm : float, optional
         Patch radius; default the context's.
+
+    >>> from pinchmatch import analyze_object
+    >>> obj = analyze_object(box_stl)  # 60 x 40 x 20 mm, centred on the origin
+    >>> geom = patch_geometry(obj.context, np.array([[0.0, 0.0, 10.0]]), np.array([[0.0, 0.0, 1.0]]))
+    >>> geom.normal.round(3).tolist(), geom.kappa_max_per_m.round(2).tolist()  # the flat top face
+    ([[0.0, 0.0, 1.0]], [0.0])
     """
     radius = float(patch_radius_mm or context.patch_radius_mm)
     points_mm = np.asarray(points_mm, dtype=np.float64).reshape(-1, 3)

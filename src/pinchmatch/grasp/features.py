@@ -67,7 +67,14 @@ def _acute_deg(cosine: np.ndarray) -> np.ndarray:
 
 
 def pinch_features(pinches: Pinches, props: ObjectProperties) -> PinchFeatures:
-    """The seven features of every pinch, from its contacts and patches."""
+    """The seven features of every pinch, from its contacts and patches.
+
+    >>> from pinchmatch import PinchSettings, analyze_object, sample_pinches
+    >>> obj = analyze_object(box_stl)  # 60 x 40 x 20 mm: every pinch spans 20, 40 or 60 mm or a diagonal
+    >>> features = pinch_features(sample_pinches(obj.context, settings=PinchSettings(count=50, seed=0)), obj.props)
+    >>> bool(features.width_mm.min() >= 20.0 - 1e-6), bool(features.width_mm.max() <= 100.0)
+    (True, True)
+    """
     p1, p2 = pinches.points[:, 0], pinches.points[:, 1]
     seg = p2 - p1
     width = np.linalg.norm(seg, axis=1)

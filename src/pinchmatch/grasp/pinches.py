@@ -307,6 +307,13 @@ def check_pinches(
     -------
     Pinches
         All n candidates, in order, with ``feasible``, ``broken`` and ``approach`` set.
+
+    >>> from pinchmatch import analyze_object
+    >>> obj = analyze_object(box_stl)  # 60 x 40 x 20 mm, centred on the origin
+    >>> top, bottom, side = [0.0, 0.0, 10.0], [0.0, 0.0, -10.0], [30.0, 0.0, 0.0]
+    >>> pinches = check_pinches(obj.context, np.array([top, top]), np.array([bottom, side]))
+    >>> pinches.feasible.tolist(), pinches.broken_rules(1)
+    ([True, False], ['antipodal'])
     """
     check_patch_radius(context, settings)
     p1_mm = np.asarray(p1_mm, dtype=np.float64).reshape(-1, 3)

@@ -138,6 +138,12 @@ def sample_pinches(
     ------
     NoFeasiblePinchError
         No candidate passes; the message says how many each rule rejected.
+
+    >>> from pinchmatch import analyze_object
+    >>> obj = analyze_object(box_stl)
+    >>> pinches = sample_pinches(obj.context, settings=PinchSettings(count=50, seed=0))
+    >>> len(pinches), bool(pinches.feasible.all())
+    (50, True)
     """
     check_patch_radius(context, settings)
     if not context.contact_area_mm2.any():

@@ -113,7 +113,12 @@ class Calibration:
 
 def read_ratings(text: str, source: str, *, criteria: tuple | None = None) -> Ratings:
     """Parse a ratings CSV: a ``rating`` column and one ``<criterion>_jnd`` column per criterion
-    (only ``criteria`` if given); optional ``pair`` or ``object`` + ``pose_source`` group the rows."""
+    (only ``criteria`` if given); optional ``pair`` or ``object`` + ``pose_source`` group the rows.
+
+    >>> r = read_ratings("pair,width_jnd,kmax_jnd,rating\\n1,0.2,0.1,6\\n2,1.5,0.3,3\\n", "ratings.csv")
+    >>> r.criteria, r.rating.tolist(), r.jnd.tolist()
+    (('width', 'kmax'), [6.0, 3.0], [[0.2, 0.1], [1.5, 0.3]])
+    """
     try:
         table = list(csv.reader(io.StringIO(text), strict=True))
     except csv.Error as exc:
@@ -278,7 +283,17 @@ def _folds(r: Ratings, hold_out: str, seed: int) -> tuple[np.ndarray, int]:
 
 def calibrate(r: Ratings, *, pooling: str = "quick", seed: int = 0, hold_out: str = "placement",
               force: bool = False) -> Calibration:
-    """Fit the weights of ``r.criteria`` under ``pooling`` and cross-validate them (module notes)."""
+    """Fit the weights of ``r.criteria`` under ``pooling`` and cross-validate them (module notes).
+
+    >>> rng = np.random.default_rng(0)
+    >>> jnd = rng.uniform(0.0, 2.0, size=(24, 2))  # 24 rated pairs: width and kmax differences
+    >>> noticed = 1 - 2.0 ** -(jnd ** 3.5 @ [1.0, 0.5])  # people who weigh kmax half as much as width
+    >>> rows = ["pair,width_jnd,kmax_jnd,rating"] + [f"{k},{w:.4f},{c:.4f},{6.5 - 4 * p:.4f}"
+    ...                                              for k, ((w, c), p) in enumerate(zip(jnd, noticed))]
+    >>> fit = calibrate(read_ratings("\\n".join(rows), "ratings.csv"))
+    >>> round(fit.weights["width"], 2), round(fit.weights["kmax"], 2), round(fit.intercept, 2), round(fit.drop, 2)
+    (1.0, 0.5, 6.5, 4.0)
+    """
     if hold_out not in HOLD_OUTS:
         raise ConfigError(f"--hold-out: unknown {hold_out!r}; use placement or object")
     if not isinstance(seed, int) or seed < 0:
@@ -321,7 +336,11 @@ def _unpredictive(r: Ratings, default_rho: float, why: str) -> str:
 
 def read_weights_file(text: str, source: str) -> tuple[dict, str | None]:
     """The weights of a ``weights.json`` that ``calibrate`` wrote (or any ``{"weights": {...}}``), and the
-    pooling they were fitted for (None where the file does not say)."""
+    pooling they were fitted for (None where the file does not say).
+
+    >>> read_weights_file('{"weights": {"width": 2, "kmax": 0.5}, "pooling": "quick"}', "weights.json")
+    ({'width': 2.0, 'kmax': 0.5}, 'quick')
+    """
     import json
 
     def unique(pairs):

@@ -7,7 +7,7 @@ tangible's; the cache stores them (:mod:`pinchmatch.runner.cache`).
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -22,9 +22,7 @@ from .cost import MASS_COLUMNS, feature_table
 class Candidates:
     """One object's candidate poses: its feasible pinches, their features and feature table.
 
-    ``index`` maps each candidate to its place in the sampled or given list. ``probes``: pinches
-    checked along given lines (the reference pose's, :func:`pinchmatch.match.reference.line_pinch`),
-    by line, None where the line misses; the cache keeps them with the candidates.
+    ``index`` maps each candidate to its place in the sampled or given list.
     """
 
     obj: ObjectAnalysis
@@ -33,7 +31,6 @@ class Candidates:
     table: np.ndarray
     index: np.ndarray
     given: bool
-    probes: dict = field(default_factory=dict, compare=False, repr=False)
 
     @property
     def name(self) -> str:
@@ -50,7 +47,7 @@ class Candidates:
         """The candidates at positions ``keep`` (their ``index`` kept)."""
         keep = np.asarray(keep)
         return Candidates(self.obj, self.pinches.subset(keep), features_subset(self.features, keep),
-                          self.table[keep], self.index[keep], self.given, self.probes)
+                          self.table[keep], self.index[keep], self.given)
 
 
 def features_subset(features: PinchFeatures, keep: np.ndarray) -> PinchFeatures:
@@ -73,6 +70,11 @@ def candidate_poses(
         No sampled pose is feasible, or none of the given ones is.
     ContactError
         A given contact is off the surface.
+
+    >>> from pinchmatch import PinchSettings, analyze_object
+    >>> box = candidate_poses(analyze_object(box_stl), settings=PinchSettings(count=100, seed=0))
+    >>> len(box.pinches), box.table.shape  # a row of 9 features per finger
+    (100, (100, 2, 9))
     """
     if given is None:
         pinches, features = find_pinches(obj, settings=settings)

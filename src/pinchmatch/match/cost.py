@@ -128,6 +128,10 @@ def complete_weights(given: Mapping, *, criteria: tuple = DEFAULT_CRITERIA) -> d
 
     Refused: unknown or misspelt names, criteria not in use (unless given as 0), weights that
     are negative or not finite, and weights that are all zero (nothing would be compared).
+
+    >>> weights = complete_weights({"width": 2})
+    >>> weights["width"], weights["kmax"], weights["com"]  # com: not a default criterion
+    (2.0, 1.0, 0.0)
     """
     weights = {c: (1.0 if c in criteria else 0.0) for c in CRITERIA}
     for name, w in given.items():
@@ -207,7 +211,7 @@ class CostModel:
     >>> model = CostModel({"width": 2.0})
     >>> model.weights["width"], model.weights["com"], model.weights["kmax"]
     (2.0, 0.0, 1.0)
-    >>> round(model.p_noticed(1.0), 3)
+    >>> float(model.p_noticed(1.0))
     0.5
     """
 

@@ -68,27 +68,30 @@ def _line_hits(obj: ObjectAnalysis, point: np.ndarray, direction: np.ndarray, ne
 
 
 def probe_key(point: np.ndarray, direction: np.ndarray, near: np.ndarray | None = None) -> str:
-    """The name of a line (a point and a direction, exactly, and where its fingers are) in
-    :attr:`Candidates.probes`."""
+    """The name of a line (a point and a direction, exactly, and where its fingers are) in the
+    memo of :func:`line_pinch`."""
     parts = [point, direction] + ([] if near is None else [near])
     data = np.concatenate([np.asarray(x, np.float64).ravel() for x in parts])
     return hashlib.sha256(data.tobytes()).hexdigest()[:32]
 
 
 def line_pinch(virtual: Candidates, point: np.ndarray, direction: np.ndarray, *,
-               settings: PinchSettings = PinchSettings(), near: np.ndarray | None = None) -> Pinches | None:
+               settings: PinchSettings = PinchSettings(), near: np.ndarray | None = None,
+               memo: dict | None = None) -> Pinches | None:
     """The one pinch (every rule checked) of two fingers closing on ``virtual`` along a line, as
     :func:`line_contacts` finds its contacts, or None when the line misses.
 
-    Kept in ``virtual.probes`` by line: asked again, and in a warm run read back from the cache
-    (:mod:`pinchmatch.runner.cache`), it needs neither the surface's sample nor its rays. The
-    settings must be those the candidates were made with (the cache's key holds them)."""
+    ``memo`` (of this virtual object, by :func:`probe_key`, None where the line misses) keeps it:
+    asked again, and in a warm run read back from the cache (:mod:`pinchmatch.runner.cache`), it
+    needs neither the surface's sample nor its rays. The settings must be those the candidates
+    were made with (the cache's key holds them)."""
+    memo = {} if memo is None else memo
     key = probe_key(point, direction, near)
-    if key not in virtual.probes:
+    if key not in memo:
         hits = _line_hits(virtual.obj, point, direction, near)
-        virtual.probes[key] = None if hits is None else check_pinches(
+        memo[key] = None if hits is None else check_pinches(
             virtual.obj.context, hits[0][:1], hits[0][1:], settings=settings, faces=hits[1][None])
-    return virtual.probes[key]
+    return memo[key]
 
 
 @dataclass(frozen=True)
@@ -104,17 +107,18 @@ class Reference:
 
 
 def reference_pose(tangible: Candidates, t_pose: int, virtual: Candidates, model: CostModel, *,
-                   settings: PinchSettings = PinchSettings()) -> Reference:
+                   settings: PinchSettings = PinchSettings(), memo: dict | None = None) -> Reference:
     """Where the tangible pose's pinch line meets the virtual surface, and its cost.
 
     Each finger closes along the tangible's pinch line from its own side, from where it holds the
     tangible; its contact is the virtual surface facing it nearest to that place (a finger inside a
     cup meets the cup's inner wall, not the outer wall across the cup). The placement is the identity (both files' frames), the
     finger order p1 on p1. The cost is ``None`` with a reason when a finger meets nothing.
-    Use :func:`reference_cost` for the same pose under another model.
+    Use :func:`reference_cost` for the same pose under another model; ``memo``: as for
+    :func:`line_pinch`.
     """
     p = tangible.pinches.points[t_pose]
-    pinches = line_pinch(virtual, p.mean(axis=0), p[1] - p[0], settings=settings, near=p)
+    pinches = line_pinch(virtual, p.mean(axis=0), p[1] - p[0], settings=settings, near=p, memo=memo)
     if pinches is None:
         return Reference(None, None, None, None, "the tangible's pinch line misses the virtual object")
     features = pinch_features(pinches, virtual.obj.props)

@@ -73,10 +73,10 @@ def extend(base: Candidates, pinches: Pinches) -> Candidates:
     """``base`` with feasible ``pinches`` added (features computed, index ``REFINED_INDEX``)."""
     features = pinch_features(pinches, base.obj.props)
     extra = Candidates(base.obj, pinches, features, feature_table(features),
-                       np.full(len(pinches), REFINED_INDEX, dtype=base.index.dtype), base.given, base.probes)
+                       np.full(len(pinches), REFINED_INDEX, dtype=base.index.dtype), base.given)
     return Candidates(base.obj, concat_pinches([base.pinches, pinches], base.pinches.rejected),
                       concat_features([base.features, extra.features]), np.concatenate([base.table, extra.table]),
-                      np.concatenate([base.index, extra.index]), base.given, base.probes)
+                      np.concatenate([base.index, extra.index]), base.given)
 
 
 def move_directions(points: np.ndarray, axis: np.ndarray) -> np.ndarray:
@@ -202,7 +202,7 @@ def refine(tangibles: list[Candidates], virtual: Candidates, seeds: list[tuple[i
             ask = np.flatnonzero(bound < needed)
             cost = np.full(len(it), np.inf)
             if len(ask):
-                cost[ask] = evaluate_pairs(T, V, it[ask], iv[ask], model, keep_upright=keep_upright).cost
+                cost[ask] = evaluate_pairs(T, V, it[ask], iv[ask], model=model, keep_upright=keep_upright).cost
             for k, (_, p) in enumerate(mine):
                 rows = np.flatnonzero(owner == k)
                 best = rows[np.argmin(cost[rows])]

@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..mesh.frames import cross_matrices, rotations_between
+
 #: tie-breaker weights of the mass offset and the principal axis against the patch normals
 MASS_TIE_WEIGHT = 0.1
 AXIS_TIE_WEIGHT = 0.05
@@ -28,33 +30,9 @@ NORMAL_ALONG_LINE_DEG = 5.0
 FLIP_COSINE = -1e-6
 
 
-def _skew(v: np.ndarray) -> np.ndarray:
-    """(k, 3) -> (k, 3, 3) cross-product matrices."""
-    K = np.zeros(v.shape[:-1] + (3, 3))
-    K[..., 0, 1], K[..., 0, 2], K[..., 1, 2] = -v[..., 2], v[..., 1], -v[..., 0]
-    K[..., 1, 0], K[..., 2, 0], K[..., 2, 1] = v[..., 2], -v[..., 1], v[..., 0]
-    return K
-
-
-def rotations_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(k, 3, 3) smallest rotations taking unit vectors a (k, 3) onto b (k, 3)."""
-    c = np.einsum("kd,kd->k", a, b)
-    K = _skew(np.cross(a, b))
-    R = np.eye(3) + K + (K @ K) / np.maximum(1.0 + c, 1e-300)[:, None, None]
-    opposite = c < -1.0 + 1e-12
-    if opposite.any():  # a half turn about any perpendicular axis
-        ao = a[opposite]
-        perp = np.cross(ao, [1.0, 0.0, 0.0])
-        small = np.linalg.norm(perp, axis=1) < 1e-6
-        perp[small] = np.cross(ao[small], [0.0, 1.0, 0.0])
-        perp /= np.linalg.norm(perp, axis=1, keepdims=True)
-        R[opposite] = 2.0 * perp[:, :, None] * perp[:, None, :] - np.eye(3)
-    return R
-
-
 def _about(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
     """(k, 3, 3) rotations by angle (k,) about unit axes (k, 3)."""
-    K = _skew(axis)
+    K = cross_matrices(axis)
     return np.eye(3) + np.sin(angle)[:, None, None] * K + (1.0 - np.cos(angle))[:, None, None] * (K @ K)
 
 
@@ -77,6 +55,15 @@ def register_poses(
 
     points, normals : (k, 2, 3), the virtual ones already in finger order (virtual p1 goes on
     tangible p1). com and axis : (3,) or (k, 3).
+
+    >>> tangible = np.array([[[-10.0, 0.0, 0.0], [10.0, 0.0, 0.0]]])  # a pinch across X
+    >>> virtual = np.array([[[0.0, -10.0, 5.0], [0.0, 10.0, 5.0]]])  # one across Y, 5 mm up
+    >>> T = register_poses(tangible, np.sign(tangible), virtual, np.sign(virtual) * [1, 1, 0],
+    ...                    tangible_com=np.zeros((1, 3)), virtual_com=np.zeros((1, 3)),
+    ...                    tangible_axis=np.array([[0.0, 0.0, 1.0]]), virtual_axis=np.array([[0.0, 0.0, 1.0]]))
+    >>> (virtual[0] @ T[0, :3, :3].T + T[0, :3, 3]).round(6) + 0.0  # the virtual contacts, placed
+    array([[-10.,   0.,   0.],
+           [ 10.,   0.,   0.]])
     """
     k = len(tangible_points)
     tc, vc = np.broadcast_to(tangible_com, (k, 3)), np.broadcast_to(virtual_com, (k, 3))
@@ -129,6 +116,15 @@ def register_pose(
 
     points, normals : (2, 3) per object, [p1, p2]. ``swapped``: the virtual p1
     goes on the tangible p2.
+
+    >>> tangible = np.array([[-10.0, 0.0, 0.0], [10.0, 0.0, 0.0]])
+    >>> virtual = np.array([[0.0, -10.0, 5.0], [0.0, 10.0, 5.0]])
+    >>> z = np.array([0.0, 0.0, 1.0])
+    >>> T = register_pose(tangible, np.sign(tangible), virtual, np.sign(virtual) * [1, 1, 0], swapped=True,
+    ...                   tangible_com=np.zeros(3), virtual_com=np.zeros(3), tangible_axis=z, virtual_axis=z)
+    >>> (virtual @ T[:3, :3].T + T[:3, 3]).round(6) + 0.0  # swapped: p1 meets the tangible's p2
+    array([[ 10.,   0.,   0.],
+           [-10.,   0.,   0.]])
     """
     vp = virtual_points[::-1] if swapped else virtual_points
     vn = virtual_normals[::-1] if swapped else virtual_normals

@@ -83,13 +83,25 @@ class SceneMatch:
                 vm.candidates if vm.candidates is not None else self.virtuals[vm.virtual])
 
 
-def match_scene(tangibles: list[Candidates], virtuals: list[Candidates], settings: MatchSettings = MatchSettings(),
-                model: CostModel | None = None, *, pinch_settings: PinchSettings = PinchSettings()) -> SceneMatch:
+def match_scene(tangibles: list[Candidates], virtuals: list[Candidates], *, settings: MatchSettings | None = None,
+                model: CostModel | None = None, pinch_settings: PinchSettings | None = None) -> SceneMatch:
     """For every virtual object, the best tangible, pose pair and registration, with alternatives.
 
-    ``model`` defaults to :func:`cost_model` over all candidates; ``pinch_settings`` check the
-    refined and the reference poses.
+    ``settings`` default to :class:`MatchSettings`'s; ``model`` to :func:`cost_model` over all
+    candidates; ``pinch_settings`` (default :class:`PinchSettings`'s) check the refined and the
+    reference poses.
+
+    >>> from pinchmatch import MatchSettings, PinchSettings, analyze_object, candidate_poses
+    >>> settings = PinchSettings(count=200, seed=0)
+    >>> box = candidate_poses(analyze_object(box_stl), settings=settings)
+    >>> can = candidate_poses(analyze_object(can_obj, units="m"), settings=settings)
+    >>> scene = match_scene([box, can], [can], settings=MatchSettings(top_k=1))
+    >>> best = scene.matches[0].best
+    >>> best.tangible_name, round(best.cost, 6), scene.cost_matrix.shape  # the can is best served by itself
+    ('can.obj', 0.0, (1, 2))
     """
+    settings = settings or MatchSettings()
+    pinch_settings = pinch_settings or PinchSettings()
     if not tangibles:
         raise ConfigError("no tangible object given; name at least one with --tangible")
     if not virtuals:
@@ -117,7 +129,7 @@ def allowed_tangibles(cost_matrix: np.ndarray, settings: MatchSettings) -> list[
 
 
 def _match(search: Search, allowed: list[int], reason: str | None, *, pinch_settings: PinchSettings,
-           index: int = 0) -> VirtualMatch:
+           index: int = 0, probes: dict | None = None) -> VirtualMatch:
     """The result of a one-virtual-object search, as the scene's virtual object ``index``."""
     settings, virtual = search.settings, search.virtuals[0]
     count = settings.top_k + 1
@@ -136,26 +148,42 @@ def _match(search: Search, allowed: list[int], reason: str | None, *, pinch_sett
         reason = "no registration is allowed: every one flips the virtual object (--keep-upright)"
     best = picks[0] if picks else None
     ref = reference_pose(search.tangibles[best.tangible], best.t_pose, virtual, search.model,
-                         settings=pinch_settings) if best else None
+                         settings=pinch_settings, memo=probes) if best else None
     return VirtualMatch(index, best, picks[1:], None if best else reason, ref, virtual.name,
                         list(search.tangibles), virtual, landings[0] if landings else None)
 
 
-def match_virtual(tangibles: list[Candidates], virtual: Candidates, model: CostModel,
-                  settings: MatchSettings = MatchSettings(), *, allowed: tuple[list[int], str | None] | None = None,
-                  row: np.ndarray | None = None, pinch_settings: PinchSettings = PinchSettings(),
-                  search: Search | None = None) -> SceneMatch:
+def match_virtual(tangibles: list[Candidates], virtual: Candidates, *, model: CostModel | None = None,
+                  settings: MatchSettings | None = None, allowed: tuple[list[int], str | None] | None = None,
+                  row: np.ndarray | None = None, pinch_settings: PinchSettings | None = None,
+                  search: Search | None = None, probes: dict | None = None) -> SceneMatch:
     """One virtual object's row of :func:`match_scene`, bit for bit, searched on its own.
 
-    ``model`` must be the run's (built over every object); ``allowed`` is its entry of
+    ``model`` must be the run's to match the scene's row (built over every object; default: over
+    these objects only); ``settings`` and ``pinch_settings`` default as in :func:`match_scene`; ``allowed`` is its entry of
     :func:`allowed_tangibles` (default: every tangible, which is right unless ``one_to_one``);
     ``row`` its row of the cost matrix when already known; ``search`` its refined search when
-    already made (:func:`pinchmatch.match.refine.refined_search`, as the cache keeps it). The result
-    is a one-row scene.
+    already made (:func:`pinchmatch.match.refine.refined_search`, as the cache keeps it); ``probes``
+    the memo of the lines along which the reference pose closed fingers on this virtual object
+    (:func:`pinchmatch.match.reference.line_pinch`; read and added to: a caller that keeps it, as the
+    cache does, spares the next run the surface). The result is a one-row scene.
+
+    >>> from pinchmatch import PinchSettings, analyze_object, candidate_poses
+    >>> settings = PinchSettings(count=200, seed=0)
+    >>> box = candidate_poses(analyze_object(box_stl), settings=settings)
+    >>> can = candidate_poses(analyze_object(can_obj, units="m"), settings=settings)
+    >>> scene = match_scene([box, can], [can])
+    >>> one = match_virtual([box, can], can, model=scene.model)  # the scene's row, searched on its own
+    >>> one.matches[0].best.cost == scene.matches[0].best.cost
+    True
     """
+    settings = settings or MatchSettings()
+    pinch_settings = pinch_settings or PinchSettings()
+    model = model or cost_model(settings, tangibles + [virtual])
     search = search or refined_search(tangibles, virtual, model, settings, pinch_settings=pinch_settings)
     row = cost_row(search, 0) if row is None else np.asarray(row, dtype=np.float64)
-    vm = _match(search, *(allowed or (list(range(len(tangibles))), None)), pinch_settings=pinch_settings)
+    vm = _match(search, *(allowed or (list(range(len(tangibles))), None)), pinch_settings=pinch_settings,
+                probes=probes)
     return SceneMatch(tangibles, [virtual], settings, model, row[None], [vm])
 
 

@@ -35,7 +35,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from .candidates import Candidates, felt_table, mass_ratio
-from .cost import (CRITERIA, DEFAULT_CRITERIA, PAPER_CRITERIA, POOLINGS, CostModel, complete_weights,
+from .cost import (CRITERIA, DEFAULT_CRITERIA, PAPER_CRITERIA, POOLINGS, CostModel, Weights, complete_weights,
                    feature_ranges, mass_term, pair_cost_blocks, separable_terms, total)
 from .register import FLIP_COSINE, register_poses
 
@@ -74,7 +74,7 @@ class MatchSettings:
             raise ConfigError(f"criteria: {self.criteria!r} is neither the default set ({', '.join(DEFAULT_CRITERIA)}) "
                               f"nor the paper's ({', '.join(PAPER_CRITERIA)})")
         object.__setattr__(self, "criteria", tuple(self.criteria))
-        object.__setattr__(self, "weights", complete_weights(dict(self.weights), criteria=self.criteria))
+        object.__setattr__(self, "weights", Weights(complete_weights(dict(self.weights), criteria=self.criteria)))
         if not isinstance(self.top_k, int) or self.top_k < 0:
             raise ConfigError(f"--top-k: {self.top_k!r} must be a whole number of 0 or more")
         if not np.isfinite(self.distinct_mm) or self.distinct_mm < 0:
@@ -108,7 +108,12 @@ class MatchSettings:
 
 def cost_model(settings: MatchSettings, candidates: list[Candidates], *, ranges: np.ndarray | None = None) -> CostModel:
     """The run's cost model; ``range`` takes each feature's range over every candidate of the run
-    (or ``ranges``, when they were gathered elsewhere, see :func:`pinchmatch.match.cost.ranges_from_bounds`)."""
+    (or ``ranges``, when they were gathered elsewhere, see :func:`pinchmatch.match.cost.ranges_from_bounds`).
+
+    >>> model = cost_model(MatchSettings(weights={"width": 2.0}), [])
+    >>> model.pooling, model.normalize, model.weights["width"], model.weights["com"]
+    ('quick', 'jnd', 2.0, 0.0)
+    """
     if settings.normalize == "range" and ranges is None:
         ranges = feature_ranges(*[c.table for c in candidates])
     return CostModel(dict(settings.weights), settings.normalize, ranges if settings.normalize == "range" else None,
@@ -143,13 +148,26 @@ def evaluate_pairs(
     virtual: Candidates,
     it: np.ndarray,
     iv: np.ndarray,
-    model: CostModel,
     *,
-    keep_upright: bool = False,
+    model: CostModel | None = None,
+    keep_upright: bool | None = None,
     swapped: bool | None = None,
 ) -> PairResult:
     """Register k pose pairs (tangible pose ``it[i]``, virtual pose ``iv[i]``) and give their exact cost,
-    in the better finger order, or in the order ``swapped`` when it is given."""
+    in the better finger order, or in the order ``swapped`` when it is given.
+
+    ``model`` defaults to :func:`cost_model` of the default settings over the two objects;
+    ``keep_upright`` (default off) charges a placement that turns the virtual object upside down
+    an infinite cost.
+
+    >>> from pinchmatch import PinchSettings, analyze_object, candidate_poses
+    >>> can = candidate_poses(analyze_object(can_obj, units="m"), settings=PinchSettings(count=50, seed=0))
+    >>> result = evaluate_pairs(can, can, np.array([0, 1]), np.array([0, 0]))
+    >>> float(result.cost[0]), bool(result.cost[1] > 0)  # a pose on itself costs nothing
+    (0.0, True)
+    """
+    model = model or cost_model(MatchSettings(), [tangible, virtual])
+    keep_upright = bool(keep_upright)
     it, iv = np.asarray(it, dtype=np.int64), np.asarray(iv, dtype=np.int64)
     tp, tn = tangible.pinches.points[it], tangible.pinches.normals[it]
     t_rows = tangible.table[it]
@@ -286,7 +304,7 @@ class Search:
         T, V = self.tangibles[t], self.virtuals[j]
         size = size or initial_pool(len(T), len(V))
         it, iv, _, tau = _pool(T, V, self.model, size, self.settings.block_rows)
-        result = evaluate_pairs(T, V, it, iv, self.model, keep_upright=self.settings.keep_upright)
+        result = evaluate_pairs(T, V, it, iv, model=self.model, keep_upright=self.settings.keep_upright)
         keep = np.flatnonzero(result.cost < tau)
         pool = _PairPool(t, it[keep], iv[keep], _take(result, keep), tau, size)
         self.pools[(j, t)] = pool
@@ -307,7 +325,7 @@ class Search:
                 it, iv, _, block_tau = _pool(T.subset(t_rows), V.subset(v_rows), self.model, old.size,
                                              self.settings.block_rows)
                 it, iv = t_rows[it], v_rows[iv]
-                parts.append((it, iv, evaluate_pairs(T, V, it, iv, self.model, keep_upright=self.settings.keep_upright)))
+                parts.append((it, iv, evaluate_pairs(T, V, it, iv, model=self.model, keep_upright=self.settings.keep_upright)))
                 tau = min(tau, block_tau)
             it, iv = np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
             result = PairResult(**{f.name: np.concatenate([getattr(p[2], f.name) for p in parts])

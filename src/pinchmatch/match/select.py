@@ -48,6 +48,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import ConfigError
+
 #: the best subset is found by evaluating every one while there are at most this many
 EXACT_SUBSETS = 200_000
 #: subsets evaluated at once (each block holds objects x block x K costs)
@@ -164,14 +166,20 @@ def _selection(cost, noticeable, servable, props, objective, exact) -> Selection
 
 
 def select_props(cost: np.ndarray, noticeable: np.ndarray, k: int, objective: str = "mean") -> Selection:
-    """The ``k`` props that serve the scene best under ``objective`` (see the module notes)."""
+    """The ``k`` props that serve the scene best under ``objective`` (see the module notes).
+
+    >>> cost = np.array([[0.2, 1.5, 0.9], [2.0, 0.3, 0.8], [1.1, 1.2, 0.4]])  # 3 objects x 3 props
+    >>> pick = select_props(cost, cost >= 1.0, 2)
+    >>> pick.props.tolist(), round(pick.mean_cost, 3), pick.assigned.tolist()
+    ([0, 2], 0.467, [0, 2, 2])
+    """
     cost = np.asarray(cost, dtype=np.float64)
     noticeable = np.asarray(noticeable, dtype=bool)
     m, n = cost.shape
     if objective not in OBJECTIVES:
-        raise ValueError(f"objective {objective!r}: use one of {', '.join(OBJECTIVES)}")
+        raise ConfigError(f"objective {objective!r}: use one of {', '.join(OBJECTIVES)}")
     if not 1 <= k <= n:
-        raise ValueError(f"k = {k} for a shelf of {n} props")
+        raise ConfigError(f"k = {k} for a shelf of {n} props")
     servable = np.isfinite(cost).any(axis=1)
     c, q = cost[servable], noticeable[servable]
     exact = math.comb(n, k) <= EXACT_SUBSETS
@@ -181,7 +189,12 @@ def select_props(cost: np.ndarray, noticeable: np.ndarray, k: int, objective: st
 
 def coverage_curve(cost: np.ndarray, noticeable: np.ndarray, objective: str = "mean",
                    max_k: int | None = None) -> list[Selection]:
-    """The best selection for K = 1 … min(n, max_k); values never increase with K."""
+    """The best selection for K = 1 … min(n, max_k); values never increase with K.
+
+    >>> cost = np.array([[0.2, 1.5, 0.9], [2.0, 0.3, 0.8], [1.1, 1.2, 0.4]])
+    >>> [(s.props.tolist(), round(s.mean_cost, 3)) for s in coverage_curve(cost, cost >= 1.0)]
+    [([2], 0.7), ([0, 2], 0.467), ([0, 1, 2], 0.3)]
+    """
     n = cost.shape[1]
     out: list[Selection] = []
     for k in range(1, min(n, max_k or n) + 1):

@@ -75,3 +75,39 @@ def units_hint(raw: float, units_in: str) -> str:
     if not fits:
         return "scale the mesh to real size"
     return "read it with " + " or ".join(f"{option('units', u)} ({size[u]:.3g} mm across)" for u in fits[:2])
+
+
+def cross_matrices(v: np.ndarray) -> np.ndarray:
+    """(k, 3) -> (k, 3, 3) cross-product matrices: ``cross_matrices(v) @ w == np.cross(v, w)``."""
+    import numpy as np
+
+    K = np.zeros(v.shape[:-1] + (3, 3))
+    K[..., 0, 1], K[..., 0, 2], K[..., 1, 2] = -v[..., 2], v[..., 1], -v[..., 0]
+    K[..., 1, 0], K[..., 2, 0], K[..., 2, 1] = v[..., 2], -v[..., 1], v[..., 0]
+    return K
+
+
+def rotations_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(k, 3, 3) smallest rotations taking unit vectors a (k, 3) onto b (k, 3).
+
+    Opposite vectors get a half turn about an axis perpendicular to them.
+
+    >>> import numpy as np
+    >>> R = rotations_between(np.array([[0.0, 0.0, 1.0]]), np.array([[0.0, 1.0, 0.0]]))
+    >>> np.round(R[0] @ [0.0, 0.0, 1.0], 12) + 0.0
+    array([0., 1., 0.])
+    """
+    import numpy as np  # here, not at the top: the command line's parser imports this module
+
+    c = np.einsum("kd,kd->k", a, b)
+    K = cross_matrices(np.cross(a, b))
+    R = np.eye(3) + K + (K @ K) / np.maximum(1.0 + c, 1e-300)[:, None, None]
+    opposite = c < -1.0 + 1e-12
+    if opposite.any():  # a half turn about any perpendicular axis
+        ao = a[opposite]
+        perp = np.cross(ao, [1.0, 0.0, 0.0])
+        small = np.linalg.norm(perp, axis=1) < 1e-6
+        perp[small] = np.cross(ao[small], [0.0, 1.0, 0.0])
+        perp /= np.linalg.norm(perp, axis=1, keepdims=True)
+        R[opposite] = 2.0 * perp[:, :, None] * perp[:, None, :] - np.eye(3)
+    return R

@@ -514,6 +514,10 @@ def load_mesh(
         The file is missing, empty, corrupt, not a solid or of implausible size.
     ConfigError
         ``units`` or ``up`` is not a known value.
+
+    >>> loaded = load_mesh(can_obj, units="m")  # a file in metres, read in mm
+    >>> loaded.mesh.extents.round(1).tolist(), loaded.units_in, loaded.watertight
+    ([54.0, 54.0, 66.0], 'm', True)
     """
     path = Path(path)
     if units is not None and units not in UNITS_MM:

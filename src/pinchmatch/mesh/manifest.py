@@ -39,7 +39,7 @@ import tomllib
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from ..errors import ConfigError
+from ..errors import ConfigError, InternalError
 from .described import read_shape, shape_file
 from .frames import UNITS_MM, UP_VECTORS
 from .load import GLTF_TYPES, MESH_EXTENSIONS, mesh_files, read_level
@@ -200,7 +200,11 @@ def _options(table: dict, where: str, problems: _Problems) -> dict:
 
 
 def read_manifest(path: str | os.PathLike) -> list[ObjectSpec]:
-    """The objects a manifest lists, checked; every problem in one ConfigError, one line each."""
+    """The objects a manifest lists, checked; every problem in one ConfigError, one line each.
+
+    >>> [(spec.name, spec.units, spec.mass_g) for spec in read_manifest(props_toml)]
+    [('box', None, 120.0), ('can', 'm', None)]
+    """
     path = Path(path)
     try:
         if not stat.S_ISREG(path.stat().st_mode):
@@ -286,7 +290,7 @@ def _described(table: dict, where: str, base: dict, manifest: Path, problems: _P
         return None
     try:
         file = shape_file(stack)
-    except ValueError as exc:
+    except InternalError as exc:
         problems.add(where, "shape", f"{exc}; check that each part rests on the one below")
         return None
     except OSError as exc:
@@ -312,7 +316,11 @@ def object_specs(paths, *, option: str, split: str | None = None) -> list[Object
     """The objects that command-line paths name: mesh files, folders of them (searched as
     :func:`~pinchmatch.mesh.load.mesh_files` does) and manifests, in the order given. A glTF/GLB
     scene whose split is ``"nodes"`` (its manifest entry's, else ``split``) becomes one object per
-    mesh node; other files are not split."""
+    mesh node; other files are not split.
+
+    >>> [spec.display_name for spec in object_specs([props_toml, box_stl], option="--tangible")]
+    ['box', 'can', 'box.stl']
+    """
     if split is not None and split not in SPLITS:
         raise ConfigError(f"--split: unknown split {split!r}; use one of {', '.join(SPLITS)}")
     out: list[ObjectSpec] = []

@@ -111,6 +111,12 @@ def object_properties(
         Whether the solid's mass properties can be used (else the surface's).
     com_mm, axis : (3,) float64, optional
         User overrides (a prop with a weight inside it).
+
+    >>> from pinchmatch import load_mesh
+    >>> loaded = load_mesh(can_obj, units="m")
+    >>> props = object_properties(loaded.mesh, up=loaded.up, watertight=loaded.watertight)
+    >>> props.com_mm.round(1).tolist(), props.principal_axis.round(3).tolist(), props.com_source
+    ([0.0, 0.0, 33.0], [0.0, 0.0, 1.0], 'solid')
     """
     if watertight:
         centroid = np.asarray(mesh.center_mass, dtype=np.float64)

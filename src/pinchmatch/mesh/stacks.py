@@ -31,6 +31,8 @@ from dataclasses import asdict, dataclass, replace
 import numpy as np
 import trimesh
 
+from ..errors import ConfigError, InternalError
+
 PART_KINDS = ("cylinder", "box", "frustum", "barrel")
 #: most parts in a stack
 MAX_PARTS = 4
@@ -56,9 +58,9 @@ class Part:
 
     def __post_init__(self):
         if self.kind not in PART_KINDS:
-            raise ValueError(f"unknown part {self.kind!r}; use one of {', '.join(PART_KINDS)}")
+            raise ConfigError(f"unknown part {self.kind!r}; use one of {', '.join(PART_KINDS)}")
         if self.kind in ("frustum", "barrel") and self.top_width_mm is None:
-            raise ValueError(f"a {self.kind} needs top_width_mm")
+            raise ConfigError(f"a {self.kind} needs top_width_mm")
 
     @property
     def widest_mm(self) -> float:
@@ -213,7 +215,7 @@ def stack_mesh(stack: Stack) -> trimesh.Trimesh:
         z += part.height_mm
     mesh = meshes[0] if len(meshes) == 1 else trimesh.boolean.union(meshes, engine="manifold")
     if not (mesh.is_watertight and mesh.is_winding_consistent and mesh.volume > 0):
-        raise ValueError("the stack's union is not a closed solid")
+        raise InternalError("the stack's union is not a closed solid")
     return mesh
 
 

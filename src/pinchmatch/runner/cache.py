@@ -14,7 +14,7 @@ top-k, ...) are not in the key: tuning them reuses the entry.
 - The key covers the algorithm: ``ALGORITHM_DIGEST`` hashes the source of every module that shapes an
   object's candidates, so an upgrade (or any edit) that could change them never reads an old entry.
 - Beside an entry, ``<key>.probes.npz`` keeps the pinches checked along given lines on that object
-  (the reference pose's, :attr:`Candidates.probes`), added to as runs ask for new lines; a warm run
+  (the reference pose's, the memo of :func:`pinchmatch.match.reference.line_pinch`), added to as runs ask for new lines; a warm run
   reads them back instead of building the surface's sample, index and rays.
 - Beside them, ``<key>.result.npz`` keeps a virtual object's whole result in one run's setting
   (:mod:`pinchmatch.runner.results`, with its own key that covers the matching settings too), and
@@ -171,35 +171,38 @@ class FeatureCache:
                 log.warning("cannot write the cache in %s (%s); going on without it", self.folder, reason)
             _UNWRITABLE.add(str(self.folder))
 
-    def _load_probes(self, key: str, candidates: Candidates) -> None:
-        """Fill ``candidates.probes`` from the key's probes file, if there is a whole one."""
+    def load_probes(self, key: str) -> dict:
+        """The reference lines' pinches kept beside the key's entry (the memo of
+        :func:`pinchmatch.match.reference.line_pinch`), empty without a whole file."""
         path = self._path(key + PROBES)
+        probes: dict = {}
         if not path.is_file():
-            return
+            return probes
         try:
             meta, arrays = read_entry(path)
             if meta["key"] != key + PROBES:
                 raise ValueError("the probes belong to another key")
             for name, present in meta["probes"].items():
-                candidates.probes[name] = Pinches(**{f: arrays[f"{name}.{f}"] for f in PINCH_ARRAYS}) \
+                probes[name] = Pinches(**{f: arrays[f"{name}.{f}"] for f in PINCH_ARRAYS}) \
                     if present else None
         except DAMAGED as exc:
             log.warning("cache probes %s unusable (%s: %s); computing again", path.name, type(exc).__name__, exc)
             remove_file(path)
-            candidates.probes.clear()
+            probes.clear()
+        return probes
 
-    def store_probes(self, key: str, candidates: Candidates) -> None:
-        """Keep ``candidates.probes`` beside the key's entry when it holds a line the file lacks."""
+    def store_probes(self, key: str, probes: dict) -> None:
+        """Keep ``probes`` beside the key's entry when it holds a line the file lacks."""
         path = self._path(key + PROBES)
         try:
             known = set(read_entry(path, arrays=False)[0]["probes"]) if path.is_file() else set()
         except DAMAGED:
             known = set()
-        if set(candidates.probes) <= known:
+        if set(probes) <= known:
             return
         meta = {"key": key + PROBES, "format": CACHE_FORMAT,
-                "probes": {name: p is not None for name, p in sorted(candidates.probes.items())}}
-        arrays = {f"{name}.{f}": getattr(p, f) for name, p in sorted(candidates.probes.items()) if p is not None
+                "probes": {name: p is not None for name, p in sorted(probes.items())}}
+        arrays = {f"{name}.{f}": getattr(p, f) for name, p in sorted(probes.items()) if p is not None
                   for f in PINCH_ARRAYS}
         self.write_entry(path, {"meta": np.array(json.dumps(meta))} | arrays)
 
@@ -218,9 +221,7 @@ class FeatureCache:
             entry.unlink(missing_ok=True)
             remove_file(self._path(key + PROBES))
             return None
-        candidates = _rebuild(meta, arrays, spec, patch_radius_mm=patch_radius_mm)
-        self._load_probes(key, candidates)
-        return candidates
+        return _rebuild(meta, arrays, spec, patch_radius_mm=patch_radius_mm)
 
     def store(self, key: str, candidates: Candidates) -> None:
         """Write the entry atomically; a folder that cannot be written is logged, not raised."""

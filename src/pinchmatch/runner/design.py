@@ -39,7 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import ConfigError, PinchmatchError
+from ..errors import ConfigError, InternalError, PinchmatchError
 from ..grasp.pinches import PinchSettings
 from ..match.candidates import Candidates
 from ..match.search import MatchSettings, Search, cost_model
@@ -68,6 +68,16 @@ MAX_BUDGET_S, MAX_EVALUATIONS, MAX_PROPS, MAX_HEIGHT_MM = 86_400.0, 1_000_000, 8
 
 @dataclass(frozen=True)
 class DesignSettings:
+    """Options of :func:`design_props` (``pinchmatch design``'s flags; see the module notes).
+
+    ``k`` props designed together, each a stack of at most ``max_parts`` parts within ``max_height_mm``
+    and ``max_width_mm``; ``budget_s`` seconds of wall time, or exactly ``evaluations`` candidates
+    judged (then the result does not depend on the machine's speed); ``seed`` the search's;
+    ``search_count`` poses sampled per candidate prop during the search; ``supports`` False keeps
+    every candidate printable without supports; ``anneal`` the starting temperature of the
+    acceptance rule (relative cost; 0 takes only improvements).
+    """
+
     k: int = 1
     max_parts: int = 4
     max_height_mm: float = 200.0
@@ -254,7 +264,16 @@ def design_props(virtuals: list[Candidates], s: DesignSettings, *, match: MatchS
     """The best set of ``s.k`` stacks found for the scene (see the module notes). ``started``: the
     ``time.perf_counter()`` the budget counts from (default: now); ``reserve_s``: time kept out of the
     budget for writing the results, beside the final match's; ``progress(done, total, note)`` is called
-    after each judged candidate."""
+    after each judged candidate.
+
+    >>> from pinchmatch import MatchSettings, PinchSettings, analyze_object, candidate_poses
+    >>> settings = PinchSettings(count=100, seed=0)
+    >>> can = candidate_poses(analyze_object(can_obj, units="m"), settings=settings)
+    >>> result = design_props([can], DesignSettings(evaluations=3, search_count=100),
+    ...                       match=MatchSettings(refine=False), pinch=settings)
+    >>> result.evaluations, [part.kind for part in result.best.stacks[0].parts]
+    (3, ['cylinder'])
+    """
     rng = np.random.default_rng(s.seed)
     search_pinch = replace(pinch, count=min(pinch.count, s.search_count))
     t0 = time.perf_counter()
@@ -312,5 +331,5 @@ def design_props(virtuals: list[Candidates], s: DesignSettings, *, match: MatchS
         for st in best.stacks:  # the repair keeps every candidate in the limits
             problems = stack_problems(st, max_height_mm=s.max_height_mm, max_width_mm=s.max_width_mm)
             if problems:
-                raise RuntimeError(f"a designed stack is out of the limits: {'; '.join(problems)}")
+                raise InternalError(f"a designed stack is out of the limits: {'; '.join(problems)}")
         return DesignResult(best, history, judge.evaluations, time.perf_counter() - t0, first_s)

@@ -30,6 +30,8 @@ import dataclasses
 import hashlib
 import json
 import logging
+from collections.abc import Mapping
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -51,11 +53,24 @@ RESULT_MODULES = ("match/search", "match/refine", "match/landing", "match/scene"
 RESULT_DIGEST = source_digest(RESULT_MODULES, ALGORITHM_DIGEST)
 
 
+@dataclass(frozen=True)
+class VirtualResult:
+    """Everything the output needs of one virtual object; its mesh and poses stay in the task."""
+
+    name: str
+    entry: dict  # its object entry in ``virtuals``
+    match: dict  # its entry in ``matches``
+    row: np.ndarray  # (n,) its row of the cost matrix
+    scene_glb: bytes | None
+    figure_png: bytes | None
+    cached: bool
+
+
 def plain(value):
     """A settings value as JSON can hold it (dataclasses as dicts, arrays as lists)."""
     if dataclasses.is_dataclass(value):
         return {f.name: plain(getattr(value, f.name)) for f in dataclasses.fields(value)}
-    if isinstance(value, dict):
+    if isinstance(value, Mapping):
         return {str(k): plain(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
         return [plain(v) for v in value]
@@ -85,7 +100,6 @@ def result_key(cache: FeatureCache, task, job, shared, model, allowed, row) -> s
 
 def load_result(cache: FeatureCache, key: str):
     """The :class:`VirtualResult` stored under ``key`` (marked as cached), or None."""
-    from .tasks import VirtualResult
 
     path = cache.folder / f"{key}{RESULT}.npz"
     if not path.is_file():

@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import InternalError
 from ..export.documents import json_number, json_vector
 from ..files import write_atomic
 from ..grasp.analysis import analyze_object
@@ -60,7 +61,7 @@ def horizontal_poses(obj, heights_mm: np.ndarray) -> tuple[np.ndarray, np.ndarra
     for z in heights_mm:
         contacts = line_contacts(obj, np.array([0.0, 0.0, z]), np.array([1.0, 0.0, 0.0]))
         if contacts is None:
-            raise ValueError(f"the study object has no surface at z = {z} mm")
+            raise InternalError(f"the study object has no surface at z = {z} mm")
         p1.append(contacts[0])
         p2.append(contacts[1])
     return np.array(p1), np.array(p2)
@@ -120,7 +121,7 @@ def run_study(folder: Path, *, full: bool = False, settings: PinchSettings = Pin
     tangible = candidate_poses(t_obj, settings=settings, given=horizontal_poses(t_obj, TANGIBLE_HEIGHTS_MM),
                                source="study tangible poses")
     if len(tangible) != 3:
-        raise RuntimeError("a study tangible pose is not feasible")
+        raise InternalError("a study tangible pose is not feasible")
     virtuals = []
     for j, path in enumerate(virtual_paths, start=1):
         say(f"VO{j}: {' / '.join(ORDERS[j - 1])}")
@@ -142,12 +143,12 @@ def run_study(folder: Path, *, full: bool = False, settings: PinchSettings = Pin
         for j, V in enumerate(virtuals):
             order = ORDERS[j]
             it, iv = np.full(len(V), i), np.arange(len(V))
-            ours = evaluate_pairs(tangible, V, it, iv, ours_model)
-            paper = evaluate_pairs(tangible, V, it, iv, paper_model)
+            ours = evaluate_pairs(tangible, V, it, iv, model=ours_model)
+            paper = evaluate_pairs(tangible, V, it, iv, model=paper_model)
             k_ours, k_paper = int(np.argmin(ours.cost)), int(np.argmin(paper.cost))
             ref = reference_pose(tangible, i, V, ours_model, settings=settings)
             # the paper's pose in the paper's finger order, judged by our criteria
-            paper_pair = evaluate_pairs(tangible, V, it[:1], iv[k_paper:k_paper + 1], ours_model,
+            paper_pair = evaluate_pairs(tangible, V, it[:1], iv[k_paper:k_paper + 1], model=ours_model,
                                         swapped=bool(paper.swapped[k_paper]))
             rows.append({
                 "tangible_part": t_part,
@@ -170,5 +171,5 @@ def run_study(folder: Path, *, full: bool = False, settings: PinchSettings = Pin
                                    reason=ref.reason, transform=np.eye(4), terms=ref.terms),
             })
     say("matching the scene")
-    scene = match_scene([tangible], virtuals, match_settings, model=ours_model)
+    scene = match_scene([tangible], virtuals, settings=match_settings, model=ours_model)
     return Study(tangible, virtuals, rows, scene)

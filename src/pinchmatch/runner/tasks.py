@@ -36,7 +36,7 @@ from ..mesh.load import load_mesh
 from ..mesh.manifest import ObjectSpec
 from .cache import FeatureCache, cached_candidates, to_payload
 from .refined import cached_refined_search, refined_key
-from .results import load_result, result_key, store_result
+from .results import VirtualResult, load_result, result_key, store_result
 from .worker import report_stage, tangibles
 
 
@@ -86,19 +86,6 @@ class Computed:
 
     meta: dict
     arrays: dict
-    cached: bool
-
-
-@dataclass(frozen=True)
-class VirtualResult:
-    """Everything the output needs of one virtual object; its mesh and poses stay in the task."""
-
-    name: str
-    entry: dict  # its object entry in ``virtuals``
-    match: dict  # its entry in ``matches``
-    row: np.ndarray  # (n,) its row of the cost matrix
-    scene_glb: bytes | None
-    figure_png: bytes | None
     cached: bool
 
 
@@ -191,11 +178,13 @@ def virtual_task(item: tuple, job: Job, shared, model) -> VirtualResult | Failur
         if hit is not None:
             return hit
     c, cached, cache = _candidates(task, job)
-    scene = match_virtual(tangibles(shared), c, model, job.match, allowed=allowed, row=row,
-                          pinch_settings=job.settings, search=_search(c, cache, job, shared, model))
+    key_c = cache.last_key if cache is not None else None
+    probes = cache.load_probes(key_c) if cache is not None else {}
+    scene = match_virtual(tangibles(shared), c, model=model, settings=job.match, allowed=allowed, row=row,
+                          pinch_settings=job.settings, search=_search(c, cache, job, shared, model), probes=probes)
     result = virtual_result(scene, 0, job, cached=cached)
     if cache is not None:
-        cache.store_probes(cache.last_key, c)  # the reference pose's pinch, for the next run
+        cache.store_probes(key_c, probes)  # the reference pose's pinch, for the next run
         if key is not None:
             store_result(cache, key, result)
     return result
