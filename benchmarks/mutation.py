@@ -266,14 +266,14 @@ class _Drop(ast.NodeTransformer):
         return self.generic_visit(node)
 
 
-def enumerate_mutants(module: str) -> list[Mutant]:
-    source = (PACKAGE / module).read_text()
+def enumerate_mutants(module: str, package: Path = PACKAGE) -> list[Mutant]:
+    source = (package / module).read_text()
     sites = _sites(ast.parse(source), source.splitlines())
     return [Mutant(module, i, node.lineno, desc) for i, (node, _, desc) in enumerate(sites)]
 
 
-def mutated_source(mutant: Mutant) -> str:
-    source = (PACKAGE / mutant.module).read_text()
+def mutated_source(mutant: Mutant, package: Path = PACKAGE) -> str:
+    source = (package / mutant.module).read_text()
     tree = ast.parse(source)
     node, kind, _ = _sites(tree, source.splitlines())[mutant.index]
     if kind in ("unary", "call"):
@@ -317,7 +317,7 @@ class Worker:
         path = self.dir / "src" / "pinchmatch" / mutant.module
         original = path.read_text()
         try:
-            path.write_text(mutated_source(mutant))
+            path.write_text(mutated_source(mutant, self.dir / "src" / "pinchmatch"))
             outcome, _ = _pytest(self.dir, tests, timeout_s)
         finally:
             path.write_text(original)
@@ -348,17 +348,19 @@ def main(argv=None) -> int:
     if unknown:
         parser.error(f"unknown module(s) {', '.join(unknown)}; choose from {', '.join(CORE)}")
 
-    plan: list[Mutant] = []
-    totals = {}
-    for module in modules:
-        every = enumerate_mutants(module)
-        totals[module] = len(every)
-        chosen = every if args.sample <= 0 or args.sample >= len(every) else sorted(
-            random.Random(f"{args.seed}:{module}").sample(every, args.sample), key=lambda m: m.index)
-        plan.extend(chosen)
-
     with tempfile.TemporaryDirectory(prefix="pinchmatch-mutation-") as tmp:
+        # the copies are the source of the mutants: the working tree may change while the run goes on
         workers = [Worker(Path(tmp), k) for k in range(max(1, args.workers))]
+        package = workers[0].dir / "src" / "pinchmatch"
+        plan: list[Mutant] = []
+        totals = {}
+        for module in modules:
+            every = enumerate_mutants(module, package)
+            totals[module] = len(every)
+            chosen = every if args.sample <= 0 or args.sample >= len(every) else sorted(
+                random.Random(f"{args.seed}:{module}").sample(every, args.sample), key=lambda m: m.index)
+            plan.extend(chosen)
+        sources = {module: (package / module).read_text().splitlines() for module in modules}
         clean = _clean_times(workers[0], modules)
         free = list(workers)
         results: dict[Mutant, str] = {}
@@ -383,7 +385,7 @@ def main(argv=None) -> int:
     survivors = []
     for module in modules:
         mine = [m for m in plan if m.module == module]
-        lines = (PACKAGE / module).read_text().splitlines()
+        lines = sources[module]
         equivalent = [m for m in mine if results[m] == "survived"
                       and (module, lines[m.line - 1].strip(), m.description) in EQUIVALENT]
         killed = sum(results[m] == "killed" for m in mine)
@@ -399,7 +401,7 @@ def main(argv=None) -> int:
     if survivors:
         print("\nsurvivors:")
         for m in survivors:
-            print(f"  {m.label()}    {(PACKAGE / m.module).read_text().splitlines()[m.line - 1].strip()}")
+            print(f"  {m.label()}    {sources[m.module][m.line - 1].strip()}")
     if share < args.fail_under:
         print(f"\nmutation: {share:.0f} % killed, under the --fail-under {args.fail_under:g} %", file=sys.stderr)
         return 1
