@@ -93,3 +93,26 @@ def game_level(crates: int = 12, jars: int = 9) -> tuple[bytes, dict]:
     glb = struct.pack("<4sII", b"glTF", 2, 12 + 8 + len(text) + 8 + len(blob))
     glb += struct.pack("<I4s", len(text), b"JSON") + text + struct.pack("<I4s", len(blob), b"BIN\0") + blob
     return glb, expected
+
+
+#: a prop's pose that stands a file's +Z up in a glTF world (+Y up): a quarter turn about X
+Z_UP_IN_Y_UP = [-math.sqrt(0.5), 0.0, 0.0, math.sqrt(0.5)]
+
+
+def tabletop_level(path, places) -> None:
+    """A level (GLB, metres, y up) of named meshes (metres, y up) placed at world translations:
+    ``places`` is (name, mesh, (x, y, z) m) per node; written by trimesh's scene export."""
+    scene = trimesh.Scene()
+    for name, mesh, xyz in places:
+        T = np.eye(4)
+        T[:3, 3] = xyz
+        scene.add_geometry(mesh, node_name=name, geom_name=f"{name}_mesh", transform=T)
+    scene.export(path)
+
+
+def standing_can(radius_m: float = 0.027, height_m: float = 0.066) -> trimesh.Trimesh:
+    """A can (metres) standing on y = 0 with its axis along +Y, as a glTF level holds it."""
+    can = trimesh.creation.cylinder(radius=radius_m, height=height_m, sections=64)
+    can.apply_transform(trimesh.transformations.rotation_matrix(-np.pi / 2, [1, 0, 0]))
+    can.apply_translation([0.0, height_m / 2.0, 0.0])
+    return can

@@ -26,7 +26,7 @@ from ..grasp.pinches import PinchSettings
 from ..export.folder import OutputFolder, exclusive
 from ..mesh.properties import parse_vector
 from .console import Presenter
-from .runs import (EXIT_SOME_FAILED, check_match_flags, given_poses, match_job, match_settings_of, object_tasks,
+from .runs import (EXIT_SOME_FAILED, check_match_flags, check_placement, given_poses, match_job, match_settings_of, object_tasks,
                    out_folder, pinch_settings_of, print_match, table_rows, write_matches)
 from .universal import cmd_design, cmd_select, demo_design
 from ..export.documents import (features_document, flipped_note, matches_rows, poses_csv, poses_document, scene_stems,
@@ -157,6 +157,7 @@ def _cmd_match(args) -> int:
     cache = None if args.no_cache else FeatureCache(args.cache)
     job = match_job(args, settings, match_settings, cache)
     ui = Presenter(quiet=args.quiet, json_mode=args.json)
+    check_placement(match_settings, tangible_specs, virtual_specs, ui)
     run_settings = {**settings.as_dict(), **match_settings.as_dict(), "units": args.units, "up": args.up,
                     "split": args.split or "none"}
     t0 = time.perf_counter()

@@ -133,6 +133,23 @@ def _add_match_options(p: argparse.ArgumentParser, *, one_to_one: bool = True) -
                    help="rank the best choices by their worst landing instead of their cost on target")
 
 
+def _add_placement_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--placement", choices=("registered", "fixed"), default="registered",
+                   help="registered: each virtual object is brought onto the prop (default); fixed: it stays where "
+                        "the level puts it and the hand is redirected to the prop, or, beyond --max-redirect-deg, "
+                        "the carousel brings it (docs/redirection.md)")
+    p.add_argument("--hand-start", metavar="X,Y,Z",
+                   help="with --placement fixed: where the hand rests before it reaches, mm in the level's frame "
+                        "(y up; default: 150 mm above and 300 mm in front (+Z) of each prop's pose)")
+    p.add_argument("--max-redirect-deg", type=float, default=4.5,
+                   help="with --placement fixed: the largest redirection angle seen from the hand's start; beyond "
+                        "it the carousel serves the object (default 4.5, the detection threshold of body warping)")
+    p.add_argument("--redirect-threshold-deg", type=float, default=4.5,
+                   help="the redirection angle that costs as much as one just-noticeable difference (default 4.5)")
+    p.add_argument("--axis-threshold-deg", type=float, default=20.0,
+                   help="the turn of the pinch axis that costs as much as one just-noticeable difference (default 20)")
+
+
 def _add_output_options(p: argparse.ArgumentParser, *, figures: bool) -> None:
     """``figures``: the command writes its PNG figures unless told not to (else only when asked)."""
     p.add_argument("--no-view", action="store_true", help="do not write the viewer page OUT/index.html")
@@ -202,6 +219,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_pinch_options(match)
     _add_sampling_options(match)
     _add_match_options(match)
+    _add_placement_options(match)
     match.add_argument("-o", "--output", metavar="OUT", default="pinchmatch-out",
                        help="folder for matches.json, the scenes, the page and the figures (default pinchmatch-out)")
     _add_worker_options(match)

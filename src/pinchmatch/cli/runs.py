@@ -10,7 +10,7 @@ from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 
 from ..errors import ConfigError, RunError
-from ..export.documents import flipped_note, matches_legend, scene_stems
+from ..export.documents import flipped_note, matches_legend, redirection_note, scene_stems
 from ..export.sink import MatchesSink
 from ..export.view import write_page
 from ..files import check_writable, read_input, write_atomic
@@ -61,7 +61,55 @@ def match_settings_of(args) -> MatchSettings:
                                            "landing_mm", "robust") if hasattr(args, k)}
     if hasattr(args, "refine"):
         given["refine"] = args.refine == "on"
+    if hasattr(args, "placement"):
+        given |= {"placement": args.placement, "hand_start_mm": _hand_start(args.hand_start),
+                  "max_redirect_deg": args.max_redirect_deg, "redirect_threshold_deg": args.redirect_threshold_deg,
+                  "axis_threshold_deg": args.axis_threshold_deg}
     return MatchSettings(weights=weights, criteria=criteria, pooling=args.pooling, **given)
+
+
+def _hand_start(text: str | None) -> tuple | None:
+    if text is None:
+        return None
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        values = ()
+    if len(values) != 3:
+        raise ConfigError(f"--hand-start {text}: give three numbers X,Y,Z in mm, as --hand-start 0,150,300")
+    return values
+
+
+def check_placement(settings: MatchSettings, tangible_specs: list, virtual_specs: list, ui) -> None:
+    """What ``--placement`` needs of the objects, checked before any work: under ``fixed`` every virtual
+    object placed by a level and the hand's start outside every prop; under ``registered`` a prop's
+    pose is not used (a note says so)."""
+    if settings.redirect is None:
+        posed = [s.display_name for s in tangible_specs if s.pose is not None]
+        if posed:
+            ui.note(f"the pose of {', '.join(posed)} is used with --placement fixed only; ignored (each virtual "
+                    "object is brought onto its prop)")
+        return
+    loose = [s for s in virtual_specs if s.node is None]
+    if loose:
+        raise ConfigError(f"{loose[0].path}: --placement fixed keeps each virtual object where a level puts it, and "
+                          "this file is not a level's node; give a glTF/GLB level with --split nodes, or use "
+                          "--placement registered")
+    import numpy as np
+
+    from ..match.redirect import hand_start, world_pose
+    from ..mesh.load import load_mesh
+
+    for spec in tangible_specs:
+        mesh = load_mesh(spec.path, units=spec.units, up=spec.up).mesh
+        R, p = world_pose(spec)
+        for other in tangible_specs:
+            start = hand_start(other, settings.redirect)
+            if mesh.contains(((start - p) @ R)[None])[0]:
+                where = "--hand-start" if settings.hand_start_mm is not None else "the default hand start"
+                raise ConfigError(f"{where} {np.round(start, 1).tolist()} mm lies inside the prop "
+                                  f"{spec.display_name}; give a --hand-start X,Y,Z outside every prop, where the "
+                                  "hand rests before it reaches")
 
 
 def given_poses(files, paths, option) -> list:
@@ -151,6 +199,8 @@ def print_match(ui, sink, result, run_settings) -> None:
     ui.table(table_rows(sink.objects, "objects"), title="objects")
     ui.table(table_rows(sink.rows, "matches"), title="matches", legend=matches_legend(run_settings))
     if note := flipped_note(sink.rows, run_settings):
+        ui.note(note)
+    if note := redirection_note(sink.redirections):
         ui.note(note)
     if result.failed:
         ui.table(table_rows([("file", "role", "problem")] + [(f.path, f.role, f.error) for f in result.failed],

@@ -295,6 +295,8 @@ def match_entry(scene, vm) -> dict:
     entry["alternatives"] = [_choice_record(scene, vm, a, full=False) for a in vm.alternatives]
     entry["reference"] = _reference_record(vm.reference, scene.model)
     entry["landing"] = _landing_record(vm.landing)
+    if vm.redirection is not None:
+        entry["redirection"] = vm.redirection
     # keys in a stable, readable order
     order = ["virtual", "tangible", "cost", "p_noticed", "noticeable", "reason", "criteria", "tangible_pose",
              "virtual_pose"]
@@ -454,6 +456,18 @@ def flipped_note(rows: list[tuple], settings: dict) -> str | None:
         return None
     return (f"{flipped} of {len(rows) - 1} placements turn the virtual object upside down (F); --keep-upright "
             "keeps every one upright, at some cost")
+
+
+def redirection_note(redirections: list[dict]) -> str | None:
+    """Under ``--placement fixed``: how many matches redirect the hand (and the largest angle), how many
+    the carousel serves (None without redirection)."""
+    if not redirections:
+        return None
+    led = [r["angle_deg"] for r in redirections if r["mode"] == "redirect"]
+    carousel = len(redirections) - len(led)
+    largest = f" (largest angle {max(led):.2f} deg)" if led else ""
+    return (f"placement fixed: {len(led)} of {len(redirections)} virtual objects stay in place, the hand redirected"
+            f"{largest}; {carousel} served by the carousel (beyond --max-redirect-deg)")
 
 
 def matches_legend(settings: dict) -> list[str]:

@@ -25,6 +25,7 @@ class MatchesSink:
         self.scenes = 0
         self.objects = [("object", "role", "faces", "feasible poses")]
         self.rows = matches_rows({"matches": []})
+        self.redirections: list[dict] = []  # under --placement fixed, each match's
         self._header = None
         self._virtuals, self._matches, self._names, self._cost_rows, self._chosen = [], [], [], [], []
         self._lines = None  # the AtomicFile of matches.jsonl while it is being written
@@ -63,6 +64,8 @@ class MatchesSink:
         self._names.append(r.name)
         self._cost_rows.append(r.row)
         self._chosen.append(r.match.get("tangible"))
+        if r.match.get("redirection") is not None:
+            self.redirections.append(r.match["redirection"])
         if self._lines is not None:
             self._line({"record": "match", "object": r.entry, "cost_row": [json_number(x, 6) for x in r.row],
                         "match": r.match})

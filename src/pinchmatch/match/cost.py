@@ -250,10 +250,17 @@ class CostModel:
         """(8,) the weights in the order of :data:`CRITERIA`."""
         return np.array([self.weights[c] for c in CRITERIA])
 
-    def pool(self, terms: np.ndarray) -> np.ndarray:
-        """The cost of (..., 8) contributions t_c: Σ w t (``sum``) or (Σ w t^(β/2))^(1/β) (``quick``)."""
+    def pool(self, terms: np.ndarray, extra: np.ndarray | None = None) -> np.ndarray:
+        """The cost of (..., 8) contributions t_c: Σ w t (``sum``) or (Σ w t^(β/2))^(1/β) (``quick``).
+
+        ``extra`` (..., m): further contributions in the same units, weight 1 each (the hand's
+        redirection: :mod:`pinchmatch.match.redirect`)."""
         terms = np.maximum(np.asarray(terms, dtype=np.float64), 0.0)
         w = self.weight_vector()
+        if extra is not None:
+            extra = np.maximum(np.asarray(extra, dtype=np.float64), 0.0)
+            terms = np.concatenate([terms, np.broadcast_to(extra, terms.shape[:-1] + extra.shape[-1:])], axis=-1)
+            w = np.concatenate([w, np.ones(extra.shape[-1])])
         if self.pooling == "sum":
             return terms @ w
         beta = self.exponent
@@ -428,6 +435,6 @@ def contributions(tangible_row: np.ndarray, virtual_row: np.ndarray, model: Cost
     return dict(zip(CRITERIA, terms.tolist()))
 
 
-def total(terms: np.ndarray, model: CostModel) -> np.ndarray:
-    """The model's cost of (..., 8) contributions (:meth:`CostModel.pool`)."""
-    return model.pool(terms)
+def total(terms: np.ndarray, model: CostModel, extra: np.ndarray | None = None) -> np.ndarray:
+    """The model's cost of (..., 8) contributions and any ``extra`` ones (:meth:`CostModel.pool`)."""
+    return model.pool(terms, extra)

@@ -160,13 +160,13 @@ def landing(tangible: Candidates, virtual: Candidates, choice, model: CostModel,
     delta = ratio * ((virtual.obj.props.com_mm - v_mid) @ R.T) - (tangible.obj.props.com_mm - felt_p.points.mean(axis=1))
     terms = separable_terms(t_rows, v_rows, model)
     terms[:, 7] = mass_term(t_rows, delta, model)
-    cost = model.pool(terms)
+    cost = model.pool(terms, choice.redirect_terms)  # a redirection is planned for the targets: as the match's
     jnd = model.as_jnd()
     jnd_all = CostModel(normalize="jnd", criteria=CRITERIA, weights=dict.fromkeys(CRITERIA, 1.0))
     jnd_terms = separable_terms(t_rows, v_rows, jnd_all)
     jnd_terms[:, 7] = mass_term(t_rows, delta, jnd_all)
     loud = tuple(c for k, c in enumerate(CRITERIA) if c in model.criteria and (jnd_terms[:, k] >= 1.0).any())
     worst = int(np.argmax(cost))
-    jnd_worst = jnd.pool(jnd_terms[worst])
+    jnd_worst = jnd.pool(jnd_terms[worst], choice.redirect_terms)
     return Landing(float(radius_mm), float(axis_deg), float(cost[0]), float(cost.mean()), float(cost[worst]),
                    float(jnd.p_noticed(jnd_worst)), loud, int(hit.sum()), int((~hit).sum()))

@@ -167,9 +167,11 @@ class _Pair:
 
 
 def refine(tangibles: list[Candidates], virtual: Candidates, seeds: list[tuple[int, int, int, float]],
-           model: CostModel, *, keep_upright: bool, settings: PinchSettings) -> tuple[list, Candidates]:
+           model: CostModel, *, keep_upright: bool, settings: PinchSettings,
+           redirect=None) -> tuple[list, Candidates]:
     """Pattern search from ``seeds`` (tangible, tangible pose, virtual pose, cost); returns every
-    tangible's candidates and the virtual object's, with the feasible poses the search visited."""
+    tangible's candidates and the virtual object's, with the feasible poses the search visited
+    (``redirect``: the hand's redirection, as :func:`pinchmatch.match.search.evaluate_pairs` takes it)."""
     grown_t = [_Grown(t) for t in tangibles]
     grown_v = _Grown(virtual)
     pairs = [_Pair(t, it, iv, cost, FIRST_STEP_MM) for t, it, iv, cost in seeds]
@@ -202,7 +204,8 @@ def refine(tangibles: list[Candidates], virtual: Candidates, seeds: list[tuple[i
             ask = np.flatnonzero(bound < needed)
             cost = np.full(len(it), np.inf)
             if len(ask):
-                cost[ask] = evaluate_pairs(T, V, it[ask], iv[ask], model=model, keep_upright=keep_upright).cost
+                cost[ask] = evaluate_pairs(T, V, it[ask], iv[ask], model=model, keep_upright=keep_upright,
+                                           redirect=redirect).cost
             for k, (_, p) in enumerate(mine):
                 rows = np.flatnonzero(owner == k)
                 best = rows[np.argmin(cost[rows])]
@@ -254,5 +257,5 @@ def refined_search(tangibles: list[Candidates], virtual: Candidates, model: Cost
              for t in np.flatnonzero(finite & (row <= CONTENDER_RATIO * best))
              for c in search.choices(0, [int(t)], SEEDS if row[t] == best else OTHER_SEEDS)]
     grown_t, grown_v = refine(tangibles, virtual, seeds, model, keep_upright=settings.keep_upright,
-                              settings=pinch_settings)
+                              settings=pinch_settings, redirect=settings.redirect)
     return search.grown(grown_t, [grown_v])

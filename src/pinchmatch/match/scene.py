@@ -22,6 +22,7 @@ from .cost import CostModel
 from .landing import Landing, landing
 from .reference import Reference, reference_pose
 from .refine import refined_search
+from .redirect import redirection
 from .search import Choice, MatchSettings, Search, cost_model, cost_row
 
 
@@ -43,7 +44,11 @@ class VirtualMatch:
     - ``tangibles``, ``candidates``: the candidates its choices' pose indices point into: every
       tangible's and its own, with the poses refinement added (after the sampled ones);
     - ``landing``: the best choice's cost when the fingers land within ``landing_mm`` of its
-      targets (:class:`pinchmatch.match.landing.Landing`), or ``None`` without a best choice.
+      targets (:class:`pinchmatch.match.landing.Landing`), or ``None`` without a best choice;
+    - ``redirection``: under ``placement="fixed"``, how the hand is led to the best choice
+      (:meth:`pinchmatch.match.redirect.Redirection.record`: ``mode`` ``redirect``, or ``carousel``
+      when no pair is within the redirection budget and the object is brought onto the prop,
+      registered), else ``None``.
     """
 
     virtual: int
@@ -55,6 +60,7 @@ class VirtualMatch:
     tangibles: list | None = None
     candidates: Candidates | None = None
     landing: Landing | None = None
+    redirection: dict | None = None
 
 
 @dataclass
@@ -111,7 +117,7 @@ def match_scene(tangibles: list[Candidates], virtuals: list[Candidates], *, sett
     m, n = len(virtuals), len(tangibles)
     cost_matrix = np.array([cost_row(s, 0) for s in searches]).reshape(m, n)
     plan = allowed_tangibles(cost_matrix, settings)
-    matches = [_match(searches[j], *plan[j], pinch_settings=pinch_settings, index=j) for j in range(m)]
+    matches = [_placed(searches[j], plan[j], pinch_settings=pinch_settings, index=j) for j in range(m)]
     return SceneMatch(tangibles, virtuals, settings, model, cost_matrix, matches)
 
 
@@ -153,6 +159,30 @@ def _match(search: Search, allowed: list[int], reason: str | None, *, pinch_sett
                         list(search.tangibles), virtual, landings[0] if landings else None)
 
 
+def _placed(search: Search, allowed: tuple, *, pinch_settings: PinchSettings, index: int = 0,
+            probes: dict | None = None) -> VirtualMatch:
+    """The virtual object's match; under ``placement="fixed"`` with its redirection, or, where no pair
+    is within the redirection budget, the carousel's (registered) match."""
+    vm = _match(search, *allowed, pinch_settings=pinch_settings, index=index, probes=probes)
+    settings = search.settings
+    if settings.redirect is None:
+        return vm
+    mode = "redirect"
+    if vm.best is None and allowed[0]:  # nothing within the budget: the carousel brings it to the prop
+        registered = dataclasses.replace(settings, placement="registered")
+        carousel = refined_search(search.tangibles, search.virtuals[0], search.model, registered,
+                                  pinch_settings=pinch_settings)
+        vm, mode = _match(carousel, *allowed, pinch_settings=pinch_settings, index=index, probes=probes), "carousel"
+    if vm.best is None:
+        return vm
+    best = vm.best
+    tangible = vm.tangibles[best.tangible]
+    v_points = vm.candidates.pinches.points[best.v_pose]
+    moved = redirection(tangible.obj.spec, tangible.pinches.points[best.t_pose][None],
+                        (v_points[::-1] if best.swapped else v_points)[None], settings.redirect)
+    return dataclasses.replace(vm, redirection=moved.record(0, mode))
+
+
 def match_virtual(tangibles: list[Candidates], virtual: Candidates, *, model: CostModel | None = None,
                   settings: MatchSettings | None = None, allowed: tuple[list[int], str | None] | None = None,
                   row: np.ndarray | None = None, pinch_settings: PinchSettings | None = None,
@@ -182,8 +212,8 @@ def match_virtual(tangibles: list[Candidates], virtual: Candidates, *, model: Co
     model = model or cost_model(settings, tangibles + [virtual])
     search = search or refined_search(tangibles, virtual, model, settings, pinch_settings=pinch_settings)
     row = cost_row(search, 0) if row is None else np.asarray(row, dtype=np.float64)
-    vm = _match(search, *(allowed or (list(range(len(tangibles))), None)), pinch_settings=pinch_settings,
-                probes=probes)
+    vm = _placed(search, allowed or (list(range(len(tangibles))), None), pinch_settings=pinch_settings,
+                 probes=probes)
     return SceneMatch(tangibles, [virtual], settings, model, row[None], [vm])
 
 

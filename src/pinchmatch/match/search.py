@@ -37,6 +37,8 @@ from ..errors import ConfigError
 from .candidates import Candidates, felt_table, mass_ratio
 from .cost import (CRITERIA, DEFAULT_CRITERIA, PAPER_CRITERIA, POOLINGS, CostModel, Weights, complete_weights,
                    feature_ranges, mass_term, pair_cost_blocks, separable_terms, total)
+from .redirect import (AXIS_THRESHOLD_DEG, MAX_HAND_START_MM, MAX_REDIRECT_DEG, MAX_THRESHOLD_DEG, PLACEMENTS,
+                       REDIRECT_THRESHOLD_DEG, Redirect, redirection)
 from .register import FLIP_COSINE, register_poses
 
 #: pose pairs kept per (virtual, tangible) object pair before the exact evaluation: one per
@@ -68,6 +70,11 @@ class MatchSettings:
     refine: bool = True
     landing_mm: float = 5.0
     robust: bool = False
+    placement: str = "registered"
+    hand_start_mm: tuple | None = None
+    redirect_threshold_deg: float = REDIRECT_THRESHOLD_DEG
+    max_redirect_deg: float = MAX_REDIRECT_DEG
+    axis_threshold_deg: float = AXIS_THRESHOLD_DEG
 
     def __post_init__(self):
         if tuple(self.criteria) not in (DEFAULT_CRITERIA, PAPER_CRITERIA):
@@ -89,6 +96,31 @@ class MatchSettings:
         if self.pooling not in POOLINGS:
             raise ConfigError(f"--pooling: unknown pooling {self.pooling!r}; use quick (probability summation, "
                               "the default) or sum (the paper's sum of squares)")
+        self._check_redirect()
+
+    def _check_redirect(self) -> None:
+        if self.placement not in PLACEMENTS:
+            raise ConfigError(f"--placement: unknown placement {self.placement!r}; use registered (the virtual "
+                              "object brought onto the prop) or fixed (it stays where the level puts it)")
+        if self.hand_start_mm is not None:
+            start = np.asarray(self.hand_start_mm, dtype=np.float64)
+            if start.shape != (3,) or not np.isfinite(start).all() or np.abs(start).max() > MAX_HAND_START_MM:
+                raise ConfigError(f"--hand-start: {self.hand_start_mm!r} must be three numbers X,Y,Z in mm within "
+                                  f"{MAX_HAND_START_MM:g} mm of the level's origin")
+            object.__setattr__(self, "hand_start_mm", tuple(float(c) for c in start))
+        for name in ("redirect_threshold_deg", "max_redirect_deg", "axis_threshold_deg"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and 0.0 < value <= MAX_THRESHOLD_DEG):
+                flag = "--" + name.replace("_deg", "-deg").replace("_", "-")
+                raise ConfigError(f"{flag}: {value!r} must be an angle above 0 and at most {MAX_THRESHOLD_DEG:g} deg")
+
+    @property
+    def redirect(self) -> Redirect | None:
+        """The redirection's settings under ``placement="fixed"``, else None."""
+        if self.placement != "fixed":
+            return None
+        return Redirect(self.hand_start_mm, self.redirect_threshold_deg, self.max_redirect_deg,
+                        self.axis_threshold_deg)
 
     def as_dict(self) -> dict:
         return {
@@ -103,7 +135,13 @@ class MatchSettings:
             "refine": self.refine,
             "landing_mm": self.landing_mm,
             "robust": self.robust,
-        }
+            "placement": self.placement,
+        } | ({} if self.placement != "fixed" else {
+            "hand_start_mm": None if self.hand_start_mm is None else list(self.hand_start_mm),
+            "redirect_threshold_deg": self.redirect_threshold_deg,
+            "max_redirect_deg": self.max_redirect_deg,
+            "axis_threshold_deg": self.axis_threshold_deg,
+        })
 
 
 def cost_model(settings: MatchSettings, candidates: list[Candidates], *, ranges: np.ndarray | None = None) -> CostModel:
@@ -127,7 +165,8 @@ class PairResult:
     cost (k,), terms (k, 8) contributions per criterion, swapped (k,) bool (virtual p1 on
     tangible p2), transform (k, 4, 4) virtual -> tangible, flipped (k,) bool, mass_delta_mm
     (k, 3) seen minus felt centre-of-mass offset in the tangible's frame, allowed (k,) bool
-    (False: flipped under ``keep_upright``; cost is then inf).
+    (False: flipped under ``keep_upright``, or redirected beyond the budget; cost is then inf),
+    redirect_terms (k, 2) the redirection's contributions (zero unless the placement is fixed).
     """
 
     cost: np.ndarray
@@ -137,6 +176,7 @@ class PairResult:
     flipped: np.ndarray
     mass_delta_mm: np.ndarray
     allowed: np.ndarray
+    redirect_terms: np.ndarray
 
 
 def _take(result: PairResult, keep) -> PairResult:
@@ -152,13 +192,16 @@ def evaluate_pairs(
     model: CostModel | None = None,
     keep_upright: bool | None = None,
     swapped: bool | None = None,
+    redirect: Redirect | None = None,
 ) -> PairResult:
     """Register k pose pairs (tangible pose ``it[i]``, virtual pose ``iv[i]``) and give their exact cost,
     in the better finger order, or in the order ``swapped`` when it is given.
 
     ``model`` defaults to :func:`cost_model` of the default settings over the two objects;
     ``keep_upright`` (default off) charges a placement that turns the virtual object upside down
-    an infinite cost.
+    an infinite cost. With ``redirect`` the virtual object stays where it is and the hand is
+    redirected (:mod:`pinchmatch.match.redirect`): the redirection joins the cost, a pair beyond the
+    budget is not allowed, and none is flipped.
 
     >>> from pinchmatch import PinchSettings, analyze_object, candidate_poses
     >>> can = candidate_poses(analyze_object(can_obj, units="m"), settings=PinchSettings(count=50, seed=0))
@@ -185,10 +228,15 @@ def evaluate_pairs(
         delta = ratio * np.einsum("kij,kj->ki", R, v_props.com_mm - vp.mean(axis=1)) - (t_props.com_mm - tp.mean(axis=1))
         terms = separable_terms(t_rows, v_rows, model)
         terms[:, 7] = mass_term(t_rows, delta, model)
-        flipped = (R @ up_v) @ up_t < FLIP_COSINE
-        allowed = ~flipped if keep_upright else np.ones(len(it), dtype=bool)
-        cost = np.where(allowed, total(terms, model), np.inf)
-        results.append(PairResult(cost, terms, np.full(len(it), order), X, flipped, delta, allowed))
+        if redirect is None:
+            flipped = (R @ up_v) @ up_t < FLIP_COSINE
+            allowed = ~flipped if keep_upright else np.ones(len(it), dtype=bool)
+            extra = np.zeros((len(it), 2))
+        else:  # the virtual object stays where it is: never turned over
+            moved = redirection(tangible.obj.spec, tp, vp, redirect)
+            flipped, allowed, extra = np.zeros(len(it), dtype=bool), moved.allowed, moved.terms
+        cost = np.where(allowed, total(terms, model, extra if redirect is not None else None), np.inf)
+        results.append(PairResult(cost, terms, np.full(len(it), order), X, flipped, delta, allowed, extra))
     if len(results) == 1:
         return results[0]
     a, b = results
@@ -272,7 +320,9 @@ class Choice:
       (virtual, registered, its mass relative to the tangible's) minus as felt (tangible), in the
       tangible's frame, mm;
     - ``tangible_name``, ``virtual_name``: ``str``, the objects' names (a manifest's ``name``, a level
-      node's, else the file's).
+      node's, else the file's);
+    - ``redirect_terms``: ``(2,) float64``, the hand redirection's contributions to ``cost`` under
+      ``placement="fixed"`` (:mod:`pinchmatch.match.redirect`), else ``None``.
     """
 
     virtual: int
@@ -287,6 +337,7 @@ class Choice:
     mass_delta_mm: np.ndarray
     tangible_name: str = ""
     virtual_name: str = ""
+    redirect_terms: np.ndarray | None = None
 
 
 class Search:
@@ -304,7 +355,8 @@ class Search:
         T, V = self.tangibles[t], self.virtuals[j]
         size = size or initial_pool(len(T), len(V))
         it, iv, _, tau = _pool(T, V, self.model, size, self.settings.block_rows)
-        result = evaluate_pairs(T, V, it, iv, model=self.model, keep_upright=self.settings.keep_upright)
+        result = evaluate_pairs(T, V, it, iv, model=self.model, keep_upright=self.settings.keep_upright,
+                                redirect=self.settings.redirect)
         keep = np.flatnonzero(result.cost < tau)
         pool = _PairPool(t, it[keep], iv[keep], _take(result, keep), tau, size)
         self.pools[(j, t)] = pool
@@ -325,7 +377,9 @@ class Search:
                 it, iv, _, block_tau = _pool(T.subset(t_rows), V.subset(v_rows), self.model, old.size,
                                              self.settings.block_rows)
                 it, iv = t_rows[it], v_rows[iv]
-                parts.append((it, iv, evaluate_pairs(T, V, it, iv, model=self.model, keep_upright=self.settings.keep_upright)))
+                parts.append((it, iv, evaluate_pairs(T, V, it, iv, model=self.model,
+                                                     keep_upright=self.settings.keep_upright,
+                                                     redirect=self.settings.redirect)))
                 tau = min(tau, block_tau)
             it, iv = np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
             result = PairResult(**{f.name: np.concatenate([getattr(p[2], f.name) for p in parts])
@@ -375,7 +429,8 @@ class Search:
             r = p.result
             picks.append(Choice(j, p.tangible, int(p.it[k]), int(p.iv[k]), float(r.cost[k]), r.terms[k],
                                 bool(r.swapped[k]), r.transform[k], bool(r.flipped[k]), r.mass_delta_mm[k],
-                                self.tangibles[p.tangible].name, V.name))
+                                self.tangibles[p.tangible].name, V.name,
+                                r.redirect_terms[k] if self.settings.redirect is not None else None))
             near = (owner == owner[i]) & (pinch_distance(t_pinch, t_pinch[i]) < self.settings.distinct_mm) \
                 & (pinch_distance(v_pinch, v_pinch[i]) < self.settings.distinct_mm)
             alive &= ~near
@@ -406,9 +461,10 @@ def jnd_terms(tangible: Candidates, virtual: Candidates, choice: Choice) -> np.n
 
 def p_noticed(tangible: Candidates, virtual: Candidates, choice: Choice, model: CostModel) -> float:
     """The probability that the choice's remaining difference is noticed: the model's criteria,
-    weights and pooling, in JND (:meth:`pinchmatch.match.cost.CostModel.p_noticed`)."""
+    weights and pooling, in JND (:meth:`pinchmatch.match.cost.CostModel.p_noticed`), with the hand's
+    redirection where the placement is fixed."""
     jnd_model = model.as_jnd()
-    return float(jnd_model.p_noticed(jnd_model.pool(jnd_terms(tangible, virtual, choice))))
+    return float(jnd_model.p_noticed(jnd_model.pool(jnd_terms(tangible, virtual, choice), choice.redirect_terms)))
 
 
 def criterion_table(tangible: Candidates, virtual: Candidates, choice: Choice, model: CostModel) -> dict:

@@ -49,8 +49,10 @@ MANIFEST_SUFFIX = ".toml"
 #: a centre of mass farther than this from the file's origin (mm, 1 km) is not an object's
 MAX_COORDINATE_MM = 1e6
 #: the keys of an object; ``[defaults]`` takes all but ``file`` and ``name``
-OBJECT_KEYS = ("file", "shape", "name", "units", "up", "com_mm", "axis", "mass_g", "split", "exclude", "only")
-DEFAULT_KEYS = tuple(k for k in OBJECT_KEYS if k not in ("file", "shape", "name"))
+OBJECT_KEYS = ("file", "shape", "name", "units", "up", "com_mm", "axis", "mass_g", "split", "exclude", "only", "pose")
+DEFAULT_KEYS = tuple(k for k in OBJECT_KEYS if k not in ("file", "shape", "name", "pose"))
+#: a pose's quaternion may be this far from length 1 (then it is normalised); farther, it is no rotation
+QUATERNION_TOLERANCE = 1e-3
 SPLITS = ("none", "nodes")
 #: a manifest is a hand-written list: at most this big
 MAX_MANIFEST_BYTES = 4 * 2**20
@@ -78,6 +80,7 @@ class ObjectSpec:
     node: str | None = None  # one mesh node of a level
     node_path: str | None = None
     manifest: str | None = None  # the manifest it was listed in
+    pose: tuple | None = None  # ((x, y, z) mm, (qx, qy, qz, qw)): file coordinates (mm) -> the level's world
 
     @property
     def display_name(self) -> str:
@@ -196,7 +199,34 @@ def _options(table: dict, where: str, problems: _Problems) -> dict:
     for key in ("exclude", "only"):
         if key in table:
             out[key] = _regions(table[key], where, key, problems)
+    if "pose" in table:
+        pose = _pose(table["pose"], where, problems)
+        if pose is not None:
+            out["pose"] = pose
     return out
+
+
+def _pose(value, where: str, problems: _Problems) -> tuple | None:
+    """A prop's pose in the room: ((x, y, z) mm, unit quaternion (x, y, z, w)), or None with its problem."""
+    example = "e.g. pose = { position_mm = [0, 0, 0], quaternion_xyzw = [0, 0, 0, 1] }"
+    if not isinstance(value, dict) or "position_mm" not in value or set(value) - {"position_mm", "quaternion_xyzw"}:
+        problems.add(where, "pose", f"must be a table of position_mm and, optionally, quaternion_xyzw; {example}")
+        return None
+    position = _vector(value["position_mm"])
+    if position is None or max(abs(c) for c in position) > MAX_COORDINATE_MM:
+        problems.add(where, "pose", f"position_mm must be three numbers [x, y, z] in mm within {MAX_COORDINATE_MM:g} "
+                                    "mm of the level's origin")
+        return None
+    q = value.get("quaternion_xyzw", [0.0, 0.0, 0.0, 1.0])
+    if not (isinstance(q, list) and len(q) == 4 and all(_number(c) for c in q)):
+        problems.add(where, "pose", f"quaternion_xyzw must be four numbers [x, y, z, w]; {example}")
+        return None
+    length = math.sqrt(sum(c * c for c in q))
+    if abs(length - 1.0) > QUATERNION_TOLERANCE:
+        problems.add(where, "pose", f"quaternion_xyzw {q} has length {length:.4g}, so it is not a rotation (a rigid "
+                                    "pose turns by a unit quaternion); give one of length 1, [0, 0, 0, 1] for none")
+        return None
+    return position, tuple(float(c) / length for c in q)
 
 
 def read_manifest(path: str | os.PathLike) -> list[ObjectSpec]:
@@ -343,7 +373,8 @@ def spec_to_dict(spec: ObjectSpec) -> dict:
             "com_mm": None if spec.com_mm is None else [float(c) for c in spec.com_mm],
             "axis": None if spec.axis is None else [float(c) for c in spec.axis],
             "mass_g": spec.mass_g, "regions": spec.regions.as_dict(), "split": spec.split,
-            "node": spec.node, "node_path": spec.node_path, "manifest": spec.manifest}
+            "node": spec.node, "node_path": spec.node_path, "manifest": spec.manifest,
+            "pose": None if spec.pose is None else [list(spec.pose[0]), list(spec.pose[1])]}
 
 
 def spec_from_dict(d: dict) -> ObjectSpec:
@@ -355,4 +386,5 @@ def spec_from_dict(d: dict) -> ObjectSpec:
                       axis=None if d["axis"] is None else tuple(d["axis"]), mass_g=d["mass_g"],
                       regions=ContactRegions(tuple(region(r) for r in d["regions"]["exclude"]),
                                              tuple(region(r) for r in d["regions"]["only"])),
-                      split=d["split"], node=d["node"], node_path=d["node_path"], manifest=d["manifest"])
+                      split=d["split"], node=d["node"], node_path=d["node_path"], manifest=d["manifest"],
+                      pose=None if d.get("pose") is None else (tuple(d["pose"][0]), tuple(d["pose"][1])))

@@ -1,0 +1,135 @@
+"""Hand redirection: a virtual object stays where the level puts it, and the hand is led to the prop.
+
+With ``placement="fixed"`` the virtual object is not moved onto the prop. While the hand reaches
+from its start to the physical pinch on the prop, the virtual hand is offset a little more with
+every centimetre (body warping, Azmandian et al. 2016), so that the virtual fingers land on the
+virtual pinch exactly when the real ones land on the prop. How far the hand must be redirected
+depends on the pinch pair: this module measures it and turns it into cost.
+
+Frames: the world is the level's (the glTF file's frame: y up), in mm. A virtual object's
+coordinates are world coordinates (a level's node is read with every transform above it applied).
+A prop's file coordinates (in mm) are mapped into the world by its manifest ``pose``
+(:class:`pinchmatch.mesh.manifest.ObjectSpec`, ``R x + p``); a prop without a pose stands at the
+world's origin, unturned.
+
+Per pose pair (the virtual pose's fingers in the order the search chose: p1 on the tangible's p1,
+or on its p2 when swapped):
+
+- ``physical_target_mm``, ``virtual_target_mm``: the pinch midpoints in the world;
+- ``offset_mm``: the distance between them;
+- ``angle_deg``: the angle at the hand's start between the directions to the two targets, the
+  quantity that body-warping studies threshold (Zenner and Krüger 2019);
+- ``axis_turn_deg``: the turn from the physical pinch axis (p1 to p2) to the virtual one.
+
+Cost, in threshold units (1 = at the threshold, as a criterion at 1 JND): ``angle_deg /
+threshold_deg`` and ``axis_turn_deg / axis_threshold_deg``, each squared and pooled with the haptic
+criteria's contributions, weight 1 (:meth:`pinchmatch.match.cost.CostModel.pool`). A pair whose angle
+exceeds ``max_angle_deg`` is not allowed; a virtual object with no allowed pair is served by the
+carousel (the registered placement, brought to the prop). Both terms are at least 0, so the
+search's lower bounds of the haptic cost stay lower bounds and the search stays exact. The model,
+its thresholds and their sources are in docs/redirection.md.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+#: body-warping detection threshold of the redirection angle (deg): Zenner and Krüger 2019
+REDIRECT_THRESHOLD_DEG = 4.5
+#: the largest redirection angle a match may use before the carousel takes over (deg)
+MAX_REDIRECT_DEG = 4.5
+#: the turn of the pinch axis that counts as one threshold unit (deg): the orientation threshold of
+#: an edge on the fingerpad (about 20°, Bensmaia et al. 2008; perception.md), a documented choice
+AXIS_THRESHOLD_DEG = 20.0
+#: where the hand rests before it reaches, when not given: from the prop's pose position, 150 mm up
+#: (+Y) and 300 mm toward the user (+Z, the side a glTF scene faces), mm
+DEFAULT_HAND_OFFSET_MM = (0.0, 150.0, 300.0)
+#: the bounds of the options (deg, mm)
+MAX_THRESHOLD_DEG, MAX_HAND_START_MM = 90.0, 1e5
+PLACEMENTS = ("registered", "fixed")
+
+
+@dataclass(frozen=True)
+class Redirect:
+    """How far the hand may be redirected and what it costs (see the module notes); ``hand_start_mm``
+    None: each prop's default (``DEFAULT_HAND_OFFSET_MM`` from its pose position)."""
+
+    hand_start_mm: tuple | None = None
+    threshold_deg: float = REDIRECT_THRESHOLD_DEG
+    max_angle_deg: float = MAX_REDIRECT_DEG
+    axis_threshold_deg: float = AXIS_THRESHOLD_DEG
+
+
+@dataclass(frozen=True)
+class Redirection:
+    """The redirection of k pose pairs (mm and degrees, world frame); ``terms`` (k, 2) the angle's
+    and the axis turn's contributions (threshold units squared); ``allowed`` (k,) within the budget."""
+
+    angle_deg: np.ndarray
+    offset_mm: np.ndarray
+    axis_turn_deg: np.ndarray
+    hand_start_mm: np.ndarray
+    physical_target_mm: np.ndarray
+    virtual_target_mm: np.ndarray
+    terms: np.ndarray
+    allowed: np.ndarray
+
+    def record(self, k: int, mode: str) -> dict:
+        """Pair ``k``'s entry of ``matches.json`` (``mode``: ``redirect`` or ``carousel``)."""
+        def vec(v):
+            return [round(float(c), 3) for c in v]
+
+        return {"mode": mode, "angle_deg": round(float(self.angle_deg[k]), 4),
+                "offset_mm": round(float(self.offset_mm[k]), 3),
+                "axis_turn_deg": round(float(self.axis_turn_deg[k]), 4),
+                "hand_start_mm": vec(self.hand_start_mm), "physical_target_mm": vec(self.physical_target_mm[k]),
+                "virtual_target_mm": vec(self.virtual_target_mm[k])}
+
+
+def world_pose(spec) -> tuple[np.ndarray, np.ndarray]:
+    """(R (3, 3), p (3,)): the map of an object's file coordinates (mm) into the world; the
+    identity where its spec gives no pose."""
+    pose = getattr(spec, "pose", None) if spec is not None else None
+    if pose is None:
+        return np.eye(3), np.zeros(3)
+    return quaternion_matrix(pose[1]), np.asarray(pose[0], dtype=np.float64)
+
+
+def quaternion_matrix(xyzw) -> np.ndarray:
+    """The rotation matrix of a unit quaternion (x, y, z, w)."""
+    x, y, z, w = (float(c) for c in xyzw)
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+    ])
+
+
+def hand_start(spec, redirect: Redirect) -> np.ndarray:
+    """Where the hand starts (mm, world): the given point, else the prop's default."""
+    if redirect.hand_start_mm is not None:
+        return np.asarray(redirect.hand_start_mm, dtype=np.float64)
+    return world_pose(spec)[1] + np.asarray(DEFAULT_HAND_OFFSET_MM)
+
+
+def _angle_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Angles between rows of a and b (deg), by atan2 of |a x b| and a . b (exact near 0)."""
+    cross = np.linalg.norm(np.cross(a, b), axis=-1)
+    return np.degrees(np.arctan2(cross, np.einsum("...i,...i->...", a, b)))
+
+
+def redirection(tangible_spec, t_points: np.ndarray, v_points: np.ndarray, redirect: Redirect) -> Redirection:
+    """The redirection of k pose pairs: ``t_points`` (k, 2, 3) the tangible's contacts in its file
+    frame (mm), ``v_points`` (k, 2, 3) the virtual object's in the world, in the matched finger order."""
+    R, p = world_pose(tangible_spec)
+    physical = np.einsum("ij,kfj->kfi", R, np.asarray(t_points, dtype=np.float64)) + p
+    virtual = np.asarray(v_points, dtype=np.float64)
+    start = hand_start(tangible_spec, redirect)
+    pt, vt = physical.mean(axis=1), virtual.mean(axis=1)
+    angle = _angle_deg(pt - start, vt - start)
+    turn = _angle_deg(physical[:, 1] - physical[:, 0], virtual[:, 1] - virtual[:, 0])
+    terms = np.stack([(angle / redirect.threshold_deg) ** 2, (turn / redirect.axis_threshold_deg) ** 2], axis=-1)
+    return Redirection(angle, np.linalg.norm(vt - pt, axis=1), turn, start, pt, vt, terms,
+                       angle <= redirect.max_angle_deg)

@@ -1,0 +1,153 @@
+"""Hand redirection: virtual objects stay where a level puts them and the hand is led to one prop."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+import trimesh
+
+from pinchmatch import MatchSettings, PinchSettings, analyze_spec, candidate_poses, evaluate_pairs, match_scene
+from pinchmatch.match.redirect import quaternion_matrix
+from pinchmatch.mesh.manifest import object_specs
+
+from conftest import assert_bad_input, run_cli
+from levels import Z_UP_IN_Y_UP, standing_can, tabletop_level
+
+SETTINGS = PinchSettings(count=200, seed=0)
+PROP = ('[[object]]\nname = "can_prop"\nshape = { kind = "cylinder", diameter_mm = 54, height_mm = 66 }\n'
+        f'pose = {{ position_mm = [0, 0, 0], quaternion_xyzw = {Z_UP_IN_Y_UP} }}\n')
+
+
+@pytest.fixture(scope="module")
+def kitchen(tmp_path_factory):
+    """One can-sized prop at the origin; cans and a box on the table around it, near and far (m)."""
+    folder = tmp_path_factory.mktemp("kitchen")
+    box = trimesh.creation.box(extents=(0.05, 0.05, 0.05))
+    box.apply_translation([0.0, 0.025, 0.0])
+    tabletop_level(folder / "kitchen.glb", [("can_near", standing_can(), (0.02, 0.0, 0.0)),
+                                           ("box_near", box, (-0.01, 0.0, 0.015)),
+                                           ("can_far", standing_can(), (0.3, 0.0, -0.2)),
+                                           ("can_left", standing_can(), (-0.25, 0.0, 0.05))])
+    (folder / "props.toml").write_text(PROP)
+    return folder
+
+
+def _run(capsys, kitchen, out, *extra):
+    code, _, err = run_cli(capsys, "match", "--tangible", kitchen / "props.toml", "--virtual", kitchen / "kitchen.glb",
+                           "--split", "nodes", "--count", 200, "-o", out, "--no-view", "--jobs", 1, *extra)
+    assert code == 0, err
+    return {m["virtual"]: m for m in json.loads((out / "matches.json").read_text())["matches"]}
+
+
+def _angle(a, b):
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    return math.degrees(math.acos(np.clip(a @ b / np.linalg.norm(a) / np.linalg.norm(b), -1.0, 1.0)))
+
+
+def test_near_objects_are_redirected_far_ones_served_by_the_carousel(tmp_path, capsys, kitchen):
+    matches = _run(capsys, kitchen, tmp_path / "out", "--placement", "fixed")
+    modes = {name: m["redirection"]["mode"] for name, m in matches.items()}
+    assert modes == {"can_near": "redirect", "box_near": "redirect", "can_far": "carousel", "can_left": "carousel"}
+    R = quaternion_matrix(Z_UP_IN_Y_UP)
+    for name, m in matches.items():
+        r = m["redirection"]
+        start = np.array(r["hand_start_mm"])
+        assert r["hand_start_mm"] == [0.0, 150.0, 300.0]  # the default: above and in front of the prop
+        # recomputed from the reported targets and the hand's start
+        recomputed = _angle(np.array(r["physical_target_mm"]) - start, np.array(r["virtual_target_mm"]) - start)
+        assert r["angle_deg"] == pytest.approx(recomputed, abs=0.01)
+        assert r["offset_mm"] == pytest.approx(np.linalg.norm(np.subtract(r["virtual_target_mm"],
+                                                                          r["physical_target_mm"])), abs=0.01)
+        # the physical target is the tangible pose's midpoint, placed by the prop's pose
+        mid = np.mean([m["tangible_pose"]["p1_mm"], m["tangible_pose"]["p2_mm"]], axis=0)
+        assert np.allclose(R @ mid, r["physical_target_mm"], atol=0.01)
+        if r["mode"] == "redirect":
+            assert r["angle_deg"] <= 4.5
+        else:
+            assert r["angle_deg"] > 4.5  # no pair of the sample within the budget: the carousel's own pair
+    assert matches["can_near"]["cost"] < 0.1  # a can beside its twin: the hand barely turned
+
+
+def test_the_redirection_term_changes_the_choice_and_the_search_stays_exact(kitchen):
+    T = [candidate_poses(analyze_spec(s), settings=SETTINGS) for s in object_specs([kitchen / "props.toml"],
+                                                                                  option="--tangible")]
+    V = [candidate_poses(analyze_spec(s), settings=SETTINGS)
+         for s in object_specs([kitchen / "kitchen.glb"], option="--virtual", split="nodes")]
+    box = next(v for v in V if v.name == "box_near")
+    fixed = MatchSettings(placement="fixed", refine=False, landing_mm=0.0, top_k=0)
+    registered = MatchSettings(refine=False, landing_mm=0.0, top_k=0)
+    chosen = match_scene(T, [box], settings=fixed).matches[0].best
+    plain = match_scene(T, [box], settings=registered).matches[0].best
+    # brute force over every pose pair, with the redirection: the search's best is the least
+    it, iv = np.repeat(np.arange(len(T[0])), len(box)), np.tile(np.arange(len(box)), len(T[0]))
+    every = evaluate_pairs(T[0], box, it, iv, redirect=fixed.redirect)
+    assert chosen.cost == pytest.approx(float(every.cost.min()), rel=1e-9)
+    # the registered choice, held to the fixed placement, costs more or needs more redirection
+    k = int(np.flatnonzero((it == plain.t_pose) & (iv == plain.v_pose))[0])
+    assert every.cost[k] >= chosen.cost
+    assert (chosen.t_pose, chosen.v_pose) != (plain.t_pose, plain.v_pose)
+    assert every.redirect_terms[k].sum() > chosen.redirect_terms.sum()
+
+
+def test_keep_upright_still_holds_for_the_carousel(tmp_path, capsys, kitchen):
+    matches = _run(capsys, kitchen, tmp_path / "out", "--placement", "fixed", "--keep-upright")
+    assert all(not m["flipped"] for m in matches.values())
+
+
+def test_a_pose_with_the_registered_placement_is_ignored_with_a_note(tmp_path, capsys, kitchen):
+    plain_props = tmp_path / "plain.toml"
+    plain_props.write_text(PROP.split("pose =")[0])
+    a = _run(capsys, kitchen, tmp_path / "a")
+    code, out, err = run_cli(capsys, "match", "--tangible", plain_props, "--virtual", kitchen / "kitchen.glb",
+                             "--split", "nodes", "--count", 200, "-o", tmp_path / "b", "--no-view", "--jobs", 1)
+    b = {m["virtual"]: m for m in json.loads((tmp_path / "b" / "matches.json").read_text())["matches"]}
+    assert {k: v["cost"] for k, v in a.items()} == {k: v["cost"] for k, v in b.items()}
+    assert all("redirection" not in m for m in a.values())
+    _run(capsys, kitchen, tmp_path / "c")
+    # the note is printed by the run with the pose
+    code, out, err = run_cli(capsys, "match", "--tangible", kitchen / "props.toml", "--virtual",
+                             kitchen / "kitchen.glb", "--split", "nodes", "--count", 200, "-o", tmp_path / "d",
+                             "--no-view", "--jobs", 1)
+    assert "used with --placement fixed only; ignored" in out + err
+
+
+@pytest.mark.parametrize("pose, words", [
+    ("pose = { position_mm = [0, 0, 0], quaternion_xyzw = [0, 0, 0, 2] }", "is not a rotation"),
+    ("pose = { position_mm = [0, 0] }", "position_mm must be three numbers"),
+    ("pose = { where = [0, 0, 0] }", "must be a table of position_mm"),
+])
+def test_a_pose_that_is_not_a_rigid_motion_is_one_line(tmp_path, capsys, kitchen, pose, words):
+    props = tmp_path / "props.toml"
+    props.write_text('[[object]]\nname = "p"\nshape = { kind = "cylinder", diameter_mm = 54, height_mm = 66 }\n'
+                     + pose + "\n")
+    out = tmp_path / "out"
+    code, _, err = run_cli(capsys, "match", "--tangible", props, "--virtual", kitchen / "kitchen.glb", "--split",
+                           "nodes", "--placement", "fixed", "-o", out)
+    assert_bad_input(code, err, str(props), "pose", words)
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("extra, words", [
+    (["--hand-start", "0,30,0"], "lies inside the prop can_prop"),
+    (["--hand-start", "0,3e,0"], "give three numbers X,Y,Z"),
+    (["--hand-start", "0,0,1e9"], "within 100000 mm"),
+    (["--max-redirect-deg", "0"], "--max-redirect-deg"),
+    (["--redirect-threshold-deg", "100"], "--redirect-threshold-deg"),
+])
+def test_bad_redirection_options_are_one_line(tmp_path, capsys, kitchen, extra, words):
+    out = tmp_path / "out"
+    code, _, err = run_cli(capsys, "match", "--tangible", kitchen / "props.toml", "--virtual",
+                           kitchen / "kitchen.glb", "--split", "nodes", "--placement", "fixed", *extra, "-o", out)
+    assert_bad_input(code, err, words)
+    assert not out.exists()
+
+
+def test_fixed_placement_needs_a_level(tmp_path, capsys, kitchen):
+    can = tmp_path / "can.stl"
+    trimesh.creation.cylinder(radius=27.0, height=66.0).export(can)
+    out = tmp_path / "out"
+    code, _, err = run_cli(capsys, "match", "--tangible", kitchen / "props.toml", "--virtual", can,
+                           "--placement", "fixed", "-o", out)
+    assert_bad_input(code, err, str(can), "not a level's node", "--split nodes")
+    assert not out.exists()
