@@ -158,3 +158,49 @@ test("the study's numbers, as literals: 5 mm, 14 degrees, held 1 s; calibrations
   assert.deepEqual({ ...XR.DEFAULT_LIMITS }, { pos_mm: 5, angle_deg: 14, hold_s: 1 });
   assert.equal(XR.MAX_CALIBRATION_RMS_MM, 6);
 });
+
+// ---- scene mode: the warp, the level's frame, the carousel --------------------------------------------
+const close = (a, b, tol = 1e-9) => a.every((x, k) => Math.abs(x - b[k]) <= tol);
+
+test("the warp: no offset at the start, the full offset at the physical target, linear on the way", () => {
+  const start = [0, 1.05, -0.1], physical = [0.05, 0.95, -0.4], virtual = [0.07, 0.955, -0.41];
+  const full = [0.02, 0.005, -0.01];
+  assert.ok(close(XR.warpOffset(start, physical, virtual, start), [0, 0, 0]));
+  assert.ok(close(XR.warpOffset(start, physical, virtual, physical), full, 1e-12));
+  const mid = start.map((x, k) => (x + physical[k]) / 2);
+  assert.ok(close(XR.warpOffset(start, physical, virtual, mid), full.map((x) => x / 2), 1e-12));
+  assert.equal(XR.warpRatio(start, physical, [start[0], start[1] + 0.1, start[2] + 0.2]), 0); // back: none
+  assert.equal(XR.warpRatio(start, physical, [0.1, 0.9, -0.6]), 1); // past the target: the full offset
+  // along the way the offset never jumps: 100 steps of 3 mm move it at most |full| / 100 each
+  let last = XR.warpOffset(start, physical, virtual, start), biggest = 0;
+  for (let k = 1; k <= 100; k++) {
+    const h = start.map((x, i) => x + ((physical[i] - x) * k) / 100);
+    const now = XR.warpOffset(start, physical, virtual, h);
+    biggest = Math.max(biggest, Math.hypot(...now.map((x, i) => x - last[i])));
+    last = now;
+  }
+  assert.ok(biggest <= Math.hypot(...full) / 100 + 1e-12);
+});
+
+test("the level in the prop's scene frame: a pose's inverse, then the scene's turn of the prop file", () => {
+  // a z-up prop file, shown y up: Q = [[1,0,0],[0,0,1],[0,-1,0]] / 1000 as the scenes store it
+  const C = [0.001, 0, 0, 0, 0, 0, 0.001, 0, 0, -0.001, 0, 0, 0, 0, 0, 1];
+  const s = Math.sqrt(0.5);
+  const pose = { position_mm: [100, 0, -50], quaternion_xyzw: [-s, 0, 0, s] }; // the file's +z up in the level
+  const M = XR.levelToProp(C, pose);
+  // a prop file point (mm) -> the level by the pose -> back into the scene frame: Q x / 1000
+  const x = [10, 20, 30];
+  const R = XR.quaternionRows(pose.quaternion_xyzw);
+  const w = R.map((row, i) => (row[0] * x[0] + row[1] * x[1] + row[2] * x[2] + pose.position_mm[i]) / 1000);
+  const got = [0, 1, 2].map((i) => M[4 * i] * w[0] + M[4 * i + 1] * w[1] + M[4 * i + 2] * w[2] + M[4 * i + 3]);
+  assert.ok(close(got, [0.01, 0.03, -0.02], 1e-12), String(got));
+  // with no pose the level's origin is the prop file's
+  const I = XR.levelToProp(C, null);
+  assert.ok(close([I[3], I[7], I[11]], [0, 0, 0]));
+});
+
+test("the carousel serves the carousel matches in the page's order", () => {
+  const matches = [{ redirection: { mode: "redirect" } }, { redirection: { mode: "carousel" } }, {},
+                   { redirection: { mode: "carousel" } }];
+  assert.deepEqual(XR.carouselQueue(matches), [1, 3]);
+});

@@ -275,6 +275,9 @@ def object_entry(candidates, *, dump_poses: bool = False) -> dict:
              "regions": obj.context.regions.as_dict(),
              **object_section(obj.loaded, obj.props, ray_engine=obj.context.ray_engine_name),
              "pose_count": len(candidates), "poses_given": candidates.given}
+    if spec is not None and spec.pose is not None:  # where the prop stands in the level (mm, y up)
+        entry["pose"] = {"position_mm": [float(c) for c in spec.pose[0]],
+                         "quaternion_xyzw": [float(c) for c in spec.pose[1]]}
     if dump_poses:
         entry["poses"] = pose_records(candidates.pinches, candidates.features)
         for record, index in zip(entry["poses"], candidates.index):

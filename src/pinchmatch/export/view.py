@@ -81,6 +81,7 @@ def page_data(out: Path, document: dict) -> dict:
 
 def _page_data(out: Path, document: dict) -> dict:
     stems = scene_stems([m["virtual"] for m in document["matches"]])
+    poses = {t["name"]: t.get("pose") for t in document["tangibles"]}
     matches, unmatched = [], []
     for stem, m in zip(stems, document["matches"]):
         if m.get("tangible") is None:
@@ -119,7 +120,7 @@ def _page_data(out: Path, document: dict) -> dict:
             "alternatives": alternatives,
             "criteria": [{"name": name, **values} for name, values in m["criteria"].items()],
             "glb_base64": base64.b64encode(glb.read_bytes()).decode("ascii"),
-        })
+        } | _scene_fields(m, poses))
     settings = document.get("settings", {})
     n_t, n_v = len(document["tangibles"]), len(document["virtuals"])
     criteria = settings.get("criteria", [])
@@ -129,7 +130,17 @@ def _page_data(out: Path, document: dict) -> dict:
                f"criteria {', '.join(criteria) if isinstance(criteria, list) else criteria}; "
                f"normalize {settings.get('normalize', 'jnd')}; pooling {settings.get('pooling', 'sum')}")
     return {"version": document.get("version"), "summary": summary, "matches": matches, "unmatched": unmatched,
+            "scene": any("redirection" in m for m in matches),
             "study": _study_plan(out, {m["virtual"] for m in matches})}
+
+
+def _scene_fields(m: dict, poses: dict) -> dict:
+    """Under ``--placement fixed``, what the headset's scene mode needs of a match: its redirection,
+    the virtual pinch in the level's frame (mm) and where its prop stands in the level."""
+    if m.get("redirection") is None:
+        return {}
+    return {"redirection": m["redirection"], "virtual_p1_mm": m["virtual_pose"]["p1_mm"],
+            "virtual_p2_mm": m["virtual_pose"]["p2_mm"], "prop_pose": poses.get(m["tangible"])}
 
 
 def _study_plan(out: Path, matched: set) -> dict | None:
@@ -176,6 +187,7 @@ def render_page(data: dict, *, settings: dict | None = None) -> str:
         "THREE": _asset("three.bundle.min.js"),
         "VIEWER": _asset("viewer.js"),
         "XR_CORE": _asset("xr_core.js"),
+        "SCENE_XR": _asset("scene_xr.js"),
         "IMMERSIVE": _asset("immersive.js"),
     }
     # one pass, so nothing inserted is read as a placeholder again

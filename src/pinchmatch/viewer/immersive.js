@@ -254,7 +254,7 @@
     markers = [];
     applyCalibration();
     say(`Calibrated: residual ${fit.rms_mm.toFixed(1)} mm rms, ${fit.max_mm.toFixed(1)} mm at most.`);
-    setTimeout(() => beginGuiding(), 1500);
+    setTimeout(() => begin(), 1500);
   }
 
   function applyCalibration() {
@@ -269,6 +269,26 @@
     } catch (e) {
       return null;
     }
+  }
+
+  // ---- the level around the user (scene mode, scene_xr.js), or one match at a time ----------------
+  let sceneXR = null;
+
+  async function begin() {
+    if (!sceneXR) return beginGuiding();
+    if (state.calibration && !state.calibration.refused) applyCalibration();
+    content.clear(); // the level shows every object; the single match's scene goes
+    state.phase = "scene";
+    await sceneXR.begin();
+  }
+
+  function sceneStep(t, seen) {
+    const drawn = sceneXR.step(t, seen);
+    drawn.forEach((h, i) => {
+      if (!h) return;
+      hands[i].tips.thumb.position.set(...h.thumb);
+      hands[i].tips.index.position.set(...h.index);
+    });
   }
 
   // ---- guiding, validation, lifting and rating -----------------------------------------------------
@@ -436,6 +456,7 @@
     else if (state.phase === "guiding") guideStep(lastTime, seen);
     else if (state.phase === "lifting") liftStep(seen);
     else if (state.phase === "rating") ratingStep(seen);
+    else if (state.phase === "scene") sceneStep(lastTime, seen);
     const camera = renderer.xr.getCamera();
     panel.place(new THREE.Vector3().setFromMatrixPosition(camera.matrixWorld));
     renderer.render(scene, camera);
@@ -458,6 +479,9 @@
       V.view.resize();
     });
     state.study = $("study-mode").checked && Boolean(DATA.study);
+    sceneXR = !state.study && PinchmatchScene.wanted()
+      ? PinchmatchScene.create({ scene, propFrame, say, limits }) : null;
+    if (sceneXR) window.pinchmatchXR.scene = sceneXR.hooks;
     state.lift = $("lift").checked;
     if (state.study) { state.trial = 0; state.results = []; }
     await show(state.study ? DATA.matches.findIndex((m) => m.virtual === DATA.study.pairs[DATA.study.trials[0].pair].virtual)
@@ -467,7 +491,7 @@
     if (stored && !forceCalibration) {
       state.calibration = stored;
       say(`Using the stored calibration (${stored.rms_mm.toFixed(1)} mm rms, ${stored.date}).`);
-      beginGuiding();
+      begin();
     } else {
       startCalibration();
     }
@@ -493,6 +517,10 @@
     $("pos-mm").value = limits.pos_mm;
     $("angle-deg").value = limits.angle_deg;
     $("hold-s").value = limits.hold_s;
+    if (DATA.scene) {
+      $("scene-row").hidden = false;
+      $("scene-mode").checked = new URLSearchParams(location.search).get("mode") === "scene";
+    }
     if (DATA.study) {
       $("study-row").hidden = false;
       $("study-count").textContent = String(trialCount()) + (DATA.study.left_out

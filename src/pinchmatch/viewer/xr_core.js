@@ -253,6 +253,51 @@
              text: `${word}: within ${landing.radius_mm} mm of the targets it is noticed at most ${worst} % of the time` };
   }
 
+  // ---- scene mode: hand redirection (docs/redirection.md) ----------------------------------------------
+
+  // Body warping after Azmandian et al. 2016: how far the hand h has come from the warp's origin w0
+  // toward the physical target wT, projected on the line between them and clamped to [0, 1]: 0 at the
+  // start (and whenever the hand is back behind it), 1 at the target.
+  function warpRatio(w0, wT, h) {
+    const path = sub(wT, w0), length2 = dot(path, path);
+    if (!(length2 > 0)) return 1;
+    return Math.max(0, Math.min(1, dot(path, sub(h, w0)) / length2));
+  }
+
+  // The virtual hand's offset from the real one at h: the ratio times (virtual - physical target), so
+  // that the virtual fingers reach the virtual pinch exactly when the real ones reach the prop.
+  function warpOffset(w0, physical, virtual, h) {
+    const a = warpRatio(w0, physical, h), d = sub(virtual, physical);
+    return [a * d[0], a * d[1], a * d[2]];
+  }
+
+  // The rotation matrix (rows) of a unit quaternion [x, y, z, w].
+  function quaternionRows([x, y, z, w]) {
+    return [[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]];
+  }
+
+  // The level's frame (metres, y up) in the prop's scene frame, the frame of the match scenes that the
+  // calibration places in the room: a 4x4 matrix, 16 numbers row by row. C: the scenes'
+  // "pinchmatch:file_mm_to_gltf_m" (16 numbers row by row: the prop file's mm to the scene's metres);
+  // pose: the prop's pose in the level ({position_mm, quaternion_xyzw}; null: at the origin, unturned).
+  // A level point w maps to Q R^T (w - p), Q the scene's turn of the prop file, R and p the pose's.
+  function levelToProp(C, pose) {
+    const Q = [0, 1, 2].map((i) => [0, 1, 2].map((j) => C[4 * i + j] * 1000));
+    const R = quaternionRows(pose ? pose.quaternion_xyzw : [0, 0, 0, 1]);
+    const p = (pose ? pose.position_mm : [0, 0, 0]).map((x) => x / 1000);
+    const M = [0, 1, 2].map((i) => [0, 1, 2].map((j) => Q[i][0] * R[j][0] + Q[i][1] * R[j][1] + Q[i][2] * R[j][2]));
+    const t = M.map((row) => -dot(row, p));
+    return [...M[0], t[0], ...M[1], t[1], ...M[2], t[2], 0, 0, 0, 1];
+  }
+
+  // The carousel's order: the matches (indices into `matches`) that it serves, in the page's order.
+  function carouselQueue(matches) {
+    return matches.flatMap((m, i) => (m.redirection && m.redirection.mode === "carousel" ? [i] : []));
+  }
+
   return { DEFAULT_LIMITS, MAX_CALIBRATION_RMS_MM, checkPinch, HoldTimer, SteadyTouch, limitsFromQuery, rigidFit, spreadOk,
-           calibrationPoints, toCSV, angleDeg, landingNote };
+           calibrationPoints, toCSV, angleDeg, landingNote, warpRatio, warpOffset, quaternionRows, levelToProp,
+           carouselQueue };
 });

@@ -1,0 +1,222 @@
+// pinchmatch in the headset, scene mode (index.html?mode=scene, or the page's "scene" box): the whole
+// level around the user, one prop on the real table (calibrated by touch as in the other modes).
+// - `redirect` matches: the virtual object stays where the level puts it; while the hand reaches from its
+//   start to the physical pinch, the rendered fingertips are offset a little more with every centimetre
+//   (body warping), so that they land on the virtual pinch when the real ones land on the prop;
+// - `carousel` matches: the objects wait on a carousel beside the prop; a fingertip on its button turns it,
+//   and the next object comes onto the prop, registered;
+// - the green cones and the validation (pos_mm, angle_deg, hold_s) are on the virtual targets, as the
+//   warped fingertips see them.
+// The pure logic (the warp, the level's frame, the carousel's order) lives in xr_core.js.
+"use strict";
+window.PinchmatchScene = (function () {
+  const { THREE } = PM3;
+  const XR = PinchmatchXR;
+  const V = window.pinchmatchViewer;
+  const DATA = V.DATA;
+  const GREEN = 0x2fbf4f;
+  const CAROUSEL_CENTRE_M = [0.3, 0, 0]; // beside the prop, in the prop's scene frame
+  const CAROUSEL_RADIUS_M = 0.12, BUTTON_SIZE_M = 0.04, BUTTON_PRESS_M = 0.02, NEXT_TASK_S = 2;
+  const rows = (r) => new THREE.Matrix4().set(...r);
+  const mm = (p) => new THREE.Vector3(...p).multiplyScalar(0.001);
+
+  const wanted = () => Boolean(DATA.scene) && (new URLSearchParams(location.search).get("mode") === "scene" ||
+    Boolean(document.getElementById("scene-mode") && document.getElementById("scene-mode").checked));
+
+  // api: { scene, propFrame, say, limits } of the immersive page
+  function create(api) {
+    const level = new THREE.Group(); // the level's frame (metres, y up), inside the prop's scene frame
+    level.matrixAutoUpdate = false;
+    const carousel = new THREE.Group(); // the carousel, beside the prop
+    carousel.position.set(...CAROUSEL_CENTRE_M);
+    const onProp = new THREE.Group(); // the carousel's object on the prop, registered
+    api.propFrame.add(level, carousel, onProp);
+    const cones = new THREE.Group();
+    const coneMaterial = new THREE.MeshStandardMaterial({ color: GREEN });
+    const button = new THREE.Mesh(new THREE.BoxGeometry(BUTTON_SIZE_M, BUTTON_SIZE_M / 2, BUTTON_SIZE_M),
+      new THREE.MeshStandardMaterial({ color: 0xffb020 }));
+    button.position.set(CAROUSEL_CENTRE_M[0], 0.02, CAROUSEL_CENTRE_M[2] + CAROUSEL_RADIUS_M + 0.06);
+    api.propFrame.add(button);
+    const hold = new XR.HoldTimer(api.limits.hold_s);
+    const queue = XR.carouselQueue(DATA.matches).filter((i) => DATA.matches[i].tangible ===
+      (DATA.matches.find((m) => m.redirection) || {}).tangible);
+    const st = { phase: "idle", task: -1, on_prop: null, carousel_turns: 0, held_s: 0, validated: false, check: null,
+                 ratio: 0, offset_mm: [0, 0, 0], rendered: [], real: [] };
+    let objects = new Map(), pressReady = false, nextAt = null;
+
+    // the matches on the prop of the page's first redirected match: the one prop calibrated in the room
+    const prop = (DATA.matches.find((m) => m.redirection) || {}).tangible;
+    const tasks = () => DATA.matches.flatMap((m, i) => (m.redirection && m.tangible === prop ? [i] : []));
+    const room = (local, group) => { api.propFrame.updateMatrixWorld(true); return local.clone().applyMatrix4(group.matrixWorld); };
+
+    // every object of the level: redirected ones in place, carousel ones on the carousel
+    async function build() {
+      const first = await V.loadScene(tasks()[0]);
+      const C = first.scene.userData["pinchmatch:file_mm_to_gltf_m"];
+      const pose = DATA.matches[tasks()[0]].prop_pose || null;
+      level.matrix.copy(rows(XR.levelToProp(C, pose)));
+      for (const i of tasks()) {
+        const root = (await V.loadScene(i)).scene.clone(true);
+        const virtual = root.getObjectByName("virtual");
+        const material = virtual.material.clone();
+        Object.assign(material, { transparent: false, opacity: 1, depthWrite: true });
+        virtual.material = material;
+        const registered = virtual.matrix.clone();
+        virtual.removeFromParent();
+        // the scenes keep each virtual file's points turned as the prop's file is (Q); the level undoes it
+        const Q = new THREE.Matrix4().fromArray(root.userData["pinchmatch:file_mm_to_gltf_m"]).transpose();
+        const unturn = new THREE.Matrix4().extractRotation(Q).invert();
+        const o = { index: i, virtual, registered, unturn, material, base: material.color.clone(),
+                    mode: DATA.matches[i].redirection.mode, root };
+        if (o.mode === "redirect") placeInLevel(o);
+        objects.set(i, o);
+      }
+      queue.forEach((i, k) => placeOnCarousel(objects.get(i), k));
+    }
+
+    function placeInLevel(o) {
+      o.virtual.matrix.copy(o.unturn);
+      o.virtual.matrix.decompose(o.virtual.position, o.virtual.quaternion, o.virtual.scale);
+      level.add(o.virtual);
+    }
+
+    function placeOnCarousel(o, k) {
+      const a = (2 * Math.PI * k) / Math.max(queue.length, 1);
+      o.virtual.matrix.copy(o.registered);
+      o.virtual.matrix.decompose(o.virtual.position, o.virtual.quaternion, o.virtual.scale);
+      o.virtual.position.add(new THREE.Vector3(Math.cos(a) * CAROUSEL_RADIUS_M, 0, Math.sin(a) * CAROUSEL_RADIUS_M));
+      carousel.add(o.virtual);
+    }
+
+    // the carousel turns: its next object comes onto the prop, registered; the one there goes back
+    function turnCarousel() {
+      if (!queue.length) return;
+      const k = st.on_prop === null ? 0 : (queue.indexOf(st.on_prop) + 1) % queue.length;
+      if (st.on_prop !== null) placeOnCarousel(objects.get(st.on_prop), queue.indexOf(st.on_prop));
+      const o = objects.get(queue[k]);
+      o.virtual.matrix.copy(o.registered);
+      o.virtual.matrix.decompose(o.virtual.position, o.virtual.quaternion, o.virtual.scale);
+      onProp.add(o.virtual);
+      st.on_prop = queue[k];
+      st.carousel_turns += 1;
+      carousel.rotation.y = (-2 * Math.PI * (k + 1)) / Math.max(queue.length, 1);
+    }
+
+    // the current task's targets in the room: [virtual p1, p2], [physical p1, p2], the hand's start
+    function targets() {
+      const m = DATA.matches[tasks()[st.task]];
+      const o = objects.get(tasks()[st.task]);
+      const C = new THREE.Matrix4().fromArray(o.root.userData["pinchmatch:file_mm_to_gltf_m"]).transpose();
+      const physical = ["cone_p1", "cone_p2"].map((n) =>
+        room(new THREE.Vector3(...o.root.getObjectByName(n).userData["pinchmatch:contact_mm"]).applyMatrix4(C),
+             api.propFrame));
+      if (m.redirection.mode === "carousel") return { virtual: physical, physical, start: null };
+      const virtual = [m.virtual_p1_mm, m.virtual_p2_mm].map((p) => room(mm(p), level));
+      return { virtual, physical, start: room(mm(m.redirection.hand_start_mm), level) };
+    }
+
+    function aim() {
+      cones.clear();
+      cones.removeFromParent();
+      const t = targets();
+      const u = t.virtual[1].clone().sub(t.virtual[0]).normalize();
+      cones.add(V.cone(coneMaterial, t.virtual[0], u), V.cone(coneMaterial, t.virtual[1], u.clone().negate()));
+      api.scene.add(cones); // in room coordinates
+      hold.hold_s = api.limits.hold_s;
+      hold.reset();
+      Object.assign(st, { validated: false, held_s: 0, check: null });
+    }
+
+    async function begin() {
+      if (!objects.size) await build();
+      st.phase = "scene";
+      go(0);
+    }
+
+    function go(k) {
+      st.task = k;
+      objects.forEach((o) => o.material.color.copy(o.base));
+      const m = DATA.matches[tasks()[k]];
+      nextAt = null;
+      if (m.redirection.mode === "carousel" && st.on_prop !== tasks()[k]) {
+        cones.clear();
+        api.say(`${m.virtual} is on the carousel: press the orange button with a fingertip until it comes onto ` +
+                "the prop.");
+      } else {
+        aim();
+        api.say(`Pinch ${m.virtual} where the green cones show` +
+                (m.redirection.mode === "redirect" ? `: it stays in place, your hand is led to the prop.` : "."));
+      }
+    }
+
+    // one frame: seen = the real fingertips ([{thumb, index}] per hand, room metres); returns what to draw
+    function step(t, seen) {
+      const m = DATA.matches[tasks()[st.task]];
+      const real = seen.map((h) => (h ? { ...h } : null));
+      let rendered = real;
+      if (m.redirection.mode === "redirect" && cones.children.length) {
+        const tg = targets();
+        rendered = real.map((h) => {
+          if (!h) return null;
+          const mid = h.thumb.map((x, k) => (x + h.index[k]) / 2);
+          const d = XR.warpOffset(tg.start.toArray(), tg.physical[0].clone().add(tg.physical[1]).multiplyScalar(0.5).toArray(),
+            tg.virtual[0].clone().add(tg.virtual[1]).multiplyScalar(0.5).toArray(), mid);
+          st.ratio = XR.warpRatio(tg.start.toArray(),
+            tg.physical[0].clone().add(tg.physical[1]).multiplyScalar(0.5).toArray(), mid);
+          st.offset_mm = d.map((x) => x * 1000);
+          return { ...h, thumb: h.thumb.map((x, k) => x + d[k]), index: h.index.map((x, k) => x + d[k]) };
+        });
+      }
+      st.real = real;
+      st.rendered = rendered;
+      pressStep(real);
+      if (cones.children.length && !st.validated) validateStep(t, rendered);
+      if (nextAt !== null && t >= nextAt) go((st.task + 1) % tasks().length);
+      return rendered;
+    }
+
+    function pressStep(real) {
+      const b = room(new THREE.Vector3(), button);
+      const near = real.some((h) => h && [h.index, h.thumb].some((p) => new THREE.Vector3(...p).distanceTo(b) < BUTTON_PRESS_M));
+      if (!near) { pressReady = true; return; }
+      if (!pressReady) return;
+      pressReady = false;
+      turnCarousel();
+      const m = DATA.matches[tasks()[st.task]];
+      if (m.redirection.mode === "carousel" && st.on_prop === tasks()[st.task]) go(st.task);
+    }
+
+    function validateStep(t, rendered) {
+      const tg = targets();
+      let best = null;
+      rendered.forEach((h) => {
+        if (!h) return;
+        const c = XR.checkPinch(h.thumb, h.index, tg.virtual[0].toArray(), tg.virtual[1].toArray(), api.limits);
+        if (!best || Math.max(c.thumb_error_mm, c.index_error_mm) < Math.max(best.thumb_error_mm, best.index_error_mm)) best = c;
+      });
+      st.check = best;
+      st.held_s = hold.update(Boolean(best && best.ok), t);
+      if (!hold.validated) return;
+      st.validated = true;
+      const o = objects.get(tasks()[st.task]);
+      o.material.color.set(GREEN);
+      api.say(`Validated: ${DATA.matches[o.index].virtual}, ${best.thumb_error_mm.toFixed(1)} and ` +
+              `${best.index_error_mm.toFixed(1)} mm off the targets. Next in ${NEXT_TASK_S} s.`);
+      nextAt = t + NEXT_TASK_S;
+    }
+
+    const hooks = {
+      state: () => ({ ...st, tasks: tasks(), queue }),
+      go: (k) => go(k),
+      targets: () => { const t = targets(); return { virtual: t.virtual.map((v) => v.toArray()),
+        physical: t.physical.map((v) => v.toArray()), start: t.start && t.start.toArray() }; },
+      button: () => room(new THREE.Vector3(), button).toArray(),
+      objectInRoom: (i) => { const o = objects.get(i); o.virtual.updateMatrixWorld(true); return o.virtual.matrixWorld.toArray(); },
+      registeredInRoom: (i) => { const o = objects.get(i); api.propFrame.updateMatrixWorld(true);
+        return api.propFrame.matrixWorld.clone().multiply(o.registered).toArray(); },
+    };
+    return { begin, step, hooks };
+  }
+
+  return { wanted, create };
+})();

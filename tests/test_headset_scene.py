@@ -1,0 +1,131 @@
+"""The headset's scene mode under IWER: a level around the user, one prop, the hand redirected to it
+(body warping) or the object brought by the carousel. As tests/test_headset.py: Chromium, playwright
+and ``iwer`` (``npm ci --prefix tests/js``); outside CI skipped when one is missing."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+import trimesh
+from test_headset import DRIVE, INSTALL, IWER, PROP_POSE, canvas_shot
+from test_view import chromium
+
+from conftest import run_cli
+from levels import Z_UP_IN_Y_UP, standing_can, tabletop_level
+
+#: the real fingertips move from the hand's start to the physical pinch in this many straight steps
+STEPS = 40
+
+
+@pytest.fixture(scope="module")
+def browser():
+    yield from chromium((IWER, "npm ci --prefix tests/js"))
+
+
+@pytest.fixture(scope="module")
+def level_out(tmp_path_factory):
+    """A kitchen level (a can beside the prop, a can and a box far off) matched with --placement fixed and
+    a budget of 12 degrees: the can beside is redirected, the far ones go to the carousel."""
+    folder = tmp_path_factory.mktemp("level")
+    box = trimesh.creation.box(extents=(0.05, 0.05, 0.05))
+    box.apply_translation([0.0, 0.025, 0.0])
+    tabletop_level(folder / "kitchen.glb", [("can_near", standing_can(), (0.075, 0.0, 0.0)),
+                                           ("can_far", standing_can(), (0.3, 0.0, -0.2)),
+                                           ("box_far", box, (-0.3, 0.0, 0.1))])
+    (folder / "props.toml").write_text(
+        '[[object]]\nname = "can_prop"\nshape = { kind = "cylinder", diameter_mm = 54, height_mm = 66 }\n'
+        f'pose = {{ position_mm = [0, 0, 0], quaternion_xyzw = {Z_UP_IN_Y_UP} }}\n')
+    out = folder / "out"
+    from pinchmatch.cli.main import main
+
+    code = main(["match", "--tangible", str(folder / "props.toml"), "--virtual", str(folder / "kitchen.glb"),
+                 "--split", "nodes", "--placement", "fixed", "--max-redirect-deg", "12", "--count", "200", "--jobs", "1", "-o", str(out)])
+    assert code == 0
+    return out
+
+
+@pytest.fixture
+def scene_page(browser, level_out):
+    context = browser.new_context(viewport={"width": 1200, "height": 800})
+    pg = context.new_page()
+    errors = []
+    pg.on("pageerror", lambda e: errors.append(str(e)))
+    pg.add_init_script(IWER.read_text() + "\n" + INSTALL)
+    pg.goto((level_out / "index.html").as_uri() + "?mode=scene")
+    pg.wait_for_function("window.pinchmatchXR !== undefined && document.body.dataset.shown !== undefined")
+    pg.add_script_tag(path=str(DRIVE))
+    pg.evaluate("drive.look([-0.05, 1.16, -0.08], [0.05, 0.99, -0.38])")
+    pg.evaluate(f"localStorage.setItem('pinchmatch.calibration.' + pinchmatchViewer.DATA.matches[0].tangible, "
+                f"JSON.stringify({{refused: false, rms_mm: 0.4, max_mm: 0.6, date: 'test', "
+                f"matrix: {json.dumps(PROP_POSE.T.reshape(-1).tolist())}}}))")
+    assert pg.eval_on_selector("#scene-mode", "e => e.checked") is True
+    pg.click("#enter-vr")
+    pg.wait_for_function("pinchmatchXR.scene && pinchmatchXR.scene.state().phase === 'scene'", timeout=15000)
+    yield pg
+    assert errors == [], errors
+    context.close()
+
+
+def scene_state(pg):
+    return pg.evaluate("pinchmatchXR.scene.state()")
+
+
+def task_of(pg, name: str) -> int:
+    s = scene_state(pg)
+    names = pg.evaluate("pinchmatchViewer.DATA.matches.map((m) => m.virtual)")
+    return s["tasks"].index(names.index(name))
+
+
+def test_the_hand_is_led_from_its_start_to_the_virtual_pinch(scene_page):
+    pg = scene_page
+    pg.evaluate(f"pinchmatchXR.scene.go({task_of(pg, 'can_near')})")
+    t = pg.evaluate("pinchmatchXR.scene.targets()")
+    start, (q1, q2), (v1, v2) = np.array(t["start"]), np.array(t["physical"]), np.array(t["virtual"])
+    mid = (q1 + q2) / 2
+    assert np.linalg.norm((v1 + v2) / 2 - mid) > 0.02  # a redirection worth the name
+    # the pinch set up at the start: thumb and index as on the prop, shifted to the hand's start
+    pg.evaluate("([h, a, b]) => drive.pinch(h, a, b)", ["right", (q1 - mid + start).tolist(), (q2 - mid + start).tolist()])
+    rendered, real = [], []
+    for k in range(STEPS + 1):
+        s = scene_state(pg)
+        h = next(i for i, x in enumerate(s["real"]) if x and x["handedness"] == "right")
+        real.append(np.array([s["real"][h]["thumb"], s["real"][h]["index"]]))
+        rendered.append(np.array([s["rendered"][h]["thumb"], s["rendered"][h]["index"]]))
+        if k < STEPS:
+            here = real[-1].mean(axis=0)
+            target = start + (mid - start) * (k + 1) / STEPS
+            pg.evaluate("([h, d]) => drive.shift(h, d)", ["right", (target - here).tolist()])
+    offsets = [r - q for r, q in zip(rendered, real)]
+    assert np.linalg.norm(offsets[0], axis=1).max() < 0.0005  # at the start: no offset
+    jumps = [np.linalg.norm(b - a, axis=1).max() for a, b in zip(offsets, offsets[1:])]
+    assert max(jumps) < 0.002, jumps  # no jump over 2 mm between frames
+    # at contact: the rendered fingertips on the virtual pinch (in either finger order)
+    end = rendered[-1]
+    err = min(max(np.linalg.norm(end[0] - v1), np.linalg.norm(end[1] - v2)),
+              max(np.linalg.norm(end[0] - v2), np.linalg.norm(end[1] - v1)))
+    assert err < 0.001 + np.linalg.norm(real[-1].mean(axis=0) - mid), err
+    pg.wait_for_function("pinchmatchXR.scene.state().validated", timeout=4000)
+    canvas_shot(pg, "headset_scene_redirected.png")
+
+
+def test_the_carousel_brings_each_object_onto_the_prop(scene_page):
+    pg = scene_page
+    s = scene_state(pg)
+    assert len(s["queue"]) == 2
+    names = pg.evaluate("pinchmatchViewer.DATA.matches.map((m) => m.virtual)")
+    assert {names[i] for i in s["queue"]} == {"can_far", "box_far"}
+    button = pg.evaluate("pinchmatchXR.scene.button()")
+    away = (np.array(button) + [0.0, 0.12, 0.0]).tolist()
+    brought = []
+    for turn in range(2):
+        pg.evaluate("([q]) => drive.touch('right', q)", [away])
+        pg.evaluate("([q]) => drive.touch('right', q)", [button])
+        pg.wait_for_function(f"pinchmatchXR.scene.state().carousel_turns === {turn + 1}", timeout=4000)
+        i = scene_state(pg)["on_prop"]
+        brought.append(i)
+        placed = np.array(pg.evaluate(f"pinchmatchXR.scene.objectInRoom({i})")).reshape(4, 4).T
+        registered = np.array(pg.evaluate(f"pinchmatchXR.scene.registeredInRoom({i})")).reshape(4, 4).T
+        assert np.abs(placed - registered).max() < 1e-6  # on the prop, registered
+    assert sorted(brought) == sorted(s["queue"])
+    canvas_shot(pg, "headset_scene_carousel.png")
