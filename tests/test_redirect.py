@@ -151,3 +151,31 @@ def test_fixed_placement_needs_a_level(tmp_path, capsys, kitchen):
                            "--placement", "fixed", "-o", out)
     assert_bad_input(code, err, str(can), "not a level's node", "--split nodes")
     assert not out.exists()
+
+
+def test_a_near_object_that_would_feel_wrong_in_place_goes_to_the_carousel(tmp_path, capsys):
+    """A box beside a can-shaped prop can only be reached there through pinches that feel like a can; a box
+    prop across the room serves it perfectly, brought by the carousel."""
+    box = trimesh.creation.box(extents=(0.04, 0.04, 0.04))
+    box.apply_translation([0.0, 0.02, 0.0])
+    tabletop_level(tmp_path / "level.glb", [("box_near", box, (0.045, 0.0, 0.0))])
+    (tmp_path / "props.toml").write_text(
+        PROP + '[[object]]\nname = "box_prop"\nshape = { kind = "box", size_mm = [40, 40, 40] }\n'
+        f'pose = {{ position_mm = [1000, 0, 0], quaternion_xyzw = {Z_UP_IN_Y_UP} }}\n')
+    out = tmp_path / "out"
+    code, _, err = run_cli(capsys, "match", "--tangible", tmp_path / "props.toml", "--virtual", tmp_path / "level.glb",
+                           "--split", "nodes", "--placement", "fixed", "--count", 200, "-o", out, "--no-view",
+                           "--jobs", 1)
+    assert code == 0, err
+    (m,) = json.loads((out / "matches.json").read_text())["matches"]
+    assert m["redirection"]["mode"] == "carousel" and m["tangible"] == "box_prop"
+    assert m["p_noticed"] < 0.5
+    # in place, on the can, it would have been noticed: the redirected search's best
+    T = [candidate_poses(analyze_spec(s), settings=SETTINGS) for s in object_specs([tmp_path / "props.toml"],
+                                                                                  option="--tangible")]
+    (V,) = [candidate_poses(analyze_spec(s), settings=SETTINGS)
+            for s in object_specs([tmp_path / "level.glb"], option="--virtual", split="nodes")]
+    fixed = MatchSettings(placement="fixed", refine=False, landing_mm=0.0, top_k=0)
+    it, iv = np.repeat(np.arange(len(T[0])), len(V)), np.tile(np.arange(len(V)), len(T[0]))
+    in_place = evaluate_pairs(T[0], V, it, iv, redirect=fixed.redirect)
+    assert float(in_place.cost[in_place.allowed].min()) >= 1.0

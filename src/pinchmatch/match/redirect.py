@@ -24,8 +24,9 @@ or on its p2 when swapped):
 Cost, in threshold units (1 = at the threshold, as a criterion at 1 JND): ``angle_deg /
 threshold_deg`` and ``axis_turn_deg / axis_threshold_deg``, each squared and pooled with the haptic
 criteria's contributions, weight 1 (:meth:`pinchmatch.match.cost.CostModel.pool`). A pair whose angle
-exceeds ``max_angle_deg`` is not allowed; a virtual object with no allowed pair is served by the
-carousel (the registered placement, brought to the prop). Both terms are at least 0, so the
+exceeds ``max_angle_deg`` is not allowed; a virtual object with no allowed pair, or whose best
+redirected pair would be noticed while the registered one would not, is served by the carousel (the
+registered placement, brought to the prop: :func:`pinchmatch.match.scene.match_scene`). Both terms are at least 0, so the
 search's lower bounds of the haptic cost stay lower bounds and the search stays exact. The model,
 its thresholds and their sources are in docs/redirection.md.
 """

@@ -23,7 +23,7 @@ from .landing import Landing, landing
 from .reference import Reference, reference_pose
 from .refine import refined_search
 from .redirect import redirection
-from .search import Choice, MatchSettings, Search, cost_model, cost_row
+from .search import Choice, MatchSettings, Search, cost_model, cost_row, p_noticed
 
 
 #: with ``robust``, this many distinct best choices (or top_k + 1, if more) are ranked by their landings
@@ -161,18 +161,21 @@ def _match(search: Search, allowed: list[int], reason: str | None, *, pinch_sett
 
 def _placed(search: Search, allowed: tuple, *, pinch_settings: PinchSettings, index: int = 0,
             probes: dict | None = None) -> VirtualMatch:
-    """The virtual object's match; under ``placement="fixed"`` with its redirection, or, where no pair
-    is within the redirection budget, the carousel's (registered) match."""
+    """The virtual object's match; under ``placement="fixed"`` with its redirection, or the carousel's
+    (registered) match where no pair is within the redirection budget, or where the best redirected
+    pair would be noticed (``p_noticed`` of at least 0.5) and the carousel's would not."""
     vm = _match(search, *allowed, pinch_settings=pinch_settings, index=index, probes=probes)
     settings = search.settings
     if settings.redirect is None:
         return vm
     mode = "redirect"
-    if vm.best is None and allowed[0]:  # nothing within the budget: the carousel brings it to the prop
+    if allowed[0] and (vm.best is None or _noticed(vm, search.model)):
         registered = dataclasses.replace(settings, placement="registered")
         carousel = refined_search(search.tangibles, search.virtuals[0], search.model, registered,
                                   pinch_settings=pinch_settings)
-        vm, mode = _match(carousel, *allowed, pinch_settings=pinch_settings, index=index, probes=probes), "carousel"
+        served = _match(carousel, *allowed, pinch_settings=pinch_settings, index=index, probes=probes)
+        if vm.best is None or (served.best is not None and not _noticed(served, search.model)):
+            vm, mode = served, "carousel"
     if vm.best is None:
         return vm
     best = vm.best
@@ -181,6 +184,11 @@ def _placed(search: Search, allowed: tuple, *, pinch_settings: PinchSettings, in
     moved = redirection(tangible.obj.spec, tangible.pinches.points[best.t_pose][None],
                         (v_points[::-1] if best.swapped else v_points)[None], settings.redirect)
     return dataclasses.replace(vm, redirection=moved.record(0, mode))
+
+
+def _noticed(vm: VirtualMatch, model: CostModel) -> bool:
+    """Is the match's best choice noticed at least half of the time?"""
+    return p_noticed(vm.tangibles[vm.best.tangible], vm.candidates, vm.best, model) >= 0.5
 
 
 def match_virtual(tangibles: list[Candidates], virtual: Candidates, *, model: CostModel | None = None,
