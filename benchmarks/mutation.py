@@ -53,10 +53,11 @@ CORE = {
     "grasp/hand.py": ["test_hand.py", "test_pinches.py"],
     "grasp/features.py": ["test_features.py"],
     "match/cost.py": ["test_cost.py"],
-    "match/search.py": ["test_match.py", "test_cost.py"],
+    "match/search.py": ["test_match.py", "test_cost.py", "test_redirect.py"],
     "match/register.py": ["test_register.py"],
     "mesh/frames.py": ["test_register.py", "test_load.py"],
     "mesh/properties.py": ["test_properties.py"],
+    "match/redirect.py": ["test_redirect.py"],
     "match/select.py": ["test_select.py"],
     "match/calibrate.py": ["test_calibrate.py"],
     "match/candidates.py": ["test_match.py", "test_refine.py"],
@@ -116,6 +117,44 @@ EQUIVALENT: dict[tuple[str, str, str], str] = {
         "a half turn about any axis perpendicular to a takes a onto -a, and all are smallest; a helper along "
         "a itself is caught by the fallback on the next line",
 }
+
+_THREADS = "a thread count only: results do not depend on how many threads share the work (tests/test_jets.py)"
+_BOUNDARY = ("the two sides differ only at exact equality of two floats no input lands on (a measure-zero "
+             "boundary of a continuous quantity)")
+_SAME_TYPE = "every caller passes the type the call converts to, so the call returns its argument unchanged"
+EQUIVALENT.update({
+    ("grasp/curvature.py", "radius = float(patch_radius_mm or context.patch_radius_mm)", "drop float(...)"):
+        _SAME_TYPE,
+    ("grasp/curvature.py", "workers=query_workers(n * k // 16))", "// -> /"): _THREADS,
+    ("grasp/curvature.py", "workers=query_workers(n * k // 16))", "* -> /"): _THREADS,
+    ("grasp/curvature.py", "workers = min(len(starts), thread_budget())", "drop min(...)"): _THREADS,
+    ("grasp/pinches.py", "return (_angle_deg(u, -normals[:, 0]) > cone_deg) | (_angle_deg(-u, -normals[:, 1]) > "
+     "cone_deg)", "> -> >="): _BOUNDARY,
+    ("match/cost.py", "return isinstance(other, Mapping) and dict(self) == dict(other)", "drop dict(...)"):
+        "self == dict(other) calls this method again with a dict, which compares dict(self) with it: the same answer",
+    ("match/register.py", "return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-300)",
+     "1e-300 -> 2e-300"): _GUARD,
+    ("match/register.py", 'sin_sum = sum(w * np.einsum("kd,kd->k", np.cross(perp(x), perp(y)), ut) for x, y, w in '
+     "pairs)", "drop perp(...)"):
+        "x = perp(x) + (x.u) u, and (u x perp(y)) . u = 0: the part of x along the pinch line adds nothing",
+    ("mesh/frames.py", "K = np.zeros(v.shape[:-1] + (3, 3))", "drop -"):
+        "every caller passes (k, 3) vectors, whose shape[:1] is their shape[:-1]",
+    ("mesh/properties.py", 'parts = [p for p in str(text).replace(" ", "").split(",") if p != ""]',
+     "drop str(...)"): _SAME_TYPE,
+    ("match/select.py", "score = _scores(cost, noticeable, np.array([chosen]), objective)[0]", "drop .array(...)"):
+        "numpy indexes with the list [chosen] as with the array made from it",
+    ("match/calibrate.py", "if (np.abs(values[:, 0]) > MAX_RATING).any() or (values[:, 1:] > MAX_JND).any():",
+     "> -> >="): _BOUNDARY,
+    ("mesh/regions.py", 'return Region("sphere", tuple(float(c) for c in center_mm), float(radius_mm))',
+     "drop float(...)"): "an int radius compares and squares as the float would",
+    ("mesh/level.py", "faces = np.asarray(mesh.faces, dtype=np.int64)", "drop .asarray(...)"): _SAME_TYPE,
+    ("mesh/level.py", "if np.linalg.det(transform[:3, :3]) < 0:  # a mirroring transform turns the winding inside "
+     "out", "< -> <="): "a node whose transform has determinant 0 flattens its mesh to no volume, which the load "
+                        "refuses either way",
+    ("runner/design.py", "if needed > s.budget_s and s.evaluations is None:", "> -> >="): _BOUNDARY,
+    ("runner/design.py", "total = s.evaluations or max(1, int((s.budget_s - spent() - final_s) / max(first_s, 1e-3)) "
+     "+ 1)", "1 -> 2"): "the total only labels the progress bar; the search stops by time, not by it",
+})
 
 BINOPS = {ast.Add: ast.Sub, ast.Sub: ast.Add, ast.Mult: ast.Div, ast.Div: ast.Mult, ast.Pow: ast.Mult,
           ast.FloorDiv: ast.Div, ast.Mod: ast.FloorDiv}

@@ -195,3 +195,47 @@ def test_demo_runs_the_study_under_calibrated_weights_and_another_pooling(tmp_pa
     # weights fitted for one pooling are refused by a run with the other, in one line
     assert main(["demo", "--weights-file", str(weights), "-o", str(tmp_path / "other"), "-q"]) == 2
     assert not (tmp_path / "other").exists()
+
+
+def test_the_fits_jacobian_is_the_model_s_derivative():
+    from pinchmatch.match.calibrate import rating_jacobian, rating_model
+
+    rng = np.random.default_rng(3)
+    x_beta = rng.uniform(0.0, 3.0, size=(12, 3))
+    theta = np.array([6.2, 3.1, 0.8, 0.3, 1.7])
+    numeric = np.empty((12, 5))
+    for k in range(5):
+        step = np.zeros(5)
+        step[k] = 1e-6
+        numeric[:, k] = (rating_model(theta + step, x_beta) - rating_model(theta - step, x_beta)) / 2e-6
+    np.testing.assert_allclose(rating_jacobian(theta, x_beta), numeric, rtol=1e-6, atol=1e-8)
+
+
+def test_the_criteria_that_move_together_are_named():
+    rows = list(csv.DictReader(io.StringIO(ratings_csv(TRUE, pairs=20, repeats=1))))
+    rows = [dict(r, tilt_jnd=r["width_jnd"]) for r in rows]
+    text = ",".join(rows[0]) + "\n" + "\n".join(",".join(r.values()) for r in rows) + "\n"
+    with pytest.raises(ConfigError, match=r"the differences in width, tilt move together"):
+        calibrate(read_ratings(text, "t.csv"))
+
+
+def test_ratings_that_rise_with_the_differences_are_refused_by_the_fit_itself():
+    """One criterion, rated higher the more it is noticed: no positive weight with a positive drop fits
+    better than none, and the refusal says to check the scale."""
+    from pinchmatch.match import calibrate as module
+
+    jnd = np.linspace(0.0, 2.0, 16)
+    rows = ["pair,width_jnd,rating"] + [f"{k},{x:.4f},{2 + 4 * (1 - 0.5 ** (x ** 3.5)):.6f}" for k, x in enumerate(jnd)]
+    table = read_ratings("\n".join(rows) + "\n", "t.csv")
+    w, _, drop = module._fit(table.jnd ** 3.5, table.rating)
+    assert not (w > 0).any() or drop <= 1e-9  # the refusal comes from the fit, not from a check before it
+    with pytest.raises(ConfigError, match="check the rating scale"):
+        calibrate(table)
+
+
+@pytest.mark.parametrize("text", ['[1, 2]', '"weights"', '{"weights": [1, 2]}', '{"weights": {"width": true}}'])
+def test_a_weights_file_that_is_not_an_object_of_numbers_is_refused(text):
+    from pinchmatch.match.calibrate import read_weights_file
+
+    with pytest.raises(ConfigError, match="needs a 'weights' object"):
+        read_weights_file(text, "w.json")

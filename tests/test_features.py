@@ -149,3 +149,22 @@ def test_a_pinch_exactly_along_the_axis_is_tilted_90_deg_not_nan():
     pinches = _pinches([[[0, 0, 0], seg]], [[-x, x]], [[0.0, 0.0]], [[0.0, 0.0]], [[[0, 0, 1], [0, 0, 1]]])
     tilt = pinch_features(pinches, _props([0.0, 0.0, 0.0], axis=seg)).tilt_deg
     np.testing.assert_array_equal(tilt, [90.0])
+
+
+def test_each_finger_sees_the_centre_of_mass_along_its_own_pinch_direction():
+    """mass_along_mm per finger: the centre of mass's offset from the midpoint along the finger's own pinch
+    direction (p1 -> p2 for the thumb, p2 -> p1 for the index): a pinch reversed swaps and negates them."""
+    from pinchmatch.grasp.pinches import check_pinches
+    from pinchmatch.mesh.surface import SurfaceContext
+    from pinchmatch.mesh.properties import object_properties
+
+    mesh = trimesh.creation.box(extents=(60.0, 40.0, 20.0))
+    context = SurfaceContext(mesh)
+    props = object_properties(mesh, up=np.array([0.0, 0.0, 1.0]), watertight=True)
+    a, b = np.array([[25.0, 0.0, 10.0]]), np.array([[5.0, 0.0, -10.0]])  # top to bottom, slanted
+    ahead = pinch_features(check_pinches(context, a, b), props).mass_along_mm[0]
+    back = pinch_features(check_pinches(context, b, a), props).mass_along_mm[0]
+    assert ahead[0] == pytest.approx(-ahead[1]) and abs(ahead[0]) > 1.0
+    np.testing.assert_allclose(back, ahead[::-1], atol=1e-12)
+    u = (b - a)[0] / np.linalg.norm(b - a)
+    assert ahead[0] == pytest.approx((props.com_mm - (a + b)[0] / 2) @ u)

@@ -163,3 +163,10 @@ def test_bad_units_and_up(write_mesh):
         load_mesh(path, units="ft")
     with pytest.raises(ConfigError, match="--up: unknown up direction 'w'"):
         load_mesh(path, up="w")
+
+
+def test_up_directions_are_the_six_unit_axes():
+    from pinchmatch.mesh.frames import UP_VECTORS
+
+    assert UP_VECTORS == {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0),
+                          "-x": (-1.0, 0.0, 0.0), "-y": (0.0, -1.0, 0.0), "-z": (0.0, 0.0, -1.0)}

@@ -322,3 +322,18 @@ def test_a_bad_node_of_a_level_is_named_with_its_file(tmp_path, capsys):
     doc = json.loads((tmp_path / "out" / "matches.json").read_text())
     assert [m["virtual"] for m in doc["matches"]] == ["crate"]
     assert "#sheet: the mesh is flat" in doc["failed"][0]["error"]
+
+
+def test_a_sphere_region_meets_the_boxes_within_its_radius_wherever_it_is():
+    from pinchmatch.mesh.regions import Region
+
+    sphere = Region.sphere((10.0, 20.0, 30.0), 5.0)
+    # unit boxes whose nearest corner or face is 0, 3, 4.9, 5.1 and 8 mm from the centre
+    gaps = np.array([0.0, 3.0, 4.9, 5.1, 8.0])
+    lo = np.stack([10.0 + gaps, np.full(5, 19.5), np.full(5, 29.5)], axis=1)
+    hi = lo + [1.0, 1.0, 1.0]
+    assert sphere.overlaps_boxes(lo, hi).tolist() == [True, True, True, False, False]
+    corner = np.array([[13.0, 24.0, 30.0]])  # the nearest corner 3-4-0 from the centre: 5 mm
+    assert sphere.overlaps_boxes(corner, corner + 1.0).tolist() == [True]
+    assert sphere.overlaps_boxes(corner + 0.1, corner + 1.1).tolist() == [False]
+    assert sphere.contains(np.array([[13.0, 24.0, 30.0], [13.1, 24.0, 30.0]])).tolist() == [True, False]

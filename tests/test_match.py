@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 import trimesh
 
+from pinchmatch.errors import ConfigError
 from pinchmatch.match import search as search_module
 from pinchmatch.grasp.analysis import analyze_object
 from pinchmatch.cli.commands import example_mesh_path
@@ -492,3 +493,50 @@ def test_the_reference_of_an_object_on_itself_costs_nothing_across_walls_too(tmp
         ref = reference_pose(c, i, c, model, settings=settings)
         assert ref.cost == pytest.approx(0.0, abs=1e-9), (i, width[i])
         np.testing.assert_allclose(ref.pinches.points[0], c.pinches.points[i], atol=1e-6)
+
+
+@pytest.mark.parametrize("landing_mm, ok", [(0.0, True), (20.0, True), (-0.1, False), (20.5, False)])
+def test_the_landing_radius_takes_its_documented_bounds_inclusive(landing_mm, ok):
+    if ok:
+        assert MatchSettings(landing_mm=landing_mm).landing_mm == landing_mm
+    else:
+        with pytest.raises(ConfigError, match="--landing-mm"):
+            MatchSettings(landing_mm=landing_mm)
+
+
+def test_evaluate_pairs_defaults_to_the_default_settings_model(example):
+    i = np.arange(0, 40, 4)
+    given = evaluate_pairs(example, example, i, i[::-1], model=cost_model(MatchSettings(), [example, example]))
+    default = evaluate_pairs(example, example, i, i[::-1])
+    np.testing.assert_array_equal(default.cost, given.cost)
+
+
+def test_fewer_distinct_pairs_than_asked_for_are_all_returned(tmp_path):
+    """Three given poses on each side: nine pairs in all, fewer than top_k + 1 distinct ones."""
+    mesh = trimesh.creation.box(extents=(60.0, 40.0, 20.0))
+    path = tmp_path / "box.stl"
+    mesh.export(path)
+    p1 = np.array([[0.0, 0.0, 10.0], [30.0, 0.0, 0.0], [0.0, 20.0, 0.0]])
+    p2 = np.array([[0.0, 0.0, -10.0], [-30.0, 0.0, 0.0], [0.0, -20.0, 0.0]])
+    c = candidate_poses(analyze_object(path), settings=PinchSettings(count=10), given=(p1, p2))
+    vm = match_scene([c], [c], settings=MatchSettings(top_k=10, refine=False, landing_mm=0.0)).matches[0]
+    assert vm.best.cost == pytest.approx(0.0, abs=1e-12)
+    assert 1 <= len(vm.alternatives) < 10
+
+
+def test_a_mass_known_on_one_side_only_leaves_the_masses_equal(example):
+    from pinchmatch.match.candidates import mass_ratio
+
+    assert mass_ratio(with_mass(example, 100.0), example) == 1.0
+    assert mass_ratio(example, with_mass(example, 100.0)) == 1.0
+    assert mass_ratio(with_mass(example, 100.0), with_mass(example, 25.0)) == 0.25
+
+
+def test_register_pose_takes_plain_lists():
+    from pinchmatch.match.register import register_pose
+
+    args = dict(swapped=False, tangible_com=[0.0, 0.0, 0.0], virtual_com=[0.0, 0.0, 0.0],
+                tangible_axis=[0.0, 0.0, 1.0], virtual_axis=[0.0, 0.0, 1.0])
+    T = register_pose([[-10.0, 0.0, 0.0], [10.0, 0.0, 0.0]], [[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0]],
+                      [[0.0, -10.0, 5.0], [0.0, 10.0, 5.0]], [[0.0, -1.0, 0.0], [0.0, 1.0, 0.0]], **args)
+    np.testing.assert_allclose(T[:3, :3] @ [0.0, -10.0, 5.0] + T[:3, 3], [-10.0, 0.0, 0.0], atol=1e-9)

@@ -123,3 +123,18 @@ def test_vectors_are_three_finite_numbers(text, ok):
     else:
         with pytest.raises(ConfigError, match="--com"):
             parse_vector(text, option="--com")
+
+
+@pytest.mark.parametrize("axis", [(float("nan"), 0.0, 1.0), (0.0, 0.0, float("inf")), (0.0, 0.0, 0.0)])
+def test_a_given_axis_must_be_a_finite_non_zero_vector(axis):
+    mesh = trimesh.creation.box(extents=(60.0, 40.0, 20.0))
+    with pytest.raises(ConfigError, match="non-zero vector"):
+        object_properties(mesh, up=np.array([0.0, 0.0, 1.0]), watertight=True, axis=np.array(axis))
+
+
+def test_a_small_elongated_object_keeps_its_long_axis():
+    """A 3 mm rod (variances well under 1 mm²) has a principal axis as clear as a large one's."""
+    mesh = trimesh.creation.box(extents=(3.0, 0.6, 0.6))
+    props = object_properties(mesh, up=np.array([0.0, 0.0, 1.0]), watertight=True)
+    assert props.axis_source == "pca" and props.variances_mm2[0] < 1.0
+    np.testing.assert_allclose(np.abs(props.principal_axis), [1.0, 0.0, 0.0], atol=1e-9)

@@ -41,3 +41,15 @@ def test_midpoints_meet_and_lines_are_parallel_for_different_poses():
     u_t = (tp[1] - tp[0]) / np.linalg.norm(tp[1] - tp[0])
     u_v = (moved[1] - moved[0]) / np.linalg.norm(moved[1] - moved[0])
     np.testing.assert_allclose(u_v, u_t, atol=1e-9)
+
+
+def test_the_smallest_rotation_between_opposite_vectors_is_a_half_turn():
+    from pinchmatch.mesh.frames import rotations_between
+
+    a = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.6, 0.8, 0.0]])
+    R = rotations_between(a, -a)
+    for Rk, ak in zip(R, a):
+        np.testing.assert_allclose(Rk @ ak, -ak, atol=1e-12)
+        np.testing.assert_allclose(Rk @ Rk.T, np.eye(3), atol=1e-12)
+        assert np.linalg.det(Rk) == pytest.approx(1.0)
+        assert np.trace(Rk) == pytest.approx(-1.0)  # a half turn: 1 + 2 cos(180 deg)

@@ -206,3 +206,11 @@ def test_the_coverage_table_shows_the_mean_once_under_the_mean_objective():
     assert mean[0] == ("K", "mean_cost", "noticeable", "exact", "props") and mean[1] == (1, 2.5, 3, "yes", "a")
     worst = coverage_rows({"settings": {"objective": "max"}, "coverage": curve})
     assert worst[0] == ("K", "max", "mean_cost", "noticeable", "exact", "props")
+
+
+def test_one_prop_and_an_object_it_cannot_serve():
+    cost = np.array([[0.4], [np.inf]])
+    loud = np.array([[False], [True]])
+    pick = select.select_props(cost, loud, 1)
+    assert pick.props.tolist() == [0] and pick.assigned.tolist() == [0, -1]
+    assert pick.noticeable.tolist() == [False, False]  # an object served by no prop is not a noticed match

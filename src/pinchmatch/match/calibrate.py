@@ -60,6 +60,8 @@ SMALLEST_FITTED_JND = 0.1
 MAX_RATING, MAX_JND = 1e6, 1e4
 #: where the fit starts: every weight at each of these (the best end is kept)
 STARTS = (1.0, 0.25, 4.0)
+#: a fitted weight or rating drop at most this is taken as 0 (the optimiser's bound, reached)
+ZERO_FIT = 1e-9
 #: ways of holding rows out
 HOLD_OUTS = ("placement", "object")
 
@@ -236,17 +238,27 @@ def noticed(x_beta: np.ndarray, w: np.ndarray) -> np.ndarray:
     return -np.expm1(-math.log(2.0) * (x_beta @ w))
 
 
+def rating_model(theta: np.ndarray, x_beta: np.ndarray) -> np.ndarray:
+    """The predicted ratings a - b·P(w) of rows x^β, theta = (a, b, w...)."""
+    return theta[0] - theta[1] * noticed(x_beta, theta[2:])
+
+
+def rating_jacobian(theta: np.ndarray, x_beta: np.ndarray) -> np.ndarray:
+    """(n, 2 + m): the derivatives of :func:`rating_model` by a, b and each w (analytic)."""
+    survive = np.exp(-math.log(2.0) * (x_beta @ theta[2:]))
+    return np.column_stack([np.ones(len(x_beta)), -(1.0 - survive),
+                            -theta[1] * math.log(2.0) * survive[:, None] * x_beta])
+
+
 def _fit(x_beta: np.ndarray, rating: np.ndarray) -> tuple[np.ndarray, float, float]:
     """Weights w >= 0, intercept a and drop b >= 0 minimising |rating - (a - b·P(w))|²."""
     m = x_beta.shape[1]
-    ln2 = math.log(2.0)
 
     def residual(theta):
-        return theta[0] - theta[1] * noticed(x_beta, theta[2:]) - rating
+        return rating_model(theta, x_beta) - rating
 
     def jacobian(theta):
-        survive = np.exp(-ln2 * (x_beta @ theta[2:]))
-        return np.column_stack([np.ones(len(rating)), -(1.0 - survive), -theta[1] * ln2 * survive[:, None] * x_beta])
+        return rating_jacobian(theta, x_beta)
 
     lower = np.r_[-np.inf, 0.0, np.zeros(m)]
     best = None
@@ -303,7 +315,8 @@ def calibrate(r: Ratings, *, pooling: str = "quick", seed: int = 0, hold_out: st
     x = r.jnd ** beta
     default_rho = _spearman(x.sum(axis=1), r.rating)
     w, intercept, drop = _fit(x, r.rating)
-    if not (w > 0).any() or drop <= 0:
+    # the optimiser stops a hair above its bounds: a weight or a drop this small is none
+    if not (w > ZERO_FIT).any() or drop <= ZERO_FIT * max(1.0, float(np.ptp(r.rating))):
         raise ConfigError(_unpredictive(r, default_rho, "no weight above 0 fits them"))
     fold, folds = _folds(r, hold_out, seed)
     held_out = np.empty(len(r.rating))

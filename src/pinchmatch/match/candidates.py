@@ -39,10 +39,6 @@ class Candidates:
     def __len__(self) -> int:
         return len(self.pinches)
 
-    @property
-    def midpoints(self) -> np.ndarray:
-        return self.pinches.points.mean(axis=1)
-
     def subset(self, keep) -> "Candidates":
         """The candidates at positions ``keep`` (their ``index`` kept)."""
         keep = np.asarray(keep)
