@@ -179,3 +179,21 @@ def test_a_near_object_that_would_feel_wrong_in_place_goes_to_the_carousel(tmp_p
     it, iv = np.repeat(np.arange(len(T[0])), len(V)), np.tile(np.arange(len(V)), len(T[0]))
     in_place = evaluate_pairs(T[0], V, it, iv, redirect=fixed.redirect)
     assert float(in_place.cost[in_place.allowed].min()) >= 1.0
+
+
+def test_the_hand_start_check_reads_props_in_the_run_s_units(tmp_path, capsys, kitchen):
+    """A prop file in metres, its units given by --units only: the check before the run reads it so too."""
+    can = trimesh.creation.cylinder(radius=0.027, height=0.066, sections=64)
+    can.apply_translation([0.0, 0.0, 0.033])
+    can.export(tmp_path / "can_m.stl")
+    (tmp_path / "props.toml").write_text(f'[[object]]\nfile = "can_m.stl"\npose = {{ position_mm = [0, 0, 0], '
+                                         f'quaternion_xyzw = {Z_UP_IN_Y_UP} }}\n')
+    out = tmp_path / "out"
+    code, _, err = run_cli(capsys, "match", "--tangible", tmp_path / "props.toml", "--virtual", kitchen / "kitchen.glb",
+                           "--split", "nodes", "--placement", "fixed", "--units", "m", "--count", 100, "-o", out,
+                           "--no-view", "--jobs", 1)
+    assert code == 0, err
+    code, _, err = run_cli(capsys, "match", "--tangible", tmp_path / "props.toml", "--virtual", kitchen / "kitchen.glb",
+                           "--split", "nodes", "--placement", "fixed", "--units", "m", "--hand-start", "0,30,0",
+                           "--count", 100, "-o", tmp_path / "out2")
+    assert_bad_input(code, err, "lies inside the prop")

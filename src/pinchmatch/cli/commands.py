@@ -157,7 +157,7 @@ def _cmd_match(args) -> int:
     cache = None if args.no_cache else FeatureCache(args.cache)
     job = match_job(args, settings, match_settings, cache)
     ui = Presenter(quiet=args.quiet, json_mode=args.json)
-    check_placement(match_settings, tangible_specs, virtual_specs, ui)
+    check_placement(match_settings, tangible_specs, virtual_specs, ui, units=args.units, up=args.up)
     run_settings = {**settings.as_dict(), **match_settings.as_dict(), "units": args.units, "up": args.up,
                     "split": args.split or "none"}
     t0 = time.perf_counter()

@@ -80,10 +80,11 @@ def _hand_start(text: str | None) -> tuple | None:
     return values
 
 
-def check_placement(settings: MatchSettings, tangible_specs: list, virtual_specs: list, ui) -> None:
+def check_placement(settings: MatchSettings, tangible_specs: list, virtual_specs: list, ui, *,
+                    units: str | None = None, up: str | None = None) -> None:
     """What ``--placement`` needs of the objects, checked before any work: under ``fixed`` every virtual
-    object placed by a level and the hand's start outside every prop; under ``registered`` a prop's
-    pose is not used (a note says so)."""
+    object placed by a level and the hand's start outside every prop (read in the run's ``units`` and
+    ``up`` where its spec gives none); under ``registered`` a prop's pose is not used (a note says so)."""
     if settings.redirect is None:
         posed = [s.display_name for s in tangible_specs if s.pose is not None]
         if posed:
@@ -101,7 +102,8 @@ def check_placement(settings: MatchSettings, tangible_specs: list, virtual_specs
     from ..mesh.load import load_mesh
 
     for spec in tangible_specs:
-        mesh = load_mesh(spec.path, units=spec.units, up=spec.up).mesh
+        read = spec.with_defaults(units=units, up=up)
+        mesh = load_mesh(read.path, units=read.units, up=read.up).mesh
         R, p = world_pose(spec)
         for other in tangible_specs:
             start = hand_start(other, settings.redirect)
