@@ -82,7 +82,7 @@ EQUIVALENT: dict[tuple[str, str, str], str] = {
     ("grasp/jets.py", "hx, hy, hz = (1.0, 0.0, 0.0) if abs(n[0]) < 0.9 else (0.0, 1.0, 0.0)", "< -> <="): _HELPER,
     ("grasp/jets.py", "hx, hy, hz = (1.0, 0.0, 0.0) if abs(n[0]) < 0.9 else (0.0, 1.0, 0.0)", "1.0 -> 2.0"): _SCALED,
     ("match/cost.py", "pose = np.stack([features.width_mm, features.com_distance_mm, features.tilt_deg], "
-     "axis=-1)  # (n, 3)", "drop -"): "np.stack of 1-D arrays: axis 1 is the last axis, as -1 is",
+     "axis=-1)  # (n, 3)", "drop -1"): "np.stack of 1-D arrays: axis 1 is the last axis, as -1 is",
     ("match/cost.py", "stacked = table.reshape(-1, N_COLUMNS)", "1 -> 2"): _INFER,
     ("grasp/curvature.py", "points_mm = np.asarray(points_mm, dtype=np.float64).reshape(-1, 3)", "1 -> 2"): _INFER,
     ("grasp/curvature.py", "normal = np.asarray(normals, dtype=np.float64).reshape(-1, 3)", "1 -> 2"): _INFER,
@@ -94,7 +94,7 @@ EQUIVALENT: dict[tuple[str, str, str], str] = {
     ("match/search.py", "keep = np.flatnonzero(result.cost < tau)", "< -> <="):
         "the greedy pick keeps only pairs costing less than tau again, so a pooled pair costing exactly tau is "
         "never picked either way",
-    ("match/register.py", "return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-300)", "drop -"):
+    ("match/register.py", "return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-300)", "drop -1"):
         "every caller passes (k, 3) vectors, whose last axis is axis 1",
     ("grasp/features.py", "u = seg / np.maximum(width, 1e-300)[:, None]", "1e-300 -> 2e-300"):
         "the floor only keeps a zero-width pinch from dividing by zero: any tiny floor gives the same zero vector",
@@ -137,7 +137,7 @@ EQUIVALENT.update({
     ("match/register.py", 'sin_sum = sum(w * np.einsum("kd,kd->k", np.cross(perp(x), perp(y)), ut) for x, y, w in '
      "pairs)", "drop perp(...)"):
         "x = perp(x) + (x.u) u, and (u x perp(y)) . u = 0: the part of x along the pinch line adds nothing",
-    ("mesh/frames.py", "K = np.zeros(v.shape[:-1] + (3, 3))", "drop -"):
+    ("mesh/frames.py", "K = np.zeros(v.shape[:-1] + (3, 3))", "drop -1"):
         "every caller passes (k, 3) vectors, whose shape[:1] is their shape[:-1]",
     ("mesh/properties.py", 'parts = [p for p in str(text).replace(" ", "").split(",") if p != ""]',
      "drop str(...)"): _SAME_TYPE,
@@ -152,6 +152,8 @@ EQUIVALENT.update({
      "out", "< -> <="): "a node whose transform has determinant 0 flattens its mesh to no volume, which the load "
                         "refuses either way",
     ("runner/design.py", "if needed > s.budget_s and s.evaluations is None:", "> -> >="): _BOUNDARY,
+    ("grasp/features.py", "mass_along_mm=np.stack([along, -along], axis=-1),", "drop -1"):
+        "np.stack of 1-D arrays: axis 1 is the last axis, as -1 is",
     ("runner/design.py", "total = s.evaluations or max(1, int((s.budget_s - spent() - final_s) / max(first_s, 1e-3)) "
      "+ 1)", "1 -> 2"): "the total only labels the progress bar; the search stops by time, not by it",
 })
@@ -226,7 +228,8 @@ def _sites(tree: ast.AST, source_lines: list[str]):
             other = "or" if isinstance(node.op, ast.And) else "and"
             found.append((node, "boolop", f"{SYMBOL[type(node.op)]} -> {other}"))
         elif isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.USub, ast.Not)):
-            found.append((node, "unary", "drop " + ("-" if isinstance(node.op, ast.USub) else "not")))
+            operand = ast.unparse(node.operand)  # which minus, where a line has several
+            found.append((node, "unary", "drop " + ("-" if isinstance(node.op, ast.USub) else "not ") + operand[:40]))
         elif isinstance(node, ast.Call) and _wraps(node):
             name = node.func.id if isinstance(node.func, ast.Name) else "." + node.func.attr
             found.append((node, "call", f"drop {name}(...)"))

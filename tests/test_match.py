@@ -530,13 +530,3 @@ def test_a_mass_known_on_one_side_only_leaves_the_masses_equal(example):
     assert mass_ratio(with_mass(example, 100.0), example) == 1.0
     assert mass_ratio(example, with_mass(example, 100.0)) == 1.0
     assert mass_ratio(with_mass(example, 100.0), with_mass(example, 25.0)) == 0.25
-
-
-def test_register_pose_takes_plain_lists():
-    from pinchmatch.match.register import register_pose
-
-    args = dict(swapped=False, tangible_com=[0.0, 0.0, 0.0], virtual_com=[0.0, 0.0, 0.0],
-                tangible_axis=[0.0, 0.0, 1.0], virtual_axis=[0.0, 0.0, 1.0])
-    T = register_pose([[-10.0, 0.0, 0.0], [10.0, 0.0, 0.0]], [[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0]],
-                      [[0.0, -10.0, 5.0], [0.0, 10.0, 5.0]], [[0.0, -1.0, 0.0], [0.0, 1.0, 0.0]], **args)
-    np.testing.assert_allclose(T[:3, :3] @ [0.0, -10.0, 5.0] + T[:3, 3], [-10.0, 0.0, 0.0], atol=1e-9)

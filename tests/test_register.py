@@ -53,3 +53,11 @@ def test_the_smallest_rotation_between_opposite_vectors_is_a_half_turn():
         np.testing.assert_allclose(Rk @ Rk.T, np.eye(3), atol=1e-12)
         assert np.linalg.det(Rk) == pytest.approx(1.0)
         assert np.trace(Rk) == pytest.approx(-1.0)  # a half turn: 1 + 2 cos(180 deg)
+
+
+def test_register_pose_takes_plain_lists():
+    args = dict(swapped=False, tangible_com=[0.0, 0.0, 0.0], virtual_com=[0.0, 0.0, 0.0],
+                tangible_axis=[0.0, 0.0, 1.0], virtual_axis=[0.0, 0.0, 1.0])
+    T = register_pose([[-10.0, 0.0, 0.0], [10.0, 0.0, 0.0]], [[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0]],
+                      [[0.0, -10.0, 5.0], [0.0, 10.0, 5.0]], [[0.0, -1.0, 0.0], [0.0, 1.0, 0.0]], **args)
+    np.testing.assert_allclose(T[:3, :3] @ [0.0, -10.0, 5.0] + T[:3, 3], [-10.0, 0.0, 0.0], atol=1e-9)
