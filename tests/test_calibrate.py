@@ -239,3 +239,11 @@ def test_a_weights_file_that_is_not_an_object_of_numbers_is_refused(text):
 
     with pytest.raises(ConfigError, match="needs a 'weights' object"):
         read_weights_file(text, "w.json")
+
+
+def test_a_rating_far_below_any_scale_is_refused():
+    rows = list(csv.DictReader(io.StringIO(ratings_csv(TRUE, pairs=20, repeats=1))))
+    rows[3]["rating"] = "-2e6"
+    text = ",".join(rows[0]) + "\n" + "\n".join(",".join(r.values()) for r in rows) + "\n"
+    with pytest.raises(ConfigError, match="a rating beyond"):
+        read_ratings(text, "t.csv")

@@ -228,3 +228,11 @@ def test_the_bound_from_the_separable_sum_never_exceeds_the_pooled_cost(pooling)
     one[0, 0] = 1.0  # equal differences everywhere make the bound tight
     equal = np.where(model.weight_vector() > 0, 1.0, 0.0)[None]
     np.testing.assert_allclose(model.bound_from_separable(equal @ model.weight_vector()), model.pool(equal))
+
+
+def test_a_concave_patch_scales_by_its_curvature_s_size_not_its_sign():
+    table = np.zeros((2, 2, 9))
+    table[:, :, 0] = 40.0
+    table[0, :, 5], table[1, :, 5] = 30.0, -30.0  # kmax of a convex and of a concave patch, per m
+    s = CostModel().scales(table)
+    assert s[0, 0, 5] == s[1, 0, 5] == pytest.approx(0.6666 * 30.0)

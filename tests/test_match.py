@@ -530,3 +530,22 @@ def test_a_mass_known_on_one_side_only_leaves_the_masses_equal(example):
     assert mass_ratio(with_mass(example, 100.0), example) == 1.0
     assert mass_ratio(example, with_mass(example, 100.0)) == 1.0
     assert mass_ratio(with_mass(example, 100.0), with_mass(example, 25.0)) == 0.25
+
+
+def test_pinch_distance_in_literals_the_crossed_order_too():
+    from pinchmatch.match.search import pinch_distance
+
+    a = np.array([[[0.0, 0.0, 0.0], [10.0, 0.0, 0.0]]])
+    assert pinch_distance(a, a[0][::-1])[0] == 0.0
+    assert pinch_distance(a, a[0] + [0.0, 3.0, 0.0])[0] == pytest.approx(3.0)
+    # reversed, the second finger moved 5 mm and the first 1 mm: the larger, in the crossed order
+    assert pinch_distance(a, np.array([[10.0, 5.0, 0.0], [0.0, 1.0, 0.0]]))[0] == pytest.approx(5.0)
+
+
+def test_a_subset_keeps_poses_features_and_table_together(example):
+    keep = [5, 1, 7]
+    sub = example.subset(keep)
+    np.testing.assert_array_equal(sub.features.width_mm, example.features.width_mm[keep])
+    np.testing.assert_array_equal(sub.pinches.points, example.pinches.points[keep])
+    np.testing.assert_array_equal(sub.table, example.table[keep])
+    np.testing.assert_array_equal(sub.index, example.index[keep])

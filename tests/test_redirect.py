@@ -197,3 +197,27 @@ def test_the_hand_start_check_reads_props_in_the_run_s_units(tmp_path, capsys, k
                            "--split", "nodes", "--placement", "fixed", "--units", "m", "--hand-start", "0,30,0",
                            "--count", 100, "-o", tmp_path / "out2")
     assert_bad_input(code, err, "lies inside the prop")
+
+
+def test_a_pose_s_quaternion_is_the_rotation_scipy_makes_of_it():
+    from scipy.spatial.transform import Rotation
+
+    q = np.array([0.3, -0.5, 0.2, 0.78])
+    q /= np.linalg.norm(q)
+    np.testing.assert_allclose(quaternion_matrix(q), Rotation.from_quat(q).as_matrix(), atol=1e-12)
+
+
+def test_the_redirection_s_terms_are_its_angles_in_threshold_units_squared(kitchen):
+    from pinchmatch.match.redirect import Redirect, redirection
+
+    (spec,) = object_specs([kitchen / "props.toml"], option="--tangible")
+    rng = np.random.default_rng(0)
+    t_points, v_points = rng.normal(0, 20, (5, 2, 3)), rng.normal(0, 20, (5, 2, 3)) + [60.0, 30.0, 0.0]
+    r = redirection(spec, t_points, v_points, Redirect(threshold_deg=4.0, axis_threshold_deg=25.0))
+    start = np.array([0.0, 150.0, 300.0])
+    R = quaternion_matrix(Z_UP_IN_Y_UP)
+    for k in range(5):
+        physical = t_points[k] @ R.T
+        angle = _angle(physical.mean(axis=0) - start, v_points[k].mean(axis=0) - start)
+        turn = _angle(physical[1] - physical[0], v_points[k][1] - v_points[k][0])
+        np.testing.assert_allclose(r.terms[k], [(angle / 4.0) ** 2, (turn / 25.0) ** 2], rtol=1e-6)

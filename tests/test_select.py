@@ -214,3 +214,10 @@ def test_one_prop_and_an_object_it_cannot_serve():
     pick = select.select_props(cost, loud, 1)
     assert pick.props.tolist() == [0] and pick.assigned.tolist() == [0, -1]
     assert pick.noticeable.tolist() == [False, False]  # an object served by no prop is not a noticed match
+
+
+def test_an_object_noticed_on_the_first_prop_is_counted_noticed():
+    cost = np.array([[0.4, 2.0], [1.5, 3.0]])
+    loud = np.array([[False, True], [True, True]])
+    pick = select.select_props(cost, loud, 1)
+    assert pick.props.tolist() == [0] and pick.noticeable.tolist() == [False, True]
