@@ -221,3 +221,12 @@ def test_the_redirection_s_terms_are_its_angles_in_threshold_units_squared(kitch
         angle = _angle(physical.mean(axis=0) - start, v_points[k].mean(axis=0) - start)
         turn = _angle(physical[1] - physical[0], v_points[k][1] - v_points[k][0])
         np.testing.assert_allclose(r.terms[k], [(angle / 4.0) ** 2, (turn / 25.0) ** 2], rtol=1e-6)
+
+
+def test_a_warm_cache_from_the_registered_placement_gives_the_cold_fixed_answer(tmp_path, capsys, kitchen):
+    """The refined poses and the results cached by a registered run are not reused by a fixed one."""
+    cache = tmp_path / "cache"
+    _run(capsys, kitchen, tmp_path / "registered", "--cache", cache)
+    warm = _run(capsys, kitchen, tmp_path / "warm", "--cache", cache, "--placement", "fixed")
+    cold = _run(capsys, kitchen, tmp_path / "cold", "--no-cache", "--placement", "fixed")
+    assert json.dumps(warm, sort_keys=True) == json.dumps(cold, sort_keys=True)

@@ -31,9 +31,11 @@ from .results import plain
 log = logging.getLogger(__name__)
 
 #: modules whose code shapes the added poses (besides ALGORITHM_DIGEST's)
-REFINED_MODULES = ("match/refine", "match/search", "match/register", "match/cost", "runner/refined")
+REFINED_MODULES = ("match/refine", "match/search", "match/register", "match/cost", "match/redirect",
+                   "runner/refined")
 #: the match settings refinement depends on
-REFINE_SETTINGS = ("criteria", "weights", "normalize", "pooling", "keep_upright", "refine")
+REFINE_SETTINGS = ("criteria", "weights", "normalize", "pooling", "keep_upright", "refine", "placement",
+                   "hand_start_mm", "redirect_threshold_deg", "max_redirect_deg", "axis_threshold_deg")
 
 
 REFINED_DIGEST = source_digest(REFINED_MODULES, ALGORITHM_DIGEST)

@@ -46,6 +46,7 @@ log = logging.getLogger(__name__)
 RESULT_FORMAT = 1
 #: modules whose code turns candidates into a result (besides ALGORITHM_DIGEST's)
 RESULT_MODULES = ("match/search", "match/refine", "match/landing", "match/scene", "match/register", "match/cost",
+                  "match/redirect",
                   "match/reference", "export/documents", "export/scenes", "export/figures", "runner/tasks",
                   "runner/results", "runner/refined")
 
