@@ -48,18 +48,25 @@ def settings(count: int, refine_known: bool) -> list[tuple[str, list[str]]]:
     return out
 
 
-def run(tangibles, virtuals, options, seed, out: Path) -> tuple[dict, float]:
-    """{virtual name: (best prop, cost)} of one run, and its wall time."""
-    argv = [sys.executable, "-m", "pinchmatch", "match", "--tangible", *map(str, tangibles), "--virtual",
-            *map(str, virtuals), "--seed", str(seed), "--no-cache", "--no-view", "--no-figures", "-q",
-            "-o", str(out), *options]
+def timed_match(options: list[str], out: Path) -> tuple[dict, float]:
+    """``pinchmatch match OPTIONS -o OUT`` as from the command line (no cache, page or figures):
+    {virtual name: its entry of matches.json}, and the run's wall time."""
+    argv = [sys.executable, "-m", "pinchmatch", "match", *options, "--no-cache", "--no-view", "--no-figures", "-q",
+            "-o", str(out)]
     t0 = time.perf_counter()
     proc = subprocess.run(argv, capture_output=True, text=True)
     seconds = time.perf_counter() - t0
     if proc.returncode not in (0, 3):
         raise SystemExit(f"match failed ({proc.returncode}): {proc.stderr.strip()}")
     doc = json.loads((out / "matches.json").read_text())
-    return {m["virtual"]: (m["tangible"], m["cost"]) for m in doc["matches"]}, seconds
+    return {m["virtual"]: m for m in doc["matches"]}, seconds
+
+
+def run(tangibles, virtuals, options, seed, out: Path) -> tuple[dict, float]:
+    """{virtual name: (best prop, cost)} of one run, and its wall time."""
+    matches, seconds = timed_match(["--tangible", *map(str, tangibles), "--virtual", *map(str, virtuals),
+                                    "--seed", str(seed), *options], out)
+    return {name: (m["tangible"], m["cost"]) for name, m in matches.items()}, seconds
 
 
 def spread(costs) -> float:

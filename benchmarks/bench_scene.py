@@ -19,12 +19,9 @@ displacement); then the split, the largest disagreement of the angles and the wa
 from __future__ import annotations
 
 import argparse
-import json
 import math
-import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
@@ -32,6 +29,7 @@ import trimesh
 
 sys.path.insert(0, str(Path(__file__).parent))
 from assets import DEFAULT_ASSETS  # noqa: E402
+from bench_converge import timed_match  # noqa: E402
 from bench_reach import real_meshes  # noqa: E402
 
 #: the objects of the level and their distances from the prop's axis (mm), on a spiral
@@ -64,17 +62,9 @@ def build_level(folder: Path) -> list[tuple[str, float]]:
 
 
 def run(folder: Path, placement: str, count: int) -> tuple[dict, float]:
-    out = folder / f"out_{placement}"
-    argv = [sys.executable, "-m", "pinchmatch", "match", "--tangible", str(folder / "props.toml"), "--virtual",
-            str(folder / "kitchen.glb"), "--split", "nodes", "--placement", placement, "--count", str(count),
-            "--no-cache", "--no-view", "--no-figures", "-q", "-o", str(out)]
-    t0 = time.perf_counter()
-    proc = subprocess.run(argv, capture_output=True, text=True)
-    seconds = time.perf_counter() - t0
-    if proc.returncode not in (0, 3):
-        raise SystemExit(f"match failed ({proc.returncode}): {proc.stderr.strip()}")
-    doc = json.loads((out / "matches.json").read_text())
-    return {m["virtual"]: m for m in doc["matches"]}, seconds
+    return timed_match(["--tangible", str(folder / "props.toml"), "--virtual", str(folder / "kitchen.glb"),
+                        "--split", "nodes", "--placement", placement, "--count", str(count)],
+                       folder / f"out_{placement}")
 
 
 def angle_deg(start, a, b) -> float:

@@ -100,12 +100,9 @@ def world_pose(spec) -> tuple[np.ndarray, np.ndarray]:
 
 def quaternion_matrix(xyzw) -> np.ndarray:
     """The rotation matrix of a unit quaternion (x, y, z, w)."""
-    x, y, z, w = (float(c) for c in xyzw)
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-    ])
+    from scipy.spatial.transform import Rotation
+
+    return Rotation.from_quat(np.asarray(xyzw, dtype=np.float64)).as_matrix()
 
 
 def hand_start(spec, redirect: Redirect) -> np.ndarray:

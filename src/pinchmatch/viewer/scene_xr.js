@@ -38,14 +38,13 @@ window.PinchmatchScene = (function () {
     button.position.set(CAROUSEL_CENTRE_M[0], 0.02, CAROUSEL_CENTRE_M[2] + CAROUSEL_RADIUS_M + 0.06);
     api.propFrame.add(button);
     const hold = new XR.HoldTimer(api.limits.hold_s);
-    const queue = XR.carouselQueue(DATA.matches).filter((i) => DATA.matches[i].tangible ===
-      (DATA.matches.find((m) => m.redirection) || {}).tangible);
+    // the matches on the prop of the page's first redirected match: the one prop calibrated in the room
+    const prop = (DATA.matches.find((m) => m.redirection) || {}).tangible;
+    const queue = XR.carouselQueue(DATA.matches).filter((i) => DATA.matches[i].tangible === prop);
     const st = { phase: "idle", task: -1, on_prop: null, carousel_turns: 0, held_s: 0, validated: false, check: null,
                  ratio: 0, offset_mm: [0, 0, 0], rendered: [], real: [] };
     let objects = new Map(), pressReady = false, nextAt = null;
 
-    // the matches on the prop of the page's first redirected match: the one prop calibrated in the room
-    const prop = (DATA.matches.find((m) => m.redirection) || {}).tangible;
     const tasks = () => DATA.matches.flatMap((m, i) => (m.redirection && m.tangible === prop ? [i] : []));
     const room = (local, group) => { api.propFrame.updateMatrixWorld(true); return local.clone().applyMatrix4(group.matrixWorld); };
 
@@ -156,13 +155,14 @@ window.PinchmatchScene = (function () {
       let rendered = real;
       if (m.redirection.mode === "redirect" && cones.children.length) {
         const tg = targets();
+        const start = tg.start.toArray();
+        const physical = tg.physical[0].clone().add(tg.physical[1]).multiplyScalar(0.5).toArray();
+        const virtual = tg.virtual[0].clone().add(tg.virtual[1]).multiplyScalar(0.5).toArray();
         rendered = real.map((h) => {
           if (!h) return null;
           const mid = h.thumb.map((x, k) => (x + h.index[k]) / 2);
-          const d = XR.warpOffset(tg.start.toArray(), tg.physical[0].clone().add(tg.physical[1]).multiplyScalar(0.5).toArray(),
-            tg.virtual[0].clone().add(tg.virtual[1]).multiplyScalar(0.5).toArray(), mid);
-          st.ratio = XR.warpRatio(tg.start.toArray(),
-            tg.physical[0].clone().add(tg.physical[1]).multiplyScalar(0.5).toArray(), mid);
+          const d = XR.warpOffset(start, physical, virtual, mid);
+          st.ratio = XR.warpRatio(start, physical, mid);
           st.offset_mm = d.map((x) => x * 1000);
           return { ...h, thumb: h.thumb.map((x, k) => x + d[k]), index: h.index.map((x, k) => x + d[k]) };
         });
