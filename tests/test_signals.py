@@ -108,3 +108,22 @@ def test_an_interrupted_calibrate_says_nothing_was_written(tmp_path, monkeypatch
     assert main(["calibrate", str(table), "-o", str(tmp_path / "w.json")]) == 130
     err = capsys.readouterr().err.strip().splitlines()
     assert err == ["pinchmatch: interrupted; nothing was written"] and not (tmp_path / "w.json").exists()
+
+
+def test_a_signal_a_library_turns_into_another_error_still_ends_the_run_as_the_signal(tmp_path, capsys, monkeypatch):
+    """SIGTERM inside an extension's import comes back as an ImportError (numba's does): exit 143, one line."""
+    from pinchmatch.cli import commands
+    from pinchmatch.cli.main import main
+    from pinchmatch.errors import Terminated
+
+    def command(args):
+        try:
+            os.kill(os.getpid(), signal.SIGTERM)  # armed: raised as Terminated at the next bytecode
+            time.sleep(1.0)
+        except Terminated:
+            raise ImportError("numba._devicearray failed to import") from None
+
+    monkeypatch.setitem(commands.COMMANDS, "demo", command)
+    code = main(["demo", "-o", str(tmp_path / "out")])
+    err = capsys.readouterr().err
+    assert code == 143 and err.startswith("pinchmatch: terminated;") and "ImportError" not in err, err

@@ -68,6 +68,11 @@ def arm() -> None:
     check()
 
 
+def received() -> int | None:
+    """The first signal received since :func:`handled` began, or None."""
+    return _received[0] if _received else None
+
+
 def check() -> None:
     """Raise the first signal received since :func:`handled` began, in case its exception was swallowed."""
     if _received:

@@ -12,6 +12,7 @@ loading the pipeline (:mod:`pinchmatch.cli.commands` and everything below it).
 from __future__ import annotations
 
 import logging
+import signal
 import sys
 
 from .. import signals
@@ -54,17 +55,28 @@ def _main(argv: list[str]) -> int:
         print(f"pinchmatch: internal error: {exc}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
-        print(f"pinchmatch: interrupted; {_left_as_it_was(command)}", file=sys.stderr)
-        return 130
+        return _interrupted(signal.SIGINT, command)
     except Terminated:
-        print(f"pinchmatch: terminated; {_left_as_it_was(command)}", file=sys.stderr)
-        return 143
+        return _interrupted(signal.SIGTERM, command)
     except Exception as exc:  # an internal error: say so, traceback on request
+        if signals.received() is not None:
+            # the signal's exception turned into another inside a library (numba's import makes an
+            # ImportError of it): the signal ended the run
+            return _interrupted(signals.received(), command)
         if verbose:
             raise
         print(f"pinchmatch: internal error: {type(exc).__name__}: {exc}; rerun with --verbose and report it",
               file=sys.stderr)
         return 1
+
+
+def _interrupted(signum: int, command: str | None) -> int:
+    """The run ended by a signal: one line, exit 130 (SIGINT) or 143 (SIGTERM)."""
+    if signum == signal.SIGINT:
+        print(f"pinchmatch: interrupted; {_left_as_it_was(command)}", file=sys.stderr)
+        return 130
+    print(f"pinchmatch: terminated; {_left_as_it_was(command)}", file=sys.stderr)
+    return 143
 
 
 #: the commands that write one file (-o FILE), not an output folder
