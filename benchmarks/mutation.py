@@ -134,9 +134,6 @@ EQUIVALENT.update({
         "self == dict(other) calls this method again with a dict, which compares dict(self) with it: the same answer",
     ("match/register.py", "return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-300)",
      "1e-300 -> 2e-300"): _GUARD,
-    ("match/register.py", 'sin_sum = sum(w * np.einsum("kd,kd->k", np.cross(perp(x), perp(y)), ut) for x, y, w in '
-     "pairs)", "drop perp(...)"):
-        "x = perp(x) + (x.u) u, and (u x perp(y)) . u = 0: the part of x along the pinch line adds nothing",
     ("mesh/frames.py", "K = np.zeros(v.shape[:-1] + (3, 3))", "drop -1"):
         "every caller passes (k, 3) vectors, whose shape[:1] is their shape[:-1]",
     ("mesh/properties.py", 'parts = [p for p in str(text).replace(" ", "").split(",") if p != ""]',

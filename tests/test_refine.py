@@ -110,3 +110,42 @@ def test_given_poses_are_not_moved(objects):
     search = refined_search([tangible], given, cost_model(MatchSettings(), [tangible, given]), MatchSettings(),
                             pinch_settings=settings_for(0))
     assert len(search.virtuals[0]) == len(given)
+
+
+def test_reach_checked_later_gives_what_one_check_gives(objects):
+    """Every rule but reach, then reach: the same pinches, arrays and all, as one check of every rule."""
+    from pinchmatch.grasp.pinches import ARRAY_FIELDS, check_pinches, check_reach
+
+    rod = objects["rod"][0]
+    rng = np.random.default_rng(3)
+    points = rod.pinches.points[:60] + rng.normal(scale=1.5, size=(60, 2, 3))  # some off the rules
+    settings = settings_for(0)
+    ctx = rod.obj.context
+    at_once = check_pinches(ctx, points[:, 0], points[:, 1], settings=settings, thorough=False)
+    first = check_pinches(ctx, points[:, 0], points[:, 1], settings=settings, with_reach=False)
+    assert np.isnan(first.approach).all() and not first.broken[:, 5].any()
+    later = check_reach(ctx, first, settings=settings, thorough=False)
+    for name in ARRAY_FIELDS:
+        assert np.array_equal(getattr(at_once, name), getattr(later, name), equal_nan=True), name
+    assert 0 < at_once.feasible.sum() < len(points)
+
+
+def test_a_pair_takes_its_cheapest_move_that_the_hand_reaches(objects):
+    """Options are walked by cost; one with an unreachable pose on either side is passed over."""
+    from pinchmatch.match.refine import _Moves, _Pair, _take_reachable
+
+    def moves(base, reached):
+        m = _Moves(None, np.zeros(len(reached), dtype=np.int64), np.zeros((len(reached), 3)), base)
+        m.reached[:] = reached
+        return m
+
+    t = moves(100, [-1, 1, 1, -1])  # tangible moves 100..103: 100 and 103 unreachable
+    v = moves(50, [1, -1, 1])  # virtual moves 50..52: 51 unreachable
+    live = [_Pair(0, 0, 0, 1.0, 4.0), _Pair(0, 1, 1, 1.0, 4.0), _Pair(0, 2, 2, 1.0, 4.0)]
+    options = {
+        0: (np.array([100, 101, 101, 102]), np.array([50, 51, 52, 50]), np.array([0.1, 0.2, 0.3, 0.4])),
+        1: (np.array([103, 7]), np.array([50, 51]), np.array([0.1, 0.2])),  # none reachable
+        2: (np.array([3]), np.array([4]), np.array([0.5])),  # sampled poses: reachable
+    }
+    taken = _take_reachable(live, options, {0: t}, v, None, None, settings_for(0))
+    assert taken == {0: (101, 52, 0.3), 2: (3, 4, 0.5)}

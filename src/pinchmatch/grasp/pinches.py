@@ -232,13 +232,18 @@ def cheap_broken(context, points, normals, settings, cone_deg):
     return broken
 
 
-def rule_table(context, points, normals, valid_patch, settings, surface_ok=None, approach=None, thorough=True):
+def rule_table(context, points, normals, valid_patch, settings, surface_ok=None, approach=None, thorough=True,
+               with_reach=True):
     """Which rules each pinch breaks, (n, len(RULES)) bool, and its reach (``thorough``: see
-    :func:`pinchmatch.grasp.hand.reach`)."""
+    :func:`pinchmatch.grasp.hand.reach`; without ``with_reach``, reach is not checked: see
+    :func:`check_reach`)."""
     broken = cheap_broken(context, points, normals, settings, settings.friction_cone_deg)
     if surface_ok is not None:
         broken[:, RULES.index("surface")] = ~surface_ok
-    found = reach_rule(context, points, normals, settings, approach, thorough)
+    if with_reach:
+        found = reach_rule(context, points, normals, settings, approach, thorough)
+    else:
+        found = Reach(np.ones(len(points), dtype=bool), np.full((len(points), 3), np.nan), np.full(len(points), np.nan))
     broken[:, RULES.index("reach")] = ~found.ok
     broken[:, RULES.index("patch")] = ~valid_patch.reshape(-1, 2).all(axis=1)
     return broken, found
@@ -286,6 +291,7 @@ def check_pinches(
     faces: np.ndarray | None = None,
     approach: np.ndarray | None = None,
     thorough: bool = True,
+    with_reach: bool = True,
 ) -> Pinches:
     """Snap user-given contacts onto the surface and check every rule.
 
@@ -302,6 +308,10 @@ def check_pinches(
     thorough : bool
         False: the reach search tries its quick directions only, and a pinch it does not reach
         that way counts as unreachable (never the other way round).
+    with_reach : bool
+        False: every rule but ``reach`` is checked, and ``approach`` is left NaN; the pinches are
+        not feasible until :func:`check_reach` has checked it (for candidates of which only a few
+        will be kept).
 
     Returns
     -------
@@ -328,8 +338,21 @@ def check_pinches(
     geom = patches(context, closest, context.face_normals[face], settings)
     points = closest.reshape(n, 2, 3)
     normals = geom.normal.reshape(n, 2, 3)
-    broken, found = rule_table(context, points, normals, geom.valid, settings, surface_ok, approach, thorough)
+    broken, found = rule_table(context, points, normals, geom.valid, settings, surface_ok, approach, thorough,
+                               with_reach)
     return assemble(points, face, geom, broken, found, {}, distance)
+
+
+def check_reach(context: SurfaceContext, pinches: Pinches, *, settings: PinchSettings = PinchSettings(),
+                approach: np.ndarray | None = None, thorough: bool = True) -> Pinches:
+    """``pinches`` (checked without reach: :func:`check_pinches`) with the reach rule checked too:
+    ``feasible``, ``broken``, ``approach`` and ``approach_clearance_mm`` as :func:`check_pinches`
+    would have given them in one go."""
+    found = reach_rule(context, pinches.points, pinches.normals, settings, approach, thorough)
+    broken = pinches.broken.copy()
+    broken[:, RULES.index("reach")] = ~found.ok
+    return dataclasses.replace(pinches, broken=broken, feasible=~broken.any(axis=1), approach=found.approach,
+                               approach_clearance_mm=found.clearance_mm)
 
 
 def concat_pinches(parts: list[Pinches], rejected: dict | None = None) -> Pinches:

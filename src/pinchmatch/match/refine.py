@@ -11,13 +11,17 @@ tangible's), and improves each by a pattern search over the four degrees of free
   pinch turns), sixteen moves per pose (a positive spanning set of the contacts' four
   dimensions, twice over), the same on the tangible and on the virtual object;
 - a moved contact is put back on the surface where a finger closing along the pinch line
-  meets it (a ray towards the other finger); every rule and the hand model then check the new
-  pinch as any other (:func:`pinchmatch.grasp.pinches.check_pinches`), the hand tried first along
-  the pose's own approach, then along the quick directions only: a move that only the full
-  search of hand directions would reach is not taken;
+  meets it (a ray towards the other finger); every rule then checks the new pinch as any other
+  (:func:`pinchmatch.grasp.pinches.check_pinches`), the hand model last and only for the moves a
+  pair would take (below): the hand is tried first along the pose's own approach, then along the
+  quick directions only, so a move that only the full search of hand directions would reach is
+  not taken;
 - every pair of (the pose and its moves) on both objects is evaluated exactly; the pair moves
-  to the cheapest when that is cheaper by more than ``IMPROVEMENT`` (relative), else the step
-  halves; a pair stops when its step falls below ``LAST_STEP_MM``.
+  to the cheapest whose poses the hand reaches, when that is cheaper by more than
+  ``IMPROVEMENT`` (relative), else the step halves; a pair stops when its step falls below
+  ``LAST_STEP_MM``. Reach is checked in waves from the cheapest move on (``WAVE`` per pair at a
+  time): the hand search is most of a pose's price and most moves are never taken, so only the
+  moves found reachable join the candidates.
 
 The moves are built from the pinch itself and the object's principal axis, never from the
 file's frame or the seed, so a rotated copy of an object moves alike. The new feasible poses
@@ -35,7 +39,7 @@ import numpy as np
 
 from ..grasp.curvature import tangent_frame
 from ..grasp.features import pinch_features
-from ..grasp.pinches import PinchSettings, Pinches, check_pinches, concat_pinches
+from ..grasp.pinches import ARRAY_FIELDS, PinchSettings, Pinches, check_pinches, check_reach, concat_pinches
 from .candidates import Candidates, concat_features, felt_table, mass_ratio
 from .cost import CostModel, feature_table, separable_terms
 from .search import Search, cost_row, evaluate_pairs
@@ -143,16 +147,60 @@ def close_fingers(context, points: np.ndarray, toward: np.ndarray, back_mm) -> t
     return contact, np.where(met, face, -1)
 
 
-def feasible_moves(c: Candidates, poses: np.ndarray, steps: np.ndarray,
-                   settings: PinchSettings) -> tuple[Pinches, np.ndarray]:
-    """The feasible moves of each pose (every rule checked) and which pose each came from."""
-    points, faces, which = moved_poses(c, poses, steps)
+@dataclass
+class _Moves:
+    """One object's moves in a round, every rule but ``reach`` checked.
+
+    Move k has the index ``base + k`` in the round's extended candidates (the grown list, then the
+    moves); ``which`` says which of the round's poses it came from, ``approach`` is that pose's (tried
+    first when reach is checked), and ``reached`` is 1 once reach holds, -1 once it does not, 0 before.
+    """
+
+    pinches: Pinches | None
+    which: np.ndarray
+    approach: np.ndarray
+    base: int
+
+    def __post_init__(self):
+        self.reached = np.zeros(len(self.which), dtype=np.int8)
+
+
+def propose(grown: "_Grown", poses: list[int], steps: list[float], settings: PinchSettings, *, fixed: bool) -> _Moves:
+    """The moves of ``poses`` (their ``steps``) on ``grown``'s object that keep every rule but reach."""
+    base = len(grown.current)
+    if fixed or not poses:
+        return _Moves(None, np.zeros(0, dtype=np.int64), np.zeros((0, 3)), base)
+    c = grown.current
+    poses = np.asarray(poses, dtype=np.int64)
+    points, faces, which = moved_poses(c, poses, np.asarray(steps, dtype=np.float64))
     if not len(points):
-        return None, which
+        return _Moves(None, which, np.zeros((0, 3)), base)
     checked = check_pinches(c.obj.context, points[:, 0], points[:, 1], settings=settings, faces=faces,
-                            approach=c.pinches.approach[poses][which], thorough=False)
+                            with_reach=False)
     keep = np.flatnonzero(checked.feasible)
-    return checked.subset(keep), which[keep]
+    return _Moves(checked.subset(keep), which[keep], c.pinches.approach[poses][which[keep]], base)
+
+
+def _confirm(context, moves: _Moves, rows: np.ndarray, settings: PinchSettings) -> None:
+    """Check reach for the moves ``rows`` (those not checked yet), the quick directions only, each
+    move's parent's approach first."""
+    rows = np.unique(rows)
+    rows = rows[moves.reached[rows] == 0]
+    if not len(rows):
+        return
+    found = check_reach(context, moves.pinches.subset(rows), settings=settings, approach=moves.approach[rows],
+                        thorough=False)
+    moves.pinches = _replace_rows(moves.pinches, rows, found)
+    moves.reached[rows] = np.where(found.feasible, 1, -1)
+
+
+def _replace_rows(pinches: Pinches, rows: np.ndarray, new: Pinches) -> Pinches:
+    arrays = {}
+    for name in ARRAY_FIELDS:
+        a = getattr(pinches, name).copy()
+        a[rows] = getattr(new, name)
+        arrays[name] = a
+    return Pinches(**arrays, rejected=dict(pinches.rejected))
 
 
 @dataclass
@@ -166,12 +214,21 @@ class _Pair:
     step: float
 
 
+#: each verification wave checks reach for up to this many of a pair's cheapest remaining moves
+WAVE = 2
+
+
 def refine(tangibles: list[Candidates], virtual: Candidates, seeds: list[tuple[int, int, int, float]],
            model: CostModel, *, keep_upright: bool, settings: PinchSettings,
            redirect=None) -> tuple[list, Candidates]:
     """Pattern search from ``seeds`` (tangible, tangible pose, virtual pose, cost); returns every
     tangible's candidates and the virtual object's, with the feasible poses the search visited
-    (``redirect``: the hand's redirection, as :func:`pinchmatch.match.search.evaluate_pairs` takes it)."""
+    (``redirect``: the hand's redirection, as :func:`pinchmatch.match.search.evaluate_pairs` takes it).
+
+    Each round, every move keeping the rules but reach is costed against the other side's moves;
+    a pair then takes its cheapest improving move whose poses reach holds for, checked in waves
+    from the cheapest on (the hand search is most of a pose's price, and most moves are never
+    taken). The moves found reachable join the candidates; the others are forgotten."""
     grown_t = [_Grown(t) for t in tangibles]
     grown_v = _Grown(virtual)
     pairs = [_Pair(t, it, iv, cost, FIRST_STEP_MM) for t, it, iv, cost in seeds]
@@ -179,20 +236,19 @@ def refine(tangibles: list[Candidates], virtual: Candidates, seeds: list[tuple[i
         live = [p for p in pairs if p.step >= LAST_STEP_MM]
         if not live:
             break
-        t_moves = {}
-        for t in sorted({p.tangible for p in live}):
-            mine = [p for p in live if p.tangible == t]
-            t_moves[t] = _grow(grown_t[t], [p.t_pose for p in mine], [p.step for p in mine], settings,
-                               fixed=tangibles[t].given)
-        v_new = _grow(grown_v, [p.v_pose for p in live], [p.step for p in live], settings, fixed=virtual.given)
-        V = grown_v.current
+        t_moves = {t: propose(grown_t[t], [p.t_pose for p in live if p.tangible == t],
+                              [p.step for p in live if p.tangible == t], settings, fixed=tangibles[t].given)
+                   for t in sorted({p.tangible for p in live})}
+        v_moves = propose(grown_v, [p.v_pose for p in live], [p.step for p in live], settings, fixed=virtual.given)
+        V = grown_v.current if v_moves.pinches is None else extend(grown_v.current, v_moves.pinches)
+        options = {}  # live pair -> its improving (tangible pose, virtual pose, cost), cheapest first
         for t, moves in t_moves.items():
-            T = grown_t[t].current
+            T = grown_t[t].current if moves.pinches is None else extend(grown_t[t].current, moves.pinches)
             mine = [(i, p) for i, p in enumerate(live) if p.tangible == t]
             its, ivs, owner = [], [], []
             for k, (i, p) in enumerate(mine):
-                ts = np.concatenate([[p.t_pose], moves[moves[:, 0] == k, 1]])
-                vs = np.concatenate([[p.v_pose], v_new[v_new[:, 0] == i, 1]])
+                ts = np.concatenate([[p.t_pose], moves.base + np.flatnonzero(moves.which == k)])
+                vs = np.concatenate([[p.v_pose], v_moves.base + np.flatnonzero(v_moves.which == i)])
                 its.append(np.repeat(ts, len(vs)))
                 ivs.append(np.tile(vs, len(ts)))
                 owner.append(np.full(len(ts) * len(vs), k))
@@ -206,14 +262,76 @@ def refine(tangibles: list[Candidates], virtual: Candidates, seeds: list[tuple[i
             if len(ask):
                 cost[ask] = evaluate_pairs(T, V, it[ask], iv[ask], model=model, keep_upright=keep_upright,
                                            redirect=redirect).cost
-            for k, (_, p) in enumerate(mine):
-                rows = np.flatnonzero(owner == k)
-                best = rows[np.argmin(cost[rows])]
-                if cost[best] < p.cost * (1.0 - IMPROVEMENT):
-                    p.t_pose, p.v_pose, p.cost = int(it[best]), int(iv[best]), float(cost[best])
-                else:
-                    p.step /= 2.0
+            for k, (i, p) in enumerate(mine):
+                rows = np.flatnonzero((owner == k) & (cost < p.cost * (1.0 - IMPROVEMENT)))
+                rows = rows[np.argsort(cost[rows], kind="stable")]
+                options[i] = (it[rows], iv[rows], cost[rows])
+        taken = _take_reachable(live, options, t_moves, v_moves, grown_t, grown_v, settings)
+        t_index = {t: _keep_reached(grown_t[t], moves) for t, moves in t_moves.items()}
+        v_index = _keep_reached(grown_v, v_moves)
+        for i, p in enumerate(live):
+            if i in taken:
+                it, iv, cost = taken[i]
+                p.t_pose, p.v_pose, p.cost = int(t_index[p.tangible][it]), int(v_index[iv]), float(cost)
+            else:
+                p.step /= 2.0
     return [g.current for g in grown_t], grown_v.current
+
+
+def _take_reachable(live, options, t_moves, v_moves, grown_t, grown_v, settings) -> dict:
+    """Per live pair, its cheapest option whose moved poses reach holds for: {pair: (t, v, cost)},
+    in the round's extended indices. Reach is checked in waves, ``WAVE`` options per pair at a time."""
+    first = {i: 0 for i, (it, _, _) in options.items() if len(it)}
+    taken = {}
+
+    def state(moves, index):
+        return 1 if index < moves.base else int(moves.reached[index - moves.base])
+
+    while first:
+        ask_t, ask_v = {}, []
+        for i, start in first.items():
+            it, iv, _ = options[i]
+            moves = t_moves[live[i].tangible]
+            looked = 0
+            for r in range(start, len(it)):
+                if looked >= WAVE:
+                    break
+                a, b = state(moves, it[r]), state(v_moves, iv[r])
+                if a < 0 or b < 0:
+                    continue
+                looked += 1
+                if a == 0:
+                    ask_t.setdefault(live[i].tangible, []).append(it[r] - moves.base)
+                if b == 0:
+                    ask_v.append(iv[r] - v_moves.base)
+        for t, rows in sorted(ask_t.items()):
+            _confirm(grown_t[t].current.obj.context, t_moves[t], np.array(rows), settings)
+        if ask_v:
+            _confirm(grown_v.current.obj.context, v_moves, np.array(ask_v), settings)
+        for i in sorted(first):
+            it, iv, cost = options[i]
+            moves = t_moves[live[i].tangible]
+            r = first[i]
+            while r < len(it) and (state(moves, it[r]) < 0 or state(v_moves, iv[r]) < 0):
+                r += 1
+            if r == len(it):
+                del first[i]
+            elif state(moves, it[r]) > 0 and state(v_moves, iv[r]) > 0:
+                taken[i] = (it[r], iv[r], cost[r])
+                del first[i]
+            else:
+                first[i] = r
+    return taken
+
+
+def _keep_reached(grown: _Grown, moves: _Moves) -> np.ndarray:
+    """Add the moves reach holds for to ``grown``; the map from the round's extended indices to the
+    grown list's (-1 for moves not kept)."""
+    index = np.concatenate([np.arange(moves.base), np.full(len(moves.which), -1)])
+    ok = np.flatnonzero(moves.reached > 0)
+    if len(ok):
+        index[moves.base + ok] = grown.add(moves.pinches.subset(ok))
+    return index
 
 
 def separable_sums(T: Candidates, V: Candidates, it: np.ndarray, iv: np.ndarray, model: CostModel) -> np.ndarray:
@@ -223,19 +341,6 @@ def separable_sums(T: Candidates, V: Candidates, it: np.ndarray, iv: np.ndarray,
     v_rows = felt_table(V.table[iv], mass_ratio(T, V))
     w = model.weight_vector()
     return np.minimum(separable_terms(t_rows, v_rows, model) @ w, separable_terms(t_rows, v_rows[:, ::-1], model) @ w)
-
-
-def _grow(grown: _Grown, poses: list[int], steps: list[float], settings: PinchSettings, *,
-          fixed: bool) -> np.ndarray:
-    """Add the feasible moves of ``poses`` to ``grown``; (m, 2) rows of (which of ``poses``, new pose's
-    index in the grown list)."""
-    if fixed or not poses:
-        return np.zeros((0, 2), dtype=np.int64)
-    pinches, which = feasible_moves(grown.current, np.asarray(poses, dtype=np.int64), np.asarray(steps, dtype=np.float64),
-                                    settings)
-    if pinches is None or not len(pinches):
-        return np.zeros((0, 2), dtype=np.int64)
-    return np.stack([which, grown.add(pinches)], axis=1)
 
 
 def refined_search(tangibles: list[Candidates], virtual: Candidates, model: CostModel, settings, *,

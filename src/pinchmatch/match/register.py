@@ -36,6 +36,12 @@ def _about(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
     return np.eye(3) + np.sin(angle)[:, None, None] * K + (1.0 - np.cos(angle))[:, None, None] * (K @ K)
 
 
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Rowwise a x b of (k, 3) arrays: ``np.cross``'s arithmetic, without its general-axis set-up."""
+    return np.stack([a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1], a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
+                     a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]], axis=1)
+
+
 def _unit(v: np.ndarray) -> np.ndarray:
     return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-300)
 
@@ -89,8 +95,11 @@ def register_poses(
     has_mass = (np.linalg.norm(perp(dm_v), axis=1) > 1e-9) & (np.linalg.norm(perp(dm_t), axis=1) > 1e-9)
     pairs.append((_unit(dm_v), _unit(dm_t), MASS_TIE_WEIGHT * has_mass))
     pairs.append((moved(va), ta, AXIS_TIE_WEIGHT))
-    sin_sum = sum(w * np.einsum("kd,kd->k", np.cross(perp(x), perp(y)), ut) for x, y, w in pairs)
-    cos_sum = sum(w * np.einsum("kd,kd->k", perp(x), perp(y)) for x, y, w in pairs)
+    sin_sum, cos_sum = 0.0, 0.0
+    for x, y, w in pairs:
+        px, py = perp(x), perp(y)
+        sin_sum = sin_sum + w * np.einsum("kd,kd->k", _cross(px, py), ut)
+        cos_sum = cos_sum + w * np.einsum("kd,kd->k", px, py)
     R = _about(ut, np.arctan2(sin_sum, cos_sum)) @ R1
 
     T = np.zeros((k, 4, 4))
