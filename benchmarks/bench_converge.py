@@ -3,12 +3,15 @@
     python benchmarks/bench_converge.py              # 3 seeds, the default count (1,000)
     python benchmarks/bench_converge.py --quick      # 2 seeds, 300 poses, 6 virtual objects
     python benchmarks/bench_converge.py --count 500  # another base count
+    python benchmarks/bench_converge.py --props lab  # the props a lab has instead (below)
 
 The scene: robosuite's seven household objects (bottle, bread, can, cereal, handles, lemon, milk),
 pybullet_data's duck, teddy and Lego brick and four of its ``random_urdfs`` objects (000-003): 14
 virtual objects nobody here made. The props: four more ``random_urdfs`` objects (950-953). All are
 read from the wheels on PyPI (``benchmarks/assets.py``), the random objects subdivided to about
-6,000 faces.
+6,000 faces. With ``--props lab``, the props are those a lab builds or buys instead: the method's
+stacked prop (pinchmatch's example prop), a 60 mm ball, a 30 x 100 mm rod and a 60 x 40 x 20 mm
+block.
 
 Three settings run side by side, each once per seed, as ``pinchmatch match`` runs from the command
 line (no cache, default jobs): the default (refined), ``--refine off`` at the base count and
@@ -70,6 +73,21 @@ def run(tangibles, virtuals, options, seed, out: Path) -> tuple[dict, float]:
     return {name: (m["tangible"], m["cost"]) for name, m in matches.items()}, seconds
 
 
+def lab_props(folder: Path) -> list[Path]:
+    """The method's stacked prop, a ball, a rod and a block, as STL files (mm)."""
+    from importlib import resources
+
+    from pinchmatch.mesh.shapes import box, cylinder, sphere
+
+    folder.mkdir(parents=True, exist_ok=True)
+    out = [folder / "stacked.stl", folder / "ball.stl", folder / "rod.stl", folder / "block.stl"]
+    out[0].write_bytes((resources.files("pinchmatch") / "data" / "example_prop.stl").read_bytes())
+    sphere(30.0, faces=6000).mesh.export(out[1])
+    cylinder(15.0, 100.0, faces=6000).mesh.export(out[2])
+    box((60.0, 40.0, 20.0), subdivide_mm=4.0).mesh.export(out[3])
+    return out
+
+
 def spread(costs) -> float:
     costs = np.asarray(costs, dtype=float)
     median = float(np.median(costs))
@@ -81,6 +99,8 @@ def main(argv=None) -> int:
     parser.add_argument("--quick", action="store_true", help="2 seeds, 300 poses, 6 virtual objects")
     parser.add_argument("--count", type=int, help="the base count (default 1000, 300 with --quick)")
     parser.add_argument("--seeds", type=int, help="how many seeds (default 3, 2 with --quick)")
+    parser.add_argument("--props", choices=("rocks", "lab"), default="rocks",
+                        help="four random_urdfs rocks (default) or four props a lab has")
     args = parser.parse_args(argv)
     count = args.count or (300 if args.quick else 1000)
     seeds = range(args.seeds or (2 if args.quick else 3))
@@ -90,7 +110,8 @@ def main(argv=None) -> int:
     virtuals += random_objects(root / "scene", range(4), faces=6000)
     if args.quick:
         virtuals = virtuals[::2][:6]
-    props = random_objects(root / "props", range(950, 954), faces=6000)
+    props = lab_props(root / "props") if args.props == "lab" else random_objects(root / "props", range(950, 954),
+                                                                                  faces=6000)
     help_text = subprocess.run([sys.executable, "-m", "pinchmatch", "match", "--help"], capture_output=True,
                                text=True).stdout
     plan = settings(count, "--refine" in help_text)

@@ -36,7 +36,7 @@ import numpy as np
 from ..errors import ConfigError
 from .candidates import Candidates, felt_table, mass_ratio
 from .cost import (CRITERIA, DEFAULT_CRITERIA, PAPER_CRITERIA, POOLINGS, CostModel, Weights, complete_weights,
-                   feature_ranges, mass_term, pair_cost_blocks, separable_terms, total)
+                   feature_ranges, mass_term, pair_cost_blocks, pooled_bound_blocks, separable_terms, total)
 from .redirect import (AXIS_THRESHOLD_DEG, MAX_HAND_START_MM, MAX_REDIRECT_DEG, MAX_THRESHOLD_DEG, PLACEMENTS,
                        REDIRECT_THRESHOLD_DEG, Redirect, redirection)
 from .register import FLIP_COSINE, register_poses
@@ -44,6 +44,12 @@ from .register import FLIP_COSINE, register_poses
 #: pose pairs kept per (virtual, tangible) object pair before the exact evaluation: one per
 #: POOL_PAIRS_PER_KEPT pose pairs, within [MIN_POOL, MAX_POOL]; grows x4 when short
 MIN_POOL, MAX_POOL, POOL_PAIRS_PER_KEPT = 256, 4096, 4096
+#: a pool grown this many times (x4 each) is selected by the pooled bound, not the separable sum
+TIGHT_AFTER = 2
+#: the pooled bound's margin for the round-off of its matrix products (relative)
+TIGHT_ROUND_OFF = 1e-9
+#: pooled pairs are evaluated this many at a time (memory: about 2 kB per pair while evaluated)
+EVALUATE_CHUNK = 65_536
 
 
 def initial_pool(n_tangible: int, n_virtual: int) -> int:
@@ -183,6 +189,11 @@ def _take(result: PairResult, keep) -> PairResult:
     return PairResult(**{f.name: getattr(result, f.name)[keep] for f in dataclasses.fields(result)})
 
 
+def _concat(parts: list[PairResult]) -> PairResult:
+    return PairResult(**{f.name: np.concatenate([getattr(p, f.name) for p in parts])
+                         for f in dataclasses.fields(PairResult)})
+
+
 def evaluate_pairs(
     tangible: Candidates,
     virtual: Candidates,
@@ -248,17 +259,22 @@ def evaluate_pairs(
     })
 
 
-def _pool(tangible: Candidates, virtual: Candidates, model: CostModel, size: int, block_rows: int):
-    """The ``size`` pose pairs with the smallest separable sum, and tau, a cost no pair left out is below.
+def _pool(tangible: Candidates, virtual: Candidates, model: CostModel, size: int, block_rows: int,
+          tight: bool = False):
+    """The ``size`` pose pairs with the smallest separable sum (``tight``: the smallest pooled
+    bound, :func:`pinchmatch.match.cost.pooled_bound_blocks`), and tau, a cost no pair left out is below.
 
-    Returns (it, iv, separable sum, tau); tau is inf when no pair was left out.
+    Returns (it, iv, separable sum or bound, tau); tau is inf when no pair was left out.
     """
     nv = len(virtual)
     kept_val = np.zeros(0)
     kept_idx = np.zeros(0, dtype=np.int64)
     tau = np.inf
-    blocks = pair_cost_blocks(tangible.table, felt_table(virtual.table, mass_ratio(tangible, virtual)), model,
-                              block_rows=block_rows, with_swapped=False)
+    felt = felt_table(virtual.table, mass_ratio(tangible, virtual))
+    if tight:
+        blocks = ((start, bound, None) for start, bound in pooled_bound_blocks(tangible.table, felt, model))
+    else:
+        blocks = pair_cost_blocks(tangible.table, felt, model, block_rows=block_rows, with_swapped=False)
     for start, block, _ in blocks:
         flat = block.ravel()
         if not np.isfinite(tau) and flat.size > 4 * size:
@@ -277,8 +293,10 @@ def _pool(tangible: Candidates, virtual: Candidates, model: CostModel, size: int
             keep = part[:size]
             vals, idx = vals[keep], idx[keep]
         kept_val, kept_idx = vals, idx
-    # every pair left out has a separable sum of at least tau, so a cost of at least its bound
-    return kept_idx // nv, kept_idx % nv, kept_val, float(model.bound_from_separable(tau))
+    # every pair left out has a separable sum of at least tau, so a cost of at least its bound (tight:
+    # a bound of at least tau, less a margin for the round-off of its matrix products)
+    bound = tau * (1.0 - TIGHT_ROUND_OFF) if tight else float(model.bound_from_separable(tau))
+    return kept_idx // nv, kept_idx % nv, kept_val, bound
 
 
 @dataclass
@@ -354,13 +372,35 @@ class Search:
             return old
         T, V = self.tangibles[t], self.virtuals[j]
         size = size or initial_pool(len(T), len(V))
-        it, iv, _, tau = _pool(T, V, self.model, size, self.settings.block_rows)
-        result = evaluate_pairs(T, V, it, iv, model=self.model, keep_upright=self.settings.keep_upright,
-                                redirect=self.settings.redirect)
-        keep = np.flatnonzero(result.cost < tau)
-        pool = _PairPool(t, it[keep], iv[keep], _take(result, keep), tau, size)
+        it, iv, _, tau = _pool(T, V, self.model, size, self.settings.block_rows, self._tight(size, T, V))
+        it, iv, result = self._below(T, V, it, iv, tau)
+        pool = _PairPool(t, it, iv, result, tau, size)
         self.pools[(j, t)] = pool
         return pool
+
+    def _tight(self, size: int, T: Candidates, V: Candidates) -> bool:
+        """Pool by the pooled bound once a pool has grown ``TIGHT_AFTER`` times past its first size
+        under ``quick`` pooling: the separable sum's bound was too loose to close it."""
+        return self.model.pooling == "quick" and size >= initial_pool(len(T), len(V)) * 4**TIGHT_AFTER
+
+    def _below(self, T: Candidates, V: Candidates, it: np.ndarray, iv: np.ndarray, tau: float):
+        """The pairs (it, iv) whose exact cost is below ``tau``, and their evaluation: evaluated
+        ``EVALUATE_CHUNK`` pairs at a time, so that a pool of millions (a prop whose poses all
+        look alike) never holds them all at once."""
+        keep, parts = [], []
+        for start in range(0, len(it), EVALUATE_CHUNK):
+            sl = slice(start, start + EVALUATE_CHUNK)
+            result = evaluate_pairs(T, V, it[sl], iv[sl], model=self.model, keep_upright=self.settings.keep_upright,
+                                    redirect=self.settings.redirect)
+            below = np.flatnonzero(result.cost < tau)
+            keep.append(start + below)
+            parts.append(_take(result, below))
+        if not parts:
+            return it[:0], iv[:0], evaluate_pairs(T, V, it[:0], iv[:0], model=self.model,
+                                                  keep_upright=self.settings.keep_upright,
+                                                  redirect=self.settings.redirect)
+        keep = np.concatenate(keep)
+        return it[keep], iv[keep], _concat(parts)
 
     def grown(self, tangibles: list, virtuals: list) -> "Search":
         """The search over the same objects with poses appended to their candidates (each list
@@ -375,15 +415,11 @@ class Search:
                 if not len(t_rows) or not len(v_rows):
                     continue
                 it, iv, _, block_tau = _pool(T.subset(t_rows), V.subset(v_rows), self.model, old.size,
-                                             self.settings.block_rows)
-                it, iv = t_rows[it], v_rows[iv]
-                parts.append((it, iv, evaluate_pairs(T, V, it, iv, model=self.model,
-                                                     keep_upright=self.settings.keep_upright,
-                                                     redirect=self.settings.redirect)))
+                                             self.settings.block_rows, self._tight(old.size, T, V))
                 tau = min(tau, block_tau)
+                parts.append(out._below(T, V, t_rows[it], v_rows[iv], block_tau))
             it, iv = np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
-            result = PairResult(**{f.name: np.concatenate([getattr(p[2], f.name) for p in parts])
-                                   for f in dataclasses.fields(PairResult)})
+            result = _concat([p[2] for p in parts])
             keep = np.flatnonzero(result.cost < tau)
             out.pools[(j, t)] = _PairPool(t, it[keep], iv[keep], _take(result, keep), tau, old.size)
         return out
