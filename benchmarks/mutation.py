@@ -94,6 +94,12 @@ EQUIVALENT: dict[tuple[str, str, str], str] = {
     ("match/search.py", "keep = np.flatnonzero(result.cost < tau)", "< -> <="):
         "the greedy pick keeps only pairs costing less than tau again, so a pooled pair costing exactly tau is "
         "never picked either way",
+    ("match/search.py", "below = np.flatnonzero(result.cost < tau)", "< -> <="):
+        "the greedy pick keeps only pairs costing less than tau again, so a pooled pair costing exactly tau is "
+        "never picked either way",
+    ("match/cost.py", "def pair_costs(tangible: np.ndarray, virtual: np.ndarray, model: CostModel, *, "
+     "block_rows: int = 2048):", "2048 -> 2049"):
+        "the block size splits the tangible rows into blocks, each row's costs are computed alike in any block",
     ("match/register.py", "return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-300)", "drop -1"):
         "every caller passes (k, 3) vectors, whose last axis is axis 1",
     ("grasp/features.py", "u = seg / np.maximum(width, 1e-300)[:, None]", "1e-300 -> 2e-300"):

@@ -61,3 +61,25 @@ def test_register_pose_takes_plain_lists():
     T = register_pose([[-10.0, 0.0, 0.0], [10.0, 0.0, 0.0]], [[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0]],
                       [[0.0, -10.0, 5.0], [0.0, 10.0, 5.0]], [[0.0, -1.0, 0.0], [0.0, 1.0, 0.0]], **args)
     np.testing.assert_allclose(T[:3, :3] @ [0.0, -10.0, 5.0] + T[:3, 3], [-10.0, 0.0, 0.0], atol=1e-9)
+
+
+@pytest.mark.parametrize("side", ["virtual", "tangible"])
+def test_a_normal_within_five_degrees_of_the_line_has_no_say_in_the_roll(side):
+    """One object's normals 3° off the pinch line (noise, across it +Y), the other's 30° off (+Z): the
+    first say nothing, so the masses and the axes, which agree on no roll, decide it exactly."""
+    points = np.array([[-10.0, 0.0, 0.0], [10.0, 0.0, 0.0]])
+
+    def normals(deg, across):
+        s, c = np.sin(np.radians(deg)), np.cos(np.radians(deg))
+        return np.array([[-c, 0.0, 0.0], [c, 0.0, 0.0]]) + s * np.asarray(across)
+
+    near, far = normals(3.0, [0.0, 1.0, 0.0]), normals(30.0, [0.0, 0.0, 1.0])
+    t_normals, v_normals = (far, near) if side == "virtual" else (near, far)
+    com, axis = np.array([0.0, -30.0, 0.0]), np.array([0.0, 0.0, 1.0])
+    T = register_pose(points, t_normals, points, v_normals, swapped=False, tangible_com=com, virtual_com=com,
+                      tangible_axis=axis, virtual_axis=axis)
+    np.testing.assert_allclose(T[:3, :3], np.eye(3), atol=1e-12)
+    tilted = register_pose(points, t_normals, points, normals(6.0, [0.0, 1.0, 0.0]) if side == "virtual" else v_normals,
+                           swapped=False, tangible_com=com, virtual_com=com, tangible_axis=axis, virtual_axis=axis)
+    if side == "virtual":  # at 6° the normal has its say: the roll turns towards it
+        assert abs(tilted[2, 1]) > 1e-3
