@@ -61,6 +61,7 @@ CORE = {
     "match/select.py": ["test_select.py"],
     "match/calibrate.py": ["test_calibrate.py"],
     "match/candidates.py": ["test_match.py", "test_refine.py"],
+    "match/refine.py": ["test_refine.py"],
     "mesh/regions.py": ["test_manifest.py"],
     "mesh/level.py": ["test_manifest.py", "test_gltf_check.py"],
     "export/folder.py": ["test_publish.py", "test_option_extremes.py"],
@@ -94,6 +95,9 @@ EQUIVALENT: dict[tuple[str, str, str], str] = {
     ("match/search.py", "keep = np.flatnonzero(result.cost < tau)", "< -> <="):
         "the greedy pick keeps only pairs costing less than tau again, so a pooled pair costing exactly tau is "
         "never picked either way",
+    ("match/search.py", "return self.model.pooling == \"quick\" and size >= initial_pool(len(T), len(V)) * "
+     "4**TIGHT_AFTER", "drop initial_pool(...)"):
+        "which pools are selected by the pooled bound changes which pairs are evaluated, never the pairs found",
     ("match/search.py", "below = np.flatnonzero(result.cost < tau)", "< -> <="):
         "the greedy pick keeps only pairs costing less than tau again, so a pooled pair costing exactly tau is "
         "never picked either way",

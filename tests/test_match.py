@@ -128,6 +128,7 @@ def test_pinch_distance_with_literals():
     one = a.copy()
     one[1] += [0.0, 0.0, 5.0]  # one contact 5 mm away: the larger displacement
     assert search_module.pinch_distance(one[::-1][None], a)[0] == pytest.approx(5.0)
+    assert search_module.pinch_distance(one[None], a)[0] == pytest.approx(5.0)  # in the direct order too
 
 
 @pytest.mark.parametrize("keep_upright", [False, True])

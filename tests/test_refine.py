@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -149,3 +151,35 @@ def test_a_pair_takes_its_cheapest_move_that_the_hand_reaches(objects):
     }
     taken = _take_reachable(live, options, {0: t}, v, None, None, settings_for(0))
     assert taken == {0: (101, 52, 0.3), 2: (3, 4, 0.5)}
+
+
+def test_an_option_is_taken_only_once_the_hand_is_known_to_reach_it(monkeypatch):
+    """Options past the first wave are checked in a later wave before one is taken: none is taken unchecked."""
+    from pinchmatch.match import refine as refine_module
+    from pinchmatch.match.refine import _Moves, _Pair, _take_reachable
+
+    truth = {100: -1, 101: -1, 102: -1, 103: 1}  # what the hand would find, move by move
+
+    def confirm(context, moves, rows, settings):
+        rows = np.unique(rows)
+        moves.reached[rows] = [truth[moves.base + r] for r in rows]
+
+    monkeypatch.setattr(refine_module, "_confirm", confirm)
+    grown = SimpleNamespace(current=SimpleNamespace(obj=SimpleNamespace(context=None)))  # confirm needs none
+    for last, expected in ((102, {}), (103, {0: (103, 5, 0.4)})):
+        t = _Moves(None, np.zeros(4, dtype=np.int64), np.zeros((4, 3)), 100)
+        v = _Moves(None, np.zeros(0, dtype=np.int64), np.zeros((0, 3)), 50)
+        its = np.array([100, 101, last])
+        options = {0: (its, np.full(3, 5), np.array([0.1, 0.2, 0.4]))}
+        taken = _take_reachable([_Pair(0, 0, 5, 1.0, 4.0)], options, {0: t}, v, [grown], grown, settings_for(0))
+        assert taken == expected
+        assert (t.reached[its - 100] != 0).all()  # each option looked at was checked
+
+
+def test_a_pinch_along_the_axis_still_moves_across_its_line():
+    points = np.array([[[0.0, 0.0, -20.0], [0.0, 0.0, 20.0]], [[-5.0, 0.0, 0.0], [5.0, 0.0, 0.0]]])
+    dirs = move_directions(points, np.array([0.0, 0.0, 1.0]))
+    u = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0]])
+    np.testing.assert_allclose(np.einsum("kid,kd->ki", dirs, u), 0.0, atol=1e-12)  # across the line
+    np.testing.assert_allclose(np.linalg.norm(dirs, axis=2), 1.0, atol=1e-12)
+    np.testing.assert_allclose(np.einsum("kd,kd->k", dirs[:, 0], dirs[:, 1]), 0.0, atol=1e-12)
