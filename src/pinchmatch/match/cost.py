@@ -349,6 +349,17 @@ def _factors(virtual: np.ndarray) -> list[np.ndarray]:
     return out
 
 
+def _tangible_factors(t: np.ndarray, model: CostModel, w: np.ndarray) -> np.ndarray:
+    """Tangible factors of a block of rows (k, 2, 9), column weights ``w`` (18,): (k, 3 x 18)
+    [a, -2 a t, a t²] with a = weight / s² (0 where ρ is undefined), so that
+    Σ a (v - t)² m_v = [a, -2 a t, a t²] · [v² m_v, v m_v, m_v] (:func:`_factors`)."""
+    s = model.scales(t).reshape(len(t), -1)
+    t = t.reshape(len(t), -1)
+    a = np.where(np.isnan(t), 0.0, w / s**2)
+    tv = np.nan_to_num(t)
+    return np.concatenate([a, -2.0 * a * tv, a * tv * tv], axis=1)
+
+
 def pair_cost_blocks(tangible: np.ndarray, virtual: np.ndarray, model: CostModel, *, block_rows: int = 2048,
                      with_swapped: bool = True):
     """Yield ``(start, cost, swapped)`` for blocks of tangible rows: the separable cost of every pair.
@@ -365,12 +376,7 @@ def pair_cost_blocks(tangible: np.ndarray, virtual: np.ndarray, model: CostModel
     buffers = np.empty((2, rows, nv))  # allocated once: no page faults per block
     for start in range(0, len(tangible), rows):
         t = tangible[start:start + rows]
-        s = model.scales(t).reshape(len(t), -1)
-        t = t.reshape(len(t), -1)
-        a = np.where(np.isnan(t), 0.0, w / s**2)  # weight / s², 0 where ρ is undefined
-        tv = np.nan_to_num(t)
-        # Σ a (v - t)² m_v = [a, -2 a t, a t²] · [v² m_v, v m_v, m_v]
-        left = np.concatenate([a, -2.0 * a * tv, a * tv * tv], axis=1)
+        left = _tangible_factors(t, model, w)
         c0, c1 = buffers[0, :len(t)], buffers[1, :len(t)]
         np.matmul(left, v_orders[0], out=c0)
         np.matmul(left, v_orders[1], out=c1)
@@ -403,11 +409,7 @@ def pooled_bound_blocks(tangible: np.ndarray, virtual: np.ndarray, model: CostMo
     rows = max(1, min(block_rows, len(tangible)))
     for start in range(0, len(tangible), rows):
         t = tangible[start:start + rows]
-        s = model.scales(t).reshape(len(t), -1)
-        t = t.reshape(len(t), -1)
-        a = np.where(np.isnan(t), 0.0, w / s**2)
-        tv = np.nan_to_num(t)
-        left = np.concatenate([a, -2.0 * a * tv, a * tv * tv], axis=1)
+        left = _tangible_factors(t, model, w)
         best = None
         for order in v_orders:
             pooled = np.zeros((len(t), nv))

@@ -388,17 +388,13 @@ class Search:
         ``EVALUATE_CHUNK`` pairs at a time, so that a pool of millions (a prop whose poses all
         look alike) never holds them all at once."""
         keep, parts = [], []
-        for start in range(0, len(it), EVALUATE_CHUNK):
+        for start in range(0, max(len(it), 1), EVALUATE_CHUNK):  # once at least: an empty result has its fields
             sl = slice(start, start + EVALUATE_CHUNK)
             result = evaluate_pairs(T, V, it[sl], iv[sl], model=self.model, keep_upright=self.settings.keep_upright,
                                     redirect=self.settings.redirect)
             below = np.flatnonzero(result.cost < tau)
             keep.append(start + below)
             parts.append(_take(result, below))
-        if not parts:
-            return it[:0], iv[:0], evaluate_pairs(T, V, it[:0], iv[:0], model=self.model,
-                                                  keep_upright=self.settings.keep_upright,
-                                                  redirect=self.settings.redirect)
         keep = np.concatenate(keep)
         return it[keep], iv[keep], _concat(parts)
 
