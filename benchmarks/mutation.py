@@ -101,6 +101,8 @@ EQUIVALENT: dict[tuple[str, str, str], str] = {
     ("match/search.py", "below = np.flatnonzero(result.cost < tau)", "< -> <="):
         "the greedy pick keeps only pairs costing less than tau again, so a pooled pair costing exactly tau is "
         "never picked either way",
+    ("match/search.py", "size = float(np.sqrt(jnd[k]))", "drop float(...)"):
+        "np.float64 is a subclass of float: it compares, formats and serialises (json) as the float does",
     ("match/cost.py", "def pair_costs(tangible: np.ndarray, virtual: np.ndarray, model: CostModel, *, "
      "block_rows: int = 2048):", "2048 -> 2049"):
         "the block size splits the tangible rows into blocks, each row's costs are computed alike in any block",

@@ -119,6 +119,14 @@ def test_pairs_are_grouped_so_repetitions_never_straddle_folds():
     (lambda rows: rows[:4], "rated rows cannot fix"),
     (lambda rows: [dict(r, width_jnd="0.5") for r in rows], "width never changes"),
     (lambda rows: [dict(r, kmax_jnd=str(float(r["kmax_jnd"]) / 20)) for r in rows], "kmax never differs by 0.1"),
+    (lambda rows: [dict(r, kmax_jnd="1.2" if r["trial"] == "1" else "0.05") for r in rows],
+     "kmax differs by 0.1 JND or more in one placement only"),
+    (lambda rows: [dict(r, width_jnd="0.5", kmax_jnd=str(float(r["kmax_jnd"]) / 20)) for r in rows],
+     "width never changes; kmax never differs by 0.1 JND or more in the table, so their weights cannot be "
+     "determined; leave them out with --criteria tilt,normal,mass$"),
+    (lambda rows: [dict(r, width_jnd="0.5", tilt_jnd="0.5", normal_jnd="0", kmax_jnd=str(float(r["kmax_jnd"]) / 20),
+                        mass_jnd=str(float(r["mass_jnd"]) / 20)) for r in rows],
+     "width, tilt, normal never change; kmax, mass never differ by 0.1 JND or more in the table, so no weight"),
     (lambda rows: [dict(r, tilt_jnd=r["width_jnd"]) for r in rows], "move together"),
     (lambda rows: [dict(r, rating="4") for r in rows], "every rating is 4"),
     (lambda rows: [dict(r, rating=str(1 + sum(float(r[f"{c}_jnd"]) ** 2 for c in TRUE))) for r in rows],
@@ -139,6 +147,29 @@ def test_data_that_cannot_determine_the_weights_is_refused(change, message):
     w.writerows(rows)
     with pytest.raises(ConfigError, match=message):
         calibrate(read_ratings(out.getvalue(), "t.csv"))
+
+
+def test_without_criteria_the_fit_leaves_out_what_the_table_cannot_determine_and_says_so(tmp_path, capsys):
+    rows = list(csv.DictReader(io.StringIO(ratings_csv(TRUE, pairs=30, repeats=2))))
+    rng = np.random.default_rng(3)
+    rows = [dict(r, tilt_jnd="0.0", com_jnd=f"{rng.uniform(0, 2):.4f}") for r in rows]  # tilt flat, com present
+    table = tmp_path / "ratings.csv"
+    with table.open("w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    auto, named = tmp_path / "auto.json", tmp_path / "named.json"
+    assert main(["calibrate", str(table), "-o", str(auto)]) == 0
+    shown = capsys.readouterr().out
+    assert main(["calibrate", str(table), "--criteria", "width,normal,kmax,mass", "-o", str(named), "-q"]) == 0
+    a, n = json.loads(auto.read_text()), json.loads(named.read_text())
+    assert a["fit"].pop("not_fitted") == {"com": "is not a default criterion (name it with --criteria)",
+                                          "tilt": "never changes"}
+    assert a["weights"] == n["weights"] and a["fit"] == n["fit"]  # the same fit as naming the others
+    assert a["weights"]["tilt"] == 1.0 and a["weights"]["com"] == 0.0  # kept at their defaults
+    assert "not fitted, kept at their defaults: com is not a default criterion" in shown
+    # the table's title is one line, not folded to the table's width
+    assert "weights fitted to 60 ratings of 30 placements (quick pooling)\n" in shown
 
 
 def test_calibrate_then_match_with_the_weights_file(tmp_path, write_mesh):

@@ -230,3 +230,10 @@ def test_a_warm_cache_from_the_registered_placement_gives_the_cold_fixed_answer(
     warm = _run(capsys, kitchen, tmp_path / "warm", "--cache", cache, "--placement", "fixed")
     cold = _run(capsys, kitchen, tmp_path / "cold", "--no-cache", "--placement", "fixed")
     assert json.dumps(warm, sort_keys=True) == json.dumps(cold, sort_keys=True)
+
+
+def test_a_hand_start_given_as_an_array_is_kept_as_a_tuple_of_floats():
+    settings = MatchSettings(placement="fixed", hand_start_mm=np.array([10, -20, 300]))
+    assert type(settings.hand_start_mm) is tuple and settings.hand_start_mm == (10.0, -20.0, 300.0)
+    assert all(type(c) is float for c in settings.hand_start_mm)
+    hash(settings)  # a frozen record holds nothing mutable

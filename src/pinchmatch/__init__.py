@@ -42,8 +42,9 @@ package stays cheap):
   :func:`complete_weights`), :func:`cost_model` (a run's);
 - a shelf of props: :func:`select_props` -> :class:`Selection`, :func:`coverage_curve`;
   :func:`design_props` (:class:`DesignSettings`) -> :class:`DesignResult`;
-- weights from people's ratings: :func:`read_ratings` -> :class:`Ratings`, :func:`calibrate` ->
-  :class:`Calibration`, :func:`read_weights_file` (what ``calibrate`` wrote);
+- weights from people's ratings: :func:`read_ratings` -> :class:`Ratings` (:func:`fittable_criteria`: the
+  criteria a table can determine), :func:`calibrate` -> :class:`Calibration`, :func:`read_weights_file`
+  (what ``calibrate`` wrote);
 - errors: :class:`PinchmatchError` and its kinds :class:`ConfigError` (a bad argument, option or
   options file), :class:`MeshError`, :class:`ContactError`, :class:`NoFeasiblePinchError`,
   :class:`OutputError`; a broken invariant of pinchmatch's own (a bug) raises
@@ -79,7 +80,7 @@ _API = {
     "match_virtual": "match.scene",
     "Selection": "match.select", "coverage_curve": "match.select", "select_props": "match.select",
     "Calibration": "match.calibrate", "Ratings": "match.calibrate", "calibrate": "match.calibrate",
-    "read_ratings": "match.calibrate", "read_weights_file": "match.calibrate",
+    "read_ratings": "match.calibrate", "read_weights_file": "match.calibrate", "fittable_criteria": "match.calibrate",
     "DesignResult": "runner.design", "DesignSettings": "runner.design", "design_props": "runner.design",
 }
 
@@ -103,7 +104,7 @@ if TYPE_CHECKING:  # what static tools see; at run time each name is imported on
     from .match.search import Choice, MatchSettings, PairResult, cost_model, evaluate_pairs
     from .match.scene import SceneMatch, VirtualMatch, match_scene, match_virtual
     from .match.select import Selection, coverage_curve, select_props
-    from .match.calibrate import Calibration, Ratings, calibrate, read_ratings, read_weights_file
+    from .match.calibrate import Calibration, Ratings, calibrate, fittable_criteria, read_ratings, read_weights_file
     from .runner.design import DesignResult, DesignSettings, design_props
 
 __all__ = sorted(_API) + ["__version__"]

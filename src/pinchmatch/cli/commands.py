@@ -178,7 +178,7 @@ def _cmd_match(args) -> int:
 
 
 def _cmd_calibrate(args) -> int:
-    from ..match.calibrate import calibrate, read_ratings
+    from ..match.calibrate import calibrate, fittable_criteria, read_ratings
     from ..match.cost import CRITERIA
 
     criteria = None
@@ -196,13 +196,24 @@ def _cmd_calibrate(args) -> int:
     except UnicodeDecodeError:
         raise ConfigError(f"{args.ratings}: not UTF-8 text; save the table as a UTF-8 CSV") from None
     ratings = read_ratings(decoded, args.ratings, criteria=criteria)
+    left_out: dict = {}
+    if criteria is None:
+        fittable, left_out = fittable_criteria(ratings, pooling=args.pooling)
+        if fittable and left_out:
+            ratings = read_ratings(decoded, args.ratings, criteria=fittable)
+        else:
+            left_out = {}
     fit = calibrate(ratings, pooling=args.pooling, seed=args.seed, hold_out=args.hold_out, force=args.force)
     document = fit.as_dict(str(args.ratings))
+    if left_out:
+        document["fit"]["not_fitted"] = left_out
     write_atomic(args.output, to_json(document))
     rows = [("criterion", "fitted", "written")] + [(c, f"{fit.fitted_weights[c]:.3f}", f"{fit.weights[c]:.3f}")
                                                    for c in ratings.criteria]
     ui.table(table_rows(rows, "criteria"),
              title=f"weights fitted to {fit.rows} ratings of {fit.pairs} placements ({fit.pooling} pooling)")
+    if left_out:
+        ui.note("not fitted, kept at their defaults: " + "; ".join(f"{c} {why}" for c, why in left_out.items()))
     by = "by placement" if fit.hold_out == "placement" else "one virtual object out at a time"
     ui.note(f"held-out rank correlation of cost and rating ({fit.folds} folds, {by}; -1 is perfect): "
             f"fitted {fit.held_out_spearman:+.3f}, default weights {fit.default_spearman:+.3f}; wrote {args.output}")

@@ -62,10 +62,13 @@ class Presenter:
 
     def table(self, rows: list, *, title: str | None = None, legend: list | None = None) -> None:
         """``rows[0]`` is the header; printed to stdout unless quiet or ``--json``, folded to the
-        terminal's width (long names wrap instead of being cut), with the ``legend`` lines below."""
+        terminal's width (long names wrap instead of being cut), with the ``title`` line above (as wide as
+        the terminal, not the table) and the ``legend`` lines below."""
         if not self.show_summary:
             return
-        table = Table(title=title, box=box.SIMPLE_HEAD, title_justify="left", pad_edge=False, collapse_padding=True)
+        if title:
+            self.out.print(Text(title), soft_wrap=False)
+        table = Table(box=box.SIMPLE_HEAD, pad_edge=False, collapse_padding=True)
         for name in rows[0]:
             table.add_column(name, overflow="fold")
         for row in rows[1:]:

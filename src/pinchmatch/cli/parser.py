@@ -291,7 +291,9 @@ def build_parser() -> argparse.ArgumentParser:
     calibrate.add_argument("ratings", metavar="RATINGS.csv",
                            help="one row per rated trial: rating and <criterion>_jnd columns (docs/study.md)")
     calibrate.add_argument("--criteria", metavar="NAME,...",
-                           help="fit only these criteria (default: every <criterion>_jnd column); the others get 0")
+                           help="fit only these criteria (default: the table's <criterion>_jnd columns of the default "
+                                "criteria whose weights it can determine, said in a note); the others keep their "
+                                "defaults (1; com 0)")
     calibrate.add_argument("--seed", type=int, default=0, help="seed of the cross-validation's folds (default 0)")
     calibrate.add_argument("--pooling", choices=("quick", "sum"), default="quick",
                            help="the pooling the weights are for (default quick, as match's default)")

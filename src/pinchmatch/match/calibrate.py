@@ -27,9 +27,13 @@ correlation for the default weights (all 1, whose ranking needs no fit).
 **Kept defaults.** When the fitted weights rank the held-out rows worse than the defaults do, the
 default weights are written (the fitted ones reported beside them) unless ``force``.
 
+**Which criteria.** ``calibrate`` fits ``r.criteria``; :func:`fittable_criteria` gives those of a table
+whose weights it can determine (what the command line fits when no criteria are named).
+
 **Refused** (:class:`~pinchmatch.errors.ConfigError`): fewer rows than criteria + 3, fewer than 3
-groups, ratings that never change, a criterion whose column never changes or is a combination of the
-others (its weight cannot be told apart), and criteria that do not predict the ratings (no fitted
+groups, ratings that never change, a criterion whose column never changes, reaches
+:data:`SMALLEST_FITTED_JND` in fewer than two groups, or is a combination of the others (its weight
+cannot be told apart), and criteria that do not predict the ratings (no fitted
 weight above 0, or a held-out rank correlation that is not negative).
 """
 
@@ -47,7 +51,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.stats import spearmanr
 
 from ..errors import ConfigError
-from .cost import CRITERIA, CostModel, complete_weights
+from .cost import CRITERIA, DEFAULT_CRITERIA, CostModel, complete_weights
 
 #: folds of the cross-validation by placement (fewer when there are fewer groups)
 FOLDS = 5
@@ -202,6 +206,47 @@ def placement_groups(keys: list, jnd: np.ndarray) -> np.ndarray:
     return np.array([first.setdefault(g, len(first)) for g in label[:n].tolist()], dtype=np.int64)
 
 
+#: why a criterion's weight cannot be determined, said of one criterion and of several
+PLURAL = {"never changes": "never change",
+          f"never differs by {SMALLEST_FITTED_JND} JND or more": f"never differ by {SMALLEST_FITTED_JND} JND or more",
+          f"differs by {SMALLEST_FITTED_JND} JND or more in one placement only":
+          f"differ by {SMALLEST_FITTED_JND} JND or more in one placement only"}
+
+
+def undetermined(r: Ratings, beta: float) -> dict[str, str]:
+    """{criterion: why} for the criteria of ``r`` whose weight the table cannot determine: a column that
+    never changes, or whose differences reach :data:`SMALLEST_FITTED_JND` in fewer than two placements
+    (one placement's rating fixes any weight, and leaving it out of the fit leaves nothing to fix it)."""
+    x = r.jnd ** beta
+    out = {}
+    for k, c in enumerate(r.criteria):
+        reached = len(np.unique(r.pair[r.jnd[:, k] >= SMALLEST_FITTED_JND]))
+        if not len(x) or np.abs(x[:, k] - x[:, k].mean()).max() < CONSTANT_TOLERANCE:
+            out[c] = "never changes"
+        elif reached < 2:
+            out[c] = (f"never differs by {SMALLEST_FITTED_JND} JND or more" if not reached else
+                      f"differs by {SMALLEST_FITTED_JND} JND or more in one placement only")
+    return out
+
+
+def fittable_criteria(r: Ratings, *, pooling: str = "quick") -> tuple[tuple, dict]:
+    """What ``calibrate`` fits when no criteria are named: the table's columns among the default cost's
+    criteria whose weights it can determine, and {criterion left out: why} for the table's others (they
+    keep their defaults). ``com`` is fitted only when named: fitted beside ``mass`` it would take part of
+    the lever arm that the default cost charges to ``mass`` alone.
+
+    >>> r = read_ratings("pair,width_jnd,tilt_jnd,com_jnd,kmax_jnd,rating\\n1,0.2,0,0.3,0.1,6\\n"
+    ...                  "2,1.5,0,0.1,0.3,3\\n3,0.7,0,0.2,2.0,2\\n", "ratings.csv")
+    >>> fittable_criteria(r)
+    (('width', 'kmax'), {'com': 'is not a default criterion (name it with --criteria)', 'tilt': 'never changes'})
+    """
+    why = undetermined(r, exponent_of(pooling))
+    for c in r.criteria:
+        if c not in DEFAULT_CRITERIA and c not in why:
+            why[c] = "is not a default criterion (name it with --criteria)"
+    return tuple(c for c in r.criteria if c not in why), {c: why[c] for c in r.criteria if c in why}
+
+
 def _check(r: Ratings, beta: float) -> None:
     n, m = r.jnd.shape
     if n < m + 3:
@@ -213,18 +258,19 @@ def _check(r: Ratings, beta: float) -> None:
     if np.ptp(r.rating) == 0:
         raise ConfigError(f"{r.source}: every rating is {r.rating[0]:g}, so they say nothing about the "
                           "criteria; rate pairs that differ")
+    unknown = undetermined(r, beta)
+    if unknown:
+        named = {reason: [c for c in unknown if unknown[c] == reason] for reason in unknown.values()}
+        why = "; ".join(f"{', '.join(cs)} {reason if len(cs) == 1 else PLURAL[reason]}" for reason, cs in named.items())
+        if len(unknown) == len(r.criteria):
+            raise ConfigError(f"{r.source}: {why} in the table, so no weight can be determined; rate placements "
+                              "that differ in them")
+        its = "its weight" if len(unknown) == 1 else "their weights"
+        raise ConfigError(f"{r.source}: {why} in the table, so {its} cannot be determined; leave "
+                          f"{'it' if len(unknown) == 1 else 'them'} out with --criteria "
+                          f"{','.join(c for c in r.criteria if c not in unknown)}")
     x = r.jnd ** beta
     xc = x - x.mean(axis=0)
-    flat = [c for c, s in zip(r.criteria, np.abs(xc).max(axis=0)) if s < CONSTANT_TOLERANCE]
-    if flat:
-        raise ConfigError(f"{r.source}: {', '.join(flat)} never changes in the table, so its weight cannot be "
-                          f"determined; leave it out with --criteria "
-                          f"{','.join(c for c in r.criteria if c not in flat)}")
-    faint = [c for c, top in zip(r.criteria, r.jnd.max(axis=0)) if top < SMALLEST_FITTED_JND]
-    if faint:
-        raise ConfigError(f"{r.source}: {', '.join(faint)} never differs by {SMALLEST_FITTED_JND} JND or more in the "
-                          f"table, so its weight cannot be determined; leave it out with --criteria "
-                          f"{','.join(c for c in r.criteria if c not in faint)}")
     scaled = xc / np.linalg.norm(xc, axis=0)
     if np.linalg.matrix_rank(scaled, tol=1e-8) < m:
         _, _, vt = np.linalg.svd(scaled, full_matrices=False)
