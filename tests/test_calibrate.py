@@ -278,3 +278,27 @@ def test_a_rating_far_below_any_scale_is_refused():
     text = ",".join(rows[0]) + "\n" + "\n".join(",".join(r.values()) for r in rows) + "\n"
     with pytest.raises(ConfigError, match="a rating beyond"):
         read_ratings(text, "t.csv")
+
+
+def test_the_criteria_a_table_can_determine_are_counted_by_placement():
+    from pinchmatch.match.calibrate import fittable_criteria
+
+    rows = ["pair,width_jnd,com_jnd,tilt_jnd,normal_jnd,kmax_jnd,mass_jnd,rating",
+            "a,0.1,0.5,0.3,0.099,1.5,0.2,5",  # kmax reaches 0.1 JND in placement a only, rated twice
+            "a,0.1,0.5,0.3,0.099,1.5,0.2,4",
+            "b,0.1,0.1,0.3,0.05,0.0,0.9,3",  # width exactly 0.1 JND in a second placement
+            "c,0.0,0.9,0.3,0.0,0.05,0.0,6",
+            "d,0.0,0.2,0.3,0.02,0.0,1.4,2"]
+    table = read_ratings("\n".join(rows) + "\n", "t.csv")
+    fitted, left_out = fittable_criteria(table)
+    assert fitted == ("width", "mass")
+    assert left_out == {"com": "is not a default criterion (name it with --criteria)", "tilt": "never changes",
+                        "normal": "never differs by 0.1 JND or more",
+                        "kmax": "differs by 0.1 JND or more in one placement only"}
+
+
+def test_a_calibration_document_is_plain_json():
+    fit = calibrate(read_ratings(ratings_csv(TRUE, pairs=20, repeats=2), "t.csv"))
+    document = fit.as_dict("t.csv")
+    assert json.loads(json.dumps(document)) == document  # no numpy numbers left in it
+    assert type(fit.pairs) is int and type(fit.rows) is int and fit.pairs == 20
