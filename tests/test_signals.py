@@ -6,6 +6,7 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 
 import pytest
@@ -127,3 +128,44 @@ def test_a_signal_a_library_turns_into_another_error_still_ends_the_run_as_the_s
     code = main(["demo", "-o", str(tmp_path / "out")])
     err = capsys.readouterr().err
     assert code == 143 and err.startswith("pinchmatch: terminated;") and "ImportError" not in err, err
+
+
+def test_a_signal_during_an_import_is_raised_when_the_import_is_over(tmp_path, monkeypatch):
+    """An exception raised inside an import can leave a compiled extension half initialised (numba's, whose
+    interpreter then crashes as it exits): armed, the signal waits for the import to finish."""
+    from pinchmatch import signals
+    from pinchmatch.errors import Terminated
+
+    (tmp_path / "slow_to_import.py").write_text("import time\ntime.sleep(0.6)\nLOADED = True\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    main_thread = threading.main_thread().ident
+    timer = threading.Timer(0.15, signal.pthread_kill, (main_thread, signal.SIGTERM))
+    t0 = time.perf_counter()
+    with pytest.raises(Terminated), signals.handled():
+        signals.arm()
+        timer.start()
+        try:
+            import slow_to_import  # noqa: F401  (the signal arrives while this runs)
+            imported = time.perf_counter() - t0
+            time.sleep(5.0)  # raised here, within a retry of the import's end
+        finally:
+            ended = time.perf_counter() - t0
+    assert sys.modules["slow_to_import"].LOADED  # the import ran to its end
+    assert 0.6 <= imported < ended < imported + 0.5
+    sys.modules.pop("slow_to_import")
+
+
+def test_a_signal_outside_an_import_is_raised_at_once():
+    from pinchmatch import signals
+    from pinchmatch.errors import Terminated
+
+    timer = threading.Timer(0.1, signal.pthread_kill, (threading.main_thread().ident, signal.SIGTERM))
+    t0 = time.perf_counter()
+    with pytest.raises(Terminated), signals.handled():
+        signals.arm()
+        timer.start()
+        try:
+            time.sleep(5.0)
+        finally:
+            ended = time.perf_counter() - t0
+    assert ended < 1.0
