@@ -9,6 +9,7 @@ import sys
 import threading
 import time
 
+import numpy as np
 import pytest
 
 from pinchmatch.cli.commands import example_mesh_path
@@ -169,3 +170,54 @@ def test_a_signal_outside_an_import_is_raised_at_once():
         finally:
             ended = time.perf_counter() - t0
     assert ended < 1.0
+
+
+def test_a_signal_while_numba_compiles_a_kernel_is_raised_when_the_kernel_is_ready():
+    """numba hands LLVM modules to its engine in two steps; an exception between them frees a module twice
+    and the process aborts as it exits: the signal waits for the compilation."""
+    from numba import njit
+
+    from pinchmatch import signals
+    from pinchmatch.errors import Terminated
+
+    @njit
+    def kernel(x):
+        return x * 2.0 + 1.0
+
+    timer = threading.Timer(0.02, signal.pthread_kill, (threading.main_thread().ident, signal.SIGTERM))
+    with pytest.raises(Terminated), signals.handled():
+        signals.arm()
+        timer.start()
+        assert kernel(1.0) == 3.0  # compiled on this first call, while the signal arrives
+        compiled = list(kernel.signatures)
+        time.sleep(5.0)
+    assert len(compiled) == 1 and kernel(2.0) == 5.0
+
+
+def test_a_signal_during_a_threaded_kd_tree_query_waits_for_its_threads():
+    """scipy joins a query's threads in Python: a signal's exception raised there would leave them writing
+    into arrays the unwinding frees (the process crashed as it exited, -11 or glibc's double free)."""
+    from scipy.spatial import cKDTree
+
+    from pinchmatch import signals
+    from pinchmatch.cores import set_thread_budget, query_tree
+    from pinchmatch.errors import Terminated
+
+    rng = np.random.default_rng(0)
+    tree = cKDTree(rng.random((200_000, 3)))
+    points = rng.random((300_000, 3))
+    before = set_thread_budget(2)
+    timer = threading.Timer(0.05, signal.pthread_kill, (threading.main_thread().ident, signal.SIGTERM))
+    answered = []
+    try:
+        with pytest.raises(Terminated), signals.handled():
+            signals.arm()
+            timer.start()
+            t0 = time.perf_counter()
+            answered.append(query_tree(tree, points, k=8, work=len(points)))
+            took = time.perf_counter() - t0
+            time.sleep(5.0)
+    finally:
+        set_thread_budget(before)
+    assert took > 0.1 and answered and answered[0][1].shape == (300_000, 8)  # the signal came during the query
+    assert not [t for t in threading.enumerate() if "_thread_func" in t.name]  # no query thread left running

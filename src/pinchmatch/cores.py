@@ -9,12 +9,14 @@ use: every core where nothing says otherwise, its share in a worker of a local p
 (:func:`set_thread_budget`), together with threadpoolctl's limit on BLAS.
 
 Imports nothing heavy, so that the command line can say the default in its help without loading
-the pipeline.
+the pipeline. KD-tree queries run on the budget through :func:`query_tree`.
 """
 
 from __future__ import annotations
 
 import os
+
+from .signals import deferred
 
 _BUDGET: int | None = None
 
@@ -50,3 +52,16 @@ PARALLEL_QUERY_POINTS = 4_000
 def query_workers(points: int) -> int:
     """``workers=`` for a scipy KD-tree query of ``points`` points, within the thread budget."""
     return thread_budget() if points >= PARALLEL_QUERY_POINTS else 1
+
+
+def query_tree(tree, points, *, work: int, **options):
+    """``tree.query(points, **options)`` (a scipy KD-tree) on :func:`query_workers` ``(work)`` threads.
+
+    On more than one, a signal waits for the query to end (:func:`pinchmatch.signals.deferred`): scipy
+    joins its threads in Python, where a signal's exception can land, and left running they write into
+    arrays the unwinding frees (the process then crashes as it exits)."""
+    workers = query_workers(work)
+    if workers == 1:
+        return tree.query(points, workers=1, **options)
+    with deferred():
+        return tree.query(points, workers=workers, **options)

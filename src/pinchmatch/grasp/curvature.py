@@ -43,7 +43,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..cores import query_workers, thread_budget
+from ..cores import query_tree, thread_budget
 from ..mesh.surface import SurfaceContext
 
 #: neighbours considered per contact (the patch is cut from these by radius)
@@ -130,8 +130,8 @@ def patch_geometry(
 
     sample = context.sample
     k = int(min(MAX_PATCH_SAMPLES, len(sample.points)))
-    dist, idx = context.tree.query(points_mm, k=k, distance_upper_bound=radius,
-                                   workers=query_workers(n * k // 16))
+    dist, idx = query_tree(context.tree, points_mm, k=k, distance_upper_bound=radius,
+                           work=n * k // 16)
     dist, idx = dist.reshape(n, k), idx.reshape(n, k)
     used = int(np.isfinite(dist).sum(axis=1).max())  # trim columns no patch uses
     dist, idx = dist[:, : max(used, 1)], idx[:, : max(used, 1)]

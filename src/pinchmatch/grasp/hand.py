@@ -74,7 +74,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..cores import query_workers
+from ..cores import query_tree
 
 #: allowed penetration (mm) of a fingertip or finger into the surface: the pad is soft
 PAD_TOLERANCE_MM = 0.3
@@ -193,7 +193,7 @@ def _axis_distances(tree, tips, h, offsets, cap, rho, delta=None):
         off = offsets[stage]
         centres = tips[rows][:, :, None, :] + off[None, None, :, None] * h[rows][:, None, None, :]
         centres = centres.reshape(-1, 3)
-        q, _ = tree.query(centres, k=1, distance_upper_bound=cap, workers=query_workers(len(centres)))
+        q, _ = query_tree(tree, centres, k=1, distance_upper_bound=cap, work=len(centres))
         q = np.minimum(q, cap).reshape(len(rows), 2, len(off))
         d[np.ix_(rows, [0, 1], stage)] = q
         rows = rows[(q + off * delta[rows, None, None] >= rho).all(axis=(1, 2))]
@@ -355,7 +355,7 @@ def _search_band(context, tips, u, e1, e2, pending, hand, offsets, rho, cap):
             i = np.flatnonzero(has_hint)
             f, j = np.divmod(hint[i], len(offsets))
             centre = tips[rows[i], f] + offsets[j][:, None] * h[i]
-            d1, _ = tree.query(centre, k=1, distance_upper_bound=cap, workers=query_workers(len(centre)))
+            d1, _ = query_tree(tree, centre, k=1, distance_upper_bound=cap, work=len(centre))
             live[i] = np.minimum(d1, cap) + offsets[j] * delta[i] >= rho
         idx = np.flatnonzero(live)
         d = _axis_distances(tree, tips[rows[idx]], h[idx], offsets, cap, rho, delta[idx]).reshape(len(idx), 2 * len(offsets))

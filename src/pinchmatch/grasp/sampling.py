@@ -19,7 +19,7 @@ import logging
 import numpy as np
 
 from .curvature import tangent_frame
-from ..cores import query_workers
+from ..cores import query_tree
 from ..errors import NoFeasiblePinchError
 from .pinches import (PREFILTER_MARGIN_DEG, RULES, PinchSettings, Pinches, assemble, check_patch_radius, cheap_broken,
                       concat_pinches, patches, reach_rule, rule_table)
@@ -101,8 +101,8 @@ def _local_contacts(context, seeds, n, radius, rng):
     sample = context.sample
     k = int(min(64, len(sample.points)))
     which = rng.integers(0, len(seeds), size=n)
-    dist, idx = context.tree.query(seeds, k=k, distance_upper_bound=radius,
-                                  workers=query_workers(len(seeds) * k // 16))
+    dist, idx = query_tree(context.tree, seeds, k=k, distance_upper_bound=radius,
+                           work=len(seeds) * k // 16)
     dist, idx = dist.reshape(len(seeds), k), idx.reshape(len(seeds), k)
     valid = np.isfinite(dist)
     counts = valid.sum(axis=1)  # at least 1: the seed's own nearest sample

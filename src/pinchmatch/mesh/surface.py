@@ -21,7 +21,7 @@ import numpy as np
 import trimesh
 from scipy.spatial import cKDTree
 
-from ..cores import query_workers
+from ..cores import query_tree
 from .regions import ContactRegions
 
 log = logging.getLogger(__name__)
@@ -304,5 +304,5 @@ class SurfaceContext:
 
     def min_distance_to_samples(self, points: np.ndarray) -> np.ndarray:
         """Distance (mm) from each point to the nearest dense surface sample."""
-        distance, _ = self.tree.query(points, k=1, workers=query_workers(len(points)))
+        distance, _ = query_tree(self.tree, points, k=1, work=len(points))
         return distance
