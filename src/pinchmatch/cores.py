@@ -57,11 +57,8 @@ def query_workers(points: int) -> int:
 def query_tree(tree, points, *, work: int, **options):
     """``tree.query(points, **options)`` (a scipy KD-tree) on :func:`query_workers` ``(work)`` threads.
 
-    On more than one, a signal waits for the query to end (:func:`pinchmatch.signals.deferred`): scipy
-    joins its threads in Python, where a signal's exception can land, and left running they write into
-    arrays the unwinding frees (the process then crashes as it exits)."""
-    workers = query_workers(work)
-    if workers == 1:
-        return tree.query(points, workers=1, **options)
+    A signal waits for the query to end (:func:`pinchmatch.signals.deferred`): on several threads scipy
+    joins them in Python, where a signal's exception can land, and left running they write into arrays
+    the unwinding frees (the process then crashes as it exits)."""
     with deferred():
-        return tree.query(points, workers=workers, **options)
+        return tree.query(points, workers=query_workers(work), **options)

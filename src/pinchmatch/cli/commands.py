@@ -199,9 +199,9 @@ def _cmd_calibrate(args) -> int:
     left_out: dict = {}
     if criteria is None:
         fittable, left_out = fittable_criteria(ratings, pooling=args.pooling)
-        if fittable and left_out:
+        if fittable and left_out:  # read again as if named: placements are grouped on the fitted columns
             ratings = read_ratings(decoded, args.ratings, criteria=fittable)
-        else:
+        else:  # all fittable, or none (the fit's check then says why, in one line)
             left_out = {}
     fit = calibrate(ratings, pooling=args.pooling, seed=args.seed, hold_out=args.hold_out, force=args.force)
     document = fit.as_dict(str(args.ratings))
