@@ -66,6 +66,11 @@ CORE = {
     "mesh/level.py": ["test_manifest.py", "test_gltf_check.py"],
     "export/folder.py": ["test_publish.py", "test_option_extremes.py"],
     "runner/design.py": ["test_design.py"],
+    "config.py": ["test_config.py", "test_pinches.py", "test_cost.py", "test_redirect.py", "test_match.py"],
+    "options.py": ["test_config.py", "test_cache.py", "test_result_cache.py"],
+    "match/scene.py": ["test_match.py", "test_redirect.py", "test_landing.py", "test_select.py"],
+    "match/landing.py": ["test_landing.py"],
+    "match/reference.py": ["test_match.py", "test_cache.py"],
 }
 
 #: surviving mutants judged equivalent: (module, source line stripped, description) -> reason
@@ -142,7 +147,7 @@ EQUIVALENT.update({
     ("grasp/curvature.py", "workers = min(len(starts), thread_budget())", "drop min(...)"): _THREADS,
     ("grasp/pinches.py", "return (_angle_deg(u, -normals[:, 0]) > cone_deg) | (_angle_deg(-u, -normals[:, 1]) > "
      "cone_deg)", "> -> >="): _BOUNDARY,
-    ("match/cost.py", "return isinstance(other, Mapping) and dict(self) == dict(other)", "drop dict(...)"):
+    ("config.py", "return isinstance(other, Mapping) and dict(self) == dict(other)", "drop dict(...)"):
         "self == dict(other) calls this method again with a dict, which compares dict(self) with it: the same answer",
     ("match/register.py", "return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-300)",
      "1e-300 -> 2e-300"): _GUARD,

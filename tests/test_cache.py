@@ -1,4 +1,5 @@
 import dataclasses
+import shutil
 import json
 import logging
 from concurrent.futures import ProcessPoolExecutor
@@ -49,12 +50,12 @@ def test_a_hit_rebuilds_exactly_what_a_cold_run_computes(tmp_path, mesh_file):
 def test_the_key_follows_content_and_settings_only(tmp_path, mesh_file):
     cache = FeatureCache(tmp_path / "c")
     spec = ObjectSpec(str(mesh_file))
-    key = cache.key(spec, patch_radius_mm=8.0, settings=SETTINGS)
-    same = lambda spec=spec, **kw: cache.key(spec, **({"patch_radius_mm": 8.0, "settings": SETTINGS} | kw))  # noqa: E731
+    key = cache.key(spec, settings=SETTINGS)
+    same = lambda spec=spec, **kw: cache.key(spec, **({"settings": SETTINGS} | kw))  # noqa: E731
     assert same() == key
     assert same(settings=PinchSettings(count=200, seed=4)) != key
     assert same(settings=PinchSettings(count=200, seed=3, friction_cone_deg=20)) != key
-    assert same(patch_radius_mm=6.0) != key
+    assert same(settings=dataclasses.replace(SETTINGS, patch_radius_mm=6.0)) != key
     assert same(given=(np.zeros((1, 3)), np.ones((1, 3)))) != key
     # what shapes the candidates is in the key; the name and the mass are not
     for change in ({"units": "cm"}, {"up": "y"}, {"com_mm": (0.0, 0.0, 5.0)}, {"axis": (1.0, 0.0, 0.0)},
@@ -63,7 +64,7 @@ def test_the_key_follows_content_and_settings_only(tmp_path, mesh_file):
     assert same(dataclasses.replace(spec, name="can", mass_g=350.0)) == key
     copy = tmp_path / "copy.stl"  # the name does not matter, the bytes do
     copy.write_bytes(mesh_file.read_bytes())
-    assert cache.key(ObjectSpec(str(copy)), patch_radius_mm=8.0, settings=SETTINGS) == key
+    assert cache.key(ObjectSpec(str(copy)), settings=SETTINGS) == key
     mesh_file.write_bytes(mesh_file.read_bytes()[:-50] + bytes(50))
     assert same() != key
 
@@ -91,7 +92,7 @@ def test_a_damaged_entry_is_computed_again(tmp_path, mesh_file, damage, caplog):
     assert "unusable" in caplog.text
     same_candidates(cold, again)
     spec = ObjectSpec(str(mesh_file))
-    assert cache.load(cache.key(spec, patch_radius_mm=8.0, settings=SETTINGS), spec,
+    assert cache.load(cache.key(spec, settings=SETTINGS), spec,
                       patch_radius_mm=8.0) is not None  # rewritten whole
 
 
@@ -223,20 +224,24 @@ def test_info_and_clear_on_a_file_say_so(tmp_path, capsys):
     assert path.read_bytes() == b"user data"
 
 
-def test_the_key_covers_the_algorithm(tmp_path, mesh_file, monkeypatch):
+def test_the_key_covers_the_code(tmp_path, mesh_file, monkeypatch):
+    from pinchmatch import options
     from pinchmatch.runner import cache as cache_module
 
     cache = FeatureCache(tmp_path / "c")
-    key = cache.key(ObjectSpec(str(mesh_file)), patch_radius_mm=8.0, settings=SETTINGS)
-    package = Path(cache_module.__file__).parents[1]
-    every_grasp_module = {f"grasp/{p.stem}" for p in (package / "grasp").glob("*.py") if p.stem != "__init__"}
-    assert every_grasp_module | {"mesh/load", "mesh/surface", "mesh/properties", "match/candidates"} \
-        <= set(cache_module.ALGORITHM_MODULES)
-    monkeypatch.setattr(cache_module, "ALGORITHM_DIGEST", "0" * 64)  # as after an edit of any of those modules
-    assert cache.key(ObjectSpec(str(mesh_file)), patch_radius_mm=8.0, settings=SETTINGS) != key
-    # the digest reads every listed module's source
-    for name in cache_module.ALGORITHM_MODULES:
-        assert (package / f"{name}.py").is_file()
+    key = cache.key(ObjectSpec(str(mesh_file)), settings=SETTINGS)
+    monkeypatch.setattr(cache_module, "code_digest", lambda: "0" * 64)  # as after an edit of any module
+    assert cache.key(ObjectSpec(str(mesh_file)), settings=SETTINGS) != key
+    # the code's digest reads every module of the package: none can be left out of a key
+    copy = tmp_path / "pinchmatch"
+    shutil.copytree(Path(cache_module.__file__).parents[1], copy, ignore=shutil.ignore_patterns("__pycache__"))
+    assert options.package_digest(copy) == options.code_digest()
+    for edit in (lambda: (copy / "grasp" / "hand.py").write_text((copy / "grasp" / "hand.py").read_text() + "#"),
+                 lambda: (copy / "match" / "new_stage.py").write_text("x = 1\n"),
+                 lambda: (copy / "viewer" / "viewer.js").write_text("//")):
+        before = options.package_digest(copy)
+        edit()
+        assert options.package_digest(copy) != before
 
 
 def test_a_code_error_while_reading_an_entry_is_raised_not_a_miss(tmp_path, mesh_file, monkeypatch):
@@ -252,6 +257,25 @@ def test_a_code_error_while_reading_an_entry_is_raised_not_a_miss(tmp_path, mesh
     with pytest.raises(TypeError, match="a bug"):
         cached_candidates(mesh_file, cache=cache, settings=SETTINGS)
     assert len(list(cache.folder.glob("*.npz"))) == 1  # the entry is not thrown away for a bug
+
+
+@pytest.mark.parametrize("error", [ValueError, KeyError])
+def test_a_value_error_of_the_code_while_an_entry_is_checked_is_raised_not_a_miss(tmp_path, mesh_file, monkeypatch,
+                                                                                   error):
+    """Damage has its own exception: a bug that raises ValueError or KeyError while an entry is read or its
+    arrays checked is raised, and the entry stays."""
+    from pinchmatch.runner import cache as cache_module
+
+    cache = FeatureCache(tmp_path / "c")
+    cached_candidates(mesh_file, cache=cache, settings=SETTINGS)
+
+    def broken(arrays):
+        raise error("a bug")
+
+    monkeypatch.setattr(cache_module, "_check_arrays", broken)
+    with pytest.raises(error, match="a bug"):
+        cached_candidates(mesh_file, cache=cache, settings=SETTINGS)
+    assert len(list(cache.folder.glob("*.npz"))) == 1
 
 
 def test_the_reference_pose_comes_from_the_cache_in_a_warm_run(tmp_path, mesh_file):

@@ -302,3 +302,33 @@ def test_a_calibration_document_is_plain_json():
     document = fit.as_dict("t.csv")
     assert json.loads(json.dumps(document)) == document  # no numpy numbers left in it
     assert type(fit.pairs) is int and type(fit.rows) is int and fit.pairs == 20
+
+
+def test_weights_fitted_with_com_are_read_back_by_a_run_of_the_papers_criteria(tmp_path, capsys, write_mesh):
+    """A fit that names com writes the paper's criteria set into its file; a run with --criteria paper reads
+    it back, a default run is refused in one line naming the fix (before: no run could read it)."""
+    box_stl = write_mesh(trimesh.creation.box(extents=(40.0, 30.0, 50.0)), "box.stl")
+    paper = {"width": 2.0, "com": 1.0, "normal": 1.0, "kmax": 0.25}
+    table = tmp_path / "ratings.csv"
+    table.write_text(ratings_csv(paper))
+    weights = tmp_path / "weights.json"
+    assert main(["calibrate", str(table), "--criteria", "width,com,normal,kmax", "--force", "-o", str(weights),
+                 "-q"]) == 0
+    doc = json.loads(weights.read_text())
+    assert doc["criteria"] == "paper" and doc["weights"]["com"] > 0 and doc["weights"]["mass"] == 0.0
+    out = tmp_path / "out"
+    argv = ["match", "--tangible", str(box_stl), "--virtual", str(box_stl), "--count", "150", "--weights-file",
+            str(weights), "--no-cache", "--no-view", "-q"]
+    assert main(argv + ["--criteria", "paper", "-o", str(out)]) == 0
+    used = json.loads((out / "matches.json").read_text())["settings"]["weights"]
+    assert used == pytest.approx({c: w for c, w in doc["weights"].items() if c != "mass"})
+    capsys.readouterr()
+    assert main(argv + ["-o", str(tmp_path / "refused")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--criteria paper" in err[0] and not (tmp_path / "refused").exists()
+    # com and mass both charge the lever arm: a fit of both is refused before any work
+    both = tmp_path / "both.csv"
+    both.write_text(ratings_csv({"width": 1.0, "com": 1.0, "mass": 1.0}, pairs=20, repeats=1))
+    assert main(["calibrate", str(both), "--criteria", "width,com,mass", "-o", str(tmp_path / "both.json"),
+                 "-q"]) == 2
+    assert "com and mass" in capsys.readouterr().err

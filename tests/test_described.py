@@ -135,3 +135,20 @@ def test_the_documented_shapes_follow_the_schema_and_read(tmp_path):
                 '[[object]]\nname = "p"\nshape = { kind = "cylinder", diameter_mm = 4 }\n'):
         with pytest.raises(jsonschema.ValidationError):
             jsonschema.validate(tomllib.loads(bad), schema)
+
+
+def test_a_turned_box_is_the_box_turned_about_its_up(tmp_path):
+    """A box of 40 x 30 x 25 mm turned 27 degrees: its corners are the unturned corners turned by +27 degrees
+    about +Z (counter-clockwise seen from above), standing on z = 0; an oracle by trimesh's own rotation."""
+    stack, problems = read_shape({"kind": "box", "size_mm": [40, 30, 25], "turn_deg": 27}, "a prop")
+    assert not problems
+    mesh = trimesh.load(shape_file(stack), force="mesh")
+    oracle = trimesh.creation.box(extents=(40, 30, 25))
+    oracle.apply_transform(trimesh.transformations.rotation_matrix(math.radians(27), [0, 0, 1]))
+    oracle.apply_translation([0, 0, 12.5])
+    corners = oracle.vertices
+    # every corner of the oracle is a corner of the solid, and the solid's extents are the oracle's
+    distance = np.linalg.norm(mesh.vertices[:, None, :] - corners[None], axis=2).min(axis=0)
+    assert distance.max() < 1e-4, distance
+    assert np.allclose(mesh.bounds, oracle.bounds, atol=1e-4)
+    assert mesh.volume == pytest.approx(40 * 30 * 25, rel=1e-6)  # the STL holds float32

@@ -113,3 +113,61 @@ def test_robust_ranking_puts_the_steadier_choice_first(tmp_path):
     assert worst[1] > worst[0]  # near the edges a finger lands past them
     assert steady.best.t_pose == 0 and steady.landing.cost_worst == pytest.approx(worst[0])
     assert [c.t_pose for c in [steady.best] + steady.alternatives] == sorted(worst, key=worst.get)
+
+
+def _turned(mesh, R, t):
+    out = mesh.copy()
+    M = np.eye(4)
+    M[:3, :3], M[:3, 3] = R, t
+    out.apply_transform(M)
+    return out
+
+
+def test_landings_on_a_turned_moved_copy_land_where_the_targets_are(tmp_path):
+    """The virtual object is the tangible turned by a generic rotation and moved off the origin: every
+    landing on it, carried into the tangible's frame by the match's placement, lands on the same spot of
+    the tangible (nothing missed, nothing felt). A landing carried by the transpose of the rotation (or
+    by a placement inverted) lands metres off and misses."""
+    from scipy.spatial.transform import Rotation
+
+    R = Rotation.from_euler("zyx", [37.0, -24.0, 61.0], degrees=True).as_matrix()
+    t = np.array([140.0, -60.0, 85.0])
+    mesh = box((60.0, 40.0, 30.0), subdivide_mm=4.0).mesh
+    tangible = given(tmp_path, "t", mesh, (6.0, -20.0, 3.0), (6.0, 20.0, 3.0))
+    p1, p2 = R @ np.array([6.0, -20.0, 3.0]) + t, R @ np.array([6.0, 20.0, 3.0]) + t
+    virtual = given(tmp_path, "v", _turned(mesh, R, t), p1, p2)
+    scene, vm = matched(tangible, virtual)
+    X = vm.best.transform
+    assert np.allclose(X[:3, :3], R.T, atol=1e-6) and np.allclose(X[:3, 3], -R.T @ t, atol=1e-4)
+    land = vm.landing
+    assert land.missed == 0 and land.landings > 100
+    assert land.cost_worst < 1e-3
+    # an oracle that does not call the landing: the landing points, placed by hand, lie on the tangible
+    points, _ = landing_pinches(virtual, vm.best.v_pose, vm.best.swapped, 5.0, 14.0)
+    placed = (points.reshape(-1, 3) - t) @ R  # R^T (x - t), row-wise
+    assert np.abs(tangible.obj.loaded.mesh.nearest.signed_distance(placed)).max() < 1e-3
+
+
+def test_a_finger_that_lands_on_nothing_is_noticed_and_counted(tmp_path):
+    """A 4 mm bar felt for a wide block seen: landings a few mm beside the targets close on air. Each miss
+    counts as a landing noticed for certain, in the mean and the worst."""
+    from pinchmatch.match.landing import MISS_JND
+
+    small = PinchSettings(count=200, patch_radius_mm=1.5)
+    objects = []
+    for name, mesh in (("block", box((60.0, 40.0, 40.0), subdivide_mm=2.0).mesh),
+                       ("bar", box((4.0, 40.0, 4.0), subdivide_mm=0.5).mesh)):
+        mesh.export(tmp_path / f"{name}.stl")
+        obj = analyze_object(tmp_path / f"{name}.stl", patch_radius_mm=1.5)
+        objects.append(candidate_poses(obj, settings=small, given=(np.array([[0.0, -20.0, 0.0]]),
+                                                                    np.array([[0.0, 20.0, 0.0]]))))
+    virtual, tangible = objects
+    scene = match_scene([tangible], [virtual], settings=MatchSettings(weights={"kmin": 0.0, "kmax": 0.0, "mass": 0.0}),
+                        pinch_settings=small)
+    vm = scene.matches[0]
+    land = vm.landing
+    assert land.missed > land.landings // 2  # most of the disc lies beside a 4 mm bar
+    assert land.p_noticed_worst == 1.0 and land.as_dict()["noticeable_worst"]
+    miss = float(scene.model.pool(np.array([MISS_JND ** 2] + [0.0] * 7)))
+    assert land.cost_worst >= miss
+    assert land.cost_mean >= land.missed / land.landings * miss

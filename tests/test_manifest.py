@@ -294,6 +294,14 @@ def test_the_readme_python_example_runs(tmp_path, monkeypatch):
     best = scope["best"]
     assert best.tangible_name == ["block.stl", "bottle.obj", "stack"][best.tangible]
     assert scope["scene"].matches[0].name == "mug.glb"
+    # the choice carries its pinches: the same points as the candidates it indexes (refined ones included)
+    vm = scope["scene"].matches[0]
+    tangibles, virtual = scope["scene"].objects(vm)
+    t_points = tangibles[best.tangible].pinches.points[best.t_pose]
+    v_points = virtual.pinches.points[best.v_pose][::-1 if best.swapped else 1]
+    assert np.array_equal([best.tangible_pose.p1_mm, best.tangible_pose.p2_mm], t_points)
+    assert np.array_equal([best.virtual_pose.p1_mm, best.virtual_pose.p2_mm], v_points)
+    assert scope["obj"].mass_g == 350.0
 
 
 def test_a_file_key_that_is_not_text_is_not_called_missing(tmp_path):

@@ -578,3 +578,30 @@ def test_a_subset_keeps_poses_features_and_table_together(example):
     np.testing.assert_array_equal(sub.pinches.points, example.pinches.points[keep])
     np.testing.assert_array_equal(sub.table, example.table[keep])
     np.testing.assert_array_equal(sub.index, example.index[keep])
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_z_up_prop_and_a_y_up_object_report_the_turn_of_up_the_transform_makes(tmp_path, capsys, seed):
+    """Mixed up axes: a z-up STL prop and a y-up GLB object (metres), off the origin. ``up_turn_deg`` and
+    ``flipped`` are what the reported transform does to the object's up: two points along its up, carried by
+    the 4x4 matrix as points (not its rotation applied to a vector), measured against the prop's up."""
+    prop = trimesh.creation.box(extents=(60.0, 40.0, 90.0))  # mm, z up: tall along z
+    prop.apply_translation([30.0, -20.0, 45.0])
+    prop.export(tmp_path / "prop.stl")
+    bottle = trimesh.creation.cylinder(radius=0.025, height=0.11, sections=40)  # metres, tall along z ...
+    bottle.apply_transform(trimesh.transformations.rotation_matrix(-np.pi / 2, [1, 0, 0]))  # ... now along y
+    bottle.apply_translation([0.2, 0.055, -0.1])
+    bottle.export(tmp_path / "bottle.glb")
+    out = tmp_path / "out"
+    code, _, err = run_cli(capsys, "match", "--tangible", tmp_path / "prop.stl", "--virtual", tmp_path / "bottle.glb",
+                           "--count", 200, "--seed", seed, "--no-cache", "--no-view", "-o", out, "--jobs", 1)
+    assert code == 0, err
+    doc = json.loads((out / "matches.json").read_text())
+    assert doc["virtuals"][0]["up_vector"] == [0.0, 1.0, 0.0] and doc["tangibles"][0]["up_vector"] == [0.0, 0.0, 1.0]
+    for m in [doc["matches"][0]] + doc["matches"][0]["alternatives"]:
+        X = np.array(m["transform_virtual_to_tangible"])
+        a, b = X @ [200.0, 0.0, -100.0, 1.0], X @ [200.0, 100.0, -100.0, 1.0]  # the object's up, as points
+        up = (b - a)[:3] / np.linalg.norm((b - a)[:3])
+        turn = np.degrees(np.arccos(np.clip(up @ [0.0, 0.0, 1.0], -1.0, 1.0)))
+        assert m["up_turn_deg"] == pytest.approx(turn, abs=0.02)
+        assert m["flipped"] == bool(turn > 90.0)

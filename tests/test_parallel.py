@@ -5,6 +5,7 @@ import json
 import numpy as np
 import pytest
 
+from pinchmatch.config import Config
 from pinchmatch.runner.cache import cached_candidates
 from pinchmatch.cli.main import main
 from pinchmatch.match.scene import match_scene
@@ -205,7 +206,7 @@ def test_workers_report_the_stages_of_loading_each_object(meshes, jobs):
         yield lambda note=None, *, done=True: notes.append((description.split(":")[0], note, done))
 
     settings = PinchSettings(count=60)
-    job = Job(units=None, up=None, settings=settings, match=MatchSettings(), scenes=False, figures=False)
+    job = Job(units=None, up=None, config=Config(settings, MatchSettings()), scenes=False, figures=False)
     tasks = lambda role, folder: [ObjectTask(role, str(p), None, None)  # noqa: E731
                                   for p in sorted((meshes / folder).glob("*.stl"))]
     with executor(jobs) as ex:

@@ -10,6 +10,7 @@ import pytest
 
 from pinchmatch.cli.commands import example_mesh_path
 from pinchmatch.grasp.pinches import PinchSettings
+from pinchmatch.config import Config
 from pinchmatch.match.search import MatchSettings
 from pinchmatch.mesh.manifest import ObjectSpec
 from pinchmatch.mesh.shapes import ellipsoid
@@ -85,7 +86,7 @@ def test_the_key_covers_every_input_of_a_result(tmp_path, meshes):
     egg, ball = meshes
     cache = FeatureCache(tmp_path / "c")
     task = ObjectTask("virtual", str(egg))
-    job = Job(units=None, up=None, settings=PinchSettings(count=150), match=MatchSettings())
+    job = Job(units=None, up=None, config=Config(PinchSettings(count=150), MatchSettings()))
     shared, model = ("a" * 64, None), {"weights": 1.0}
     key = results.result_key(cache, task, job, shared, model, None, None)
     assert key == results.result_key(cache, task, job, shared, model, None, None)  # deterministic
@@ -95,9 +96,9 @@ def test_the_key_covers_every_input_of_a_result(tmp_path, meshes):
                                  job, shared, model, None, None),
         "other tangibles": (task, job, ("b" * 64, None), model, None, None),
         "another cost model": (task, job, shared, {"weights": 2.0}, None, None),
-        "other match settings": (task, dataclasses.replace(job, match=MatchSettings(top_k=5)), shared, model,
+        "other match settings": (task, dataclasses.replace(job, config=job.config.replace(top_k=5)), shared, model,
                                  None, None),
-        "other pinch settings": (task, dataclasses.replace(job, settings=PinchSettings(count=151)), shared, model,
+        "other pinch settings": (task, dataclasses.replace(job, config=job.config.replace(count=151)), shared, model,
                                  None, None),
         "units": (task, dataclasses.replace(job, units="cm"), shared, model, None, None),
         "a one-to-one plan": (task, job, shared, model, np.array([True, False]), np.array([0.5, 1.5])),
@@ -109,52 +110,3 @@ def test_the_key_covers_every_input_of_a_result(tmp_path, meshes):
     assert results.result_key(cache, task, job, shared, model, None, None) != key
 
 
-def test_the_key_covers_the_code_that_makes_a_result():
-    package = Path(results.__file__).parents[1]
-    for name in results.RESULT_MODULES:
-        assert (package / f"{name}.py").is_file(), name
-    every_match_and_export_module = {f"{folder}/{p.stem}" for folder in ("match", "export")
-                                     for p in (package / folder).glob("*.py")}
-    left_out = {"match/__init__", "match/candidates", "export/__init__", "export/folder", "export/sink",
-                "export/view", "match/select", "export/selection", "export/design", "export/study_plan",
-                "match/calibrate", "export/study_ratings"}
-    # candidates: in ALGORITHM_DIGEST; folder, sink, view: write what the results hold; select, selection,
-    # design: choose or describe props from the served matrix; study_plan, calibrate: the headset study's
-    # trials and the weights fitted to its ratings; study_ratings: the method's ratings beside the study; none is part of a virtual object's result
-    assert every_match_and_export_module - left_out <= set(results.RESULT_MODULES)
-    assert json.loads(json.dumps(results.RESULT_DIGEST)) == results.RESULT_DIGEST and len(results.RESULT_DIGEST) == 64
-
-
-def test_the_refined_poses_are_kept_under_their_own_key(tmp_path, capsys, meshes, monkeypatch):
-    """A --one-to-one run refines each object once (its cost row, then its result, read the same
-    poses); a rerun with other alternatives and landing options refines nothing and gives what a run
-    without the cache gives, bit for bit."""
-    from pinchmatch.runner import refined
-
-    cache = tmp_path / "cache"
-    calls = []
-    inner = refined.refined_search
-    monkeypatch.setattr(refined, "refined_search", lambda *a, **k: calls.append(1) or inner(*a, **k))
-    _match(capsys, meshes, tmp_path / "first", cache, "--one-to-one")
-    assert len(calls) == 2 and len(list(cache.glob("*.refined.npz"))) == 2
-    _match(capsys, meshes, tmp_path / "second", cache, "--one-to-one", "--top-k", "1", "--landing-mm", "3")
-    assert len(calls) == 2  # the refined poses came from the cache
-    _match(capsys, meshes, tmp_path / "fresh", tmp_path / "other-cache", "--one-to-one", "--top-k", "1",
-           "--landing-mm", "3")
-    assert len(calls) == 4  # the run with a new cache refined each object once too
-    assert _outputs(tmp_path / "second") == _outputs(tmp_path / "fresh")
-    code, _, err = run_cli(capsys, "match", "--tangible", example_mesh_path(), "--virtual", *meshes, "--count", 150,
-                           "--jobs", 1, "--no-cache", "-o", tmp_path / "uncached", "--one-to-one", "--top-k", "1",
-                           "--landing-mm", "3")
-    assert code == 0, err
-    assert _outputs(tmp_path / "uncached") == _outputs(tmp_path / "fresh")  # refined in each task: the same bits
-    calls.clear()
-    calls.extend([1] * 4)
-    # other weights refine again
-    _match(capsys, meshes, tmp_path / "tuned", cache, "--one-to-one", "--weights", "width=3")
-    assert len(calls) == 6
-    # a damaged entry is a miss: refined again, the same result
-    for entry in cache.glob("*.refined.npz"):
-        entry.write_bytes(b"not an archive")
-    _match(capsys, meshes, tmp_path / "again", cache, "--one-to-one", "--top-k", "1", "--landing-mm", "3")
-    assert _outputs(tmp_path / "again") == _outputs(tmp_path / "fresh")

@@ -29,8 +29,8 @@ def scene(tmp_path_factory):
 def command(name, scene, out, jobs):
     prop, objects = str(example_mesh_path()), [str(p) for p in sorted(scene.glob("*.stl"))]
     common = ["--count", "300", "-q", "--no-cache", "-o", str(out)]
-    if name == "match":
-        return ["match", "--tangible", prop, "--virtual", *objects, "--jobs", str(jobs), *common]
+    if name == "match":  # more poses: the run lasts well past the latest signal (about 1.4 s at 300 poses here)
+        return ["match", "--tangible", prop, "--virtual", *objects, "--jobs", str(jobs), *common, "--count", "3000"]
     if name == "select":
         return ["select", "--tangible", prop, prop, "--virtual", *objects, "-k", "1", "--jobs", str(jobs), *common]
     if name == "design":

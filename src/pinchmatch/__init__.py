@@ -32,9 +32,11 @@ package stays cheap):
 - one object end to end: :func:`analyze_object` (a file) or :func:`analyze_spec` (an
   :class:`ObjectSpec`) -> :class:`ObjectAnalysis`; :func:`find_pinches`;
   :func:`score_pinches` (given poses);
-- matching: :func:`candidate_poses` -> :class:`Candidates`; :class:`MatchSettings`;
-  :func:`match_scene` -> :class:`SceneMatch` (per virtual object a :class:`VirtualMatch` holding
-  :class:`Choice` s); one virtual object: :func:`match_virtual`; given pose pairs:
+- matching: :func:`candidate_poses` -> :class:`Candidates`; :class:`MatchSettings`; the run's one
+  configuration :class:`Config` (pinch and match settings, with a digest); the one match
+  :func:`match_one` (one virtual object -> :class:`VirtualMatch` holding :class:`Choice` s, each
+  with its two :class:`Pose` s); :func:`match_scene` -> :class:`SceneMatch`, one per virtual object;
+  one virtual object as a scene: :func:`match_virtual`; given pose pairs:
   :func:`evaluate_pairs` -> :class:`PairResult`;
 - registration: :func:`register_poses`, :func:`register_pose` (the rigid placement of a pose pair),
   :func:`rotations_between`;
@@ -77,7 +79,7 @@ _API = {
     "Choice": "match.search", "MatchSettings": "match.search", "PairResult": "match.search",
     "cost_model": "match.search", "evaluate_pairs": "match.search",
     "SceneMatch": "match.scene", "VirtualMatch": "match.scene", "match_scene": "match.scene",
-    "match_virtual": "match.scene",
+    "match_virtual": "match.scene", "match_one": "match.scene", "Config": "config", "Pose": "match.search",
     "Selection": "match.select", "coverage_curve": "match.select", "select_props": "match.select",
     "Calibration": "match.calibrate", "Ratings": "match.calibrate", "calibrate": "match.calibrate",
     "read_ratings": "match.calibrate", "read_weights_file": "match.calibrate", "fittable_criteria": "match.calibrate",
@@ -101,8 +103,9 @@ if TYPE_CHECKING:  # what static tools see; at run time each name is imported on
     from .match.cost import CostModel, Weights, complete_weights
     from .match.candidates import Candidates, candidate_poses
     from .match.register import register_pose, register_poses
-    from .match.search import Choice, MatchSettings, PairResult, cost_model, evaluate_pairs
-    from .match.scene import SceneMatch, VirtualMatch, match_scene, match_virtual
+    from .match.search import Choice, MatchSettings, PairResult, Pose, cost_model, evaluate_pairs
+    from .config import Config
+    from .match.scene import SceneMatch, VirtualMatch, match_one, match_scene, match_virtual
     from .match.select import Selection, coverage_curve, select_props
     from .match.calibrate import Calibration, Ratings, calibrate, fittable_criteria, read_ratings, read_weights_file
     from .runner.design import DesignResult, DesignSettings, design_props

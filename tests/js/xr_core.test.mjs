@@ -204,3 +204,43 @@ test("the carousel serves the carousel matches in the page's order", () => {
                    { redirection: { mode: "carousel" } }];
   assert.deepEqual(XR.carouselQueue(matches), [1, 3]);
 });
+
+// a rotation by `deg` about the unit axis `a`, by Rodrigues' formula: an oracle that does not use quaternions
+const rodrigues = (a, deg) => {
+  const t = (deg * Math.PI) / 180, c = Math.cos(t), s = Math.sin(t), [x, y, z] = a;
+  return [[c + x * x * (1 - c), x * y * (1 - c) - z * s, x * z * (1 - c) + y * s],
+          [y * x * (1 - c) + z * s, c + y * y * (1 - c), y * z * (1 - c) - x * s],
+          [z * x * (1 - c) - y * s, z * y * (1 - c) + x * s, c + z * z * (1 - c)]];
+};
+const matmul = (A, B) => A.map((row) => [0, 1, 2].map((j) => row[0] * B[0][j] + row[1] * B[1][j] + row[2] * B[2][j]));
+const apply = (R, v) => R.map((row) => row[0] * v[0] + row[1] * v[1] + row[2] * v[2]);
+
+test("a quaternion's rows are the rotation about its axis, for a generic axis and angle", () => {
+  const n = Math.hypot(1, -2, 3), axis = [1 / n, -2 / n, 3 / n], deg = 71;
+  const h = (deg * Math.PI) / 360;
+  const q = [...axis.map((c) => c * Math.sin(h)), Math.cos(h)];
+  const R = XR.quaternionRows(q), O = rodrigues(axis, deg);
+  for (let i = 0; i < 3; i++) assert.ok(close(R[i], O[i], 1e-12), `${R[i]} vs ${O[i]}`);
+});
+
+test("the level in the prop's frame, the prop standing at (120, 0, -80) mm turned 35 degrees about the level's up", () => {
+  // the prop file is z up; in the level (y up) it stands: a quarter turn about x, then 35 degrees about y
+  const stand = matmul(rodrigues([0, 1, 0], 35), rodrigues([1, 0, 0], -90));
+  // its quaternion, from the matrix (w large here): the page reads the pose as the manifest gives it
+  const w = Math.sqrt(1 + stand[0][0] + stand[1][1] + stand[2][2]) / 2;
+  const q = [(stand[2][1] - stand[1][2]) / (4 * w), (stand[0][2] - stand[2][0]) / (4 * w),
+             (stand[1][0] - stand[0][1]) / (4 * w), w];
+  const pose = { position_mm: [120, 0, -80], quaternion_xyzw: q };
+  const C = [0.001, 0, 0, 0, 0, 0, 0.001, 0, 0, -0.001, 0, 0, 0, 0, 0, 1]; // the scene's turn of the z-up file
+  const M = XR.levelToProp(C, pose);
+  // points of the prop file (mm): into the level by the oracle's matrix, then back by the page's map must give
+  // the scene frame's point C x: the prop's own place in its scene, whatever its pose
+  for (const x of [[10, 20, 30], [-27, 0, 66], [0, 0, 0]]) {
+    const level = apply(stand, x).map((c, i) => (c + pose.position_mm[i]) / 1000);
+    const got = [0, 1, 2].map((i) => M[4 * i] * level[0] + M[4 * i + 1] * level[1] + M[4 * i + 2] * level[2] + M[4 * i + 3]);
+    assert.ok(close(got, [x[0] / 1000, x[2] / 1000, -x[1] / 1000], 1e-12), `${x}: ${got}`);
+  }
+  // the level's up, seen in the prop's scene frame, is the scene's up: the prop stands
+  const up = [0, 1, 2].map((i) => M[4 * i + 1]);
+  assert.ok(close(up.map((c) => c / Math.hypot(...up)), [0, 1, 0], 1e-12), String(up));
+});

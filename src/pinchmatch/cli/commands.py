@@ -20,6 +20,7 @@ import numpy as np
 from ..grasp.analysis import analyze_object, find_pinches, load_poses_file, score_pinches
 from ..runner.cache import FeatureCache
 from ..errors import ConfigError
+from ..config import Config
 from ..files import check_writable, read_input, write_atomic
 from ..mesh.manifest import object_specs
 from ..grasp.pinches import PinchSettings
@@ -75,7 +76,7 @@ def _emit(args, text: str, summary: str) -> None:
 
 
 def _cmd_poses(args) -> int:
-    settings = pinch_settings_of(args, count=args.count, seed=args.seed)  # validate options before any work
+    settings = pinch_settings_of(args)  # validate options before any work
     if args.output:
         check_writable(args.output, folder=False)
     given = load_poses_file(args.poses) if args.poses else None
@@ -146,7 +147,7 @@ def _cmd_features(args) -> int:
 
 
 def _cmd_match(args) -> int:
-    settings = pinch_settings_of(args, count=args.count, seed=args.seed)
+    settings = pinch_settings_of(args)
     match_settings = match_settings_of(args)
     out = out_folder(args)
     tangible_specs = object_specs(args.tangible, option="--tangible")
@@ -235,7 +236,7 @@ def _cmd_cache(args) -> int:
 
 
 def _cmd_demo(args) -> int:
-    settings = PinchSettings(count=args.count, seed=args.seed)
+    settings = pinch_settings_of(args)
     match = match_settings_of(args)
     out = out_folder(args)
     ui = Presenter(quiet=args.quiet, json_mode=args.json)
@@ -269,7 +270,7 @@ def _cmd_demo(args) -> int:
         write_atomic(stage / "ratings_static.csv",
                      static_ratings_table(study.rows, [v.name for v in study.virtuals]).encode("utf-8"))
         scene = study.scene
-        job = Job(units="mm", up="z", settings=settings, match=match, figures=not args.no_figures)
+        job = Job(units="mm", up="z", config=Config(settings, match), figures=not args.no_figures)
         with MatchesSink(stage, "json", scene_stems([v.name for v in scene.virtuals])) as sink:
             sink.start(common, scene.tangibles, dump_poses=False)
             with ui.step("glTF scenes", total=len(scene.virtuals)) as advance:

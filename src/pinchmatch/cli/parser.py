@@ -15,6 +15,8 @@ from ..errors import ConfigError
 from ..version import __version__
 from ..mesh.frames import UNITS_MM, UP_VECTORS
 from ..cores import default_jobs
+from ..config import MatchSettings, PinchSettings
+from ..options import field_default, flag_of, offered
 
 #: options whose value is a vector and may start with a minus sign
 VECTOR_OPTIONS = ("--p1", "--p2", "--com", "--axis")
@@ -76,78 +78,75 @@ def _add_object_options(p: argparse.ArgumentParser) -> None:
     _add_verbosity(p)
 
 
+def add_record_options(p: argparse.ArgumentParser, record_type, *groups: str) -> None:
+    """The options of a settings record's fields in ``groups``, generated from the fields: flag, type,
+    choices, default and help (:mod:`pinchmatch.options`)."""
+    for f, opt in offered(record_type):
+        if opt.group not in groups:
+            continue
+        flag, default = flag_of(f, opt), field_default(f)
+        shown = f" (default {opt.word(default)})" if opt.kind not in ("flag", "vector", "weights") else ""
+        kwargs = {"dest": f.name, "help": opt.help + shown}
+        if opt.kind == "flag":
+            p.add_argument(flag, action="store_true", **kwargs)
+        elif opt.kind in ("vector", "weights"):
+            p.add_argument(flag, metavar=opt.metavar, default=None, **kwargs)
+        elif opt.kind in ("choice", "onoff"):
+            p.add_argument(flag, choices=opt.words(), default=opt.word(default), **kwargs)
+        else:
+            unit = f.name.rsplit("_", 1)[-1].upper() if f.name.endswith(("_mm", "_deg")) else "X"
+            p.add_argument(flag, type=float if opt.kind == "float" else int, default=default,
+                           metavar=opt.metavar or ("N" if opt.kind == "int" else unit), **kwargs)
+
+
+def record_of(record_type, args, **extra):
+    """A settings record from the parsed options its fields offer (fields a command does not offer keep
+    their defaults), with ``extra`` fields given."""
+    values = {}
+    for f, opt in offered(record_type):
+        if f.name in extra or not hasattr(args, f.name) or opt.kind == "weights":
+            continue
+        given = getattr(args, f.name)
+        values[f.name] = parse_vector(given, flag_of(f, opt)) if opt.kind == "vector" else opt.value(given)
+    return record_type(**values, **extra)
+
+
+def parse_vector(text: str | None, flag: str) -> tuple | None:
+    if text is None:
+        return None
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        values = ()
+    if len(values) != 3:
+        raise ConfigError(f"{flag} {text}: give three numbers X,Y,Z in mm, as {flag} 0,150,300")
+    return values
+
+
 def _add_pinch_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--units", choices=sorted(UNITS_MM), help="units of the files (default: m for glTF/GLB, mm otherwise)")
     p.add_argument("--up", choices=list(UP_VECTORS), help="the objects' up direction (default: y for glTF/GLB, z otherwise)")
-    p.add_argument("--friction-cone-deg", type=float, default=30.0, help="antipodal tolerance (default 30)")
-    p.add_argument("--min-width-mm", type=float, default=0.5,
-                   help="smallest pinch width (default 0.5: a bowl wall, a plate rim, a card)")
-    p.add_argument("--max-width-mm", type=float, default=100.0, help="largest pinch width (default 100; at most 300)")
-    p.add_argument("--fingertip-radius-mm", type=float, default=8.0, help="fingertip sphere radius (default 8; 2 to 25)")
-    p.add_argument("--patch-radius-mm", type=float, default=8.0, help="contact patch radius (default 8; 0.5 to 50)")
-    p.add_argument("--finger-radius-mm", type=float, default=8.0,
-                   help="radius of the finger capsule behind each fingertip (default 8)")
-    p.add_argument("--finger-length-mm", type=float, default=45.0,
-                   help="length of the finger capsule: distal and middle phalanges (default 45; 5 to 150)")
-    p.add_argument("--approach-tilt-deg", type=float, default=30.0,
-                   help="how far the hand's approach may lean towards either finger from the plane "
-                        "perpendicular to the pinch line (default 30)")
-    p.add_argument("--snap-tolerance-mm", type=float, default=2.0,
-                   help="how far a given contact may be from the surface (default 2)")
+    add_record_options(p, PinchSettings, "pinch")
 
 
 def _add_sampling_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--count", type=int, default=1000, help="about how many pinches per object (default 1000; at most 100,000)")
-    p.add_argument("--seed", type=int, default=0, help="random seed, 0 or more (default 0)")
+    add_record_options(p, PinchSettings, "sampling")
 
 
 def _add_cost_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--weights-file", metavar="FILE",
                    help="the weights of a weights.json that 'pinchmatch calibrate' wrote (instead of --weights)")
-    p.add_argument("--criteria", choices=("default", "paper"), default="default",
-                   help="default: the paper's criteria with mass (the lever arm) for com; paper: the paper's seven")
-    p.add_argument("--pooling", choices=("quick", "sum"), default="quick",
-                   help="quick: probability summation of the criteria in JND (default); sum: the paper's sum of "
-                        "squares")
+    add_record_options(p, MatchSettings, "cost")
 
 
 def _add_match_options(p: argparse.ArgumentParser, *, one_to_one: bool = True) -> None:
-    p.add_argument("--weights", metavar="NAME=W,...",
-                   help="weight per criterion, default 1: width,tilt,normal,axis,kmax,kmin,mass (com with --criteria paper)")
+    add_record_options(p, MatchSettings, "weights")
     _add_cost_options(p)
-    p.add_argument("--normalize", choices=("jnd", "range"), default="jnd",
-                   help="jnd: differences in just-noticeable differences (default); range: the paper's scaling")
-    p.add_argument("--top-k", type=int, default=3, help="distinct alternatives per virtual object (default 3)")
-    p.add_argument("--distinct-mm", type=float, default=8.0,
-                   help="alternatives differ by at least this much at a contact, on one object or both (default 8)")
-    if one_to_one:
-        p.add_argument("--one-to-one", action="store_true", help="each tangible serves at most one virtual object")
-    p.add_argument("--keep-upright", action="store_true", help="never turn a virtual object upside down")
-    p.add_argument("--refine", choices=("on", "off"), default="on",
-                   help="on: follow the best pairs on both surfaces past the sample until the cost settles, so "
-                        "that the answer does not hang on --seed (default); off: the best sampled pair")
-    p.add_argument("--landing-mm", type=float, default=5.0,
-                   help="each match says what it costs when a fingertip lands up to this far off its target, the "
-                        "pinch axis up to 14 degrees off (default 5, as the headset allows; 0 to 20)")
-    p.add_argument("--robust", action="store_true",
-                   help="rank the best choices by their worst landing instead of their cost on target")
+    add_record_options(p, MatchSettings, "match", *(("assignment",) if one_to_one else ()))
 
 
 def _add_placement_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--placement", choices=("registered", "fixed"), default="registered",
-                   help="registered: each virtual object is brought onto the prop (default); fixed: it stays where "
-                        "the level puts it and the hand is redirected to the prop, or, beyond --max-redirect-deg, "
-                        "the carousel brings it (docs/redirection.md)")
-    p.add_argument("--hand-start", metavar="X,Y,Z",
-                   help="with --placement fixed: where the hand rests before it reaches, mm in the level's frame "
-                        "(y up; default: 150 mm above and 300 mm in front (+Z) of each prop's pose)")
-    p.add_argument("--max-redirect-deg", type=float, default=4.5,
-                   help="with --placement fixed: the largest redirection angle seen from the hand's start; beyond "
-                        "it the carousel serves the object (default 4.5, the detection threshold of body warping)")
-    p.add_argument("--redirect-threshold-deg", type=float, default=4.5,
-                   help="the redirection angle that costs as much as one just-noticeable difference (default 4.5)")
-    p.add_argument("--axis-threshold-deg", type=float, default=20.0,
-                   help="the turn of the pinch axis that costs as much as one just-noticeable difference (default 20)")
+    add_record_options(p, MatchSettings, "placement")
 
 
 def _add_output_options(p: argparse.ArgumentParser, *, figures: bool) -> None:

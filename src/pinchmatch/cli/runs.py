@@ -16,68 +16,47 @@ from ..export.view import write_page
 from ..files import check_writable, read_input, write_atomic
 from ..grasp.analysis import load_poses_file
 from ..grasp.pinches import PinchSettings
-from ..match.cost import complete_weights, parse_criteria, parse_weights
+from ..config import Config
+from ..match.cost import complete_weights, parse_weights
 from ..match.search import MatchSettings
 from ..runner.matching import run_match
 from ..runner.tasks import Job, ObjectTask
+from .parser import record_of
 
 #: exit code of a run that went on without some files
 EXIT_SOME_FAILED = 3
 
 
 def pinch_settings_of(args, **extra) -> PinchSettings:
-    """The pinch rules' settings from the command's options."""
-    return PinchSettings(
-        friction_cone_deg=args.friction_cone_deg,
-        min_width_mm=args.min_width_mm,
-        max_width_mm=args.max_width_mm,
-        fingertip_radius_mm=args.fingertip_radius_mm,
-        patch_radius_mm=args.patch_radius_mm,
-        snap_tolerance_mm=args.snap_tolerance_mm,
-        finger_radius_mm=args.finger_radius_mm,
-        finger_length_mm=args.finger_length_mm,
-        approach_tilt_deg=args.approach_tilt_deg,
-        **extra,
-    )
+    """The pinch rules' settings from the command's options (sampling options where it offers them)."""
+    return record_of(PinchSettings, args, **extra)
 
 
 def match_settings_of(args) -> MatchSettings:
-    criteria = parse_criteria(args.criteria)
+    """The match settings from the command's options; the weights from --weights or --weights-file."""
+    criteria = MatchSettings.__dataclass_fields__["criteria"].metadata["option"].value(args.criteria)
     if getattr(args, "weights_file", None):
         if getattr(args, "weights", None):
             raise ConfigError("--weights and --weights-file: give one of them")
         from ..match.calibrate import read_weights_file
 
-        given, pooling = read_weights_file(read_input(args.weights_file, "weights file (JSON)", limit_bytes=2**20),
-                                           args.weights_file)
+        given, pooling, fitted_for = read_weights_file(read_input(args.weights_file, "weights file (JSON)",
+                                                                  limit_bytes=2**20), args.weights_file)
         if pooling is not None and pooling != args.pooling:
             raise ConfigError(f"{args.weights_file}: its weights were fitted for --pooling {pooling}; run with "
                               f"--pooling {pooling}, or calibrate again with --pooling {args.pooling}")
+        if fitted_for is not None and fitted_for != args.criteria:
+            raise ConfigError(f"{args.weights_file}: its weights are for --criteria {fitted_for}; run with "
+                              f"--criteria {fitted_for}")
         weights = complete_weights(given, criteria=criteria)
     else:
         weights = parse_weights(getattr(args, "weights", None), criteria=criteria)
-    # a command without an option (demo has no --top-k) keeps the settings' default
-    given = {k: getattr(args, k) for k in ("normalize", "top_k", "one_to_one", "keep_upright", "distinct_mm",
-                                           "landing_mm", "robust") if hasattr(args, k)}
-    if hasattr(args, "refine"):
-        given["refine"] = args.refine == "on"
-    if hasattr(args, "placement"):
-        given |= {"placement": args.placement, "hand_start_mm": _hand_start(args.hand_start),
-                  "max_redirect_deg": args.max_redirect_deg, "redirect_threshold_deg": args.redirect_threshold_deg,
-                  "axis_threshold_deg": args.axis_threshold_deg}
-    return MatchSettings(weights=weights, criteria=criteria, pooling=args.pooling, **given)
+    return record_of(MatchSettings, args, weights=weights)
 
 
-def _hand_start(text: str | None) -> tuple | None:
-    if text is None:
-        return None
-    try:
-        values = tuple(float(v) for v in text.split(","))
-    except ValueError:
-        values = ()
-    if len(values) != 3:
-        raise ConfigError(f"--hand-start {text}: give three numbers X,Y,Z in mm, as --hand-start 0,150,300")
-    return values
+def config_of_args(args) -> Config:
+    """The run's one configuration from the command's options."""
+    return Config(pinch_settings_of(args), match_settings_of(args))
 
 
 def check_placement(settings: MatchSettings, tangible_specs: list, virtual_specs: list, ui, *,
@@ -141,7 +120,7 @@ def table_rows(rows: list, what: str) -> list:
 
 
 def match_job(args, settings: PinchSettings, match_settings: MatchSettings, cache) -> Job:
-    return Job(units=args.units, up=args.up, settings=settings, match=match_settings,
+    return Job(units=args.units, up=args.up, config=Config(settings, match_settings),
                cache_folder=None if cache is None else str(Path(cache.folder).resolve()),
                dump_poses=getattr(args, "dump_poses", False), scenes=True, figures=args.figures)
 

@@ -49,7 +49,7 @@ def reserve_s(matching, objects: int) -> float:
 def _jnd_settings(args, why: str):
     """The pinch settings, the match settings and the run's settings record of a command that compares costs
     across sets of props, which needs the scale of the noticeable differences (``why`` says so)."""
-    settings = pinch_settings_of(args, count=args.count, seed=args.seed)
+    settings = pinch_settings_of(args)
     matching = match_settings_of(args)
     if matching.normalize != "jnd":
         raise ConfigError(f"--normalize range: {why}, which needs a scale that does not change with the props; "
@@ -264,9 +264,9 @@ def demo_design(publisher, stage: Path, objects: Path, settings, *, budget_s: fl
     the exact search against the six objects' sampled poses). Writes OUT/props/designed.stl and
     OUT/design.json; returns the comparison."""
     from ..export.design import prop_record
-    from ..match.refine import refined_search
+    from ..config import Config
+    from ..match.scene import match_one
     from ..match.search import MatchSettings, cost_model
-    from ..match.select import served_row
     from ..mesh.stacks import stack_mesh
     from ..runner.cache import cached_candidates
     from ..runner.design import DesignSettings, design_props
@@ -293,11 +293,11 @@ def demo_design(publisher, stage: Path, objects: Path, settings, *, budget_s: fl
         prop = cached_candidates(str(path), cache=None, settings=settings)
         # judged as match judges (refined unless --refine off); the design's own search ranks its
         # many candidate props on the sampled poses
-        rows = [served_row(refined_search([prop], v, model, matching, pinch_settings=settings), 0) for v in virtuals]
+        rows = [match_one([prop], v, Config(settings, matching), model=model, details=False) for v in virtuals]
         judged[name] = {"file": path.relative_to(publisher.out).as_posix(),
-                        "costs": {v.name: float(r[0][0]) for v, r in zip(virtuals, rows)},
-                        "mean_cost": float(np.mean([r[0][0] for r in rows])),
-                        "noticeable_count": int(sum(bool(r[1][0]) for r in rows))}
+                        "costs": {v.name: float(vm.row[0]) for v, vm in zip(virtuals, rows)},
+                        "mean_cost": float(np.mean([vm.row[0] for vm in rows])),
+                        "noticeable_count": int(sum(bool(vm.row_noticed[0]) for vm in rows))}
     document = {"schema": "pinchmatch.design/1", "settings": settings.as_dict() | {"budget_s": budget_s, "seed": seed},
                 "props": [prop_record(found.best.stacks[0], designed_path, publisher.out)],
                 "comparison": judged, "evaluations": found.evaluations, "search_seconds": round(found.seconds, 2),

@@ -222,7 +222,7 @@ def _choice_record(scene, vm, choice, *, full: bool) -> dict:
                          else _contacts(V, choice.v_pose, swapped=choice.swapped)),
         **_rigid(choice.transform),
         "flipped": choice.flipped,
-        "up_turn_deg": json_number(up_turn_deg(choice.transform, V.obj.loaded.up, up_t), 2),
+        "up_turn_deg": json_number(up_turn_deg(choice.placement, V.obj.loaded.up, up_t), 2),
         "contact_offset_mm": json_number(contact_offset_mm(T, V, choice)),
         "mass_ratio": json_number(mass_ratio(T, V), 6),
         "mass_mismatch_mm": json_vector(choice.mass_delta_mm),

@@ -59,19 +59,24 @@ def analyze_object(
     up: str | None = None,
     com_mm: np.ndarray | None = None,
     axis: np.ndarray | None = None,
+    mass_g: float | None = None,
     patch_radius_mm: float = 8.0,
     progress=None,
 ) -> ObjectAnalysis:
     """Load ``path`` and build its properties and surface context (see :func:`load_mesh`);
-    ``progress``, if given, is called with each stage's name as it starts.
+    ``mass_g`` is its mass in grams where known (the ``mass`` criterion compares felt torques when
+    both objects have one); ``progress``, if given, is called with each stage's name as it starts.
 
-    >>> obj = analyze_object(box_stl)
-    >>> obj.name, obj.props.com_mm.round(1).tolist(), obj.loaded.mesh.extents.round(1).tolist()
-    ('box.stl', [0.0, 0.0, 0.0], [60.0, 40.0, 20.0])
+    >>> obj = analyze_object(box_stl, mass_g=120)
+    >>> obj.name, obj.mass_g, obj.props.com_mm.round(1).tolist(), obj.loaded.mesh.extents.round(1).tolist()
+    ('box.stl', 120.0, [0.0, 0.0, 0.0], [60.0, 40.0, 20.0])
     """
+    if mass_g is not None and not (isinstance(mass_g, (int, float, np.number)) and 0 < float(mass_g) < 1e9):
+        raise ConfigError(f"{path}: mass_g={mass_g!r} must be a mass in grams above 0 (or None, unknown)")
     spec = ObjectSpec(str(path), units=units, up=up,
                       com_mm=None if com_mm is None else tuple(np.asarray(com_mm, dtype=np.float64)),
-                      axis=None if axis is None else tuple(np.asarray(axis, dtype=np.float64)))
+                      axis=None if axis is None else tuple(np.asarray(axis, dtype=np.float64)),
+                      mass_g=None if mass_g is None else float(mass_g))
     return analyze_spec(spec, patch_radius_mm=patch_radius_mm, progress=progress)
 
 

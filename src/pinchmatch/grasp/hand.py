@@ -74,10 +74,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..config import CLEARANCE_TOLERANCE_MM
 from ..cores import query_tree
 
 #: allowed penetration (mm) of a fingertip or finger into the surface: the pad is soft
-PAD_TOLERANCE_MM = 0.3
+PAD_TOLERANCE_MM = CLEARANCE_TOLERANCE_MM
 #: directions of the first, quick search: θ steps at α = 0
 QUICK_DIRECTIONS = 6
 #: the last quick group leans the hand this share of the largest tilt towards either finger
@@ -116,6 +117,13 @@ class Hand:
         spacing = min(2.0 * half, self.finger_radius_mm)
         count = max(1, math.ceil(self.finger_length_mm / spacing))
         return np.linspace(self.finger_length_mm / count, self.finger_length_mm, count)
+
+
+def hand_of(settings) -> Hand:
+    """The hand of a run's :class:`pinchmatch.config.PinchSettings`."""
+    return Hand(fingertip_radius_mm=settings.fingertip_radius_mm, finger_radius_mm=settings.finger_radius_mm,
+                finger_length_mm=settings.finger_length_mm, approach_tilt_deg=settings.approach_tilt_deg,
+                tolerance_mm=PAD_TOLERANCE_MM)
 
 
 @dataclass(frozen=True)

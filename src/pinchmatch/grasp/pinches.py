@@ -44,93 +44,12 @@ import numpy as np
 
 from .curvature import PatchGeometry, patch_geometry
 from ..errors import ConfigError
-from .hand import PAD_TOLERANCE_MM, Hand, Reach, reach
+from ..config import (CLEARANCE_TOLERANCE_MM, FINGERTIP_RADIUS_RANGE_MM, MAX_COUNT, MAX_WIDTH_MM,  # noqa: F401
+                      PREFILTER_MARGIN_DEG, PinchSettings)
+from .hand import Reach, hand_of, reach
 from ..mesh.surface import SurfaceContext
 
 RULES = ("surface", "region", "width", "antipodal", "clearance", "reach", "patch")
-
-#: allowed fingertip-sphere penetration (mm): the pad is soft
-CLEARANCE_TOLERANCE_MM = PAD_TOLERANCE_MM
-#: pre-filter margin on the friction cone with triangle normals, before patch normals exist
-PREFILTER_MARGIN_DEG = 2.0
-#: fingertip radii a hand (or a gloved hand, or a stylus-like tool) has: 2-25 mm
-FINGERTIP_RADIUS_RANGE_MM = (2.0, 25.0)
-#: the widest thumb-index pinch of a large adult hand, with margin (mm)
-MAX_WIDTH_MM = 300.0
-#: pinches per object at most: memory grows with the count (about 40 candidates are drawn per pinch)
-MAX_COUNT = 100_000
-
-
-def _whole(value) -> bool:
-    return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
-
-
-@dataclass(frozen=True)
-class PinchSettings:
-    """Options of pinch sampling and feasibility (lengths in mm, angles in degrees)."""
-
-    friction_cone_deg: float = 30.0
-    min_width_mm: float = 0.5
-    max_width_mm: float = 100.0
-    fingertip_radius_mm: float = 8.0
-    patch_radius_mm: float = 8.0
-    count: int = 1000
-    seed: int = 0
-    snap_tolerance_mm: float = 2.0
-    finger_radius_mm: float = 8.0
-    finger_length_mm: float = 45.0
-    approach_tilt_deg: float = 30.0
-
-    def __post_init__(self):
-        lo, hi = FINGERTIP_RADIUS_RANGE_MM
-        checks = [
-            ("--friction-cone-deg", self.friction_cone_deg, 0.0 < self.friction_cone_deg < 90.0, "between 0 and 90 (exclusive)"),
-            ("--min-width-mm", self.min_width_mm, self.min_width_mm >= 0.0, "0 or more"),
-            ("--max-width-mm", self.max_width_mm, self.min_width_mm < self.max_width_mm <= MAX_WIDTH_MM,
-             f"larger than --min-width-mm and at most {MAX_WIDTH_MM:g} (a thumb-index pinch spans at most a hand)"),
-            ("--fingertip-radius-mm", self.fingertip_radius_mm, lo <= self.fingertip_radius_mm <= hi,
-             f"between {lo:g} and {hi:g} (a child's to a large adult's finger pad, with room for gloves and tools)"),
-            ("--patch-radius-mm", self.patch_radius_mm, 0.5 <= self.patch_radius_mm <= 50.0,
-             "between 0.5 and 50 (what a fingertip pad touches)"),
-            ("--count", self.count, _whole(self.count) and 1 <= self.count <= MAX_COUNT,
-             f"a whole number from 1 to {MAX_COUNT:,} (memory grows with it; match objects in several runs instead)"),
-            ("--seed", self.seed, _whole(self.seed) and 0 <= self.seed < 2**63, "a whole number of 0 or more"),
-            ("--snap-tolerance-mm", self.snap_tolerance_mm, self.snap_tolerance_mm > 0.0, "positive"),
-            ("--finger-radius-mm", self.finger_radius_mm,
-             CLEARANCE_TOLERANCE_MM < self.finger_radius_mm <= self.fingertip_radius_mm,
-             f"more than {CLEARANCE_TOLERANCE_MM:g} and at most --fingertip-radius-mm (the finger starts "
-             "at the fingertip sphere's centre)"),
-            ("--finger-length-mm", self.finger_length_mm, 5.0 <= self.finger_length_mm <= 150.0,
-             "between 5 and 150 (a fingertip alone to a whole finger)"),
-            ("--approach-tilt-deg", self.approach_tilt_deg, 0.0 <= self.approach_tilt_deg < 90.0,
-             "between 0 and 90 (0 included)"),
-        ]
-        for option, value, ok, want in checks:
-            if not (ok and np.isfinite(float(value))):
-                raise ConfigError(f"{option}: got {value!r}; it must be {want}")
-
-    @property
-    def hand(self) -> Hand:
-        return Hand(fingertip_radius_mm=self.fingertip_radius_mm, finger_radius_mm=self.finger_radius_mm,
-                    finger_length_mm=self.finger_length_mm, approach_tilt_deg=self.approach_tilt_deg,
-                    tolerance_mm=CLEARANCE_TOLERANCE_MM)
-
-    def as_dict(self) -> dict:
-        return {
-            "friction_cone_deg": self.friction_cone_deg,
-            "min_width_mm": self.min_width_mm,
-            "max_width_mm": self.max_width_mm,
-            "fingertip_radius_mm": self.fingertip_radius_mm,
-            "patch_radius_mm": self.patch_radius_mm,
-            "count": int(self.count),
-            "seed": int(self.seed),
-            "snap_tolerance_mm": self.snap_tolerance_mm,
-            "clearance_tolerance_mm": CLEARANCE_TOLERANCE_MM,
-            "finger_radius_mm": self.finger_radius_mm,
-            "finger_length_mm": self.finger_length_mm,
-            "approach_tilt_deg": self.approach_tilt_deg,
-        }
-
 
 @dataclass(frozen=True)
 class Pinches:
@@ -219,7 +138,7 @@ def clearance_broken(context: SurfaceContext, points: np.ndarray, normals: np.nd
 
 def reach_rule(context: SurfaceContext, points: np.ndarray, normals: np.ndarray, settings: PinchSettings,
                approach: np.ndarray | None = None, thorough: bool = True) -> Reach:
-    return reach(context, points, normals, settings.hand, approach=approach, thorough=thorough)
+    return reach(context, points, normals, hand_of(settings), approach=approach, thorough=thorough)
 
 
 def cheap_broken(context, points, normals, settings, cone_deg):

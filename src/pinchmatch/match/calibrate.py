@@ -51,7 +51,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.stats import spearmanr
 
 from ..errors import ConfigError
-from .cost import CRITERIA, DEFAULT_CRITERIA, CostModel, complete_weights
+from .cost import CRITERIA, DEFAULT_CRITERIA, PAPER_CRITERIA, CostModel, complete_weights
 
 #: folds of the cross-validation by placement (fewer when there are fewer groups)
 FOLDS = 5
@@ -104,10 +104,17 @@ class Calibration:
     rows: int
     pairs: int
 
+    @property
+    def criteria(self) -> str:
+        """The criteria set the weights are for: ``paper`` when they weigh ``com`` (the paper's seven,
+        ``mass`` not in use), else ``default``."""
+        return "paper" if self.weights.get("com", 0.0) > 0 else "default"
+
     def as_dict(self, source: str) -> dict:
+        in_use = PAPER_CRITERIA if self.criteria == "paper" else DEFAULT_CRITERIA
         return {"schema": "pinchmatch.weights/1", "source": source, "pooling": self.pooling,
-                "exponent": exponent_of(self.pooling),
-                "weights": {c: round(w, 6) for c, w in self.weights.items()},
+                "exponent": exponent_of(self.pooling), "criteria": self.criteria,
+                "weights": {c: round(w, 6) if c in in_use else 0.0 for c, w in self.weights.items()},
                 "fit": {"rows": self.rows, "placements": self.pairs, "folds": self.folds, "hold_out": self.hold_out,
                         "intercept_rating": round(self.intercept, 6),
                         "rating_drop_when_noticed": round(self.drop, 6),
@@ -356,6 +363,9 @@ def calibrate(r: Ratings, *, pooling: str = "quick", seed: int = 0, hold_out: st
         raise ConfigError(f"--hold-out: unknown {hold_out!r}; use placement or object")
     if not isinstance(seed, int) or seed < 0:
         raise ConfigError(f"--seed: {seed!r} must be a whole number of 0 or more")
+    if "com" in r.criteria and "mass" in r.criteria:
+        raise ConfigError("--criteria: com and mass both charge the lever arm, and no criteria set weighs both; fit "
+                          "com (for --criteria paper) or mass (the default), not both")
     beta = exponent_of(pooling)
     _check(r, beta)
     x = r.jnd ** beta
@@ -393,12 +403,13 @@ def _unpredictive(r: Ratings, default_rho: float, why: str) -> str:
             "differ in them, or fit other criteria with --criteria")
 
 
-def read_weights_file(text: str, source: str) -> tuple[dict, str | None]:
-    """The weights of a ``weights.json`` that ``calibrate`` wrote (or any ``{"weights": {...}}``), and the
-    pooling they were fitted for (None where the file does not say).
+def read_weights_file(text: str, source: str) -> tuple[dict, str | None, str | None]:
+    """The weights of a ``weights.json`` that ``calibrate`` wrote (or any ``{"weights": {...}}``), the
+    pooling they were fitted for and the criteria set they are for (``default`` or ``paper``; None
+    where the file does not say).
 
     >>> read_weights_file('{"weights": {"width": 2, "kmax": 0.5}, "pooling": "quick"}', "weights.json")
-    ({'width': 2.0, 'kmax': 0.5}, 'quick')
+    ({'width': 2.0, 'kmax': 0.5}, 'quick', None)
     """
     import json
 
@@ -426,4 +437,8 @@ def read_weights_file(text: str, source: str) -> tuple[dict, str | None]:
     if pooling is not None and pooling not in ("quick", "sum"):
         raise ConfigError(f"{source}: pooling {pooling!r} is neither quick nor sum; give the weights.json that "
                           "'pinchmatch calibrate' writes")
-    return {str(k): float(v) for k, v in weights.items()}, pooling
+    criteria = doc.get("criteria")
+    if criteria is not None and criteria not in ("default", "paper"):
+        raise ConfigError(f"{source}: criteria {criteria!r} is neither default nor paper; give the weights.json "
+                          "that 'pinchmatch calibrate' writes")
+    return {str(k): float(v) for k, v in weights.items()}, pooling, criteria

@@ -15,7 +15,7 @@ from ..errors import NoFeasiblePinchError
 from ..grasp.analysis import ObjectAnalysis, find_pinches, score_pinches
 from ..grasp.features import PinchFeatures
 from ..grasp.pinches import Pinches, PinchSettings, concat_pinches
-from .cost import MASS_COLUMNS, feature_table
+from .cost import MASS_COLUMNS, feature_table, mass_term, separable_terms
 
 
 @dataclass(frozen=True)
@@ -124,3 +124,25 @@ def felt_table(table: np.ndarray, ratio: float) -> np.ndarray:
     out = table.copy()
     out[..., MASS_COLUMNS] *= ratio
     return out
+
+
+def pair_terms(tangible: Candidates, virtual: Candidates, t_rows: np.ndarray, v_rows: np.ndarray, model, *,
+               R: np.ndarray | None = None, t_points: np.ndarray | None = None, v_points: np.ndarray | None = None,
+               delta: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """How k pose pairs score: (k, 8) each criterion's contribution, and (k, 3) the mass offset.
+
+    The one scoring of a pose pair, used by the search, the landings, the reference and the
+    reports. ``t_rows``/``v_rows`` are the pairs' feature-table rows (the virtual ones as seen, in the
+    tangible's finger order). The mass offset ``delta`` is the centre of mass's offset from the pinch
+    midpoint as seen (turned into the tangible's frame, scaled by :func:`mass_ratio`) minus as felt, mm
+    in the tangible's frame; unless given, it is computed from ``t_points``/``v_points`` (k, 2, 3), the
+    contacts in each object's frame, and ``R`` (k, 3, 3) or (3, 3), which turns the virtual object's
+    frame into the tangible's."""
+    ratio = mass_ratio(tangible, virtual)
+    if delta is None:
+        seen = virtual.obj.props.com_mm - v_points.mean(axis=-2)
+        seen = np.einsum("kij,kj->ki", R, seen) if R.ndim == 3 else seen @ R.T
+        delta = ratio * seen - (tangible.obj.props.com_mm - t_points.mean(axis=-2))
+    terms = separable_terms(t_rows, felt_table(v_rows, ratio), model)
+    terms[:, 7] = mass_term(t_rows, delta, model)
+    return terms, delta

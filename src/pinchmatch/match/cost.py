@@ -40,27 +40,15 @@ finger order: exact, and fast enough for 10,000 x 10,000 pairs.
 
 from __future__ import annotations
 
-import difflib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..errors import ConfigError
+from ..config import CRITERIA, DEFAULT_CRITERIA, MAX_WEIGHT, PAPER_CRITERIA, POOLINGS, Weights, complete_weights  # noqa: F401 (re-exported)
 from ..grasp.features import PinchFeatures
 
-CRITERIA = ("width", "com", "tilt", "normal", "axis", "kmax", "kmin", "mass")
-#: the method paper's seven criteria (``--criteria paper``)
-PAPER_CRITERIA = CRITERIA[:7]
-#: the default set: the paper's criteria with ``mass`` for ``com``. Both measure how far the pinch
-#: sits from the centre of mass (d is the part of the offset o along the principal axis); ``mass``
-#: compares the whole offset, or the felt torque where both masses are known, so ``com`` would charge
-#: the same lever arm twice
-DEFAULT_CRITERIA = ("width", "tilt", "normal", "axis", "kmax", "kmin", "mass")
-#: the largest weight: beyond it, costs in JND^3.5 leave the range of a float for ordinary differences
-MAX_WEIGHT = 1e6
-#: ways of pooling the criteria into one cost (module notes)
-POOLINGS = ("quick", "sum")
 #: Quick pooling's exponent, the common slope of the criteria's Weibull psychometric functions: 3.5,
 #: the slope at which a Weibull function matches a cumulative Gaussian (Quick 1974), within the 3-4
 #: that detection studies find when they pool independent cues (Graham 1989; Robson & Graham 1981)
@@ -122,43 +110,6 @@ def parse_weights(text: str | None, *, criteria: tuple = DEFAULT_CRITERIA) -> di
     return complete_weights(given, criteria=criteria)
 
 
-def complete_weights(given: Mapping, *, criteria: tuple = DEFAULT_CRITERIA) -> dict[str, float]:
-    """Weights for every criterion: those given, 1 for the other criteria in use, 0 for criteria
-    not in use. The one rule for the library's :class:`match.MatchSettings` and ``--weights``.
-
-    Refused: unknown or misspelt names, criteria not in use (unless given as 0), weights that
-    are negative or not finite, and weights that are all zero (nothing would be compared).
-
-    >>> weights = complete_weights({"width": 2})
-    >>> weights["width"], weights["kmax"], weights["com"]  # com: not a default criterion
-    (2.0, 1.0, 0.0)
-    """
-    weights = {c: (1.0 if c in criteria else 0.0) for c in CRITERIA}
-    for name, w in given.items():
-        if name in CRITERIA and name not in criteria and w == 0:
-            continue  # a criterion not in use, given as off
-        if name not in criteria:
-            close = difflib.get_close_matches(str(name), criteria, n=1)
-            hint = f"did you mean {close[0]!r}? " if close else ""
-            which = "paper" if tuple(criteria) == PAPER_CRITERIA else "default"
-            extra = f" (not part of --criteria {which})" if name in CRITERIA else ""
-            raise ConfigError(f"--weights: unknown criterion {name!r}{extra}; {hint}valid: {', '.join(criteria)}")
-        try:
-            w = float(w)
-        except (TypeError, ValueError):
-            w = float("nan")
-        if not np.isfinite(w) or w < 0:
-            raise ConfigError(f"--weights: {name}={given[name]!r} needs a weight of 0 or more, as {name}=1")
-        if w > MAX_WEIGHT:
-            raise ConfigError(f"--weights: {name}={given[name]!r} is more than {MAX_WEIGHT:g}; weights say how much "
-                              f"each criterion counts against the others, give them between 0 and {MAX_WEIGHT:g}")
-        weights[name] = w
-    if not any(weights[c] > 0 for c in criteria):
-        raise ConfigError("--weights: every weight is 0, so nothing would be compared; give at least one "
-                          "criterion a positive weight")
-    return weights
-
-
 def parse_criteria(text: str | None) -> tuple:
     """``"default"`` (the paper's seven with mass for com) or ``"paper"`` (the seven)."""
     if text in (None, "default"):
@@ -166,35 +117,6 @@ def parse_criteria(text: str | None) -> tuple:
     if text == "paper":
         return PAPER_CRITERIA
     raise ConfigError(f"--criteria: unknown set {text!r}; use default (the paper's seven with mass for com) or paper")
-
-
-class Weights(Mapping):
-    """A read-only mapping of criterion -> weight (a frozen record's weights stay as they were made);
-    picklable, so a model travels to worker processes."""
-
-    def __init__(self, values: Mapping):
-        self._values = dict(values)
-
-    def __getitem__(self, key):
-        return self._values[key]
-
-    def __iter__(self):
-        return iter(self._values)
-
-    def __len__(self) -> int:
-        return len(self._values)
-
-    def __eq__(self, other) -> bool:
-        return isinstance(other, Mapping) and dict(self) == dict(other)
-
-    def __hash__(self) -> int:
-        return hash(tuple(sorted(self._values.items())))
-
-    def __repr__(self) -> str:
-        return f"Weights({self._values!r})"
-
-    def __reduce__(self):
-        return (Weights, (self._values,))
 
 
 @dataclass(frozen=True)

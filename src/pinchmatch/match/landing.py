@@ -16,7 +16,8 @@ Model (the placement does not move while the hand closes):
 - there the hand sees the virtual pinch through the landing points, and feels the tangible where
   its fingers stop: closing along the same line, registered into the tangible's frame, each
   finger stops at the first tangible surface facing it. Where a finger meets no tangible surface
-  within reach the landing is a *miss*, counted apart;
+  within reach the landing is a *miss*: noticed for certain, it costs as a width difference of
+  ``MISS_JND`` (or the worst landing that touched, if that costs more) and counts in the mean and the worst;
 - the landing's cost is the run's cost of the felt against the seen pinch, with the mass offset
   taken under the match's own registration.
 
@@ -33,8 +34,9 @@ import numpy as np
 
 from ..grasp.features import pinch_features
 from ..grasp.pinches import PinchSettings, Pinches, patches
-from .candidates import Candidates, felt_table, mass_ratio
-from .cost import CRITERIA, CostModel, feature_table, mass_term, separable_terms
+from .candidates import Candidates, pair_terms
+from .cost import CRITERIA, CostModel, feature_table
+from .redirect import world_pose
 from .refine import close_fingers, move_directions
 from .search import criterion_table, p_noticed
 
@@ -46,6 +48,9 @@ LANDING_AXIS_DEG = 14.0
 RING_POINTS = (8, 16)
 #: the largest radius ``--landing-mm`` takes (mm): a fingertip pad is about 16 mm across
 MAX_LANDING_MM = 20.0
+#: a landing where a finger meets no surface costs as a width difference of this many JND (noticed for
+#: certain: 1 - 2^-(3^3.5), over 0.99999), or the worst landing's cost if that is more
+MISS_JND = 3.0
 
 
 @dataclass(frozen=True)
@@ -154,19 +159,23 @@ def landing(tangible: Candidates, virtual: Candidates, choice, model: CostModel,
     seen = _described(virtual.obj.context, seen_points[hit], seen_faces[hit], settings)
     felt_p = _described(tangible.obj.context, felt_points, felt_f, settings)
     t_rows = feature_table(pinch_features(felt_p, tangible.obj.props))
-    ratio = mass_ratio(tangible, virtual)
-    v_rows = felt_table(feature_table(pinch_features(seen, virtual.obj.props)), ratio)
-    v_mid = seen.points.mean(axis=1)
-    delta = ratio * ((virtual.obj.props.com_mm - v_mid) @ R.T) - (tangible.obj.props.com_mm - felt_p.points.mean(axis=1))
-    terms = separable_terms(t_rows, v_rows, model)
-    terms[:, 7] = mass_term(t_rows, delta, model)
+    v_rows = feature_table(pinch_features(seen, virtual.obj.props))
+    # the mass turns with the placement: the registration, or where the level keeps the object
+    R_mass = R if choice.redirect_terms is None else world_pose(tangible.obj.spec)[0].T
+    terms, _ = pair_terms(tangible, virtual, t_rows, v_rows, model, R=R_mass, t_points=felt_p.points,
+                          v_points=seen.points)
     cost = model.pool(terms, choice.redirect_terms)  # a redirection is planned for the targets: as the match's
     jnd = model.as_jnd()
     jnd_all = CostModel(normalize="jnd", criteria=CRITERIA, weights=dict.fromkeys(CRITERIA, 1.0))
-    jnd_terms = separable_terms(t_rows, v_rows, jnd_all)
-    jnd_terms[:, 7] = mass_term(t_rows, delta, jnd_all)
+    jnd_terms, _ = pair_terms(tangible, virtual, t_rows, v_rows, jnd_all, R=R_mass, t_points=felt_p.points,
+                              v_points=seen.points)
     loud = tuple(c for k, c in enumerate(CRITERIA) if c in model.criteria and (jnd_terms[:, k] >= 1.0).any())
     worst = int(np.argmax(cost))
-    jnd_worst = jnd.pool(jnd_terms[worst], choice.redirect_terms)
+    p_worst = float(jnd.p_noticed(jnd.pool(jnd_terms[worst], choice.redirect_terms)))
+    missed = int((~hit).sum())
+    if missed:  # a finger that meets no surface is noticed for certain
+        miss = float(model.pool(np.full((1, len(CRITERIA)), MISS_JND ** 2) * (np.arange(len(CRITERIA)) == 0))[0])
+        cost = np.concatenate([cost, np.full(missed, max(miss, float(cost.max())))])
+        worst, p_worst = len(cost) - 1, 1.0
     return Landing(float(radius_mm), float(axis_deg), float(cost[0]), float(cost.mean()), float(cost[worst]),
-                   float(jnd.p_noticed(jnd_worst)), loud, int(hit.sum()), int((~hit).sum()))
+                   p_worst, loud, int(hit.sum()) + missed, missed)

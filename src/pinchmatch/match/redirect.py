@@ -37,31 +37,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-#: body-warping detection threshold of the redirection angle (deg): Zenner and Krüger 2019
-REDIRECT_THRESHOLD_DEG = 4.5
-#: the largest redirection angle a match may use before the carousel takes over (deg)
-MAX_REDIRECT_DEG = 4.5
-#: the turn of the pinch axis that counts as one threshold unit (deg): the orientation threshold of
-#: an edge on the fingerpad (about 20°, Bensmaia et al. 2008; perception.md), a documented choice
-AXIS_THRESHOLD_DEG = 20.0
-#: where the hand rests before it reaches, when not given: from the prop's pose position, 150 mm up
-#: (+Y) and 300 mm toward the user (+Z, the side a glTF scene faces), mm
-DEFAULT_HAND_OFFSET_MM = (0.0, 150.0, 300.0)
-#: the bounds of the options (deg, mm)
-MAX_THRESHOLD_DEG, MAX_HAND_START_MM = 90.0, 1e5
-PLACEMENTS = ("registered", "fixed")
-
-
-@dataclass(frozen=True)
-class Redirect:
-    """How far the hand may be redirected and what it costs (see the module notes); ``hand_start_mm``
-    None: each prop's default (``DEFAULT_HAND_OFFSET_MM`` from its pose position)."""
-
-    hand_start_mm: tuple | None = None
-    threshold_deg: float = REDIRECT_THRESHOLD_DEG
-    max_angle_deg: float = MAX_REDIRECT_DEG
-    axis_threshold_deg: float = AXIS_THRESHOLD_DEG
-
+from ..config import (AXIS_THRESHOLD_DEG, DEFAULT_HAND_OFFSET_MM, MAX_HAND_START_MM, MAX_REDIRECT_DEG,  # noqa: F401
+                      MAX_THRESHOLD_DEG, PLACEMENTS, REDIRECT_THRESHOLD_DEG, Redirect)
 
 @dataclass(frozen=True)
 class Redirection:
@@ -96,6 +73,15 @@ def world_pose(spec) -> tuple[np.ndarray, np.ndarray]:
     if pose is None:
         return np.eye(3), np.zeros(3)
     return quaternion_matrix(pose[1]), np.asarray(pose[0], dtype=np.float64)
+
+
+def placed_transform(spec) -> np.ndarray:
+    """(4, 4) the map of world coordinates (mm) into an object's file frame: where a virtual object
+    that stays in the level lies as seen from the prop (the inverse of :func:`world_pose`)."""
+    R, p = world_pose(spec)
+    out = np.eye(4)
+    out[:3, :3], out[:3, 3] = R.T, -R.T @ p
+    return out
 
 
 def quaternion_matrix(xyzw) -> np.ndarray:

@@ -14,8 +14,8 @@ import numpy as np
 from ..grasp.analysis import ObjectAnalysis
 from ..grasp.features import PinchFeatures, pinch_features
 from ..grasp.pinches import Pinches, PinchSettings, check_pinches
-from .candidates import Candidates, felt_table, mass_ratio
-from .cost import CostModel, feature_table, mass_term, separable_terms, total
+from .candidates import Candidates, pair_terms
+from .cost import CostModel, feature_table, total
 from .register import FLIP_COSINE
 
 #: surfaces a reference line is followed through, from each side
@@ -138,10 +138,6 @@ def reference_cost(tangible: Candidates, t_pose: int, virtual: Candidates, ref: 
 
 def _reference_terms(tangible, t_pose, virtual, pinches, features, model) -> np.ndarray:
     """(8,) contributions of the reference pose, placed by the identity, p1 on p1."""
-    t_row = tangible.table[t_pose][None]
-    ratio = mass_ratio(tangible, virtual)
-    terms = separable_terms(t_row, felt_table(feature_table(features), ratio), model)
-    mid = tangible.pinches.points[t_pose].mean(axis=0)
-    delta = ratio * (virtual.obj.props.com_mm - pinches.points[0].mean(axis=0)) - (tangible.obj.props.com_mm - mid)
-    terms[:, 7] = mass_term(t_row, delta[None], model)
+    terms, _ = pair_terms(tangible, virtual, tangible.table[t_pose][None], feature_table(features), model,
+                          R=np.eye(3), t_points=tangible.pinches.points[t_pose][None], v_points=pinches.points[:1])
     return terms[0]

@@ -1,4 +1,5 @@
-"""Step #3 for a whole scene: every virtual object's best tangible, pose pair and registration.
+"""Step #3: the one match (:func:`match_one`: one virtual object against the props under one
+:class:`~pinchmatch.match.config.Config`), and a whole scene of them (:func:`match_scene`).
 
 Each virtual object is searched on its own (:class:`pinchmatch.match.search.Search`, refined
 unless ``refine`` is off: :mod:`pinchmatch.match.refine`), so a scene matched at once and one
@@ -23,6 +24,7 @@ from .landing import Landing, landing
 from .reference import Reference, reference_pose
 from .refine import refined_search
 from .redirect import redirection
+from ..config import Config, config_of
 from .search import Choice, MatchSettings, Search, cost_model, cost_row, p_noticed
 
 
@@ -48,7 +50,9 @@ class VirtualMatch:
     - ``redirection``: under ``placement="fixed"``, how the hand is led to the best choice
       (:meth:`pinchmatch.match.redirect.Redirection.record`: ``mode`` ``redirect``, or ``carousel``
       when no pair is within the redirection budget and the object is brought onto the prop,
-      registered), else ``None``.
+      registered), else ``None``;
+    - ``row``: ``(n,) float64``, its least exact cost on each tangible (inf where none is allowed), and
+      ``row_noticed``: ``(n,) bool``, whether that least-cost choice is noticed at least half of the time.
     """
 
     virtual: int
@@ -61,6 +65,8 @@ class VirtualMatch:
     candidates: Candidates | None = None
     landing: Landing | None = None
     redirection: dict | None = None
+    row: np.ndarray | None = None
+    row_noticed: np.ndarray | None = None
 
 
 @dataclass
@@ -82,6 +88,7 @@ class SceneMatch:
     model: CostModel
     cost_matrix: np.ndarray
     matches: list
+    config: Config | None = None
 
     def objects(self, vm: VirtualMatch) -> tuple[list, Candidates]:
         """The tangibles' and the virtual object's candidates that ``vm``'s choices index."""
@@ -89,13 +96,56 @@ class SceneMatch:
                 vm.candidates if vm.candidates is not None else self.virtuals[vm.virtual])
 
 
-def match_scene(tangibles: list[Candidates], virtuals: list[Candidates], *, settings: MatchSettings | None = None,
-                model: CostModel | None = None, pinch_settings: PinchSettings | None = None) -> SceneMatch:
+def match_one(tangibles: list[Candidates], virtual: Candidates, config: Config, *, model: CostModel,
+              allowed: tuple[list[int], str | None] | None = None, index: int = 0, probes: dict | None = None,
+              details: bool = True, search: Search | None = None) -> VirtualMatch:
+    """One virtual object matched against the tangibles under one configuration: the one match.
+
+    Every command and the library come here: :func:`match_scene` for each virtual object, the command
+    line's tasks (local, Dask), ``demo``, ``select`` and ``design``. It searches (refined unless
+    ``config.match.refine`` is off), picks the best choice and its alternatives among the ``allowed``
+    tangibles (:func:`allowed_tangibles`' entry; default every one), lands it, finds the paper's
+    reference and, under ``placement="fixed"``, redirects the hand or hands the object to the carousel.
+
+    ``model`` is the run's cost model (:func:`cost_model` over every object, so that runs in parts give
+    the same bits); ``index`` the object's place in the scene; ``probes`` the memo of the reference's
+    lines on this object (:func:`pinchmatch.match.reference.line_pinch`; read and added to); ``search``
+    its search when the caller already made it (a one-to-one scene's cost rows). With ``details`` off
+    only the best choice, its alternatives and the cost row are made (no landing, reference or
+    redirection): what ``select`` and ``design`` rank props by.
+
+    >>> from pinchmatch import Config, PinchSettings, analyze_object, candidate_poses, cost_model
+    >>> config = Config(PinchSettings(count=200, seed=0))
+    >>> box = candidate_poses(analyze_object(box_stl), settings=config.pinch)
+    >>> can = candidate_poses(analyze_object(can_obj, units="m"), settings=config.pinch)
+    >>> vm = match_one([box, can], can, config, model=cost_model(config.match, [box, can]))
+    >>> vm.best.tangible_name, round(vm.best.cost, 6), vm.row.shape
+    ('can.obj', 0.0, (2,))
+    """
+    settings, pinch = config.match, config.pinch
+    search = search or refined_search(tangibles, virtual, model, settings, pinch_settings=pinch)
+    row = cost_row(search, 0)
+    noticed = np.zeros(len(row), dtype=bool)
+    for t in np.flatnonzero(np.isfinite(row)):
+        best = search.choices(0, [int(t)], 1)[0]
+        noticed[t] = p_noticed(search.tangibles[t], search.virtuals[0], best, model) >= 0.5
+    allowed = allowed or (list(range(len(tangibles))), None)
+    if not details:
+        picks = search.choices(0, allowed[0], settings.top_k + 1) if allowed[0] else []
+        picks = [dataclasses.replace(p, virtual=index) for p in picks]
+        return VirtualMatch(index, picks[0] if picks else None, picks[1:], None if picks else allowed[1], None,
+                            virtual.name, list(search.tangibles), search.virtuals[0], row=row, row_noticed=noticed)
+    vm = _placed(search, allowed, pinch_settings=pinch, index=index, probes=probes)
+    return dataclasses.replace(vm, row=row, row_noticed=noticed)
+
+
+def match_scene(tangibles: list[Candidates], virtuals: list[Candidates], *, config: Config | None = None,
+                settings: MatchSettings | None = None, model: CostModel | None = None,
+                pinch_settings: PinchSettings | None = None) -> SceneMatch:
     """For every virtual object, the best tangible, pose pair and registration, with alternatives.
 
-    ``settings`` default to :class:`MatchSettings`'s; ``model`` to :func:`cost_model` over all
-    candidates; ``pinch_settings`` (default :class:`PinchSettings`'s) check the refined and the
-    reference poses.
+    ``config`` (default :class:`Config`'s), or its parts ``settings`` and ``pinch_settings``; ``model``
+    defaults to :func:`cost_model` over all candidates. Each object is matched by :func:`match_one`.
 
     >>> from pinchmatch import MatchSettings, PinchSettings, analyze_object, candidate_poses
     >>> settings = PinchSettings(count=200, seed=0)
@@ -105,20 +155,25 @@ def match_scene(tangibles: list[Candidates], virtuals: list[Candidates], *, sett
     >>> best = scene.matches[0].best
     >>> best.tangible_name, round(best.cost, 6), scene.cost_matrix.shape  # the can is best served by itself
     ('can.obj', 0.0, (1, 2))
+    >>> best.tangible_pose.p1_mm.shape  # each choice carries its pinches
+    (3,)
     """
-    settings = settings or MatchSettings()
-    pinch_settings = pinch_settings or PinchSettings()
+    config = config_of(config, settings=settings, pinch_settings=pinch_settings)
     if not tangibles:
         raise ConfigError("no tangible object given; name at least one with --tangible")
     if not virtuals:
         raise ConfigError("no virtual object given; name at least one with --virtual")
-    model = model or cost_model(settings, tangibles + virtuals)
-    searches = [refined_search(tangibles, v, model, settings, pinch_settings=pinch_settings) for v in virtuals]
+    model = model or cost_model(config.match, tangibles + virtuals)
     m, n = len(virtuals), len(tangibles)
-    cost_matrix = np.array([cost_row(s, 0) for s in searches]).reshape(m, n)
-    plan = allowed_tangibles(cost_matrix, settings)
-    matches = [_placed(searches[j], plan[j], pinch_settings=pinch_settings, index=j) for j in range(m)]
-    return SceneMatch(tangibles, virtuals, settings, model, cost_matrix, matches)
+    if config.match.one_to_one:  # the assignment needs every row first
+        searches = [refined_search(tangibles, v, model, config.match, pinch_settings=config.pinch) for v in virtuals]
+        plan = allowed_tangibles(np.array([cost_row(s, 0) for s in searches]).reshape(m, n), config.match)
+    else:
+        searches, plan = [None] * m, [None] * m
+    matches = [match_one(tangibles, v, config, model=model, allowed=plan[j], index=j, search=searches[j])
+               for j, v in enumerate(virtuals)]
+    cost_matrix = np.array([vm.row for vm in matches]).reshape(m, n)
+    return SceneMatch(tangibles, virtuals, config.match, model, cost_matrix, matches, config)
 
 
 def allowed_tangibles(cost_matrix: np.ndarray, settings: MatchSettings) -> list[tuple[list[int], str | None]]:
@@ -192,19 +247,15 @@ def _noticed(vm: VirtualMatch, model: CostModel) -> bool:
 
 
 def match_virtual(tangibles: list[Candidates], virtual: Candidates, *, model: CostModel | None = None,
-                  settings: MatchSettings | None = None, allowed: tuple[list[int], str | None] | None = None,
-                  row: np.ndarray | None = None, pinch_settings: PinchSettings | None = None,
-                  search: Search | None = None, probes: dict | None = None) -> SceneMatch:
-    """One virtual object's row of :func:`match_scene`, bit for bit, searched on its own.
+                  config: Config | None = None, settings: MatchSettings | None = None,
+                  allowed: tuple[list[int], str | None] | None = None, pinch_settings: PinchSettings | None = None,
+                  probes: dict | None = None) -> SceneMatch:
+    """One virtual object's row of :func:`match_scene`, bit for bit, as a one-row scene (:func:`match_one`).
 
     ``model`` must be the run's to match the scene's row (built over every object; default: over
-    these objects only); ``settings`` and ``pinch_settings`` default as in :func:`match_scene`; ``allowed`` is its entry of
-    :func:`allowed_tangibles` (default: every tangible, which is right unless ``one_to_one``);
-    ``row`` its row of the cost matrix when already known; ``search`` its refined search when
-    already made (:func:`pinchmatch.match.refine.refined_search`, as the cache keeps it); ``probes``
-    the memo of the lines along which the reference pose closed fingers on this virtual object
-    (:func:`pinchmatch.match.reference.line_pinch`; read and added to: a caller that keeps it, as the
-    cache does, spares the next run the surface). The result is a one-row scene.
+    these objects only); ``config`` (or ``settings`` and ``pinch_settings``) default as in
+    :func:`match_scene`; ``allowed`` is its entry of :func:`allowed_tangibles` (default: every
+    tangible, which is right unless ``one_to_one``); ``probes`` as for :func:`match_one`.
 
     >>> from pinchmatch import PinchSettings, analyze_object, candidate_poses
     >>> settings = PinchSettings(count=200, seed=0)
@@ -215,14 +266,10 @@ def match_virtual(tangibles: list[Candidates], virtual: Candidates, *, model: Co
     >>> one.matches[0].best.cost == scene.matches[0].best.cost
     True
     """
-    settings = settings or MatchSettings()
-    pinch_settings = pinch_settings or PinchSettings()
-    model = model or cost_model(settings, tangibles + [virtual])
-    search = search or refined_search(tangibles, virtual, model, settings, pinch_settings=pinch_settings)
-    row = cost_row(search, 0) if row is None else np.asarray(row, dtype=np.float64)
-    vm = _placed(search, allowed or (list(range(len(tangibles))), None), pinch_settings=pinch_settings,
-                 probes=probes)
-    return SceneMatch(tangibles, [virtual], settings, model, row[None], [vm])
+    config = config_of(config, settings=settings, pinch_settings=pinch_settings)
+    model = model or cost_model(config.match, tangibles + [virtual])
+    vm = match_one(tangibles, virtual, config, model=model, allowed=allowed, probes=probes)
+    return SceneMatch(tangibles, [virtual], config.match, model, vm.row[None], [vm], config)
 
 
 def assign_one_to_one(cost_matrix: np.ndarray) -> np.ndarray:

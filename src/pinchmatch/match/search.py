@@ -29,16 +29,14 @@ tangible pose, virtual pose).
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import ConfigError
-from .candidates import Candidates, felt_table, mass_ratio
-from .cost import (CRITERIA, DEFAULT_CRITERIA, PAPER_CRITERIA, POOLINGS, CostModel, Weights, complete_weights,
-                   feature_ranges, mass_term, pair_cost_blocks, pooled_bound_blocks, separable_terms, total)
-from .redirect import (AXIS_THRESHOLD_DEG, MAX_HAND_START_MM, MAX_REDIRECT_DEG, MAX_THRESHOLD_DEG, PLACEMENTS,
-                       REDIRECT_THRESHOLD_DEG, Redirect, redirection)
+from ..config import MatchSettings  # noqa: F401 (re-exported)
+from .candidates import Candidates, felt_table, mass_ratio, pair_terms
+from .cost import (CRITERIA, CostModel, feature_ranges, pair_cost_blocks, pooled_bound_blocks, total)
+from .redirect import (Redirect, placed_transform, redirection, world_pose)
 from .register import FLIP_COSINE, register_poses
 
 #: pose pairs kept per (virtual, tangible) object pair before the exact evaluation: one per
@@ -59,96 +57,6 @@ def initial_pool(n_tangible: int, n_virtual: int) -> int:
     that grows with the pairs keeps the evaluation a small share of the search at every size. The
     result does not depend on it (see the module's notes)."""
     return int(np.clip(n_tangible * n_virtual // POOL_PAIRS_PER_KEPT, MIN_POOL, MAX_POOL))
-
-@dataclass(frozen=True)
-class MatchSettings:
-    """Options of the search (the cost model is built from the candidates, see :func:`cost_model`)."""
-
-    weights: dict = field(default_factory=dict)
-    criteria: tuple = DEFAULT_CRITERIA
-    normalize: str = "jnd"
-    pooling: str = "quick"
-    top_k: int = 3
-    one_to_one: bool = False
-    keep_upright: bool = False
-    distinct_mm: float = 8.0
-    block_rows: int = 2048
-    refine: bool = True
-    landing_mm: float = 5.0
-    robust: bool = False
-    placement: str = "registered"
-    hand_start_mm: tuple | None = None
-    redirect_threshold_deg: float = REDIRECT_THRESHOLD_DEG
-    max_redirect_deg: float = MAX_REDIRECT_DEG
-    axis_threshold_deg: float = AXIS_THRESHOLD_DEG
-
-    def __post_init__(self):
-        if tuple(self.criteria) not in (DEFAULT_CRITERIA, PAPER_CRITERIA):
-            raise ConfigError(f"criteria: {self.criteria!r} is neither the default set ({', '.join(DEFAULT_CRITERIA)}) "
-                              f"nor the paper's ({', '.join(PAPER_CRITERIA)})")
-        object.__setattr__(self, "criteria", tuple(self.criteria))
-        object.__setattr__(self, "weights", Weights(complete_weights(dict(self.weights), criteria=self.criteria)))
-        if not isinstance(self.top_k, int) or self.top_k < 0:
-            raise ConfigError(f"--top-k: {self.top_k!r} must be a whole number of 0 or more")
-        if not np.isfinite(self.distinct_mm) or self.distinct_mm < 0:
-            raise ConfigError(f"--distinct-mm: {self.distinct_mm!r} must be a distance of 0 mm or more")
-        if self.normalize not in ("jnd", "range"):
-            raise ConfigError(f"--normalize: unknown mode {self.normalize!r}; use jnd or range")
-        if not (isinstance(self.landing_mm, (int, float)) and 0.0 <= self.landing_mm <= 20.0):
-            raise ConfigError(f"--landing-mm: {self.landing_mm!r} must be from 0 to 20 mm (how far off its target "
-                              "a fingertip may land; the headset allows 5)")
-        if not isinstance(self.refine, bool):
-            raise ConfigError(f"--refine: {self.refine!r} must be on or off")
-        if self.pooling not in POOLINGS:
-            raise ConfigError(f"--pooling: unknown pooling {self.pooling!r}; use quick (probability summation, "
-                              "the default) or sum (the paper's sum of squares)")
-        self._check_redirect()
-
-    def _check_redirect(self) -> None:
-        if self.placement not in PLACEMENTS:
-            raise ConfigError(f"--placement: unknown placement {self.placement!r}; use registered (the virtual "
-                              "object brought onto the prop) or fixed (it stays where the level puts it)")
-        if self.hand_start_mm is not None:
-            start = np.asarray(self.hand_start_mm, dtype=np.float64)
-            if start.shape != (3,) or not np.isfinite(start).all() or np.abs(start).max() > MAX_HAND_START_MM:
-                raise ConfigError(f"--hand-start: {self.hand_start_mm!r} must be three numbers X,Y,Z in mm within "
-                                  f"{MAX_HAND_START_MM:g} mm of the level's origin")
-            object.__setattr__(self, "hand_start_mm", tuple(float(c) for c in start))
-        for name in ("redirect_threshold_deg", "max_redirect_deg", "axis_threshold_deg"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and 0.0 < value <= MAX_THRESHOLD_DEG):
-                flag = "--" + name.replace("_deg", "-deg").replace("_", "-")
-                raise ConfigError(f"{flag}: {value!r} must be an angle above 0 and at most {MAX_THRESHOLD_DEG:g} deg")
-
-    @property
-    def redirect(self) -> Redirect | None:
-        """The redirection's settings under ``placement="fixed"``, else None."""
-        if self.placement != "fixed":
-            return None
-        return Redirect(self.hand_start_mm, self.redirect_threshold_deg, self.max_redirect_deg,
-                        self.axis_threshold_deg)
-
-    def as_dict(self) -> dict:
-        return {
-            "criteria": list(self.criteria),
-            "weights": {c: self.weights[c] for c in self.criteria},
-            "normalize": self.normalize,
-            "pooling": self.pooling,
-            "top_k": self.top_k,
-            "one_to_one": self.one_to_one,
-            "keep_upright": self.keep_upright,
-            "distinct_mm": self.distinct_mm,
-            "refine": self.refine,
-            "landing_mm": self.landing_mm,
-            "robust": self.robust,
-            "placement": self.placement,
-        } | ({} if self.placement != "fixed" else {
-            "hand_start_mm": None if self.hand_start_mm is None else list(self.hand_start_mm),
-            "redirect_threshold_deg": self.redirect_threshold_deg,
-            "max_redirect_deg": self.max_redirect_deg,
-            "axis_threshold_deg": self.axis_threshold_deg,
-        })
-
 
 def cost_model(settings: MatchSettings, candidates: list[Candidates], *, ranges: np.ndarray | None = None) -> CostModel:
     """The run's cost model; ``range`` takes each feature's range over every candidate of the run
@@ -227,25 +135,25 @@ def evaluate_pairs(
     t_rows = tangible.table[it]
     t_props, v_props = tangible.obj.props, virtual.obj.props
     up_t, up_v = tangible.obj.loaded.up, virtual.obj.loaded.up
-    ratio = mass_ratio(tangible, virtual)
     results = []
     for order in (False, True) if swapped is None else (swapped,):
-        vp, vn, v_rows = virtual.pinches.points[iv], virtual.pinches.normals[iv], felt_table(virtual.table[iv], ratio)
+        vp, vn, v_rows = virtual.pinches.points[iv], virtual.pinches.normals[iv], virtual.table[iv]
         if order:
             vp, vn, v_rows = vp[:, ::-1], vn[:, ::-1], v_rows[:, ::-1]
         X = register_poses(tp, tn, vp, vn, tangible_com=t_props.com_mm, virtual_com=v_props.com_mm,
                            tangible_axis=t_props.principal_axis, virtual_axis=v_props.principal_axis)
-        R = X[:, :3, :3]
-        delta = ratio * np.einsum("kij,kj->ki", R, v_props.com_mm - vp.mean(axis=1)) - (t_props.com_mm - tp.mean(axis=1))
-        terms = separable_terms(t_rows, v_rows, model)
-        terms[:, 7] = mass_term(t_rows, delta, model)
+        # registered, the virtual object turns with the registration; fixed, it stays as the level has it,
+        # seen from the prop's frame (the registration is then the hand's warp onto the prop, not a placement)
+        R = X[:, :3, :3] if redirect is None else world_pose(tangible.obj.spec)[0].T
+        terms, delta = pair_terms(tangible, virtual, t_rows, v_rows, model, R=R, t_points=tp, v_points=vp)
         if redirect is None:
             flipped = (R @ up_v) @ up_t < FLIP_COSINE
             allowed = ~flipped if keep_upright else np.ones(len(it), dtype=bool)
             extra = np.zeros((len(it), 2))
-        else:  # the virtual object stays where it is: never turned over
+        else:  # the virtual object stays where it is; flipped when the prop stands otherwise than the level's up
             moved = redirection(tangible.obj.spec, tp, vp, redirect)
-            flipped, allowed, extra = np.zeros(len(it), dtype=bool), moved.allowed, moved.terms
+            flipped = np.full(len(it), bool((R @ up_v) @ up_t < FLIP_COSINE))
+            allowed, extra = moved.allowed, moved.terms
         cost = np.where(allowed, total(terms, model, extra if redirect is not None else None), np.inf)
         results.append(PairResult(cost, terms, np.full(len(it), order), X, flipped, delta, allowed, extra))
     if len(results) == 1:
@@ -319,6 +227,27 @@ def pinch_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 @dataclass(frozen=True)
+class Pose:
+    """One pinch of a choice, in its object's frame (mm), as matches.json names it: the contacts
+    ``p1_mm`` and ``p2_mm`` (3,), their outward normals ``n1`` and ``n2`` (3,), and the hand's
+    ``approach`` (3,) unit direction from the pinch towards the palm (NaN for a pose given without one).
+    A virtual pose is in the tangible's finger order: its ``p1_mm`` meets the tangible's ``p1_mm``."""
+
+    p1_mm: np.ndarray
+    p2_mm: np.ndarray
+    n1: np.ndarray
+    n2: np.ndarray
+    approach: np.ndarray
+
+    @classmethod
+    def of(cls, candidates: Candidates, i: int, swapped: bool = False) -> "Pose":
+        p, n = candidates.pinches.points[i], candidates.pinches.normals[i]
+        if swapped:
+            p, n = p[::-1], n[::-1]
+        return cls(p[0].copy(), p[1].copy(), n[0].copy(), n[1].copy(), candidates.pinches.approach[i].copy())
+
+
+@dataclass(frozen=True)
 class Choice:
     """One registered pose pair and its exact evaluation.
 
@@ -329,11 +258,17 @@ class Choice:
       entries of (difference / scale)², in the run's normalisation; with ``jnd``, 1 is just
       noticeable), in the order of :data:`pinchmatch.match.cost.CRITERIA`, computed for every
       criterion (those not in use weigh 0);
-    - ``cost``: ``float``, dimensionless, Σ weight x term;
+    - ``cost``: ``float``, dimensionless, the terms pooled by the model (:meth:`CostModel.pool`): in JND
+      under the default ``quick`` pooling, Σ weight x term under ``sum``;
     - ``swapped``: ``bool``, the virtual pose's p1 lies on the tangible's p2;
     - ``transform``: ``(4, 4) float64``, the rigid transform taking the virtual object's frame (mm)
-      to the tangible's, so that the fingertips meet;
-    - ``flipped``: ``bool``, the transform turns the virtual object's up direction more than 90°;
+      to the tangible's, so that the fingertips meet (under ``placement="fixed"``, the hand's warp);
+    - ``placement``: ``(4, 4) float64``, where the virtual object is as seen from the tangible: the
+      transform, or under ``placement="fixed"`` the level's (world to the prop's frame);
+    - ``flipped``: ``bool``, the placement turns the virtual object's up direction more than 90°
+      from the tangible's;
+    - ``tangible_pose``, ``virtual_pose``: the two pinches (:class:`Pose`), so that a choice carries
+      itself (``t_pose`` and ``v_pose`` index the match's candidates, refined ones included);
     - ``mass_delta_mm``: ``(3,) float64``, the centre-of-mass offset from the pinch midpoint as seen
       (virtual, registered, its mass relative to the tangible's) minus as felt (tangible), in the
       tangible's frame, mm;
@@ -356,6 +291,9 @@ class Choice:
     tangible_name: str = ""
     virtual_name: str = ""
     redirect_terms: np.ndarray | None = None
+    placement: np.ndarray | None = None
+    tangible_pose: Pose | None = None
+    virtual_pose: Pose | None = None
 
 
 class Search:
@@ -459,10 +397,12 @@ class Search:
                 continue
             p, k = entries[owner[i]][0], local[i]
             r = p.result
+            T, fixed = self.tangibles[p.tangible], self.settings.redirect is not None
             picks.append(Choice(j, p.tangible, int(p.it[k]), int(p.iv[k]), float(r.cost[k]), r.terms[k],
                                 bool(r.swapped[k]), r.transform[k], bool(r.flipped[k]), r.mass_delta_mm[k],
-                                self.tangibles[p.tangible].name, V.name,
-                                r.redirect_terms[k] if self.settings.redirect is not None else None))
+                                T.name, V.name, r.redirect_terms[k] if fixed else None,
+                                placed_transform(T.obj.spec) if fixed else r.transform[k],
+                                Pose.of(T, int(p.it[k])), Pose.of(V, int(p.iv[k]), bool(r.swapped[k]))))
             near = (owner == owner[i]) & (pinch_distance(t_pinch, t_pinch[i]) < self.settings.distinct_mm) \
                 & (pinch_distance(v_pinch, v_pinch[i]) < self.settings.distinct_mm)
             alive &= ~near
@@ -481,14 +421,10 @@ def contact_offset_mm(tangible: Candidates, virtual: Candidates, choice: Choice)
 
 def jnd_terms(tangible: Candidates, virtual: Candidates, choice: Choice) -> np.ndarray:
     """(8,) each criterion's contribution for a choice in just-noticeable differences (JND²)."""
-    t_row = tangible.table[choice.t_pose][None]
-    v_row = felt_table(virtual.table[choice.v_pose][None], mass_ratio(tangible, virtual))
-    if choice.swapped:
-        v_row = v_row[:, ::-1]
+    v_row = virtual.table[choice.v_pose][None]
     jnd_model = CostModel(normalize="jnd", criteria=CRITERIA, weights=dict.fromkeys(CRITERIA, 1.0))
-    jnd = separable_terms(t_row, v_row, jnd_model)[0]
-    jnd[7] = mass_term(t_row, choice.mass_delta_mm[None], jnd_model)[0]
-    return jnd
+    return pair_terms(tangible, virtual, tangible.table[choice.t_pose][None], v_row[:, ::-1] if choice.swapped else v_row,
+                      jnd_model, delta=choice.mass_delta_mm[None])[0][0]
 
 
 def p_noticed(tangible: Candidates, virtual: Candidates, choice: Choice, model: CostModel) -> float:

@@ -1,28 +1,27 @@
-"""On-disk cache of each object's candidate poses and features.
+"""On-disk cache of each object's candidate poses and features: the first of the two cache boundaries.
 
 An entry is one ``.npz`` file named by a key: the SHA-256 of the mesh file's bytes (and of the
-buffers a ``.gltf`` names), the units and up direction, every sampling and patch setting, the given
-poses if any, the pinchmatch version and ``CACHE_FORMAT``. It holds the repaired mesh, the loading
-notes, and the feasible candidates' arrays. Matching settings (weights, criteria, normalisation,
+buffers and images a ``.gltf`` names), the units and up direction and what else in the object's spec
+shapes its candidates, the pinch settings' digest (:func:`pinchmatch.options.digest`), the given poses
+if any, the code's digest (:func:`pinchmatch.options.code_digest`: every module of the package, so an
+upgrade or any edit never reads an old entry) and ``CACHE_FORMAT``. It holds the repaired mesh, the
+loading notes, and the feasible candidates' arrays. Matching settings (weights, criteria, normalisation,
 top-k, ...) are not in the key: tuning them reuses the entry.
 
 - Writes are atomic (a temporary file in the same folder, then ``os.replace``): a reader sees a whole
   entry or none, and two runs writing the same key write the same bytes.
-- An entry that cannot be read, or whose stored key, format or shapes do not match, is a miss: it is
-  deleted and computed again. A cache folder that cannot be written only loses the caching. An error
-  of the code itself (not of the file) is raised, never turned into a miss.
-- The key covers the algorithm: ``ALGORITHM_DIGEST`` hashes the source of every module that shapes an
-  object's candidates, so an upgrade (or any edit) that could change them never reads an old entry.
+- An entry that cannot be read, or whose stored key, format or shapes do not match, is a miss
+  (:class:`DamagedEntry`): it is deleted and computed again. A cache folder that cannot be written only
+  loses the caching. An error of the code itself (not of the file) is raised, never turned into a miss.
 - Beside an entry, ``<key>.probes.npz`` keeps the pinches checked along given lines on that object
-  (the reference pose's, the memo of :func:`pinchmatch.match.reference.line_pinch`), added to as runs ask for new lines; a warm run
-  reads them back instead of building the surface's sample, index and rays.
-- Beside them, ``<key>.result.npz`` keeps a virtual object's whole result in one run's setting
-  (:mod:`pinchmatch.runner.results`, with its own key that covers the matching settings too), and
-  ``<key>.refined.npz`` the poses refinement added for a virtual object against a run's tangibles
-  (:mod:`pinchmatch.runner.refined`, keyed by what refinement depends on).
+  (the reference pose's, the memo of :func:`pinchmatch.match.reference.line_pinch`), added to as runs
+  ask for new lines: part of the object's boundary, a function of the object alone.
+- The second boundary, ``<key>.result.npz``, keeps a virtual object's whole result in one run's
+  configuration (:mod:`pinchmatch.runner.results`, its key made of the object's, the tangibles', the
+  configuration's digest and the code's).
 - ``clear`` deletes only what the cache wrote: files named ``<64 hex digits>.npz`` (or ``.probes.npz``,
-  ``.result.npz``)
-  whose stored key is their name, and its own temporaries; anything else in the folder is left alone.
+  ``.result.npz``) whose stored key is their name, and its own temporaries; anything else in the folder
+  is left alone.
 - A hit rebuilds exactly what a cold run computes (same arrays, bit for bit), so results do not
   depend on the cache.
 """
@@ -37,12 +36,12 @@ import os
 import re
 import zipfile
 from dataclasses import dataclass
-from importlib import resources
 from pathlib import Path
 
 import numpy as np
 import trimesh
 
+from ..options import code_digest, digest
 from ..version import __version__
 from ..grasp.analysis import ObjectAnalysis, analyze_spec
 from ..grasp.features import PinchFeatures
@@ -61,32 +60,29 @@ log = logging.getLogger(__name__)
 _UNWRITABLE: set[str] = set()
 
 #: bump when the layout of an entry changes (what it holds and how it is named)
-CACHE_FORMAT = 2
-#: modules whose code shapes an object's candidates: their source is part of every key
-ALGORITHM_MODULES = ("mesh/load", "mesh/surface", "mesh/properties", "grasp/curvature", "grasp/jets", "grasp/hand",
-                     "grasp/pinches", "grasp/sampling", "grasp/spread", "grasp/spread_kernel", "grasp/features",
-                     "grasp/analysis", "match/candidates", "match/cost", "match/reference", "runner/cache",
-                     "mesh/level", "mesh/regions", "mesh/manifest")
-ENTRY_NAME = re.compile(r"^[0-9a-f]{64}(\.probes|\.result|\.refined)?\.npz$")
-TEMP_NAME = re.compile(r"^\.[0-9a-f]{64}(\.probes|\.result|\.refined)?\.npz\..+\.tmp$")
+CACHE_FORMAT = 3
+ENTRY_NAME = re.compile(r"^[0-9a-f]{64}(\.probes|\.result)?\.npz$")
+TEMP_NAME = re.compile(r"^\.[0-9a-f]{64}(\.probes|\.result)?\.npz\..+\.tmp$")
 PROBES = ".probes"
 RESULT = ".result"  # a virtual object's whole result (:mod:`pinchmatch.runner.results`)
-REFINED = ".refined"  # the poses refinement added for a virtual object (:mod:`pinchmatch.runner.refined`)
+
+
+class DamagedEntry(Exception):
+    """A cache file that is not a whole entry of its key: read as a miss, deleted and computed again.
+    Raised only while an entry is read, so that an error of the code itself is never taken for one."""
+
+
+class _Fields(dict):
+    """An entry's meta or arrays: a missing name is a damaged entry, not a KeyError."""
+
+    def __missing__(self, name):
+        raise DamagedEntry(f"the entry lacks {name!r}")
+
+
 #: what reading a damaged entry can raise; anything else is a bug and is raised
-DAMAGED = (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile)
+DAMAGED = (DamagedEntry, OSError)
 
 
-def source_digest(modules, start: str = "") -> str:
-    """SHA-256 of ``start`` and of the name and source of each module (``"grasp/hand"``, ...): the
-    part of a key that changes whenever that code does."""
-    h = hashlib.sha256(start.encode())
-    for name in modules:
-        h.update(name.encode())
-        h.update(resources.files("pinchmatch").joinpath(*f"{name}.py".split("/")).read_bytes())
-    return h.hexdigest()
-
-
-ALGORITHM_DIGEST = source_digest(ALGORITHM_MODULES)
 PINCH_ARRAYS = list(ARRAY_FIELDS)
 #: the mass properties an entry holds, as arrays and as plain values
 PROPS_ARRAYS = ("com_mm", "principal_axis", "variances_mm2", "bounds_mm")
@@ -134,16 +130,14 @@ class FeatureCache:
         self.hits = self.misses = 0
         self.last_key: str | None = None  # the key of the object last loaded or stored
 
-    def key(self, spec: ObjectSpec, *, patch_radius_mm: float, settings: PinchSettings,
-            given: tuple[np.ndarray, np.ndarray] | None = None) -> str:
-        """The entry of an object: its file's bytes, what in its spec shapes its candidates (units,
-        up, centre of mass, axis, regions, scene node), the settings and the given poses."""
+    def key(self, spec: ObjectSpec, *, settings: PinchSettings, given: tuple[np.ndarray, np.ndarray] | None = None) -> str:
+        """The entry of an object: its file's bytes (and the buffers and images a glTF names), what in its
+        spec shapes its candidates (units, up, centre of mass, axis, regions, scene node), the pinch
+        settings' digest, the given poses and the code's digest."""
         h = hashlib.sha256()
         h.update(_file_digest(Path(spec.path)).encode())
-        h.update(json.dumps({"format": CACHE_FORMAT, "version": __version__, "algorithm": ALGORITHM_DIGEST,
-                             "suffix": Path(spec.path).suffix.lower(), "object": spec.shape_key(),
-                             "patch_radius_mm": float(patch_radius_mm),
-                             "settings": settings.as_dict()}, sort_keys=True).encode())
+        h.update(json.dumps({"format": CACHE_FORMAT, "code": code_digest(), "suffix": Path(spec.path).suffix.lower(),
+                             "object": spec.shape_key(), "settings": digest(settings)}, sort_keys=True).encode())
         if given is not None:
             for array in given:
                 h.update(np.ascontiguousarray(array, dtype=np.float64).tobytes())
@@ -181,7 +175,7 @@ class FeatureCache:
         try:
             meta, arrays = read_entry(path)
             if meta["key"] != key + PROBES:
-                raise ValueError("the probes belong to another key")
+                raise DamagedEntry("the probes belong to another key")
             for name, present in meta["probes"].items():
                 probes[name] = Pinches(**{f: arrays[f"{name}.{f}"] for f in PINCH_ARRAYS}) \
                     if present else None
@@ -214,7 +208,7 @@ class FeatureCache:
         try:
             meta, arrays = read_entry(entry)
             if meta["key"] != key:
-                raise ValueError("the entry belongs to another key")
+                raise DamagedEntry("the entry belongs to another key")
             _check_arrays(arrays)
         except DAMAGED as exc:  # a damaged file is a miss, never a crash or a wrong result
             log.warning("cache entry %s unusable (%s: %s); computing again", entry.name, type(exc).__name__, exc)
@@ -252,7 +246,7 @@ class FeatureCache:
 
     def info(self) -> CacheInfo:
         entries = self._entries() if self._check_folder() else []
-        return CacheInfo(self.folder, sum(not p.name.endswith((PROBES + ".npz", RESULT + ".npz", REFINED + ".npz"))
+        return CacheInfo(self.folder, sum(not p.name.endswith((PROBES + ".npz", RESULT + ".npz"))
                                            for p in entries),
                          sum(p.stat().st_size for p in entries))
 
@@ -281,32 +275,36 @@ def remove_file(path: Path) -> None:
 
 
 def read_entry(entry: Path, *, arrays: bool = True) -> tuple[dict, dict]:
-    """(meta, arrays) of an entry file; raises one of ``DAMAGED`` when it is not a whole entry."""
+    """(meta, arrays) of an entry file; raises :class:`DamagedEntry` (or OSError, the file unreadable)
+    when it is not a whole entry."""
     with open(entry, "rb") as fh:  # closed however numpy fails on a damaged file
-        z = np.load(fh, allow_pickle=False)
-        if not isinstance(z, np.lib.npyio.NpzFile):
-            raise ValueError("not an .npz archive")
-        with z:
-            if "meta" not in z.files:
-                raise ValueError("not a pinchmatch cache entry")
-            meta = json.loads(str(z["meta"]))
-            if not isinstance(meta, dict) or meta.get("format") != CACHE_FORMAT:
-                raise ValueError("an entry of another format")
-            return meta, ({name: z[name] for name in z.files if name != "meta"} if arrays else {})
+        try:
+            z = np.load(fh, allow_pickle=False)
+            if not isinstance(z, np.lib.npyio.NpzFile):
+                raise DamagedEntry("not an .npz archive")
+            with z:
+                if "meta" not in z.files:
+                    raise DamagedEntry("not a pinchmatch cache entry")
+                meta = json.loads(str(z["meta"]))
+                if not isinstance(meta, dict) or meta.get("format") != CACHE_FORMAT:
+                    raise DamagedEntry("an entry of another format")
+                return _Fields(meta), _Fields({name: z[name] for name in z.files if name != "meta"} if arrays else {})
+        except (ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:  # numpy's and zipfile's words for damage
+            raise DamagedEntry(f"{type(exc).__name__}: {str(exc).split('.', 1)[0]}") from None
 
 
 def _check_arrays(arrays: dict) -> None:
     """Raise ValueError unless the arrays can make a mesh and candidates (shapes, kinds, indices)."""
     vertices, faces = arrays["vertices"], arrays["faces"]
     if vertices.ndim != 2 or vertices.shape[1] != 3 or vertices.dtype.kind != "f" or not np.isfinite(vertices).all():
-        raise ValueError("the stored vertices are not finite (n, 3) floats")
+        raise DamagedEntry("the stored vertices are not finite (n, 3) floats")
     if faces.ndim != 2 or faces.shape[1] != 3 or faces.dtype.kind not in "iu" or len(faces) == 0 \
             or faces.min() < 0 or faces.max() >= len(vertices):
-        raise ValueError("the stored faces do not index the vertices")
+        raise DamagedEntry("the stored faces do not index the vertices")
     missing = [name for name in [f"pinches.{p}" for p in PINCH_ARRAYS] + [f"features.{f}" for f in FEATURE_ARRAYS]
                + [f"props.{p}" for p in PROPS_ARRAYS] if name not in arrays]
     if missing:
-        raise KeyError(f"the entry lacks {', '.join(missing)}")
+        raise DamagedEntry(f"the entry lacks {', '.join(missing)}")
 
 
 def to_payload(candidates: Candidates) -> tuple[dict, dict]:
@@ -350,7 +348,7 @@ def _rebuild(meta: dict, arrays: dict, spec: ObjectSpec, *, patch_radius_mm: flo
     n = len(pinches)
     if not (len(arrays["index"]) == n and all(len(getattr(features, f)) == n for f in FEATURE_ARRAYS)
             and all(len(arrays[f"pinches.{p}"]) == n for p in PINCH_ARRAYS)):
-        raise ValueError("the entry's arrays disagree in length")
+        raise DamagedEntry("the entry's arrays disagree in length")
     return Candidates(obj, pinches, features, feature_table(features), arrays["index"], meta["given"])
 
 
@@ -371,7 +369,7 @@ def cached_candidates(path: str | os.PathLike | ObjectSpec, *, cache: FeatureCac
         try:
             if not Path(spec.path).is_file():
                 raise FileNotFoundError(spec.path)
-            key = cache.key(spec, patch_radius_mm=patch_radius_mm, settings=settings, given=given)
+            key = cache.key(spec, settings=settings, given=given)
         except OSError:
             load_mesh(spec.path, units=spec.units, up=spec.up)  # raises the loader's one-line error for this path
             raise

@@ -42,8 +42,9 @@ import numpy as np
 from ..errors import ConfigError, InternalError, PinchmatchError
 from ..grasp.pinches import PinchSettings
 from ..match.candidates import Candidates
-from ..match.search import MatchSettings, Search, cost_model
-from ..match.select import served_row
+from ..config import Config
+from ..match.scene import match_one
+from ..match.search import MatchSettings, cost_model
 from ..mesh.stacks import (
     MIN_PART_HEIGHT_MM,
     MIN_PART_WIDTH_MM,
@@ -225,6 +226,8 @@ class Judge:
 
     def __init__(self, virtuals: list[Candidates], match: MatchSettings, pinch: PinchSettings, folder: Path):
         self.virtuals, self.match, self.pinch, self.folder = virtuals, match, pinch, folder
+        # candidate props are ranked on their sampled poses (refinement is for the final match)
+        self.config = Config(pinch, replace(match, refine=False))
         self.model = cost_model(match, virtuals)
         self.rows: dict[str, tuple[np.ndarray, np.ndarray]] = {}
         self.evaluations = 0
@@ -239,9 +242,8 @@ class Judge:
             except PinchmatchError:  # a prop with no feasible pinch serves nothing
                 self.rows[key] = (np.full(len(self.virtuals), np.inf), np.ones(len(self.virtuals), bool))
             else:
-                search = Search([prop], self.virtuals, self.model, self.match)
-                rows = [served_row(search, j) for j in range(len(self.virtuals))]
-                self.rows[key] = (np.array([r[0][0] for r in rows]), np.array([r[1][0] for r in rows]))
+                matches = [match_one([prop], v, self.config, model=self.model, details=False) for v in self.virtuals]
+                self.rows[key] = (np.array([vm.row[0] for vm in matches]), np.array([vm.row_noticed[0] for vm in matches]))
             self.evaluations += 1
         return self.rows[key]
 

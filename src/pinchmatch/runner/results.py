@@ -1,24 +1,22 @@
-"""Virtual objects' whole results, kept in the cache beside their candidates.
+"""Virtual objects' whole results, kept in the cache beside their candidates: the second cache boundary.
 
 A virtual object's result (its entries in the matches document, its row of the cost matrix, its glTF
 scene and criteria figure) is a function of its candidates, the run's tangibles, the cost model, the
-settings and the plan of a one-to-one run. A warm run whose inputs are all unchanged reads it back
-instead of searching again: the exact search against every tangible is most of what a warm run
-would otherwise do.
+run's configuration and the plan of a one-to-one run. A warm run whose inputs are all unchanged reads
+it back instead of searching again: the exact search against every tangible is most of what a warm
+run would otherwise do.
 
-The key (SHA-256) covers everything the result depends on:
+The key (SHA-256) is made of:
 
-- the object's candidate key (:meth:`FeatureCache.key`: its file's bytes, units, up, what in its
-  spec shapes its candidates, the sampling settings, its given poses) and the rest of its task:
-  the path and label it is reported under, its whole spec (name, mass, manifest), where given
-  poses came from;
+- the object's candidate key (:meth:`FeatureCache.key`) and the rest of its task: the path and label
+  it is reported under, its whole spec (name, mass, manifest, pose), where given poses came from;
 - the tangibles, by the digest of their payloads (:func:`pinchmatch.runner.worker.payload_token`:
-  their meshes, candidates, names and masses);
-- the cost model (weights, normalisation and its ranges), the match and pinch settings, the plan
-  (allowed tangibles and cost row of a one-to-one run), what the run writes (scenes, figures, poses);
-- ``RESULT_FORMAT``, the version, the source of every module that shapes candidates
-  (``ALGORITHM_DIGEST``) and of every module that turns them into a result (``RESULT_MODULES``),
-  and the ray engine this machine has (it is reported).
+  their meshes, candidates, names, masses and poses);
+- the cost model (its ranges under ``--normalize range``), the configuration's digest
+  (:meth:`pinchmatch.config.Config.digest`: every field), the plan (allowed tangibles and cost
+  row of a one-to-one run), what the run writes (scenes, figures, poses);
+- ``RESULT_FORMAT``, the code's digest (:func:`pinchmatch.options.code_digest`) and the ray engine this
+  machine has (it is reported).
 
 An entry is ``<key>.result.npz``: the entries as JSON, the row, the scene and figure bytes. It is
 written and read as the candidate entries are (atomic, a damaged one is a miss and removed).
@@ -26,32 +24,22 @@ written and read as the candidate entries are (atomic, a damaged one is a miss a
 
 from __future__ import annotations
 
-import dataclasses
 import hashlib
 import json
 import logging
-from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..mesh.manifest import ObjectSpec, spec_to_dict
 from ..mesh.surface import ray_engine_name
-from ..version import __version__
-from .cache import ALGORITHM_DIGEST, CACHE_FORMAT, DAMAGED, RESULT, FeatureCache, read_entry, remove_file, source_digest
+from ..options import code_digest, plain
+from .cache import CACHE_FORMAT, DAMAGED, RESULT, DamagedEntry, FeatureCache, read_entry, remove_file
 
 log = logging.getLogger(__name__)
 
 #: bump when the layout of a result entry changes
 RESULT_FORMAT = 1
-#: modules whose code turns candidates into a result (besides ALGORITHM_DIGEST's)
-RESULT_MODULES = ("match/search", "match/refine", "match/landing", "match/scene", "match/register", "match/cost",
-                  "match/redirect",
-                  "match/reference", "export/documents", "export/scenes", "export/figures", "runner/tasks",
-                  "runner/results", "runner/refined")
-
-
-RESULT_DIGEST = source_digest(RESULT_MODULES, ALGORITHM_DIGEST)
 
 
 @dataclass(frozen=True)
@@ -67,33 +55,16 @@ class VirtualResult:
     cached: bool
 
 
-def plain(value):
-    """A settings value as JSON can hold it (dataclasses as dicts, arrays as lists)."""
-    if dataclasses.is_dataclass(value):
-        return {f.name: plain(getattr(value, f.name)) for f in dataclasses.fields(value)}
-    if isinstance(value, Mapping):
-        return {str(k): plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [plain(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return {"dtype": str(value.dtype), "shape": list(value.shape), "sha256": hashlib.sha256(
-            np.ascontiguousarray(value).tobytes()).hexdigest()}
-    if isinstance(value, np.generic):
-        return value.item()
-    return value
-
-
 def result_key(cache: FeatureCache, task, job, shared, model, allowed, row) -> str:
     """The key of a virtual object's result in this run (see the module notes). Raises OSError when
     its file cannot be read (the task then reports the loader's error)."""
     spec = task.spec if task.spec is not None else ObjectSpec(str(task.path))
     spec = spec.with_defaults(units=job.units, up=job.up)
-    candidate_key = cache.key(spec, patch_radius_mm=job.settings.patch_radius_mm, settings=job.settings,
-                              given=task.given)
-    described = {"format": RESULT_FORMAT, "cache_format": CACHE_FORMAT, "version": __version__,
-                 "code": RESULT_DIGEST, "candidates": candidate_key, "label": task.label, "path": task.path,
+    candidate_key = cache.key(spec, settings=job.config.pinch, given=task.given)
+    described = {"format": RESULT_FORMAT, "cache_format": CACHE_FORMAT, "code": code_digest(),
+                 "candidates": candidate_key, "label": task.label, "path": task.path,
                  "role": task.role, "source": task.source, "spec": spec_to_dict(spec), "tangibles": shared[0],
-                 "model": plain(model), "match": plain(job.match), "pinch": plain(job.settings),
+                 "model": plain(model), "config": job.config.digest(),
                  "writes": {"scenes": job.scenes, "figures": job.figures, "poses": job.dump_poses},
                  "allowed": plain(allowed), "row": plain(row), "rays": ray_engine_name()}
     return hashlib.sha256(json.dumps(described, sort_keys=True, default=repr).encode()).hexdigest()
@@ -108,10 +79,10 @@ def load_result(cache: FeatureCache, key: str):
     try:
         meta, arrays = read_entry(path)
         if meta["key"] != key + RESULT:
-            raise ValueError("the entry belongs to another key")
+            raise DamagedEntry("the entry belongs to another key")
         row = arrays["row"]
         if row.ndim != 1 or row.dtype.kind != "f":
-            raise ValueError("the stored cost row is not a row of numbers")
+            raise DamagedEntry("the stored cost row is not a row of numbers")
         blobs = {name: arrays[name].tobytes() if meta[name] else None for name in ("scene_glb", "figure_png")}
         return VirtualResult(meta["name"], meta["entry"], meta["match"], row, blobs["scene_glb"],
                              blobs["figure_png"], cached=True)

@@ -27,15 +27,16 @@ from ..errors import PinchmatchError
 from ..export.documents import match_entry, object_entry
 from ..export.scenes import match_scene_glb
 from ..grasp.pinches import PinchSettings
+from ..grasp.hand import hand_of
 from ..match.candidates import Candidates
 from ..match.cost import feature_bounds
-from ..match.scene import match_virtual
-from ..match.search import MatchSettings, Search, cost_row
-from ..match.select import served_row
+from ..config import Config
+from ..match.refine import refined_search
+from ..match.scene import match_one, match_virtual
+from ..match.search import MatchSettings, cost_row
 from ..mesh.load import load_mesh
 from ..mesh.manifest import ObjectSpec
 from .cache import FeatureCache, cached_candidates, to_payload
-from .refined import cached_refined_search, refined_key
 from .results import VirtualResult, load_result, result_key, store_result
 from .worker import report_stage, tangibles
 
@@ -46,12 +47,19 @@ class Job:
 
     units: str | None
     up: str | None
-    settings: PinchSettings  # its patch_radius_mm is the run's one patch radius
-    match: MatchSettings
+    config: Config  # the run's one configuration
     cache_folder: str | None = None  # None: no cache
     dump_poses: bool = False
     scenes: bool = True
     figures: bool = True
+
+    @property
+    def settings(self) -> PinchSettings:
+        return self.config.pinch
+
+    @property
+    def match(self) -> MatchSettings:
+        return self.config.match
 
 
 @dataclass(frozen=True)
@@ -142,26 +150,19 @@ def bounds_task(task: ObjectTask, job: Job) -> np.ndarray | Failure:
     return feature_bounds(_candidates(task, job)[0].table)
 
 
-def _search(c: Candidates, cache: FeatureCache | None, job: Job, shared, model) -> Search:
-    """The virtual object's search against the run's tangibles, refined (its added poses from the
-    cache when an earlier task or run stored them)."""
-    key = None if cache is None or cache.last_key is None else \
-        refined_key(cache.last_key, shared[0], model, job.match, job.settings)
-    return cached_refined_search(cache, key, tangibles(shared), c, model, job.match, pinch_settings=job.settings)
-
-
 @_per_file
 def row_task(task: ObjectTask, job: Job, shared, model) -> np.ndarray | Failure:
-    c, _, cache = _candidates(task, job)
-    return cost_row(_search(c, cache, job, shared, model), 0)
+    """A virtual object's row of the cost matrix (a one-to-one run's assignment needs every row)."""
+    c = _candidates(task, job)[0]
+    return cost_row(refined_search(tangibles(shared), c, model, job.match, pinch_settings=job.settings), 0)
 
 
 @_per_file
 def served_task(item: tuple, job: Job, shared, model) -> ServedRow | Failure:
     """Item: (task, unused, unused), as for :func:`virtual_task`."""
-    c, cached, cache = _candidates(item[0], job)
-    cost, loud = served_row(_search(c, cache, job, shared, model), 0)
-    return ServedRow(c.name, cost, loud, cached)
+    c, cached, _ = _candidates(item[0], job)
+    vm = match_one(tangibles(shared), c, job.config, model=model, details=False)
+    return ServedRow(c.name, vm.row, vm.row_noticed, cached)
 
 
 @_per_file
@@ -180,8 +181,7 @@ def virtual_task(item: tuple, job: Job, shared, model) -> VirtualResult | Failur
     c, cached, cache = _candidates(task, job)
     key_c = cache.last_key if cache is not None else None
     probes = cache.load_probes(key_c) if cache is not None else {}
-    scene = match_virtual(tangibles(shared), c, model=model, settings=job.match, allowed=allowed, row=row,
-                          pinch_settings=job.settings, search=_search(c, cache, job, shared, model), probes=probes)
+    scene = match_virtual(tangibles(shared), c, model=model, config=job.config, allowed=allowed, probes=probes)
     result = virtual_result(scene, 0, job, cached=cached)
     if cache is not None:
         cache.store_probes(key_c, probes)  # the reference pose's pinch, for the next run
@@ -200,7 +200,7 @@ def virtual_result(scene, k: int, job: Job, *, cached: bool = False) -> VirtualR
     glb = png = None
     if vm.best is not None:
         if job.scenes:
-            glb = match_scene_glb(tangibles_k[vm.best.tangible], virtual, vm.best, hand=job.settings.hand)
+            glb = match_scene_glb(tangibles_k[vm.best.tangible], virtual, vm.best, hand=hand_of(job.settings))
         if job.figures:
             from ..export.figures import criteria_figure, png_bytes  # matplotlib: imported when figures are wanted
 

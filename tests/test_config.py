@@ -1,0 +1,122 @@
+"""The one configuration: the command line is generated from its fields, and no field can be left out of a
+cache key (a warm run after any change equals a cold run)."""
+
+import dataclasses
+import json
+from pathlib import Path
+
+import pytest
+import trimesh
+from scipy.spatial.transform import Rotation
+
+from pinchmatch.cli.parser import build_parser
+from pinchmatch.cli.runs import config_of_args
+from pinchmatch.grasp.pinches import PinchSettings
+from pinchmatch.config import Config
+from pinchmatch.match.search import MatchSettings
+from pinchmatch.options import flag_of, offered
+
+from conftest import run_cli
+from levels import standing_can, tabletop_level
+
+#: a value other than the default for every field the command line offers, as the command line writes it
+CHANGED = {
+    "friction_cone_deg": "24", "min_width_mm": "3", "max_width_mm": "70", "fingertip_radius_mm": "9",
+    "patch_radius_mm": "6", "count": "61", "seed": "3", "snap_tolerance_mm": "3", "finger_radius_mm": "6.5",
+    "finger_length_mm": "40", "approach_tilt_deg": "20",
+    "weights": "width=3", "criteria": "paper", "normalize": "range", "pooling": "sum", "top_k": "1",
+    "one_to_one": None, "keep_upright": None, "distinct_mm": "40", "refine": "off", "landing_mm": "3",
+    "robust": None, "placement": "fixed", "hand_start_mm": "40,180,260", "redirect_threshold_deg": "6",
+    "max_redirect_deg": "9", "axis_threshold_deg": "25",
+}
+#: fields of the records that are no option: they change how the work is split, never a result
+INTERNAL = {"block_rows"}
+#: the fields that matter only where the virtual objects stay in the level
+PLACED = {"hand_start_mm", "redirect_threshold_deg", "max_redirect_deg", "axis_threshold_deg"}
+
+
+def _fields():
+    return [(record, f, opt) for record in (PinchSettings, MatchSettings) for f, opt in offered(record)]
+
+
+def _argv(name, value):
+    f, opt = next((f, opt) for _, f, opt in _fields() if f.name == name)
+    return [flag_of(f, opt)] + ([] if value is None else [value])
+
+
+def test_every_field_is_an_option_or_internal():
+    names = {f.name for record in (PinchSettings, MatchSettings) for f in dataclasses.fields(record)}
+    assert names == {f.name for _, f, _ in _fields()} | INTERNAL
+    assert set(CHANGED) == {f.name for _, f, _ in _fields()}
+
+
+@pytest.mark.parametrize("command", [["match", "--tangible", "a", "--virtual", "b"],
+                                     ["select", "--tangible", "a", "--virtual", "b", "-k", "1"],
+                                     ["design", "--virtual", "b"], ["demo"]])
+def test_the_command_line_with_no_options_is_the_librarys_default(command):
+    config = config_of_args(build_parser().parse_args(command))
+    assert config == Config() and config.digest() == Config().digest()
+
+
+@pytest.mark.parametrize("name", sorted(CHANGED))
+def test_each_option_sets_its_own_field_and_no_other(name):
+    args = build_parser().parse_args(["match", "--tangible", "a", "--virtual", "b", *_argv(name, CHANGED[name])])
+    config = config_of_args(args)
+    default = Config()
+    changed = {f.name for part in ("pinch", "match") for f in dataclasses.fields(getattr(config, part))
+               if getattr(getattr(config, part), f.name) != getattr(getattr(default, part), f.name)}
+    # the paper's criteria complete the weights with their own (com weighs 1 there)
+    assert changed == ({name, "weights"} if name == "criteria" else {name})
+    assert config.digest() != default.digest()
+
+
+def test_the_help_shows_each_default_from_the_record():
+    text = build_parser()._subparsers._group_actions[0].choices["match"].format_help()
+    assert "(default 30)" in text and "(default 1000)" in text and "(default quick)" in text
+    assert "(default on)" in text and "(default registered)" in text
+
+
+@pytest.fixture(scope="module")
+def level(tmp_path_factory):
+    """A prop standing off the origin, turned, in a y-up level of two objects (m)."""
+    folder = tmp_path_factory.mktemp("level")
+    box = trimesh.creation.box(extents=(0.05, 0.04, 0.045))
+    box.apply_translation([0.0, 0.0225, 0.0])
+    tabletop_level(folder / "level.glb", [("can", standing_can(), (0.14, 0.0, -0.07)),
+                                          ("box", box, (0.06, 0.0, -0.11))])
+    # the can stands (its z up along the level's y) turned 35 degrees about the level's up; the block lies
+    # on its side, its z along the level's x
+    stand = Rotation.from_euler("y", 35, degrees=True) * Rotation.from_euler("x", -90, degrees=True)
+    lie = Rotation.from_euler("y", 90, degrees=True)
+    (folder / "props.toml").write_text(
+        '[[object]]\nname = "can_prop"\nshape = { kind = "cylinder", diameter_mm = 54, height_mm = 66 }\n'
+        f"pose = {{ position_mm = [120, 0, -80], quaternion_xyzw = {stand.as_quat().tolist()} }}\n"
+        '[[object]]\nname = "block"\nshape = { kind = "box", size_mm = [40, 30, 60] }\n'
+        f"pose = {{ position_mm = [-60, 20, -40], quaternion_xyzw = {lie.as_quat().tolist()} }}\n")
+    return folder
+
+
+def _run(capsys, level, out, *extra, cache=None):
+    argv = ["match", "--tangible", level / "props.toml", "--virtual", level / "level.glb", "--split", "nodes",
+            "--count", 60, "--jobs", 1, "-o", out, "--no-view", "-q",
+            *(["--cache", cache] if cache else ["--no-cache"]), *extra]
+    code, _, err = run_cli(capsys, *argv)
+    assert code == 0, err
+    return (out / "matches.json").read_bytes()
+
+
+def test_a_warm_run_after_any_change_equals_a_cold_run(tmp_path, capsys, level):
+    """For every field: a run into a cache, then the run with that field changed on the same cache, equals
+    the changed run without a cache, byte for byte (and a repeat of it, read back whole)."""
+    cache = tmp_path / "cache"
+    for k, name in enumerate(sorted(CHANGED)):
+        first = ["--placement", "fixed"] if name in PLACED else []
+        _run(capsys, level, tmp_path / f"base{k}", *first, cache=cache)
+        change = first + _argv(name, CHANGED[name])
+        warm = _run(capsys, level, tmp_path / f"warm{k}", *change, cache=cache)
+        again = _run(capsys, level, tmp_path / f"again{k}", *change, cache=cache)
+        cold = _run(capsys, level, tmp_path / f"cold{k}", *change)
+        assert warm == cold, name
+        assert again == cold, name
+        doc = json.loads(cold)
+        assert doc["matches"], name
