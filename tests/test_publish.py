@@ -133,6 +133,8 @@ def test_a_publication_cut_short_is_finished_by_the_next_reader(tmp_path, virtua
 
 
 def _pgid_members(pgid):
+    """The live processes of the process group ``pgid`` or of the session it leads: the run's child runs
+    the command in a group of its own, in the same session."""
     members = []
     for entry in os.listdir("/proc"):
         if entry.isdigit():
@@ -141,7 +143,7 @@ def _pgid_members(pgid):
                     fields = fh.read().rsplit(")", 1)[1].split()
             except OSError:
                 continue
-            if int(fields[2]) == pgid and fields[0] != "Z":
+            if pgid in (int(fields[2]), int(fields[3])) and fields[0] != "Z":
                 members.append(int(entry))
     return members
 
@@ -340,4 +342,43 @@ def test_files_written_straight_into_out_are_taken_back_when_the_run_does_not_fi
     with publisher:
         publisher.write_direct(out / "props" / "prop_1.stl", b"new prop 1")
     assert (out / "props" / "prop_1.stl").read_bytes() == b"new prop 1"
+    assert not (out / ".pinchmatch" / "replaced").exists()
+
+
+@pytest.mark.parametrize("publishing", [False, True])
+def test_a_run_whose_process_is_killed_is_taken_back_or_finished_by_the_next(tmp_path, publishing):
+    """A run's process killed outright cleans nothing up itself: what it wrote straight into OUT (a replaced
+    prop, an added object, one being written) is taken back from ``run.json`` by the command line's parent or
+    the next run; a publication it had begun is finished from its journal."""
+    import fcntl
+
+    from pinchmatch.export.folder import undo_killed_run
+
+    out = tmp_path / "out"
+    (out / "props").mkdir(parents=True)
+    (out / "props" / "prop_1.stl").write_bytes(b"the last result's prop")
+    (out / "notes.txt").write_text("the user's own file")
+    before = snapshot(out)
+    publisher = OutputFolder(out)
+    stage = publisher.__enter__()
+    publisher.write_direct(out / "props" / "prop_1.stl", b"new prop 1")
+    publisher.write_direct(out / "props" / "prop_2.stl", b"new prop 2")
+    publisher.direct(out / "objects" / "a.stl", new=True)  # recorded, then written: killed while it writes
+    (out / "objects").mkdir()
+    (out / "objects" / ".a.stl.k3J9x_2q.tmp").write_bytes(b"half")
+    (stage / "matches.json").write_text("{}")
+    if publishing:
+        publisher._publish = lambda: None  # (not called: the journal below is what a killed publication leaves)
+        (out / ".pinchmatch" / "commit.json").write_text(json.dumps(
+            {"new": ["matches.json", "props/prop_1.stl", "props/prop_2.stl"], "staged": ["matches.json"],
+             "remove": []}))
+    fcntl.flock(publisher._lock, fcntl.LOCK_UN)  # the process is gone: its lock with it
+    os.close(publisher._lock)
+    assert undo_killed_run(out) is publishing
+    if publishing:
+        assert (out / "matches.json").read_text() == "{}" and (out / "props" / "prop_2.stl").exists()
+        assert read_manifest(out) == ["matches.json", "props/prop_1.stl", "props/prop_2.stl"]
+    else:
+        assert snapshot(out) == before
+    assert not (out / ".pinchmatch" / "staging").exists() and not (out / ".pinchmatch" / "run.json").exists()
     assert not (out / ".pinchmatch" / "replaced").exists()

@@ -16,8 +16,6 @@ from __future__ import annotations
 
 import os
 
-from .signals import deferred
-
 _BUDGET: int | None = None
 
 
@@ -55,10 +53,5 @@ def query_workers(points: int) -> int:
 
 
 def query_tree(tree, points, *, work: int, **options):
-    """``tree.query(points, **options)`` (a scipy KD-tree) on :func:`query_workers` ``(work)`` threads.
-
-    A signal waits for the query to end (:func:`pinchmatch.signals.deferred`): on several threads scipy
-    joins them in Python, where a signal's exception can land, and left running they write into arrays
-    the unwinding frees (the process then crashes as it exits)."""
-    with deferred():
-        return tree.query(points, workers=query_workers(work), **options)
+    """``tree.query(points, **options)`` (a scipy KD-tree) on :func:`query_workers` ``(work)`` threads."""
+    return tree.query(points, workers=query_workers(work), **options)

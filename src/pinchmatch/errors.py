@@ -54,10 +54,6 @@ class OutputError(PinchmatchError):
     """An output that cannot be written: a read-only or full file system, no permission."""
 
 
-class Terminated(BaseException):
-    """SIGTERM arrived: unwind like Ctrl-C, so that nothing is left half-written."""
-
-
 class InternalError(RuntimeError):
     """An invariant of pinchmatch's own broke (a bug, not the input's fault): report it."""
 

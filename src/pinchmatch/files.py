@@ -12,10 +12,9 @@ which turns every way of failing into one :class:`errors.ConfigError` line namin
 from __future__ import annotations
 
 import os
-import signal
+import re
 import stat
 import tempfile
-from contextlib import contextmanager
 from pathlib import Path
 
 from .errors import ConfigError, OutputError
@@ -137,21 +136,15 @@ def check_writable(path: str | os.PathLike, *, folder: bool) -> None:
                           "choose another -o")
 
 
-@contextmanager
-def signals_deferred():
-    """SIGINT and SIGTERM wait until the block is over: what it does is not to be cut in half (a
-    result's publication, the start of a run's workers)."""
-    pending = []
-    previous = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+def remove_temporaries(path: str | os.PathLike) -> None:
+    """Remove the temporary files that a killed write of ``path`` left beside it (:class:`AtomicFile`'s
+    ``.NAME.XXXXXXXX.tmp``); nothing else is touched."""
+    path = Path(path)
+    pattern = re.compile(rf"^\.{re.escape(path.name)}\.[A-Za-z0-9_]{{8}}\.tmp$")
     try:
-        for s in previous:
-            signal.signal(s, lambda signum, frame: pending.append(signum))
-    except ValueError:  # not the main thread: signals cannot arrive here anyway
-        previous = {}
-    try:
-        yield
-    finally:
-        for s, handler in previous.items():
-            signal.signal(s, handler)
-        for s in pending:
-            os.kill(os.getpid(), s)
+        entries = list(path.parent.iterdir())
+    except OSError:
+        return
+    for entry in entries:
+        if pattern.match(entry.name) and entry.is_file() and not entry.is_symlink():
+            entry.unlink(missing_ok=True)

@@ -38,7 +38,7 @@ from ..export.study_plan import study_plan
 from ..export.study_ratings import static_ratings_table
 from ..runner.matching import RunResult
 from ..runner.executors import executor
-from ..runner.study import ORDERS, run_study
+from ..runner.study import ORDERS, run_study, study_mesh_names
 from ..export.view import make_server, write_page
 
 log = logging.getLogger("pinchmatch")
@@ -252,13 +252,11 @@ def _cmd_demo(args) -> int:
 
             # the study's objects are its inputs, the same bytes every run: written in place, so the
             # documents can name where they stay; a run that does not finish takes back those it added
-            before = {p.name for p in (out / "objects").glob("*.stl")}
-            try:
-                study = run_study(out / "objects", full=args.full, settings=settings, match_settings=match,
-                                  progress=starting)
-            finally:
-                for path in sorted((out / "objects").glob("*.stl")):
-                    publisher.direct(path, new=path.name not in before)
+            # (recorded before they are written: a killed run's are taken back too)
+            for name in study_mesh_names():
+                publisher.direct(out / "objects" / name, new=not (out / "objects" / name).exists())
+            study = run_study(out / "objects", full=args.full, settings=settings, match_settings=match,
+                              progress=starting)
         t1 = time.perf_counter()
         common = {**settings.as_dict(),
                   "candidate_virtual_poses": "17 heights and all sampled" if args.full else "17 heights",

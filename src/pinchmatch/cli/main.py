@@ -7,6 +7,10 @@ output folder as it was), 1 unexpected error (a traceback only with ``--verbose`
 
 Only the parser is imported up front: ``--help``, ``--version`` and a bad option answer without
 loading the pipeline (:mod:`pinchmatch.cli.commands` and everything below it).
+
+:func:`main` runs a command in this process (as the tests and other Python code call it); the console
+script, :func:`console`, runs it in a child process that it ends at once on Ctrl-C or SIGTERM
+(:mod:`pinchmatch.cli.supervise`), so that no signal is ever raised inside the numeric work.
 """
 
 from __future__ import annotations
@@ -15,18 +19,17 @@ import logging
 import signal
 import sys
 
-from .. import signals
-from ..errors import PinchmatchError, RunError, Terminated, route_warnings
+from ..errors import PinchmatchError, RunError, route_warnings
 from ..cores import default_jobs
 from ..runner.forkserver import start_worker_server
 from .parser import build_parser, check_option_names, join_vector_values
+from .supervise import FILE_COMMANDS, supervise
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; return the exit code."""
     argv = list(sys.argv[1:] if argv is None else argv)
-    with signals.handled():
-        return _main(argv)
+    return _main(argv)
 
 
 def _main(argv: list[str]) -> int:
@@ -46,7 +49,6 @@ def _main(argv: list[str]) -> int:
             start_worker_server()  # it loads the pipeline for the workers while this process does the same
         from .commands import COMMANDS  # the pipeline: loaded for a command, not for --help
 
-        signals.arm()  # the pipeline is loaded: a signal that came meanwhile ends the run now
         return COMMANDS[args.command](args)
     except PinchmatchError as exc:
         print(f"pinchmatch: error: {exc.cli_message()}", file=sys.stderr)
@@ -54,15 +56,9 @@ def _main(argv: list[str]) -> int:
     except RunError as exc:  # not the input's fault: an internal error, in one line
         print(f"pinchmatch: internal error: {exc}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt:
+    except KeyboardInterrupt:  # Ctrl-C where main runs in the terminal's process (not under the console script)
         return _interrupted(signal.SIGINT, command)
-    except Terminated:
-        return _interrupted(signal.SIGTERM, command)
     except Exception as exc:  # an internal error: say so, traceback on request
-        if signals.received() is not None:
-            # the signal's exception turned into another inside a library (numba's import makes an
-            # ImportError of it): the signal ended the run
-            return _interrupted(signals.received(), command)
         if verbose:
             raise
         print(f"pinchmatch: internal error: {type(exc).__name__}: {exc}; rerun with --verbose and report it",
@@ -77,10 +73,6 @@ def _interrupted(signum: int, command: str | None) -> int:
         return 130
     print(f"pinchmatch: terminated; {_left_as_it_was(command)}", file=sys.stderr)
     return 143
-
-
-#: the commands that write one file (-o FILE), not an output folder
-FILE_COMMANDS = ("calibrate", "poses", "features")
 
 
 def _left_as_it_was(command: str | None) -> str:
@@ -103,4 +95,10 @@ def _wants_local_workers(args) -> bool:
 
 
 def console() -> None:
-    sys.exit(main())
+    """The console script: the command in a child process, ended at once on a signal."""
+    argv = sys.argv[1:]
+    if not argv or any(a in ("-h", "--help", "--version") for a in argv):
+        sys.exit(main(argv))  # answered by the parser alone: nothing to end
+    if "--serve" in argv:
+        sys.exit(main(argv))  # a server that Ctrl-C stops, as it should: in this process, no numeric work
+    sys.exit(supervise(argv, main))

@@ -11,8 +11,11 @@ publishes at the end, in a step that a signal cannot interrupt:
 
 If the process dies during step 2 (SIGKILL, a power cut), the next run, or ``pinchmatch view``,
 finishes the journal first, so OUT is again one whole result. A run that stops before step 1
-(Ctrl-C, SIGTERM, an error, a full disk) leaves OUT as it was; its staging folder is removed then,
-or by the next run.
+(Ctrl-C, SIGTERM, an error, a full disk) leaves OUT as it was: what it staged is removed, and the
+files it wrote straight into OUT are taken back. A run's process killed outright (the command line
+kills it on Ctrl-C and SIGTERM: :mod:`pinchmatch.cli.supervise`) cannot clean up itself, so what it
+must take back is kept in ``OUT/.pinchmatch/run.json`` as it goes, and :func:`undo_killed_run` (the
+command line's parent, or the next run) does it.
 
 Only files the manifest lists are ever deleted: a file a user put in OUT is never deleted (it is
 replaced only when it sits at the very path of an output). A lock
@@ -29,8 +32,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from ..errors import OutputError
-from .. import signals
-from ..files import RESULT_CONTROL, signals_deferred, write_atomic
+from ..files import RESULT_CONTROL, remove_temporaries, write_atomic
 
 CONTROL = RESULT_CONTROL
 
@@ -73,10 +75,15 @@ class OutputFolder:
             os.close(fd)
             self._lock = None
             raise
-        finish_commit(self.out)
-        shutil.rmtree(self.stage, ignore_errors=True)  # what a stopped run left
+        _undo_locked(self.out)  # what a killed run left: its journal finished, or its writes taken back
         self.stage.mkdir()
+        self._save_run()
         return self.stage
+
+    def _save_run(self) -> None:
+        """Keep what a killed run must take back (``run.json``): the direct writes, and whether OUT is new."""
+        write_atomic(self.control / RUN, json.dumps({"created": self._created, "undo": [
+            [name, None if kept is None else kept.relative_to(self.control).as_posix()] for name, kept in self._undo]}))
 
     def direct(self, path: str | os.PathLike, *, new: bool = False) -> None:
         """Record a file written straight into ``out``; ``new``: it was not there before the run, so it
@@ -85,6 +92,7 @@ class OutputFolder:
         self._direct.append(name)
         if new:
             self._undo.append((name, None))
+            self._save_run()
 
     def write_direct(self, path: str | os.PathLike, data: bytes) -> None:
         """Write a file straight into ``out`` (an input the run's later steps read where it stays). A run
@@ -97,47 +105,33 @@ class OutputFolder:
         if target.exists():
             kept = self.control / "replaced" / name
             kept.parent.mkdir(parents=True, exist_ok=True)
+            self._undo.append((name, kept))
+            self._save_run()  # before the move: a killed run puts the file back
             os.replace(target, kept)
-        self._undo.append((name, kept))
+        else:
+            self._undo.append((name, None))
+            self._save_run()
         target.parent.mkdir(parents=True, exist_ok=True)
         write_atomic(target, data)
         self._direct.append(name)
 
-    def _put_back(self) -> None:
-        """Undo the direct writes of a run that did not finish."""
-        for name, kept in reversed(self._undo):
-            target = self.out / name
-            if kept is not None and kept.exists():
-                os.replace(kept, target)
-            else:
-                target.unlink(missing_ok=True)
-                _prune_empty(self.out, target.parent)
-
     def __exit__(self, exc_type, exc, tb):
-        lost = None
-        if exc_type is None:
-            try:
-                signals.check()  # a signal whose exception was swallowed on the way: nothing is published
-            except BaseException as caught:  # KeyboardInterrupt or Terminated
-                lost = caught
-        failed = exc_type is not None or lost is not None
+        failed = exc_type is not None
         try:
             if not failed:
-                with signals_deferred():
-                    self._publish()
+                self._publish()
         finally:
-            if not (self.control / "commit.json").exists():  # a journal still needs what is staged
-                shutil.rmtree(self.stage, ignore_errors=True)
-            if failed and self._created:
-                shutil.rmtree(self.out, ignore_errors=True)  # a folder this run made and did not finish
+            if (self.control / "commit.json").exists():
+                pass  # a publication cut short: its journal still needs what is staged (the next reader finishes it)
             elif failed:
-                self._put_back()
-            shutil.rmtree(self.control / "replaced", ignore_errors=True)
+                _take_back(self.out, {"created": self._created, "undo": [
+                    [name, None if kept is None else kept.relative_to(self.control).as_posix()]
+                    for name, kept in self._undo]})
+            else:
+                _clean(self.out)
             fcntl.flock(self._lock, fcntl.LOCK_UN)
             os.close(self._lock)
             self._lock = None
-        if lost is not None:
-            raise lost
 
     def _publish(self) -> None:
         new = sorted({p.relative_to(self.stage).as_posix() for p in self.stage.rglob("*") if p.is_file()}
@@ -148,6 +142,72 @@ class OutputFolder:
                    "remove": sorted(set(old) - set(new))}
         write_atomic(self.control / "commit.json", json.dumps(journal))
         finish_commit(self.out)
+
+
+#: what a run must take back if it is killed: ``OUT/.pinchmatch/run.json``
+RUN = "run.json"
+
+
+def _take_back(out: Path, run: dict) -> None:
+    """Undo a run that did not publish: its direct writes put back (a file it replaced comes back, one it
+    added goes), what it staged removed, and OUT itself when the run made it."""
+    control = out / CONTROL
+    if (control / "commit.json").exists():  # it was publishing: finished, never taken back
+        finish_commit(out)
+        _clean(out)
+        return
+    if run.get("created"):
+        shutil.rmtree(out, ignore_errors=True)  # a folder this run made and did not finish
+        return
+    for name, kept in reversed(run.get("undo", [])):
+        if not (isinstance(name, str) and _really_inside(out, name)):
+            continue
+        target = out / name
+        if kept is None:  # a file the run added, or was writing
+            target.unlink(missing_ok=True)
+            remove_temporaries(target)
+            _prune_empty(out, target.parent)
+        elif isinstance(kept, str) and _inside(kept) and (control / kept).is_file():
+            os.replace(control / kept, target)  # a file it replaced comes back (not moved yet: still there)
+    _clean(out)
+
+
+def _clean(out: Path) -> None:
+    control = out / CONTROL
+    shutil.rmtree(control / "staging", ignore_errors=True)
+    shutil.rmtree(control / "replaced", ignore_errors=True)
+    (control / RUN).unlink(missing_ok=True)
+
+
+def _undo_locked(out: Path) -> bool:
+    """With the folder's lock held: finish a killed run's publication, or take its writes back.
+    Returns whether a publication was finished."""
+    control = Path(out) / CONTROL
+    if (control / "commit.json").exists():
+        finish_commit(out)
+        _clean(Path(out))
+        return True
+    try:
+        run = json.loads((control / RUN).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        run = {}
+    _take_back(Path(out), run if isinstance(run, dict) else {})
+    return False
+
+
+def undo_killed_run(out: str | os.PathLike) -> bool:
+    """After a run's process was killed: finish its publication if it had begun one (True), else take back
+    what it wrote into OUT (False). Nothing when OUT holds no control folder; refused while another run
+    holds the folder."""
+    control = Path(out) / CONTROL
+    if not control.is_dir() or control.is_symlink():
+        return False
+    fd = os.open(control / "lock", os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)  # the killed run's lock went with its process
+        return _undo_locked(Path(out))
+    finally:
+        os.close(fd)
 
 
 def recover(out: str | os.PathLike) -> None:
@@ -176,8 +236,7 @@ def exclusive(out: str | os.PathLike):
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
             raise OutputError(f"{out}: a pinchmatch run is writing this folder; wait for it to end") from None
-        finish_commit(out)
-        shutil.rmtree(control / "staging", ignore_errors=True)
+        _undo_locked(Path(out))
         yield
     finally:
         os.close(fd)

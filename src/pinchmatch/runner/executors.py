@@ -19,8 +19,6 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from ..errors import ConfigError
-from .. import signals
-from ..files import signals_deferred
 from ..cores import default_jobs, set_thread_budget
 from ..match.candidates import Candidates
 from .forkserver import worker_context
@@ -79,10 +77,8 @@ def _in_order(submit: Callable, items: Iterable, window: int) -> Iterator:
         pending.append(submit(item))
         if len(pending) >= window:
             yield pending.popleft().result()
-            signals.check()
     while pending:
         yield pending.popleft().result()
-        signals.check()
 
 
 
@@ -124,11 +120,9 @@ class LocalExecutor(Executor):
                                          initargs=(max(1, default_jobs() // jobs), self._stages, os.getpid()))
         _remove_orphaned_run_folders()
         self._folder = tempfile.TemporaryDirectory(prefix=f"{RUN_FOLDER_PREFIX}{os.getpid()}-")
-        # every worker started and running before anything else: a signal meanwhile waits until they
-        # are (at most the fork server's load), so that no worker is left starting after the run ends
-        with signals_deferred():
-            for future in [self._pool.submit(os.getpid) for _ in range(jobs)]:
-                future.result()
+        # every worker started and running before anything else (a run that ends takes them all down)
+        for future in [self._pool.submit(os.getpid) for _ in range(jobs)]:
+            future.result()
 
     def map(self, fn, items, *args):
         return _in_order(lambda item: self._pool.submit(fn, item, *args), items, WINDOW * self.workers)

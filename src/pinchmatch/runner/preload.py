@@ -9,7 +9,6 @@ and any real error shows in its task.
 from __future__ import annotations
 
 import logging
-import sys
 
 from . import tasks  # noqa: F401  (the whole pipeline a task runs)
 
@@ -43,15 +42,4 @@ def warm_kernels() -> None:
         set_thread_budget(before)
 
 
-def _quiet_when_the_run_is_gone(kind, value, traceback, _default=sys.excepthook) -> None:
-    """The fork server's children report an error of their start with ``sys.excepthook``. A child
-    forked as the run ends (a signal) finds the run's pipes and semaphores gone (an ``OSError`` or
-    ``EOFError`` while it reads what to do): it was never to run a task, and the run has said its one
-    line already, so it ends quietly. Anything else is reported as Python would."""
-    if issubclass(kind, (OSError, EOFError)):
-        return
-    _default(kind, value, traceback)
-
-
 warm_kernels()
-sys.excepthook = _quiet_when_the_run_is_gone

@@ -75,17 +75,20 @@ class Study:
     scene: SceneMatch
 
 
+def study_mesh_names() -> list[str]:
+    """The file names of the six virtual objects, then the tangible, as :func:`write_study_meshes` writes them."""
+    return [f"vo{j}_{'_'.join(order)}.stl" for j, order in enumerate(ORDERS, start=1)] \
+        + ["tangible_cylinder_cube_cone.stl"]
+
+
 def write_study_meshes(folder: Path, *, sections: int = 96) -> tuple[Path, list[Path]]:
     """Write the tangible and the six virtual objects as STL (mm) into ``folder``."""
     folder.mkdir(parents=True, exist_ok=True)
-    paths = []
-    for j, order in enumerate(ORDERS, start=1):
-        path = folder / f"vo{j}_{'_'.join(order)}.stl"
+    *names, tangible = [folder / name for name in study_mesh_names()]
+    for path, order in zip(names, ORDERS):
         write_atomic(path, stacked_prop(order, sections=sections).export(file_type="stl"))
-        paths.append(path)
-    tangible = folder / "tangible_cylinder_cube_cone.stl"
     write_atomic(tangible, stacked_prop(ORDERS[0], sections=sections).export(file_type="stl"))
-    return tangible, paths
+    return tangible, names
 
 
 def _pose_entry(order, candidates: Candidates, v_pose: int, *, points=None, flipped, cost, cost_paper,
