@@ -19,7 +19,7 @@ import json
 from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import lru_cache
-from importlib import resources
+from pathlib import Path
 
 
 
@@ -123,7 +123,7 @@ def digest(value) -> str:
 def code_digest() -> str:
     """SHA-256 of every Python module and page file of the package, by name and bytes: any edit or
     upgrade changes it, so no cache entry outlives the code that wrote it."""
-    return package_digest(resources.files("pinchmatch"))
+    return package_digest(Path(__file__).resolve().parent)
 
 
 def package_digest(root) -> str:

@@ -101,4 +101,11 @@ def console() -> None:
         sys.exit(main(argv))  # answered by the parser alone: nothing to end
     if "--serve" in argv:
         sys.exit(main(argv))  # a server that Ctrl-C stops, as it should: in this process, no numeric work
+    try:  # a bad command line is answered here, before any process is started
+        parser = build_parser()
+        check_option_names(parser, argv)
+        parser.parse_args(join_vector_values(argv))
+    except PinchmatchError as exc:
+        print(f"pinchmatch: error: {exc.cli_message()}", file=sys.stderr)
+        sys.exit(2)
     sys.exit(supervise(argv, main))

@@ -16,13 +16,10 @@ A parent killed outright (SIGKILL) takes the child with it (``PR_SET_PDEATHSIG``
 
 from __future__ import annotations
 
-import ctypes
 import os
 import signal
 import sys
 from pathlib import Path
-
-from ..files import remove_temporaries
 
 #: exit codes of a run ended by SIGINT and SIGTERM
 SIGNAL_EXIT = {signal.SIGINT: 130, signal.SIGTERM: 143}
@@ -98,6 +95,8 @@ def _kill_group(pid: int) -> None:
 
 def _die_with_parent() -> None:
     """Have the kernel kill this process when its parent dies (Linux; elsewhere nothing)."""
+    import ctypes
+
     try:
         libc = ctypes.CDLL(None, use_errno=True)
         libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
@@ -121,6 +120,8 @@ def _undo(argv: list[str]) -> str:
         return "the entries not yet deleted stay in the cache"
     if output is None:
         return "nothing was written"
+    from ..files import remove_temporaries
+
     try:
         if command in FOLDER_COMMANDS or command == "view":
             from ..export.folder import undo_killed_run
