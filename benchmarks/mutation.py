@@ -174,6 +174,28 @@ EQUIVALENT.update({
         "numpy indexes with a list of positions as with the array made from it",
     ("runner/design.py", "total = s.evaluations or max(1, int((s.budget_s - spent() - final_s) / max(first_s, 1e-3)) "
      "+ 1)", "1 -> 2"): "the total only labels the progress bar; the search stops by time, not by it",
+    ("match/search.py", "pick_b = b.cost < a.cost", "< -> <="): _BOUNDARY,
+    ("match/search.py", "return float(pool.result.cost.min()) if len(pool.it) else np.inf", "drop float(...)"):
+        "numpy's float64 is a subclass of Python's float: every caller reads the same number",
+    ("match/reference.py", "reach = np.linalg.norm(bounds[1] - bounds[0]) + np.linalg.norm(point - bounds.mean(axis=0)) "
+     "+ 1.0", "+ -> -"): "the fingers start outside the object either way: the bounds' diagonal plus the point's "
+                          "distance from their centre already reach past the surface; 1 mm is a margin",
+    ("match/reference.py", "face, dist = obj.context.first_hit(origins, np.array([u, -u]))", "drop .array(...)"):
+        "the ray engine makes an array of the list of two directions, as np.array does",
+    ("match/reference.py", "data = np.concatenate([np.asarray(x, np.float64).ravel() for x in parts])",
+     "drop .asarray(...)"): "every part is already a float64 array (a contact, a direction)",
+    ("match/scene.py", "big = (np.abs(cost_matrix[finite]).sum() + 1.0) * (min(m, n) + 1)", "drop min(...)"):
+        "any factor of at least min(m, n) + 1 makes a forbidden pair cost more than every full assignment",
+    ("match/landing.py", "contact[0], face[0] = p[k], f[k]  # the target itself", "0 -> 1"):
+        "the pattern's first point, a finger closing on its target along the pinch line, meets the surface at the "
+        "target itself",
+    ("export/folder.py", "elif isinstance(kept, str) and _inside(kept) and (control / kept).is_file():",
+     "drop isinstance(...)"): "kept is a name or None, and None was handled before: a string's test is always true",
+    ("export/folder.py", "control = Path(out) / CONTROL", "drop Path(...)"):
+        "every caller passes a Path (the supervisor's output, the next run's OutputFolder)",
+    ("export/folder.py", "files = json.loads((Path(out) / CONTROL / \"manifest.json\").read_text(encoding=\"utf-8\"))"
+     "[\"files\"]", "drop Path(...)"): "every caller passes a Path",
+    ("export/folder.py", "out = Path(out)", "drop Path(...)"): "every caller passes a Path",
 })
 
 BINOPS = {ast.Add: ast.Sub, ast.Sub: ast.Add, ast.Mult: ast.Div, ast.Div: ast.Mult, ast.Pow: ast.Mult,

@@ -3,6 +3,7 @@ cache key (a warm run after any change equals a cold run)."""
 
 import dataclasses
 import json
+import re
 from pathlib import Path
 
 import pytest
@@ -26,7 +27,7 @@ CHANGED = {
     "finger_length_mm": "40", "approach_tilt_deg": "20",
     "weights": "width=3", "criteria": "paper", "normalize": "range", "pooling": "sum", "top_k": "1",
     "one_to_one": None, "keep_upright": None, "distinct_mm": "40", "refine": "off", "landing_mm": "3",
-    "robust": None, "placement": "fixed", "hand_start_mm": "40,180,260", "redirect_threshold_deg": "6",
+    "rank": "nominal", "placement": "fixed", "hand_start_mm": "40,180,260", "redirect_threshold_deg": "6",
     "max_redirect_deg": "9", "axis_threshold_deg": "25",
 }
 #: fields of the records that are no option: they change how the work is split, never a result
@@ -120,3 +121,106 @@ def test_a_warm_run_after_any_change_equals_a_cold_run(tmp_path, capsys, level):
         assert again == cold, name
         doc = json.loads(cold)
         assert doc["matches"], name
+
+
+def _documented(flag: str) -> set:
+    """The numbers the README and docs give with ``flag``: "`--flag` (N)", "`--flag N`" (a default, or an example),
+    "(default **N°**)"."""
+    text = "\n".join(p.read_text() for p in [Path(__file__).parents[1] / "README.md",
+                                              *sorted((Path(__file__).parents[1] / "docs").glob("*.md"))])
+    number = r"(-?\d+(?:\.\d+)?)"
+    found = set()
+    for pattern in (rf"`{re.escape(flag)}`\s*\({number}\)", rf"`{re.escape(flag)} {number}`",
+                    rf"{re.escape(flag)}`\s*\(default \*\*{number}"):
+        found |= {float(m) for m in re.findall(pattern, text)}
+    return found
+
+
+def test_every_number_a_record_defaults_to_is_the_one_the_documents_give():
+    """The record is where defaults live; the README and docs quote them: a changed default must change there too."""
+    missing = []
+    for _, f, opt in _fields():
+        if opt.kind not in ("float", "int"):
+            continue
+        documented = _documented(flag_of(f, opt))
+        if not documented:
+            missing.append(flag_of(f, opt))
+        else:
+            assert float(f.default) in documented, (f.name, documented, f.default)
+    assert not missing, f"not documented with a default: {missing}"
+
+
+def test_a_list_of_criteria_is_kept_as_the_tuple_it_names():
+    settings = MatchSettings(criteria=["width", "tilt", "normal", "axis", "kmax", "kmin", "mass"])
+    assert type(settings.criteria) is tuple and settings == MatchSettings()
+    assert Config(match=settings).digest() == Config().digest()
+
+
+@pytest.mark.parametrize("field, value", [
+    ("distinct_mm", -1.0), ("distinct_mm", float("nan")), ("distinct_mm", float("inf")), ("distinct_mm", "8"),
+    ("distinct_mm", True), ("top_k", -1), ("top_k", 1.5),
+    ("landing_mm", -0.1), ("landing_mm", 20.5), ("normalize", "rank"), ("pooling", "max"), ("placement", "here"),
+    ("refine", "on"), ("hand_start_mm", (0.0, 1.0)), ("hand_start_mm", (0.0, float("nan"), 1.0)),
+    ("hand_start_mm", (2e5, 0.0, 0.0)), ("max_redirect_deg", 0.0), ("redirect_threshold_deg", 91.0),
+    ("axis_threshold_deg", -5.0), ("criteria", ("width",)),
+])
+def test_a_match_setting_out_of_bounds_is_refused(field, value):
+    from pinchmatch.errors import ConfigError
+
+    with pytest.raises(ConfigError):
+        MatchSettings(**{field: value})
+
+
+@pytest.mark.parametrize("field, value", [
+    ("friction_cone_deg", 0.0), ("friction_cone_deg", 90.0), ("min_width_mm", -0.1), ("max_width_mm", 0.4),
+    ("max_width_mm", 301.0), ("fingertip_radius_mm", 1.9), ("fingertip_radius_mm", 25.1), ("patch_radius_mm", 0.4),
+    ("patch_radius_mm", 50.1), ("count", 0), ("count", 100_001), ("count", 10.0), ("count", True), ("seed", -1),
+    ("snap_tolerance_mm", 0.0), ("finger_radius_mm", 0.3), ("finger_radius_mm", 8.1), ("finger_length_mm", 4.9),
+    ("finger_length_mm", 150.1), ("approach_tilt_deg", -1.0), ("approach_tilt_deg", 90.0),
+    ("friction_cone_deg", float("nan")),
+])
+def test_a_pinch_setting_out_of_bounds_is_refused(field, value):
+    from pinchmatch.errors import ConfigError
+
+    with pytest.raises(ConfigError):
+        PinchSettings(**{field: value})
+
+
+@pytest.mark.parametrize("field, value", [("distinct_mm", 0.0), ("top_k", 0), ("landing_mm", 20.0), ("landing_mm", 0.0),
+                                          ("max_redirect_deg", 90.0), ("hand_start_mm", (1e5, -1e5, 0.0)),
+                                          ("redirect_threshold_deg", 0.5), ("axis_threshold_deg", 0.25)])
+def test_a_match_setting_at_its_bound_is_taken(field, value):
+    assert getattr(MatchSettings(**{field: value}), field) == value
+
+
+def test_a_digest_sees_every_number_of_an_array_a_record_holds():
+    """Arrays enter a digest by their bytes, not their printed form (which elides the middle of a long one)."""
+    import numpy as np
+
+    from pinchmatch.options import digest
+
+    @dataclasses.dataclass(frozen=True)
+    class Holder:
+        values: object
+        scale: object = 1.0
+
+    a = np.zeros(5000)
+    b = a.copy()
+    b[2500] = 1e-9
+    assert digest(Holder(a)) != digest(Holder(b))
+    assert digest(Holder(a)) == digest(Holder(a.copy()))
+    assert digest(Holder(a, np.float64(2.0))) == digest(Holder(a, 2.0))  # a numpy number is its value
+    assert digest({"m": Holder(a)}) != digest({"m": Holder(b)}) and digest([Holder(a)]) != digest([Holder(b)])
+
+
+def test_a_configuration_is_changed_field_by_field_in_either_part():
+    from pinchmatch.errors import ConfigError
+
+    changed = Config().replace(top_k=1, count=300, pooling="sum")
+    assert (changed.match.top_k, changed.pinch.count, changed.match.pooling) == (1, 300, "sum")
+    assert changed.pinch == PinchSettings(count=300) and changed.match == MatchSettings(top_k=1, pooling="sum")
+    assert Config().replace() == Config()
+    with pytest.raises(ConfigError, match="no setting named 'topk'"):
+        Config().replace(topk=1)
+    with pytest.raises(ConfigError):
+        Config(MatchSettings(), PinchSettings())  # the parts in the wrong places

@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
 from pinchmatch.grasp.analysis import analyze_object
 from pinchmatch.grasp.pinches import PinchSettings
 from pinchmatch.match.candidates import candidate_poses
+from pinchmatch.match.felt import FeltTables, felt_cost
 from pinchmatch.match.landing import disc_offsets, landing, landing_pinches
 from pinchmatch.match.scene import match_scene
 from pinchmatch.match.search import MatchSettings
@@ -75,23 +78,32 @@ def test_a_sphere_on_a_cylinder_costs_more_off_target_and_the_worst_is_the_brute
     virtual = given(tmp_path, "ball", sphere(20.0, faces=20000).mesh, (0.0, -20.0, 0.0), (0.0, 20.0, 0.0))
     tangible = given(tmp_path, "rod", cylinder(20.0, 80.0, faces=20000).mesh, (0.0, -20.0, 0.0), (0.0, 20.0, 0.0))
     scene, vm = matched(tangible, virtual, weights={"kmin": 0.0})
-    land = vm.landing
-    assert land.cost_nominal == pytest.approx(vm.best.cost, rel=1e-9)
+    land = vm.landing  # the felt cost: each object's own landing table, matched through the registration
+    assert land.cost_nominal == pytest.approx(vm.best.cost_nominal, rel=1e-9)
+    assert vm.best.cost == pytest.approx(land.cost_mean, rel=1e-9)  # ranked by the expected cost
     assert land.cost_nominal < 0.05  # on target: nothing a hand could tell
-    assert land.cost_worst > land.cost_nominal + 0.1 and land.cost_mean > land.cost_nominal
+    assert land.cost_worst > land.cost_nominal + 0.1 and land.cost_worst > land.cost_mean > land.cost_nominal
     (T,), V = scene.objects(vm)
+    # the exact closing-line pattern (fingers closing on the prop along each seen landing's line) ...
+    pattern = landing(T, V, vm.best, scene.model, settings=SETTINGS)
     brute = landing(T, V, vm.best, scene.model, settings=SETTINGS, rings=(8, 16, 24, 32, 40))
-    assert brute.landings > 10 * land.landings
-    assert brute.cost_worst >= land.cost_worst - 1e-9  # the grid holds the pattern's rings
-    assert land.cost_worst >= 0.9 * brute.cost_worst
-    assert land.cost_mean == pytest.approx(brute.cost_mean, rel=0.15)
+    assert brute.landings > 10 * pattern.landings
+    assert brute.cost_worst >= pattern.cost_worst - 1e-9  # the grid holds the pattern's rings
+    assert pattern.cost_worst >= 0.9 * brute.cost_worst
+    assert pattern.cost_mean == pytest.approx(brute.cost_mean, rel=0.15)
+    # ... and the felt cost, from the landing tables with no new geometry, agree on the worst landing
+    assert land.cost_worst == pytest.approx(pattern.cost_worst, rel=0.2)
 
 
 def test_a_zero_radius_is_the_match_itself(tmp_path):
     virtual = given(tmp_path, "ball", sphere(20.0, faces=20000).mesh, (0.0, -20.0, 0.0), (0.0, 20.0, 0.0))
     tangible = given(tmp_path, "rod", cylinder(20.0, 80.0, faces=20000).mesh, (0.0, -20.0, 0.0), (0.0, 20.0, 0.0))
-    _, vm = matched(tangible, virtual, landing_mm=0.0)
+    scene, vm = matched(tangible, virtual, landing_mm=0.0)
     assert vm.landing.cost_worst == pytest.approx(vm.best.cost, rel=1e-9)
+    (T,), V = scene.objects(vm)
+    exact = landing(T, V, vm.best, scene.model, settings=SETTINGS, radius_mm=0.0)
+    assert exact.cost_worst == exact.cost_mean == vm.best.cost_nominal and exact.landings == 1
+    assert exact.p_noticed_worst == pytest.approx(vm.best.p_noticed) and 0.0 <= exact.p_noticed_worst <= 1.0
 
 
 def test_robust_ranking_puts_the_steadier_choice_first(tmp_path):
@@ -105,14 +117,20 @@ def test_robust_ranking_puts_the_steadier_choice_first(tmp_path):
     p2 = np.array([[0.0, 20.0, 0.0], [24.0, 20.0, 14.0]])
     both = candidate_poses(obj, settings=SETTINGS, given=(p1, p2))
     ball = given(tmp_path, "ball", sphere(20.0, faces=20000).mesh, (0.0, -20.0, 0.0), (0.0, 20.0, 0.0))
-    scene, plain = matched(both, ball, top_k=1, distinct_mm=1.0)
-    _, steady = matched(both, ball, top_k=1, distinct_mm=1.0, robust=True)
+    scene, plain = matched(both, ball, top_k=1, distinct_mm=1.0, rank="nominal")
+    _, steady = matched(both, ball, top_k=1, distinct_mm=1.0, rank="worst")
+    _, expected = matched(both, ball, top_k=1, distinct_mm=1.0)
     (T,), V = scene.objects(plain)
     picks = [plain.best] + plain.alternatives
-    worst = {c.t_pose: landing(T, V, c, scene.model, settings=SETTINGS).cost_worst for c in picks}
-    assert worst[1] > worst[0]  # near the edges a finger lands past them
-    assert steady.best.t_pose == 0 and steady.landing.cost_worst == pytest.approx(worst[0])
-    assert [c.t_pose for c in [steady.best] + steady.alternatives] == sorted(worst, key=worst.get)
+    tables = FeltTables(5.0, SETTINGS)
+    felt = {c.t_pose: felt_cost(T, V, c, scene.model, tables) for c in picks}
+    exact = {c.t_pose: landing(T, V, c, scene.model, settings=SETTINGS).cost_worst for c in picks}
+    assert exact[1] > exact[0] and felt[1].worst > felt[0].worst  # near the edges a finger lands past them
+    assert felt[1].expected > felt[0].expected
+    assert steady.best.t_pose == 0 and steady.best.cost == pytest.approx(felt[0].worst)
+    assert steady.landing.cost_worst == pytest.approx(felt[0].worst)
+    assert [c.t_pose for c in [steady.best] + steady.alternatives] == sorted(felt, key=lambda t: felt[t].worst)
+    assert expected.best.t_pose == 0 and expected.best.cost == pytest.approx(felt[0].expected)
 
 
 def _turned(mesh, R, t):
@@ -170,4 +188,48 @@ def test_a_finger_that_lands_on_nothing_is_noticed_and_counted(tmp_path):
     assert land.p_noticed_worst == 1.0 and land.as_dict()["noticeable_worst"]
     miss = float(scene.model.pool(np.array([MISS_JND ** 2] + [0.0] * 7)))
     assert land.cost_worst >= miss
-    assert land.cost_mean >= land.missed / land.landings * miss
+    assert land.cost_mean >= 0.8 * miss > land.cost_nominal  # most of the landing distribution misses
+    assert type(land.missed) is int and type(land.landings) is int  # plain numbers, as JSON holds them
+    json.dumps(land.as_dict())
+
+
+def test_the_landing_weights_are_the_truncated_gaussians_masses():
+    from pinchmatch.match.felt import ring_weights
+
+    w = ring_weights(5.0)
+    assert len(w) == 25 and w.sum() == pytest.approx(1.0)
+    sigma = 2.5  # half the radius
+    mass = lambda a, b: np.exp(-a * a / (2 * sigma ** 2)) - np.exp(-b * b / (2 * sigma ** 2))  # noqa: E731
+    total = mass(0.0, 5.0)
+    assert w[0] == pytest.approx(mass(0.0, 1.25) / total)
+    assert w[1:9] == pytest.approx(np.full(8, mass(1.25, 3.75) / total / 8))
+    assert w[9:] == pytest.approx(np.full(16, mass(3.75, 5.0) / total / 16))
+
+
+def test_the_ranked_best_is_the_brute_forces_best_over_every_pair(tmp_path):
+    """Where the ranked set holds every pair (few given poses), the best by the expected cost is the best of a
+    brute force over every pose pair, each scored by the same felt cost."""
+    from pinchmatch.match.search import Choice, evaluate_pairs
+
+    mesh = box((60.0, 40.0, 40.0), subdivide_mm=4.0).mesh
+    mesh.export(tmp_path / "b.stl")
+    t_given = (np.array([[0.0, -20.0, 0.0], [24.0, -20.0, 14.0], [-20.0, -20.0, -12.0]]),
+               np.array([[0.0, 20.0, 0.0], [24.0, 20.0, 14.0], [-20.0, 20.0, -12.0]]))
+    T = candidate_poses(analyze_object(tmp_path / "b.stl"), settings=SETTINGS, given=t_given)
+    ball = sphere(20.0, faces=20000).mesh
+    ball.export(tmp_path / "ball.stl")
+    v_given = (np.array([[0.0, -20.0, 0.0], [-20.0, 0.0, 0.0], [0.0, 0.0, -20.0]]),
+               np.array([[0.0, 20.0, 0.0], [20.0, 0.0, 0.0], [0.0, 0.0, 20.0]]))
+    V = candidate_poses(analyze_object(tmp_path / "ball.stl"), settings=SETTINGS, given=v_given)
+    scene = match_scene([T], [V], settings=MatchSettings(top_k=0, distinct_mm=0.0), pinch_settings=SETTINGS)
+    best = scene.matches[0].best
+    it, iv = np.repeat(np.arange(len(T)), len(V)), np.tile(np.arange(len(V)), len(T))
+    r = evaluate_pairs(T, V, it, iv, model=scene.model)
+    tables = FeltTables(5.0, SETTINGS)
+    expected = [felt_cost(T, V, Choice(0, 0, int(it[k]), int(iv[k]), float(r.cost[k]), r.terms[k], bool(r.swapped[k]),
+                                       r.transform[k], bool(r.flipped[k]), r.mass_delta_mm[k]), scene.model,
+                          tables).expected for k in range(len(it))]
+    k = int(np.argmin(expected))
+    assert (best.t_pose, best.v_pose) == (int(it[k]), int(iv[k]))
+    assert best.cost == pytest.approx(expected[k], rel=1e-9)
+    assert best.cost_nominal == pytest.approx(float(r.cost[k]), rel=1e-9)

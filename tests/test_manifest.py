@@ -345,3 +345,23 @@ def test_a_sphere_region_meets_the_boxes_within_its_radius_wherever_it_is():
     assert sphere.overlaps_boxes(corner, corner + 1.0).tolist() == [True]
     assert sphere.overlaps_boxes(corner + 0.1, corner + 1.1).tolist() == [False]
     assert sphere.contains(np.array([[13.0, 24.0, 30.0], [13.1, 24.0, 30.0]])).tolist() == [True, False]
+
+
+@pytest.mark.parametrize("entry, support", [('support = "none"', "none"), ('support = "auto"', "auto"),
+                                            ("support_mm = 12.5", 12.5), ("", None)])
+def test_a_manifest_says_what_a_prop_stands_on(tmp_path, entry, support):
+    trimesh.creation.box(extents=(60.0, 40.0, 20.0)).export(tmp_path / "box.stl")
+    (spec,) = read_manifest(write(tmp_path / "m.toml", f'[[object]]\nfile = "box.stl"\n{entry}\n'))
+    assert spec.support == support
+    assert spec.standing("auto").support == (support if support is not None else "auto")
+
+
+@pytest.mark.parametrize("entry, words", [('support = "table"', ["support", "none"]),
+                                          ('support = "none"\nsupport_mm = 3', ["not both"]),
+                                          ('support_mm = "low"', ["support_mm", "height in mm"])])
+def test_a_bad_support_is_one_line(tmp_path, capsys, entry, words):
+    trimesh.creation.box(extents=(60.0, 40.0, 20.0)).export(tmp_path / "box.stl")
+    manifest = write(tmp_path / "m.toml", f'[[object]]\nfile = "box.stl"\n{entry}\n')
+    code, _, err = run_cli(capsys, "match", "--tangible", str(manifest), "--virtual", str(tmp_path / "box.stl"),
+                           "-o", str(tmp_path / "out"))
+    assert_bad_input(code, err, str(manifest), *words)

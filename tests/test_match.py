@@ -139,7 +139,8 @@ def test_the_pooled_search_finds_the_exact_minimum(example, tmp_path, monkeypatc
     virtual = candidate_poses(analyze_object(tmp_path / "e.stl"), settings=PinchSettings(count=120))
     monkeypatch.setattr(search_module, "MIN_POOL", 7)  # force the pool to grow
     monkeypatch.setattr(search_module, "MAX_POOL", 7)
-    settings = MatchSettings(normalize=normalize, keep_upright=keep_upright, top_k=4, distinct_mm=10.0)
+    # the search is exact on target: ranked on target here (--rank nominal)
+    settings = MatchSettings(normalize=normalize, keep_upright=keep_upright, top_k=4, distinct_mm=10.0, rank="nominal")
     scene = match_scene([example], [virtual], settings=settings)
     (example,), virtual = scene.objects(scene.matches[0])  # with the refined poses: exact within them
     it = np.repeat(np.arange(len(example)), len(virtual))
@@ -176,7 +177,7 @@ def test_kept_upright_an_upside_down_copy_grows_past_pools_of_flipped_pairs(exam
     virtual = candidate_poses(analyze_object(path), settings=PinchSettings(count=300))
     monkeypatch.setattr(search_module, "MIN_POOL", 5)
     monkeypatch.setattr(search_module, "MAX_POOL", 5)
-    settings = MatchSettings(keep_upright=True, top_k=0)
+    settings = MatchSettings(keep_upright=True, top_k=0, rank="nominal")
     scene = match_scene([example], [virtual], settings=settings)
     (example,), virtual = scene.objects(scene.matches[0])  # with the refined poses: exact within them
     it = np.repeat(np.arange(len(example)), len(virtual))
@@ -236,7 +237,8 @@ def test_the_pooled_search_with_masses_on_both_sides_equals_brute_force(example,
     monkeypatch.setattr(search_module, "MIN_POOL", 7)  # force the pool to grow
     monkeypatch.setattr(search_module, "MAX_POOL", 7)
     monkeypatch.setattr(search_module, "TIGHT_AFTER", tight_after)  # 0: every pool by the pooled bound
-    scene = match_scene([tangible], [virtual], settings=MatchSettings(pooling=pooling, top_k=2, distinct_mm=10.0))
+    scene = match_scene([tangible], [virtual], settings=MatchSettings(pooling=pooling, top_k=2, distinct_mm=10.0,
+                                                                      rank="nominal"))
     (tangible,), virtual = scene.objects(scene.matches[0])  # with the refined poses: exact within them
     it = np.repeat(np.arange(len(tangible)), len(virtual))
     iv = np.tile(np.arange(len(virtual)), len(tangible))
@@ -245,7 +247,8 @@ def test_the_pooled_search_with_masses_on_both_sides_equals_brute_force(example,
     assert best.cost == pytest.approx(brute.cost.min(), rel=1e-9, abs=1e-12)
     k = int(np.argmin(brute.cost))
     assert (best.t_pose, best.v_pose) == (int(it[k]), int(iv[k]))
-    unweighed = match_scene([example], [with_mass(virtual, None)], settings=MatchSettings(pooling=pooling))
+    unweighed = match_scene([example], [with_mass(virtual, None)], settings=MatchSettings(pooling=pooling,
+                                                                                          rank="nominal"))
     assert unweighed.matches[0].best.cost != pytest.approx(best.cost)  # the masses change the answer's cost
 
 
@@ -605,3 +608,31 @@ def test_a_z_up_prop_and_a_y_up_object_report_the_turn_of_up_the_transform_makes
         turn = np.degrees(np.arccos(np.clip(up @ [0.0, 0.0, 1.0], -1.0, 1.0)))
         assert m["up_turn_deg"] == pytest.approx(turn, abs=0.02)
         assert m["flipped"] == bool(turn > 90.0)
+
+
+def test_merged_candidates_are_given_only_when_both_lists_are(example):
+    from pinchmatch.match.candidates import merge_candidates
+
+    given = candidate_poses(example.obj, settings=PinchSettings(count=40),
+                            given=(example.pinches.points[:3, 0], example.pinches.points[:3, 1]))
+    both = merge_candidates(given, given)
+    assert both.given and len(both) == 2 * len(given)
+    mixed = merge_candidates(given, example)
+    assert not mixed.given and not merge_candidates(example, given).given
+    assert list(mixed.index[:3]) == [0, 1, 2] and mixed.index[3] == 3  # the second's indices follow
+
+
+def test_no_feasible_given_pose_names_the_rules_each_breaks(example, tmp_path):
+    from pinchmatch.errors import NoFeasiblePinchError
+
+    p1 = example.pinches.points[:2, 0]  # two contacts on the surface, each pinched against itself
+    with pytest.raises(NoFeasiblePinchError, match=r"pose 0 breaks width.*; pose 1 breaks width"):
+        candidate_poses(example.obj, settings=PinchSettings(count=40), given=(p1, p1.copy()))
+
+
+def test_every_tangible_is_allowed_unless_one_to_one():
+    from pinchmatch.match.scene import allowed_tangibles
+
+    matrix = np.array([[1.0, np.inf, 0.5], [0.2, 0.3, np.inf]])
+    assert allowed_tangibles(matrix, MatchSettings()) == [([0, 1, 2], None), ([0, 1, 2], None)]
+    assert allowed_tangibles(matrix, MatchSettings(one_to_one=True)) == [([2], None), ([0], None)]

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from pinchmatch.config import Config
+from pinchmatch.mesh.manifest import ObjectSpec
 from pinchmatch.runner.cache import cached_candidates
 from pinchmatch.cli.main import main
 from pinchmatch.match.scene import match_scene
@@ -49,11 +50,12 @@ def outputs(out):
 def test_a_run_equals_the_library_search_of_the_whole_scene(meshes, tmp_path, extra, settings):
     assert run(meshes, tmp_path / "out", "--jobs", "1", "--no-figures", *extra) == 0
     pinch = PinchSettings(count=COUNT)
-    load = lambda folder: [cached_candidates(p, cache=None, settings=pinch)  # noqa: E731
-                           for p in sorted((meshes / folder).glob("*.stl"))]
-    scene = match_scene(load("t"), load("v"), settings=settings, pinch_settings=pinch)
-    doc = matches_document(scene, {**pinch.as_dict(), **settings.as_dict(), "units": None, "up": None, "split": "none"},
-                           figures=False)
+    # the props stand on their tables (--support auto); virtual objects of their own files stand nowhere
+    load = lambda folder, support: [cached_candidates(ObjectSpec(str(p), support=support), cache=None,  # noqa: E731
+                                                      settings=pinch) for p in sorted((meshes / folder).glob("*.stl"))]
+    scene = match_scene(load("t", "auto"), load("v", None), settings=settings, pinch_settings=pinch)
+    doc = matches_document(scene, {**pinch.as_dict(), **settings.as_dict(), "units": None, "up": None, "split": "none",
+                                   "support": "auto"}, figures=False)
     assert (tmp_path / "out" / "matches.json").read_text() == to_json(doc)
 
 

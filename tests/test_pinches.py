@@ -29,8 +29,9 @@ def _distance_to_surface(mesh, points):
     return d
 
 
-def assert_rules_hold(mesh, pinches, settings):
-    """Every rule, re-checked independently of the code under test, with literal tolerances."""
+def assert_rules_hold(mesh, pinches, settings, support=None):
+    """Every rule, re-checked independently of the code under test, with literal tolerances; ``support``
+    (normal, height_mm), the plane the object stands on, worked out by the test: nothing of the hand below it."""
     assert pinches.feasible.all()
     p1, p2 = pinches.points[:, 0], pinches.points[:, 1]
     seg = p2 - p1
@@ -56,6 +57,11 @@ def assert_rules_hold(mesh, pinches, settings):
     # contacts on the surface
     _, on, _ = trimesh.proximity.closest_point(mesh, pinches.points.reshape(-1, 3))
     assert on.max() < 1e-6
+    if support is not None:  # fingertips and fingers above the table, no hand from below it
+        normal, height = support
+        assert np.all(centres @ normal - height >= r - 0.3 - 1e-9)
+        assert np.all(axis.reshape(-1, 3) @ normal - height >= settings.finger_radius_mm - 0.3 - 1e-9)
+        assert np.all(h @ normal >= -1e-9)
 
 
 def test_every_rule_holds_on_every_pose(box_ctx, box_pinches):
@@ -205,3 +211,31 @@ def test_concatenated_pinches_keep_the_last_parts_rejections():
     assert concat_pinches(parts).rejected == {"width": 2}
     assert concat_pinches(parts, {"patch": 7}).rejected == {"patch": 7}
     assert len(concat_pinches(parts)) == 3
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_posed_prop_is_pinched_above_its_table_whatever_its_tilt(tmp_path, seed):
+    """A box standing in a level at a generic pose (a random rotation, off the origin), and the same box held
+    at a given height above a block (support_mm): every rule holds with the table worked out here from the
+    pose and the vertices, and without the table some pinch would reach under it."""
+    from scipy.spatial.transform import Rotation
+
+    from pinchmatch import analyze_spec, candidate_poses
+    from pinchmatch.mesh.manifest import ObjectSpec
+
+    mesh = trimesh.creation.box(extents=(50.0, 34.0, 70.0))
+    path = tmp_path / "box.stl"
+    mesh.export(path)
+    turn = Rotation.random(random_state=seed)
+    pose = ((120.0, 40.0, -80.0), tuple(turn.as_quat()))
+    normal = turn.inv().apply([0.0, 1.0, 0.0])  # the level's up, seen from the box's frame
+    lowest = float((mesh.vertices @ normal).min())
+    settings = PinchSettings(count=150, seed=seed)
+    for support, height in (("auto", lowest), (lowest + 13.7, lowest + 13.7)):
+        candidates = candidate_poses(analyze_spec(ObjectSpec(str(path), pose=pose, support=support)),
+                                     settings=settings)
+        assert len(candidates) > 40
+        assert_rules_hold(mesh, candidates.pinches, settings, support=(normal, height))
+    free = candidate_poses(analyze_spec(ObjectSpec(str(path), pose=pose)), settings=settings).pinches
+    tips = (free.points + settings.fingertip_radius_mm * free.normals) @ normal - lowest
+    assert (tips.min(axis=1) < settings.fingertip_radius_mm - 0.3).any() or (free.approach @ normal < 0).any()

@@ -305,3 +305,55 @@ def test_the_redirection_of_a_prop_standing_off_the_origin_turned_about_the_leve
         assert r.angle_deg[k] == pytest.approx(angle, abs=1e-6)
         assert r.axis_turn_deg[k] == pytest.approx(axis_turn, abs=1e-6)
         assert r.offset_mm[k] == pytest.approx(np.linalg.norm(v_points[k].mean(axis=0) - physical.mean(axis=0)))
+
+
+def _under_table(pose, normal, height, hand=(8.0, 8.0, 45.0)):
+    """A pinch record of matches.json puts a fingertip, a finger or the hand below the plane (0.3 mm pad)."""
+    tip_r, finger_r, length = hand
+    p, n = np.array([pose["p1_mm"], pose["p2_mm"]]), np.array([pose["n1"], pose["n2"]])
+    h = np.array(pose["approach"], dtype=float)
+    tips = p + tip_r * n
+    ends = tips + length * h
+    return bool((tips @ normal - height < tip_r - 0.3 - 1e-6).any()
+                or (ends @ normal - height < finger_r - 0.3 - 1e-6).any() or h @ normal < -1e-9)
+
+
+@pytest.mark.parametrize("placement", ["fixed", "registered"])
+def test_no_pinch_reaches_under_the_counter_or_the_prop_s_table(tmp_path, capsys, placement):
+    """A level on a counter 900 mm up, a can prop (its file's origin at its middle, z up) posed where the level's
+    can stands, turned 35 degrees: every best choice and alternative keeps fingertips, fingers and hand above the
+    prop's table, and under --placement fixed the redirected ones above the counter too; planes worked out here
+    from the pose and the vertices. With --support none the same run reaches under them."""
+    from scipy.spatial.transform import Rotation
+
+    box = trimesh.creation.box(extents=(0.05, 0.06, 0.04))
+    box.apply_translation([0.0, 0.03, 0.0])
+    tabletop_level(tmp_path / "level.glb", [("can", standing_can(), (0.12, 0.9, -0.08)),
+                                            ("box", box, (0.19, 0.9, -0.05))])
+    prop = trimesh.creation.cylinder(radius=27.0, height=66.0, sections=64)  # mm, z up, centred on its middle
+    prop.export(tmp_path / "can.stl")
+    turn = Rotation.from_euler("y", 35, degrees=True) * Rotation.from_euler("x", -90, degrees=True)
+    (tmp_path / "props.toml").write_text(
+        '[[object]]\nfile = "can.stl"\nname = "can_prop"\n'
+        f"pose = {{ position_mm = [120, 933, -80], quaternion_xyzw = {turn.as_quat().tolist()} }}\n")
+    up_in_prop = turn.inv().apply([0.0, 1.0, 0.0])
+    prop_table = float((prop.vertices @ up_in_prop).min())
+    under = {}
+    for support in ("auto", "none"):
+        out = tmp_path / f"out_{support}"
+        code, _, err = run_cli(capsys, "match", "--tangible", tmp_path / "props.toml", "--virtual", tmp_path / "level.glb",
+                               "--split", "nodes", "--placement", placement, "--support", support, "--count", 150,
+                               "--max-redirect-deg", "30", "-o", out, "--no-view", "--jobs", 1, "--no-cache")
+        assert code == 0, err
+        doc = json.loads((out / "matches.json").read_text())
+        counted = []
+        for m in doc["matches"]:
+            for choice in [m] + m["alternatives"]:
+                counted.append(_under_table(choice["tangible_pose"], up_in_prop, prop_table))
+                if placement == "fixed" and m["redirection"]["mode"] == "redirect":
+                    counted.append(_under_table(choice["virtual_pose"], np.array([0.0, 1.0, 0.0]), 900.0))
+        under[support] = sum(counted)
+        if support == "auto":
+            assert doc["tangibles"][0]["support"]["source"] == "pose"
+            np.testing.assert_allclose(doc["tangibles"][0]["support"]["normal"], up_in_prop, atol=1e-6)
+    assert under["auto"] == 0 and under["none"] > 0, under

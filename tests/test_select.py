@@ -122,7 +122,8 @@ def shelf_and_scene(tmp_path):
     shelf, scene = tmp_path / "shelf", tmp_path / "scene"
     shelf.mkdir()
     scene.mkdir()
-    for name, axes in {"long": (40, 12, 12), "ball": (20, 20, 20), "disc": (30, 30, 6)}.items():
+    # (a disc thick enough to be pinched at its rim as it lies on the table: its equator above a fingertip's radius)
+    for name, axes in {"long": (40, 12, 12), "ball": (20, 20, 20), "disc": (30, 30, 10)}.items():
         ellipsoid(axes, faces=900).mesh.export(shelf / f"{name}.stl")
     for name, axes in {"egg": (30, 20, 12), "orb": (22, 22, 22)}.items():
         ellipsoid(axes, faces=900).mesh.export(scene / f"{name}.stl")

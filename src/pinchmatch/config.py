@@ -38,6 +38,9 @@ DEFAULT_CRITERIA = ("width", "tilt", "normal", "axis", "kmax", "kmin", "mass")
 MAX_WEIGHT = 1e6
 #: ways of pooling the criteria into one cost (module notes)
 POOLINGS = ("quick", "sum")
+#: what a match is ranked by (:mod:`pinchmatch.match.felt`): its cost over where the fingers land, the worst
+#: of those, or its cost on target
+RANKS = ("expected", "worst", "nominal")
 
 class Weights(Mapping):
     """A read-only mapping of criterion -> weight (a frozen record's weights stay as they were made);
@@ -248,8 +251,10 @@ class MatchSettings:
     landing_mm: float = option(5.0, group="match", kind="float",
                                help="each match says what it costs when a fingertip lands up to this far off its "
                                     "target, the pinch axis up to 14 degrees off (the headset allows 5; 0 to 20)")
-    robust: bool = option(False, group="match", kind="flag",
-                          help="rank the best choices by their worst landing instead of their cost on target")
+    rank: str = option("expected", group="match", kind="choice", choices=RANKS,
+                       help="what a match is ranked by: expected, its cost over where guided fingers land (within "
+                            "--landing-mm and 14 degrees: docs/matching.md); worst, its worst landing (--robust is "
+                            "the same); nominal, its cost with the fingers on their targets")
     placement: str = option("registered", group="placement", kind="choice", choices=PLACEMENTS,
                             help="registered: each virtual object is brought onto the prop; fixed: it stays where "
                                  "the level puts it and the hand is redirected to the prop, or, beyond "
@@ -287,6 +292,9 @@ class MatchSettings:
                               "a fingertip may land; the headset allows 5)")
         if not isinstance(self.refine, bool):
             raise ConfigError(f"--refine: {self.refine!r} must be on or off")
+        if self.rank not in RANKS:
+            raise ConfigError(f"--rank: unknown ranking {self.rank!r}; use expected (the cost where guided fingers "
+                              "land, the default), worst or nominal")
         if self.pooling not in POOLINGS:
             raise ConfigError(f"--pooling: unknown pooling {self.pooling!r}; use quick (probability summation, "
                               "the default) or sum (the paper's sum of squares)")
@@ -331,7 +339,7 @@ class MatchSettings:
             "distinct_mm": self.distinct_mm,
             "refine": self.refine,
             "landing_mm": self.landing_mm,
-            "robust": self.robust,
+            "rank": self.rank,
             "placement": self.placement,
         } | ({} if self.placement != "fixed" else {
             "hand_start_mm": None if self.hand_start_mm is None else list(self.hand_start_mm),
@@ -344,10 +352,8 @@ class MatchSettings:
 
 
 def _finite(value) -> bool:
-    try:
-        return math.isfinite(float(value))
-    except (TypeError, ValueError, OverflowError):
-        return False
+    """A real number (not a bool, not text) that is finite."""
+    return isinstance(value, numbers.Real) and not isinstance(value, bool) and math.isfinite(value)
 
 
 @dataclass(frozen=True)

@@ -137,7 +137,7 @@ def package_digest(root) -> str:
                 if item.name != "__pycache__":
                     stack.append(item)
             elif item.name.endswith((".py", ".js", ".html", ".css")):
-                files.append((str(item).removeprefix(str(root)).replace("\\", "/"), item))
+                files.append((item.relative_to(root).as_posix(), item))
     for name, item in sorted(files, key=lambda pair: pair[0]):
         h.update(name.encode())
         h.update(item.read_bytes())

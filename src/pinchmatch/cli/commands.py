@@ -27,7 +27,7 @@ from ..grasp.pinches import PinchSettings
 from ..export.folder import OutputFolder, exclusive
 from ..mesh.properties import parse_vector
 from .console import Presenter
-from .runs import (EXIT_SOME_FAILED, check_match_flags, check_placement, given_poses, match_job, match_settings_of, object_tasks,
+from .runs import (EXIT_SOME_FAILED, check_match_flags, check_placement, given_poses, match_job, standing, match_settings_of, object_tasks,
                    out_folder, pinch_settings_of, print_match, table_rows, write_matches)
 from .universal import cmd_design, cmd_select, demo_design
 from ..export.documents import (features_document, flipped_note, matches_rows, poses_csv, poses_document, scene_stems,
@@ -150,8 +150,8 @@ def _cmd_match(args) -> int:
     settings = pinch_settings_of(args)
     match_settings = match_settings_of(args)
     out = out_folder(args)
-    tangible_specs = object_specs(args.tangible, option="--tangible")
-    virtual_specs = object_specs(args.virtual, option="--virtual", split=args.split)
+    tangible_specs = standing(object_specs(args.tangible, option="--tangible"), args, "tangible")
+    virtual_specs = standing(object_specs(args.virtual, option="--virtual", split=args.split), args, "virtual")
     given_t = given_poses(args.tangible_poses, tangible_specs, "--tangible-poses")
     given_v = given_poses(args.virtual_poses, virtual_specs, "--virtual-poses")
     check_match_flags(args)
@@ -160,7 +160,7 @@ def _cmd_match(args) -> int:
     ui = Presenter(quiet=args.quiet, json_mode=args.json)
     check_placement(match_settings, tangible_specs, virtual_specs, ui, units=args.units, up=args.up)
     run_settings = {**settings.as_dict(), **match_settings.as_dict(), "units": args.units, "up": args.up,
-                    "split": args.split or "none"}
+                    "split": args.split or "none", "support": args.support}
     t0 = time.perf_counter()
     with OutputFolder(out) as stage:  # published into OUT as a whole at the end, or not at all
         with executor(args.jobs, args.scheduler) as ex:

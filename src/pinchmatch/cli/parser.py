@@ -129,6 +129,14 @@ def _add_pinch_options(p: argparse.ArgumentParser) -> None:
     add_record_options(p, PinchSettings, "pinch")
 
 
+def _add_support_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--support", choices=("auto", "none"), default="auto",
+                   help="auto: each prop stands on the plane through its lowest point (a posed prop: the level's "
+                        "horizontal under it), and so does each node of a level; no finger, fingertip or hand "
+                        "reaches below it (default); none: nothing stands, a hand may come from anywhere. A "
+                        "manifest's support and support_mm come first (docs/manifest.md)")
+
+
 def _add_sampling_options(p: argparse.ArgumentParser) -> None:
     add_record_options(p, PinchSettings, "sampling")
 
@@ -143,6 +151,8 @@ def _add_match_options(p: argparse.ArgumentParser, *, one_to_one: bool = True) -
     add_record_options(p, MatchSettings, "weights")
     _add_cost_options(p)
     add_record_options(p, MatchSettings, "match", *(("assignment",) if one_to_one else ()))
+    p.add_argument("--robust", dest="rank", action="store_const", const="worst",
+                   help="the same as --rank worst: rank by the worst landing")
 
 
 def _add_placement_options(p: argparse.ArgumentParser) -> None:
@@ -216,6 +226,7 @@ def build_parser() -> argparse.ArgumentParser:
     match.add_argument("--virtual-poses", action="append", metavar="FILE",
                        help="use only these poses on a virtual object; once per virtual object, in order")
     _add_pinch_options(match)
+    _add_support_option(match)
     _add_sampling_options(match)
     _add_match_options(match)
     _add_placement_options(match)
@@ -244,6 +255,7 @@ def build_parser() -> argparse.ArgumentParser:
     select.add_argument("--split", choices=("none", "nodes"), default=None,
                         help="nodes: each mesh node of a virtual glTF/GLB scene is its own object (default none)")
     _add_pinch_options(select)
+    _add_support_option(select)
     _add_sampling_options(select)
     _add_match_options(select, one_to_one=False)
     select.add_argument("-o", "--output", metavar="OUT", default="pinchmatch-select",
@@ -277,6 +289,7 @@ def build_parser() -> argparse.ArgumentParser:
     design.add_argument("--split", choices=("none", "nodes"), default=None,
                         help="nodes: each mesh node of a virtual glTF/GLB scene is its own object (default none)")
     _add_pinch_options(design)
+    _add_support_option(design)
     _add_sampling_options(design)
     _add_match_options(design, one_to_one=False)
     design.add_argument("-o", "--output", metavar="OUT", default="pinchmatch-design",

@@ -93,6 +93,12 @@ def check_placement(settings: MatchSettings, tangible_specs: list, virtual_specs
                                   "hand rests before it reaches")
 
 
+def standing(specs: list, args, role: str) -> list:
+    """The specs with the run's ``--support`` where their manifest says nothing: every prop stands, and
+    every node of a level; a virtual object of its own file does not (it is not anywhere)."""
+    return [spec.standing(args.support) if role == "tangible" or spec.node else spec for spec in specs]
+
+
 def given_poses(files, paths, option) -> list:
     """Per object, the given poses or None; ``files`` must be one per object."""
     if not files:

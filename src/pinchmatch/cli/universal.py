@@ -28,6 +28,7 @@ from .runs import (
     object_tasks,
     out_folder,
     pinch_settings_of,
+    standing,
     table_rows,
     write_matches,
 )
@@ -55,7 +56,7 @@ def _jnd_settings(args, why: str):
         raise ConfigError(f"--normalize range: {why}, which needs a scale that does not change with the props; "
                           "use --normalize jnd (the default)")
     run_settings = {**settings.as_dict(), **matching.as_dict(), "units": args.units, "up": args.up,
-                    "split": args.split or "none"}
+                    "split": args.split or "none", "support": args.support}
     return settings, matching, run_settings
 
 
@@ -72,7 +73,7 @@ def cmd_select(args) -> int:
 
     settings, match_settings, run_settings = _jnd_settings(args, "select compares the costs of different sets "
                                                                  "of props")
-    shelf_specs = object_specs(args.tangible, option="--tangible")
+    shelf_specs = standing(object_specs(args.tangible, option="--tangible"), args, "tangible")
     if not 1 <= args.k <= len(shelf_specs):
         raise ConfigError(f"-k {args.k}: choose between 1 and the {len(shelf_specs)} props of the shelf")
     if args.max_k is not None and args.max_k < 1:
@@ -81,7 +82,7 @@ def cmd_select(args) -> int:
         raise ConfigError(f"--max-k {args.max_k}: the coverage curve must reach -k {args.k}; give --max-k {args.k} "
                           "or more")
     out = out_folder(args)
-    scene_specs = object_specs(args.virtual, option="--virtual", split=args.split)
+    scene_specs = standing(object_specs(args.virtual, option="--virtual", split=args.split), args, "virtual")
     check_match_flags(args)
     ui = Presenter(quiet=args.quiet, json_mode=args.json)
     t0 = time.perf_counter()
@@ -160,12 +161,13 @@ def cmd_design(args) -> int:
 
     settings, matching, run_settings = _jnd_settings(args, "a designed prop is judged against the scene alone")
     design = DesignSettings(k=args.k, max_parts=args.max_parts, max_height_mm=args.max_height_mm,
+                            stand=args.support == "auto",
                             max_width_mm=settings.max_width_mm,
                             budget_s=args.budget_s, seed=args.seed, evaluations=args.evaluations,
                             supports=not args.no_supports)
     design.check()
-    scene_specs = object_specs(args.virtual, option="--virtual", split=args.split)
-    shelf_specs = object_specs(args.tangible, option="--tangible") if args.tangible else []
+    scene_specs = standing(object_specs(args.virtual, option="--virtual", split=args.split), args, "virtual")
+    shelf_specs = standing(object_specs(args.tangible, option="--tangible"), args, "tangible") if args.tangible else []
     if shelf_specs and not 1 <= args.k <= len(shelf_specs):
         raise ConfigError(f"-k {args.k}: the shelf to compare with has {len(shelf_specs)} props; give at most that")
     out = out_folder(args)
@@ -206,7 +208,8 @@ def cmd_design(args) -> int:
                 props.append(path)
             # the props are read as they were written, in mm and standing on +Z, whatever the scene's --units and --up
             prop_specs = [dataclasses.replace(s, units="mm", up="z")
-                          for s in object_specs([str(p) for p in props], option="--tangible")]
+                          for s in standing(object_specs([str(p) for p in props], option="--tangible"), args,
+                                            "tangible")]
             prop_tasks = object_tasks("tangible", prop_specs, [None] * len(props), [None] * len(props))
             scene_tasks = object_tasks("virtual", used, [None] * len(used), [None] * len(used))
             with executor(args.jobs, args.scheduler) as ex:

@@ -211,7 +211,7 @@ def _choice_record(scene, vm, choice, *, full: bool) -> dict:
     tangibles, V = scene.objects(vm)
     T = tangibles[choice.tangible]
     up_t = T.obj.loaded.up
-    chance = p_noticed(T, V, choice, scene.model)
+    chance = choice.p_noticed if choice.p_noticed is not None else p_noticed(T, V, choice, scene.model)
     record = {
         "tangible": T.name,
         "cost": json_number(choice.cost, 6),
@@ -239,9 +239,12 @@ def up_turn_deg(transform: np.ndarray, up_virtual: np.ndarray, up_tangible: np.n
 
 
 def _contacts(candidates, i: int, *, swapped: bool = False) -> dict:
-    p = candidates.pinches.points[i][::-1] if swapped else candidates.pinches.points[i]
+    p, n = candidates.pinches.points[i], candidates.pinches.normals[i]
+    if swapped:
+        p, n = p[::-1], n[::-1]
     return {**_index(candidates, i), "p1_mm": json_vector(p[0]), "p2_mm": json_vector(p[1]),
-            "finger_order_swapped": bool(swapped)}
+            "n1": json_vector(n[0], 6), "n2": json_vector(n[1], 6),
+            "approach": json_vector(candidates.pinches.approach[i], 6), "finger_order_swapped": bool(swapped)}
 
 
 def _landing_record(landing) -> dict | None:
@@ -273,6 +276,7 @@ def object_entry(candidates, *, dump_poses: bool = False) -> dict:
              "node": obj.loaded.node, "node_path": spec.node_path if spec is not None else None,
              "manifest": spec.manifest if spec is not None else None, "mass_g": obj.mass_g,
              "regions": obj.context.regions.as_dict(),
+             "support": None if obj.context.support is None else obj.context.support.as_dict(),
              **object_section(obj.loaded, obj.props, ray_engine=obj.context.ray_engine_name),
              "pose_count": len(candidates), "poses_given": candidates.given}
     if spec is not None and spec.pose is not None:  # where the prop stands in the level (mm, y up)
@@ -391,15 +395,17 @@ def matches_from_lines(lines: Iterable[str]) -> dict:
 
 def matches_rows(document: dict) -> list[tuple]:
     """The rows of the matches table, header first."""
-    rows = [("virtual", "tangible", "cost", "p_noticed", "criteria >= 1 JND", "flipped", "offset_mm", "ref_cost")]
+    rows = [("virtual", "tangible", "cost", "p_noticed", "nominal/expected/worst", "criteria >= 1 JND", "flipped",
+             "offset_mm", "ref_cost")]
     for m in document["matches"]:
         if m.get("tangible") is None:
-            rows.append((m["virtual"], "-", "-", "-", m.get("reason") or "", "", "", ""))
+            rows.append((m["virtual"], "-", "-", "-", "", m.get("reason") or "", "", "", ""))
             continue
         loud = [c for c, v in m["criteria"].items() if v["noticeable"]]
-        ref = m["reference"]
-        rows.append((m["virtual"], m["tangible"], f"{m['cost']:.4g}", f"{m['p_noticed']:.2f}", ",".join(loud) or "none",
-                     "F" if m["flipped"] else "", f"{m['contact_offset_mm']:+.2f}",
+        ref, land = m["reference"], m.get("landing")
+        felt = "/".join(f"{land[k]:.3g}" for k in ("cost_nominal", "cost_mean", "cost_worst")) if land else ""
+        rows.append((m["virtual"], m["tangible"], f"{m['cost']:.4g}", f"{m['p_noticed']:.2f}", felt,
+                     ",".join(loud) or "none", "F" if m["flipped"] else "", f"{m['contact_offset_mm']:+.2f}",
                      f"{ref['cost']:.4g}" if ref and ref["cost"] is not None else "null"))
     return rows
 
@@ -475,8 +481,14 @@ def redirection_note(redirections: list[dict]) -> str | None:
 
 def matches_legend(settings: dict) -> list[str]:
     """What the matches table's columns mean, in the run's normalisation."""
-    return [f"cost: {cost_unit(settings)}; p_noticed: the probability that the difference is noticed; "
-            "criteria >= 1 JND: those noticeable on their own; flipped: F where the placement turns the "
-            "virtual object upside down",
+    rank = settings.get("rank", "nominal")
+    support = settings.get("support")
+    return [f"cost: {cost_unit(settings)}, ranked by the {rank} cost (nominal: the fingers on their targets; "
+            f"expected: over where guided fingers land, within {settings.get('landing_mm', 5):g} mm; worst: the "
+            "worst landing); p_noticed: the probability that the ranked difference is noticed; "
+            "criteria >= 1 JND: those noticeable on their own on target; flipped: F where the placement turns the "
+            "virtual object upside down"
+            + (f"; support {support}: props (and a level's nodes) stand on the plane through their lowest point, "
+               "no hand below it" if support == "auto" else ""),
             "offset_mm: each virtual fingertip's offset from the prop's contact along the pinch line; ref_cost: the "
             "paper's reference placement (null: its fingers meet nothing on the virtual object)"]

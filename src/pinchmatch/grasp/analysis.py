@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError, ContactError
+from ..mesh.support import support_plane
 from ..files import read_input
 from .features import PinchFeatures, pinch_features
 from ..mesh.load import LoadedMesh, load_mesh
@@ -96,7 +97,8 @@ def analyze_spec(spec: ObjectSpec, *, patch_radius_mm: float = 8.0, progress=Non
                               com_mm=None if spec.com_mm is None else np.array(spec.com_mm),
                               axis=None if spec.axis is None else np.array(spec.axis))
     say("surface sample and index")
-    context = SurfaceContext(loaded.mesh, patch_radius_mm=patch_radius_mm, regions=spec.regions)
+    context = SurfaceContext(loaded.mesh, patch_radius_mm=patch_radius_mm, regions=spec.regions,
+                             support=support_plane(spec, loaded.mesh.vertices, loaded.up))
     return ObjectAnalysis(loaded, props, context, spec)
 
 

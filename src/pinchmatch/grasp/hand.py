@@ -14,6 +14,13 @@ Model (lengths in mm):
 
 A direction h **clears** when no surface sample lies within ``r_f - tol`` of
 either finger's axis (``tol``: the pad's compliance, as for the fingertip).
+
+**The support.** An object that stands on something (:mod:`pinchmatch.mesh.support`: a prop on its
+table, a level's object on its counter) has the half-space below its support plane as part of what the
+fingers must clear: a test sphere's distance to the object is the smaller of its distance to the nearest
+sample and its height above the plane (0 below it), so no finger capsule dips below the table by more
+than the pad's tolerance; and the hand's approach h may not point below the plane's horizontal (h · up
+≥ 0), so the hand behind the fingers, which runs on along h, never comes from under the table.
 The pinch is **reachable** when some h clears and the hand behind the
 fingers gets out: from each finger's end, the line on along h meets no
 surface. The proximal phalanx and the palm are far wider than a finger, so
@@ -92,6 +99,8 @@ CLEARANCE_CAP_MM = 1.0
 MAX_CELLS_PER_PINCH = 32
 #: test spheres per finger queried together, each batch only where the earlier ones clear
 STAGE_SPHERES = 2
+#: how far below the support's horizontal a hand's approach may point (a hand sliding along the table)
+SUPPORT_LEVEL_TOLERANCE = 1e-9
 
 
 @dataclass(frozen=True)
@@ -182,8 +191,18 @@ def _coarse_to_fine(count: int) -> list[int]:
     return order
 
 
-def _axis_distances(tree, tips, h, offsets, cap, rho, delta=None):
-    """(m, 2, P) distance from each test centre to the nearest sample, capped at ``cap``.
+def _obstacle_distances(context, centres, cap):
+    """(k,) distance from each centre to the nearest surface sample or to the half-space below the
+    object's support (0 inside it), capped at ``cap``: both are 1-Lipschitz, as the bounds need."""
+    q, _ = query_tree(context.tree, centres, k=1, distance_upper_bound=cap, work=len(centres))
+    q = np.minimum(q, cap)
+    if context.support is not None:
+        q = np.minimum(q, np.maximum(context.support.heights(centres), 0.0))
+    return q
+
+
+def _axis_distances(context, tips, h, offsets, cap, rho, delta=None):
+    """(m, 2, P) distance from each test centre to the nearest sample (or the support), capped at ``cap``.
 
     tips : (m, 2, 3) fingertip centres, h : (m, 3), delta : (m,) how far, per mm along the
     finger, a test centre can move within the cell of directions around h (0: h alone). A
@@ -200,9 +219,7 @@ def _axis_distances(tree, tips, h, offsets, cap, rho, delta=None):
         stage = np.array(order[start:start + STAGE_SPHERES])
         off = offsets[stage]
         centres = tips[rows][:, :, None, :] + off[None, None, :, None] * h[rows][:, None, None, :]
-        centres = centres.reshape(-1, 3)
-        q, _ = query_tree(tree, centres, k=1, distance_upper_bound=cap, work=len(centres))
-        q = np.minimum(q, cap).reshape(len(rows), 2, len(off))
+        q = _obstacle_distances(context, centres.reshape(-1, 3), cap).reshape(len(rows), 2, len(off))
         d[np.ix_(rows, [0, 1], stage)] = q
         rows = rows[(q + off * delta[rows, None, None] >= rho).all(axis=(1, 2))]
         if not len(rows):
@@ -211,10 +228,14 @@ def _axis_distances(tree, tips, h, offsets, cap, rho, delta=None):
 
 
 def _hand_free(context, tips, h, length):
-    """(m,) bool: beyond each finger's end, the line on along h meets no surface (the hand gets out)."""
+    """(m,) bool: beyond each finger's end, the line on along h meets no surface (the hand gets out),
+    and h does not point below the support's horizontal (no hand comes from under the table)."""
     ends = (tips + length * h[:, None, :]).reshape(-1, 3)
     face = context.rays.intersects_first(ends, np.repeat(h, 2, axis=0))
-    return (np.asarray(face) < 0).reshape(-1, 2).all(axis=1)
+    free = (np.asarray(face) < 0).reshape(-1, 2).all(axis=1)
+    if context.support is not None:
+        free &= h @ context.support.normal >= -SUPPORT_LEVEL_TOLERANCE
+    return free
 
 
 def reach(context, points: np.ndarray, normals: np.ndarray, hand: Hand,
@@ -310,7 +331,7 @@ def _quick(context, hand, pending, h, geometry, sin_tilt, found):
     k = len(h) // len(pending)
     rows = np.repeat(pending, k)
     in_band = np.abs(np.einsum("ij,ij->i", h, u[rows])) <= sin_tilt
-    d = _axis_distances(context.tree, tips[rows], h, offsets, cap, rho)
+    d = _axis_distances(context, tips[rows], h, offsets, cap, rho)
     clears = in_band & (d >= rho).all(axis=(1, 2))
     clears[clears] = _hand_free(context, tips[rows[clears]], h[clears], hand.finger_length_mm)
     clears = clears.reshape(-1, k)
@@ -337,7 +358,6 @@ def band_cells(hand: Hand):
 
 
 def _search_band(context, tips, u, e1, e2, pending, hand, offsets, rho, cap):
-    tree = context.tree
     theta0, alpha0, ht, ha = band_cells(hand)
     c = len(theta0)
     rows = np.repeat(pending, c)
@@ -363,10 +383,9 @@ def _search_band(context, tips, u, e1, e2, pending, hand, offsets, rho, cap):
             i = np.flatnonzero(has_hint)
             f, j = np.divmod(hint[i], len(offsets))
             centre = tips[rows[i], f] + offsets[j][:, None] * h[i]
-            d1, _ = query_tree(tree, centre, k=1, distance_upper_bound=cap, work=len(centre))
-            live[i] = np.minimum(d1, cap) + offsets[j] * delta[i] >= rho
+            live[i] = _obstacle_distances(context, centre, cap) + offsets[j] * delta[i] >= rho
         idx = np.flatnonzero(live)
-        d = _axis_distances(tree, tips[rows[idx]], h[idx], offsets, cap, rho, delta[idx]).reshape(len(idx), 2 * len(offsets))
+        d = _axis_distances(context, tips[rows[idx]], h[idx], offsets, cap, rho, delta[idx]).reshape(len(idx), 2 * len(offsets))
         margin = d.min(axis=1) - hand.finger_radius_mm
         fits = (d >= rho).all(axis=1)
         clears = fits.copy()

@@ -16,7 +16,8 @@ n1, n2. It is feasible when every rule holds:
 ``clearance``
     a fingertip sphere of ``fingertip_radius_mm`` touching the surface at
     p_i from outside does not cut the object (no pinch in a slot narrower
-    than a finger). The sphere is centred at p_i + r·n_i, tangent at p_i.
+    than a finger), nor what the object stands on (its support plane,
+    :mod:`pinchmatch.mesh.support`). The sphere is centred at p_i + r·n_i, tangent at p_i.
     The method's sketch centres it on the pinch line; with a 30° friction
     cone that sphere cuts even a flat face by r(1 - cos 30°) = 1.1 mm, so
     every oblique pinch on a flat face would fail. Penetration up to
@@ -133,6 +134,8 @@ def clearance_broken(context: SurfaceContext, points: np.ndarray, normals: np.nd
     r = settings.fingertip_radius_mm
     centres = (points + r * normals).reshape(-1, 3)
     clear = context.min_distance_to_samples(centres) >= r - CLEARANCE_TOLERANCE_MM
+    if context.support is not None:  # and above what the object stands on
+        clear &= context.support.heights(centres) >= r - CLEARANCE_TOLERANCE_MM
     return ~clear.reshape(-1, 2).all(axis=1)
 
 

@@ -159,7 +159,7 @@ def sample_pinches(
     points, faces = _draw(context, p1, f1, settings, rng, rejected)
     drawn = n_first
     if len(points) == 0:
-        raise NoFeasiblePinchError(_no_pinch_message(source, drawn, rejected, settings))
+        raise NoFeasiblePinchError(_no_pinch_message(source, drawn, rejected, settings, context.support is not None))
     uniform = Pool(points, faces, np.full(len(points), np.inf))
     local = Pool.empty()
 
@@ -205,7 +205,7 @@ def sample_pinches(
         parts.append(part)
         n_feasible += len(part)
     if n_feasible == 0:
-        raise NoFeasiblePinchError(_no_pinch_message(source, drawn, rejected, settings))
+        raise NoFeasiblePinchError(_no_pinch_message(source, drawn, rejected, settings, context.support is not None))
     # concatenated in spread order, so the first `count` are evenly spread
     result = concat_pinches(parts, rejected).subset(np.arange(min(count, n_feasible)))
     log.info("%s: %d feasible pinches from %d candidates", source, len(result), drawn)
@@ -242,10 +242,20 @@ _RULE_HINTS = {
 }
 
 
-def _no_pinch_message(source, n_cand, rejected, settings) -> str:
+#: where an object stands on a support, what its hint says when the fingers cannot get to it
+_STANDING_HINTS = {
+    "clearance": "it stands too low on its table for a fingertip to get beside it (thinner than two fingertips): "
+                 "if it is held in the hand, give support = \"none\" in its manifest or --support none",
+    "reach": "no approach from above its table lets both fingers get to the contacts: if it is held in the hand, "
+             "give support = \"none\" in its manifest or --support none",
+}
+
+
+def _no_pinch_message(source, n_cand, rejected, settings, standing: bool = False) -> str:
     parts = [f"{rule} {count}" for rule, count in rejected.items() if count]
     worst = max(rejected, key=rejected.get)
+    hint = _STANDING_HINTS.get(worst, _RULE_HINTS[worst]) if standing else _RULE_HINTS[worst]
     return (
         f"{source}: no feasible pinch among {n_cand} candidates (rejected by "
-        f"{', '.join(parts) or 'nothing'}); {_RULE_HINTS[worst]}"
+        f"{', '.join(parts) or 'nothing'}); {hint}"
     )

@@ -20,7 +20,8 @@ from ..errors import ConfigError
 from ..grasp.pinches import PinchSettings
 from .candidates import Candidates
 from .cost import CostModel
-from .landing import Landing, landing
+from .felt import FeltTables, felt_cost
+from .landing import LANDING_AXIS_DEG, Landing
 from .reference import Reference, reference_pose
 from .refine import refined_search
 from .redirect import redirection
@@ -28,8 +29,11 @@ from ..config import Config, config_of
 from .search import Choice, MatchSettings, Search, cost_model, cost_row, p_noticed
 
 
-#: with ``robust``, this many distinct best choices (or top_k + 1, if more) are ranked by their landings
-ROBUST_CHOICES = 8
+#: unless ``--rank nominal``, this many distinct best choices on target (or top_k + 1, if more) are ranked
+#: by their cost over the landings
+RANKED_CHOICES = 16
+#: and per tangible, for its row of the cost matrix (what select and design rank props by), this many
+ROW_CHOICES = 3
 
 
 @dataclass
@@ -124,18 +128,15 @@ def match_one(tangibles: list[Candidates], virtual: Candidates, config: Config, 
     """
     settings, pinch = config.match, config.pinch
     search = search or refined_search(tangibles, virtual, model, settings, pinch_settings=pinch)
-    row = cost_row(search, 0)
-    noticed = np.zeros(len(row), dtype=bool)
-    for t in np.flatnonzero(np.isfinite(row)):
-        best = search.choices(0, [int(t)], 1)[0]
-        noticed[t] = p_noticed(search.tangibles[t], search.virtuals[0], best, model) >= 0.5
+    tables = FeltTables(settings.landing_mm, pinch)
+    row, noticed = ranked_row(search, cost_row(search, 0), tables)
     allowed = allowed or (list(range(len(tangibles))), None)
     if not details:
-        picks = search.choices(0, allowed[0], settings.top_k + 1) if allowed[0] else []
+        picks = [p for p, _ in _felt(search, search.choices(0, allowed[0], 1), tables)] if allowed[0] else []
         picks = [dataclasses.replace(p, virtual=index) for p in picks]
-        return VirtualMatch(index, picks[0] if picks else None, picks[1:], None if picks else allowed[1], None,
+        return VirtualMatch(index, picks[0] if picks else None, [], None if picks else allowed[1], None,
                             virtual.name, list(search.tangibles), search.virtuals[0], row=row, row_noticed=noticed)
-    vm = _placed(search, allowed, pinch_settings=pinch, index=index, probes=probes)
+    vm = _placed(search, allowed, pinch_settings=pinch, index=index, probes=probes, tables=tables)
     return dataclasses.replace(vm, row=row, row_noticed=noticed)
 
 
@@ -189,37 +190,67 @@ def allowed_tangibles(cost_matrix: np.ndarray, settings: MatchSettings) -> list[
             for j in range(m)]
 
 
+def _felt(search: Search, picks: list, tables: FeltTables) -> list[Choice]:
+    """The picks with their ranked cost and its chance of being noticed (``--rank``), the landing kept."""
+    rank, out = search.settings.rank, []
+    for p in picks:
+        felt = felt_cost(search.tangibles[p.tangible], search.virtuals[0], p, search.model, tables)
+        out.append((dataclasses.replace(p, cost=felt.ranked(rank), p_noticed=felt.ranked_p_noticed(rank)), felt))
+    return out
+
+
 def _match(search: Search, allowed: list[int], reason: str | None, *, pinch_settings: PinchSettings,
-           index: int = 0, probes: dict | None = None) -> VirtualMatch:
-    """The result of a one-virtual-object search, as the scene's virtual object ``index``."""
+           index: int = 0, probes: dict | None = None, tables: FeltTables | None = None) -> VirtualMatch:
+    """The result of a one-virtual-object search, as the scene's virtual object ``index``: the
+    ``RANKED_CHOICES`` best distinct choices on target (exact), ranked by ``--rank``'s cost over their
+    landings (:mod:`pinchmatch.match.felt`), ties by the cost on target."""
     settings, virtual = search.settings, search.virtuals[0]
+    tables = tables or FeltTables(settings.landing_mm, pinch_settings)
     count = settings.top_k + 1
-    picks = search.choices(0, allowed, max(count, ROBUST_CHOICES) if settings.robust else count) if allowed else []
+    ranked = settings.rank != "nominal"
+    picks = search.choices(0, allowed, max(count, RANKED_CHOICES) if ranked else count) if allowed else []
     picks = [dataclasses.replace(p, virtual=index) for p in picks]
-
-    def landed(choice):
-        return landing(search.tangibles[choice.tangible], virtual, choice, search.model, settings=pinch_settings,
-                       radius_mm=settings.landing_mm)
-
-    landings = [landed(p) for p in picks[:len(picks) if settings.robust else 1]]
-    if settings.robust:  # by the worst landing, then the nominal cost (the picks' own order)
-        order = sorted(range(len(picks)), key=lambda k: (landings[k].cost_worst, k))[:count]
-        picks, landings = [picks[k] for k in order], [landings[k] for k in order]
+    felt = _felt(search, picks, tables)
+    felt = sorted(felt, key=lambda pf: pf[0].cost)[:count] if ranked else felt  # stable: ties keep the search's order
+    picks = [p for p, _ in felt]
     if not picks and reason is None:
         reason = "no registration is allowed: every one flips the virtual object (--keep-upright)"
     best = picks[0] if picks else None
     ref = reference_pose(search.tangibles[best.tangible], best.t_pose, virtual, search.model,
                          settings=pinch_settings, memo=probes) if best else None
+    landed = None
+    if felt:
+        f = felt[0][1]
+        landed = Landing(settings.landing_mm, LANDING_AXIS_DEG, f.nominal, f.expected, f.worst, f.p_noticed_worst,
+                         f.criteria_noticeable, f.landings, f.missed)
     return VirtualMatch(index, best, picks[1:], None if best else reason, ref, virtual.name,
-                        list(search.tangibles), virtual, landings[0] if landings else None)
+                        list(search.tangibles), virtual, landed)
+
+
+def ranked_row(search: Search, row: np.ndarray, tables: FeltTables) -> tuple[np.ndarray, np.ndarray]:
+    """(n,) the ranked cost of virtual object 0 on each tangible (the best of its ``ROW_CHOICES`` best
+    distinct choices on target, re-ranked) and (n,) whether that choice is noticed at least half of the
+    time; inf and True where no registration is allowed."""
+    rank = search.settings.rank
+    cost, loud = np.full(len(row), np.inf), np.ones(len(row), dtype=bool)
+    for t in np.flatnonzero(np.isfinite(row)):
+        if rank == "nominal":  # on target: no landing needed
+            best = search.choices(0, [int(t)], 1)[0]
+            cost[t], loud[t] = row[t], p_noticed(search.tangibles[t], search.virtuals[0], best, search.model) >= 0.5
+            continue
+        picks = _felt(search, search.choices(0, [int(t)], ROW_CHOICES), tables)
+        best = min(picks, key=lambda pf: pf[0].cost)[0]
+        cost[t], loud[t] = best.cost, best.p_noticed >= 0.5
+    return cost, loud
 
 
 def _placed(search: Search, allowed: tuple, *, pinch_settings: PinchSettings, index: int = 0,
-            probes: dict | None = None) -> VirtualMatch:
+            probes: dict | None = None, tables: FeltTables | None = None) -> VirtualMatch:
     """The virtual object's match; under ``placement="fixed"`` with its redirection, or the carousel's
     (registered) match where no pair is within the redirection budget, or where the best redirected
     pair would be noticed (``p_noticed`` of at least 0.5) and the carousel's would not."""
-    vm = _match(search, *allowed, pinch_settings=pinch_settings, index=index, probes=probes)
+    tables = tables or FeltTables(search.settings.landing_mm, pinch_settings)
+    vm = _match(search, *allowed, pinch_settings=pinch_settings, index=index, probes=probes, tables=tables)
     settings = search.settings
     if settings.redirect is None:
         return vm
@@ -228,7 +259,7 @@ def _placed(search: Search, allowed: tuple, *, pinch_settings: PinchSettings, in
         registered = dataclasses.replace(settings, placement="registered")
         carousel = refined_search(search.tangibles, search.virtuals[0], search.model, registered,
                                   pinch_settings=pinch_settings)
-        served = _match(carousel, *allowed, pinch_settings=pinch_settings, index=index, probes=probes)
+        served = _match(carousel, *allowed, pinch_settings=pinch_settings, index=index, probes=probes, tables=tables)
         if vm.best is None or (served.best is not None and not _noticed(served, search.model)):
             vm, mode = served, "carousel"
     if vm.best is None:
@@ -242,8 +273,8 @@ def _placed(search: Search, allowed: tuple, *, pinch_settings: PinchSettings, in
 
 
 def _noticed(vm: VirtualMatch, model: CostModel) -> bool:
-    """Is the match's best choice noticed at least half of the time?"""
-    return p_noticed(vm.tangibles[vm.best.tangible], vm.candidates, vm.best, model) >= 0.5
+    """Is the match's best choice noticed at least half of the time (as it is ranked)?"""
+    return vm.best.p_noticed >= 0.5
 
 
 def match_virtual(tangibles: list[Candidates], virtual: Candidates, *, model: CostModel | None = None,

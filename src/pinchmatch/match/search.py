@@ -258,8 +258,11 @@ class Choice:
       entries of (difference / scale)², in the run's normalisation; with ``jnd``, 1 is just
       noticeable), in the order of :data:`pinchmatch.match.cost.CRITERIA`, computed for every
       criterion (those not in use weigh 0);
-    - ``cost``: ``float``, dimensionless, the terms pooled by the model (:meth:`CostModel.pool`): in JND
-      under the default ``quick`` pooling, Σ weight x term under ``sum``;
+    - ``cost``: ``float``, dimensionless, the cost the match ranks by (``--rank``: the expected cost over the
+      landings by default, :mod:`pinchmatch.match.felt`); ``cost_nominal`` the cost with the fingers on
+      their targets: the terms pooled by the model (:meth:`CostModel.pool`), in JND under the default
+      ``quick`` pooling, Σ weight x term under ``sum`` (the search's, exact); ``p_noticed`` the chance
+      that the ranked difference is noticed (None as the search finds it);
     - ``swapped``: ``bool``, the virtual pose's p1 lies on the tangible's p2;
     - ``transform``: ``(4, 4) float64``, the rigid transform taking the virtual object's frame (mm)
       to the tangible's, so that the fingertips meet (under ``placement="fixed"``, the hand's warp);
@@ -294,6 +297,12 @@ class Choice:
     placement: np.ndarray | None = None
     tangible_pose: Pose | None = None
     virtual_pose: Pose | None = None
+    cost_nominal: float | None = None
+    p_noticed: float | None = None
+
+    def __post_init__(self):
+        if self.cost_nominal is None:  # as the search finds it: ranked by its cost on target
+            object.__setattr__(self, "cost_nominal", self.cost)
 
 
 class Search:

@@ -3,7 +3,8 @@
 Input: the scene's served matrix over the whole shelf, ``cost`` (m virtual objects x n props, the
 exact least cost of each object on each prop, inf where no registration is allowed) and
 ``noticeable`` (the same shape, bool: that best placement leaves some criterion at 1 JND or more),
-both from the exact search of ``match`` (:func:`served_row`). With a subset S chosen, each object
+both from the one match of ``match`` (:func:`pinchmatch.match.scene.match_one`: its ranked row and whether each
+prop's best choice is noticed). With a subset S chosen, each object
 uses its best prop in S: the cheapest (ties to the earlier prop), and under ``noticeable`` the
 cheapest of those on which nothing is noticeable, when there is one. The **objective** of S is then
 
@@ -236,17 +237,3 @@ def helpful_props(cost: np.ndarray, selection: Selection) -> np.ndarray:
     j = np.argmin(c, axis=1)
     better = c[np.arange(len(c)), j] < selection.cost
     return np.where(better, others[j], -1)
-
-
-def served_row(search, j: int) -> tuple[np.ndarray, np.ndarray]:
-    """Virtual object j's row of the served matrix: its exact least cost on each prop (inf where no
-    registration is allowed) and whether that best placement is noticeable (its pooled difference
-    noticed at least half of the time), from the same exact search as ``match``."""
-    from .search import cost_row, p_noticed
-
-    cost = cost_row(search, j)
-    loud = np.zeros(len(cost), dtype=bool)
-    for t in np.flatnonzero(np.isfinite(cost)):
-        best = search.choices(j, [int(t)], 1)[0]
-        loud[t] = p_noticed(search.tangibles[t], search.virtuals[j], best, search.model) >= 0.5
-    return cost, loud

@@ -49,7 +49,8 @@ MANIFEST_SUFFIX = ".toml"
 #: a centre of mass farther than this from the file's origin (mm, 1 km) is not an object's
 MAX_COORDINATE_MM = 1e6
 #: the keys of an object; ``[defaults]`` takes all but ``file`` and ``name``
-OBJECT_KEYS = ("file", "shape", "name", "units", "up", "com_mm", "axis", "mass_g", "split", "exclude", "only", "pose")
+OBJECT_KEYS = ("file", "shape", "name", "units", "up", "com_mm", "axis", "mass_g", "split", "exclude", "only", "pose",
+               "support", "support_mm")
 DEFAULT_KEYS = tuple(k for k in OBJECT_KEYS if k not in ("file", "shape", "name", "pose"))
 #: a pose's quaternion may be this far from length 1 (then it is normalised); farther, it is no rotation
 QUATERNION_TOLERANCE = 1e-3
@@ -81,6 +82,7 @@ class ObjectSpec:
     node_path: str | None = None
     manifest: str | None = None  # the manifest it was listed in
     pose: tuple | None = None  # ((x, y, z) mm, (qx, qy, qz, qw)): file coordinates (mm) -> the level's world
+    support: str | float | None = None  # what it stands on (:mod:`pinchmatch.mesh.support`): "auto", "none", mm
 
     @property
     def display_name(self) -> str:
@@ -94,7 +96,12 @@ class ObjectSpec:
     def shape_key(self) -> dict:
         """What shapes the object's candidates (a cache key): not its name or mass."""
         return {"units": self.units, "up": self.up, "com_mm": self.com_mm, "axis": self.axis,
-                "regions": self.regions.as_dict(), "node": self.node}
+                "regions": self.regions.as_dict(), "node": self.node, "support": self.support,
+                "pose": None if self.support in (None, "none") or self.pose is None else self.pose[1]}
+
+    def standing(self, default: str | None) -> "ObjectSpec":
+        """The spec with ``default`` support (``"auto"`` or ``"none"``) where it says none itself."""
+        return self if self.support is not None or default is None else replace(self, support=default)
 
 
 class _Problems:
@@ -203,6 +210,22 @@ def _options(table: dict, where: str, problems: _Problems) -> dict:
         pose = _pose(table["pose"], where, problems)
         if pose is not None:
             out["pose"] = pose
+    if "support" in table and "support_mm" in table:
+        problems.add(where, "support", "give support = \"none\" (held in the hand) or support_mm (the height of "
+                                       "what it stands on), not both")
+    elif "support" in table:
+        if table["support"] in ("none", "auto"):
+            out["support"] = table["support"]
+        else:
+            problems.add(where, "support", "must be \"none\" (a prop held in the hand) or \"auto\" (standing on "
+                                           "the plane through its lowest point); give a height as support_mm")
+    elif "support_mm" in table:
+        height = table["support_mm"]
+        if _number(height) and abs(height) <= MAX_COORDINATE_MM:
+            out["support"] = float(height)
+        else:
+            problems.add(where, "support_mm", f"must be a height in mm along the prop's up, within "
+                                              f"{MAX_COORDINATE_MM:g} mm of its origin")
     return out
 
 
@@ -374,7 +397,8 @@ def spec_to_dict(spec: ObjectSpec) -> dict:
             "axis": None if spec.axis is None else [float(c) for c in spec.axis],
             "mass_g": spec.mass_g, "regions": spec.regions.as_dict(), "split": spec.split,
             "node": spec.node, "node_path": spec.node_path, "manifest": spec.manifest,
-            "pose": None if spec.pose is None else [list(spec.pose[0]), list(spec.pose[1])]}
+            "pose": None if spec.pose is None else [list(spec.pose[0]), list(spec.pose[1])],
+            "support": spec.support}
 
 
 def spec_from_dict(d: dict) -> ObjectSpec:
@@ -387,4 +411,5 @@ def spec_from_dict(d: dict) -> ObjectSpec:
                       regions=ContactRegions(tuple(region(r) for r in d["regions"]["exclude"]),
                                              tuple(region(r) for r in d["regions"]["only"])),
                       split=d["split"], node=d["node"], node_path=d["node_path"], manifest=d["manifest"],
-                      pose=None if d.get("pose") is None else (tuple(d["pose"][0]), tuple(d["pose"][1])))
+                      pose=None if d.get("pose") is None else (tuple(d["pose"][0]), tuple(d["pose"][1])),
+                      support=d.get("support"))

@@ -23,6 +23,7 @@ from scipy.spatial import cKDTree
 
 from ..cores import query_tree
 from .regions import ContactRegions
+from .support import SupportPlane
 
 log = logging.getLogger(__name__)
 
@@ -177,13 +178,17 @@ class SurfaceContext:
         Contact patch radius; sets the density of the dense sample.
     regions : ContactRegions, optional
         Where contacts may not, or must, lie (:mod:`pinchmatch.mesh.regions`); default: anywhere.
+    support : SupportPlane, optional
+        The plane the object stands on (:mod:`pinchmatch.mesh.support`), below which no hand reaches;
+        default: none (held in the hand).
     """
 
     def __init__(self, mesh: trimesh.Trimesh, *, patch_radius_mm: float = 8.0,
-                 regions: ContactRegions = ContactRegions()):
+                 regions: ContactRegions = ContactRegions(), support: SupportPlane | None = None):
         self.mesh = mesh
         self.patch_radius_mm = float(patch_radius_mm)
         self.regions = regions
+        self.support = support
 
     # Everything below is computed on first use, each once: an object read back from the cache for
     # its features and the search alone never needs any of it.

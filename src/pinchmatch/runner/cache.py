@@ -53,6 +53,7 @@ from ..match.cost import feature_table
 from ..errors import ConfigError, OutputError
 from ..grasp.pinches import ARRAY_FIELDS, PinchSettings, Pinches
 from ..mesh.properties import ObjectProperties
+from ..mesh.support import support_plane
 from ..mesh.surface import SurfaceContext
 
 log = logging.getLogger(__name__)
@@ -341,7 +342,9 @@ def _rebuild(meta: dict, arrays: dict, spec: ObjectSpec, *, patch_radius_mm: flo
                         warnings=meta["warnings"], node=spec.node)
     props = ObjectProperties(**{name: arrays[f"props.{name}"] for name in PROPS_ARRAYS},
                              **{name: meta["props"][name] for name in PROPS_VALUES})
-    obj = ObjectAnalysis(loaded, props, SurfaceContext(mesh, patch_radius_mm=patch_radius_mm, regions=spec.regions),
+    context = SurfaceContext(mesh, patch_radius_mm=patch_radius_mm, regions=spec.regions,
+                             support=support_plane(spec, mesh.vertices, arrays["up"]))
+    obj = ObjectAnalysis(loaded, props, context,
                          spec)
     pinches = Pinches(**{name: arrays[f"pinches.{name}"] for name in PINCH_ARRAYS}, rejected=meta["rejected"])
     features = PinchFeatures(**{name: arrays[f"features.{name}"] for name in FEATURE_ARRAYS})

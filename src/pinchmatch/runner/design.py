@@ -55,6 +55,7 @@ from ..mesh.stacks import (
     stack_problems,
     supported,
 )
+from ..mesh.manifest import ObjectSpec
 from .cache import cached_candidates
 
 #: poses per object and prop while searching (the final props are matched at the run's count)
@@ -75,7 +76,8 @@ class DesignSettings:
     and ``max_width_mm``; ``budget_s`` seconds of wall time, or exactly ``evaluations`` candidates
     judged (then the result does not depend on the machine's speed); ``seed`` the search's;
     ``search_count`` poses sampled per candidate prop during the search; ``supports`` False keeps
-    every candidate printable without supports; ``anneal`` the starting temperature of the
+    every candidate printable without supports; ``stand`` judges each prop standing on a table (its
+    support, :mod:`pinchmatch.mesh.support`), False as held in the hand; ``anneal`` the starting temperature of the
     acceptance rule (relative cost; 0 takes only improvements).
     """
 
@@ -89,6 +91,7 @@ class DesignSettings:
     search_count: int = SEARCH_COUNT
     supports: bool = True  # False: every candidate printable standing on its base without supports
     anneal: float = 0.0  # starting temperature of the acceptance rule (relative cost); 0: only improvements
+    stand: bool = True  # the props stand on a table: no hand reaches below their lowest point
 
     def check(self) -> None:
         """Raise ConfigError for limits no stack of the family can meet, or a bad option."""
@@ -224,8 +227,10 @@ class Judged:
 class Judge:
     """Judges props by the real pipeline, each stack once (written, loaded, sampled, searched)."""
 
-    def __init__(self, virtuals: list[Candidates], match: MatchSettings, pinch: PinchSettings, folder: Path):
+    def __init__(self, virtuals: list[Candidates], match: MatchSettings, pinch: PinchSettings, folder: Path, *,
+                 stand: bool = True):
         self.virtuals, self.match, self.pinch, self.folder = virtuals, match, pinch, folder
+        self.support = "auto" if stand else "none"
         # candidate props are ranked on their sampled poses (refinement is for the final match)
         self.config = Config(pinch, replace(match, refine=False))
         self.model = cost_model(match, virtuals)
@@ -238,7 +243,7 @@ class Judge:
             path = self.folder / f"{key}.stl"
             path.write_bytes(stack_mesh(stack).export(file_type="stl"))
             try:
-                prop = cached_candidates(str(path), cache=None, settings=self.pinch)
+                prop = cached_candidates(ObjectSpec(str(path), support=self.support), cache=None, settings=self.pinch)
             except PinchmatchError:  # a prop with no feasible pinch serves nothing
                 self.rows[key] = (np.full(len(self.virtuals), np.inf), np.ones(len(self.virtuals), bool))
             else:
@@ -285,7 +290,7 @@ def design_props(virtuals: list[Candidates], s: DesignSettings, *, match: MatchS
         return time.perf_counter() - clock0
 
     with tempfile.TemporaryDirectory(prefix="pinchmatch-design-") as folder:
-        judge = Judge(virtuals, match, search_pinch, Path(folder))
+        judge = Judge(virtuals, match, search_pinch, Path(folder), stand=s.stand)
         starts = initial_stacks(virtuals, s)
         judge.judge((starts[0],))
         first_s = time.perf_counter() - t0

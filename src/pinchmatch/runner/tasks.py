@@ -100,7 +100,7 @@ class Computed:
 
 @dataclass(frozen=True)
 class ServedRow:
-    """A virtual object's row of the served matrix (:func:`pinchmatch.match.select.served_row`)."""
+    """A virtual object's row of the served matrix (:func:`pinchmatch.match.scene.match_one`'s ranked row)."""
 
     name: str
     row: np.ndarray  # (n,) least cost on each prop, inf where none is allowed

@@ -152,9 +152,11 @@
     return `<tr class="pooled"><th>landing</th><td>${landed.worst_percent} %</td>` +
       `<td><div class="jnd-bar" title="${escape(landed.text)}"><span class="${m.noticeable ? "loud" : ""}" ` +
       `style="width:${lo}%"></span><b class="band ${landed.word}" style="left:${lo}%;width:${hi - lo}%"></b>` +
-      `<i style="left:50%"></i></div></td><td title="cost ${fmt(m.landing.cost_mean)} mean, ` +
+      `<i style="left:50%"></i></div></td><td title="cost ${fmt(m.landing.cost_mean)} expected, ` +
       `${fmt(m.landing.cost_worst)} worst over ${m.landing.landings} landings ${m.landing.radius_mm} mm off">` +
-      `${escape(landed.word)}</td></tr>`;
+      `${escape(landed.word)}</td></tr>` +
+      `<tr class="felt"><th>felt</th><td colspan="3">cost ${fmt(m.landing.cost_nominal)} on target, ` +
+      `${fmt(m.landing.cost_mean)} expected, ${fmt(m.landing.cost_worst)} at the worst landing</td></tr>`;
   }
 
   function loudCriteria(match) {

@@ -1,0 +1,157 @@
+"""A kitchen level on a counter and one real prop standing on its own table: does any hand go under them?
+
+    python benchmarks/bench_level.py            # 9 real objects, 1,000 poses each
+    python benchmarks/bench_level.py --quick    # 300 poses
+
+The level: robosuite's household objects and pybullet_data's duck, teddy and Lego brick (nobody here made
+them; read from the wheels on PyPI, ``benchmarks/assets.py``), stood up (their files' +Z to the level's +Y,
+metres) on a counter whose top is at y = 900 mm, 80 mm apart around the prop's spot. The prop: robosuite's
+scanned can (an STL in mm, +Z up), with a ``pose`` where the level's own can stands.
+
+Six runs, as ``pinchmatch match`` runs from the command line: ``--placement fixed`` and ``registered``,
+each with the defaults (``--support auto``: the prop stands on its table, each node on the counter;
+``--rank expected``: ranked by the cost over where guided fingers land), with ``--rank nominal`` (ranked on
+target, the same table) and with ``--support none --rank nominal`` (what every run did before: the objects
+held in the air, ranked on target). Per run it prints the mean nominal and expected cost of the answers,
+the share of objects whose expected cost is at most twice the nominal plus 0.3 JND, and the wall time;
+then, per placement, the default's mean expected cost against ``--rank nominal``'s and the time ratio.
+For every best choice and
+every alternative it checks, with planes worked out here from the prop's pose and the level's vertices (not
+read from the output): each fingertip sphere and finger capsule above the prop's table and, under ``fixed``,
+above the counter the virtual object stands on (within the pad's 0.3 mm), and no approach from below.
+It prints, per run, the pinches checked, those that reach under a table (tangible, virtual), the mean cost
+and the wall time.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import trimesh
+from scipy.spatial.transform import Rotation
+
+sys.path.insert(0, str(Path(__file__).parent))
+from assets import DEFAULT_ASSETS  # noqa: E402
+from bench_converge import timed_match  # noqa: E402
+from bench_reach import real_meshes  # noqa: E402
+
+COUNTER_Y_MM = 900.0
+SPACING_MM = 80.0
+#: the prop stands where the level's can stands
+PROP_SPOT_MM = (0.0, COUNTER_Y_MM, 0.0)
+OBJECTS = ("robosuite", "pybullet duck", "pybullet teddy", "pybullet lego")
+#: the hand model's defaults (mm) and the pad's tolerance
+FINGERTIP_MM, FINGER_MM, LENGTH_MM, PAD_MM = 8.0, 8.0, 45.0, 0.3
+Z_UP_TO_Y_UP = Rotation.from_euler("x", -90, degrees=True)
+
+
+def build_level(folder: Path) -> tuple[dict, np.ndarray]:
+    """kitchen.glb and props.toml in ``folder``; returns {node: its lowest y in mm} and the prop's vertices (mm)."""
+    meshes = [(name, path) for name, path in real_meshes(DEFAULT_ASSETS, folder) if name.startswith(OBJECTS)]
+    scene, lowest = trimesh.Scene(), {}
+    spots = [(0.0, 0.0)] + [(SPACING_MM * math.cos(a), SPACING_MM * math.sin(a) * 1.5)
+                            for a in np.linspace(0, 2 * math.pi, len(meshes), endpoint=False)[1:]]
+    can = next(path for name, path in meshes if name == "robosuite can")
+    order = sorted(meshes, key=lambda m: m[0] != "robosuite can")  # the level's can at the prop's spot
+    for (name, path), (x, z) in zip(order, spots):
+        mesh = trimesh.load(path, force="mesh")
+        mesh.apply_transform(trimesh.transformations.rotation_matrix(-math.pi / 2, [1, 0, 0]))  # z up -> y up
+        centre = mesh.bounds.mean(axis=0)
+        mesh.apply_translation([x - centre[0], COUNTER_Y_MM - mesh.bounds[0, 1], z - centre[2]])
+        node = name.replace(" ", "_")
+        lowest[node] = float(mesh.bounds[0, 1])
+        mesh.apply_scale(0.001)  # the level in metres
+        scene.add_geometry(mesh, node_name=node, geom_name=f"{node}_mesh")
+    scene.export(folder / "kitchen.glb")
+    prop = trimesh.load(can, force="mesh")
+    # the prop's file is in mm, +Z up, its origin wherever the scan put it: posed so that it stands on the
+    # counter where the level's can stands
+    R = Z_UP_TO_Y_UP.as_matrix()
+    standing = prop.vertices @ R.T
+    centre = standing.mean(axis=0)
+    position = np.array(PROP_SPOT_MM) - [centre[0], standing[:, 1].min(), centre[2]]
+    (folder / "props.toml").write_text(
+        f'[[object]]\nfile = "{can.name}"\nname = "can_prop"\nunits = "mm"\nup = "z"\n'
+        f"pose = {{ position_mm = {position.round(4).tolist()}, quaternion_xyzw = {Z_UP_TO_Y_UP.as_quat().tolist()} }}\n")
+    return lowest, np.asarray(prop.vertices)
+
+
+def under_table(pose: dict, normal: np.ndarray, height: float) -> bool:
+    """Does the pinch put a fingertip, a finger or the hand below the plane normal . x = height?"""
+    p = np.array([pose["p1_mm"], pose["p2_mm"]])
+    n = np.array([pose["n1"], pose["n2"]])
+    h = np.array(pose["approach"], dtype=float)
+    tips = p + FINGERTIP_MM * n
+    if (tips @ normal - height < FINGERTIP_MM - PAD_MM - 1e-6).any():
+        return True
+    if not np.isfinite(h).all():
+        return False  # a given pose: no approach to check
+    ends = tips + LENGTH_MM * h
+    return bool((ends @ normal - height < FINGER_MM - PAD_MM - 1e-6).any() or h @ normal < -1e-9)
+
+
+def check(doc: dict, prop_vertices: np.ndarray, lowest: dict, fixed: bool) -> tuple[int, int, int]:
+    """(pinches checked, tangible ones under the prop's table, virtual ones under the counter)."""
+    prop_up = Z_UP_TO_Y_UP.inv().apply([0.0, 1.0, 0.0])  # the level's up in the prop's frame
+    prop_table = float((prop_vertices @ prop_up).min())
+    checked = tangible = virtual = 0
+    for m in doc["matches"]:
+        if m.get("tangible") is None:
+            continue
+        mode = (m.get("redirection") or {}).get("mode")
+        for choice in [m] + m["alternatives"]:
+            checked += 1
+            tangible += under_table(choice["tangible_pose"], prop_up, prop_table)
+            if fixed and mode == "redirect":  # the virtual pinch is made where the object stands
+                virtual += under_table(choice["virtual_pose"], np.array([0.0, 1.0, 0.0]), lowest[m["virtual"]])
+    return checked, tangible, virtual
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="300 poses per object instead of 1,000")
+    args = parser.parse_args(argv)
+    count = 300 if args.quick else 1000
+    rows = [("placement", "support", "rank", "pinches", "under the prop's table", "under the counter",
+             "nominal", "expected", "exp <= 2 nom + 0.3", "wall s")]
+    summary = []
+    with tempfile.TemporaryDirectory(prefix="pinchmatch-bench-level-") as tmp:
+        folder = Path(tmp)
+        lowest, prop_vertices = build_level(folder)
+        for placement in ("fixed", "registered"):
+            seen = {}
+            for support, rank in (("auto", "expected"), ("auto", "nominal"), ("none", "nominal")):
+                out = folder / f"out_{placement}_{support}_{rank}"
+                matches, seconds = timed_match(
+                    ["--tangible", str(folder / "props.toml"), "--virtual", str(folder / "kitchen.glb"), "--split",
+                     "nodes", "--placement", placement, "--support", support, "--rank", rank, "--count", str(count)],
+                    out)
+                doc = json.loads((out / "matches.json").read_text())
+                checked, tangible, virtual = check(doc, prop_vertices, lowest, placement == "fixed")
+                landed = [m["landing"] for m in matches.values() if m.get("landing")]
+                nominal = np.array([x["cost_nominal"] for x in landed])
+                expected = np.array([x["cost_mean"] for x in landed])
+                near = float(np.mean(expected <= 2.0 * nominal + 0.3))
+                seen[(support, rank)] = (float(expected.mean()), seconds)
+                rows.append((placement, support, rank, checked, tangible, virtual if placement == "fixed" else "-",
+                             f"{nominal.mean():.3f}", f"{expected.mean():.3f}", f"{near:.0%}", f"{seconds:.1f}"))
+            (e_default, t_default), (e_nominal, t_nominal) = seen[("auto", "expected")], seen[("auto", "nominal")]
+            summary.append(f"{placement}: mean expected cost {e_default:.3f} ranked by it, {e_nominal:.3f} ranked "
+                           f"on target ({e_default / e_nominal:.2f}x); wall time {t_default / t_nominal:.2f}x")
+    widths = [max(len(str(row[i])) for row in rows) for i in range(len(rows[0]))]
+    print(f"# {len(lowest)} real objects on a counter at y = {COUNTER_Y_MM:g} mm, one scanned can as the prop, "
+          f"{count} poses each; pinches: best choices and alternatives checked against the tables")
+    for row in rows:
+        print("  ".join(str(c).rjust(w) for c, w in zip(row, widths)))
+    print("\n".join(summary))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
