@@ -31,7 +31,7 @@ from .search import Choice, MatchSettings, Search, cost_model, cost_row, p_notic
 
 #: unless ``--rank nominal``, this many distinct best choices on target (or top_k + 1, if more) are ranked
 #: by their cost over the landings
-RANKED_CHOICES = 16
+RANKED_CHOICES = 64
 #: and per tangible, for its row of the cost matrix (what select and design rank props by), this many
 ROW_CHOICES = 3
 
