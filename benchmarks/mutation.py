@@ -71,6 +71,8 @@ CORE = {
     "match/scene.py": ["test_match.py", "test_redirect.py", "test_landing.py", "test_select.py"],
     "match/landing.py": ["test_landing.py"],
     "match/reference.py": ["test_match.py", "test_cache.py"],
+    "match/felt.py": ["test_landing.py"],
+    "mesh/support.py": ["test_pinches.py", "test_redirect.py", "test_manifest.py"],
 }
 
 #: surviving mutants judged equivalent: (module, source line stripped, description) -> reason
