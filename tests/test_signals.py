@@ -110,3 +110,36 @@ def test_an_interrupted_calibrate_says_nothing_was_written(tmp_path, monkeypatch
     assert main(["calibrate", str(table), "-o", str(tmp_path / "w.json")]) == 130
     err = capsys.readouterr().err.strip().splitlines()
     assert err == ["pinchmatch: interrupted; nothing was written"] and not (tmp_path / "w.json").exists()
+
+
+FINISHED_THEN_WAITS = '''
+import sys, time
+from pinchmatch.cli.supervise import supervise
+from pinchmatch.export.folder import OutputFolder
+
+def run(argv):
+    out = argv[argv.index("-o") + 1]
+    with OutputFolder(out) as stage:
+        (stage / "matches.json").write_text("{}")
+    print("published", flush=True)
+    time.sleep(30)  # the signal comes after the result is out
+    return 0
+
+sys.exit(supervise(sys.argv[1:], run))
+'''
+
+
+def test_a_signal_after_the_result_is_published_says_so(tmp_path):
+    """The run's process has published when the signal comes: OUT keeps the new result, and the line says so."""
+    script = tmp_path / "finished.py"
+    script.write_text(FINISHED_THEN_WAITS)
+    out = tmp_path / "out"
+    proc = subprocess.Popen([sys.executable, str(script), "match", "--tangible", "a.stl", "--virtual", "b.stl",
+                             "-o", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    assert proc.stdout.readline().strip() == "published"
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=30)
+    assert proc.returncode == 143 and err.strip() == ("pinchmatch: terminated; the output folder holds the new "
+                                                      "result (the run had finished)"), err
+    assert (out / "matches.json").read_text() == "{}"

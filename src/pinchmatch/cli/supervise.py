@@ -43,6 +43,7 @@ def supervise(argv: list[str], run) -> int:
             _kill_group(child[0])
 
     previous = {s: signal.signal(s, stop) for s in SIGNAL_EXIT}
+    published = _published(argv)  # what OUT held: a run that finished before the signal changed it
     try:
         pid = os.fork()
         if pid == 0:  # the child: the command, in a process group of its own, dying with its parent
@@ -75,11 +76,11 @@ def supervise(argv: list[str], run) -> int:
             signal.signal(s, handler)
     code = os.waitstatus_to_exitcode(status)
     if received:
-        return _ended_by(received[0], argv)
+        return _ended_by(received[0], argv, published)
     if code < 0:  # the child was killed from outside (the system ran out of memory, a kill -9)
         if -code in SIGNAL_EXIT:
-            return _ended_by(-code, argv)
-        _undo(argv)
+            return _ended_by(-code, argv, published)
+        _undo(argv, published)
         print(f"pinchmatch: internal error: the run's process was killed ({signal.Signals(-code).name}; out of "
               "memory?); run again with fewer --jobs or a smaller --count", file=sys.stderr)
         return 1
@@ -104,14 +105,25 @@ def _die_with_parent() -> None:
         pass
 
 
-def _ended_by(signum: int, argv: list[str]) -> int:
+def _ended_by(signum: int, argv: list[str], published: bytes | None) -> int:
     """The run was ended by a signal: OUT put back, one line, exit 130 (SIGINT) or 143 (SIGTERM)."""
     word = "interrupted" if signum == signal.SIGINT else "terminated"
-    print(f"pinchmatch: {word}; {_undo(argv)}", file=sys.stderr)
+    print(f"pinchmatch: {word}; {_undo(argv, published)}", file=sys.stderr)
     return SIGNAL_EXIT[signum]
 
 
-def _undo(argv: list[str]) -> str:
+def _published(argv: list[str]) -> bytes | None:
+    """The manifest of the result in the command's output folder (None: none, or not a folder command)."""
+    command, output = _command_and_output(argv)
+    if command not in FOLDER_COMMANDS or output is None:
+        return None
+    try:
+        return (output / ".pinchmatch" / "manifest.json").read_bytes()
+    except OSError:
+        return None
+
+
+def _undo(argv: list[str], published: bytes | None = None) -> str:
     """Put the command's output back as a killed run leaves it; say what it holds now."""
     command, output = _command_and_output(argv)
     if command is None:
@@ -130,6 +142,8 @@ def _undo(argv: list[str]) -> str:
             remove_temporaries(output / "index.html")
             if finished:
                 return "the output folder holds the new result (it was being published)"
+            if command in FOLDER_COMMANDS and _published([*argv]) != published:
+                return "the output folder holds the new result (the run had finished)"
             return "the output folder holds what it held before"
         remove_temporaries(output)
     except Exception as exc:  # noqa: BLE001 - the run has ended; say what could not be put back
