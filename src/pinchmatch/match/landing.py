@@ -1,9 +1,12 @@
-"""Landing tolerance: what a match costs when the fingers land a little off their targets.
+"""Landing tolerance: the landing pattern, its record, and the exact closing-line reference.
 
 In the headset a pinch counts when each fingertip is within ``LANDING_MM`` of its target and the
 pinch axis within ``LANDING_AXIS_DEG`` of the target's (the page's validation). A match whose cost
-rises steeply within that tolerance feels different from what was promised; :func:`landing`
-says by how much.
+rises steeply within that tolerance feels different from what was promised. Matches are ranked and
+reported by the felt cost of :mod:`pinchmatch.match.felt` (landing tables per pose, no new geometry per
+pair; :class:`Landing` is its record); :func:`landing` here is the exact reference it is checked
+against: the prop's contacts found by closing the fingers along every landing's own line, each pair's
+geometry anew (about ten times the time), the landings weighed alike.
 
 Model (the placement does not move while the hand closes):
 
