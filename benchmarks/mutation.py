@@ -177,6 +177,8 @@ EQUIVALENT.update({
     ("runner/design.py", "total = s.evaluations or max(1, int((s.budget_s - spent() - final_s) / max(first_s, 1e-3)) "
      "+ 1)", "1 -> 2"): "the total only labels the progress bar; the search stops by time, not by it",
     ("match/search.py", "pick_b = b.cost < a.cost", "< -> <="): _BOUNDARY,
+    ("match/cost.py", "for item in str(text or \"\").split(\",\"):", "drop str(...)"):
+        "the command line gives the weights as text or not at all: str of a string is the string",
     ("match/search.py", "return float(pool.result.cost.min()) if len(pool.it) else np.inf", "drop float(...)"):
         "numpy's float64 is a subclass of Python's float: every caller reads the same number",
     ("match/reference.py", "reach = np.linalg.norm(bounds[1] - bounds[0]) + np.linalg.norm(point - bounds.mean(axis=0)) "
