@@ -222,5 +222,7 @@ def test_a_configuration_is_changed_field_by_field_in_either_part():
     assert Config().replace() == Config()
     with pytest.raises(ConfigError, match="no setting named 'topk'"):
         Config().replace(topk=1)
-    with pytest.raises(ConfigError):
-        Config(MatchSettings(), PinchSettings())  # the parts in the wrong places
+    for pinch, match in ((MatchSettings(), PinchSettings()), (PinchSettings(), PinchSettings()),
+                         (MatchSettings(), MatchSettings())):  # a part in the wrong place, or both
+        with pytest.raises(ConfigError):
+            Config(pinch, match)
