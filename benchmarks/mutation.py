@@ -177,6 +177,14 @@ EQUIVALENT.update({
     ("runner/design.py", "total = s.evaluations or max(1, int((s.budget_s - spent() - final_s) / max(first_s, 1e-3)) "
      "+ 1)", "1 -> 2"): "the total only labels the progress bar; the search stops by time, not by it",
     ("match/search.py", "pick_b = b.cost < a.cost", "< -> <="): _BOUNDARY,
+    ("match/scene.py", "list(search.tangibles), virtual, landed)", "drop list(...)"):
+        "the search's list of tangibles is never changed after the search: the match may hold it itself",
+    ("match/scene.py", "best = search.choices(0, [int(t)], 1)[0]", "drop int(...)"):
+        "numpy's integer indexes the tangibles as Python's does",
+    ("match/scene.py", "best = search.choices(0, [int(t)], 1)[0]", "1 -> 2"):
+        "the first of the two best choices is the best choice",
+    ("match/scene.py", "big = (np.abs(cost_matrix[finite]).sum() + 1.0) * (min(m, n) + 1)", "drop .abs(...)"):
+        "costs are never negative",
     ("match/cost.py", "for item in str(text or \"\").split(\",\"):", "drop str(...)"):
         "the command line gives the weights as text or not at all: str of a string is the string",
     ("match/search.py", "return float(pool.result.cost.min()) if len(pool.it) else np.inf", "drop float(...)"):

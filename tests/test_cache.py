@@ -236,6 +236,8 @@ def test_the_key_covers_the_code(tmp_path, mesh_file, monkeypatch):
     copy = tmp_path / "pinchmatch"
     shutil.copytree(Path(cache_module.__file__).parents[1], copy, ignore=shutil.ignore_patterns("__pycache__"))
     assert options.package_digest(copy) == options.code_digest()
+    (copy / "data" / "notes.txt").write_text("a data file is no code")
+    assert options.package_digest(copy) == options.code_digest()
     for edit in (lambda: (copy / "grasp" / "hand.py").write_text((copy / "grasp" / "hand.py").read_text() + "#"),
                  lambda: (copy / "match" / "new_stage.py").write_text("x = 1\n"),
                  lambda: (copy / "viewer" / "viewer.js").write_text("//")):

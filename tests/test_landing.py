@@ -191,6 +191,12 @@ def test_a_finger_that_lands_on_nothing_is_noticed_and_counted(tmp_path):
     assert land.cost_mean >= 0.8 * miss > land.cost_nominal  # most of the landing distribution misses
     assert type(land.missed) is int and type(land.landings) is int  # plain numbers, as JSON holds them
     json.dumps(land.as_dict())
+    # the closing-line reference counts them the same way
+    (T,), V = scene.objects(vm)
+    exact = landing(T, V, vm.best, scene.model, settings=small)
+    assert type(exact.missed) is int and exact.missed > exact.landings // 2 and exact.p_noticed_worst == 1.0
+    assert exact.cost_worst >= miss and exact.cost_mean >= exact.missed / exact.landings * miss
+    json.dumps(exact.as_dict())
 
 
 def test_the_landing_weights_are_the_truncated_gaussians_masses():

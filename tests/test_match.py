@@ -636,3 +636,10 @@ def test_every_tangible_is_allowed_unless_one_to_one():
     matrix = np.array([[1.0, np.inf, 0.5], [0.2, 0.3, np.inf]])
     assert allowed_tangibles(matrix, MatchSettings()) == [([0, 1, 2], None), ([0, 1, 2], None)]
     assert allowed_tangibles(matrix, MatchSettings(one_to_one=True)) == [([2], None), ([0], None)]
+
+
+def test_an_object_no_tangible_may_serve_is_assigned_none():
+    matrix = np.array([[np.inf, np.inf], [0.4, 0.2], [0.1, np.inf]])
+    assigned = assign_one_to_one(matrix)
+    assert assigned.tolist() == [-1, 1, 0] and assigned.dtype == np.int64
+    assert assign_one_to_one(np.full((2, 2), np.inf)).tolist() == [-1, -1]
