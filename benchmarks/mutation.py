@@ -177,6 +177,8 @@ EQUIVALENT.update({
     ("runner/design.py", "total = s.evaluations or max(1, int((s.budget_s - spent() - final_s) / max(first_s, 1e-3)) "
      "+ 1)", "1 -> 2"): "the total only labels the progress bar; the search stops by time, not by it",
     ("match/search.py", "pick_b = b.cost < a.cost", "< -> <="): _BOUNDARY,
+    ("match/search.py", "if len(picks) >= count or not np.isfinite(tau):", ">= -> >"):
+        "a pool grown past the picks adds only pairs costlier than they are: the same picks, found later",
     ("match/scene.py", "list(search.tangibles), virtual, landed)", "drop list(...)"):
         "the search's list of tangibles is never changed after the search: the match may hold it itself",
     ("match/scene.py", "best = search.choices(0, [int(t)], 1)[0]", "drop int(...)"):
