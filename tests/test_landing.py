@@ -239,3 +239,20 @@ def test_the_ranked_best_is_the_brute_forces_best_over_every_pair(tmp_path):
     assert (best.t_pose, best.v_pose) == (int(it[k]), int(iv[k]))
     assert best.cost == pytest.approx(expected[k], rel=1e-9)
     assert best.cost_nominal == pytest.approx(float(r.cost[k]), rel=1e-9)
+
+
+def test_a_landing_table_weighs_exactly_the_pairs_within_the_axis_tolerance(tmp_path):
+    """A slab 12 mm thin, pinched across: landing 5 mm off on either face turns the axis by up to 40 degrees.
+    The pairs weighed are those within 14 degrees, recomputed here from the landing points."""
+    from pinchmatch.match.felt import landing_table, ring_weights
+
+    block = given(tmp_path, "slab", box((60.0, 12.0, 40.0), subdivide_mm=2.0).mesh, (0.0, -6.0, 0.0), (0.0, 6.0, 0.0))
+    table = landing_table(block, 0, 5.0, SETTINGS)
+    assert table.hit.all() and len(table.weights) == 625
+    axis = table.points[:, 1] - table.points[:, 0]
+    angle = np.degrees(np.arccos(np.clip(axis[:, 1] / np.linalg.norm(axis, axis=1), -1.0, 1.0)))
+    assert ((table.weights > 0) == (angle <= 14.0 + 1e-9)).all()
+    assert 0 < (table.weights > 0).sum() < 625
+    w = ring_weights(5.0)
+    i, j = np.divmod(np.arange(625), 25)
+    np.testing.assert_allclose(table.weights[table.weights > 0], (w[i] * w[j])[table.weights > 0])
