@@ -177,6 +177,14 @@ EQUIVALENT.update({
     ("runner/design.py", "total = s.evaluations or max(1, int((s.budget_s - spent() - final_s) / max(first_s, 1e-3)) "
      "+ 1)", "1 -> 2"): "the total only labels the progress bar; the search stops by time, not by it",
     ("match/search.py", "pick_b = b.cost < a.cost", "< -> <="): _BOUNDARY,
+    ("mesh/support.py", "LEVEL_UP = np.array([0.0, 1.0, 0.0])", "drop .array(...)"):
+        "a rotation matrix times a list of three numbers is the same vector",
+    ("mesh/support.py", "return np.asarray(points, dtype=np.float64) @ self.normal - self.height_mm",
+     "drop .asarray(...)"): "every caller passes a float array of points",
+    ("mesh/support.py", "normal = Rotation.from_quat(np.asarray(pose[1], dtype=np.float64)).as_matrix().T @ LEVEL_UP",
+     "drop .asarray(...)"): "scipy takes the pose's tuple of four floats as it takes their array",
+    ("mesh/support.py", "return SupportPlane(normal, float(np.min(np.asarray(vertices, dtype=np.float64) @ normal)), "
+     "source)", "drop float(...)"): "numpy's float64 is a subclass of Python's float: the same height",
     ("match/felt.py", "back = radius_mm * math.tan(math.radians(axis_deg)) + radius_mm + 1.0", "drop .tan(...)"):
         "tan(14 deg) and 14 deg in radians differ by 2 %: a start 0.02 mm nearer on a margin of several mm",
     ("match/search.py", "if len(picks) >= count or not np.isfinite(tau):", ">= -> >"):

@@ -239,3 +239,12 @@ def test_a_posed_prop_is_pinched_above_its_table_whatever_its_tilt(tmp_path, see
     free = candidate_poses(analyze_spec(ObjectSpec(str(path), pose=pose)), settings=settings).pinches
     tips = (free.points + settings.fingertip_radius_mm * free.normals) @ normal - lowest
     assert (tips.min(axis=1) < settings.fingertip_radius_mm - 0.3).any() or (free.approach @ normal < 0).any()
+
+
+def test_a_support_is_reported_in_plain_rounded_numbers():
+    from pinchmatch.mesh.support import SupportPlane
+
+    plane = SupportPlane(np.array([0.1234567891, 0.99, 0.0]), np.float64(-33.123456), "pose")
+    record = plane.as_dict()
+    assert record == {"normal": [0.123457, 0.99, 0.0], "height_mm": -33.123, "source": "pose"}
+    assert all(type(c) is float for c in record["normal"]) and type(record["height_mm"]) is float
