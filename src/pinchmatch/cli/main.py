@@ -23,7 +23,7 @@ from ..errors import PinchmatchError, RunError, route_warnings
 from ..cores import default_jobs
 from ..runner.forkserver import start_worker_server
 from .parser import build_parser, check_option_names, join_vector_values
-from .supervise import FILE_COMMANDS, supervise
+from .supervise import SIGNAL_EXIT, left_as_it_was, supervise
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -68,22 +68,9 @@ def _main(argv: list[str]) -> int:
 
 def _interrupted(signum: int, command: str | None) -> int:
     """The run ended by a signal: one line, exit 130 (SIGINT) or 143 (SIGTERM)."""
-    if signum == signal.SIGINT:
-        print(f"pinchmatch: interrupted; {_left_as_it_was(command)}", file=sys.stderr)
-        return 130
-    print(f"pinchmatch: terminated; {_left_as_it_was(command)}", file=sys.stderr)
-    return 143
-
-
-def _left_as_it_was(command: str | None) -> str:
-    """What an interruption leaves, in the command's words."""
-    if command in FILE_COMMANDS:
-        return "nothing was written"
-    if command is None:
-        return "nothing was changed"
-    if command == "cache":
-        return "the entries not yet deleted stay in the cache"
-    return "the output folder holds what it held before"
+    word = "interrupted" if signum == signal.SIGINT else "terminated"
+    print(f"pinchmatch: {word}; {left_as_it_was(command)}", file=sys.stderr)
+    return SIGNAL_EXIT[signum]
 
 
 def _wants_local_workers(args) -> bool:

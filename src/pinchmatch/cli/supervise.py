@@ -126,12 +126,8 @@ def _published(argv: list[str]) -> bytes | None:
 def _undo(argv: list[str], published: bytes | None = None) -> str:
     """Put the command's output back as a killed run leaves it; say what it holds now."""
     command, output = _command_and_output(argv)
-    if command is None:
-        return "nothing was changed"
-    if command == "cache":
-        return "the entries not yet deleted stay in the cache"
-    if output is None:
-        return "nothing was written"
+    if command is None or command == "cache" or output is None:
+        return left_as_it_was(command)
     from ..files import remove_temporaries
 
     try:
@@ -144,11 +140,22 @@ def _undo(argv: list[str], published: bytes | None = None) -> str:
                 return "the output folder holds the new result (it was being published)"
             if command in FOLDER_COMMANDS and _published([*argv]) != published:
                 return "the output folder holds the new result (the run had finished)"
-            return "the output folder holds what it held before"
+            return left_as_it_was(command)
         remove_temporaries(output)
     except Exception as exc:  # noqa: BLE001 - the run has ended; say what could not be put back
         return f"{output} could not be put back ({exc}); the next run into it will"
-    return "nothing was written"
+    return left_as_it_was(command)
+
+
+def left_as_it_was(command: str | None) -> str:
+    """What an interrupted run of ``command`` leaves, in its words."""
+    if command in FILE_COMMANDS:
+        return "nothing was written"
+    if command is None:
+        return "nothing was changed"
+    if command == "cache":
+        return "the entries not yet deleted stay in the cache"
+    return "the output folder holds what it held before"
 
 
 def _command_and_output(argv: list[str]) -> tuple[str | None, Path | None]:
