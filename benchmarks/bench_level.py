@@ -20,7 +20,8 @@ every alternative it checks, with planes worked out here from the prop's pose an
 read from the output): each fingertip sphere and finger capsule above the prop's table and, under ``fixed``,
 above the counter the virtual object stands on (within the pad's 0.3 mm), and no approach from below.
 It prints, per run, the pinches checked, those that reach under a table (tangible, virtual), the mean cost
-and the wall time.
+and the wall time. Last, per placement, the default run over ``--seeds`` (0, 1, 2): how much each object's
+ranked cost varies with the seed, (max - min) / mean, its median and largest over the objects.
 """
 
 from __future__ import annotations
@@ -113,9 +114,29 @@ def check(doc: dict, prop_vertices: np.ndarray, lowest: dict, fixed: bool) -> tu
     return checked, tangible, virtual
 
 
+def seed_spread(folder: Path, placement: str, count: int, seeds: list[int]) -> str:
+    """One line: over ``seeds``, how much each object's ranked cost varies with the default options,
+    (max - min) / mean per object (0 where every seed costs 0), its median and largest over the objects."""
+    if len(seeds) < 2:
+        return f"{placement}: one seed, no spread"
+    costs: dict[str, list] = {}
+    for seed in seeds:
+        matches, _ = timed_match(["--tangible", str(folder / "props.toml"), "--virtual", str(folder / "kitchen.glb"),
+                                  "--split", "nodes", "--placement", placement, "--count", str(count),
+                                  "--seed", str(seed)], folder / f"out_{placement}_seed{seed}")
+        for name, m in matches.items():
+            costs.setdefault(name, []).append(m["cost"] if m.get("cost") is not None else np.inf)
+    spread = {name: (max(c) - min(c)) / np.mean(c) if np.mean(c) > 0 else 0.0 for name, c in costs.items()}
+    worst = max(spread, key=spread.get)
+    return (f"{placement}: over seeds {','.join(map(str, seeds))} the ranked cost per object varies by a median of "
+            f"{100 * float(np.median(list(spread.values()))):.1f} % (largest: {worst}, {100 * spread[worst]:.1f} %)")
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="300 poses per object instead of 1,000")
+    parser.add_argument("--seeds", default="0,1,2",
+                        help="the default run over these seeds: how much each object's ranked cost varies")
     args = parser.parse_args(argv)
     count = 300 if args.quick else 1000
     rows = [("placement", "support", "rank", "pinches", "under the prop's table", "under the counter",
@@ -144,6 +165,8 @@ def main(argv=None) -> int:
             (e_default, t_default), (e_nominal, t_nominal) = seen[("auto", "expected")], seen[("auto", "nominal")]
             summary.append(f"{placement}: mean expected cost {e_default:.3f} ranked by it, {e_nominal:.3f} ranked "
                            f"on target ({e_default / e_nominal:.2f}x); wall time {t_default / t_nominal:.2f}x")
+        for placement in ("fixed", "registered"):
+            summary.append(seed_spread(folder, placement, count, [int(x) for x in args.seeds.split(",") if x]))
     widths = [max(len(str(row[i])) for row in rows) for i in range(len(rows[0]))]
     print(f"# {len(lowest)} real objects on a counter at y = {COUNTER_Y_MM:g} mm, one scanned can as the prop, "
           f"{count} poses each; pinches: best choices and alternatives checked against the tables")

@@ -7,7 +7,9 @@ The 36 rated placements are the rebuilt study's ``paper`` and ``ref`` poses of e
 virtual object) row, with the rating means of ``data/ratings_static.csv``. Printed, each with rho
 (negative: costlier placements are rated lower; -1 is perfect):
 
-- the study's own columns: ``cost`` (the version's default) and ``cost_paper`` (the paper's algorithm);
+- the study's own columns: ``cost`` (the version's default, on target), ``cost_paper`` (the paper's
+  algorithm) and ``cost_expected`` (the default's expected cost over where guided fingers land, the cost
+  ``--rank`` ranks by; a study.json without it skips the line);
 - recomputed from each placement's per-criterion differences (JND): both poolings over the default
   criteria and over the paper's, and each criterion left out of the default;
 - the pooling exponent chosen by leaving one virtual object out (the exponent that ranks the other five
@@ -66,6 +68,10 @@ def main() -> None:
     obj = np.array([names.index(r["object"]) for r in rows])
     table = [("the study's default cost (cost)", rho([float(r["cost"]) for r in rows], rating)),
              ("the paper's cost (paper criteria, range, sum)", rho([float(r["cost_paper"]) for r in rows], rating))]
+    felt = [r.get("cost_expected") for r in rows]
+    if all(f is not None for f in felt):  # a study.json of a version that felt its placements
+        table.append(("the default's expected cost over the landings (cost_expected, what --rank ranks by)",
+                      rho([float(f) for f in felt], rating)))
     for label, criteria in (("default", DEFAULT_CRITERIA), ("paper's seven", PAPER_CRITERIA),
                             ("paper's seven + mass", PAPER_CRITERIA + ("mass",))):
         for pooling, beta in (("quick", 3.5), ("sum", 2.0)):

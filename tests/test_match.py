@@ -215,7 +215,7 @@ def test_the_pooled_lower_bound_holds_for_every_pair_with_unequal_masses(example
         T, V = with_mass(example, float(m_t)), with_mass(virtual, float(m_t * factor))
         ratios.append(mass_ratio(T, V))
         model = cost_model(MatchSettings(pooling=pooling), [T, V])
-        it, iv, separable, tau = search_module._pool(T, V, model, 50, 64, tight)
+        it, iv, separable, tau = search_module.pool_pairs(T, V, model, 50, 64, tight)
         exact = evaluate_pairs(T, V, np.repeat(np.arange(len(T)), len(V)), np.tile(np.arange(len(V)), len(T)),
                                model=model).cost.reshape(len(T), len(V))
         left_out = np.ones(exact.shape, dtype=bool)
@@ -270,7 +270,7 @@ def test_a_ball_against_a_box_is_bounded_closely_by_the_pooled_bound(tmp_path):
     (_, pooled), = pooled_bound_blocks(ball.table, block.table, model, block_rows=len(ball))
     assert (pooled <= exact * (1 + 1e-9)).all()
     assert np.median(pooled / exact) > 0.95 and np.median(model.bound_from_separable(loose) / exact) < 0.75
-    it, iv, _, tau = search_module._pool(ball, block, model, 200, 64, True)
+    it, iv, _, tau = search_module.pool_pairs(ball, block, model, 200, 64, True)
     assert tau > exact.min()  # 200 of 6,400 pairs prove the best
 
 

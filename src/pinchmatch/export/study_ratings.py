@@ -21,7 +21,7 @@ from ..match.cost import CRITERIA
 
 #: the table's columns: the placement, its rating, its cost and differences
 COLUMNS = (["pair", "object", "paper_vo", "virtual_order", "tangible_part", "pose_source", "rating", "rating_sd",
-            "cost", "cost_paper"] + [f"{c}_jnd" for c in CRITERIA])
+            "cost", "cost_paper", "cost_expected"] + [f"{c}_jnd" for c in CRITERIA])
 
 
 def static_ratings() -> list[dict]:
@@ -45,6 +45,7 @@ def static_ratings_rows(study_rows: list, virtual_names: list[str]) -> list[dict
                     **{k: rated[k] for k in ("paper_vo", "virtual_order", "tangible_part", "pose_source", "rating",
                                              "rating_sd")},
                     "cost": entry["cost"], "cost_paper": entry["cost_paper"],
+                    "cost_expected": entry.get("cost_expected"),
                     **{f"{c}_jnd": jnd.get(c) for c in CRITERIA}})
     return out
 

@@ -260,31 +260,40 @@ def ranges_from_bounds(bounds: list[np.ndarray]) -> np.ndarray:
     return ranges
 
 
-def _factors(virtual: np.ndarray) -> list[np.ndarray]:
-    """Virtual factors for both finger orders: (nv, 3 x 18) = [v² m, v m, m], m = defined."""
+def _factors(virtual: np.ndarray, spread: np.ndarray | None = None) -> list[np.ndarray]:
+    """Virtual factors for both finger orders: (nv, 3 x 18) = [(v² + σ²) m, v m, m], m = defined, σ² the
+    ``spread`` (a variance per entry, 0 without one)."""
     nv = len(virtual)
     out = []
-    for v in (virtual.reshape(nv, -1), virtual[:, ::-1].reshape(nv, -1)):
+    spread = np.zeros_like(virtual) if spread is None else spread
+    for v, var in ((virtual, spread), (virtual[:, ::-1], spread[:, ::-1])):
+        v, var = v.reshape(nv, -1), var.reshape(nv, -1)
         ok = (~np.isnan(v)).astype(np.float64)
         vv = np.nan_to_num(v)
-        out.append(np.ascontiguousarray(np.concatenate([vv * vv * ok, vv * ok, ok], axis=1).T))
+        out.append(np.ascontiguousarray(np.concatenate([(vv * vv + np.nan_to_num(var)) * ok, vv * ok, ok], axis=1).T))
     return out
 
 
-def _tangible_factors(t: np.ndarray, model: CostModel, w: np.ndarray) -> np.ndarray:
+def _tangible_factors(t: np.ndarray, model: CostModel, w: np.ndarray, spread: np.ndarray | None = None) -> np.ndarray:
     """Tangible factors of a block of rows (k, 2, 9), column weights ``w`` (18,): (k, 3 x 18)
-    [a, -2 a t, a t²] with a = weight / s² (0 where ρ is undefined), so that
-    Σ a (v - t)² m_v = [a, -2 a t, a t²] · [v² m_v, v m_v, m_v] (:func:`_factors`)."""
+    [a, -2 a t, a (t² + σ²)] with a = weight / s² (0 where ρ is undefined), so that
+    Σ a ((v - t)² + σ_v² + σ_t²) m_v = [a, -2 a t, a (t² + σ_t²)] · [(v² + σ_v²) m_v, v m_v, m_v]
+    (:func:`_factors`); σ² the ``spread`` of each entry (0 without one)."""
     s = model.scales(t).reshape(len(t), -1)
+    var = 0.0 if spread is None else np.nan_to_num(spread.reshape(len(t), -1))
     t = t.reshape(len(t), -1)
     a = np.where(np.isnan(t), 0.0, w / s**2)
     tv = np.nan_to_num(t)
-    return np.concatenate([a, -2.0 * a * tv, a * tv * tv], axis=1)
+    return np.concatenate([a, -2.0 * a * tv, a * (tv * tv + var)], axis=1)
 
 
 def pair_cost_blocks(tangible: np.ndarray, virtual: np.ndarray, model: CostModel, *, block_rows: int = 2048,
-                     with_swapped: bool = True):
+                     with_swapped: bool = True, spreads: tuple | None = None):
     """Yield ``(start, cost, swapped)`` for blocks of tangible rows: the separable cost of every pair.
+
+    With ``spreads`` (the tangible's and the virtual table's variance per entry, each shaped as its
+    table) each entry's squared difference gains both variances: the expected separable cost of two
+    independent draws around the rows (:mod:`pinchmatch.match.steady`).
 
     With ``mass`` in use, this is the lower bound of the exact cost (see the module notes);
     without it, it is the exact cost. ``swapped`` (None unless ``with_swapped``) is True where
@@ -293,12 +302,13 @@ def pair_cost_blocks(tangible: np.ndarray, virtual: np.ndarray, model: CostModel
     """
     nv = len(virtual)
     w = model.column_weights().reshape(-1)
-    v_orders = _factors(virtual)
+    t_spread, v_spread = spreads if spreads is not None else (None, None)
+    v_orders = _factors(virtual, v_spread)
     rows = max(1, min(block_rows, len(tangible)))
     buffers = np.empty((2, rows, nv))  # allocated once: no page faults per block
     for start in range(0, len(tangible), rows):
         t = tangible[start:start + rows]
-        left = _tangible_factors(t, model, w)
+        left = _tangible_factors(t, model, w, None if t_spread is None else t_spread[start:start + rows])
         c0, c1 = buffers[0, :len(t)], buffers[1, :len(t)]
         np.matmul(left, v_orders[0], out=c0)
         np.matmul(left, v_orders[1], out=c1)

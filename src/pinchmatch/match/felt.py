@@ -32,6 +32,7 @@ landings) and the worst; the match ranks by one of them (``--rank``, :mod:`pinch
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -40,7 +41,7 @@ import numpy as np
 from ..grasp.features import pinch_features
 from ..grasp.pinches import Pinches, patches
 from .candidates import Candidates, pair_terms
-from .cost import CRITERIA, CostModel, feature_table
+from .cost import CRITERIA, WIDTH_JND_FLOOR_MM, WIDTH_JND_FRACTION, CostModel, feature_table
 from .landing import LANDING_AXIS_DEG, MISS_JND, RING_POINTS, disc_offsets
 from .redirect import world_pose
 from .refine import close_fingers, move_directions
@@ -48,6 +49,8 @@ from .search import criterion_table, p_noticed
 
 #: the landing spread's standard deviation, as a share of the acceptance radius
 SIGMA_SHARE = 0.5
+#: the finest grid of :func:`landing_moments`' shared patches (mm)
+MIN_CELL_MM = 0.1
 
 
 def ring_weights(radius_mm: float, rings=RING_POINTS, sigma_share: float = SIGMA_SHARE) -> np.ndarray:
@@ -84,54 +87,163 @@ class LandingTable:
     ring: np.ndarray
 
 
+@dataclass(frozen=True)
+class _Landed:
+    """Where the fingers of k poses land (n points per finger): ``points`` (2, k, n, 3) mm, ``faces``
+    (2, k, n), -1 where the finger meets nothing (then ``aimed`` (2, k, n, 3) is where it was aimed),
+    ``line`` (k, 3) the unit pinch line, ``frame`` (k, 2, 3) the rings' directions, ``offsets`` (n, 2)."""
+
+    points: np.ndarray
+    faces: np.ndarray
+    aimed: np.ndarray
+    line: np.ndarray
+    frame: np.ndarray
+    offsets: np.ndarray
+
+
+def _land(candidates: Candidates, poses: np.ndarray, radius_mm: float, axis_deg: float, rings) -> _Landed:
+    """Each finger of each pose closed along the pinch line onto the surface, aimed at the target and at
+    the rings' points around it (:func:`disc_offsets`, in :func:`move_directions`' frame)."""
+    obj = candidates.obj
+    k = len(poses)
+    p = candidates.pinches.points[poses]  # (k, 2, 3)
+    f = candidates.pinches.face_index[poses]
+    frame = move_directions(p, obj.props.principal_axis)  # (k, 2, 3)
+    offsets = disc_offsets(radius_mm, rings)
+    n = len(offsets)
+    u = p[:, 1] - p[:, 0]
+    u = u / np.linalg.norm(u, axis=1, keepdims=True)
+    back = radius_mm * math.tan(math.radians(axis_deg)) + radius_mm + 1.0
+    landed, faces, aimed = [], [], []
+    for finger, sign in ((0, 1.0), (1, -1.0)):
+        aimed.append(p[:, finger, None, :] + np.einsum("pa,kad->kpd", offsets, frame))  # (k, n, 3)
+        toward = np.broadcast_to(sign * u[:, None, :], (k, n, 3)).reshape(-1, 3).copy()
+        contact, face = close_fingers(obj.context, aimed[-1].reshape(-1, 3), toward, back)
+        contact, face = contact.reshape(k, n, 3), face.reshape(k, n)
+        contact[:, 0], face[:, 0] = p[:, finger], f[:, finger]  # the target itself
+        landed.append(contact)
+        faces.append(face)
+    return _Landed(np.stack(landed), np.stack(faces), np.stack(aimed), u, frame, offsets)
+
+
+def _field_patches(context, points: np.ndarray, faces: np.ndarray, settings, spacing_mm: float | None):
+    """The patch at each of ``points`` (m, 3) on ``faces``: fitted at each one (``spacing_mm`` None), or
+    once per cell of a grid of that spacing and of the faces' normals, at the cell's first point, and
+    shared by the cell's points."""
+    if spacing_mm is None or not spacing_mm >= MIN_CELL_MM:  # a grid finer than that fits every point anyway
+        return patches(context, points, context.face_normals[np.maximum(faces, 0)], settings)
+    normals = context.face_normals[np.maximum(faces, 0)]
+    # a cell per place and facing (normals binned about 30 degrees wide): across an edge, each face its own
+    cells = np.concatenate([np.floor(points / spacing_mm), np.round(2.0 * normals)], axis=1).astype(np.int64)
+    _, first, inverse = np.unique(cells, axis=0, return_index=True, return_inverse=True)
+    geom = patches(context, points[first], normals[first], settings)
+    return dataclasses.replace(geom, normal=geom.normal[inverse.ravel()],
+                               kappa_max_per_m=geom.kappa_max_per_m[inverse.ravel()],
+                               kappa_min_per_m=geom.kappa_min_per_m[inverse.ravel()],
+                               dir_max=geom.dir_max[inverse.ravel()])
+
+
+def _tables(candidates: Candidates, landed: _Landed, geom, radius_mm: float, axis_deg: float, rings) -> LandingTable:
+    """The :class:`LandingTable` s of the poses ``landed`` holds, their landing points' patches ``geom``
+    (arrays of 2·k·n, in ``landed.points``' order)."""
+    _, k, n, _ = landed.points.shape
+    normal = geom.normal.reshape(2, k, n, 3)
+    kmax, kmin = geom.kappa_max_per_m.reshape(2, k, n), geom.kappa_min_per_m.reshape(2, k, n)
+    dmax = geom.dir_max.reshape(2, k, n, 3)
+    i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
+    i, j = i.ravel(), j.ravel()
+    m = k * n * n
+
+    def pair(a: np.ndarray) -> np.ndarray:  # (2, k, n, ...) per finger -> (k·n², 2, ...)
+        return np.stack([a[0][:, i], a[1][:, j]], axis=2).reshape((m, 2) + a.shape[3:])
+
+    points = pair(landed.points)
+    pairs = Pinches(points=points, normals=pair(normal), face_index=pair(landed.faces),
+                    kappa_max_per_m=pair(kmax), kappa_min_per_m=pair(kmin),
+                    dir_max=pair(dmax), feasible=np.ones(m, dtype=bool),
+                    broken=np.zeros((m, 7), dtype=bool), snap_distance_mm=np.zeros((m, 2)),
+                    approach=np.full((m, 3), np.nan), approach_clearance_mm=np.full(m, np.nan))
+    rows = feature_table(pinch_features(pairs, candidates.obj.props)).reshape(k, n * n, 2, -1)
+    met = landed.faces >= 0
+    hit = met[0][:, i] & met[1][:, j]
+    # the axis tolerance on where the fingers land; a finger that meets nothing, where it was aimed
+    ends = np.where(met[..., None], landed.points, landed.aimed)
+    axis = ends[1][:, j] - ends[0][:, i]  # (k, n², 3)
+    cos = np.einsum("kpd,kd->kp", axis, landed.line) / np.maximum(np.linalg.norm(axis, axis=2), 1e-300)
+    within = cos >= math.cos(math.radians(axis_deg)) - 1e-12
+    within[:, 0] = True  # the nominal landing is the match itself
+    w = ring_weights(radius_mm, rings)
+    weights = np.where(within, (w[i] * w[j])[None], 0.0)
+    angles = np.arctan2(landed.offsets[:, 1], landed.offsets[:, 0])
+    ring = np.concatenate([[0]] + [np.full(c, r + 1) for r, c in enumerate(rings)])
+    angles = np.where(ring == 0, 0.0, angles)
+    return LandingTable(points.reshape(k, n * n, 2, 3), rows, hit, weights, landed.frame,
+                        np.broadcast_to(angles, (k, n)), np.broadcast_to(ring, (k, n)))
+
+
+def landing_tables(candidates: Candidates, poses, radius_mm: float, settings, *,
+                   axis_deg: float = LANDING_AXIS_DEG, rings=RING_POINTS) -> LandingTable:
+    """The landings of each of ``poses`` (k,) on its own object (see the module notes), stacked: every
+    field of :class:`LandingTable` with a leading axis of k; vectorised over the poses."""
+    landed = _land(candidates, np.asarray(poses, dtype=np.int64), radius_mm, axis_deg, rings)
+    context = candidates.obj.context
+    geom = _field_patches(context, landed.points.reshape(-1, 3), landed.faces.reshape(-1), settings, None)
+    return _tables(candidates, landed, geom, radius_mm, axis_deg, rings)
+
+
 def landing_table(candidates: Candidates, pose: int, radius_mm: float, settings, *,
                   axis_deg: float = LANDING_AXIS_DEG, rings=RING_POINTS) -> LandingTable:
     """The landings of ``pose`` on its own object (see the module notes)."""
-    obj = candidates.obj
-    p = candidates.pinches.points[pose]
-    f = candidates.pinches.face_index[pose]
-    frame = move_directions(p[None], obj.props.principal_axis)[0]
-    offsets = disc_offsets(radius_mm, rings)
-    u = (p[1] - p[0]) / np.linalg.norm(p[1] - p[0])
-    back = radius_mm * math.tan(math.radians(axis_deg)) + radius_mm + 1.0
-    landed, faces, aimed = [], [], []
-    for k, toward in ((0, u), (1, -u)):
-        aimed.append(p[k] + offsets @ frame)
-        contact, face = close_fingers(obj.context, aimed[-1], np.broadcast_to(toward, (len(offsets), 3)).copy(), back)
-        contact[0], face[0] = p[k], f[k]  # the target itself
-        landed.append(contact)
-        faces.append(face)
-    n = len(offsets)
-    met = [fc >= 0 for fc in faces]
-    # patches once per landing point (a pair's features are made of its two points')
-    geom = patches(obj.context, np.concatenate(landed), obj.context.face_normals[np.maximum(np.concatenate(faces), 0)],
-                   settings)
-    i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
-    i, j = i.ravel(), j.ravel()
-    normal = geom.normal.reshape(2, n, 3)
-    kmax, kmin = geom.kappa_max_per_m.reshape(2, n), geom.kappa_min_per_m.reshape(2, n)
-    dmax = geom.dir_max.reshape(2, n, 3)
-    points = np.stack([landed[0][i], landed[1][j]], axis=1)
-    pairs = Pinches(points=points, normals=np.stack([normal[0][i], normal[1][j]], axis=1),
-                    face_index=np.stack([faces[0][i], faces[1][j]], axis=1),
-                    kappa_max_per_m=np.stack([kmax[0][i], kmax[1][j]], axis=1),
-                    kappa_min_per_m=np.stack([kmin[0][i], kmin[1][j]], axis=1),
-                    dir_max=np.stack([dmax[0][i], dmax[1][j]], axis=1), feasible=np.ones(n * n, dtype=bool),
-                    broken=np.zeros((n * n, 7), dtype=bool), snap_distance_mm=np.zeros((n * n, 2)),
-                    approach=np.full((n * n, 3), np.nan), approach_clearance_mm=np.full(n * n, np.nan))
-    rows = feature_table(pinch_features(pairs, obj.props))
-    hit = met[0][i] & met[1][j]
-    # the axis tolerance on where the fingers land; a finger that meets nothing, where it was aimed
-    ends = [np.where(m[:, None], c, a) for m, c, a in zip(met, landed, aimed)]
-    axis = ends[1][j] - ends[0][i]
-    cos = axis @ u / np.maximum(np.linalg.norm(axis, axis=1), 1e-300)
-    within = cos >= math.cos(math.radians(axis_deg)) - 1e-12
-    within[0] = True  # the nominal landing is the match itself
-    w = ring_weights(radius_mm, rings)
-    weights = np.where(within, w[i] * w[j], 0.0)
-    angles = np.arctan2(offsets[:, 1], offsets[:, 0])
-    ring = np.concatenate([[0]] + [np.full(c, k + 1) for k, c in enumerate(rings)])
-    return LandingTable(points, rows, hit, weights, frame, np.where(ring == 0, 0.0, angles), ring)
+    stacked = landing_tables(candidates, [pose], radius_mm, settings, axis_deg=axis_deg, rings=rings)
+    return LandingTable(*(getattr(stacked, f.name)[0] for f in dataclasses.fields(LandingTable)))
+
+
+#: poses whose landings are made at once by :func:`landing_moments` (memory: about 0.2 MB a pose)
+MOMENT_CHUNK = 128
+
+
+def landing_moments(candidates: Candidates, radius_mm: float, settings, *, poses=None,
+                    axis_deg: float = LANDING_AXIS_DEG, rings=RING_POINTS,
+                    patch_spacing_mm: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """What each pose's landings feel like on its own object, as the mean and the variance of their
+    feature-table rows: (k, 2, 9) each, weighed by the landing weights (:class:`LandingTable`) over the
+    landings that touch, NaN entries (undefined ρ) left out. A landing where a finger meets nothing adds,
+    in proportion to its weight, a spread of :data:`MISS_JND` JNDs of width to both patches. Over
+    ``poses`` (default every one), ``MOMENT_CHUNK`` at a time. With ``patch_spacing_mm`` the landing
+    points' patches are fitted once per cell of a grid of that spacing (shared by the cell's points, over
+    every pose), not at each point."""
+    poses = np.arange(len(candidates)) if poses is None else np.asarray(poses, dtype=np.int64)
+    landed = _land(candidates, poses, radius_mm, axis_deg, rings)
+    geom = _field_patches(candidates.obj.context, landed.points.reshape(-1, 3), landed.faces.reshape(-1), settings,
+                          patch_spacing_mm)
+    n = landed.points.shape[2]
+    fields = ("normal", "kappa_max_per_m", "kappa_min_per_m", "dir_max")
+    per_point = {f: getattr(geom, f).reshape((2, len(poses), n) + getattr(geom, f).shape[1:]) for f in fields}
+    mean = np.empty((len(poses), 2, candidates.table.shape[-1]))
+    var = np.empty_like(mean)
+    for start in range(0, len(poses), MOMENT_CHUNK):
+        sl = slice(start, start + MOMENT_CHUNK)
+        part = poses[sl]
+        chunk = _Landed(landed.points[:, sl], landed.faces[:, sl], landed.aimed[:, sl], landed.line[sl],
+                        landed.frame[sl], landed.offsets)
+        chunk_geom = dataclasses.replace(geom, **{f: per_point[f][:, sl].reshape((-1,) + per_point[f].shape[3:])
+                                                  for f in fields})
+        t = _tables(candidates, chunk, chunk_geom, radius_mm, axis_deg, rings)
+        w_all = t.weights / t.weights.sum(axis=1, keepdims=True)
+        w = np.where(t.hit, w_all, 0.0)[:, :, None, None] * ~np.isnan(t.rows)  # (k, n², 2, 9)
+        total = w.sum(axis=1)
+        safe = np.where(total > 0, total, 1.0)
+        rows = np.nan_to_num(t.rows)
+        m = (w * rows).sum(axis=1) / safe
+        v = (w * (rows - m[:, None]) ** 2).sum(axis=1) / safe
+        target = candidates.table[part]
+        m = np.where(total > 0, m, target)
+        v = np.where(total > 0, v, 0.0)
+        missed = (w_all * ~t.hit).sum(axis=1)  # (k,)
+        width_jnd = np.maximum(WIDTH_JND_FRACTION * np.abs(m[:, :, 0]), WIDTH_JND_FLOOR_MM)
+        v[:, :, 0] += missed[:, None] * (MISS_JND * width_jnd) ** 2
+        mean[start:start + len(part)], var[start:start + len(part)] = m, v
+    return mean, var
 
 
 class FeltTables:
@@ -141,12 +253,24 @@ class FeltTables:
     def __init__(self, radius_mm: float, settings):
         self.radius_mm, self.settings = float(radius_mm), settings
         self._tables: dict[tuple[int, int], tuple[Candidates, LandingTable]] = {}
+        #: the :class:`Felt` of choices felt already, by their search (kept alive by the caller) and pose pair
+        self.felt: dict[tuple, Felt] = {}
 
     def table(self, candidates: Candidates, pose: int) -> LandingTable:
-        key = (id(candidates), int(pose))  # the candidates are kept with their tables: an id is never reused
-        if key not in self._tables:
-            self._tables[key] = (candidates, landing_table(candidates, pose, self.radius_mm, self.settings))
-        return self._tables[key][1]
+        self.prefetch(candidates, [pose])
+        return self._tables[(id(candidates), int(pose))][1]
+
+    def prefetch(self, candidates: Candidates, poses) -> None:
+        """Make the tables of ``poses`` of ``candidates`` that are not made yet, at once (a table does not
+        depend on which others are made with it)."""
+        # the candidates are kept with their tables: an id is never reused while they are
+        missing = sorted({int(p) for p in poses} - {p for c, p in self._tables if c == id(candidates)})
+        if not missing:
+            return
+        stacked = landing_tables(candidates, missing, self.radius_mm, self.settings)
+        for k, pose in enumerate(missing):
+            one = LandingTable(*(getattr(stacked, f.name)[k] for f in dataclasses.fields(LandingTable)))
+            self._tables[(id(candidates), pose)] = (candidates, one)
 
 
 def _matched_points(t: LandingTable, v: LandingTable, R: np.ndarray) -> np.ndarray:

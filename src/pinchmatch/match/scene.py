@@ -26,13 +26,14 @@ from .reference import Reference, reference_pose
 from .refine import refined_search
 from .redirect import redirection
 from ..config import Config, config_of
-from .search import Choice, MatchSettings, Search, cost_model, cost_row, p_noticed
+from .search import Choice, MatchSettings, Search, cost_model, cost_row, p_noticed, pinch_distance
+from .steady import STEADY_CHOICES, SteadySearch
 
 
-#: unless ``--rank nominal``, this many distinct best choices on target (or top_k + 1, if more) are ranked
-#: by their cost over the landings
-RANKED_CHOICES = 64
-#: and per tangible, for its row of the cost matrix (what select and design rank props by), this many
+#: unless ``--rank nominal``, this many distinct best choices on target (or top_k + 1, if more) and the
+#: steady search's ``STEADY_CHOICES`` are ranked by their cost over the landings
+RANKED_CHOICES = 32
+#: and per tangible, for its row of the cost matrix (what select and design rank props by), this many of each
 ROW_CHOICES = 3
 
 
@@ -129,14 +130,16 @@ def match_one(tangibles: list[Candidates], virtual: Candidates, config: Config, 
     settings, pinch = config.match, config.pinch
     search = search or refined_search(tangibles, virtual, model, settings, pinch_settings=pinch)
     tables = FeltTables(settings.landing_mm, pinch)
-    row, noticed = ranked_row(search, cost_row(search, 0), tables)
+    steady = steady_search(search, tangibles, virtual, pinch)
+    row, noticed = ranked_row(search, cost_row(search, 0), tables, steady)
     allowed = allowed or (list(range(len(tangibles))), None)
     if not details:
-        picks = [p for p, _ in _felt(search, search.choices(0, allowed[0], 1), tables)] if allowed[0] else []
-        picks = [dataclasses.replace(p, virtual=index) for p in picks]
+        picks = _ranked(search, steady, allowed[0], 1, tables) if allowed[0] else []
+        picks = [dataclasses.replace(p, virtual=index) for p, _ in picks]
         return VirtualMatch(index, picks[0] if picks else None, [], None if picks else allowed[1], None,
                             virtual.name, list(search.tangibles), search.virtuals[0], row=row, row_noticed=noticed)
-    vm = _placed(search, allowed, pinch_settings=pinch, index=index, probes=probes, tables=tables)
+    vm = _placed(search, allowed, pinch_settings=pinch, index=index, probes=probes, tables=tables,
+                 sampled=(tangibles, virtual), steady=steady)
     return dataclasses.replace(vm, row=row, row_noticed=noticed)
 
 
@@ -190,28 +193,74 @@ def allowed_tangibles(cost_matrix: np.ndarray, settings: MatchSettings) -> list[
             for j in range(m)]
 
 
+def steady_search(search: Search, tangibles: list[Candidates], virtual: Candidates,
+                  pinch_settings: PinchSettings) -> SteadySearch | None:
+    """The steady search beside ``search`` (over the sampled ``tangibles`` and ``virtual``), or None where
+    the match ranks on target (``--rank nominal``, or a landing radius of 0)."""
+    settings = search.settings
+    if settings.rank == "nominal" or settings.landing_mm <= 0:
+        return None
+    return SteadySearch(search, tangibles, virtual, settings.landing_mm, pinch_settings)
+
+
 def _felt(search: Search, picks: list, tables: FeltTables) -> list[Choice]:
     """The picks with their ranked cost and its chance of being noticed (``--rank``), the landing kept."""
     rank, out = search.settings.rank, []
+    if tables.radius_mm > 0:  # the landing tables of every pick at once
+        for t in sorted({p.tangible for p in picks}):
+            tables.prefetch(search.tangibles[t], [p.t_pose for p in picks if p.tangible == t])
+        tables.prefetch(search.virtuals[0], [p.v_pose for p in picks])
     for p in picks:
-        felt = felt_cost(search.tangibles[p.tangible], search.virtuals[0], p, search.model, tables)
+        key = (id(search), p.tangible, p.t_pose, p.v_pose, p.swapped)
+        if key not in tables.felt:
+            tables.felt[key] = felt_cost(search.tangibles[p.tangible], search.virtuals[0], p, search.model, tables)
+        felt = tables.felt[key]
         out.append((dataclasses.replace(p, cost=felt.ranked(rank), p_noticed=felt.ranked_p_noticed(rank)), felt))
     return out
 
 
+def _ranked(search: Search, steady: SteadySearch | None, allowed: list[int], count: int,
+            tables: FeltTables, *, nominal: int = RANKED_CHOICES, by_steady: int = STEADY_CHOICES) -> list:
+    """Up to ``count`` distinct best (choice, felt) of virtual object 0 among the ``allowed`` tangibles.
+
+    Ranked on target (``steady`` None): the search's ``count`` best, exact. Else the ``nominal`` best
+    distinct on target and the steady search's ``by_steady`` best distinct, each felt exactly
+    (:mod:`pinchmatch.match.felt`), by ``--rank``'s cost; ties by the cost on target, then tangible and
+    poses; none a near duplicate of a better one."""
+    if steady is None:
+        return _felt(search, search.choices(0, allowed, count), tables)
+    picks = search.choices(0, allowed, max(count, nominal)) + steady.choices(allowed, max(count, by_steady))
+    felt = sorted(_felt(search, picks, tables),
+                  key=lambda pf: (pf[0].cost, pf[0].cost_nominal, pf[0].tangible, pf[0].t_pose, pf[0].v_pose))
+    out: list = []
+    for choice, f in felt:
+        if len(out) >= count:
+            break
+        if not any(_near(choice, other, search.settings.distinct_mm) for other, _ in out):
+            out.append((choice, f))
+    return out
+
+
+def _near(a: Choice, b: Choice, distinct_mm: float) -> bool:
+    """Is ``a`` a near duplicate of ``b`` (the same tangible, both pinches within ``distinct_mm``)?"""
+    def pinch(pose):
+        return np.array([pose.p1_mm, pose.p2_mm])
+
+    return a.tangible == b.tangible and all(
+        float(pinch_distance(pinch(x)[None], pinch(y))[0]) < distinct_mm
+        for x, y in ((a.tangible_pose, b.tangible_pose), (a.virtual_pose, b.virtual_pose)))
+
+
 def _match(search: Search, allowed: list[int], reason: str | None, *, pinch_settings: PinchSettings,
-           index: int = 0, probes: dict | None = None, tables: FeltTables | None = None) -> VirtualMatch:
-    """The result of a one-virtual-object search, as the scene's virtual object ``index``: the
-    ``RANKED_CHOICES`` best distinct choices on target (exact), ranked by ``--rank``'s cost over their
-    landings (:mod:`pinchmatch.match.felt`), ties by the cost on target."""
+           index: int = 0, probes: dict | None = None, tables: FeltTables | None = None,
+           steady: SteadySearch | None = None) -> VirtualMatch:
+    """The result of a one-virtual-object search, as the scene's virtual object ``index``: its best
+    choice and alternatives by :func:`_ranked`."""
     settings, virtual = search.settings, search.virtuals[0]
     tables = tables or FeltTables(settings.landing_mm, pinch_settings)
     count = settings.top_k + 1
-    ranked = settings.rank != "nominal"
-    picks = search.choices(0, allowed, max(count, RANKED_CHOICES) if ranked else count) if allowed else []
-    picks = [dataclasses.replace(p, virtual=index) for p in picks]
-    felt = _felt(search, picks, tables)
-    felt = sorted(felt, key=lambda pf: pf[0].cost)[:count] if ranked else felt  # stable: ties keep the search's order
+    felt = _ranked(search, steady, allowed, count, tables) if allowed else []
+    felt = [(dataclasses.replace(p, virtual=index), f) for p, f in felt]
     picks = [p for p, _ in felt]
     if not picks and reason is None:
         reason = "no registration is allowed: every one flips the virtual object (--keep-upright)"
@@ -227,30 +276,32 @@ def _match(search: Search, allowed: list[int], reason: str | None, *, pinch_sett
                         list(search.tangibles), virtual, landed)
 
 
-def ranked_row(search: Search, row: np.ndarray, tables: FeltTables) -> tuple[np.ndarray, np.ndarray]:
-    """(n,) the ranked cost of virtual object 0 on each tangible (the best of its ``ROW_CHOICES`` best
-    distinct choices on target, re-ranked) and (n,) whether that choice is noticed at least half of the
-    time; inf and True where no registration is allowed."""
-    rank = search.settings.rank
+def ranked_row(search: Search, row: np.ndarray, tables: FeltTables,
+               steady: SteadySearch | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(n,) the ranked cost of virtual object 0 on each tangible and (n,) whether that choice is noticed
+    at least half of the time; inf and True where no registration is allowed. Ranked on target (``steady``
+    None) the row is the search's least cost; else the best of :func:`_ranked` over ``ROW_CHOICES`` of each
+    kind."""
     cost, loud = np.full(len(row), np.inf), np.ones(len(row), dtype=bool)
     for t in np.flatnonzero(np.isfinite(row)):
-        if rank == "nominal":  # on target: no landing needed
+        if steady is None:  # on target: no landing needed
             best = search.choices(0, [int(t)], 1)[0]
             cost[t], loud[t] = row[t], p_noticed(search.tangibles[t], search.virtuals[0], best, search.model) >= 0.5
             continue
-        picks = _felt(search, search.choices(0, [int(t)], ROW_CHOICES), tables)
-        best = min(picks, key=lambda pf: pf[0].cost)[0]
+        best = _ranked(search, steady, [int(t)], 1, tables, nominal=ROW_CHOICES, by_steady=ROW_CHOICES)[0][0]
         cost[t], loud[t] = best.cost, best.p_noticed >= 0.5
     return cost, loud
 
 
 def _placed(search: Search, allowed: tuple, *, pinch_settings: PinchSettings, index: int = 0,
-            probes: dict | None = None, tables: FeltTables | None = None) -> VirtualMatch:
+            probes: dict | None = None, tables: FeltTables | None = None, sampled: tuple | None = None,
+            steady: SteadySearch | None = None) -> VirtualMatch:
     """The virtual object's match; under ``placement="fixed"`` with its redirection, or the carousel's
     (registered) match where no pair is within the redirection budget, or where the best redirected
     pair would be noticed (``p_noticed`` of at least 0.5) and the carousel's would not."""
     tables = tables or FeltTables(search.settings.landing_mm, pinch_settings)
-    vm = _match(search, *allowed, pinch_settings=pinch_settings, index=index, probes=probes, tables=tables)
+    vm = _match(search, *allowed, pinch_settings=pinch_settings, index=index, probes=probes, tables=tables,
+                steady=steady)
     settings = search.settings
     if settings.redirect is None:
         return vm
@@ -259,7 +310,8 @@ def _placed(search: Search, allowed: tuple, *, pinch_settings: PinchSettings, in
         registered = dataclasses.replace(settings, placement="registered")
         carousel = refined_search(search.tangibles, search.virtuals[0], search.model, registered,
                                   pinch_settings=pinch_settings)
-        served = _match(carousel, *allowed, pinch_settings=pinch_settings, index=index, probes=probes, tables=tables)
+        served = _match(carousel, *allowed, pinch_settings=pinch_settings, index=index, probes=probes, tables=tables,
+                        steady=steady_search(carousel, *sampled, pinch_settings) if sampled else None)
         if vm.best is None or (served.best is not None and not _noticed(served, search.model)):
             vm, mode = served, "carousel"
     if vm.best is None:

@@ -93,7 +93,7 @@ class PairResult:
     redirect_terms: np.ndarray
 
 
-def _take(result: PairResult, keep) -> PairResult:
+def take_pairs(result: PairResult, keep) -> PairResult:
     return PairResult(**{f.name: getattr(result, f.name)[keep] for f in dataclasses.fields(result)})
 
 
@@ -167,22 +167,29 @@ def evaluate_pairs(
     })
 
 
-def _pool(tangible: Candidates, virtual: Candidates, model: CostModel, size: int, block_rows: int,
-          tight: bool = False):
+def pool_pairs(tangible: Candidates, virtual: Candidates, model: CostModel, size: int, block_rows: int,
+               tight: bool = False, moments: tuple | None = None):
     """The ``size`` pose pairs with the smallest separable sum (``tight``: the smallest pooled
     bound, :func:`pinchmatch.match.cost.pooled_bound_blocks`), and tau, a cost no pair left out is below.
+    With ``moments`` ((mean, variance) of the tangible's rows, the same of the virtual's), the sum is the
+    expected one of :mod:`pinchmatch.match.steady` over the first ``len(mean)`` poses of each.
 
     Returns (it, iv, separable sum or bound, tau); tau is inf when no pair was left out.
     """
-    nv = len(virtual)
+    ratio = mass_ratio(tangible, virtual)
+    t_table, v_table, spreads = tangible.table, virtual.table, None
+    if moments is not None:
+        (t_table, t_var), (v_table, v_var) = moments
+        spreads = (t_var, felt_table(felt_table(v_var, ratio), ratio))  # a variance scales by the ratio squared
+    nv = len(v_table)
     kept_val = np.zeros(0)
     kept_idx = np.zeros(0, dtype=np.int64)
     tau = np.inf
-    felt = felt_table(virtual.table, mass_ratio(tangible, virtual))
+    felt = felt_table(v_table, ratio)
     if tight:
-        blocks = ((start, bound, None) for start, bound in pooled_bound_blocks(tangible.table, felt, model))
+        blocks = ((start, bound, None) for start, bound in pooled_bound_blocks(t_table, felt, model))
     else:
-        blocks = pair_cost_blocks(tangible.table, felt, model, block_rows=block_rows, with_swapped=False)
+        blocks = pair_cost_blocks(t_table, felt, model, block_rows=block_rows, with_swapped=False, spreads=spreads)
     for start, block, _ in blocks:
         flat = block.ravel()
         if not np.isfinite(tau) and flat.size > 4 * size:
@@ -319,7 +326,7 @@ class Search:
             return old
         T, V = self.tangibles[t], self.virtuals[j]
         size = size or initial_pool(len(T), len(V))
-        it, iv, _, tau = _pool(T, V, self.model, size, self.settings.block_rows, self._tight(size, T, V))
+        it, iv, _, tau = pool_pairs(T, V, self.model, size, self.settings.block_rows, self._tight(size, T, V))
         it, iv, result = self._below(T, V, it, iv, tau)
         pool = _PairPool(t, it, iv, result, tau, size)
         self.pools[(j, t)] = pool
@@ -341,7 +348,7 @@ class Search:
                                     redirect=self.settings.redirect)
             below = np.flatnonzero(result.cost < tau)
             keep.append(start + below)
-            parts.append(_take(result, below))
+            parts.append(take_pairs(result, below))
         keep = np.concatenate(keep)
         return it[keep], iv[keep], _concat(parts)
 
@@ -357,14 +364,14 @@ class Search:
             for t_rows, v_rows in ((np.arange(n_t, len(T)), np.arange(len(V))), (np.arange(n_t), np.arange(n_v, len(V)))):
                 if not len(t_rows) or not len(v_rows):
                     continue
-                it, iv, _, block_tau = _pool(T.subset(t_rows), V.subset(v_rows), self.model, old.size,
+                it, iv, _, block_tau = pool_pairs(T.subset(t_rows), V.subset(v_rows), self.model, old.size,
                                              self.settings.block_rows, self._tight(old.size, T, V))
                 tau = min(tau, block_tau)
                 parts.append(out._below(T, V, t_rows[it], v_rows[iv], block_tau))
             it, iv = np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
             result = _concat([p[2] for p in parts])
             keep = np.flatnonzero(result.cost < tau)
-            out.pools[(j, t)] = _PairPool(t, it[keep], iv[keep], _take(result, keep), tau, old.size)
+            out.pools[(j, t)] = _PairPool(t, it[keep], iv[keep], take_pairs(result, keep), tau, old.size)
         return out
 
     def best_cost(self, j: int, t: int) -> float:
@@ -387,35 +394,47 @@ class Search:
             self.pool(j, smallest.tangible, smallest.size * 4)
 
     def _greedy(self, j, pools, tau, count) -> list[Choice]:
-        V = self.virtuals[j]
         entries = [(p, np.flatnonzero(np.isfinite(p.result.cost) & (p.result.cost < tau))) for p in pools]
-        cost = np.concatenate([p.result.cost[ok] for p, ok in entries])
-        owner = np.concatenate([np.full(len(ok), k) for k, (_, ok) in enumerate(entries)])
-        local = np.concatenate([ok for _, ok in entries])
-        t_pinch = np.concatenate([self.tangibles[p.tangible].pinches.points[p.it[ok]] for p, ok in entries])
-        v_pinch = np.concatenate([V.pinches.points[p.iv[ok]] for p, ok in entries])
-        it = np.concatenate([p.it[ok] for p, ok in entries])
-        iv = np.concatenate([p.iv[ok] for p, ok in entries])
-        order = np.lexsort((iv, it, owner, cost))  # by cost; ties by tangible and poses, whatever the pools
-        alive = np.ones(len(cost), dtype=bool)
+        return self.distinct_choices(j, [(p.tangible, p.it[ok], p.iv[ok], take_pairs(p.result, ok)) for p, ok in entries],
+                                     [p.result.cost[ok] for p, ok in entries], count)
+
+    def distinct_choices(self, j: int, parts: list, keys: list, count: int) -> list[Choice]:
+        """Up to ``count`` choices of virtual j picked greedily by ``keys`` (one array per part, lower first;
+        ties by tangible and poses) among ``parts`` [(tangible, it, iv, PairResult)], none a near duplicate
+        of an earlier pick (module notes)."""
+        V = self.virtuals[j]
+        key = np.concatenate(keys) if keys else np.zeros(0)
+        owner = np.concatenate([np.full(len(it), t) for t, it, _, _ in parts]) if parts else np.zeros(0, np.int64)
+        local = np.concatenate([np.arange(len(it)) for _, it, _, _ in parts]) if parts else np.zeros(0, np.int64)
+        it = np.concatenate([it for _, it, _, _ in parts]) if parts else np.zeros(0, np.int64)
+        iv = np.concatenate([iv for _, _, iv, _ in parts]) if parts else np.zeros(0, np.int64)
+        if not len(key):
+            return []
+        t_pinch = np.concatenate([self.tangibles[t].pinches.points[p_it] for t, p_it, _, _ in parts])
+        v_pinch = V.pinches.points[iv]
+        by_owner = {t: k for k, (t, _, _, _) in enumerate(parts)}
+        order = np.lexsort((iv, it, owner, key))  # by key; ties by tangible and poses, whatever the pools
+        alive = np.ones(len(key), dtype=bool)
         picks: list[Choice] = []
         for i in order:
             if len(picks) >= count:
                 break
             if not alive[i]:
                 continue
-            p, k = entries[owner[i]][0], local[i]
-            r = p.result
-            T, fixed = self.tangibles[p.tangible], self.settings.redirect is not None
-            picks.append(Choice(j, p.tangible, int(p.it[k]), int(p.iv[k]), float(r.cost[k]), r.terms[k],
-                                bool(r.swapped[k]), r.transform[k], bool(r.flipped[k]), r.mass_delta_mm[k],
-                                T.name, V.name, r.redirect_terms[k] if fixed else None,
-                                placed_transform(T.obj.spec) if fixed else r.transform[k],
-                                Pose.of(T, int(p.it[k])), Pose.of(V, int(p.iv[k]), bool(r.swapped[k]))))
+            _, _, _, r = parts[by_owner[owner[i]]]
+            picks.append(self.choice(j, int(owner[i]), int(it[i]), int(iv[i]), r, int(local[i])))
             near = (owner == owner[i]) & (pinch_distance(t_pinch, t_pinch[i]) < self.settings.distinct_mm) \
                 & (pinch_distance(v_pinch, v_pinch[i]) < self.settings.distinct_mm)
             alive &= ~near
         return picks
+
+    def choice(self, j: int, t: int, it: int, iv: int, r: PairResult, k: int) -> Choice:
+        """The :class:`Choice` of virtual j's pose ``iv`` on tangible t's pose ``it``, evaluated as ``r[k]``."""
+        T, V, fixed = self.tangibles[t], self.virtuals[j], self.settings.redirect is not None
+        return Choice(j, t, it, iv, float(r.cost[k]), r.terms[k], bool(r.swapped[k]), r.transform[k], bool(r.flipped[k]),
+                      r.mass_delta_mm[k], T.name, V.name, r.redirect_terms[k] if fixed else None,
+                      placed_transform(T.obj.spec) if fixed else r.transform[k],
+                      Pose.of(T, it), Pose.of(V, iv, bool(r.swapped[k])))
 
 
 def cost_row(search: "Search", j: int) -> np.ndarray:

@@ -33,9 +33,11 @@ from ..grasp.analysis import analyze_object
 from ..grasp.pinches import PinchSettings
 from ..match.candidates import Candidates, candidate_poses, merge_candidates
 from ..match.cost import CRITERIA, PAPER_CRITERIA
+from ..match.felt import FeltTables, felt_cost
 from ..match.reference import line_contacts, reference_cost, reference_pose
+from ..match.refine import extend
 from ..match.scene import SceneMatch, match_scene
-from ..match.search import MatchSettings, cost_model, evaluate_pairs
+from ..match.search import Choice, MatchSettings, cost_model, evaluate_pairs
 from ..mesh.shapes import stacked_prop
 
 PARTS = ("cylinder", "cube", "cone")
@@ -91,8 +93,16 @@ def write_study_meshes(folder: Path, *, sections: int = 96) -> tuple[Path, list[
     return tangible, names
 
 
+def _expected(tangible: Candidates, t_pose: int, virtual: Candidates, v_pose: int, *, cost, terms, swapped,
+              transform, model, tables: FeltTables) -> float:
+    """The expected cost over the landings (:mod:`pinchmatch.match.felt`) of a rated pose pair."""
+    choice = Choice(0, 0, int(t_pose), int(v_pose), float(cost), np.asarray(terms), bool(swapped),
+                    np.asarray(transform), False, np.zeros(3))
+    return felt_cost(tangible, virtual, choice, model, tables).expected
+
+
 def _pose_entry(order, candidates: Candidates, v_pose: int, *, points=None, flipped, cost, cost_paper,
-                reason=None, transform=None, swapped=False, terms=None) -> dict:
+                reason=None, transform=None, swapped=False, terms=None, cost_expected=None) -> dict:
     """One virtual pose of a row. ``transform`` (virtual -> tangible, mm), ``swapped`` (the virtual p1
     lies on the tangible's p2) and ``terms`` (each criterion's contribution in JND², under our
     criteria) describe the pose pair as the headset's study shows and rates it."""
@@ -106,6 +116,7 @@ def _pose_entry(order, candidates: Candidates, v_pose: int, *, points=None, flip
         "flipped": flipped,
         "cost": json_number(cost) if cost is not None else None,
         "cost_paper": json_number(cost_paper) if cost_paper is not None else None,
+        "cost_expected": json_number(cost_expected) if cost_expected is not None else None,
         "reason": reason,
     }
     if transform is not None and terms is not None:
@@ -153,6 +164,14 @@ def run_study(folder: Path, *, full: bool = False, settings: PinchSettings = Pin
             # the paper's pose in the paper's finger order, judged by our criteria
             paper_pair = evaluate_pairs(tangible, V, it[:1], iv[k_paper:k_paper + 1], model=ours_model,
                                         swapped=bool(paper.swapped[k_paper]))
+            tables = FeltTables(match_settings.landing_mm, settings)
+            felt = {name: _expected(tangible, i, V, k, cost=r.cost[n], terms=r.terms[n], swapped=r.swapped[n],
+                                    transform=r.transform[n], model=ours_model, tables=tables)
+                    for name, r, k, n in (("ours", ours, k_ours, k_ours), ("paper", paper_pair, k_paper, 0))}
+            if ref.pinches is not None:  # the reference's virtual pinch, placed as the files place it
+                with_ref = extend(V, ref.pinches)
+                felt["ref"] = _expected(tangible, i, with_ref, len(V), cost=ref.cost, terms=ref.terms, swapped=False,
+                                        transform=np.eye(4), model=ours_model, tables=tables)
             rows.append({
                 "tangible_part": t_part,
                 "tangible_height_mm": float(TANGIBLE_HEIGHTS_MM[i]),
@@ -163,15 +182,16 @@ def run_study(folder: Path, *, full: bool = False, settings: PinchSettings = Pin
                 "ours": _pose_entry(order, V, k_ours, flipped=bool(ours.flipped[k_ours]),
                                     cost=ours.cost[k_ours], cost_paper=paper.cost[k_ours],
                                     transform=ours.transform[k_ours], swapped=ours.swapped[k_ours],
-                                    terms=ours.terms[k_ours]),
+                                    terms=ours.terms[k_ours], cost_expected=felt["ours"]),
                 "paper": _pose_entry(order, V, k_paper, flipped=bool(paper.flipped[k_paper]),
                                      cost=paper_pair.cost[0], cost_paper=paper.cost[k_paper],
                                      transform=paper_pair.transform[0], swapped=paper_pair.swapped[0],
-                                     terms=paper_pair.terms[0]),
+                                     terms=paper_pair.terms[0], cost_expected=felt["paper"]),
                 "ref": _pose_entry(order, V, 0, points=ref.pinches.points[0] if ref.pinches is not None else None,
                                    flipped=ref.flipped,
                                    cost=ref.cost, cost_paper=reference_cost(tangible, i, V, ref, paper_model),
-                                   reason=ref.reason, transform=np.eye(4), terms=ref.terms),
+                                   reason=ref.reason, transform=np.eye(4), terms=ref.terms,
+                                   cost_expected=felt.get("ref")),
             })
     say("matching the scene")
     scene = match_scene([tangible], virtuals, settings=match_settings, model=ours_model)
