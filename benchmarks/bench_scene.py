@@ -11,9 +11,11 @@ y up) on a spiral around one prop, from 45 mm to 400 mm from its axis. The prop:
 Both placements run side by side, as ``pinchmatch match`` runs from the command line: ``--placement
 fixed`` (the objects stay; the hand is redirected, or the carousel serves) and ``--placement
 registered``. Per object it prints the distance from the prop, the mode, the redirection angle as
-reported and as recomputed here from the reported targets and hand start, the fixed and the registered
-cost, and how far the chosen tangible pinch moved between the two (mm, the larger contact
-displacement); then the split, the largest disagreement of the angles and the wall times.
+reported and as recomputed here from the reported targets and hand start, the reach gain, the redirected
+and the carousel's cost, the fixed and the registered cost, and how far the chosen tangible pinch moved
+between the two (mm, the larger contact displacement); then the redirects that cost more than their
+carousel plus the margin (none, by the rule), the gains, the split, the largest disagreement of the angles
+and the wall times side by side.
 """
 
 from __future__ import annotations
@@ -88,22 +90,32 @@ def main(argv=None) -> int:
         placed = build_level(folder)
         fixed, t_fixed = run(folder, "fixed", count)
         registered, t_registered = run(folder, "registered", count)
-    head = ("object", "from prop mm", "mode", "angle deg", "recomputed", "fixed cost", "registered cost",
-            "pinch moved mm")
+    head = ("object", "from prop mm", "mode", "angle deg", "recomputed", "gain", "redirect cost", "carousel cost",
+            "fixed cost", "registered cost", "pinch moved mm")
     rows, worst = [head], 0.0
     for node, distance in placed:
         m, r = fixed[node], registered[node]
         red = m["redirection"]
         again = angle_deg(red["hand_start_mm"], red["physical_target_mm"], red["virtual_target_mm"])
         worst = max(worst, abs(again - red["angle_deg"]))
+        def cost(value):
+            return "-" if value is None else f"{value:.3g}"
+
         rows.append((node, f"{distance:.0f}", red["mode"], f"{red['angle_deg']:.2f}", f"{again:.2f}",
+                     f"{red['gain']:.3f}", cost(red.get("redirect_cost")), cost(red.get("carousel_cost")),
                      f"{m['cost']:.3g}", f"{r['cost']:.3g}", f"{pinch_moved_mm(m, r):.1f}"))
     widths = [max(len(str(row[i])) for row in rows) for i in range(len(head))]
     print(f"# {len(placed)} real objects around one prop, {count} poses each")
     for row in rows:
         print("  ".join(str(c).rjust(w) for c, w in zip(row, widths)))
     modes = [fixed[node]["redirection"]["mode"] for node, _ in placed]
-    print(f"\nredirect {modes.count('redirect')}, carousel {modes.count('carousel')}; largest difference between "
+    beyond = sum(fixed[node]["redirection"].get("redirect_cost") is None for node, _ in placed)
+    over = [node for node, _ in placed if fixed[node]["redirection"]["mode"] == "redirect"
+            and fixed[node]["redirection"]["redirect_cost"] > fixed[node]["redirection"]["carousel_cost"] + 0.5]
+    gains = [fixed[node]["redirection"]["gain"] for node, _ in placed if fixed[node]["redirection"]["mode"] == "redirect"]
+    print(f"\nredirects costing more than their carousel plus the margin: {len(over)}; redirect gains "
+          + (f"{min(gains):.3f} to {max(gains):.3f}" if gains else "none") + f"; carousel beyond the budget {beyond}")
+    print(f"redirect {modes.count('redirect')}, carousel {modes.count('carousel')}; largest difference between "
           f"reported and recomputed angle {worst:.4f} deg; wall time fixed {t_fixed:.1f} s, registered "
           f"{t_registered:.1f} s ({t_fixed / t_registered:.2f}x)")
     return 0

@@ -28,12 +28,13 @@ CHANGED = {
     "weights": "width=3", "criteria": "paper", "normalize": "range", "pooling": "sum", "top_k": "1",
     "one_to_one": None, "keep_upright": None, "distinct_mm": "40", "refine": "off", "landing_mm": "3",
     "rank": "nominal", "placement": "fixed", "hand_start_mm": "40,180,260", "redirect_threshold_deg": "6",
-    "max_redirect_deg": "9", "axis_threshold_deg": "25",
+    "max_redirect_deg": "9", "axis_threshold_deg": "25", "gain_range": "0.9,1.2", "carousel_margin_jnd": "1.5",
 }
 #: fields of the records that are no option: they change how the work is split, never a result
 INTERNAL = {"block_rows"}
 #: the fields that matter only where the virtual objects stay in the level
-PLACED = {"hand_start_mm", "redirect_threshold_deg", "max_redirect_deg", "axis_threshold_deg"}
+PLACED = {"hand_start_mm", "redirect_threshold_deg", "max_redirect_deg", "axis_threshold_deg", "gain_range",
+          "carousel_margin_jnd"}
 
 
 def _fields():
@@ -162,7 +163,9 @@ def test_a_list_of_criteria_is_kept_as_the_tuple_it_names():
     ("landing_mm", -0.1), ("landing_mm", 20.5), ("normalize", "rank"), ("pooling", "max"), ("placement", "here"),
     ("refine", "on"), ("hand_start_mm", (0.0, 1.0)), ("hand_start_mm", (0.0, float("nan"), 1.0)),
     ("hand_start_mm", (2e5, 0.0, 0.0)), ("max_redirect_deg", 0.0), ("redirect_threshold_deg", 91.0),
-    ("axis_threshold_deg", -5.0), ("criteria", ("width",)),
+    ("axis_threshold_deg", -5.0), ("criteria", ("width",)), ("gain_range", (1.1, 1.2)), ("gain_range", (0.9,)),
+    ("gain_range", (0.9, float("inf"))), ("gain_range", (0.0, 1.1)), ("carousel_margin_jnd", -0.1),
+    ("carousel_margin_jnd", float("nan")),
 ])
 def test_a_match_setting_out_of_bounds_is_refused(field, value):
     from pinchmatch.errors import ConfigError
@@ -188,7 +191,8 @@ def test_a_pinch_setting_out_of_bounds_is_refused(field, value):
 
 @pytest.mark.parametrize("field, value", [("distinct_mm", 0.0), ("top_k", 0), ("landing_mm", 20.0), ("landing_mm", 0.0),
                                           ("max_redirect_deg", 90.0), ("hand_start_mm", (1e5, -1e5, 0.0)),
-                                          ("redirect_threshold_deg", 0.5), ("axis_threshold_deg", 0.25)])
+                                          ("redirect_threshold_deg", 0.5), ("axis_threshold_deg", 0.25),
+                                          ("gain_range", (1.0, 1.0)), ("carousel_margin_jnd", 0.0)])
 def test_a_match_setting_at_its_bound_is_taken(field, value):
     assert getattr(MatchSettings(**{field: value}), field) == value
 

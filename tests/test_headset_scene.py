@@ -26,8 +26,9 @@ def browser():
 @pytest.fixture(scope="module")
 def level_out(tmp_path_factory):
     """A kitchen level (a can beside the prop, a can and a box far off) matched with --placement fixed and
-    a budget of 15 degrees, a redirection of 15 degrees costing one JND: the can beside is redirected, pinched
-    where the prop is (its weight hangs as the prop's does), the far ones go to the carousel."""
+    a budget of 15 degrees, a redirection of 15 degrees costing one JND, and the level kept intact unless the
+    carousel is 5 JND cheaper: the can beside is redirected, pinched where the prop is (its weight hangs as the
+    prop's does), the far ones go to the carousel."""
     folder = tmp_path_factory.mktemp("level")
     box = trimesh.creation.box(extents=(0.05, 0.05, 0.05))
     box.apply_translation([0.0, 0.025, 0.0])
@@ -42,7 +43,7 @@ def level_out(tmp_path_factory):
 
     code = main(["match", "--tangible", str(folder / "props.toml"), "--virtual", str(folder / "kitchen.glb"),
                  "--split", "nodes", "--placement", "fixed", "--max-redirect-deg", "15", "--redirect-threshold-deg", "15",
-                 "--count", "200", "--jobs", "1", "-o", str(out)])
+                 "--carousel-margin-jnd", "5", "--count", "200", "--jobs", "1", "-o", str(out)])
     assert code == 0
     return out
 

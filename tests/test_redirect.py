@@ -45,15 +45,33 @@ def _angle(a, b):
     return math.degrees(math.acos(np.clip(a @ b / np.linalg.norm(a) / np.linalg.norm(b), -1.0, 1.0)))
 
 
-def test_near_objects_are_redirected_far_ones_served_by_the_carousel(tmp_path, capsys, kitchen):
-    matches = _run(capsys, kitchen, tmp_path / "out", "--placement", "fixed")
+@pytest.mark.parametrize("margin", [None, "5"])
+def test_near_objects_are_redirected_far_ones_served_by_the_carousel(tmp_path, capsys, kitchen, margin):
+    """Each object stays in the level, the hand redirected, unless no pair is within the budget (the far
+    cans) or the carousel costs more than the margin less (both costs reported); with a margin of 5 JND
+    both near objects stay."""
+    extra = [] if margin is None else ["--carousel-margin-jnd", margin]
+    matches = _run(capsys, kitchen, tmp_path / "out", "--placement", "fixed", *extra)
     modes = {name: m["redirection"]["mode"] for name, m in matches.items()}
-    assert modes == {"can_near": "redirect", "box_near": "redirect", "can_far": "carousel", "can_left": "carousel"}
+    assert modes["can_far"] == modes["can_left"] == "carousel"
+    for name in ("can_far", "can_left"):
+        assert matches[name]["redirection"]["redirect_cost"] is None  # nothing within the budget
+    if margin is not None:
+        assert modes["can_near"] == modes["box_near"] == "redirect"
+    for name, m in matches.items():
+        r = m["redirection"]
+        redirected, carousel = r["redirect_cost"], r["carousel_cost"]
+        assert carousel is not None and r["reason"]
+        stays = redirected is not None and redirected <= carousel + (0.5 if margin is None else 5.0)
+        assert r["mode"] == ("redirect" if stays else "carousel")
+        assert m["cost"] == pytest.approx(redirected if stays else carousel, abs=1e-5)
     R = quaternion_matrix(Z_UP_IN_Y_UP)
     for name, m in matches.items():
         r = m["redirection"]
         start = np.array(r["hand_start_mm"])
-        assert r["hand_start_mm"] == [0.0, 150.0, 300.0]  # the default: above and in front of the prop
+        # the default: a user standing at the prop's table, 150 mm above it (the prop stands on y = 0) and
+        # 300 mm in front of the middle of its footprint
+        assert r["hand_start_mm"] == [0.0, 150.0, 300.0]
         # recomputed from the reported targets and the hand's start
         recomputed = _angle(np.array(r["physical_target_mm"]) - start, np.array(r["virtual_target_mm"]) - start)
         assert r["angle_deg"] == pytest.approx(recomputed, abs=0.01)
@@ -63,9 +81,10 @@ def test_near_objects_are_redirected_far_ones_served_by_the_carousel(tmp_path, c
         mid = np.mean([m["tangible_pose"]["p1_mm"], m["tangible_pose"]["p2_mm"]], axis=0)
         assert np.allclose(R @ mid, r["physical_target_mm"], atol=0.01)
         if r["mode"] == "redirect":
-            assert r["angle_deg"] <= 4.5
-        else:
-            assert r["angle_deg"] > 4.5  # no pair of the sample within the budget: the carousel's own pair
+            assert r["angle_deg"] <= 4.5 and 0.94 <= r["gain"] <= 1.14
+            recomputed_gain = np.linalg.norm(np.subtract(r["virtual_target_mm"], start)) / np.linalg.norm(
+                np.subtract(r["physical_target_mm"], start))
+            assert r["gain"] == pytest.approx(recomputed_gain, abs=1e-3)
     # a can beside its twin: the hand barely turned, and it is felt as its twin is (the mass where the level
     # holds it, not where a registration would turn it: the pinch must sit on both cans alike)
     assert matches["can_near"]["cost"] < min(1.0, matches["box_near"]["cost"])
@@ -215,7 +234,7 @@ def test_the_redirection_s_terms_are_its_angles_in_threshold_units_squared(kitch
     (spec,) = object_specs([kitchen / "props.toml"], option="--tangible")
     rng = np.random.default_rng(0)
     t_points, v_points = rng.normal(0, 20, (5, 2, 3)), rng.normal(0, 20, (5, 2, 3)) + [60.0, 30.0, 0.0]
-    r = redirection(spec, t_points, v_points, Redirect(threshold_deg=4.0, axis_threshold_deg=25.0))
+    r = redirection(analyze_spec(spec), t_points, v_points, Redirect(threshold_deg=4.0, axis_threshold_deg=25.0))
     start = np.array([0.0, 150.0, 300.0])
     R = quaternion_matrix(Z_UP_IN_Y_UP)
     for k in range(5):
@@ -293,9 +312,10 @@ def test_the_redirection_of_a_prop_standing_off_the_origin_turned_about_the_leve
     (spec,) = object_specs([tmp_path / "props.toml"], option="--tangible")
     rng = np.random.default_rng(4)
     t_points, v_points = rng.normal(0, 20, (6, 2, 3)), rng.normal(0, 20, (6, 2, 3)) + [180.0, 40.0, -60.0]
-    r = redirection(spec, t_points, v_points, Redirect(threshold_deg=4.0, axis_threshold_deg=25.0))
+    r = redirection(analyze_spec(spec), t_points, v_points, Redirect(threshold_deg=4.0, axis_threshold_deg=25.0))
     R = Rotation.from_euler("YX", [35, -90], degrees=True).as_matrix()  # the same turn, written another way
-    start = np.array([120.0, 150.0, 220.0])  # 150 mm above and 300 mm in front of the prop's place
+    # 150 mm above the prop's table (the can stands on y = 0) and 300 mm in front of the middle of its footprint
+    start = np.array([120.0, 150.0, 220.0])
     np.testing.assert_allclose(r.hand_start_mm, start)
     for k in range(6):
         physical = t_points[k] @ R.T + [120.0, 0.0, -80.0]
@@ -357,3 +377,78 @@ def test_no_pinch_reaches_under_the_counter_or_the_prop_s_table(tmp_path, capsys
             assert doc["tangibles"][0]["support"]["source"] == "pose"
             np.testing.assert_allclose(doc["tangibles"][0]["support"]["normal"], up_in_prop, atol=1e-6)
     assert under["auto"] == 0 and under["none"] > 0, under
+
+
+def test_the_blockwise_budget_never_drops_an_allowed_pair_and_bounds_the_angle_s_term(tmp_path):
+    """A prop turned about two axes and standing off the origin, virtual targets all around and some on the
+    budget's edges: the blockwise pass keeps every pair the exact redirection allows, and its angle term is
+    a lower bound of the exact one."""
+    from scipy.spatial.transform import Rotation
+
+    from pinchmatch.match.redirect import Redirect, pair_budget, redirection
+
+    turn = Rotation.from_euler("zx", [28, -90], degrees=True)
+    (tmp_path / "props.toml").write_text(
+        '[[object]]\nname = "can_prop"\nshape = { kind = "cylinder", diameter_mm = 54, height_mm = 66 }\n'
+        f"pose = {{ position_mm = [-140, 910, 65], quaternion_xyzw = {turn.as_quat().tolist()} }}\n")
+    (spec,) = object_specs([tmp_path / "props.toml"], option="--tangible")
+    obj = analyze_spec(spec)
+    rng = np.random.default_rng(11)
+    t_points = rng.normal([0, 0, 33], 15, (30, 2, 3))
+    redirect = Redirect(max_angle_deg=6.0, gain_range=(0.9, 1.2))
+    R, p = quaternion_matrix(turn.as_quat()), np.array([-140.0, 910.0, 65.0])
+    physical = (t_points.mean(axis=1) @ R.T + p)
+    start = redirection(obj, t_points[:1], t_points[:1] @ R.T + p, redirect).hand_start_mm
+    # virtual targets: around the physical ones, and on the edges of the angle and the gain
+    near = physical[rng.integers(0, 30, 60)] + rng.normal(0, 25, (60, 3))
+    edge = start + (physical[:20] - start) * 1.2
+    v_mid = np.concatenate([near, edge])
+    v_points = v_mid[:, None, :] + rng.normal(0, 10, (len(v_mid), 2, 3))
+    v_points -= v_points.mean(axis=1, keepdims=True) - v_mid[:, None, :]
+    block = pair_budget(obj, t_points.mean(axis=1), v_mid, redirect)
+    term, ok = block(0, 30)
+    it, iv = np.repeat(np.arange(30), len(v_mid)), np.tile(np.arange(len(v_mid)), 30)
+    exact = redirection(obj, t_points[it], v_points[iv], redirect)
+    allowed = exact.allowed.reshape(30, -1)
+    assert allowed.any() and (~allowed).any()
+    assert not (allowed & ~ok).any()  # never drops an allowed pair
+    assert (term <= exact.terms[:, 0].reshape(30, -1) + 1e-12).all()
+    assert (ok & ~allowed).sum() <= 0.02 * ok.size  # and keeps few that are not
+
+
+def test_an_object_behind_the_prop_on_the_line_of_sight_is_not_redirected_beyond_the_gain(tmp_path, capsys):
+    """A can 150 mm behind the prop, nearly on the line from the hand's start: within a wide angle budget its
+    reach would be 40 % longer than the felt one, beyond the gain range; a wider range redirects it."""
+    folder = tmp_path / "level"
+    folder.mkdir()
+    tabletop_level(folder / "kitchen.glb", [("can_behind", standing_can(), (0.0, 0.0, -0.15))])
+    (folder / "props.toml").write_text(PROP)
+    common = ["--placement", "fixed", "--max-redirect-deg", "15", "--carousel-margin-jnd", "100"]
+    strict = _run(capsys, folder, tmp_path / "strict", *common)
+    wide = _run(capsys, folder, tmp_path / "wide", *common, "--gain-range", "0.5,2")
+    assert strict["can_behind"]["redirection"]["mode"] == "carousel"
+    assert strict["can_behind"]["redirection"]["redirect_cost"] is None
+    r = wide["can_behind"]["redirection"]
+    assert r["mode"] == "redirect" and r["gain"] > 1.14 and r["angle_deg"] <= 15
+
+
+def test_select_with_the_fixed_placement_ranks_props_as_the_match_serves_them(tmp_path, capsys, kitchen):
+    """Two posed props; under --placement fixed each object's cost on the chosen prop is what the match
+    serves it with there (redirected, or by the carousel when that is cheaper by more than the margin): the
+    row ranks fewer choices than the match, so the match's is at most the row's."""
+    props = tmp_path / "shelf.toml"
+    props.write_text(PROP + PROP.replace('"can_prop"', '"far_prop"').replace("[0, 0, 0]", "[600, 0, -400]"))
+    out = tmp_path / "out"
+    code, _, err = run_cli(capsys, "select", "--tangible", props, "--virtual", kitchen / "kitchen.glb", "--split",
+                           "nodes", "--placement", "fixed", "-k", "1", "--count", 120, "-o", out, "--no-view",
+                           "--jobs", 1)
+    assert code == 0, err
+    selection = json.loads((out / "selection.json").read_text())
+    assert selection["settings"]["placement"] == "fixed"
+    matches = {m["virtual"]: m for m in json.loads((out / "matches.json").read_text())["matches"]}
+    for entry in selection["objects"]:
+        m = matches[entry["virtual"]]
+        assert m["tangible"] == entry["tangible"]
+        assert m["cost"] <= entry["cost"] + 1e-6
+        r = m["redirection"]
+        assert r["mode"] in ("redirect", "carousel") and r["carousel_cost"] is not None

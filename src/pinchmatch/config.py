@@ -204,9 +204,15 @@ MAX_REDIRECT_DEG = 4.5
 #: the turn of the pinch axis that counts as one threshold unit (deg): the orientation threshold of
 #: an edge on the fingerpad (about 20°, Bensmaia et al. 2008; perception.md), a documented choice
 AXIS_THRESHOLD_DEG = 20.0
-#: where the hand rests before it reaches, when not given: from the prop's pose position, 150 mm up
-#: (+Y) and 300 mm toward the user (+Z, the side a glTF scene faces), mm
+#: where the hand rests before it reaches, when not given: a user standing at the prop's table, the hand
+#: 150 mm above the table (the prop's support) and 300 mm toward the user (+Z, the side a glTF scene
+#: faces) from the middle of the prop's footprint, mm
 DEFAULT_HAND_OFFSET_MM = (0.0, 150.0, 300.0)
+#: the reach gains a redirection may use (virtual over physical distance from the hand's start): the
+#: unnoticed hand-movement gains of HaRT (Zenner et al., the Haptic Retargeting Toolkit's defaults)
+GAIN_RANGE = (0.94, 1.14)
+#: an object stays in the level (redirected) unless the carousel would cost this much less (JND)
+CAROUSEL_MARGIN_JND = 0.5
 #: the bounds of the options (deg, mm)
 MAX_THRESHOLD_DEG, MAX_HAND_START_MM = 90.0, 1e5
 PLACEMENTS = ("registered", "fixed")
@@ -221,6 +227,7 @@ class Redirect:
     threshold_deg: float = REDIRECT_THRESHOLD_DEG
     max_angle_deg: float = MAX_REDIRECT_DEG
     axis_threshold_deg: float = AXIS_THRESHOLD_DEG
+    gain_range: tuple = GAIN_RANGE
 
 
 @dataclass(frozen=True)
@@ -274,6 +281,14 @@ class MatchSettings:
     axis_threshold_deg: float = option(AXIS_THRESHOLD_DEG, group="placement", kind="float",
                                        help="the turn of the pinch axis that costs as much as one just-noticeable "
                                             "difference")
+    gain_range: tuple = option(GAIN_RANGE, group="placement", kind="vector", metavar="LOW,HIGH",
+                               help="with --placement fixed: the reach gains a redirection may use, the virtual "
+                                    "target's distance from the hand's start over the physical one's (HaRT's "
+                                    "unnoticed gains)")
+    carousel_margin_jnd: float = option(CAROUSEL_MARGIN_JND, group="placement", kind="float",
+                                        help="with --placement fixed: an object stays in the level, the hand "
+                                             "redirected, unless the carousel costs this many JND less (keeping the "
+                                             "level intact is worth that much: docs/redirection.md)")
 
     def __post_init__(self):
         if tuple(self.criteria) not in (DEFAULT_CRITERIA, PAPER_CRITERIA):
@@ -313,6 +328,16 @@ class MatchSettings:
                 raise ConfigError(f"--hand-start: {self.hand_start_mm!r} must be three numbers X,Y,Z in mm within "
                                   f"{MAX_HAND_START_MM:g} mm of the level's origin")
             object.__setattr__(self, "hand_start_mm", start)
+        try:
+            gains = tuple(float(g) for g in self.gain_range)
+        except (TypeError, ValueError, OverflowError):
+            gains = ()
+        if len(gains) != 2 or not all(math.isfinite(g) for g in gains) or not 0.0 < gains[0] <= 1.0 <= gains[1] <= 10.0:
+            raise ConfigError(f"--gain-range: {self.gain_range!r} must be two gains LOW,HIGH with 0 < LOW <= 1 <= HIGH "
+                              "<= 10 (HaRT's unnoticed gains are 0.94,1.14)")
+        object.__setattr__(self, "gain_range", gains)
+        if not (_finite(self.carousel_margin_jnd) and 0.0 <= self.carousel_margin_jnd <= 100.0):
+            raise ConfigError(f"--carousel-margin-jnd: {self.carousel_margin_jnd!r} must be from 0 to 100 JND")
         for name in ("redirect_threshold_deg", "max_redirect_deg", "axis_threshold_deg"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and 0.0 < value <= MAX_THRESHOLD_DEG):
@@ -325,7 +350,7 @@ class MatchSettings:
         if self.placement != "fixed":
             return None
         return Redirect(self.hand_start_mm, self.redirect_threshold_deg, self.max_redirect_deg,
-                        self.axis_threshold_deg)
+                        self.axis_threshold_deg, self.gain_range)
 
     def as_dict(self) -> dict:
         return {
@@ -346,6 +371,8 @@ class MatchSettings:
             "redirect_threshold_deg": self.redirect_threshold_deg,
             "max_redirect_deg": self.max_redirect_deg,
             "axis_threshold_deg": self.axis_threshold_deg,
+            "gain_range": list(self.gain_range),
+            "carousel_margin_jnd": self.carousel_margin_jnd,
         })
 
 

@@ -28,7 +28,7 @@ from ..export.folder import OutputFolder, exclusive
 from ..mesh.properties import parse_vector
 from .console import Presenter
 from .runs import (EXIT_SOME_FAILED, check_match_flags, check_placement, given_poses, match_job, standing, match_settings_of, object_tasks,
-                   out_folder, pinch_settings_of, print_match, table_rows, write_matches)
+                   out_folder, pinch_settings_of, print_match, table_rows, virtual_level_specs, write_matches)
 from .universal import cmd_design, cmd_select, demo_design
 from ..export.documents import (features_document, flipped_note, matches_rows, poses_csv, poses_document, scene_stems,
                                 matches_legend, study_document, study_legend, study_rows, to_json)
@@ -151,7 +151,7 @@ def _cmd_match(args) -> int:
     match_settings = match_settings_of(args)
     out = out_folder(args)
     tangible_specs = standing(object_specs(args.tangible, option="--tangible"), args, "tangible")
-    virtual_specs = standing(object_specs(args.virtual, option="--virtual", split=args.split), args, "virtual")
+    virtual_specs = standing(virtual_level_specs(args), args, "virtual")
     given_t = given_poses(args.tangible_poses, tangible_specs, "--tangible-poses")
     given_v = given_poses(args.virtual_poses, virtual_specs, "--virtual-poses")
     check_match_flags(args)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import os
 import sys
+import time
 from contextlib import contextmanager
 
 from rich import box
@@ -28,6 +29,10 @@ def _pipe_width() -> int:
         return PIPE_WIDTH
 
 
+#: where stderr is no terminal, a progress line at most this often (s)
+PROGRESS_LINE_S = 10.0
+
+
 class Presenter:
     def __init__(self, *, quiet: bool = False, json_mode: bool = False):
         self.quiet = quiet
@@ -36,6 +41,7 @@ class Presenter:
         self.out = Console(file=sys.stdout, highlight=False,
                            width=None if sys.stdout.isatty() else _pipe_width())
         self.show_progress = not quiet and self.err.is_terminal
+        self.show_lines = not quiet and not self.err.is_terminal  # a pipe or a log: plain lines, now and then
         self.show_summary = not quiet and not json_mode
 
     @contextmanager
@@ -46,7 +52,7 @@ class Presenter:
         ``done=False`` it only shows ``note``, the item now being worked on.
         """
         if not self.show_progress:
-            yield lambda note=None, *, done=True: None
+            yield self._lines(description, total) if self.show_lines else (lambda note=None, *, done=True: None)
             return
         columns = [SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                    TimeElapsedColumn()] if total is not None else [
@@ -59,6 +65,26 @@ class Presenter:
                                 description=f"{description}: {note}" if note else description)
 
             yield advance
+
+    def _lines(self, description: str, total: int | None):
+        """Where stderr is no terminal: ``advance`` as for :meth:`step`, printing one plain line (the step, the
+        count done, the item, the seconds) once ``PROGRESS_LINE_S`` have passed since the step began or since
+        the last line; a short run prints none."""
+        start = last = time.monotonic()
+        done_count = 0
+
+        def advance(note: str | None = None, *, done: bool = True) -> None:
+            nonlocal last, done_count
+            done_count += 1 if done else 0
+            now = time.monotonic()
+            if now - last < PROGRESS_LINE_S:
+                return
+            last = now
+            count = f" {done_count}/{total}" if total is not None else ""
+            item = f" ({'done: ' if done else 'now: '}{note})" if note else ""
+            print(f"{description}:{count}{item}, {now - start:.0f} s", file=sys.stderr, flush=True)
+
+        return advance
 
     def table(self, rows: list, *, title: str | None = None, legend: list | None = None) -> None:
         """``rows[0]`` is the header; printed to stdout unless quiet or ``--json``, folded to the

@@ -107,19 +107,27 @@ def record_of(record_type, args, **extra):
         if f.name in extra or not hasattr(args, f.name) or opt.kind == "weights":
             continue
         given = getattr(args, f.name)
-        values[f.name] = parse_vector(given, flag_of(f, opt)) if opt.kind == "vector" else opt.value(given)
+        if opt.kind == "vector":
+            if given is not None:  # not given: the field's default
+                values[f.name] = parse_vector(given, flag_of(f, opt), opt.metavar or "X,Y,Z")
+            continue
+        values[f.name] = opt.value(given)
     return record_type(**values, **extra)
 
 
-def parse_vector(text: str | None, flag: str) -> tuple | None:
+def parse_vector(text: str | None, flag: str, metavar: str = "X,Y,Z") -> tuple | None:
+    """The numbers of ``text`` (None for None), as many as ``metavar`` names."""
     if text is None:
         return None
     try:
         values = tuple(float(v) for v in text.split(","))
     except ValueError:
         values = ()
-    if len(values) != 3:
-        raise ConfigError(f"{flag} {text}: give three numbers X,Y,Z in mm, as {flag} 0,150,300")
+    count = len(metavar.split(","))
+    if len(values) != count:
+        example = {"X,Y,Z": "0,150,300", "LOW,HIGH": "0.94,1.14"}.get(metavar, ",".join(["1"] * count))
+        words = {2: "two", 3: "three"}.get(count, str(count))
+        raise ConfigError(f"{flag} {text}: give {words} numbers {metavar}, as {flag} {example}")
     return values
 
 
@@ -221,6 +229,12 @@ def build_parser() -> argparse.ArgumentParser:
     match.add_argument("--split", choices=("none", "nodes"), default=None,
                        help="nodes: each mesh node of a virtual glTF/GLB scene (a game level) is its own object, "
                             "in world coordinates, named by its node (default none; a manifest entry's split comes first)")
+    match.add_argument("--nodes", action="append", metavar="GLOB",
+                       help="with --split nodes: only the mesh nodes whose name or path matches GLOB (repeatable; a manifest "
+                            "entry's nodes come first)")
+    match.add_argument("--skip-nodes", action="append", metavar="GLOB",
+                       help="with --split nodes: leave out the mesh nodes whose name or path matches GLOB (repeatable; with a "
+                            "manifest entry's skip_nodes)")
     match.add_argument("--tangible-poses", action="append", metavar="FILE",
                        help="use only these poses on a tangible (JSON, as for poses --poses); once per tangible, in order")
     match.add_argument("--virtual-poses", action="append", metavar="FILE",
@@ -254,10 +268,17 @@ def build_parser() -> argparse.ArgumentParser:
                         help="the coverage curve goes up to M props (default: the whole shelf)")
     select.add_argument("--split", choices=("none", "nodes"), default=None,
                         help="nodes: each mesh node of a virtual glTF/GLB scene is its own object (default none)")
+    select.add_argument("--nodes", action="append", metavar="GLOB",
+                        help="with --split nodes: only the mesh nodes whose name or path matches GLOB (repeatable; a manifest "
+                             "entry's nodes come first)")
+    select.add_argument("--skip-nodes", action="append", metavar="GLOB",
+                        help="with --split nodes: leave out the mesh nodes whose name or path matches GLOB (repeatable; with a "
+                             "manifest entry's skip_nodes)")
     _add_pinch_options(select)
     _add_support_option(select)
     _add_sampling_options(select)
     _add_match_options(select, one_to_one=False)
+    _add_placement_options(select)
     select.add_argument("-o", "--output", metavar="OUT", default="pinchmatch-select",
                         help="folder for selection.json, the coverage figure, and the chosen props' matches.json, "
                              "scenes and page (default pinchmatch-select)")
@@ -288,6 +309,12 @@ def build_parser() -> argparse.ArgumentParser:
                         help="judge exactly N candidates, whatever the machine's speed (the budget still bounds it)")
     design.add_argument("--split", choices=("none", "nodes"), default=None,
                         help="nodes: each mesh node of a virtual glTF/GLB scene is its own object (default none)")
+    design.add_argument("--nodes", action="append", metavar="GLOB",
+                        help="with --split nodes: only the mesh nodes whose name or path matches GLOB (repeatable; a manifest "
+                             "entry's nodes come first)")
+    design.add_argument("--skip-nodes", action="append", metavar="GLOB",
+                        help="with --split nodes: leave out the mesh nodes whose name or path matches GLOB (repeatable; with a "
+                             "manifest entry's skip_nodes)")
     _add_pinch_options(design)
     _add_support_option(design)
     _add_sampling_options(design)

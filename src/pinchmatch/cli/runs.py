@@ -80,17 +80,28 @@ def check_placement(settings: MatchSettings, tangible_specs: list, virtual_specs
     from ..match.redirect import hand_start, world_pose
     from ..mesh.load import load_mesh
 
+    meshes = []
     for spec in tangible_specs:
         read = spec.with_defaults(units=units, up=up)
-        mesh = load_mesh(read.path, units=read.units, up=read.up).mesh
+        meshes.append(load_mesh(read.path, units=read.units, up=read.up).mesh)
+    starts = [hand_start(spec, settings.redirect, mesh.vertices) for spec, mesh in zip(tangible_specs, meshes)]
+    for spec, mesh in zip(tangible_specs, meshes):
         R, p = world_pose(spec)
-        for other in tangible_specs:
-            start = hand_start(other, settings.redirect)
+        for start in starts:
             if mesh.contains(((start - p) @ R)[None])[0]:
                 where = "--hand-start" if settings.hand_start_mm is not None else "the default hand start"
                 raise ConfigError(f"{where} {np.round(start, 1).tolist()} mm lies inside the prop "
                                   f"{spec.display_name}; give a --hand-start X,Y,Z outside every prop, where the "
                                   "hand rests before it reaches")
+
+
+def virtual_level_specs(args) -> list:
+    """The virtual objects the command line names (``--virtual``), a level split as ``--split``, ``--nodes``
+    and ``--skip-nodes`` say."""
+    from ..mesh.manifest import object_specs
+
+    return object_specs(args.virtual, option="--virtual", split=args.split, nodes=args.nodes or (),
+                        skip_nodes=args.skip_nodes or ())
 
 
 def standing(specs: list, args, role: str) -> list:

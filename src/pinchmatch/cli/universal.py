@@ -23,6 +23,7 @@ from .console import Presenter
 from .runs import (
     EXIT_SOME_FAILED,
     check_match_flags,
+    check_placement,
     match_job,
     match_settings_of,
     object_tasks,
@@ -30,6 +31,7 @@ from .runs import (
     pinch_settings_of,
     standing,
     table_rows,
+    virtual_level_specs,
     write_matches,
 )
 
@@ -82,9 +84,10 @@ def cmd_select(args) -> int:
         raise ConfigError(f"--max-k {args.max_k}: the coverage curve must reach -k {args.k}; give --max-k {args.k} "
                           "or more")
     out = out_folder(args)
-    scene_specs = standing(object_specs(args.virtual, option="--virtual", split=args.split), args, "virtual")
+    scene_specs = standing(virtual_level_specs(args), args, "virtual")
     check_match_flags(args)
     ui = Presenter(quiet=args.quiet, json_mode=args.json)
+    check_placement(match_settings, shelf_specs, scene_specs, ui, units=args.units, up=args.up)
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="pinchmatch-select-") as scratch:
         # both passes read the same candidates: with --no-cache, from a cache that lives for this run only
@@ -166,7 +169,7 @@ def cmd_design(args) -> int:
                             budget_s=args.budget_s, seed=args.seed, evaluations=args.evaluations,
                             supports=not args.no_supports)
     design.check()
-    scene_specs = standing(object_specs(args.virtual, option="--virtual", split=args.split), args, "virtual")
+    scene_specs = standing(virtual_level_specs(args), args, "virtual")
     shelf_specs = standing(object_specs(args.tangible, option="--tangible"), args, "tangible") if args.tangible else []
     if shelf_specs and not 1 <= args.k <= len(shelf_specs):
         raise ConfigError(f"-k {args.k}: the shelf to compare with has {len(shelf_specs)} props; give at most that")

@@ -472,11 +472,14 @@ def redirection_note(redirections: list[dict]) -> str | None:
     the carousel serves (None without redirection)."""
     if not redirections:
         return None
-    led = [r["angle_deg"] for r in redirections if r["mode"] == "redirect"]
+    led = [r for r in redirections if r["mode"] == "redirect"]
     carousel = len(redirections) - len(led)
-    largest = f" (largest angle {max(led):.2f} deg)" if led else ""
+    beyond = sum(r["mode"] == "carousel" and r.get("redirect_cost") is None for r in redirections)
+    largest = (f" (largest angle {max(r['angle_deg'] for r in led):.2f} deg, gains "
+               f"{min(r['gain'] for r in led):.3g} to {max(r['gain'] for r in led):.3g})") if led else ""
+    why = f"{beyond} beyond the redirection budget, {carousel - beyond} cheaper there by more than the margin"
     return (f"placement fixed: {len(led)} of {len(redirections)} virtual objects stay in place, the hand redirected"
-            f"{largest}; {carousel} served by the carousel (beyond --max-redirect-deg)")
+            f"{largest}; {carousel} served by the carousel ({why})")
 
 
 def matches_legend(settings: dict) -> list[str]:

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import ConfigError, ContactError
+from ..errors import ConfigError, ContactError, NoFeasiblePinchError
 from ..mesh.support import support_plane
 from ..files import read_input
 from .features import PinchFeatures, pinch_features
@@ -110,8 +110,22 @@ def find_pinches(obj: ObjectAnalysis, *, settings: PinchSettings = PinchSettings
     >>> len(pinches), features.width_mm.shape, features.kappa_max_per_m.shape
     (50, (50,), (50, 2))
     """
-    pinches = sample_pinches(obj.context, settings=settings, source=obj.loaded.path)
+    node = obj.spec.node if obj.spec is not None else None
+    source = f"{obj.loaded.path} (node {node})" if node else obj.loaded.path
+    too_wide(obj.loaded.mesh, settings, source, node)
+    pinches = sample_pinches(obj.context, settings=settings, source=source)
     return pinches, pinch_features(pinches, obj.props)
+
+
+def too_wide(mesh, settings: PinchSettings, source: str, node: str | None = None) -> None:
+    """Refuse an object wider than the largest pinch in every direction (its oriented bounding box's
+    least extent, trimesh's): no hand could pinch it, and sampling it would only say so slowly."""
+    extents = np.sort(np.asarray(mesh.bounding_box_oriented.primitive.extents, dtype=np.float64))
+    if extents[0] > settings.max_width_mm:
+        leave = f"--skip-nodes '{node}'" if node else "leave it out"
+        raise NoFeasiblePinchError(
+            f"{source}: no feasible pinch: {' x '.join(f'{e:.0f}' for e in extents)} mm, wider than the largest pinch "
+            f"(--max-width-mm {settings.max_width_mm:g}) in every direction: no hand can pinch it; {leave}")
 
 
 def score_pinches(

@@ -190,8 +190,9 @@ class CostModel:
         safe = np.where(scale > 0, scale, 1.0)
         return scale[..., 0] * (((np.sqrt(terms) / safe) ** beta) @ w) ** (1.0 / beta)
 
-    def bound_from_separable(self, separable) -> np.ndarray:
-        """A lower bound of the cost from S = Σ w t, the sum that the blockwise pass computes.
+    def bound_from_separable(self, separable, extra_weight: float = 0.0) -> np.ndarray:
+        """A lower bound of the cost from S = Σ w t, the sum that the blockwise pass computes (with
+        ``extra_weight``, the weight of further contributions the sum holds: the redirection's angle).
 
         ``sum``: S itself. ``quick``: with W = Σ w, the power means give Σ w x^β ≥ W (S / W)^(β/2)
         for β ≥ 2 (Jensen), so D ≥ W^(1/β - 1/2) √S; increasing in S, so the pairs of least S are
@@ -199,7 +200,7 @@ class CostModel:
         separable = np.maximum(np.asarray(separable, dtype=np.float64), 0.0)
         if self.pooling == "sum":
             return separable
-        total_weight = float(self.weight_vector().sum())
+        total_weight = float(self.weight_vector().sum()) + extra_weight
         return total_weight ** (1.0 / self.exponent - 0.5) * np.sqrt(separable)
 
     def p_noticed(self, jnd_cost) -> np.ndarray:
@@ -288,8 +289,12 @@ def _tangible_factors(t: np.ndarray, model: CostModel, w: np.ndarray, spread: np
 
 
 def pair_cost_blocks(tangible: np.ndarray, virtual: np.ndarray, model: CostModel, *, block_rows: int = 2048,
-                     with_swapped: bool = True, spreads: tuple | None = None):
+                     with_swapped: bool = True, spreads: tuple | None = None, extra=None):
     """Yield ``(start, cost, swapped)`` for blocks of tangible rows: the separable cost of every pair.
+
+    ``extra(start, stop)``, where given, returns for those tangible rows against every virtual row a
+    further contribution (weight 1) added to the sum, and which pairs are allowed; the others cost inf
+    (the redirection's budget: :func:`pinchmatch.match.redirect.pair_budget`).
 
     With ``spreads`` (the tangible's and the virtual table's variance per entry, each shaped as its
     table) each entry's squared difference gains both variances: the expected separable cost of two
@@ -315,10 +320,15 @@ def pair_cost_blocks(tangible: np.ndarray, virtual: np.ndarray, model: CostModel
         swapped = np.less(c1, c0) if with_swapped else None
         np.minimum(c0, c1, out=c0)
         np.maximum(c0, 0.0, out=c0)  # round-off
+        if extra is not None:
+            term, ok = extra(start, start + len(t))
+            c0 += term
+            c0[~ok] = np.inf
         yield start, c0, swapped
 
 
-def pooled_bound_blocks(tangible: np.ndarray, virtual: np.ndarray, model: CostModel, *, block_rows: int = 512):
+def pooled_bound_blocks(tangible: np.ndarray, virtual: np.ndarray, model: CostModel, *, block_rows: int = 512,
+                        extra=None):
     """Yield ``(start, bound)`` for blocks of tangible rows: per pair, the model's pooling of its
     separable contributions (``mass`` at its lower bound), in the better finger order.
 
@@ -328,6 +338,7 @@ def pooled_bound_blocks(tangible: np.ndarray, virtual: np.ndarray, model: CostMo
     cost where one criterion dominates (a ball against a box: every pose alike, the width apart).
     A matrix product per criterion and order, and a power per pair and criterion: several times
     the price of :func:`pair_cost_blocks`, for when its bound leaves too many pairs to evaluate.
+    ``extra``: as :func:`pair_cost_blocks`' (pooled with weight 1).
     """
     nv = len(virtual)
     w = model.column_weights().reshape(-1)
@@ -350,6 +361,10 @@ def pooled_bound_blocks(tangible: np.ndarray, virtual: np.ndarray, model: CostMo
                 np.maximum(part, 0.0, out=part)  # round-off
                 pooled += weights[c] * (part / weights[c]) ** half
             best = pooled if best is None else np.minimum(best, pooled)
+        if extra is not None:  # as pair_cost_blocks' extra
+            term, ok = extra(start, start + len(t))
+            best = best + (term if model.pooling == "sum" else term ** half)
+            best[~ok] = np.inf
         yield start, best if model.pooling == "sum" else best ** (1.0 / model.exponent)
 
 

@@ -23,12 +23,15 @@ or on its p2 when swapped):
 
 Cost, in threshold units (1 = at the threshold, as a criterion at 1 JND): ``angle_deg /
 threshold_deg`` and ``axis_turn_deg / axis_threshold_deg``, each squared and pooled with the haptic
-criteria's contributions, weight 1 (:meth:`pinchmatch.match.cost.CostModel.pool`). A pair whose angle
-exceeds ``max_angle_deg`` is not allowed; a virtual object with no allowed pair, or whose best
-redirected pair would be noticed while the registered one would not, is served by the carousel (the
-registered placement, brought to the prop: :func:`pinchmatch.match.scene.match_scene`). Both terms are at least 0, so the
-search's lower bounds of the haptic cost stay lower bounds and the search stays exact. The model,
-its thresholds and their sources are in docs/redirection.md.
+criteria's contributions, weight 1 (:meth:`pinchmatch.match.cost.CostModel.pool`). A pair is within the
+budget when its angle is at most ``max_angle_deg`` and its reach gain (``gain``: the virtual target's
+distance from the hand's start over the physical one's) within ``gain_range``. A virtual object with no
+pair within the budget, or whose best redirected pair costs more than the carousel's plus the margin
+(``--carousel-margin-jnd``), is served by the carousel (the registered placement, brought to the prop:
+:func:`pinchmatch.match.scene.match_one`). Both terms are at least 0 and the search's blockwise pass
+adds a lower bound of the angle's and drops the pairs beyond the budget (:func:`pair_budget`), so its
+bounds stay lower bounds and the search stays exact. The model, its thresholds and their sources are
+in docs/redirection.md.
 """
 
 from __future__ import annotations
@@ -43,7 +46,8 @@ from ..config import (AXIS_THRESHOLD_DEG, DEFAULT_HAND_OFFSET_MM, MAX_HAND_START
 @dataclass(frozen=True)
 class Redirection:
     """The redirection of k pose pairs (mm and degrees, world frame); ``terms`` (k, 2) the angle's
-    and the axis turn's contributions (threshold units squared); ``allowed`` (k,) within the budget."""
+    and the axis turn's contributions (threshold units squared); ``allowed`` (k,) within the budget;
+    ``gain`` (k,) the reach gain (:func:`reach_gain`)."""
 
     angle_deg: np.ndarray
     offset_mm: np.ndarray
@@ -53,6 +57,7 @@ class Redirection:
     virtual_target_mm: np.ndarray
     terms: np.ndarray
     allowed: np.ndarray
+    gain: np.ndarray
 
     def record(self, k: int, mode: str) -> dict:
         """Pair ``k``'s entry of ``matches.json`` (``mode``: ``redirect`` or ``carousel``)."""
@@ -60,7 +65,7 @@ class Redirection:
             return [round(float(c), 3) for c in v]
 
         return {"mode": mode, "angle_deg": round(float(self.angle_deg[k]), 4),
-                "offset_mm": round(float(self.offset_mm[k]), 3),
+                "offset_mm": round(float(self.offset_mm[k]), 3), "gain": round(float(self.gain[k]), 4),
                 "axis_turn_deg": round(float(self.axis_turn_deg[k]), 4),
                 "hand_start_mm": vec(self.hand_start_mm), "physical_target_mm": vec(self.physical_target_mm[k]),
                 "virtual_target_mm": vec(self.virtual_target_mm[k])}
@@ -91,11 +96,23 @@ def quaternion_matrix(xyzw) -> np.ndarray:
     return Rotation.from_quat(np.asarray(xyzw, dtype=np.float64)).as_matrix()
 
 
-def hand_start(spec, redirect: Redirect) -> np.ndarray:
-    """Where the hand starts (mm, world): the given point, else the prop's default."""
+def hand_start(spec, redirect: Redirect, vertices_mm: np.ndarray) -> np.ndarray:
+    """Where the hand starts (mm, world): the given point, else a user standing at the prop's table
+    (:data:`DEFAULT_HAND_OFFSET_MM` from the middle of the prop's footprint on its support, the plane
+    of its lowest point in the world: never from where its file puts its origin). ``vertices_mm`` (n, 3)
+    are the prop's, in its file frame."""
     if redirect.hand_start_mm is not None:
         return np.asarray(redirect.hand_start_mm, dtype=np.float64)
-    return world_pose(spec)[1] + np.asarray(DEFAULT_HAND_OFFSET_MM)
+    R, p = world_pose(spec)
+    world = np.asarray(vertices_mm, dtype=np.float64) @ R.T + p
+    low, high = world.min(axis=0), world.max(axis=0)
+    footprint = np.array([(low[0] + high[0]) / 2.0, low[1], (low[2] + high[2]) / 2.0])
+    return footprint + np.asarray(DEFAULT_HAND_OFFSET_MM)
+
+
+def reach_gain(start: np.ndarray, physical_mm: np.ndarray, virtual_mm: np.ndarray) -> np.ndarray:
+    """|virtual − start| / |physical − start| per row: how much longer the seen reach is than the felt one."""
+    return np.linalg.norm(virtual_mm - start, axis=-1) / np.maximum(np.linalg.norm(physical_mm - start, axis=-1), 1e-9)
 
 
 def _angle_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -104,16 +121,52 @@ def _angle_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.degrees(np.arctan2(cross, np.einsum("...i,...i->...", a, b)))
 
 
-def redirection(tangible_spec, t_points: np.ndarray, v_points: np.ndarray, redirect: Redirect) -> Redirection:
+def redirection(tangible_obj, t_points: np.ndarray, v_points: np.ndarray, redirect: Redirect) -> Redirection:
     """The redirection of k pose pairs: ``t_points`` (k, 2, 3) the tangible's contacts in its file
-    frame (mm), ``v_points`` (k, 2, 3) the virtual object's in the world, in the matched finger order."""
-    R, p = world_pose(tangible_spec)
+    frame (mm), ``v_points`` (k, 2, 3) the virtual object's in the world, in the matched finger order;
+    ``tangible_obj`` the prop (:class:`pinchmatch.grasp.analysis.ObjectAnalysis`: its spec's pose and
+    its mesh, for the hand's start). A pair is within the budget when its angle is at most the largest
+    and its reach gain within the range."""
+    spec = tangible_obj.spec
+    R, p = world_pose(spec)
     physical = np.einsum("ij,kfj->kfi", R, np.asarray(t_points, dtype=np.float64)) + p
     virtual = np.asarray(v_points, dtype=np.float64)
-    start = hand_start(tangible_spec, redirect)
+    start = hand_start(spec, redirect, tangible_obj.loaded.mesh.vertices)
     pt, vt = physical.mean(axis=1), virtual.mean(axis=1)
     angle = _angle_deg(pt - start, vt - start)
     turn = _angle_deg(physical[:, 1] - physical[:, 0], virtual[:, 1] - virtual[:, 0])
+    gain = reach_gain(start, pt, vt)
     terms = np.stack([(angle / redirect.threshold_deg) ** 2, (turn / redirect.axis_threshold_deg) ** 2], axis=-1)
+    low, high = redirect.gain_range
     return Redirection(angle, np.linalg.norm(vt - pt, axis=1), turn, start, pt, vt, terms,
-                       angle <= redirect.max_angle_deg)
+                       (angle <= redirect.max_angle_deg) & (gain >= low) & (gain <= high), gain)
+
+
+#: the blockwise pass's margins, so that it never drops a pair the exact evaluation allows (deg, relative)
+ANGLE_MARGIN_DEG, GAIN_MARGIN = 1e-3, 1e-9
+
+
+def pair_budget(tangible_obj, t_midpoints: np.ndarray, v_midpoints: np.ndarray, redirect: Redirect):
+    """For the search's blockwise pass: a function ``block(start, stop)`` giving, for tangible poses
+    start..stop against every virtual pose, (a lower bound of the angle's contribution, whether the pair
+    may be within the budget). ``t_midpoints`` (nt, 3) in the prop's file frame, ``v_midpoints`` (nv, 3)
+    in the world. The angle comes from a matrix product of unit directions, its round-off covered by
+    ``ANGLE_MARGIN_DEG``; the gain from the distances, covered by ``GAIN_MARGIN``."""
+    R, p = world_pose(tangible_obj.spec)
+    start = hand_start(tangible_obj.spec, redirect, tangible_obj.loaded.mesh.vertices)
+    pt = np.asarray(t_midpoints, dtype=np.float64) @ R.T + p - start
+    vt = np.asarray(v_midpoints, dtype=np.float64) - start
+    dt, dv = np.linalg.norm(pt, axis=1), np.linalg.norm(vt, axis=1)
+    ut, uv = pt / np.maximum(dt, 1e-300)[:, None], vt / np.maximum(dv, 1e-300)[:, None]
+    low, high = redirect.gain_range
+
+    def block(first: int, stop: int):
+        cos = np.clip(ut[first:stop] @ uv.T, -1.0, 1.0)
+        angle = np.degrees(np.arccos(cos))
+        term = (np.maximum(angle - ANGLE_MARGIN_DEG, 0.0) / redirect.threshold_deg) ** 2
+        gain = dv[None, :] / np.maximum(dt[first:stop, None], 1e-9)
+        ok = (angle <= redirect.max_angle_deg + ANGLE_MARGIN_DEG) & (gain >= low * (1 - GAIN_MARGIN)) \
+            & (gain <= high * (1 + GAIN_MARGIN))
+        return term, ok
+
+    return block

@@ -132,14 +132,22 @@ def match_one(tangibles: list[Candidates], virtual: Candidates, config: Config, 
     tables = FeltTables(settings.landing_mm, pinch)
     steady = steady_search(search, tangibles, virtual, pinch)
     row, noticed = ranked_row(search, cost_row(search, 0), tables, steady)
+    carousel = None
+    if settings.redirect is not None:  # each prop serves by redirection or by the carousel, as _mode decides
+        registered = dataclasses.replace(settings, placement="registered")
+        carousel = refined_search(search.tangibles, search.virtuals[0], search.model, registered, pinch_settings=pinch)
+        c_row, c_noticed = ranked_row(carousel, cost_row(carousel, 0), tables,
+                                      steady_search(carousel, tangibles, virtual, pinch))
+        stays = np.isfinite(row) & (row <= c_row + settings.carousel_margin_jnd)
+        row, noticed = np.where(stays, row, c_row), np.where(stays, noticed, c_noticed)
     allowed = allowed or (list(range(len(tangibles))), None)
-    if not details:
+    if not details:  # what select and design rank props by: the row
         picks = _ranked(search, steady, allowed[0], 1, tables) if allowed[0] else []
         picks = [dataclasses.replace(p, virtual=index) for p, _ in picks]
         return VirtualMatch(index, picks[0] if picks else None, [], None if picks else allowed[1], None,
                             virtual.name, list(search.tangibles), search.virtuals[0], row=row, row_noticed=noticed)
     vm = _placed(search, allowed, pinch_settings=pinch, index=index, probes=probes, tables=tables,
-                 sampled=(tangibles, virtual), steady=steady)
+                 sampled=(tangibles, virtual), steady=steady, carousel=carousel)
     return dataclasses.replace(vm, row=row, row_noticed=noticed)
 
 
@@ -295,38 +303,49 @@ def ranked_row(search: Search, row: np.ndarray, tables: FeltTables,
 
 def _placed(search: Search, allowed: tuple, *, pinch_settings: PinchSettings, index: int = 0,
             probes: dict | None = None, tables: FeltTables | None = None, sampled: tuple | None = None,
-            steady: SteadySearch | None = None) -> VirtualMatch:
+            steady: SteadySearch | None = None, carousel: Search | None = None) -> VirtualMatch:
     """The virtual object's match; under ``placement="fixed"`` with its redirection, or the carousel's
-    (registered) match where no pair is within the redirection budget, or where the best redirected
-    pair would be noticed (``p_noticed`` of at least 0.5) and the carousel's would not."""
+    (registered) match where no pair is within the redirection budget, or where the carousel costs more
+    than ``carousel_margin_jnd`` less than the best redirected pair (both ranked as the match ranks). The
+    redirection's record gives both costs and the reason."""
     tables = tables or FeltTables(search.settings.landing_mm, pinch_settings)
     vm = _match(search, *allowed, pinch_settings=pinch_settings, index=index, probes=probes, tables=tables,
                 steady=steady)
     settings = search.settings
-    if settings.redirect is None:
+    if settings.redirect is None or not allowed[0]:
         return vm
-    mode = "redirect"
-    if allowed[0] and (vm.best is None or _noticed(vm, search.model)):
+    if carousel is None:
         registered = dataclasses.replace(settings, placement="registered")
         carousel = refined_search(search.tangibles, search.virtuals[0], search.model, registered,
                                   pinch_settings=pinch_settings)
-        served = _match(carousel, *allowed, pinch_settings=pinch_settings, index=index, probes=probes, tables=tables,
-                        steady=steady_search(carousel, *sampled, pinch_settings) if sampled else None)
-        if vm.best is None or (served.best is not None and not _noticed(served, search.model)):
-            vm, mode = served, "carousel"
+    served = _match(carousel, *allowed, pinch_settings=pinch_settings, index=index, probes=probes, tables=tables,
+                    steady=steady_search(carousel, *sampled, pinch_settings) if sampled else None)
+    mode, why = _mode(vm, served, settings.carousel_margin_jnd)
+    costs = {"redirect_cost": None if vm.best is None else round(float(vm.best.cost), 6),
+             "carousel_cost": None if served.best is None else round(float(served.best.cost), 6), "reason": why}
+    if mode == "carousel":
+        vm = served
     if vm.best is None:
         return vm
     best = vm.best
     tangible = vm.tangibles[best.tangible]
     v_points = vm.candidates.pinches.points[best.v_pose]
-    moved = redirection(tangible.obj.spec, tangible.pinches.points[best.t_pose][None],
+    moved = redirection(tangible.obj, tangible.pinches.points[best.t_pose][None],
                         (v_points[::-1] if best.swapped else v_points)[None], settings.redirect)
-    return dataclasses.replace(vm, redirection=moved.record(0, mode))
+    return dataclasses.replace(vm, redirection=moved.record(0, mode) | costs)
 
 
-def _noticed(vm: VirtualMatch, model: CostModel) -> bool:
-    """Is the match's best choice noticed at least half of the time (as it is ranked)?"""
-    return vm.best.p_noticed >= 0.5
+def _mode(redirected: VirtualMatch, carousel: VirtualMatch, margin: float) -> tuple[str, str]:
+    """``redirect`` or ``carousel`` and why: an object stays in the level, the hand redirected, unless no
+    pair is within the redirection budget or the carousel costs more than ``margin`` less."""
+    if redirected.best is None:
+        return "carousel", "no pose pair is within the redirection budget (angle and reach gain)"
+    if carousel.best is None:
+        return "redirect", "the carousel has no allowed placement"
+    a, b = float(redirected.best.cost), float(carousel.best.cost)
+    if a <= b + margin:
+        return "redirect", f"redirecting costs {a:.3g}, within {margin:g} of the carousel's {b:.3g}"
+    return "carousel", f"the carousel costs {b:.3g}, more than {margin:g} below redirecting's {a:.3g}"
 
 
 def match_virtual(tangibles: list[Candidates], virtual: Candidates, *, model: CostModel | None = None,

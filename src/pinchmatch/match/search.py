@@ -36,7 +36,7 @@ import numpy as np
 from ..config import MatchSettings  # noqa: F401 (re-exported)
 from .candidates import Candidates, felt_table, mass_ratio, pair_terms
 from .cost import (CRITERIA, CostModel, feature_ranges, pair_cost_blocks, pooled_bound_blocks, total)
-from .redirect import (Redirect, placed_transform, redirection, world_pose)
+from .redirect import Redirect, pair_budget, placed_transform, redirection, world_pose
 from .register import FLIP_COSINE, register_poses
 
 #: pose pairs kept per (virtual, tangible) object pair before the exact evaluation: one per
@@ -151,7 +151,7 @@ def evaluate_pairs(
             allowed = ~flipped if keep_upright else np.ones(len(it), dtype=bool)
             extra = np.zeros((len(it), 2))
         else:  # the virtual object stays where it is; flipped when the prop stands otherwise than the level's up
-            moved = redirection(tangible.obj.spec, tp, vp, redirect)
+            moved = redirection(tangible.obj, tp, vp, redirect)
             flipped = np.full(len(it), bool((R @ up_v) @ up_t < FLIP_COSINE))
             allowed, extra = moved.allowed, moved.terms
         cost = np.where(allowed, total(terms, model, extra if redirect is not None else None), np.inf)
@@ -168,11 +168,13 @@ def evaluate_pairs(
 
 
 def pool_pairs(tangible: Candidates, virtual: Candidates, model: CostModel, size: int, block_rows: int,
-               tight: bool = False, moments: tuple | None = None):
+               tight: bool = False, moments: tuple | None = None, redirect: Redirect | None = None):
     """The ``size`` pose pairs with the smallest separable sum (``tight``: the smallest pooled
     bound, :func:`pinchmatch.match.cost.pooled_bound_blocks`), and tau, a cost no pair left out is below.
     With ``moments`` ((mean, variance) of the tangible's rows, the same of the virtual's), the sum is the
-    expected one of :mod:`pinchmatch.match.steady` over the first ``len(mean)`` poses of each.
+    expected one of :mod:`pinchmatch.match.steady` over the first ``len(mean)`` poses of each. With
+    ``redirect`` (the virtual object stays in the level) the sum gains a lower bound of the redirection
+    angle's contribution and the pairs beyond the budget are left out (:func:`pinchmatch.match.redirect.pair_budget`).
 
     Returns (it, iv, separable sum or bound, tau); tau is inf when no pair was left out.
     """
@@ -186,10 +188,15 @@ def pool_pairs(tangible: Candidates, virtual: Candidates, model: CostModel, size
     kept_idx = np.zeros(0, dtype=np.int64)
     tau = np.inf
     felt = felt_table(v_table, ratio)
+    budget = None
+    if redirect is not None:
+        budget = pair_budget(tangible.obj, tangible.pinches.points[:len(t_table)].mean(axis=1),
+                             virtual.pinches.points[:nv].mean(axis=1), redirect)
     if tight:
-        blocks = ((start, bound, None) for start, bound in pooled_bound_blocks(t_table, felt, model))
+        blocks = ((start, bound, None) for start, bound in pooled_bound_blocks(t_table, felt, model, extra=budget))
     else:
-        blocks = pair_cost_blocks(t_table, felt, model, block_rows=block_rows, with_swapped=False, spreads=spreads)
+        blocks = pair_cost_blocks(t_table, felt, model, block_rows=block_rows, with_swapped=False, spreads=spreads,
+                                  extra=budget)
     for start, block, _ in blocks:
         flat = block.ravel()
         if not np.isfinite(tau) and flat.size > 4 * size:
@@ -210,7 +217,8 @@ def pool_pairs(tangible: Candidates, virtual: Candidates, model: CostModel, size
         kept_val, kept_idx = vals, idx
     # every pair left out has a separable sum of at least tau, so a cost of at least its bound (tight:
     # a bound of at least tau, less a margin for the round-off of its matrix products)
-    bound = tau * (1.0 - TIGHT_ROUND_OFF) if tight else float(model.bound_from_separable(tau))
+    bound = tau * (1.0 - TIGHT_ROUND_OFF) if tight else \
+        float(model.bound_from_separable(tau, extra_weight=0.0 if redirect is None else 1.0))
     return kept_idx // nv, kept_idx % nv, kept_val, bound
 
 
@@ -326,7 +334,8 @@ class Search:
             return old
         T, V = self.tangibles[t], self.virtuals[j]
         size = size or initial_pool(len(T), len(V))
-        it, iv, _, tau = pool_pairs(T, V, self.model, size, self.settings.block_rows, self._tight(size, T, V))
+        it, iv, _, tau = pool_pairs(T, V, self.model, size, self.settings.block_rows, self._tight(size, T, V),
+                                    redirect=self.settings.redirect)
         it, iv, result = self._below(T, V, it, iv, tau)
         pool = _PairPool(t, it, iv, result, tau, size)
         self.pools[(j, t)] = pool
@@ -365,7 +374,8 @@ class Search:
                 if not len(t_rows) or not len(v_rows):
                     continue
                 it, iv, _, block_tau = pool_pairs(T.subset(t_rows), V.subset(v_rows), self.model, old.size,
-                                             self.settings.block_rows, self._tight(old.size, T, V))
+                                                  self.settings.block_rows, self._tight(old.size, T, V),
+                                                  redirect=self.settings.redirect)
                 tau = min(tau, block_tau)
                 parts.append(out._below(T, V, t_rows[it], v_rows[iv], block_tau))
             it, iv = np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])

@@ -96,7 +96,8 @@ class SteadySearch:
         T, V, model, settings = search.tangibles[t], search.virtuals[0], search.model, search.settings
         mt = moments_of(self.sampled_tangibles[t], self.radius_mm, self.pinch_settings)
         mv = moments_of(self.sampled_virtual, self.radius_mm, self.pinch_settings)
-        it, iv, _, _ = pool_pairs(T, V, model, STEADY_POOL, settings.block_rows, moments=(mt, mv))
+        it, iv, _, _ = pool_pairs(T, V, model, STEADY_POOL, settings.block_rows, moments=(mt, mv),
+                                  redirect=settings.redirect)
         order = np.lexsort((iv, it))  # the pool's own order depends on its blocks
         it, iv = it[order], iv[order]
         r = evaluate_pairs(T, V, it, iv, model=model, keep_upright=settings.keep_upright, redirect=settings.redirect)

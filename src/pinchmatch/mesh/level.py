@@ -57,3 +57,18 @@ def node_mesh(scene: trimesh.Scene, node: str) -> trimesh.Trimesh | None:
     if np.linalg.det(transform[:3, :3]) < 0:  # a mirroring transform turns the winding inside out
         faces = faces[:, ::-1]
     return trimesh.Trimesh(vertices=vertices, faces=faces, process=False)
+
+
+def scene_node_digests(scene: trimesh.Scene) -> dict[str, str]:
+    """{node: SHA-256 of its triangles in world coordinates} for every mesh node of ``scene``: what a node is,
+    whatever else the level holds or where in the file it sits (a cache key per node)."""
+    import hashlib
+
+    out = {}
+    for node in level_nodes(scene):
+        mesh = node_mesh(scene, node.name)
+        h = hashlib.sha256()
+        h.update(np.ascontiguousarray(mesh.vertices, dtype="<f8").tobytes())
+        h.update(np.ascontiguousarray(mesh.faces, dtype="<i8").tobytes())
+        out[node.name] = h.hexdigest()
+    return out

@@ -22,7 +22,7 @@ from ..files import holds_result
 from .frames import UNITS_MM, check_units, parse_up
 from .gltf_check import PercentDecoding, check_gltf
 from . import topology
-from .level import LevelNode, level_nodes, node_mesh
+from .level import LevelNode, level_nodes, node_mesh, scene_node_digests
 
 log = logging.getLogger(__name__)
 
@@ -299,16 +299,27 @@ def _load(path: Path, file_type: str, *, split: bool = False, **kwargs):
         ) from None
 
 
-def read_level(path: str | os.PathLike) -> list[LevelNode]:
-    """The mesh nodes of a glTF/GLB scene (see :mod:`pinchmatch.mesh.level`), for splitting it into
-    one object per node. Raises MeshError for a file that cannot be read or holds no mesh node."""
-    path = Path(path)
+def node_digests(path: str | os.PathLike) -> dict[str, str]:
+    """{node: digest of its triangles in the world} for every mesh node of a glTF/GLB level
+    (:func:`pinchmatch.mesh.level.scene_node_digests`)."""
+    return scene_node_digests(_level_scene(Path(path)))
+
+
+def _level_scene(path: Path) -> trimesh.Scene:
+    """A glTF/GLB file read as a scene of nodes, for splitting; MeshError for any other file."""
     _check_readable(path)
     file_type = _file_type(path)
     if file_type not in GLTF_TYPES:
         raise MeshError(f"{path}: only a glTF or GLB scene can be split into its nodes; "
                         "leave out split = \"nodes\" for this file")
-    nodes = level_nodes(_load(path, file_type, split=True, force="scene"))
+    return _load(path, file_type, split=True, force="scene")
+
+
+def read_level(path: str | os.PathLike) -> list[LevelNode]:
+    """The mesh nodes of a glTF/GLB scene (see :mod:`pinchmatch.mesh.level`), for splitting it into
+    one object per node. Raises MeshError for a file that cannot be read or holds no mesh node."""
+    path = Path(path)
+    nodes = level_nodes(_level_scene(path))
     if not nodes:
         raise MeshError(f"{path}: the scene has no node holding triangles; re-export the level with its meshes")
     return nodes

@@ -31,6 +31,8 @@ the object and the key.
 
 from __future__ import annotations
 
+import fnmatch
+
 import difflib
 import math
 import os
@@ -50,7 +52,7 @@ MANIFEST_SUFFIX = ".toml"
 MAX_COORDINATE_MM = 1e6
 #: the keys of an object; ``[defaults]`` takes all but ``file`` and ``name``
 OBJECT_KEYS = ("file", "shape", "name", "units", "up", "com_mm", "axis", "mass_g", "split", "exclude", "only", "pose",
-               "support", "support_mm")
+               "support", "support_mm", "nodes", "skip_nodes")
 DEFAULT_KEYS = tuple(k for k in OBJECT_KEYS if k not in ("file", "shape", "name", "pose"))
 #: a pose's quaternion may be this far from length 1 (then it is normalised); farther, it is no rotation
 QUATERNION_TOLERANCE = 1e-3
@@ -83,6 +85,8 @@ class ObjectSpec:
     manifest: str | None = None  # the manifest it was listed in
     pose: tuple | None = None  # ((x, y, z) mm, (qx, qy, qz, qw)): file coordinates (mm) -> the level's world
     support: str | float | None = None  # what it stands on (:mod:`pinchmatch.mesh.support`): "auto", "none", mm
+    nodes: tuple = ()  # a level split into nodes: only the nodes whose name or path matches one of these globs
+    skip_nodes: tuple = ()  # and none that matches one of these
 
     @property
     def display_name(self) -> str:
@@ -206,6 +210,14 @@ def _options(table: dict, where: str, problems: _Problems) -> dict:
     for key in ("exclude", "only"):
         if key in table:
             out[key] = _regions(table[key], where, key, problems)
+    for key in ("nodes", "skip_nodes"):
+        if key in table:
+            globs = [table[key]] if isinstance(table[key], str) else table[key]
+            if isinstance(globs, list) and globs and all(isinstance(g, str) and g.strip() for g in globs):
+                out[key] = tuple(globs)
+            else:
+                problems.add(where, key, "must be a glob of node names or paths, or a list of them, as "
+                                         f'{key} = ["counter*", "Kitchen/Wall_?"]')
     if "pose" in table:
         pose = _pose(table["pose"], where, problems)
         if pose is not None:
@@ -354,22 +366,41 @@ def _described(table: dict, where: str, base: dict, manifest: Path, problems: _P
     return ObjectSpec(str(file), regions=regions, manifest=str(manifest), units="mm", up="z", **options)
 
 
-def node_specs(spec: ObjectSpec, nodes) -> list[ObjectSpec]:
+def node_specs(spec: ObjectSpec, nodes, *, only: tuple = (), skip: tuple = ()) -> list[ObjectSpec]:
     """One spec per mesh node of a level (``nodes`` from :func:`pinchmatch.mesh.load.read_level`),
-    named by the node (after the level's own name, where the manifest gives one)."""
+    named by the node (after the level's own name, where the manifest gives one): the nodes whose name or
+    path matches a glob of the spec's ``nodes`` (else of ``only``; every node where neither gives one),
+    none that matches one of the spec's ``skip_nodes`` or of ``skip``. A glob of ``nodes`` or ``only``
+    that matches no node is refused, naming the level's nodes."""
+    include = spec.nodes or tuple(only)
+    exclude = tuple(spec.skip_nodes) + tuple(skip)
+
+    def matches(n, globs) -> bool:
+        return any(fnmatch.fnmatchcase(n.name, g) or fnmatch.fnmatchcase(n.path, g) for g in globs)
+
+    for g in include:
+        if not any(matches(n, (g,)) for n in nodes):
+            names = ", ".join(n.name for n in nodes[:12]) + (", ..." if len(nodes) > 12 else "")
+            raise ConfigError(f"{spec.path}: the node glob {g!r} (--nodes, or a manifest's nodes) matches no mesh node "
+                              f"of the level; its nodes are {names}")
+    kept = [n for n in nodes if (not include or matches(n, include)) and not matches(n, exclude)]
+    if not kept:
+        raise ConfigError(f"{spec.path}: --nodes and --skip-nodes leave no mesh node of the level; name at least "
+                          "one node to match")
     return [replace(spec, split="none", node=n.name, node_path=n.path,
-                    name=f"{spec.name}/{n.name}" if spec.name else None) for n in nodes]
+                    name=f"{spec.name}/{n.name}" if spec.name else None) for n in kept]
 
 
 def is_manifest(path: str | os.PathLike) -> bool:
     return Path(path).suffix.lower() == MANIFEST_SUFFIX
 
 
-def object_specs(paths, *, option: str, split: str | None = None) -> list[ObjectSpec]:
+def object_specs(paths, *, option: str, split: str | None = None, nodes=(), skip_nodes=()) -> list[ObjectSpec]:
     """The objects that command-line paths name: mesh files, folders of them (searched as
     :func:`~pinchmatch.mesh.load.mesh_files` does) and manifests, in the order given. A glTF/GLB
     scene whose split is ``"nodes"`` (its manifest entry's, else ``split``) becomes one object per
-    mesh node; other files are not split.
+    mesh node (those ``nodes`` and ``skip_nodes`` keep, as :func:`node_specs` says); other files are
+    not split.
 
     >>> [spec.display_name for spec in object_specs([props_toml, box_stl], option="--tangible")]
     ['box', 'can', 'box.stl']
@@ -386,7 +417,8 @@ def object_specs(paths, *, option: str, split: str | None = None) -> list[Object
             how = spec.split or split or "none"
             level = Path(spec.path).suffix.lower() in MESH_EXTENSIONS and \
                 MESH_EXTENSIONS[Path(spec.path).suffix.lower()] in GLTF_TYPES
-            out.extend(node_specs(spec, read_level(spec.path)) if how == "nodes" and level else [spec])
+            out.extend(node_specs(spec, read_level(spec.path), only=tuple(nodes), skip=tuple(skip_nodes))
+                       if how == "nodes" and level else [spec])
     return out
 
 

@@ -46,11 +46,11 @@ from ..version import __version__
 from ..grasp.analysis import ObjectAnalysis, analyze_spec
 from ..grasp.features import PinchFeatures
 from ..files import AtomicFile
-from ..mesh.load import LoadedMesh, load_mesh
+from ..mesh.load import LoadedMesh, load_mesh, node_digests
 from ..mesh.manifest import ObjectSpec, spec_from_dict, spec_to_dict
 from ..match.candidates import Candidates, candidate_poses
 from ..match.cost import feature_table
-from ..errors import ConfigError, OutputError
+from ..errors import ConfigError, OutputError, PinchmatchError
 from ..grasp.pinches import ARRAY_FIELDS, PinchSettings, Pinches
 from ..mesh.properties import ObjectProperties
 from ..mesh.support import support_plane
@@ -116,6 +116,27 @@ def _file_digest(path: Path) -> str:
     return h.hexdigest()
 
 
+#: per level file, the digest of its bytes and of each node (:func:`pinchmatch.mesh.load.node_digests`)
+_NODE_DIGESTS: dict[str, tuple[str, dict]] = {}
+
+
+def _object_digest(spec: ObjectSpec) -> str:
+    """What an object's entry depends on of its file: the file's bytes, or for a level's node the node's own
+    triangles in world coordinates (editing, adding or removing another node changes nothing)."""
+    path = Path(spec.path)
+    whole = _file_digest(path)
+    if spec.node is None:
+        return whole
+    memo = _NODE_DIGESTS.get(str(path))
+    if memo is None or memo[0] != whole:
+        try:
+            memo = (whole, node_digests(path))
+        except PinchmatchError:
+            memo = (whole, {})  # loading the node says what is wrong
+        _NODE_DIGESTS[str(path)] = memo
+    return "node:" + memo[1][spec.node] if spec.node in memo[1] else whole
+
+
 @dataclass(frozen=True)
 class CacheInfo:
     folder: Path
@@ -132,11 +153,11 @@ class FeatureCache:
         self.last_key: str | None = None  # the key of the object last loaded or stored
 
     def key(self, spec: ObjectSpec, *, settings: PinchSettings, given: tuple[np.ndarray, np.ndarray] | None = None) -> str:
-        """The entry of an object: its file's bytes (and the buffers and images a glTF names), what in its
-        spec shapes its candidates (units, up, centre of mass, axis, regions, scene node), the pinch
+        """The entry of an object: its file's bytes (and the buffers and images a glTF names; a level's node:
+        its own triangles in the world, :func:`_object_digest`), what in its spec shapes its candidates (units, up, centre of mass, axis, regions, scene node), the pinch
         settings' digest, the given poses and the code's digest."""
         h = hashlib.sha256()
-        h.update(_file_digest(Path(spec.path)).encode())
+        h.update(_object_digest(spec).encode())
         h.update(json.dumps({"format": CACHE_FORMAT, "code": code_digest(), "suffix": Path(spec.path).suffix.lower(),
                              "object": spec.shape_key(), "settings": digest(settings)}, sort_keys=True).encode())
         if given is not None:
