@@ -77,10 +77,15 @@ def test_a_manifest_s_bad_glob_is_one_line(tmp_path, capsys):
 
 def test_a_node_no_hand_can_pinch_is_named_with_its_size_and_the_way_out(tmp_path, capsys):
     """A 400 x 300 x 250 mm crate is wider than the largest pinch (100 mm) in every direction: the run says
-    so for that node, names it and how to leave it out; the other nodes are matched."""
+    so for that node, names it and how to leave it out; the other nodes are matched, among them a pot as
+    large in every direction whose 6 mm wall a hand pinches (not convex: sampling decides)."""
     crate = trimesh.creation.box(extents=(0.4, 0.25, 0.3))
     crate.apply_translation([0.0, 0.125, 0.0])
-    tabletop_level(tmp_path / "kitchen.glb", [("crate", crate, (0.5, 0.0, 0.0)), ("can_a", standing_can(), (0.1, 0, 0))])
+    pot = trimesh.creation.annulus(r_min=0.104, r_max=0.11, height=0.22)
+    pot.apply_transform(trimesh.transformations.rotation_matrix(-np.pi / 2, [1, 0, 0]))
+    pot.apply_translation([0.0, 0.11, 0.0])
+    tabletop_level(tmp_path / "kitchen.glb", [("crate", crate, (0.5, 0.0, 0.0)), ("can_a", standing_can(), (0.1, 0, 0)),
+                                             ("pot", pot, (-0.4, 0.0, 0.0))])
     (tmp_path / "props.toml").write_text(PROP)
     code, text = _match(capsys, tmp_path, tmp_path / "out")
     assert code == 3, text
@@ -88,7 +93,9 @@ def test_a_node_no_hand_can_pinch_is_named_with_its_size_and_the_way_out(tmp_pat
     assert "(node crate)" in line and "250 x 300 x 400 mm" in line
     assert "--skip-nodes 'crate'" in line
     matched = json.loads((tmp_path / "out" / "matches.json").read_text())["matches"]
-    assert [m["virtual"] for m in matched] == ["can_a"]
+    assert sorted(m["virtual"] for m in matched) == ["can_a", "pot"]
+    pot_width = [m for m in matched if m["virtual"] == "pot"][0]["virtual_pose"]
+    assert np.linalg.norm(np.subtract(pot_width["p1_mm"], pot_width["p2_mm"])) < 10.0  # across its wall
     code, text = _match(capsys, tmp_path, tmp_path / "out2", "--skip-nodes", "crate")
     assert code == 0, text
 

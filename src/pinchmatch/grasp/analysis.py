@@ -117,10 +117,19 @@ def find_pinches(obj: ObjectAnalysis, *, settings: PinchSettings = PinchSettings
     return pinches, pinch_features(pinches, obj.props)
 
 
+#: a closed object whose volume is at least this share of its convex hull's is taken as convex
+CONVEX_SHARE = 0.97
+
+
 def too_wide(mesh, settings: PinchSettings, source: str, node: str | None = None) -> None:
-    """Refuse an object wider than the largest pinch in every direction (its oriented bounding box's
-    least extent, trimesh's): no hand could pinch it, and sampling it would only say so slowly."""
+    """Refuse a convex object wider than the largest pinch in every direction (its oriented bounding box's
+    least extent, trimesh's): no hand could pinch it, and sampling it would only say so slowly. An object
+    that is not convex (a pot with handles, a bowl's rim) may have thin parts: sampling decides."""
     extents = np.sort(np.asarray(mesh.bounding_box_oriented.primitive.extents, dtype=np.float64))
+    if extents[0] <= settings.max_width_mm or not mesh.is_watertight:
+        return
+    if abs(mesh.volume) < CONVEX_SHARE * mesh.convex_hull.volume:
+        return
     if extents[0] > settings.max_width_mm:
         leave = f"--skip-nodes '{node}'" if node else "leave it out"
         raise NoFeasiblePinchError(
