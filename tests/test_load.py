@@ -170,3 +170,36 @@ def test_up_directions_are_the_six_unit_axes():
 
     assert UP_VECTORS == {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0),
                           "-x": (-1.0, 0.0, 0.0), "-y": (0.0, -1.0, 0.0), "-z": (0.0, 0.0, -1.0)}
+
+
+def test_parts_inside_a_closed_part_are_left_out_a_book_is_pinched_on_its_cover(tmp_path):
+    """A book: a closed cover (150 x 220 x 30 mm) and 32 page sheets inside it, turned and moved off the
+    origin. The pages are removed (a hand touches the cover only) and pinches are found across the cover;
+    a sheet beside the cover, not inside it, stays."""
+    from scipy.spatial.transform import Rotation
+
+    from pinchmatch import PinchSettings, analyze_object, candidate_poses
+
+    cover = trimesh.creation.box(extents=(150, 220, 30))
+    pages = []
+    for k in range(32):
+        page = trimesh.creation.box(extents=(140, 210, 0.5))
+        page.apply_translation([0, 0, -12 + k * 0.75])
+        pages.append(page)
+    loose = trimesh.creation.box(extents=(40, 40, 4))
+    loose.apply_translation([120, 0, 0])
+    book = trimesh.util.concatenate([cover, *pages, loose])
+    M = np.eye(4)
+    M[:3, :3] = Rotation.from_euler("xyz", [20, -35, 50], degrees=True).as_matrix()
+    M[:3, 3] = [300, -120, 45]
+    book.apply_transform(M)
+    book.export(tmp_path / "book.stl")
+    loaded = load_mesh(tmp_path / "book.stl")
+    assert any("32 part(s) lying inside another" in r for r in loaded.repairs)
+    assert len(loaded.mesh.faces) == 24  # the cover's 12 and the loose sheet's 12
+    obj = analyze_object(tmp_path / "book.stl")
+    poses = candidate_poses(obj, settings=PinchSettings(count=60, seed=2))
+    widths = np.linalg.norm(poses.pinches.points[:, 1] - poses.pinches.points[:, 0], axis=1)
+    assert len(poses) == 60 and (widths > 3.0).all()  # never a page's half millimetre
+    # across the cover (30 mm, longer where the pinch line leans within the friction cone), or the loose sheet
+    assert ((widths > 29.9) & (widths < 36.0)).sum() > 30 and ((widths > 3.9) & (widths < 5.0)).any()

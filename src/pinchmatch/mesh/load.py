@@ -455,16 +455,22 @@ def _repair(mesh: trimesh.Trimesh, *, indexed: bool, scale: float,
                 f"removed {int(tiny.sum())} loose sliver(s) under "
                 f"{SLIVER_AREA_FRACTION:.1%} of the surface"
             )
+        inside = topology.enclosed_parts(mesh.vertices, mesh.faces, labels)
+        if inside.any():  # a hand touches the outer shell only: pages in a cover, a liner in a shell
+            mesh.update_faces(~inside[labels])
+            e = topology.edges(mesh.faces)
+            labels = topology.component_labels(topology.face_adjacency(e), len(mesh.faces))
+            repairs.append(f"removed {int(inside.sum())} part(s) lying inside another (only the outer shell is touched)")
     mesh.remove_unreferenced_vertices()
 
     say("repairing: orientation")
     # removing unreferenced vertices renumbers the corners, but keeps the faces and their edges
     watertight, consistent_before = topology.watertight_and_wound(e)
     if not consistent_before:  # winding to make consistent first: trimesh's traversal
-        before = _cyclic(mesh.faces)
+        before = topology.cyclic(mesh.faces)
         volume_before = 0.0
         trimesh.repair.fix_normals(mesh, multibody=True)
-        flipped = int((_cyclic(mesh.faces) != before).any(axis=1).sum())
+        flipped = int((topology.cyclic(mesh.faces) != before).any(axis=1).sum())
         watertight, wound = topology.watertight_and_wound(topology.edges(mesh.faces))
         volume = float(topology.signed_volumes(mesh.vertices, mesh.faces).sum())
     else:  # consistent: only whole bodies turned inside out are turned back, as trimesh does
@@ -483,13 +489,6 @@ def _repair(mesh: trimesh.Trimesh, *, indexed: bool, scale: float,
     elif flipped:
         repairs.append(f"made winding consistent ({flipped} faces flipped)")
     return repairs, bool(watertight and wound and volume > 0)
-
-
-def _cyclic(faces: np.ndarray) -> np.ndarray:
-    """Faces rotated to start at their smallest index: equal rows mean equal orientation."""
-    shift = np.argmin(faces, axis=1)
-    idx = (shift[:, None] + np.arange(3)) % 3
-    return np.take_along_axis(faces, idx, axis=1)
 
 
 def load_mesh(
