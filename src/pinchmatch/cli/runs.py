@@ -184,6 +184,8 @@ def write_matches(args, stage: Path, out: Path, ui, ex, tangible_tasks, virtual_
         with ui.step("cost matrix figure"):
             write_atomic(stage / "figures" / "cost_matrix.png", png_bytes(cost_matrix_figure(sink.overview())))
         written.append(f"{sink.scenes + 1} figures in {out / 'figures'}")
+    if doc is not None and job.config.match.redirect is not None:
+        written += write_levels(stage, out, doc, virtual_tasks, result, run_settings)
     if not args.no_view and doc is not None:
         with ui.step("viewer page"):
             write_page(stage, document=doc)
@@ -191,6 +193,26 @@ def write_matches(args, stage: Path, out: Path, ui, ex, tangible_tasks, virtual_
     elif not args.no_view:
         written.append(f"no viewer page (build it with: pinchmatch view {out})")
     return result, doc, sink, written
+
+
+def write_levels(stage: Path, out: Path, doc: dict, virtual_tasks, result, run_settings: dict) -> list[str]:
+    """Under ``--placement fixed``: each level the virtual objects come from, with the props at their poses
+    and each node's match in its extras (:mod:`pinchmatch.export.level`): ``level.glb``, or
+    ``level-<file stem>.glb`` for each of several levels."""
+    from ..export.level import level_glb
+
+    specs = {t.spec.display_name: t.spec for t in virtual_tasks if t.spec is not None and t.spec.node is not None}
+    props = {c.name: c.obj for c in result.tangibles}
+    levels = sorted({spec.path for spec in specs.values()})
+    written = []
+    for path in levels:
+        entries = {specs[m["virtual"]].node: (m, props[m["tangible"]].spec) for m in doc["matches"]
+                   if m.get("tangible") is not None and m["virtual"] in specs and specs[m["virtual"]].path == path}
+        name = "level.glb" if len(levels) == 1 else f"level-{Path(path).stem}.glb"
+        data = level_glb(path, [(obj.spec, obj.loaded.mesh) for obj in props.values()], entries, run_settings)
+        write_atomic(stage / name, data)
+        written.append(str(out / name))
+    return written
 
 
 def print_match(ui, sink, result, run_settings) -> None:

@@ -1,0 +1,108 @@
+"""OUT/level.glb under --placement fixed: the level an engine loads, with the prop at its pose and each node's
+match in its extras; valid glTF by the Khronos validator."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import struct
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+from scipy.spatial.transform import Rotation
+
+from conftest import run_cli
+from levels import standing_can, tabletop_level
+
+NODE = shutil.which("node")
+VALIDATE = Path(__file__).parent / "js" / "validate_gltf.cjs"
+#: the prop turned 30 degrees about the level's up after standing its file's +Z up, 0.5 m off the origin
+TURN = Rotation.from_euler("y", 30, degrees=True) * Rotation.from_euler("x", -90, degrees=True)
+POSITION_MM = np.array([500.0, 900.0, -250.0])
+
+
+@pytest.fixture(scope="module")
+def level_out(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("level")
+    box = trimesh.creation.box(extents=(0.05, 0.05, 0.05))
+    box.apply_translation([0.0, 0.025, 0.0])
+    counter = trimesh.creation.box(extents=(1.4, 0.04, 0.7))
+    counter.apply_translation([0.0, -0.02, 0.0])
+    tabletop_level(folder / "kitchen.glb", [("counter", counter, (0.5, 0.9, -0.25)),
+                                           ("can_near", standing_can(), (0.52, 0.9, -0.25)),
+                                           ("box_near", box, (0.47, 0.9, -0.23)),
+                                           ("can_far", standing_can(), (0.9, 0.9, -0.5))])
+    (folder / "props.toml").write_text(
+        '[[object]]\nname = "can_prop"\nshape = { kind = "cylinder", diameter_mm = 54, height_mm = 66 }\n'
+        f"pose = {{ position_mm = {POSITION_MM.tolist()}, quaternion_xyzw = {TURN.as_quat().tolist()} }}\n")
+    return folder
+
+
+def _run(capsys, folder, out, *extra):
+    code, _, err = run_cli(capsys, "match", "--tangible", folder / "props.toml", "--virtual", folder / "kitchen.glb",
+                           "--split", "nodes", "--skip-nodes", "counter", "--count", 120, "-o", out, "--no-view",
+                           "--jobs", 1, *extra)
+    assert code == 0, err
+    return out
+
+
+def _document(path: Path) -> dict:
+    data = path.read_bytes()
+    length, = struct.unpack_from("<I", data, 12)
+    assert data[:4] == b"glTF" and struct.unpack_from("<I", data, 8)[0] == len(data) and length % 4 == 0
+    return json.loads(data[20:20 + length])
+
+
+def test_the_level_carries_the_prop_at_its_pose_and_each_node_s_match(level_out, tmp_path, capsys):
+    out = _run(capsys, level_out, tmp_path / "out", "--placement", "fixed", "--carousel-margin-jnd", "3")
+    matches = {m["virtual"]: m for m in json.loads((out / "matches.json").read_text())["matches"]}
+    doc = _document(out / "level.glb")
+    nodes = {n["name"]: n for n in doc["nodes"]}
+    assert {"counter", "can_near", "box_near", "can_far", "pinchmatch_prop_can_prop"} <= set(nodes)
+    assert "extras" not in nodes["counter"]  # skipped: the level keeps it, unmatched
+    assert doc["scenes"][0]["extras"]["pinchmatch"]["schema"] == "pinchmatch.level/1"
+    R = TURN.as_matrix()
+    for name, m in matches.items():
+        x = nodes[name]["extras"]["pinchmatch"]
+        r = m["redirection"]
+        assert x["mode"] == r["mode"] and x["prop"] == "can_prop" and x["cost"] == m["cost"]
+        assert x["redirect_cost"] == r["redirect_cost"] and x["carousel_cost"] == r["carousel_cost"]
+        v = np.array([m["virtual_pose"]["p1_mm"], m["virtual_pose"]["p2_mm"]]) / 1000.0
+        np.testing.assert_allclose(np.reshape(x["virtual_contacts_m"], (2, 3)), v, atol=2e-6)
+        t = np.array([m["tangible_pose"]["p1_mm"], m["tangible_pose"]["p2_mm"]])
+        np.testing.assert_allclose(np.reshape(x["physical_contacts_m"], (2, 3)), (t @ R.T + POSITION_MM) / 1000.0,
+                                   atol=2e-6)
+        np.testing.assert_allclose(x["hand_start_m"], np.array(r["hand_start_mm"]) / 1000.0, atol=2e-6)
+    assert {x["extras"]["pinchmatch"]["mode"] for n, x in nodes.items() if n in matches} == {"redirect", "carousel"}
+    # the prop's mesh where its pose puts it: standing on the counter (y = 0.9 m), centred on its position
+    scene = trimesh.load(out / "level.glb", force="scene")
+    prop = scene.dump(concatenate=False)
+    placed = next(g for g in prop if g.metadata.get("name", "").startswith("pinchmatch_prop") or
+                  (g.metadata.get("pinchmatch") or {}).get("role") == "prop")
+    low, high = placed.bounds
+    assert low[1] == pytest.approx(0.9, abs=1e-6) and high[1] == pytest.approx(0.966, abs=1e-6)
+    np.testing.assert_allclose((low + high)[[0, 2]] / 2, POSITION_MM[[0, 2]] / 1000.0, atol=1e-3)
+
+
+def test_no_level_is_written_under_the_registered_placement(level_out, tmp_path, capsys):
+    out = _run(capsys, level_out, tmp_path / "out")
+    assert not (out / "level.glb").exists()
+
+
+def test_the_level_is_valid_gltf(level_out, tmp_path, capsys):
+    if NODE is None or not (VALIDATE.parent / "node_modules" / "gltf-validator").is_dir():
+        if os.environ.get("CI"):
+            pytest.fail("node or the glTF validator missing; .ci/run installs both")
+        pytest.skip("node or tests/js's gltf-validator is not installed (npm ci --prefix tests/js)")
+    out = _run(capsys, level_out, tmp_path / "out", "--placement", "fixed")
+    proc = subprocess.run([NODE, str(VALIDATE), str(out / "level.glb"), *map(str, sorted((out / "scenes").glob("*.glb")))],
+                          capture_output=True, text=True, timeout=120, check=False)
+    assert proc.returncode == 0, proc.stderr
+    reports = [json.loads(line) for line in proc.stdout.splitlines()]
+    assert len(reports) >= 2
+    for report in reports:
+        assert report["errors"] == 0, report
