@@ -106,3 +106,55 @@ def test_the_level_is_valid_gltf(level_out, tmp_path, capsys):
     assert len(reports) >= 2
     for report in reports:
         assert report["errors"] == 0, report
+
+
+@pytest.fixture(scope="module")
+def browser():
+    from test_view import chromium
+
+    yield from chromium()
+
+
+def test_the_desktop_page_says_each_object_s_mode_and_lists_the_failed_node(level_out, tmp_path, capsys, browser):
+    """The page of a fixed run on a level with a crate no hand can pinch: each entry says redirect (with its
+    angle and gain) or carousel, the title says whether the object stays or is brought onto the prop, and
+    the failed node is listed with its reason."""
+    crate = trimesh.creation.box(extents=(0.4, 0.25, 0.3))
+    crate.apply_translation([0.0, 0.125, 0.0])
+    folder = tmp_path / "level"
+    folder.mkdir()
+    (folder / "props.toml").write_text((level_out / "props.toml").read_text())
+    tabletop_level(folder / "kitchen.glb", [("can_near", standing_can(), (0.52, 0.9, -0.25)),
+                                           ("can_far", standing_can(), (0.9, 0.9, -0.5)),
+                                           ("crate", crate, (0.0, 0.9, 0.3))])
+    out = tmp_path / "out"
+    code, _, err = run_cli(capsys, "match", "--tangible", folder / "props.toml", "--virtual", folder / "kitchen.glb",
+                           "--split", "nodes", "--count", 120, "-o", out, "--jobs", 1, "--placement", "fixed",
+                           "--carousel-margin-jnd", "3")
+    assert code == 3, err  # the crate failed, the others are matched
+    matches = {m["virtual"]: m for m in json.loads((out / "matches.json").read_text())["matches"]}
+    pg = browser.new_page(viewport={"width": 1400, "height": 900})
+    try:
+        errors = []
+        pg.on("pageerror", lambda e: errors.append(str(e)))
+        pg.goto((out / "index.html").as_uri())
+        pg.wait_for_selector("body[data-shown='0']", timeout=30_000)
+        entries = pg.locator("#matches li.match")
+        for k in range(entries.count()):
+            text = entries.nth(k).inner_text()
+            name = next(n for n in matches if n in text)
+            r = matches[name]["redirection"]
+            if r["mode"] == "redirect":
+                assert f"redirect {r['angle_deg']:.1f}° ×{r['gain']:.2f}" in text
+            else:
+                assert "carousel" in text
+            entries.nth(k).click()
+            pg.wait_for_timeout(300)
+            title = pg.locator("#main-title").inner_text()
+            assert title == (f"{name} stays in the level; the hand is led to can_prop" if r["mode"] == "redirect"
+                             else f"{name} brought onto can_prop (carousel)")
+        failed = pg.locator("#matches li.failed").inner_text()
+        assert "crate" in failed and "wider than the largest pinch" in failed
+        assert errors == []
+    finally:
+        pg.close()

@@ -129,7 +129,9 @@ def _page_data(out: Path, document: dict) -> dict:
                f"({loud} with a noticeable difference); "
                f"criteria {', '.join(criteria) if isinstance(criteria, list) else criteria}; "
                f"normalize {settings.get('normalize', 'jnd')}; pooling {settings.get('pooling', 'sum')}")
+    failed = [{"name": f.get("path", ""), "error": f.get("error", "")} for f in document.get("failed", [])]
     return {"version": document.get("version"), "summary": summary, "matches": matches, "unmatched": unmatched,
+            "failed": failed,
             "scene": any("redirection" in m for m in matches),
             "study": _study_plan(out, {m["virtual"] for m in matches})}
 

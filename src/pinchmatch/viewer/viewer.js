@@ -159,6 +159,25 @@
       `${fmt(m.landing.cost_mean)} expected, ${fmt(m.landing.cost_worst)} at the worst landing</td></tr>`;
   }
 
+  // Under --placement fixed: how the object is served. redirect: it stays in the level and the hand is led
+  // to the prop (the angle seen from the hand's start, the reach gain); carousel: it is brought onto the prop.
+  function placementNote(m) {
+    const r = m.redirection;
+    if (!r) return null;
+    const costs = r.redirect_cost === null || r.redirect_cost === undefined
+      ? `nothing within the redirection budget; carousel ${fmt(r.carousel_cost)}`
+      : `redirect ${fmt(r.redirect_cost)}, carousel ${fmt(r.carousel_cost)}`;
+    if (r.mode === "redirect") {
+      return { mode: "redirect", badge: `redirect ${r.angle_deg.toFixed(1)}° ×${r.gain.toFixed(2)}`,
+        title: `${m.virtual} stays in the level; the hand is led to ${m.tangible}`,
+        text: `stays in the level: the hand is redirected by ${r.angle_deg.toFixed(2)}° (reach gain ${r.gain.toFixed(3)}, ` +
+          `offset ${r.offset_mm.toFixed(0)} mm); ${costs}`,
+        reason: r.reason || "" };
+    }
+    return { mode: "carousel", badge: "carousel", title: `${m.virtual} brought onto ${m.tangible} (carousel)`,
+      text: `the carousel brings it onto the prop; ${costs}`, reason: r.reason || "" };
+  }
+
   function loudCriteria(match) {
     return match.criteria.filter((c) => c.noticeable);
   }
@@ -184,6 +203,8 @@
           `${landed.word}</span>`);
       }
       if (m.flipped) badges.push(`<span class="badge flip" title="${escape(turned(m))}">F</span>`);
+      const mode = placementNote(m);
+      if (mode) badges.push(`<span class="badge mode ${mode.mode}" title="${escape(mode.reason)}">${escape(mode.badge)}</span>`);
       li.innerHTML = `<div class="names">${breakable(m.virtual)} <span class="arrow">→</span> ${breakable(m.tangible)}</div>` +
         `<div class="meta">${badges.join("")}</div>`;
       li.dataset.name = `${m.virtual} ${m.tangible}`.toLowerCase();
@@ -192,6 +213,15 @@
       li.addEventListener("click", () => select(index));
       list.appendChild(li);
     });
+    for (const f of DATA.failed || []) {
+      const li = document.createElement("li");
+      li.className = "failed";
+      li.innerHTML = `<div class="names">${breakable(f.name)}</div><div class="meta">failed: ${escape(f.error)}</div>`;
+      li.dataset.name = String(f.name).toLowerCase();
+      li.dataset.cost = Infinity;
+      li.dataset.noticeable = "0";
+      list.appendChild(li);
+    }
     for (const u of DATA.unmatched) {
       const li = document.createElement("li");
       li.className = "unmatched";
@@ -233,8 +263,10 @@
       `<tr class="pooled"><th>noticed</th><td>${(100 * m.p_noticed).toFixed(0)} %</td>` +
       `<td><div class="jnd-bar"><span class="${m.noticeable ? "loud" : ""}" style="width:${100 * m.p_noticed}%"></span>` +
       `<i style="left:50%"></i></div></td><td>all criteria pooled</td></tr>`) + landingRow(m);
+    const mode = placementNote(m);
     const facts = [
       `<b>${escape(m.virtual)}</b> on <b>${escape(m.tangible)}</b>`,
+      ...(mode ? [`<span class="mode-fact" title="${escape(mode.reason)}">${escape(mode.text)}</span>`] : []),
       `cost ${fmt(m.cost, 4)}`,
       m.reference_cost === null || m.reference_cost === undefined
         ? `reference: none (${escape(m.reference_reason || "no reference pose")})`
@@ -307,7 +339,8 @@
       li.classList.toggle("selected", Number(li.dataset.index) === index));
     const m = DATA.matches[index];
     details(m);
-    document.getElementById("main-title").textContent = `${m.virtual} registered on ${m.tangible}`;
+    const mode = placementNote(m);
+    document.getElementById("main-title").textContent = mode ? mode.title : `${m.virtual} registered on ${m.tangible}`;
     document.getElementById("tangible-title").textContent = `tangible pose: ${m.tangible} (its frame)`;
     document.getElementById("virtual-title").textContent = `virtual pose: ${m.virtual} (its frame)`;
     const gltf = await loadScene(index);
