@@ -136,3 +136,74 @@ def test_the_carousel_brings_each_object_onto_the_prop(scene_page):
         assert np.abs(placed - registered).max() < 1e-6  # on the prop, registered
     assert sorted(brought) == sorted(s["queue"])
     canvas_shot(pg, "headset_scene_carousel.png")
+
+
+@pytest.fixture(scope="module")
+def shelf_out(tmp_path_factory):
+    """A prop standing off the level's origin, turned about the level's up; the level's own can where the
+    prop stands (redirected, in place) and eight boxes far off, 90 mm across (the carousel's)."""
+    from scipy.spatial.transform import Rotation
+
+    folder = tmp_path_factory.mktemp("shelf")
+    turn = Rotation.from_euler("y", 40, degrees=True) * Rotation.from_euler("x", -90, degrees=True)
+    places = [("can_here", standing_can(), (0.35, 0.0, -0.2))]
+    for k in range(8):
+        box = trimesh.creation.box(extents=(0.09, 0.06, 0.09))
+        box.apply_translation([0.0, 0.03, 0.0])
+        places.append((f"box_{k}", box, (-0.6 + 0.15 * k, 0.0, -0.9)))
+    tabletop_level(folder / "kitchen.glb", places)
+    (folder / "props.toml").write_text(
+        '[[object]]\nname = "can_prop"\nshape = { kind = "cylinder", diameter_mm = 54, height_mm = 66 }\n'
+        f'pose = {{ position_mm = [350, 0, -200], quaternion_xyzw = {turn.as_quat().tolist()} }}\n')
+    out = folder / "out"
+    from pinchmatch.cli.main import main
+
+    code = main(["match", "--tangible", str(folder / "props.toml"), "--virtual", str(folder / "kitchen.glb"),
+                 "--split", "nodes", "--placement", "fixed", "--count", "120", "--jobs", "1", "-o", str(out)])
+    assert code == 0
+    return out
+
+
+def test_the_carousel_holds_its_objects_apart_and_the_level_s_own_object_gives_way(browser, shelf_out):
+    """Eight boxes wait on the carousel, no two touching; while one of them is on the prop, the level's can
+    that stands where the prop stands is hidden and the prompt names the box on the prop; the can's own
+    task sends the box back and shows the can."""
+    context = browser.new_context(viewport={"width": 1200, "height": 800})
+    pg = context.new_page()
+    errors = []
+    pg.on("pageerror", lambda e: errors.append(str(e)))
+    pg.add_init_script(IWER.read_text() + "\n" + INSTALL)
+    pg.goto((shelf_out / "index.html").as_uri() + "?mode=scene")
+    pg.wait_for_function("window.pinchmatchXR !== undefined && document.body.dataset.shown !== undefined")
+    pg.add_script_tag(path=str(DRIVE))
+    pg.evaluate(f"localStorage.setItem('pinchmatch.calibration.' + pinchmatchViewer.DATA.matches[0].tangible, "
+                f"JSON.stringify({{refused: false, rms_mm: 0.4, max_mm: 0.6, date: 'test', "
+                f"matrix: {json.dumps(PROP_POSE.T.reshape(-1).tolist())}}}))")
+    pg.click("#enter-vr")
+    pg.wait_for_function("pinchmatchXR.scene && pinchmatchXR.scene.state().phase === 'scene'", timeout=15000)
+    names = pg.evaluate("pinchmatchViewer.DATA.matches.map((m) => m.virtual)")
+    s = scene_state(pg)
+    assert sorted(names[i] for i in s["queue"]) == [f"box_{k}" for k in range(8)]
+    here = names.index("can_here")
+    assert pg.evaluate(f"pinchmatchXR.scene.atProp({here})") is True
+    boxes = [np.array(pg.evaluate(f"pinchmatchXR.scene.boxInRoom({i})")) for i in s["queue"]]
+    for a in range(len(boxes)):
+        for b in range(a + 1, len(boxes)):
+            (lo_a, hi_a), (lo_b, hi_b) = boxes[a], boxes[b]
+            apart = (hi_a[[0, 2]] < lo_b[[0, 2]]) | (hi_b[[0, 2]] < lo_a[[0, 2]])
+            assert apart.any(), (names[s["queue"][a]], names[s["queue"][b]])
+    pg.evaluate("pinchmatchXR.scene.turn()")
+    s = scene_state(pg)
+    assert s["on_prop"] is not None and pg.evaluate(f"pinchmatchXR.scene.visible({here})") is False
+    pg.evaluate(f"pinchmatchXR.scene.go({s['tasks'].index(s['on_prop'])})")  # the box on the prop, to pinch
+    assert f"On the prop: {names[s['on_prop']]}. Pinch {names[s['on_prop']]}" in pg.locator("#xr-status").inner_text()
+    at = np.mean(pg.evaluate("pinchmatchXR.scene.targets()")["physical"], axis=0)
+    pg.evaluate(f"drive.look({(at + [0.1, 0.35, 0.45]).tolist()}, {(at + [0.15, -0.05, 0.0]).tolist()})")
+    pg.wait_for_timeout(300)
+    canvas_shot(pg, "headset_scene_shelf.png")
+    pg.evaluate(f"pinchmatchXR.scene.go({s['tasks'].index(s['queue'][1])})")  # a box still on the carousel
+    assert f"On the prop: {names[s['on_prop']]}." in pg.locator("#xr-status").inner_text()
+    pg.evaluate(f"pinchmatchXR.scene.go({s['tasks'].index(here)})")
+    assert scene_state(pg)["on_prop"] is None and pg.evaluate(f"pinchmatchXR.scene.visible({here})") is True
+    assert errors == [], errors
+    context.close()

@@ -244,3 +244,20 @@ test("the level in the prop's frame, the prop standing at (120, 0, -80) mm turne
   const up = [0, 1, 2].map((i) => M[4 * i + 1]);
   assert.ok(close(up.map((c) => c / Math.hypot(...up)), [0, 1, 0], 1e-12), String(up));
 });
+
+test("the carousel's ring holds its objects apart, however many and however large", () => {
+  for (const radii of [[0.05], [0.03, 0.03], [0.06, 0.02, 0.09, 0.04, 0.05, 0.05, 0.07, 0.03, 0.1, 0.02, 0.06],
+                       Array(30).fill(0.045)]) {
+    const gap = 0.02;
+    const ring = XR.carouselRing(radii.map((r) => ({ r })), 0.12, gap);
+    assert.ok(ring.radius >= 0.12 && ring.radius > Math.max(...radii));
+    assert.equal(ring.angles.length, radii.length);
+    const at = ring.angles.map((a) => [ring.radius * Math.cos(a), ring.radius * Math.sin(a)]);
+    for (let i = 0; i < radii.length; i++) {
+      for (let j = i + 1; j < radii.length; j++) {
+        const d = Math.hypot(at[i][0] - at[j][0], at[i][1] - at[j][1]);
+        assert.ok(d >= radii[i] + radii[j] + gap - 1e-9, `${radii.length} objects: ${i} and ${j} ${d} apart`);
+      }
+    }
+  }
+});

@@ -17,6 +17,7 @@ window.PinchmatchScene = (function () {
   const GREEN = 0x2fbf4f;
   const CAROUSEL_CENTRE_M = [0.3, 0, 0]; // beside the prop, in the prop's scene frame
   const CAROUSEL_RADIUS_M = 0.12, BUTTON_SIZE_M = 0.04, BUTTON_PRESS_M = 0.02, NEXT_TASK_S = 2;
+  const CAROUSEL_GAP_M = 0.02; // between neighbours on the carousel's ring
   const rows = (r) => new THREE.Matrix4().set(...r);
   const mm = (p) => new THREE.Vector3(...p).multiplyScalar(0.001);
 
@@ -43,7 +44,7 @@ window.PinchmatchScene = (function () {
     const queue = XR.carouselQueue(DATA.matches).filter((i) => DATA.matches[i].tangible === prop);
     const st = { phase: "idle", task: -1, on_prop: null, carousel_turns: 0, held_s: 0, validated: false, check: null,
                  ratio: 0, offset_mm: [0, 0, 0], rendered: [], real: [] };
-    let objects = new Map(), pressReady = false, nextAt = null;
+    let objects = new Map(), pressReady = false, nextAt = null, ring = { radius: CAROUSEL_RADIUS_M, angles: [] };
 
     const tasks = () => DATA.matches.flatMap((m, i) => (m.redirection && m.tangible === prop ? [i] : []));
     const room = (local, group) => { api.propFrame.updateMatrixWorld(true); return local.clone().applyMatrix4(group.matrixWorld); };
@@ -70,7 +71,46 @@ window.PinchmatchScene = (function () {
         if (o.mode === "redirect") placeInLevel(o);
         objects.set(i, o);
       }
+      ring = XR.carouselRing(queue.map((i) => footprint(objects.get(i))), CAROUSEL_RADIUS_M, CAROUSEL_GAP_M);
+      carousel.position.set(CAROUSEL_CENTRE_M[0] + ring.radius - CAROUSEL_RADIUS_M, 0, CAROUSEL_CENTRE_M[2]);
+      button.position.set(carousel.position.x, 0.02, carousel.position.z + ring.radius + 0.06);
       queue.forEach((i, k) => placeOnCarousel(objects.get(i), k));
+      atPropSpot();
+    }
+
+    // an object's footprint as registered on the prop: {x, z} the middle of its box, r its half diagonal (m)
+    function footprint(o) {
+      o.virtual.geometry.computeBoundingBox();
+      const box = o.virtual.geometry.boundingBox.clone().applyMatrix4(o.registered);
+      const c = box.getCenter(new THREE.Vector3()), size = box.getSize(new THREE.Vector3());
+      return { x: c.x, z: c.z, r: 0.5 * Math.hypot(size.x, size.z) };
+    }
+
+    // the level's objects standing where the prop stands: hidden while another object is on the prop
+    function atPropSpot() {
+      const first = objects.get(tasks()[0]);
+      const tangible = first && first.root.getObjectByName("tangible");
+      if (!tangible) return;
+      api.propFrame.updateMatrixWorld(true);
+      tangible.geometry.computeBoundingBox();
+      const prop = tangible.geometry.boundingBox.clone().applyMatrix4(api.propFrame.matrixWorld);
+      objects.forEach((o) => {
+        if (o.mode !== "redirect") return;
+        const box = new THREE.Box3().setFromObject(o.virtual);
+        o.atProp = box.max.x > prop.min.x && box.min.x < prop.max.x && box.max.z > prop.min.z && box.min.z < prop.max.z;
+      });
+    }
+
+    function showAtProp(shown) {
+      objects.forEach((o) => { if (o.atProp) o.virtual.visible = shown; });
+    }
+
+    // the object on the prop goes back to the carousel: the level's own object there shows again
+    function clearProp() {
+      if (st.on_prop === null) return;
+      placeOnCarousel(objects.get(st.on_prop), queue.indexOf(st.on_prop));
+      st.on_prop = null;
+      showAtProp(true);
     }
 
     function placeInLevel(o) {
@@ -79,11 +119,13 @@ window.PinchmatchScene = (function () {
       level.add(o.virtual);
     }
 
+    // on the ring, its footprint's middle at its place: neighbours never touch (XR.carouselRing)
     function placeOnCarousel(o, k) {
-      const a = (2 * Math.PI * k) / Math.max(queue.length, 1);
+      const a = ring.angles[k] || 0, f = footprint(o);
       o.virtual.matrix.copy(o.registered);
       o.virtual.matrix.decompose(o.virtual.position, o.virtual.quaternion, o.virtual.scale);
-      o.virtual.position.add(new THREE.Vector3(Math.cos(a) * CAROUSEL_RADIUS_M, 0, Math.sin(a) * CAROUSEL_RADIUS_M));
+      o.virtual.position.add(new THREE.Vector3(Math.cos(a) * ring.radius - f.x, 0, Math.sin(a) * ring.radius - f.z));
+      o.virtual.visible = true;
       carousel.add(o.virtual);
     }
 
@@ -98,7 +140,7 @@ window.PinchmatchScene = (function () {
       onProp.add(o.virtual);
       st.on_prop = queue[k];
       st.carousel_turns += 1;
-      carousel.rotation.y = (-2 * Math.PI * (k + 1)) / Math.max(queue.length, 1);
+      showAtProp(false);
     }
 
     // the current task's targets in the room: [virtual p1, p2], [physical p1, p2], the hand's start
@@ -137,16 +179,19 @@ window.PinchmatchScene = (function () {
       objects.forEach((o) => o.material.color.copy(o.base));
       const m = DATA.matches[tasks()[k]];
       nextAt = null;
+      if (m.redirection.mode === "redirect" && objects.get(tasks()[k]).atProp) clearProp(); // it stands there itself
       if (m.redirection.mode === "carousel" && st.on_prop !== tasks()[k]) {
         cones.clear();
-        api.say(`${m.virtual} is on the carousel: press the orange button with a fingertip until it comes onto ` +
-                "the prop.");
+        api.say(onPropNote() + `${m.virtual} is on the carousel: press the orange button with a fingertip until ` +
+                "it comes onto the prop.");
       } else {
         aim();
-        api.say(`Pinch ${m.virtual} where the green cones show` +
+        api.say(onPropNote() + `Pinch ${m.virtual} where the green cones show` +
                 (m.redirection.mode === "redirect" ? `: it stays in place, your hand is led to the prop.` : "."));
       }
     }
+
+    const onPropNote = () => (st.on_prop === null ? "" : `On the prop: ${DATA.matches[st.on_prop].virtual}. `);
 
     // one frame: seen = the real fingertips ([{thumb, index}] per hand, room metres); returns what to draw
     function step(t, seen) {
@@ -184,6 +229,7 @@ window.PinchmatchScene = (function () {
       turnCarousel();
       const m = DATA.matches[tasks()[st.task]];
       if (m.redirection.mode === "carousel" && st.on_prop === tasks()[st.task]) go(st.task);
+      else api.say(onPropNote() + `Turn on until ${m.virtual} comes onto the prop.`);
     }
 
     function validateStep(t, rendered) {
@@ -211,6 +257,10 @@ window.PinchmatchScene = (function () {
       targets: () => { const t = targets(); return { virtual: t.virtual.map((v) => v.toArray()),
         physical: t.physical.map((v) => v.toArray()), start: t.start && t.start.toArray() }; },
       button: () => room(new THREE.Vector3(), button).toArray(),
+      turn: () => turnCarousel(),
+      visible: (i) => objects.get(i).virtual.visible,
+      atProp: (i) => Boolean(objects.get(i).atProp),
+      boxInRoom: (i) => { const b = new THREE.Box3().setFromObject(objects.get(i).virtual); return [b.min.toArray(), b.max.toArray()]; },
       objectInRoom: (i) => { const o = objects.get(i); o.virtual.updateMatrixWorld(true); return o.virtual.matrixWorld.toArray(); },
       registeredInRoom: (i) => { const o = objects.get(i); api.propFrame.updateMatrixWorld(true);
         return api.propFrame.matrixWorld.clone().multiply(o.registered).toArray(); },

@@ -297,7 +297,27 @@
     return matches.flatMap((m, i) => (m.redirection && m.redirection.mode === "carousel" ? [i] : []));
   }
 
+  // The carousel's ring: objects of footprint radii r_k (m) side by side around the whole ring, each its
+  // share of the turn in proportion to 2 r_k + gap, the radius the least (never below `least`) at which
+  // every two neighbours' middles are at least r_i + r_j + gap apart (the chord, not the arc), so that none
+  // touch. `angles` (rad): the footprints' middles, the first at 0.
+  function carouselRing(footprints, least, gap) {
+    const n = footprints.length;
+    const arcs = footprints.map((f) => 2 * f.r + gap);
+    const total = arcs.reduce((a, b) => a + b, 0) || 1;
+    const step = arcs.map((a, i) => (Math.PI * (a + arcs[(i + 1) % n])) / total); // middle i to middle i + 1
+    let radius = least;
+    for (let i = 0; i < n && n > 1; i++) {
+      const need = footprints[i].r + footprints[(i + 1) % n].r + gap;
+      radius = Math.max(radius, need / (2 * Math.sin(Math.min(step[i], Math.PI) / 2)));
+    }
+    radius = Math.max(radius, n ? Math.max(...footprints.map((f) => f.r)) + gap : 0);
+    const angles = [0];
+    for (let i = 1; i < n; i++) angles.push(angles[i - 1] + step[i - 1]);
+    return { radius, angles };
+  }
+
   return { DEFAULT_LIMITS, MAX_CALIBRATION_RMS_MM, checkPinch, HoldTimer, SteadyTouch, limitsFromQuery, rigidFit, spreadOk,
            calibrationPoints, toCSV, angleDeg, landingNote, warpRatio, warpOffset, quaternionRows, levelToProp,
-           carouselQueue };
+           carouselQueue, carouselRing };
 });
