@@ -15,15 +15,18 @@ reported and as recomputed here from the reported targets and hand start, the re
 and the carousel's cost, the fixed and the registered cost, and how far the chosen tangible pinch moved
 between the two (mm, the larger contact displacement); then the redirects that cost more than their
 carousel plus the margin (none, by the rule), the gains, the split, the largest disagreement of the angles
-and the wall times side by side.
+and the wall times side by side. Last, a level of 100 objects (the real ones again and again on a grid):
+the size of its page and the time Chromium takes to open it and show its first entry.
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 import numpy as np
@@ -63,6 +66,55 @@ def build_level(folder: Path) -> list[tuple[str, float]]:
     return placed
 
 
+#: the page's measure: this many objects in a level (the real ones, again and again, on a grid)
+PAGE_OBJECTS = 100
+
+
+def build_big_level(folder: Path, n: int = PAGE_OBJECTS) -> None:
+    """kitchen.glb in ``folder``: ``n`` nodes, the real objects in turn on a grid 250 mm apart (the prop at
+    the origin), each standing on the table."""
+    meshes = [(name, path) for name, path in real_meshes(DEFAULT_ASSETS, folder) if name.startswith(LEVEL)]
+    loaded = []
+    for name, path in meshes:
+        mesh = trimesh.load(path, force="mesh")
+        mesh.apply_transform(trimesh.transformations.rotation_matrix(-math.pi / 2, [1, 0, 0]))
+        mesh.apply_scale(0.001)
+        centre = mesh.bounds.mean(axis=0)
+        mesh.apply_translation([-centre[0], -mesh.bounds[0, 1], -centre[2]])
+        loaded.append((name.replace(" ", "_"), mesh))
+    scene, side = trimesh.Scene(), math.ceil(math.sqrt(n + 1))
+    cells = [(i, j) for i in range(side) for j in range(side) if (i, j) != (side // 2, side // 2)][:n]
+    for k, (i, j) in enumerate(cells):
+        name, mesh = loaded[k % len(loaded)]
+        T = np.eye(4)
+        T[:3, 3] = [0.25 * (i - side // 2), 0.0, 0.25 * (j - side // 2)]
+        scene.add_geometry(mesh, node_name=f"{name}_{k:03d}", geom_name=f"{name}_{k:03d}_mesh", transform=T)
+    scene.export(folder / "kitchen.glb")
+    (folder / "props.toml").write_text(PROP)
+
+
+def page_load(index: Path) -> tuple[float, float]:
+    """(MB, s): the page's size, and the time from opening it in Chromium (playwright) until its first
+    entry is shown; (size, nan) without playwright or Chromium."""
+    size = index.stat().st_size / 1e6
+    try:
+        from playwright.sync_api import sync_playwright
+    except ImportError:
+        return size, float("nan")
+    chromium = Path("/usr/bin/chromium")
+    if not chromium.exists():
+        return size, float("nan")
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=str(chromium), args=["--no-sandbox", "--use-gl=swiftshader"])
+        page = browser.new_page(viewport={"width": 1400, "height": 900})
+        t0 = time.perf_counter()
+        page.goto(index.as_uri())
+        page.wait_for_selector("body[data-shown='0']", timeout=120_000)
+        seconds = time.perf_counter() - t0
+        browser.close()
+    return size, seconds
+
+
 def run(folder: Path, placement: str, count: int) -> tuple[dict, float]:
     return timed_match(["--tangible", str(folder / "props.toml"), "--virtual", str(folder / "kitchen.glb"),
                         "--split", "nodes", "--placement", placement, "--count", str(count)],
@@ -90,6 +142,14 @@ def main(argv=None) -> int:
         placed = build_level(folder)
         fixed, t_fixed = run(folder, "fixed", count)
         registered, t_registered = run(folder, "registered", count)
+        big = folder / "big"
+        big.mkdir()
+        build_big_level(big)
+        argv = [sys.executable, "-m", "pinchmatch", "match", "--tangible", str(big / "props.toml"), "--virtual",
+                str(big / "kitchen.glb"), "--split", "nodes", "--placement", "fixed", "--count", "200", "--no-cache",
+                "--no-figures", "-q", "-o", str(big / "out")]
+        subprocess.run(argv, check=False, capture_output=True)
+        page_mb, page_s = page_load(big / "out" / "index.html")
     head = ("object", "from prop mm", "mode", "angle deg", "recomputed", "gain", "redirect cost", "carousel cost",
             "fixed cost", "registered cost", "pinch moved mm")
     rows, worst = [head], 0.0
@@ -118,6 +178,8 @@ def main(argv=None) -> int:
     print(f"redirect {modes.count('redirect')}, carousel {modes.count('carousel')}; largest difference between "
           f"reported and recomputed angle {worst:.4f} deg; wall time fixed {t_fixed:.1f} s, registered "
           f"{t_registered:.1f} s ({t_fixed / t_registered:.2f}x)")
+    print(f"the page of a level of {PAGE_OBJECTS} objects (200 poses each): {page_mb:.1f} MB, first entry shown "
+          f"{page_s:.2f} s after opening it (Chromium, headless)")
     return 0
 
 
