@@ -207,3 +207,28 @@ def test_the_carousel_holds_its_objects_apart_and_the_level_s_own_object_gives_w
     assert scene_state(pg)["on_prop"] is None and pg.evaluate(f"pinchmatchXR.scene.visible({here})") is True
     assert errors == [], errors
     context.close()
+
+
+def test_a_desktop_previews_the_scene_mode(browser, shelf_out):
+    """Without a headset, index.html?mode=scene shows the scene mode's level in the main view: the can in
+    place, the boxes on the carousel's ring (apart), the first task's prompt in the title."""
+    from test_view import VIEW_BACKGROUND, canvas_pixels, drawn_fraction
+
+    context = browser.new_context(viewport={"width": 1400, "height": 900})
+    pg = context.new_page()
+    errors = []
+    pg.on("pageerror", lambda e: errors.append(str(e)))
+    pg.goto((shelf_out / "index.html").as_uri() + "?mode=scene")
+    pg.wait_for_selector("body[data-preview='scene']", timeout=30_000)
+    assert pg.locator("#main-title").inner_text().startswith("scene preview (as the headset shows it): ")
+    s = pg.evaluate("pinchmatchXR.preview.state()")
+    assert s["phase"] == "scene" and len(s["queue"]) == 8
+    boxes = [np.array(pg.evaluate(f"pinchmatchXR.preview.boxInRoom({i})")) for i in s["queue"]]
+    for a in range(len(boxes)):
+        for b in range(a + 1, len(boxes)):
+            (lo_a, hi_a), (lo_b, hi_b) = boxes[a], boxes[b]
+            assert ((hi_a[[0, 2]] < lo_b[[0, 2]]) | (hi_b[[0, 2]] < lo_a[[0, 2]])).any()
+    pg.wait_for_timeout(300)
+    assert drawn_fraction(canvas_pixels(pg, "#canvas-main")) > 0.01 and VIEW_BACKGROUND is not None
+    assert errors == [], errors
+    context.close()

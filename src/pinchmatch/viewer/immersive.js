@@ -550,4 +550,10 @@
     buttons: () => buttons.map((b) => ({ value: b.userData.value, position: b.position.toArray() })),
   };
   setup();
+  // without a headset, ?mode=scene previews the scene mode in the main view once the page has shown its entry
+  if (DATA.scene && new URLSearchParams(location.search).get("mode") === "scene" && DATA.matches.length) {
+    const wait = () => (document.body.dataset.shown === undefined ? setTimeout(wait, 50)
+      : PinchmatchScene.preview().catch((e) => console.error(e)));
+    wait();
+  }
 })();

@@ -268,5 +268,27 @@ window.PinchmatchScene = (function () {
     return { begin, step, hooks };
   }
 
-  return { wanted, create };
+  // On a desktop (index.html?mode=scene, no headset needed): the scene mode's level in the main view, as the
+  // headset shows it around the prop (the prop at the room's origin, unturned): the redirected objects in
+  // place, the carousel's on their ring, the first task's cones. Its hooks: pinchmatchXR.preview.
+  async function preview() {
+    const root = new THREE.Group();
+    const frame = new THREE.Group();
+    frame.matrixAutoUpdate = false;
+    root.add(frame);
+    const title = document.getElementById("main-title");
+    const api = { scene: root, propFrame: frame, limits: XR.DEFAULT_LIMITS,
+                  say: (text) => { title.textContent = `scene preview (as the headset shows it): ${text}`; } };
+    const s = create(api);
+    await s.begin();
+    const first = await V.loadScene(s.hooks.state().tasks[0]);
+    const tangible = first.scene.getObjectByName("tangible");
+    if (tangible) frame.add(tangible.clone());
+    V.view.show([root]);
+    window.pinchmatchXR = Object.assign(window.pinchmatchXR || {}, { preview: s.hooks });
+    document.body.dataset.preview = "scene";
+    return s;
+  }
+
+  return { wanted, create, preview };
 })();
