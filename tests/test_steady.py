@@ -175,3 +175,35 @@ def test_the_study_feels_each_rated_placement(tmp_path):
             assert entry["cost_expected"] == pytest.approx(entry["cost"], rel=0.05, abs=1e-4)
             if entry["cost"] == 0:
                 assert entry["cost_expected"] == pytest.approx(0.0, abs=1e-6)
+
+
+def test_equivalent_props_are_listed_and_ties_go_to_the_prop_given_first(tmp_path, capsys):
+    """Two copies of one block as props (two files): a rod is served by both alike (refinement off: it
+    grows the object's poses in the props' order, so that two identical props can end a little apart). The
+    first given is chosen, the other listed as equivalent at the same cost; given the other way round,
+    again the first. A ball, far costlier, is not listed."""
+    from conftest import run_cli
+
+    from pinchmatch.match.scene import EQUIVALENT_JND, equivalent_tangibles
+
+    block = box((50.0, 36.0, 30.0), subdivide_mm=3.0).mesh
+    _exported(tmp_path, "block_a", block)
+    _exported(tmp_path, "block_b", block)
+    _exported(tmp_path, "ball", sphere(40.0, faces=4000).mesh)
+    _exported(tmp_path, "rod", cylinder(16.0, 60.0, faces=8000).mesh)
+    for order in (("block_a", "block_b"), ("block_b", "block_a")):
+        out = tmp_path / f"out_{order[0]}"
+        code, stdout, err = run_cli(capsys, "match", "--tangible", *(tmp_path / f"{n}.stl" for n in order),
+                                    tmp_path / "ball.stl", "--virtual", tmp_path / "rod.stl", "--count", 80,
+                                    "--refine", "off", "-o", out, "--no-view", "--jobs", 1)
+        assert code == 0, err
+        (m,) = __import__("json").loads((out / "matches.json").read_text())["matches"]
+        assert m["tangible"] == f"{order[0]}.stl"
+        listed = {e["tangible"]: e["cost"] for e in m["equivalent_tangibles"]}
+        assert set(listed) == {f"{order[1]}.stl"}
+        assert listed[f"{order[1]}.stl"] == m["cost"] and EQUIVALENT_JND == 0.1
+        assert "served as well by another prop" in stdout + err
+    best = Choice(0, 2, 0, 0, 1.0, np.zeros(8), False, np.eye(4), False, np.zeros(3))
+    row = np.array([1.05, 1.2, 1.0, np.inf, 1.1])
+    assert equivalent_tangibles(best, row) == [(0, 1.05), (4, 1.1)]
+    assert equivalent_tangibles(None, row) == []

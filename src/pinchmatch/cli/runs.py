@@ -10,7 +10,7 @@ from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 
 from ..errors import ConfigError, RunError
-from ..export.documents import flipped_note, matches_legend, redirection_note, scene_stems
+from ..export.documents import equivalent_note, flipped_note, matches_legend, redirection_note, scene_stems
 from ..export.sink import MatchesSink
 from ..export.view import write_page
 from ..files import check_writable, read_input, write_atomic
@@ -221,6 +221,8 @@ def print_match(ui, sink, result, run_settings) -> None:
     if note := flipped_note(sink.rows, run_settings):
         ui.note(note)
     if note := redirection_note(sink.redirections):
+        ui.note(note)
+    if note := equivalent_note(sink.equivalents):
         ui.note(note)
     if result.failed:
         ui.table(table_rows([("file", "role", "problem")] + [(f.path, f.role, f.error) for f in result.failed],

@@ -302,6 +302,8 @@ def match_entry(scene, vm) -> dict:
     entry["alternatives"] = [_choice_record(scene, vm, a, full=False) for a in vm.alternatives]
     entry["reference"] = _reference_record(vm.reference, scene.model)
     entry["landing"] = _landing_record(vm.landing)
+    entry["equivalent_tangibles"] = [{"tangible": tangibles[t].name, "cost": json_number(c, 6)}
+                                     for t, c in (vm.equivalent or [])]
     if vm.redirection is not None:
         entry["redirection"] = vm.redirection
     # keys in a stable, readable order
@@ -465,6 +467,16 @@ def flipped_note(rows: list[tuple], settings: dict) -> str | None:
         return None
     return (f"{flipped} of {len(rows) - 1} placements turn the virtual object upside down (F); --keep-upright "
             "keeps every one upright, at some cost")
+
+
+def equivalent_note(equivalents: list[tuple]) -> str | None:
+    """Which objects another prop serves as well as their own (within 0.1 JND or 5 %), or None."""
+    if not equivalents:
+        return None
+    shown = "; ".join(f"{v}: {t} ~ {', '.join(others)}" for v, t, others in equivalents[:6])
+    more = f"; and {len(equivalents) - 6} more" if len(equivalents) > 6 else ""
+    return (f"{len(equivalents)} objects are served as well by another prop (within 0.1 JND or 5 %, "
+            f"equivalent_tangibles in matches.json): {shown}{more}")
 
 
 def redirection_note(redirections: list[dict]) -> str | None:

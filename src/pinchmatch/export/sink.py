@@ -26,6 +26,7 @@ class MatchesSink:
         self.objects = [("object", "role", "faces", "feasible poses")]
         self.rows = matches_rows({"matches": []})
         self.redirections: list[dict] = []  # under --placement fixed, each match's
+        self.equivalents: list[tuple] = []  # (virtual, its prop, [the equivalent props' names])
         self._header = None
         self._virtuals, self._matches, self._names, self._cost_rows, self._chosen = [], [], [], [], []
         self._lines = None  # the AtomicFile of matches.jsonl while it is being written
@@ -66,6 +67,8 @@ class MatchesSink:
         self._chosen.append(r.match.get("tangible"))
         if r.match.get("redirection") is not None:
             self.redirections.append(r.match["redirection"])
+        if r.match.get("equivalent_tangibles"):
+            self.equivalents.append((r.name, r.match["tangible"], [e["tangible"] for e in r.match["equivalent_tangibles"]]))
         if self._lines is not None:
             self._line({"record": "match", "object": r.entry, "cost_row": [json_number(x, 6) for x in r.row],
                         "match": r.match})

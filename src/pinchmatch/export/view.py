@@ -118,6 +118,7 @@ def _page_data(out: Path, document: dict) -> dict:
             "reference_reason": reference.get("reason"),
             "up_turn_deg": m.get("up_turn_deg"),
             "alternatives": alternatives,
+            "equivalent_tangibles": m.get("equivalent_tangibles", []),
             "criteria": [{"name": name, **values} for name, values in m["criteria"].items()],
             "glb_base64": base64.b64encode(glb.read_bytes()).decode("ascii"),
         } | _scene_fields(m, poses))

@@ -35,6 +35,9 @@ from .steady import STEADY_CHOICES, SteadySearch
 RANKED_CHOICES = 32
 #: and per tangible, for its row of the cost matrix (what select and design rank props by), this many of each
 ROW_CHOICES = 3
+#: another prop is equivalent to the best when its ranked cost is within this much of the best's, in JND,
+#: or within this share of it, whichever is larger
+EQUIVALENT_JND, EQUIVALENT_SHARE = 0.1, 0.05
 
 
 @dataclass
@@ -57,7 +60,9 @@ class VirtualMatch:
       when no pair is within the redirection budget and the object is brought onto the prop,
       registered), else ``None``;
     - ``row``: ``(n,) float64``, its least exact cost on each tangible (inf where none is allowed), and
-      ``row_noticed``: ``(n,) bool``, whether that least-cost choice is noticed at least half of the time.
+      ``row_noticed``: ``(n,) bool``, whether that least-cost choice is noticed at least half of the time;
+    - ``equivalent``: ``[(tangible index, cost)]``, the other tangibles whose row cost is within
+      ``EQUIVALENT_JND`` or ``EQUIVALENT_SHARE`` of the best's (:func:`equivalent_tangibles`), by cost.
     """
 
     virtual: int
@@ -72,6 +77,7 @@ class VirtualMatch:
     redirection: dict | None = None
     row: np.ndarray | None = None
     row_noticed: np.ndarray | None = None
+    equivalent: list | None = None
 
 
 @dataclass
@@ -148,7 +154,18 @@ def match_one(tangibles: list[Candidates], virtual: Candidates, config: Config, 
                             virtual.name, list(search.tangibles), search.virtuals[0], row=row, row_noticed=noticed)
     vm = _placed(search, allowed, pinch_settings=pinch, index=index, probes=probes, tables=tables,
                  sampled=(tangibles, virtual), steady=steady, carousel=carousel)
-    return dataclasses.replace(vm, row=row, row_noticed=noticed)
+    return dataclasses.replace(vm, row=row, row_noticed=noticed, equivalent=equivalent_tangibles(vm.best, row))
+
+
+def equivalent_tangibles(best: Choice | None, row: np.ndarray) -> list:
+    """[(tangible index, cost)] of the tangibles other than the best choice's whose ranked cost in ``row`` is
+    within ``EQUIVALENT_JND`` or ``EQUIVALENT_SHARE`` of the best's (whichever is larger), cheapest first,
+    ties in the order the tangibles were given (the best itself is chosen the same way: :func:`_ranked`)."""
+    if best is None:
+        return []
+    limit = best.cost + max(EQUIVALENT_JND, EQUIVALENT_SHARE * best.cost)
+    near = [t for t in np.flatnonzero(np.isfinite(row) & (row <= limit)) if t != best.tangible]
+    return [(int(t), float(row[t])) for t in sorted(near, key=lambda t: (row[t], t))]
 
 
 def match_scene(tangibles: list[Candidates], virtuals: list[Candidates], *, config: Config | None = None,

@@ -203,6 +203,11 @@
           `${landed.word}</span>`);
       }
       if (m.flipped) badges.push(`<span class="badge flip" title="${escape(turned(m))}">F</span>`);
+      if ((m.equivalent_tangibles || []).length) {
+        badges.push(`<span class="badge equivalent" title="served as well (within 0.1 JND or 5 %) by ` +
+          `${escape(m.equivalent_tangibles.map((e) => `${e.tangible} (${fmt(e.cost)})`).join(", "))}">` +
+          `≈ ${escape(m.equivalent_tangibles.map((e) => e.tangible).join(", "))}</span>`);
+      }
       const mode = placementNote(m);
       if (mode) badges.push(`<span class="badge mode ${mode.mode}" title="${escape(mode.reason)}">${escape(mode.badge)}</span>`);
       li.innerHTML = `<div class="names">${breakable(m.virtual)} <span class="arrow">→</span> ${breakable(m.tangible)}</div>` +
@@ -267,6 +272,8 @@
     const facts = [
       `<b>${escape(m.virtual)}</b> on <b>${escape(m.tangible)}</b>`,
       ...(mode ? [`<span class="mode-fact" title="${escape(mode.reason)}">${escape(mode.text)}</span>`] : []),
+      ...((m.equivalent_tangibles || []).length ? [`as well served by ` +
+        m.equivalent_tangibles.map((e) => `<b>${escape(e.tangible)}</b> (cost ${fmt(e.cost)})`).join(", ")] : []),
       `cost ${fmt(m.cost, 4)}`,
       m.reference_cost === null || m.reference_cost === undefined
         ? `reference: none (${escape(m.reference_reason || "no reference pose")})`
