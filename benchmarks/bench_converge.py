@@ -13,13 +13,16 @@ read from the wheels on PyPI (``benchmarks/assets.py``), the random objects subd
 stacked prop (pinchmatch's example prop), a 60 mm ball, a 30 x 100 mm rod and a 60 x 40 x 20 mm
 block.
 
-Three settings run side by side, each once per seed, as ``pinchmatch match`` runs from the command
-line (no cache, default jobs): the default (refined), ``--refine off`` at the base count and
-``--refine off`` at four times the count. Per object and setting it prints the best prop of each
-seed, the spread of the best cost across seeds ((max - min) / median) and the mean best cost; then
-per setting the objects whose best prop changes with the seed, the median spread, the median of
-max - min itself (in the cost's units: with the default cost, 1 is a just noticeable difference),
-the mean cost and the mean wall time of a run.
+Five settings run side by side, each once per seed, as ``pinchmatch match`` runs from the command
+line (no cache, default jobs): the default (refined) and ``--refine off``, each at the base count and at
+four times it, and ``--refine off --rank nominal`` (the plain exact search). Per object and setting it
+prints the best prop of each seed, the spread of the best cost across seeds ((max - min) / median) and
+the mean best cost; then per setting the objects whose best prop changes with the seed, the median
+spread, the median of max - min itself (in the cost's units: with the default cost, 1 is a just
+noticeable difference), the mean cost, the regret (each run's expected cost over the landings against
+the least any setting and seed found for that object: mean and largest) and the mean wall time of a
+run; last, how often the default's cost at four times the count rises above its cost at the base count
+by more than 0.1, and the default's time against the plain exact search's.
 """
 
 from __future__ import annotations
@@ -43,12 +46,15 @@ from bench_select import SCENE_REAL  # noqa: E402
 
 
 def settings(count: int, refine_known: bool) -> list[tuple[str, list[str]]]:
-    """(label, options) of the three settings; a pinchmatch without --refine runs only the unrefined ones."""
+    """(label, options) of the settings: the default and ``--refine off`` at the base count and at four times
+    it, and ``--refine off --rank nominal`` (the plain exact search, the yardstick of time); a pinchmatch
+    without --refine runs only the unrefined ones."""
     off = ["--refine", "off"] if refine_known else []
     out = [(f"refine off, {count}", off + ["--count", str(count)]),
            (f"refine off, {4 * count}", off + ["--count", str(4 * count)])]
     if refine_known:
-        out.insert(0, (f"default, {count}", ["--count", str(count)]))
+        out = [(f"default, {count}", ["--count", str(count)]), (f"default, {4 * count}", ["--count", str(4 * count)]),
+               *out, (f"off, nominal, {count}", off + ["--rank", "nominal", "--count", str(count)])]
     return out
 
 
@@ -67,10 +73,11 @@ def timed_match(options: list[str], out: Path) -> tuple[dict, float]:
 
 
 def run(tangibles, virtuals, options, seed, out: Path) -> tuple[dict, float]:
-    """{virtual name: (best prop, cost)} of one run, and its wall time."""
+    """{virtual name: (best prop, cost, expected cost over the landings)} of one run, and its wall time."""
     matches, seconds = timed_match(["--tangible", *map(str, tangibles), "--virtual", *map(str, virtuals),
                                     "--seed", str(seed), *options], out)
-    return {name: (m["tangible"], m["cost"]) for name, m in matches.items()}, seconds
+    return {name: (m["tangible"], m["cost"], (m.get("landing") or {}).get("cost_mean", m["cost"]))
+            for name, m in matches.items()}, seconds
 
 
 def lab_props(folder: Path) -> list[Path]:
@@ -132,19 +139,29 @@ def main(argv=None) -> int:
         cells = []
         for label, _ in plan:
             runs = [r[name] for r in results[label]]
-            props_seen = "/".join(p.split("_")[-1].split(".")[0] for p, _ in runs)
-            cells.append(f"{props_seen} {spread([c for _, c in runs]):6.1%} {np.mean([c for _, c in runs]):8.3f}")
+            props_seen = "/".join(p.split("_")[-1].split(".")[0] for p, _, _ in runs)
+            cells.append(f"{props_seen} {spread([c for _, c, _ in runs]):6.1%} {np.mean([c for _, c, _ in runs]):8.3f}")
         print(f"{name:<28}" + "".join(f"{c:>44}" for c in cells))
     print()
+    # regret: each run's expected cost against the least any setting and seed found for the object (the
+    # expected cost is what every setting reports in landing.cost_mean, whatever it ranks by)
+    least = {name: min(r[name][2] for label, _ in plan for r in results[label]) for name in names}
     print(f"{'setting':<24} {'prop changes':>12} {'median spread':>14} {'median max-min':>15} {'mean cost':>10} "
-          f"{'wall s':>8}")
+          f"{'mean regret':>12} {'max regret':>11} {'wall s':>8}")
     for label, _ in plan:
         changes = sum(len({r[name][0] for r in results[label]}) > 1 for name in names)
         spreads = [spread([r[name][1] for r in results[label]]) for name in names]
         ranges = [np.ptp([r[name][1] for r in results[label]]) for name in names]
         mean = np.mean([r[name][1] for r in results[label] for name in names])
+        regret = [r[name][2] - least[name] for r in results[label] for name in names]
         print(f"{label:<24} {changes:>12} {np.median(spreads):>14.1%} {np.median(ranges):>15.3f} {mean:>10.3f} "
-              f"{np.mean(times[label]):>8.1f}")
+              f"{np.mean(regret):>12.3f} {np.max(regret):>11.3f} {np.mean(times[label]):>8.1f}")
+    if len(plan) > 4:  # the default at the base count and at four times it, seed by seed
+        one, four = plan[0][0], plan[1][0]
+        rises = [four_r[name][1] - one_r[name][1] for one_r, four_r in zip(results[one], results[four]) for name in names]
+        print(f"\n{four} against {one}, seed by seed: {sum(r > 0.1 for r in rises)} of {len(rises)} costs rise by more "
+              f"than 0.1 (largest {max(rises):+.3f}); the default takes {np.mean(times[one]) / np.mean(times[plan[-1][0]]):.2f}x "
+              f"the time of {plan[-1][0]}")
     return 0
 
 
