@@ -183,3 +183,25 @@ def test_a_pinch_along_the_axis_still_moves_across_its_line():
     np.testing.assert_allclose(np.einsum("kid,kd->ki", dirs, u), 0.0, atol=1e-12)  # across the line
     np.testing.assert_allclose(np.linalg.norm(dirs, axis=2), 1.0, atol=1e-12)
     np.testing.assert_allclose(np.einsum("kd,kd->k", dirs[:, 0], dirs[:, 1]), 0.0, atol=1e-12)
+
+
+def test_a_moved_pose_keeps_the_triangle_of_each_contact_that_did_not_move(objects):
+    """Each move names the triangle under each of its contacts: the one the finger closed onto for a contact
+    that moved, the pose's own for one that did not, whichever poses are moved together and in what order:
+    a pose's moves do not depend on what else is moved with it."""
+    T = objects["rod"][0]
+    ctx = T.obj.context
+    poses = np.array([len(T) - 1, 7, len(T) // 2, 7])
+    points, faces, which = moved_poses(T, poses, np.full(len(poses), 3.0))
+    for contact in (0, 1):
+        still = np.flatnonzero(np.abs(points[:, contact] - T.pinches.points[poses[which], contact]).max(axis=1) == 0)
+        assert len(still) and (faces[still, contact] == T.pinches.face_index[poses[which[still]], contact]).all()
+    # every contact lies on its triangle's plane
+    tri = ctx.mesh.triangles[faces]
+    normal = np.cross(tri[:, :, 1] - tri[:, :, 0], tri[:, :, 2] - tri[:, :, 0])
+    offset = np.einsum("kid,kid->ki", points - tri[:, :, 0], normal / np.linalg.norm(normal, axis=2, keepdims=True))
+    assert np.abs(offset).max() < 1e-6
+    # the same pose moved alone or with others gives the same moves
+    alone = moved_poses(T, poses[1:2], np.full(1, 3.0))
+    np.testing.assert_array_equal(alone[1], faces[which == 1])
+    np.testing.assert_array_equal(alone[0], points[which == 1])

@@ -178,8 +178,7 @@ def test_the_study_feels_each_rated_placement(tmp_path):
 
 
 def test_equivalent_props_are_listed_and_ties_go_to_the_prop_given_first(tmp_path, capsys):
-    """Two copies of one block as props (two files): a rod is served by both alike (refinement off: it
-    grows the object's poses in the props' order, so that two identical props can end a little apart). The
+    """Two copies of one block as props (two files): a rod is served by both alike, refined or not. The
     first given is chosen, the other listed as equivalent at the same cost; given the other way round,
     again the first. A ball, far costlier, is not listed."""
     from conftest import run_cli
@@ -191,11 +190,12 @@ def test_equivalent_props_are_listed_and_ties_go_to_the_prop_given_first(tmp_pat
     _exported(tmp_path, "block_b", block)
     _exported(tmp_path, "ball", sphere(40.0, faces=4000).mesh)
     _exported(tmp_path, "rod", cylinder(16.0, 60.0, faces=8000).mesh)
-    for order in (("block_a", "block_b"), ("block_b", "block_a")):
-        out = tmp_path / f"out_{order[0]}"
+    for order, refine in ((("block_a", "block_b"), "on"), (("block_b", "block_a"), "on"),
+                          (("block_a", "block_b"), "off")):
+        out = tmp_path / f"out_{order[0]}_{refine}"
         code, stdout, err = run_cli(capsys, "match", "--tangible", *(tmp_path / f"{n}.stl" for n in order),
                                     tmp_path / "ball.stl", "--virtual", tmp_path / "rod.stl", "--count", 80,
-                                    "--refine", "off", "-o", out, "--no-view", "--jobs", 1)
+                                    "--refine", refine, "-o", out, "--no-view", "--jobs", 1)
         assert code == 0, err
         (m,) = __import__("json").loads((out / "matches.json").read_text())["matches"]
         assert m["tangible"] == f"{order[0]}.stl"

@@ -119,7 +119,7 @@ def moved_poses(c: Candidates, poses: np.ndarray, steps: np.ndarray) -> tuple[np
     step = steps[which]
     offset = dirs[which, move[:, 0]]  # (m, 3)
     new = points[which] + (move[:, 1:, None] * step[:, None, None]) * offset[:, None, :]
-    faces = c.pinches.face_index[which].copy()
+    faces = c.pinches.face_index[poses][which].copy()
     u = new[:, 1] - new[:, 0]
     u = u / np.maximum(np.linalg.norm(u, axis=1, keepdims=True), 1e-300)
     back = 2.0 * step + 1.0
