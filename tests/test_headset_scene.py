@@ -4,6 +4,8 @@ and ``iwer`` (``npm ci --prefix tests/js``); outside CI skipped when one is miss
 
 import json
 import math
+from contextlib import contextmanager
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -48,17 +50,20 @@ def level_out(tmp_path_factory):
     return out
 
 
-@pytest.fixture
-def scene_page(browser, level_out):
+@contextmanager
+def _in_scene_mode(browser, out: Path, look=None):
+    """``out``'s page in the headset's scene mode under IWER, calibrated (PROP_POSE), the view turned to
+    ``look`` (eye, target) when given; no page error by the end."""
     context = browser.new_context(viewport={"width": 1200, "height": 800})
     pg = context.new_page()
     errors = []
     pg.on("pageerror", lambda e: errors.append(str(e)))
     pg.add_init_script(IWER.read_text() + "\n" + INSTALL)
-    pg.goto((level_out / "index.html").as_uri() + "?mode=scene")
+    pg.goto((out / "index.html").as_uri() + "?mode=scene")
     pg.wait_for_function("window.pinchmatchXR !== undefined && document.body.dataset.shown !== undefined")
     pg.add_script_tag(path=str(DRIVE))
-    pg.evaluate("drive.look([-0.05, 1.16, -0.08], [0.05, 0.99, -0.38])")
+    if look is not None:
+        pg.evaluate(f"drive.look({list(look[0])}, {list(look[1])})")
     pg.evaluate(f"localStorage.setItem('pinchmatch.calibration.' + pinchmatchViewer.DATA.matches[0].tangible, "
                 f"JSON.stringify({{refused: false, rms_mm: 0.4, max_mm: 0.6, date: 'test', "
                 f"matrix: {json.dumps(PROP_POSE.T.reshape(-1).tolist())}}}))")
@@ -68,6 +73,12 @@ def scene_page(browser, level_out):
     yield pg
     assert errors == [], errors
     context.close()
+
+
+@pytest.fixture
+def scene_page(browser, level_out):
+    with _in_scene_mode(browser, level_out, look=([-0.05, 1.16, -0.08], [0.05, 0.99, -0.38])) as pg:
+        yield pg
 
 
 def scene_state(pg):
@@ -168,45 +179,31 @@ def test_the_carousel_holds_its_objects_apart_and_the_level_s_own_object_gives_w
     """Eight boxes wait on the carousel, no two touching; while one of them is on the prop, the level's can
     that stands where the prop stands is hidden and the prompt names the box on the prop; the can's own
     task sends the box back and shows the can."""
-    context = browser.new_context(viewport={"width": 1200, "height": 800})
-    pg = context.new_page()
-    errors = []
-    pg.on("pageerror", lambda e: errors.append(str(e)))
-    pg.add_init_script(IWER.read_text() + "\n" + INSTALL)
-    pg.goto((shelf_out / "index.html").as_uri() + "?mode=scene")
-    pg.wait_for_function("window.pinchmatchXR !== undefined && document.body.dataset.shown !== undefined")
-    pg.add_script_tag(path=str(DRIVE))
-    pg.evaluate(f"localStorage.setItem('pinchmatch.calibration.' + pinchmatchViewer.DATA.matches[0].tangible, "
-                f"JSON.stringify({{refused: false, rms_mm: 0.4, max_mm: 0.6, date: 'test', "
-                f"matrix: {json.dumps(PROP_POSE.T.reshape(-1).tolist())}}}))")
-    pg.click("#enter-vr")
-    pg.wait_for_function("pinchmatchXR.scene && pinchmatchXR.scene.state().phase === 'scene'", timeout=15000)
-    names = pg.evaluate("pinchmatchViewer.DATA.matches.map((m) => m.virtual)")
-    s = scene_state(pg)
-    assert sorted(names[i] for i in s["queue"]) == [f"box_{k}" for k in range(8)]
-    here = names.index("can_here")
-    assert pg.evaluate(f"pinchmatchXR.scene.atProp({here})") is True
-    boxes = [np.array(pg.evaluate(f"pinchmatchXR.scene.boxInRoom({i})")) for i in s["queue"]]
-    for a in range(len(boxes)):
-        for b in range(a + 1, len(boxes)):
-            (lo_a, hi_a), (lo_b, hi_b) = boxes[a], boxes[b]
-            apart = (hi_a[[0, 2]] < lo_b[[0, 2]]) | (hi_b[[0, 2]] < lo_a[[0, 2]])
-            assert apart.any(), (names[s["queue"][a]], names[s["queue"][b]])
-    pg.evaluate("pinchmatchXR.scene.turn()")
-    s = scene_state(pg)
-    assert s["on_prop"] is not None and pg.evaluate(f"pinchmatchXR.scene.visible({here})") is False
-    pg.evaluate(f"pinchmatchXR.scene.go({s['tasks'].index(s['on_prop'])})")  # the box on the prop, to pinch
-    assert f"On the prop: {names[s['on_prop']]}. Pinch {names[s['on_prop']]}" in pg.locator("#xr-status").inner_text()
-    at = np.mean(pg.evaluate("pinchmatchXR.scene.targets()")["physical"], axis=0)
-    pg.evaluate(f"drive.look({(at + [0.1, 0.35, 0.45]).tolist()}, {(at + [0.15, -0.05, 0.0]).tolist()})")
-    pg.wait_for_timeout(300)
-    canvas_shot(pg, "headset_scene_shelf.png")
-    pg.evaluate(f"pinchmatchXR.scene.go({s['tasks'].index(s['queue'][1])})")  # a box still on the carousel
-    assert f"On the prop: {names[s['on_prop']]}." in pg.locator("#xr-status").inner_text()
-    pg.evaluate(f"pinchmatchXR.scene.go({s['tasks'].index(here)})")
-    assert scene_state(pg)["on_prop"] is None and pg.evaluate(f"pinchmatchXR.scene.visible({here})") is True
-    assert errors == [], errors
-    context.close()
+    with _in_scene_mode(browser, shelf_out) as pg:
+        names = pg.evaluate("pinchmatchViewer.DATA.matches.map((m) => m.virtual)")
+        s = scene_state(pg)
+        assert sorted(names[i] for i in s["queue"]) == [f"box_{k}" for k in range(8)]
+        here = names.index("can_here")
+        assert pg.evaluate(f"pinchmatchXR.scene.atProp({here})") is True
+        boxes = [np.array(pg.evaluate(f"pinchmatchXR.scene.boxInRoom({i})")) for i in s["queue"]]
+        for a in range(len(boxes)):
+            for b in range(a + 1, len(boxes)):
+                (lo_a, hi_a), (lo_b, hi_b) = boxes[a], boxes[b]
+                apart = (hi_a[[0, 2]] < lo_b[[0, 2]]) | (hi_b[[0, 2]] < lo_a[[0, 2]])
+                assert apart.any(), (names[s["queue"][a]], names[s["queue"][b]])
+        pg.evaluate("pinchmatchXR.scene.turn()")
+        s = scene_state(pg)
+        assert s["on_prop"] is not None and pg.evaluate(f"pinchmatchXR.scene.visible({here})") is False
+        pg.evaluate(f"pinchmatchXR.scene.go({s['tasks'].index(s['on_prop'])})")  # the box on the prop, to pinch
+        assert f"On the prop: {names[s['on_prop']]}. Pinch {names[s['on_prop']]}" in pg.locator("#xr-status").inner_text()
+        at = np.mean(pg.evaluate("pinchmatchXR.scene.targets()")["physical"], axis=0)
+        pg.evaluate(f"drive.look({(at + [0.1, 0.35, 0.45]).tolist()}, {(at + [0.15, -0.05, 0.0]).tolist()})")
+        pg.wait_for_timeout(300)
+        canvas_shot(pg, "headset_scene_shelf.png")
+        pg.evaluate(f"pinchmatchXR.scene.go({s['tasks'].index(s['queue'][1])})")  # a box still on the carousel
+        assert f"On the prop: {names[s['on_prop']]}." in pg.locator("#xr-status").inner_text()
+        pg.evaluate(f"pinchmatchXR.scene.go({s['tasks'].index(here)})")
+        assert scene_state(pg)["on_prop"] is None and pg.evaluate(f"pinchmatchXR.scene.visible({here})") is True
 
 
 def test_a_desktop_previews_the_scene_mode(browser, shelf_out):

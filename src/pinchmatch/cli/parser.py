@@ -163,6 +163,16 @@ def _add_match_options(p: argparse.ArgumentParser, *, one_to_one: bool = True) -
                    help="the same as --rank worst: rank by the worst landing")
 
 
+def _add_node_options(p: argparse.ArgumentParser) -> None:
+    """``--nodes`` and ``--skip-nodes``: which mesh nodes of a level split into its nodes are objects."""
+    p.add_argument("--nodes", action="append", metavar="GLOB",
+                   help="with --split nodes: only the mesh nodes whose name or path matches GLOB (repeatable; a "
+                        "manifest entry's nodes come first)")
+    p.add_argument("--skip-nodes", action="append", metavar="GLOB",
+                   help="with --split nodes: leave out the mesh nodes whose name or path matches GLOB (repeatable; "
+                        "with a manifest entry's skip_nodes)")
+
+
 def _add_placement_options(p: argparse.ArgumentParser) -> None:
     add_record_options(p, MatchSettings, "placement")
 
@@ -229,12 +239,7 @@ def build_parser() -> argparse.ArgumentParser:
     match.add_argument("--split", choices=("none", "nodes"), default=None,
                        help="nodes: each mesh node of a virtual glTF/GLB scene (a game level) is its own object, "
                             "in world coordinates, named by its node (default none; a manifest entry's split comes first)")
-    match.add_argument("--nodes", action="append", metavar="GLOB",
-                       help="with --split nodes: only the mesh nodes whose name or path matches GLOB (repeatable; a manifest "
-                            "entry's nodes come first)")
-    match.add_argument("--skip-nodes", action="append", metavar="GLOB",
-                       help="with --split nodes: leave out the mesh nodes whose name or path matches GLOB (repeatable; with a "
-                            "manifest entry's skip_nodes)")
+    _add_node_options(match)
     match.add_argument("--tangible-poses", action="append", metavar="FILE",
                        help="use only these poses on a tangible (JSON, as for poses --poses); once per tangible, in order")
     match.add_argument("--virtual-poses", action="append", metavar="FILE",
@@ -268,12 +273,7 @@ def build_parser() -> argparse.ArgumentParser:
                         help="the coverage curve goes up to M props (default: the whole shelf)")
     select.add_argument("--split", choices=("none", "nodes"), default=None,
                         help="nodes: each mesh node of a virtual glTF/GLB scene is its own object (default none)")
-    select.add_argument("--nodes", action="append", metavar="GLOB",
-                        help="with --split nodes: only the mesh nodes whose name or path matches GLOB (repeatable; a manifest "
-                             "entry's nodes come first)")
-    select.add_argument("--skip-nodes", action="append", metavar="GLOB",
-                        help="with --split nodes: leave out the mesh nodes whose name or path matches GLOB (repeatable; with a "
-                             "manifest entry's skip_nodes)")
+    _add_node_options(select)
     _add_pinch_options(select)
     _add_support_option(select)
     _add_sampling_options(select)
@@ -309,12 +309,7 @@ def build_parser() -> argparse.ArgumentParser:
                         help="judge exactly N candidates, whatever the machine's speed (the budget still bounds it)")
     design.add_argument("--split", choices=("none", "nodes"), default=None,
                         help="nodes: each mesh node of a virtual glTF/GLB scene is its own object (default none)")
-    design.add_argument("--nodes", action="append", metavar="GLOB",
-                        help="with --split nodes: only the mesh nodes whose name or path matches GLOB (repeatable; a manifest "
-                             "entry's nodes come first)")
-    design.add_argument("--skip-nodes", action="append", metavar="GLOB",
-                        help="with --split nodes: leave out the mesh nodes whose name or path matches GLOB (repeatable; with a "
-                             "manifest entry's skip_nodes)")
+    _add_node_options(design)
     _add_pinch_options(design)
     _add_support_option(design)
     _add_sampling_options(design)
