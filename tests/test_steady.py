@@ -121,10 +121,11 @@ def test_a_pinch_mid_side_lands_steadier_than_one_at_the_rim(tmp_path):
     assert np.sqrt(var[1, :, 0]).min() > 3.0
 
 
-@pytest.mark.parametrize("seed", [0, 1])
+@pytest.mark.parametrize("seed", [1, 2])
 def test_the_ranked_best_is_the_brute_forces_best_over_the_sampled_pairs(tmp_path, seed):
     """Sampled poses of a block and a turned rod, refinement off: the match ranks a bounded set (the best on
-    target and the steady search's), and a brute force that feels every sampled pair finds the same best."""
+    target and the steady search's), and a brute force that feels every sampled pair finds the same best.
+    The seeds are ones whose samples' steadiest pair is not their best on target (checked last)."""
     block = candidate_poses(analyze_object(_exported(tmp_path, "block", box((50.0, 36.0, 30.0), subdivide_mm=3.0).mesh)),
                             settings=PinchSettings(count=40, seed=seed))
     rod = candidate_poses(analyze_object(_exported(tmp_path, "rod", cylinder(16.0, 60.0, faces=8000).mesh, turned=True)),

@@ -110,6 +110,9 @@ def complete_weights(given: Mapping, *, criteria: tuple = DEFAULT_CRITERIA) -> d
 
 
 # the pinch rules, the hand and the sampling
+#: width's just-noticeable difference: 5.75 % of the reference width (de Tinguy et al., WHC 2019), floor
+#: 0.4 mm (Ho & Srinivasan); the cost's width criterion and the sampler's spread both count widths in it
+WIDTH_JND_FRACTION, WIDTH_JND_FLOOR_MM = 0.0575, 0.4
 #: allowed fingertip-sphere penetration (mm): the pad is soft (the hand model's tolerance too)
 CLEARANCE_TOLERANCE_MM = 0.3
 #: pre-filter margin on the friction cone with triangle normals, before patch normals exist

@@ -7,6 +7,10 @@ of :mod:`pinches` prune them with triangle normals; a farthest-point order
 spreads the survivors; in rounds, the next picks get the reach search,
 fitted patches and the full check with patch normals.
 
+Before the rounds, every width of pinch the candidates offer is checked in
+its own stratum (:mod:`strata`), so that a rare width (a mug's handle, a
+plate's rim) is represented at any count.
+
 When the first picks show that few places are graspable (a bowl's rim, a
 mug's handle), later rounds draw new candidates near the contacts of the
 feasible pinches found so far and take them first; the spread order keeps
@@ -24,6 +28,7 @@ from ..errors import NoFeasiblePinchError
 from .pinches import (PREFILTER_MARGIN_DEG, RULES, PinchSettings, Pinches, assemble, check_patch_radius, cheap_broken,
                       concat_pinches, patches, reach_rule, rule_table)
 from .spread import Pool
+from .strata import stratified_checks
 from ..mesh.surface import SurfaceContext
 
 log = logging.getLogger(__name__)
@@ -96,6 +101,13 @@ def _uniform_contacts(context, n, rng):
     return p1, faces
 
 
+def cheap_candidates(context, n: int, settings: PinchSettings, rng) -> tuple[np.ndarray, np.ndarray]:
+    """Candidates from ``n`` contacts drawn area-uniformly: (m, 2, 3) points and (m, 2) triangles of
+    those that keep the cheap rules (with triangle normals), as the sampler's first round draws them."""
+    p1, f1 = _uniform_contacts(context, n, rng)
+    return _draw(context, p1, f1, settings, rng, dict.fromkeys(RULES, 0))
+
+
 def _local_contacts(context, seeds, n, radius, rng):
     """n contacts near ``seeds`` (contacts of feasible pinches): random dense-sample points within ``radius``."""
     sample = context.sample
@@ -163,9 +175,10 @@ def sample_pinches(
     uniform = Pool(points, faces, np.full(len(points), np.inf))
     local = Pool.empty()
 
-    parts: list[Pinches] = []
-    picked = np.zeros((0, 2, 3))
-    n_feasible, n_checked = 0, 0
+    # every width stratum first; the rounds go on from what the strata found
+    parts, picked = stratified_checks(uniform, count, lambda p, f: _check_picks(context, p, f, settings, rejected))
+    n_feasible, n_checked = sum(len(p) for p in parts), len(picked)
+    n_strata = len(parts)
     local_radius = LOCAL_RADIUS_TIPS * settings.fingertip_radius_mm
     for round_ in range(MAX_ROUNDS):
         need = count - n_feasible
@@ -180,7 +193,8 @@ def sample_pinches(
             # more candidates: near the feasible contacts found so far, or anywhere while none is
             n_more = int(min(budget - drawn, OVERSAMPLE * want))
             if n_feasible:
-                seeds = np.concatenate([p.points.reshape(-1, 3) for p in parts])
+                # the rounds' own finds are spread as the feasible pinches are; the strata's lean to rare widths
+                seeds = np.concatenate([p.points.reshape(-1, 3) for p in (parts[n_strata:] or parts)])
                 more_p, more_f = _local_contacts(context, seeds, n_more, local_radius, rng)
             else:
                 more_p, more_f = _uniform_contacts(context, n_more, rng)
@@ -206,7 +220,7 @@ def sample_pinches(
         n_feasible += len(part)
     if n_feasible == 0:
         raise NoFeasiblePinchError(_no_pinch_message(source, drawn, rejected, settings, context.support is not None))
-    # concatenated in spread order, so the first `count` are evenly spread
+    # the strata's first, then the rounds' in spread order, so the first `count` are evenly spread
     result = concat_pinches(parts, rejected).subset(np.arange(min(count, n_feasible)))
     log.info("%s: %d feasible pinches from %d candidates", source, len(result), drawn)
     return result

@@ -113,6 +113,13 @@ class Pool:
         order, self.nearest = spread_order(self.points, count, self.nearest)
         return order
 
+    def take(self, indices):
+        """Count the candidates at ``indices`` as picked (checked elsewhere), and their points for the
+        spread of the rest."""
+        indices = np.asarray(indices, dtype=np.int64)
+        self.nearest[indices] = -1.0
+        self.saw(self.points[indices])
+
     def saw(self, picked_points):
         """Picks made from another pool count for this one's spread too."""
         live = self.nearest >= 0

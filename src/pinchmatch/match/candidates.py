@@ -13,7 +13,7 @@ import numpy as np
 
 from ..errors import NoFeasiblePinchError
 from ..grasp.analysis import ObjectAnalysis, find_pinches, score_pinches
-from ..grasp.features import PinchFeatures
+from ..grasp.features import PinchFeatures, pinch_features
 from ..grasp.pinches import Pinches, PinchSettings, concat_pinches
 from .cost import MASS_COLUMNS, feature_table, mass_term, separable_terms
 
@@ -85,6 +85,21 @@ def candidate_poses(
         )
     pinches, features = pinches.subset(keep), features_subset(features, keep)
     return Candidates(obj, pinches, features, feature_table(features), keep, given is not None)
+
+
+#: poses found after the sampling (refined, targeted) have no place in the sampled list: their ``index``
+REFINED_INDEX = -1
+
+
+def extend(base: Candidates, pinches: Pinches) -> Candidates:
+    """``base`` with feasible ``pinches`` added (features computed, index ``REFINED_INDEX``): how refinement and the
+    targeted step grow an object's candidates."""
+    features = pinch_features(pinches, base.obj.props)
+    extra = Candidates(base.obj, pinches, features, feature_table(features),
+                       np.full(len(pinches), REFINED_INDEX, dtype=base.index.dtype), base.given)
+    return Candidates(base.obj, concat_pinches([base.pinches, pinches], base.pinches.rejected),
+                      concat_features([base.features, extra.features]), np.concatenate([base.table, extra.table]),
+                      np.concatenate([base.index, extra.index]), base.given)
 
 
 def concat_features(parts: list[PinchFeatures]) -> PinchFeatures:

@@ -47,6 +47,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from ..config import CRITERIA, DEFAULT_CRITERIA, MAX_WEIGHT, PAPER_CRITERIA, POOLINGS, Weights, complete_weights  # noqa: F401 (re-exported)
+from ..config import WIDTH_JND_FLOOR_MM, WIDTH_JND_FRACTION  # noqa: F401 (re-exported)
 from ..grasp.features import PinchFeatures
 
 #: Quick pooling's exponent, the common slope of the criteria's Weibull psychometric functions: 3.5,
@@ -57,8 +58,6 @@ QUICK_EXPONENT = 3.5
 #: detection level (a 75 %-correct two-alternative threshold, corrected for guessing)
 DETECTION_AT_ONE_JND = 0.5
 
-#: width: 5.75 % of the reference width (de Tinguy et al., WHC 2019), floor: 0.4 mm (Ho & Srinivasan)
-WIDTH_JND_FRACTION, WIDTH_JND_FLOOR_MM = 0.0575, 0.4
 #: orientations: 43.8 % of the reference angle, floor: 20° (edge orientation on the fingerpad, Bensmaia)
 ANGLE_JND_FRACTION, ANGLE_JND_FLOOR_DEG = 0.438, 20.0
 #: curvature: 66.66 % of the reference, floor: 2 /m (2 cm stimuli, Gordon & Morison)

@@ -1,10 +1,11 @@
 """Refinement after the search: the best pairs followed on both surfaces until the cost settles.
 
 The exact search (:mod:`pinchmatch.match.search`) finds the cheapest pairs among the sampled
-poses; a sample is a sample, so another seed finds other pairs. Refinement takes the ``SEEDS``
-best distinct pairs on the best tangible and the ``OTHER_SEEDS`` best on every other tangible that
-could serve the virtual object (its sampled least cost within ``CONTENDER_RATIO`` of the best
-tangible's), and improves each by a pattern search over the four degrees of freedom of each pinch:
+poses; a sample is a sample, so another seed finds other pairs. First the targeted step
+(:mod:`pinchmatch.match.targeted`) adds the poses each side needs, looked for by their features, and
+the search runs over the union. Refinement then takes the ``SEEDS`` best distinct pairs on the best
+tangible and the ``OTHER_SEEDS`` best on every other tangible that could serve the virtual object
+(its least cost so far within ``CONTENDER_RATIO`` of the best tangible's), and improves each by a pattern search over the four degrees of freedom of each pinch:
 
 - the contacts move by ``step`` along the object's axis (projected off the pinch line) and
   across it, both ways: each alone, both together (the pinch slides) and both opposite (the
@@ -38,11 +39,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..grasp.curvature import tangent_frame
-from ..grasp.features import pinch_features
-from ..grasp.pinches import ARRAY_FIELDS, PinchSettings, Pinches, check_pinches, check_reach, concat_pinches
-from .candidates import Candidates, concat_features, felt_table, mass_ratio
-from .cost import CostModel, feature_table, separable_terms
+from ..grasp.pinches import ARRAY_FIELDS, PinchSettings, Pinches, check_pinches, check_reach
+from .candidates import REFINED_INDEX, Candidates, extend, felt_table, mass_ratio  # noqa: F401 (re-exported)
+from .cost import CostModel, separable_terms
 from .search import Search, cost_row, evaluate_pairs
+from .targeted import targeted_poses
 
 #: distinct best pairs refined per tangible
 SEEDS = 2
@@ -56,8 +57,6 @@ FIRST_STEP_MM, LAST_STEP_MM = 4.0, 0.5
 IMPROVEMENT = 1e-3
 #: rounds at most (each either moves a pair or halves its step)
 MAX_ROUNDS = 16
-#: refined poses have no place in the sampled list: their ``index``
-REFINED_INDEX = -1
 
 
 @dataclass
@@ -71,16 +70,6 @@ class _Grown:
         start = len(self.current)
         self.current = extend(self.current, pinches)
         return start + np.arange(len(pinches))
-
-
-def extend(base: Candidates, pinches: Pinches) -> Candidates:
-    """``base`` with feasible ``pinches`` added (features computed, index ``REFINED_INDEX``)."""
-    features = pinch_features(pinches, base.obj.props)
-    extra = Candidates(base.obj, pinches, features, feature_table(features),
-                       np.full(len(pinches), REFINED_INDEX, dtype=base.index.dtype), base.given)
-    return Candidates(base.obj, concat_pinches([base.pinches, pinches], base.pinches.rejected),
-                      concat_features([base.features, extra.features]), np.concatenate([base.table, extra.table]),
-                      np.concatenate([base.index, extra.index]), base.given)
 
 
 def move_directions(points: np.ndarray, axis: np.ndarray) -> np.ndarray:
@@ -346,10 +335,11 @@ def separable_sums(T: Candidates, V: Candidates, it: np.ndarray, iv: np.ndarray,
 def refined_search(tangibles: list[Candidates], virtual: Candidates, model: CostModel, settings, *,
                    pinch_settings: PinchSettings) -> Search:
     """The exact search of one virtual object against every tangible, over the sampled poses and,
-    unless ``settings.refine`` is off, the poses refinement found (see the module's notes).
+    unless ``settings.refine`` is off, the poses the targeted step (:mod:`pinchmatch.match.targeted`)
+    and then refinement found (see the module's notes).
 
-    Which tangibles are refined depends on the sampled costs alone, not on which tangibles the
-    object may use in the end (``--one-to-one``), so a cost row and a result agree."""
+    Which tangibles are refined depends on the costs before refinement alone, not on which tangibles
+    the object may use in the end (``--one-to-one``), so a cost row and a result agree."""
     search = Search(tangibles, [virtual], model, settings)
     if not settings.refine or (virtual.given and all(t.given for t in tangibles)):
         return search
@@ -357,10 +347,14 @@ def refined_search(tangibles: list[Candidates], virtual: Candidates, model: Cost
     finite = np.isfinite(row)
     if not finite.any():
         return search
+    grown_t, grown_v = targeted_poses(search, pinch_settings)
+    search = search.grown(grown_t, [grown_v])
+    row = cost_row(search, 0)
+    finite = np.isfinite(row)
     best = float(row[finite].min())
     seeds = [(int(t), c.t_pose, c.v_pose, c.cost)
              for t in np.flatnonzero(finite & (row <= CONTENDER_RATIO * best))
              for c in search.choices(0, [int(t)], SEEDS if row[t] == best else OTHER_SEEDS)]
-    grown_t, grown_v = refine(tangibles, virtual, seeds, model, keep_upright=settings.keep_upright,
+    grown_t, grown_v = refine(search.tangibles, search.virtuals[0], seeds, model, keep_upright=settings.keep_upright,
                               settings=pinch_settings, redirect=settings.redirect)
     return search.grown(grown_t, [grown_v])

@@ -150,11 +150,24 @@ def match_one(tangibles: list[Candidates], virtual: Candidates, config: Config, 
     if not details:  # what select and design rank props by: the row
         picks = _ranked(search, steady, allowed[0], 1, tables) if allowed[0] else []
         picks = [dataclasses.replace(p, virtual=index) for p, _ in picks]
+        row, noticed = _with_picks(row, noticed, picks)
         return VirtualMatch(index, picks[0] if picks else None, [], None if picks else allowed[1], None,
                             virtual.name, list(search.tangibles), search.virtuals[0], row=row, row_noticed=noticed)
     vm = _placed(search, allowed, pinch_settings=pinch, index=index, probes=probes, tables=tables,
                  sampled=(tangibles, virtual), steady=steady, carousel=carousel)
+    row, noticed = _with_picks(row, noticed, [vm.best, *vm.alternatives] if vm.best else [])
     return dataclasses.replace(vm, row=row, row_noticed=noticed, equivalent=equivalent_tangibles(vm.best, row))
+
+
+def _with_picks(row: np.ndarray, noticed: np.ndarray, picks: list) -> tuple[np.ndarray, np.ndarray]:
+    """The ranked row lowered to the match's own ranked choices where one is cheaper on its tangible (the
+    row ranks a few pairs per tangible, the match many), so that the row, the equivalents and the match
+    agree."""
+    row, noticed = row.copy(), noticed.copy()
+    for p in picks:
+        if p.cost < row[p.tangible]:
+            row[p.tangible], noticed[p.tangible] = p.cost, p.p_noticed >= 0.5
+    return row, noticed
 
 
 def equivalent_tangibles(best: Choice | None, row: np.ndarray) -> list:

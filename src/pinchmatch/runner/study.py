@@ -35,7 +35,7 @@ from ..match.candidates import Candidates, candidate_poses, merge_candidates
 from ..match.cost import CRITERIA, PAPER_CRITERIA
 from ..match.felt import FeltTables, felt_cost
 from ..match.reference import line_contacts, reference_cost, reference_pose
-from ..match.refine import extend
+from ..match.candidates import extend
 from ..match.scene import SceneMatch, match_scene
 from ..match.search import Choice, MatchSettings, cost_model, evaluate_pairs
 from ..mesh.shapes import stacked_prop

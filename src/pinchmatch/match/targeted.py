@@ -1,0 +1,140 @@
+"""The targeted step: the poses a match needs, looked for by their features on the other object.
+
+The exact search (:mod:`pinchmatch.match.search`) chooses among the sampled poses, so a prop whose
+sample lacks the one kind of pinch a virtual object needs (the mug's handle for a plate's rim)
+loses the match by the luck of the draw, and refinement, a local search, cannot go and find it.
+Before refinement, this step looks for it:
+
+- **A feature pool per object**: ``POOL_PER_POSE`` candidates per sampled pose (at least
+  ``POOL_MIN``), drawn area-uniformly from a stream of the seed of their own and kept where they
+  keep the cheap rules (:func:`pinchmatch.grasp.sampling.cheap_candidates`), each with a key of
+  the features the cost compares, in just-noticeable differences: width (:func:`width_jnd`),
+  distance from the centre of mass along the axis, tilt, the two normal angles (in either finger
+  order) and the lever arm of the centre of mass about the pinch line. A process keeps each
+  object's pool while the object lives (a prop serves every virtual object).
+- **Both ways**: the virtual object's poses in its ``TARGET_POSES`` best distinct pairs on any
+  tangible, and in each tangible's own best; for each distinct one, ``NEAREST`` of every
+  tangible's pool candidates, nearest in the key first, get the full check (every rule, the hand's reach included). The
+  other way round, each tangible's poses in its best pairs send the virtual object's nearest pool
+  candidates to the check.
+- The feasible ones join the candidates (as refined poses do: they have no place in the sampled
+  list) and the exact search runs over the union before the local refinement starts from its best
+  pairs (:func:`pinchmatch.match.refine.refined_search`).
+
+The keys leave out the patches' curvatures (a patch fit per candidate would cost what the full
+check costs); the check computes them, and the exact search judges by all features. What this step
+can still miss: a kind of pinch that none of the pool's draws hits (the pool is a sample too, of
+about ten times the count), and one whose key is near the poses looked for only in curvature.
+"""
+
+from __future__ import annotations
+
+import weakref
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from ..grasp.pinches import PinchSettings, check_pinches
+from ..grasp.sampling import cheap_candidates
+from ..grasp.strata import width_jnd
+from .candidates import Candidates, extend
+from .cost import ANGLE_JND_FLOOR_DEG, COM_JND_MM, MASS_JND_FLOOR_MM
+
+#: candidates drawn into an object's feature pool per sampled pose, and at least
+POOL_PER_POSE, POOL_MIN = 8, 4000
+#: the pool's random stream: another than the sampler's for the same seed
+POOL_STREAM = 7
+#: best distinct pairs whose poses are looked for on the other objects
+TARGET_POSES = 8
+#: pool candidates checked per pose looked for
+NEAREST = 12
+
+_POOLS: dict[int, tuple] = {}
+
+
+def pinch_keys(points: np.ndarray, normals: np.ndarray, props) -> np.ndarray:
+    """(n, 6) the targeted step's key of pinches ((n, 2, 3) contacts and outward normals): width in JND
+    (:func:`width_jnd`), distance of the midpoint from the centre of mass along the axis, tilt, the two
+    normal angles (the smaller first, so either finger order gives one key) and the centre of mass's
+    lever arm about the pinch line, each over its just-noticeable difference (the floors of
+    :mod:`pinchmatch.match.cost`)."""
+    seg = points[:, 1] - points[:, 0]
+    width = np.linalg.norm(seg, axis=1)
+    u = seg / np.maximum(width, 1e-300)[:, None]
+    a = props.principal_axis / np.linalg.norm(props.principal_axis)
+    mid = points.mean(axis=1)
+    com_distance = np.abs((mid - props.com_mm) @ a)
+    tilt = np.degrees(np.arcsin(np.clip(np.abs(u @ a), 0.0, 1.0)))
+    psi = np.degrees(np.arccos(np.clip(np.abs(np.einsum("nkd,nd->nk", normals, u)), 0.0, 1.0)))
+    offset = props.com_mm - mid
+    lever = np.linalg.norm(offset - np.einsum("nd,nd->n", offset, u)[:, None] * u, axis=1)
+    return np.column_stack([width_jnd(width), com_distance / COM_JND_MM, tilt / ANGLE_JND_FLOOR_DEG,
+                            np.sort(psi, axis=1) / ANGLE_JND_FLOOR_DEG, lever / MASS_JND_FLOOR_MM])
+
+
+def feature_keys(c: Candidates) -> np.ndarray:
+    """(n, 6) :func:`pinch_keys` of every candidate pose, from its features."""
+    f = c.features
+    return np.column_stack([width_jnd(f.width_mm), f.com_distance_mm / COM_JND_MM, f.tilt_deg / ANGLE_JND_FLOOR_DEG,
+                            np.sort(f.normal_angle_deg, axis=1) / ANGLE_JND_FLOOR_DEG,
+                            f.mass_perp_mm / MASS_JND_FLOOR_MM])
+
+
+def feature_pool(c: Candidates, settings: PinchSettings) -> tuple[np.ndarray, np.ndarray, cKDTree | None]:
+    """The feature pool of ``c``'s object (module notes): (m, 2, 3) contacts, (m, 2) triangles and a
+    KD-tree over their keys (None when no candidate keeps the cheap rules), made once per object."""
+    key = (int(settings.seed), max(POOL_MIN, POOL_PER_POSE * int(settings.count)))
+    memo = _POOLS.get(id(c.obj))
+    if memo is None or memo[0]() is not c.obj:
+        memo = (weakref.ref(c.obj), {})
+        _POOLS[id(c.obj)] = memo
+        weakref.finalize(c.obj, _POOLS.pop, id(c.obj), None)
+    if key not in memo[1]:
+        rng = np.random.default_rng([key[0], POOL_STREAM])
+        points, faces = cheap_candidates(c.obj.context, key[1], settings, rng)
+        normals = c.obj.context.face_normals[faces]
+        tree = cKDTree(pinch_keys(points, normals, c.obj.props)) if len(points) else None
+        memo[1][key] = (points, faces, tree)
+    return memo[1][key]
+
+
+def nearest_feasible(c: Candidates, keys: np.ndarray, settings: PinchSettings):
+    """The feasible pinches among ``NEAREST`` pool candidates per distinct key of ``keys`` on ``c``'s object,
+    every rule checked (None when there are none, or ``c``'s poses were given). The candidates are taken
+    nearest first, in turn over the keys: the first nearest of every key, then the second, and so on,
+    each once, so that keys near each other share their budget instead of checking one place twice."""
+    if c.given or not len(keys):
+        return None
+    points, faces, tree = feature_pool(c, settings)
+    if tree is None:
+        return None
+    keys = np.unique(keys, axis=0)
+    budget = min(NEAREST * len(keys), tree.n)
+    _, idx = tree.query(keys, k=budget)
+    idx = np.asarray(idx).reshape(len(keys), budget).T.ravel()  # rank by rank over the keys
+    first = np.sort(np.unique(idx, return_index=True)[1])[:budget]
+    idx = idx[first]
+    checked = check_pinches(c.obj.context, points[idx, 0], points[idx, 1], settings=settings, faces=faces[idx])
+    keep = np.flatnonzero(checked.feasible)
+    return checked.subset(keep) if len(keep) else None
+
+
+def targeted_poses(search, pinch_settings: PinchSettings) -> tuple[list, Candidates]:
+    """Every tangible's candidates and the virtual object's (``search.virtuals[0]``), with the feasible
+    poses the targeted step found appended (module notes)."""
+    tangibles, virtual = search.tangibles, search.virtuals[0]
+    reachable = [t for t in range(len(tangibles)) if np.isfinite(search.best_cost(0, t))]
+    if not reachable:
+        return list(tangibles), virtual
+    picks = search.choices(0, reachable, TARGET_POSES)
+    for t in reachable:
+        picks += search.choices(0, [t], TARGET_POSES)
+    v_poses = np.unique([c.v_pose for c in picks])
+    v_keys = feature_keys(virtual)[v_poses]
+    grown = []
+    for t, T in enumerate(tangibles):
+        found = nearest_feasible(T, v_keys, pinch_settings) if t in reachable else None
+        grown.append(T if found is None else extend(T, found))
+    t_keys = np.concatenate([feature_keys(tangibles[c.tangible])[[c.t_pose]] for c in picks])
+    found = nearest_feasible(virtual, np.unique(t_keys, axis=0), pinch_settings)
+    return grown, virtual if found is None else extend(virtual, found)

@@ -1,0 +1,139 @@
+"""Coverage of what the fingers can feel: the sampler's width strata and the match's targeted step."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+from scipy.spatial.transform import Rotation
+
+import pinchmatch.grasp.strata as strata
+from pinchmatch.grasp.analysis import analyze_object
+from pinchmatch.grasp.pinches import PinchSettings
+from pinchmatch.grasp.sampling import sample_pinches
+from pinchmatch.grasp.strata import stratum_of, width_jnd
+from pinchmatch.match.candidates import REFINED_INDEX, candidate_poses
+from pinchmatch.match.refine import refined_search
+from pinchmatch.match.search import MatchSettings, Search, cost_model, cost_row
+from pinchmatch.match.targeted import feature_keys, pinch_keys, targeted_poses
+from pinchmatch.mesh import vessels
+from pinchmatch.mesh.shapes import cylinder
+from test_pinches import assert_rules_hold
+
+ROTATION = Rotation.from_euler("xyz", [-71.0, 33.0, 128.0], degrees=True).as_matrix()
+OFFSET = np.array([-260.0, 415.0, 38.0])
+#: the mug's handle is a ring of 5 mm tube radius: pinched across its tube, 10 mm wide
+HANDLE_WIDTH_MM = (8.0, 12.5)
+
+
+def _turned(tmp_path, name, mesh, rotation=ROTATION, offset=OFFSET):
+    mesh = mesh.copy()
+    M = np.eye(4)
+    M[:3, :3], M[:3, 3] = rotation, offset
+    mesh.apply_transform(M)
+    path = tmp_path / f"{name}.stl"
+    mesh.export(path)
+    return path, trimesh.load(path, force="mesh")  # as stored: STL keeps float32
+
+
+@pytest.fixture(scope="module")
+def mug(tmp_path_factory):
+    """The mug twin, turned and moved off the origin (its up axis is none of the file's)."""
+    return _turned(tmp_path_factory.mktemp("mug"), "mug", vessels.mug())
+
+
+def _handle(points):
+    w = np.linalg.norm(points[:, 1] - points[:, 0], axis=1)
+    return (w >= HANDLE_WIDTH_MM[0]) & (w <= HANDLE_WIDTH_MM[1])
+
+
+def test_width_in_jnd_counts_just_noticeable_steps():
+    """Below 0.4 / 0.0575 mm a JND is 0.4 mm, above it 5.75 % of the width; the count is continuous."""
+    knee = 0.4 / 0.0575
+    assert width_jnd(knee - 1e-9) == pytest.approx(width_jnd(knee + 1e-9), abs=1e-6)
+    w = np.array([0.5, 2.0, 5.0])
+    np.testing.assert_allclose(width_jnd(w + 0.4) - width_jnd(w), 1.0, rtol=1e-9)
+    w = np.array([8.0, 30.0, 90.0])
+    np.testing.assert_allclose(width_jnd(w * (1 + 0.0575 * 1e-4)) - width_jnd(w), 1e-4, rtol=1e-3)
+    strata_of = stratum_of(np.array([[[0, 0, 0], [0, 0, 1.1]], [[0, 0, 0], [0, 0, 1.3]], [[5, 5, 5], [5, 5, 30]]]))
+    assert strata_of.tolist() == [0, 1, int(width_jnd(25.0) // 3)]
+
+
+def test_the_rare_width_is_sampled_and_a_larger_count_keeps_more_of_it(mug):
+    """The turned mug's handle pinches are a few hundredths of its narrow candidates (most cross the wall,
+    where no finger gets inside). The strata keep them at every count, more at the larger one; the spread
+    over contacts alone keeps far fewer. Every pinch kept obeys every rule."""
+    path, mesh = mug
+    obj = analyze_object(path)
+    found = {}
+    for count in (600, 2400):
+        pinches = sample_pinches(obj.context, settings=PinchSettings(count=count, seed=3))
+        assert len(pinches) == count
+        found[count] = int(_handle(pinches.points).sum())
+        if count == 600:
+            assert_rules_hold(mesh, pinches, PinchSettings(count=count, seed=3))
+    assert found[600] >= 5 and found[2400] >= 2 * found[600]
+    original = strata.STRATUM_SHARE
+    try:
+        strata.STRATUM_SHARE = 0.0  # the spread over contacts alone
+        alone = _handle(sample_pinches(obj.context, settings=PinchSettings(count=2400, seed=3)).points).sum()
+    finally:
+        strata.STRATUM_SHARE = original
+    assert found[2400] >= 1.5 * max(int(alone), 1)  # 57 against 28 when written
+
+
+def test_keys_from_features_and_from_contacts_agree_in_either_finger_order(mug):
+    """The targeted step keys its pool from contacts and triangle normals, the poses it looks for from their
+    features: on the same pinches (patch normals given) both give one key, whichever finger is first."""
+    path, _ = mug
+    obj = analyze_object(path)
+    c = candidate_poses(obj, settings=PinchSettings(count=150, seed=1))
+    keys = feature_keys(c)
+    np.testing.assert_allclose(pinch_keys(c.pinches.points, c.pinches.normals, obj.props), keys, atol=1e-9)
+    swapped = pinch_keys(c.pinches.points[:, ::-1], c.pinches.normals[:, ::-1], obj.props)
+    np.testing.assert_allclose(swapped, keys, atol=1e-9)
+    assert np.ptp(keys, axis=0).min() > 0.1  # every key column varies over the mug's poses
+
+
+def test_the_targeted_step_finds_on_the_prop_the_width_its_sample_lacks(tmp_path, mug):
+    """A rod 10 mm thick and 160 mm long (longer than any pinch), turned another way, against the turned mug whose sampled poses have lost every
+    handle pinch: the exact search can only offer the body's. The targeted step finds handle pinches on
+    the mug by the rod's features; each obeys every rule, and the best cost falls below the body's."""
+    path, mesh = mug
+    settings = PinchSettings(count=300, seed=2)
+    full = candidate_poses(analyze_object(path), settings=settings)
+    no_handle = full.subset(np.flatnonzero(np.linalg.norm(full.pinches.points[:, 1] - full.pinches.points[:, 0],
+                                                          axis=1) > 20.0))
+    rod_path, _ = _turned(tmp_path, "rod", cylinder(5.0, 160.0, faces=8000).mesh,
+                          Rotation.from_euler("zxz", [12.0, 97.0, -40.0], degrees=True).as_matrix(),
+                          np.array([33.0, -18.0, -120.0]))
+    rod = candidate_poses(analyze_object(rod_path), settings=settings)
+    match = MatchSettings(refine=True)
+    model = cost_model(match, [no_handle, rod])
+    search = Search([no_handle], [rod], model, match)
+    before = float(cost_row(search, 0)[0])
+    (grown,), grown_rod = targeted_poses(search, settings)
+    added = grown.pinches.subset(np.arange(len(no_handle), len(grown)))
+    assert len(added) > 0 and (grown.index[len(no_handle):] == REFINED_INDEX).all()
+    assert _handle(added.points).sum() >= 3
+    assert_rules_hold(mesh, added, settings)
+    assert len(grown_rod) >= len(rod)
+    after = float(cost_row(search.grown([grown], [grown_rod]), 0)[0])
+    assert after < 0.5 * before
+    # and the match runs it before refinement: the refined answer is at least as good
+    assert float(cost_row(refined_search([no_handle], rod, model, match, pinch_settings=settings), 0)[0]) <= after + 1e-9
+
+
+def test_the_targeted_step_is_deterministic_and_skipped_without_refinement(mug, tmp_path):
+    path, _ = mug
+    settings = PinchSettings(count=200, seed=4)
+    box_path, _ = _turned(tmp_path, "box", trimesh.creation.box((30.0, 45.0, 60.0)).subdivide().subdivide())
+    a = candidate_poses(analyze_object(path), settings=settings)
+    b = candidate_poses(analyze_object(box_path), settings=settings)
+    model = cost_model(MatchSettings(), [a, b])
+    one = targeted_poses(Search([a], [b], model, MatchSettings()), settings)
+    two = targeted_poses(Search([a], [b], model, MatchSettings()), settings)
+    np.testing.assert_array_equal(one[0][0].pinches.points, two[0][0].pinches.points)
+    np.testing.assert_array_equal(one[1].pinches.points, two[1].pinches.points)
+    off = refined_search([a], b, model, MatchSettings(refine=False), pinch_settings=settings)
+    assert len(off.tangibles[0]) == len(a) and len(off.virtuals[0]) == len(b)
