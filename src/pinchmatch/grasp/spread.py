@@ -75,19 +75,16 @@ def spread_order(points: np.ndarray, count: int, nearest: np.ndarray | None = No
 
 
 def _nearest_to(points: np.ndarray, picked: np.ndarray) -> np.ndarray:
-    """Squared spread distance from each pinch to the nearest of ``picked`` (inf when none)."""
+    """Squared spread distance from each pinch to the nearest of ``picked`` (inf when none): a KD-tree over
+    the picks in one finger order, queried with each pinch in both (the nearer order counts)."""
     out = np.full(len(points), np.inf)
     if len(picked) == 0 or len(points) == 0:
         return out
     origin = points.reshape(-1, 3).mean(axis=0)
     a, b = _pair_vectors(points - origin)
     q, _ = _pair_vectors(picked - origin)
-    sq_a, sq_q = (a * a).sum(axis=1), (q * q).sum(axis=1)
-    for s in range(0, len(q), 2048):
-        block = q[s:s + 2048]
-        d = sq_a[:, None] + sq_q[None, s:s + 2048] - 2.0 * np.maximum(a @ block.T, b @ block.T)
-        np.minimum(out, d.min(axis=1), out=out)
-    return out
+    tree = cKDTree(q)
+    return np.minimum(tree.query(a, k=1)[0], tree.query(b, k=1)[0]) ** 2
 
 
 @dataclass
