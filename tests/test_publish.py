@@ -317,6 +317,55 @@ def test_a_journal_or_manifest_naming_files_outside_out_touches_none_of_them(tmp
     assert_whole(out)
 
 
+@pytest.mark.parametrize("link", ["staging", "staging-folder", "staged-file", "control", "journal"])
+def test_a_received_folder_with_links_in_its_control_folder_moves_nothing_from_outside(tmp_path, virtuals, capsys,
+                                                                                        link):
+    """A result folder received from someone else: its staging folder a link to another folder, a folder
+    in staging a link, a staged file a link, the control folder itself a link, or the journal a link; its
+    journal names a file there. ``view`` and the next ``match`` refuse in one line or move only what is
+    really staged: the file outside stays where it is, and nothing is written outside OUT."""
+    out = tmp_path / "out"
+    assert match(out, [virtuals / "e0.stl"], "--no-view") == 0
+    elsewhere = tmp_path / "elsewhere"
+    (elsewhere / "sub").mkdir(parents=True)
+    (elsewhere / "victim.txt").write_text("keep me")
+    (elsewhere / "sub" / "victim.txt").write_text("keep me")
+    control = out / ".pinchmatch"
+    journal = {"new": ["victim.txt", "sub/victim.txt"], "staged": ["victim.txt", "sub/victim.txt"], "remove": []}
+    if link == "control":
+        real = tmp_path / "control-elsewhere"
+        control.rename(real)
+        control.symlink_to(real, target_is_directory=True)
+        (real / "staging").symlink_to(elsewhere, target_is_directory=True)
+        (real / "commit.json").write_text(json.dumps(journal))
+    else:
+        (control / "staging").mkdir(exist_ok=True)
+        if link == "staging":
+            (control / "staging").rmdir()
+            (control / "staging").symlink_to(elsewhere, target_is_directory=True)
+        elif link == "staging-folder":
+            (control / "staging" / "sub").symlink_to(elsewhere / "sub", target_is_directory=True)
+        elif link == "staged-file":
+            (control / "staging" / "victim.txt").symlink_to(elsewhere / "victim.txt")
+        if link == "journal":
+            (elsewhere / "commit.json").write_text(json.dumps(journal))
+            (control / "commit.json").symlink_to(elsewhere / "commit.json")
+        else:
+            (control / "commit.json").write_text(json.dumps(journal))
+    before = sorted(p.name for p in elsewhere.rglob("*"))
+    capsys.readouterr()
+    for argv in (["view", str(out)], None):
+        code = main(argv) if argv else match(out, [virtuals / "e1.stl"], "--no-view")
+        err = capsys.readouterr().err.strip()
+        assert code in (0, 2) and "Traceback" not in err
+        if code == 2:
+            assert len(err.splitlines()) == 1 and "pinchmatch never follows" in err, err
+        assert (elsewhere / "victim.txt").read_text() == "keep me"
+        assert (elsewhere / "sub" / "victim.txt").read_text() == "keep me"
+        assert sorted(p.name for p in elsewhere.rglob("*")) == before  # no lock, no file written outside
+        assert not (out / "victim.txt").exists() and not (out / "sub").exists()
+
+
 def test_files_written_straight_into_out_are_taken_back_when_the_run_does_not_finish(tmp_path):
     """design's props and the demo's objects are written where they stay, before the result is published:
     a run that stops (a signal, an error) puts back the files they replaced and removes those it added."""

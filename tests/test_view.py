@@ -208,6 +208,13 @@ def test_view_takes_the_result_document_and_opens_the_page_where_there_is_a_disp
     ("no scene", "scene missing for"),
     ("missing field", "field 'cost' is missing or malformed"),
     ("wrong kind", "is missing or malformed"),
+    ("markup weight", "criteria.width.weight: text '<img src=x onerror=alert(1)>' where a number belongs"),
+    ("markup landings", "landing.landings: text '<script>alert(1)</script>' where a number belongs"),
+    ("markup radius", "landing.radius_mm: text '1<b>' where a number belongs"),
+    ("markup alternative", "alternatives[0].cost: text"),
+    ("infinite cost", "matches[0].cost: inf is not a number"),
+    ("scene link", "is a link (to"),
+    ("scene folder link", "is a link (to"),
 ])
 def test_view_cli_fails_cleanly(demo_out, tmp_path, capsys, damage, message):
     out = tmp_path / "run"
@@ -229,6 +236,30 @@ def test_view_cli_fails_cleanly(demo_out, tmp_path, capsys, damage, message):
         else:
             doc["matches"][0]["criteria"] = [1, 2]
         (out / "matches.json").write_text(json.dumps(doc))
+    elif damage.startswith(("markup", "infinite")):
+        doc = json.loads((out / "matches.json").read_text())
+        m = doc["matches"][0]
+        m["criteria"]["width"]["weight"] = "<img src=x onerror=alert(1)>" if damage == "markup weight" else 1.0
+        if damage in ("markup landings", "markup radius"):
+            m["landing"] = dict(m.get("landing") or {}, landings="<script>alert(1)</script>", radius_mm=5.0)
+            if damage == "markup radius":
+                m["landing"].update(landings=25, radius_mm="1<b>")
+        if damage == "markup alternative":
+            m["alternatives"] = [dict(m["alternatives"][0], cost="<i>")] if m.get("alternatives") else [{"cost": "<i>"}]
+        if damage == "infinite cost":
+            m["cost"] = float("inf")
+        (out / "matches.json").write_text(json.dumps(doc))
+    elif damage in ("scene link", "scene folder link"):
+        secret = tmp_path / "secret"
+        secret.mkdir()
+        scene = next((out / "scenes").glob("*.glb"))
+        (secret / scene.name).write_bytes(scene.read_bytes())
+        if damage == "scene link":
+            scene.unlink()
+            scene.symlink_to(secret / scene.name)
+        else:
+            shutil.rmtree(out / "scenes")
+            (out / "scenes").symlink_to(secret, target_is_directory=True)
     code, stdout, err = run(capsys, "view", out)
     assert code == 2 and message in err and "Traceback" not in err
     assert len(err.strip().splitlines()) == 1

@@ -20,6 +20,11 @@ command line's parent, or the next run) does it.
 Only files the manifest lists are ever deleted: a file a user put in OUT is never deleted (it is
 replaced only when it sits at the very path of an output). A lock
 (``flock`` on ``OUT/.pinchmatch/lock``) refuses a second run into the same OUT while one is going.
+
+A result folder may come from someone else (a shared drive, an archive), so nothing under
+``OUT/.pinchmatch`` is trusted: a link there (the control folder itself, its staging folder, its
+lock, journal, manifest or run record) is refused before anything is read or written through it
+(:func:`check_control`), and a journal moves only regular files that lie in the real staging folder.
 """
 
 from __future__ import annotations
@@ -28,6 +33,7 @@ import fcntl
 import json
 import os
 import shutil
+import stat
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -35,6 +41,31 @@ from ..errors import OutputError
 from ..files import RESULT_CONTROL, remove_temporaries, write_atomic
 
 CONTROL = RESULT_CONTROL
+#: what the control folder holds; none of it may be a link
+CONTROL_ENTRIES = ("staging", "replaced", "lock", "commit.json", "manifest.json", "run.json")
+
+
+def check_control(out: str | os.PathLike) -> bool:
+    """Refuse, in one line, a control folder ``OUT/.pinchmatch`` that is a link or holds one among its
+    entries (``CONTROL_ENTRIES``), or that is not a folder: pinchmatch never reads, writes or moves
+    through one. Returns whether the control folder exists."""
+    control = Path(out) / CONTROL
+    if not os.path.lexists(control):
+        return False
+    bad = [control] if control.is_symlink() or not control.is_dir() else \
+        [control / e for e in CONTROL_ENTRIES if (control / e).is_symlink()]
+    if (control / "staging").exists() and not (control / "staging").is_dir():
+        bad.append(control / "staging")
+    if bad:
+        raise OutputError(f"{bad[0]}: a symbolic link or not a folder where pinchmatch keeps its own control files; "
+                          f"pinchmatch never follows one there (a result folder received from elsewhere?); remove "
+                          f"{control} and run again")
+    return True
+
+
+def _open_lock(control: Path) -> int:
+    """The lock file's descriptor, never through a link."""
+    return os.open(control / "lock", os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW, 0o644)
 
 
 class OutputFolder:
@@ -56,9 +87,10 @@ class OutputFolder:
 
     def __enter__(self) -> Path:
         self._created = not self.out.exists()
+        check_control(self.out)
         try:
             self.control.mkdir(parents=True, exist_ok=True)
-            fd = os.open(self.control / "lock", os.O_RDWR | os.O_CREAT, 0o644)
+            fd = _open_lock(self.control)
         except OSError as exc:
             raise OutputError(f"{self.out}: cannot write there ({exc.strerror or exc}); choose another -o") from None
         try:
@@ -167,7 +199,7 @@ def _take_back(out: Path, run: dict) -> None:
             target.unlink(missing_ok=True)
             remove_temporaries(target)
             _prune_empty(out, target.parent)
-        elif isinstance(kept, str) and _inside(kept) and (control / kept).is_file():
+        elif isinstance(kept, str) and _inside(kept) and _regular_in(control, kept):
             os.replace(control / kept, target)  # a file it replaced comes back (not moved yet: still there)
     _clean(out)
 
@@ -202,7 +234,8 @@ def undo_killed_run(out: str | os.PathLike) -> bool:
     control = Path(out) / CONTROL
     if not control.is_dir() or control.is_symlink():
         return False
-    fd = os.open(control / "lock", os.O_RDWR | os.O_CREAT, 0o644)
+    check_control(out)
+    fd = _open_lock(control)
     try:
         fcntl.flock(fd, fcntl.LOCK_EX)  # the killed run's lock went with its process
         return _undo_locked(Path(out))
@@ -227,10 +260,10 @@ def exclusive(out: str | os.PathLike):
     """Hold the folder's lock while the block writes into it (``pinchmatch view`` rewriting the page),
     after finishing what a killed run left; a folder that a run is writing is refused in one line."""
     control = Path(out) / CONTROL
-    if not control.is_dir():
+    if not check_control(out):
         yield
         return
-    fd = os.open(control / "lock", os.O_RDWR | os.O_CREAT, 0o644)
+    fd = _open_lock(control)
     try:
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
@@ -255,16 +288,22 @@ def finish_commit(out: str | os.PathLike) -> None:
     """Carry out a journal left by a publication that did not finish (nothing when there is none)."""
     out = Path(out)
     control = out / CONTROL
+    if not os.path.lexists(control / "commit.json"):
+        return
+    check_control(out)
     try:
         journal = json.loads((control / "commit.json").read_text(encoding="utf-8"))
     except FileNotFoundError:
         return
     except (OSError, ValueError) as exc:
         raise OutputError(f"{control / 'commit.json'}: unreadable ({exc}); delete {control} and run again") from None
+    if not (isinstance(journal, dict) and all(isinstance(journal.get(k), list) for k in ("new", "staged", "remove"))
+            and all(isinstance(n, str) for k in ("new", "staged", "remove") for n in journal[k])):
+        raise OutputError(f"{control / 'commit.json'}: not a journal pinchmatch wrote; delete {control} and run again")
     try:
         for name in journal["staged"]:
             source, target = control / "staging" / name, out / name
-            if _really_inside(out, name) and source.is_file():
+            if _really_inside(out, name) and _staged_file(control, name):
                 target.parent.mkdir(parents=True, exist_ok=True)
                 os.replace(source, target)
         for name in journal["remove"]:
@@ -276,6 +315,22 @@ def finish_commit(out: str | os.PathLike) -> None:
     except OSError as exc:
         raise OutputError(f"{out}: cannot finish writing the result ({exc.strerror or exc}); free some space "
                           "and run again") from None
+
+
+def _regular_in(folder: Path, name: str) -> bool:
+    """Whether ``folder / name`` is a regular file (not a link), no link on the way from ``folder``."""
+    try:
+        mode = os.lstat(folder / name).st_mode
+    except OSError:
+        return False
+    return stat.S_ISREG(mode) and os.path.realpath(folder / name) == os.path.join(os.path.realpath(folder),
+                                                                                  *Path(name).parts)
+
+
+def _staged_file(control: Path, name: str) -> bool:
+    """Whether ``name`` is a regular file (not a link) in the real staging folder, no link on the way."""
+    stage = control / "staging"
+    return _inside(name) and not stage.is_symlink() and stage.is_dir() and _regular_in(stage, name)
 
 
 def _inside(name: str) -> bool:

@@ -15,6 +15,8 @@ import functools
 import http.server
 import json
 import logging
+import math
+import os
 import re
 import sys
 from importlib import resources
@@ -79,7 +81,54 @@ def page_data(out: Path, document: dict) -> dict:
                           "again to rewrite it") from None
 
 
+#: the text fields of a match that the page shows; every other leaf it reads must be a number, a bool or null
+_TEXT_KEYS = {"virtual", "tangible", "reason", "scene_file", "figure_file", "mode", "criteria_noticeable", "node"}
+
+
+def _checked_values(where: str, value, key: str = "") -> None:
+    """Refuse, naming ``where``, a value the page would show that is neither a finite number, a bool, null
+    nor text under a text key: a received document may carry markup where numbers belong."""
+    if isinstance(value, dict):
+        for k, v in value.items():
+            _checked_values(f"{where}.{k}", v, str(k))
+    elif isinstance(value, list):
+        for k, v in enumerate(value):
+            _checked_values(f"{where}[{k}]", v, key)
+    elif isinstance(value, str):
+        if key not in _TEXT_KEYS:
+            raise ConfigError(f"{where}: text {value[:40]!r} where a number belongs; not a matches document "
+                              "pinchmatch wrote: run pinchmatch again to rewrite it")
+    elif isinstance(value, float) and not math.isfinite(value) or not (value is None or isinstance(value, (bool, int, float))):
+        raise ConfigError(f"{where}: {value!r} is not a number; run pinchmatch again to rewrite it")
+
+
+#: the parts of a match the page reads whose leaves are numbers (text only under ``_TEXT_KEYS``)
+_CHECKED_FIELDS = ("cost", "p_noticed", "noticeable", "criteria", "landing", "equivalent_tangibles", "flipped",
+                   "contact_offset_mm", "position_mm", "quaternion_xyzw", "up_turn_deg", "redirection",
+                   "transform_virtual_to_tangible")
+#: of each alternative
+_ALTERNATIVE_FIELDS = ("tangible", "cost", "flipped", "up_turn_deg", "transform_virtual_to_tangible")
+
+
 def _page_data(out: Path, document: dict) -> dict:
+    for k, m in enumerate(document["matches"]):
+        if not isinstance(m, dict):
+            raise ConfigError(f"{out / 'matches.json'}: matches[{k}] is not a match; run pinchmatch again to rewrite it")
+        for field in _CHECKED_FIELDS:
+            _checked_values(f"{out / 'matches.json'}: matches[{k}].{field}", m.get(field), field)
+        for side in ("tangible_pose", "virtual_pose"):
+            pose = m.get(side) or {}
+            for field in ("width_mm", "p1_mm", "p2_mm"):
+                _checked_values(f"{out / 'matches.json'}: matches[{k}].{side}.{field}", pose.get(field), field)
+        reference = m.get("reference") or {}
+        _checked_values(f"{out / 'matches.json'}: matches[{k}].reference.cost", reference.get("cost"), "cost")
+        for j, a in enumerate(m.get("alternatives") or []):
+            where = f"{out / 'matches.json'}: matches[{k}].alternatives[{j}]"
+            for field in _ALTERNATIVE_FIELDS:
+                _checked_values(f"{where}.{field}", a.get(field) if isinstance(a, dict) else a, field)
+            pose = a.get("tangible_pose") if isinstance(a, dict) else None
+            for field in ("p1_mm", "p2_mm"):
+                _checked_values(f"{where}.tangible_pose.{field}", (pose or {}).get(field), field)
     stems = scene_stems([m["virtual"] for m in document["matches"]])
     poses = {t["name"]: t.get("pose") for t in document["tangibles"]}
     matches, unmatched = [], []
@@ -92,6 +141,10 @@ def _page_data(out: Path, document: dict) -> dict:
         if Path(name).is_absolute() or ".." in Path(name).parts:
             raise ConfigError(f"{out / 'matches.json'}: scene file {name!r} of {m['virtual']} is not inside {out}; "
                               "run pinchmatch again to rewrite it")
+        real, base = Path(os.path.realpath(glb)), Path(os.path.realpath(out))
+        if glb.is_symlink() or not real.is_relative_to(base):
+            raise ConfigError(f"{glb}: the scene of {m['virtual']} is a link (to {real}); the page embeds only files "
+                              f"inside {out}: copy the scene there or run pinchmatch again with -o {out}")
         if not glb.is_file():
             raise ConfigError(f"{glb}: scene missing for {m['virtual']}; run pinchmatch again with -o {out}")
         reference = m.get("reference") or {}

@@ -153,7 +153,7 @@
       `<td><div class="jnd-bar" title="${escape(landed.text)}"><span class="${m.noticeable ? "loud" : ""}" ` +
       `style="width:${lo}%"></span><b class="band ${landed.word}" style="left:${lo}%;width:${hi - lo}%"></b>` +
       `<i style="left:50%"></i></div></td><td title="cost ${fmt(m.landing.cost_mean)} expected, ` +
-      `${fmt(m.landing.cost_worst)} worst over ${m.landing.landings} landings ${m.landing.radius_mm} mm off">` +
+      `${fmt(m.landing.cost_worst)} worst over ${fmt(m.landing.landings)} landings ${fmt(m.landing.radius_mm)} mm off">` +
       `${escape(landed.word)}</td></tr>` +
       `<tr class="felt"><th>felt</th><td colspan="3">cost ${fmt(m.landing.cost_nominal)} on target, ` +
       `${fmt(m.landing.cost_mean)} expected, ${fmt(m.landing.cost_worst)} at the worst landing</td></tr>`;
@@ -263,7 +263,7 @@
       const width = Math.min(c.jnd / 3, 1) * 100;
       return `<tr><th>${escape(c.name)}</th><td>${c.jnd.toFixed(2)} JND</td>` +
         `<td><div class="jnd-bar"><span class="${c.noticeable ? "loud" : ""}" style="width:${width}%"></span>` +
-        `<i style="left:33.3%"></i></div></td><td>weight ${c.weight}</td></tr>`;
+        `<i style="left:33.3%"></i></div></td><td>weight ${fmt(c.weight)}</td></tr>`;
     }).join("") + (m.p_noticed === null || m.p_noticed === undefined ? "" :
       `<tr class="pooled"><th>noticed</th><td>${(100 * m.p_noticed).toFixed(0)} %</td>` +
       `<td><div class="jnd-bar"><span class="${m.noticeable ? "loud" : ""}" style="width:${100 * m.p_noticed}%"></span>` +

@@ -250,7 +250,7 @@
     const worst = Math.round(100 * landing.p_noticed_worst);
     const word = !landing.noticeable_worst ? "steady" : match.noticeable ? "noticed" : "fragile";
     return { word, worst_percent: worst,
-             text: `${word}: within ${landing.radius_mm} mm of the targets it is noticed at most ${worst} % of the time` };
+             text: `${word}: within ${Number(landing.radius_mm)} mm of the targets it is noticed at most ${worst} % of the time` };
   }
 
   // ---- scene mode: hand redirection (docs/redirection.md) ----------------------------------------------
