@@ -3,6 +3,7 @@
 import json
 import struct
 import time
+import urllib.parse
 
 import numpy as np
 import pytest
@@ -10,6 +11,7 @@ import trimesh
 
 from pinchmatch.cli.main import main
 from pinchmatch.errors import MeshError
+from pinchmatch.grasp.pinches import PinchSettings
 from pinchmatch.mesh.gltf_check import MAX_DEPTH, check_hierarchy
 from pinchmatch.mesh.load import read_level
 
@@ -110,7 +112,7 @@ def test_a_gltf_buffer_outside_its_folder_is_one_clear_line(tmp_path):
         (tmp_path / f"b{i}.bin").write_bytes(files[buffer["uri"]])
         buffer["uri"] = f"../b{i}.bin"
     (tmp_path / "inner" / "m.gltf").write_text(json.dumps(doc))
-    with pytest.raises(MeshError, match="lies outside the .gltf's folder"):
+    with pytest.raises(MeshError, match="lies outside the file's folder"):
         load_mesh(tmp_path / "inner" / "m.gltf")
 
 
@@ -130,3 +132,81 @@ def test_a_level_whose_mesh_nodes_share_a_name_is_not_split_under_made_up_names(
                           [0, 1]))
     with pytest.raises(MeshError, match="several mesh nodes are named 'crate'"):
         read_level(level)
+
+
+def _external_buffers(folder, uri, extents):
+    """A box's glTF document whose buffers are external files, each named by the percent-encoded ``uri``
+    with its number (``a%20b0.bin`` is the file ``a b0.bin``)."""
+    files = trimesh.exchange.gltf.export_gltf(trimesh.Scene(trimesh.creation.box(extents=extents)))
+    doc = json.loads(files["model.gltf"])
+    for i, buffer in enumerate(doc["buffers"]):
+        name = uri.replace(".bin", f"{i}.bin")
+        (folder / urllib.parse.unquote(name)).write_bytes(files[buffer["uri"]])
+        buffer["uri"] = name
+    return doc
+
+
+def _box_gltf(folder, uri, extents):
+    """A box as a .gltf with percent-encoded external buffers."""
+    (folder / "m.gltf").write_text(json.dumps(_external_buffers(folder, uri, extents)))
+    return folder / "m.gltf"
+
+
+def _glb_with_external_buffer(folder, uri, extents):
+    """A .glb whose JSON names its buffers as external files (no BIN chunk), as some exporters write."""
+    chunk = json.dumps(_external_buffers(folder, uri, extents)).encode()
+    chunk += b" " * (-len(chunk) % 4)
+    body = struct.pack("<I4s", len(chunk), b"JSON") + chunk
+    (folder / "m.glb").write_bytes(b"glTF" + struct.pack("<II", 2, 12 + len(body)) + body)
+    return folder / "m.glb"
+
+
+@pytest.mark.parametrize("kind", ["gltf", "glb"])
+def test_the_cache_key_covers_every_buffer_the_loader_reads(tmp_path, kind):
+    """A .gltf whose buffer URIs are percent-encoded, and a .glb with external buffers: another buffer under
+    the same names (the document's bytes unchanged) gives another cache key, and the loader reads it."""
+    from pinchmatch.mesh.load import load_mesh
+    from pinchmatch.mesh.manifest import ObjectSpec
+    from pinchmatch.runner.cache import FeatureCache
+
+    cache, settings = FeatureCache(tmp_path / "cache"), PinchSettings(count=50)
+    path = (_box_gltf if kind == "gltf" else _glb_with_external_buffer)(tmp_path, "a%20b.bin", (0.04, 0.03, 0.02))
+    document = path.read_bytes()
+    before = cache.key(ObjectSpec(str(path)), settings=settings)
+    np.testing.assert_allclose(np.sort(load_mesh(path).mesh.extents), [20.0, 30.0, 40.0], atol=1e-3)
+    _external_buffers(tmp_path, "a%20b.bin", (0.04, 0.03, 0.05))  # the buffers only: same names, same sizes
+    assert path.read_bytes() == document
+    assert cache.key(ObjectSpec(str(path)), settings=settings) != before
+    np.testing.assert_allclose(np.sort(load_mesh(path).mesh.extents), [30.0, 40.0, 50.0], atol=1e-3)
+
+
+def test_a_glb_buffer_outside_its_folder_is_refused_as_a_gltfs(tmp_path):
+    from pinchmatch.mesh.load import load_mesh
+
+    (tmp_path / "inner").mkdir()
+    (tmp_path / "victim").mkdir()
+    path = _glb_with_external_buffer(tmp_path / "inner", "../victim/ext.bin", (0.04, 0.03, 0.02))
+    with pytest.raises(MeshError, match="lies outside the file's folder"):
+        load_mesh(path)
+
+
+@pytest.mark.parametrize("damage, message", [
+    ("huge chunk", "JSON chunk is over 64 MiB"),
+    ("latin-1 name", "its JSON is not UTF-8"),
+    ("cut chunk", "JSON chunk is cut short"),
+])
+def test_a_document_the_checks_cannot_read_is_refused_not_handed_on(tmp_path, damage, message):
+    """The hierarchy check reads a level before trimesh does; what it cannot read (a JSON chunk declared over
+    64 MiB, a node name in Latin-1, a chunk cut short) is one line naming the file, never read unchecked."""
+    from pinchmatch.mesh.load import load_mesh
+
+    doc = {"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}],
+           "nodes": [{"name": "caf\u00e9", "children": [0]}]}  # a cycle, which the check would refuse
+    chunk = json.dumps(doc, ensure_ascii=False).encode("latin-1" if damage == "latin-1 name" else "utf-8")
+    chunk += b" " * (-len(chunk) % 4)
+    length = 65 * 2**20 if damage == "huge chunk" else len(chunk) + (64 if damage == "cut chunk" else 0)
+    body = struct.pack("<I4s", length, b"JSON") + chunk
+    (tmp_path / "level.glb").write_bytes(b"glTF" + struct.pack("<II", 2, 12 + len(body)) + body)
+    with pytest.raises(MeshError, match=message) as info:
+        load_mesh(tmp_path / "level.glb")
+    assert "level.glb" in str(info.value) and "\n" not in str(info.value)

@@ -6,8 +6,9 @@ transforms cost more than linear time in the depth (a chain 1,000 nodes deep tak
 document is read first, and refused in one line when a node names a child that does not exist, when a
 node has two parents or the children form a cycle, or when the level is larger than
 :data:`MAX_NODES` nodes or deeper than :data:`MAX_DEPTH` (real levels are a few dozen deep). The walk is
-iterative and linear in the number of nodes. A ``.gltf``'s external buffers are looked for as the
-specification says, their URIs percent-decoded.
+iterative and linear in the number of nodes. External buffers and images (of a ``.gltf`` or a ``.glb``)
+are looked for as the specification says, their URIs percent-decoded, and only beside the file. A
+document the checks cannot read (over 64 MiB, not UTF-8, not JSON) is refused, never handed on.
 """
 
 from __future__ import annotations
@@ -29,26 +30,57 @@ MAX_DEPTH = 256
 MAX_JSON_BYTES = 64 * 2**20
 
 
-def gltf_document(path: Path, file_type: str) -> dict | None:
-    """The JSON document of a .gltf, or of a .glb's first chunk; None where it cannot be read (the
-    reader then says what is wrong)."""
+def gltf_document(path: Path, file_type: str) -> dict:
+    """The JSON document of a .gltf, or of a .glb's first chunk. What cannot be read as one (too large, not
+    UTF-8, not JSON, a GLB without its JSON chunk) is refused in one line: a document the checks cannot
+    read is never handed to the reader unchecked."""
+    def refuse(problem: str):
+        return MeshError(f"{path}: {problem}; it is not a glTF document pinchmatch can check: re-export it from the "
+                         "editor (glTF 2.0)")
+
     try:
         if file_type == "gltf":
             if path.stat().st_size > MAX_JSON_BYTES:
-                return None
-            document = json.loads(path.read_text(encoding="utf-8"))
+                raise refuse(f"its JSON is over {MAX_JSON_BYTES // 2**20} MiB")
+            raw = path.read_bytes()
         else:
             with open(path, "rb") as fh:
                 header = fh.read(20)
                 if len(header) < 20 or header[:4] != b"glTF":
-                    return None
+                    raise refuse("no GLB header (the file does not start with 'glTF')")
                 length, kind = struct.unpack("<I4s", header[12:20])
-                if kind != b"JSON" or length > MAX_JSON_BYTES:
-                    return None
-                document = json.loads(fh.read(length).decode("utf-8"))
-    except (OSError, ValueError, UnicodeDecodeError, RecursionError):
-        return None
-    return document if isinstance(document, dict) else None
+                if kind != b"JSON":
+                    raise refuse("its first chunk is not the JSON chunk")
+                if length > MAX_JSON_BYTES:
+                    raise refuse(f"its JSON chunk is over {MAX_JSON_BYTES // 2**20} MiB")
+                raw = fh.read(length)
+                if len(raw) < length:
+                    raise refuse("its JSON chunk is cut short (the file is truncated)")
+        document = json.loads(raw.decode("utf-8"))
+    except UnicodeDecodeError as exc:
+        raise refuse(f"its JSON is not UTF-8 (byte {exc.start})") from None
+    except RecursionError:
+        raise refuse("its JSON is nested too deeply") from None
+    except ValueError as exc:
+        raise refuse(f"its JSON is not valid ({str(exc)[:60]})") from None
+    except OSError as exc:
+        raise MeshError(f"{path}: cannot be read ({exc.strerror or exc})") from None
+    if not isinstance(document, dict):
+        raise refuse("its JSON is not an object")
+    return document
+
+
+def external_files(path: Path, document: dict) -> list[tuple[str, Path]]:
+    """(uri, file) of every external buffer and image the document names, URIs percent-decoded as the
+    specification says and taken beside the file (a GLB's external buffers the same as a .gltf's)."""
+    out = []
+    for kind in ("buffers", "images"):
+        entries = document.get(kind, [])
+        for entry in entries if isinstance(entries, list) else []:
+            uri = entry.get("uri") if isinstance(entry, dict) else None
+            if isinstance(uri, str) and not uri.startswith("data:"):
+                out.append((uri, path.parent / urllib.parse.unquote(uri)))
+    return out
 
 
 def check_hierarchy(path: Path, document: dict) -> None:
@@ -110,32 +142,27 @@ def check_unique_names(path: Path, document: dict) -> None:
 
 
 def check_buffers(path: Path, document: dict) -> None:
-    """Name the external buffer a .gltf needs and lacks (the reader would only say 'not found')."""
-    buffers = document.get("buffers", [])
-    uris = [b.get("uri") for b in buffers if isinstance(b, dict)] if isinstance(buffers, list) else []
+    """Refuse an external buffer or image that lies outside the file's folder, and name a buffer the file
+    needs and lacks (the reader would only say 'not found'); for a .gltf and a .glb alike."""
     folder = path.parent.resolve()
-    for uri in uris:
-        if isinstance(uri, str) and not uri.startswith("data:"):
-            buffer = path.parent / urllib.parse.unquote(uri)
-            if not buffer.resolve().is_relative_to(folder):
-                raise MeshError(f"{path}: its buffer file {uri!r} lies outside the .gltf's folder ({folder}); a glTF "
-                                "names its files beside it: copy the buffer there, or export a .glb")
-            if not buffer.is_file():
-                raise MeshError(f"{path}: its buffer file {uri!r} is missing (looked for {buffer}); copy it next to "
-                                "the .gltf, or export a .glb, which holds its buffers")
+    for uri, file in external_files(path, document):
+        if not file.resolve().is_relative_to(folder):
+            raise MeshError(f"{path}: its file {uri!r} lies outside the file's folder ({folder}); a glTF names its "
+                            "files beside it: copy the file there, or export a .glb that holds it")
+    for uri, file in external_files(path, {"buffers": document.get("buffers", [])}):
+        if not file.is_file():
+            raise MeshError(f"{path}: its buffer file {uri!r} is missing (looked for {file}); copy it next to "
+                            "the file, or export a .glb, which holds its buffers")
 
 
 def check_gltf(path: Path, file_type: str, *, split: bool = False) -> None:
-    """Check a glTF or GLB document before it is read (hierarchy, a .gltf's buffers, and for a level
-    to be split, its mesh nodes' names)."""
+    """Check a glTF or GLB document before it is read (hierarchy, external files, and for a level to be
+    split, its mesh nodes' names)."""
     document = gltf_document(path, file_type)
-    if document is None:
-        return  # the reader will say what is wrong
     check_hierarchy(path, document)
     if split:
         check_unique_names(path, document)
-    if file_type == "gltf":
-        check_buffers(path, document)
+    check_buffers(path, document)
 
 
 class PercentDecoding(trimesh.resolvers.FilePathResolver):

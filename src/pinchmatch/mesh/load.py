@@ -283,7 +283,7 @@ def _check_readable(path: Path) -> None:
 def _load(path: Path, file_type: str, *, split: bool = False, **kwargs):
     if file_type in GLTF_TYPES:
         check_gltf(path, file_type, split=split)
-    if file_type == "gltf":
+    if file_type in GLTF_TYPES:  # a .glb may name external buffers too: found beside it, as a .gltf's
         kwargs.setdefault("resolver", PercentDecoding(str(path)))
     try:
         return trimesh.load(str(path), file_type=file_type, process=False, **kwargs)

@@ -46,11 +46,12 @@ from ..version import __version__
 from ..grasp.analysis import ObjectAnalysis, analyze_spec
 from ..grasp.features import PinchFeatures
 from ..files import AtomicFile
+from ..mesh.gltf_check import external_files, gltf_document
 from ..mesh.load import LoadedMesh, load_mesh, node_digests
 from ..mesh.manifest import ObjectSpec, spec_from_dict, spec_to_dict
 from ..match.candidates import Candidates, candidate_poses
 from ..match.cost import feature_table
-from ..errors import ConfigError, OutputError, PinchmatchError
+from ..errors import ConfigError, MeshError, OutputError, PinchmatchError
 from ..grasp.pinches import ARRAY_FIELDS, PinchSettings, Pinches
 from ..mesh.properties import ObjectProperties
 from ..mesh.support import support_plane
@@ -100,19 +101,22 @@ def default_cache_dir() -> Path:
 
 
 def _file_digest(path: Path) -> str:
-    """SHA-256 of a mesh file, and for ``.gltf`` of the external buffers and images it names."""
+    """SHA-256 of a mesh file, and for a .gltf or .glb of every external buffer and image it names, found as
+    the loader finds them (URIs percent-decoded, beside the file; a missing one counts as missing)."""
     h = hashlib.sha256()
     data = path.read_bytes()
     h.update(data)
-    if path.suffix.lower() == ".gltf":
+    suffix = path.suffix.lower()
+    if suffix in (".gltf", ".glb"):
         try:
-            document = json.loads(data)
-            uris = [b.get("uri") for b in document.get("buffers", []) + document.get("images", [])]
-        except (ValueError, AttributeError, TypeError):
-            uris = []  # not JSON: loading will say so
-        for uri in uris:
-            if uri and not uri.startswith("data:") and (path.parent / uri).is_file():
-                h.update((path.parent / uri).read_bytes())
+            document = gltf_document(path, suffix[1:])
+        except MeshError:
+            return h.hexdigest()  # loading will refuse it
+        folder = path.parent.resolve()
+        for uri, file in external_files(path, document):
+            h.update(len(uri.encode("utf-8")).to_bytes(8, "little") + uri.encode("utf-8"))
+            inside = file.resolve().is_relative_to(folder)  # one outside is refused when loading: never read
+            h.update(hashlib.sha256(file.read_bytes()).digest() if inside and file.is_file() else b"missing")
     return h.hexdigest()
 
 
