@@ -275,6 +275,14 @@ def test_each_validator_says_what_to_change(tmp_path, capsys, argv, words):
     (["select", "--tangible", "{prop}", "{prop}", "--virtual", "{prop}", "-k", "2", "--max-k", "1"], "--max-k 1"),
     (["match", "--tangible", "{prop}", "--virtual", "{prop}", "--tangible-poses", "{text_poses}"], "pose 0 needs"),
     (["match", "--tangible", "{prop}", "--virtual", "{prop}", "--tangible-poses", "{bool_poses}"], "pose 1 needs"),
+    (["match", "--tangible", "{prop}", "--virtual", "{prop}", "--weights-file", "{digits_json}"], "no weight can be"),
+    (["match", "--tangible", "{prop}", "--virtual", "{prop}", "--weights-file", "{long_weight}"], "needs a 'weights'"),
+    (["match", "--tangible", "{prop}", "--virtual", "{prop}", "--weights-file", "{latin1}"], "not UTF-8"),
+    (["match", "--tangible", "{prop}", "--virtual", "{prop}", "--tangible-poses", "{digits_poses}"], "not valid JSON"),
+    (["match", "--tangible", "{prop}", "--virtual", "{prop}", "--tangible-poses", "{long_poses}"], "pose 0 needs"),
+    (["match", "--tangible", "{digits_toml}", "--virtual", "{prop}"], "a value the manifest cannot hold"),
+    (["match", "--tangible", "{mass_toml}", "--virtual", "{prop}"], "mass_g"),
+    (["match", "--tangible", "{shape_toml}", "--virtual", "{prop}"], "diameter_mm"),
 ])
 def test_every_input_is_bounded_and_refused_in_one_line(tmp_path, capsys, argv, words):
     prop = tmp_path / "prop.stl"
@@ -283,7 +291,19 @@ def test_every_input_is_bounded_and_refused_in_one_line(tmp_path, capsys, argv, 
              "far": tmp_path / "far.toml", "nested": tmp_path / "nested.toml", "pipe": tmp_path / "pipe.csv",
              "ragged": tmp_path / "ragged.csv", "quote": tmp_path / "quote.csv", "dupcol": tmp_path / "dup.csv",
              "unknown": tmp_path / "unknown.csv", "huge": tmp_path / "huge.csv", "ok": tmp_path / "ok.csv",
-             "text_poses": tmp_path / "text.json", "bool_poses": tmp_path / "bool.json"}
+             "text_poses": tmp_path / "text.json", "bool_poses": tmp_path / "bool.json",
+             **{k: tmp_path / f"{k}.{k.split('_')[-1] if k.endswith(('json', 'toml')) else 'json'}"
+                for k in ("digits_json", "long_weight", "latin1", "digits_poses", "long_poses", "digits_toml",
+                          "mass_toml", "shape_toml")}}
+    files["digits_json"].write_text('{"weights": {"width": ' + "9" * 5000 + "}}")
+    files["long_weight"].write_text('{"weights": {"width": ' + "9" * 400 + "}}")
+    files["latin1"].write_bytes(b'{"weights": {"width": 1}, "note": "caf\xe9"}')  # a Latin-1 byte
+    files["digits_poses"].write_text('[{"p1_mm": [' + "9" * 5000 + ', 0, 0], "p2_mm": [20, 0, 0]}]')
+    files["long_poses"].write_text('[{"p1_mm": [' + "9" * 400 + ', 0, 0], "p2_mm": [20, 0, 0]}]')
+    files["digits_toml"].write_text(f'[[object]]\nfile = "{prop}"\nmass_g = {"9" * 5000}\n')
+    files["mass_toml"].write_text(f'[[object]]\nfile = "{prop}"\nmass_g = {"9" * 400}\n')
+    files["shape_toml"].write_text('[[object]]\nname = "can"\nshape = { kind = "cylinder", diameter_mm = '
+                                   + "9" * 400 + ", height_mm = 66 }\n")
     files["text_poses"].write_text(json.dumps([{"p1_mm": ["-20", 0, 0], "p2_mm": [20, 0, 0]}]))
     files["bool_poses"].write_text(json.dumps([{"p1_mm": [-20, 0, 0], "p2_mm": [20, 0, 0]},
                                                {"p1_mm": [-20, 0, 0], "p2_mm": [20, True, 0]}]))

@@ -213,6 +213,7 @@ def test_view_takes_the_result_document_and_opens_the_page_where_there_is_a_disp
     ("markup radius", "landing.radius_mm: text '1<b>' where a number belongs"),
     ("markup alternative", "alternatives[0].cost: text"),
     ("infinite cost", "matches[0].cost: inf is not a number"),
+    ("huge integer", "matches.json: not valid JSON"),
     ("scene link", "is a link (to"),
     ("scene folder link", "is a link (to"),
 ])
@@ -249,6 +250,9 @@ def test_view_cli_fails_cleanly(demo_out, tmp_path, capsys, damage, message):
         if damage == "infinite cost":
             m["cost"] = float("inf")
         (out / "matches.json").write_text(json.dumps(doc))
+    elif damage == "huge integer":
+        text = (out / "matches.json").read_text()
+        (out / "matches.json").write_text(text.replace('"cost": ', '"cost": ' + "9" * 5000 + ", \"x\": ", 1))
     elif damage in ("scene link", "scene folder link"):
         secret = tmp_path / "secret"
         secret.mkdir()

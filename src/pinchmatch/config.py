@@ -381,9 +381,18 @@ class MatchSettings:
 
 
 
-def _finite(value) -> bool:
-    """A real number (not a bool, not text) that is finite."""
-    return isinstance(value, numbers.Real) and not isinstance(value, bool) and math.isfinite(value)
+def finite_number(value) -> bool:
+    """A real number (not a bool, not text) that is finite as a float: an integer of hundreds of digits, as a
+    file may hold, is not (it has no float)."""
+    if not isinstance(value, numbers.Real) or isinstance(value, bool):
+        return False
+    try:
+        return math.isfinite(value)
+    except OverflowError:
+        return False
+
+
+_finite = finite_number
 
 
 @dataclass(frozen=True)

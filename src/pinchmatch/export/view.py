@@ -15,7 +15,6 @@ import functools
 import http.server
 import json
 import logging
-import math
 import os
 import re
 import sys
@@ -23,6 +22,7 @@ from importlib import resources
 from pathlib import Path
 
 from ..version import __version__
+from ..config import finite_number
 from ..errors import ConfigError
 from ..files import write_atomic
 from .documents import SCHEMA_MATCHES, cost_unit, matches_from_lines, scene_file, scene_stems
@@ -62,8 +62,8 @@ def _document(path: Path, schema: str, what: str, rewrite: str, otherwise: str) 
     """A JSON document pinchmatch wrote, with the schema it must have, or a ConfigError naming the file."""
     try:
         document = json.loads(path.read_text(encoding="utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise ConfigError(f"{path}: not valid JSON ({exc}); {rewrite}") from None
+    except (ValueError, RecursionError) as exc:  # not UTF-8, not JSON, or an integer of thousands of digits
+        raise ConfigError(f"{path}: not valid JSON ({str(exc)[:80]}); {rewrite}") from None
     if not isinstance(document, dict) or document.get("schema") != schema:
         raise ConfigError(f"{path}: not a pinchmatch {what} (schema {schema!r} expected); {otherwise}")
     return document
@@ -98,7 +98,7 @@ def _checked_values(where: str, value, key: str = "") -> None:
         if key not in _TEXT_KEYS:
             raise ConfigError(f"{where}: text {value[:40]!r} where a number belongs; not a matches document "
                               "pinchmatch wrote: run pinchmatch again to rewrite it")
-    elif isinstance(value, float) and not math.isfinite(value) or not (value is None or isinstance(value, (bool, int, float))):
+    elif not (value is None or isinstance(value, bool) or finite_number(value)):
         raise ConfigError(f"{where}: {value!r} is not a number; run pinchmatch again to rewrite it")
 
 

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..config import finite_number
 from ..errors import ConfigError, ContactError, NoFeasiblePinchError
 from ..mesh.support import support_plane
 from ..files import read_input
@@ -179,7 +180,7 @@ def score_pinches(
 
 def _three_numbers(value) -> np.ndarray:
     """A JSON list of three numbers as an array; text ("20") and booleans are not numbers."""
-    if not isinstance(value, list) or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
+    if not isinstance(value, list) or not all(finite_number(v) for v in value):
         raise ValueError(value)
     return np.asarray(value, dtype=np.float64)
 
@@ -203,7 +204,7 @@ def load_poses_file(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
                      too_big=f"more than a poses file of {MAX_GIVEN_POSES:,} poses needs; split it or give fewer poses")
     try:
         data = json.loads(raw.decode("utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError, RecursionError) as exc:
+    except (ValueError, RecursionError) as exc:  # not JSON, not UTF-8, or an integer of thousands of digits
         raise ConfigError(f"{path}: not valid JSON ({type(exc).__name__}: {str(exc)[:80]}); fix the file") from None
     if isinstance(data, dict) and isinstance(data.get("poses"), list):
         data = data["poses"]

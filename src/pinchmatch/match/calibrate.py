@@ -50,6 +50,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.stats import spearmanr
 
+from ..config import finite_number
 from ..errors import ConfigError
 from .cost import CRITERIA, DEFAULT_CRITERIA, PAPER_CRITERIA, CostModel, complete_weights
 
@@ -425,12 +426,17 @@ def read_weights_file(text: str, source: str) -> tuple[dict, str | None, str | N
     except json.JSONDecodeError as exc:
         raise ConfigError(f"{source}: not JSON ({exc.msg}, line {exc.lineno}); give the weights.json that "
                           "'pinchmatch calibrate' writes") from None
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"{source}: not UTF-8 text (byte {exc.start}); save it as UTF-8 JSON, as "
+                          "'pinchmatch calibrate' writes it") from None
+    except ValueError as exc:  # an integer of thousands of digits
+        raise ConfigError(f"{source}: a value no weight can be ({str(exc)[:60]}); give the weights.json that "
+                          "'pinchmatch calibrate' writes") from None
     except RecursionError:
         raise ConfigError(f"{source}: nested too deep to be a weights file; give the weights.json that "
                           "'pinchmatch calibrate' writes") from None
     weights = doc.get("weights") if isinstance(doc, dict) else None
-    if not isinstance(weights, dict) or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
-                                                and math.isfinite(v) for v in weights.values()):
+    if not isinstance(weights, dict) or not all(finite_number(v) for v in weights.values()):
         raise ConfigError(f"{source}: needs a 'weights' object of criterion: number; give the weights.json "
                           "that 'pinchmatch calibrate' writes")
     pooling = doc.get("pooling")

@@ -31,11 +31,11 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
 import os
 import tempfile
 from pathlib import Path
 
+from ..config import finite_number
 from .stacks import Part, Stack, stack_mesh
 
 #: the folder of the temporary directory where described props are written
@@ -55,8 +55,7 @@ SHAPE_KEYS = {
 
 
 def _size(value) -> bool:
-    return (isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
-            and 0 < value <= MAX_SIZE_MM)
+    return finite_number(value) and 0 < value <= MAX_SIZE_MM
 
 
 def _part(table, at: str, problems: list[str]) -> Part | None:
@@ -82,7 +81,7 @@ def _part(table, at: str, problems: list[str]) -> Part | None:
                             f"{MAX_SIZE_MM:g} mm")
             return None
         turn = table.get("turn_deg", 0.0)
-        if not (isinstance(turn, (int, float)) and not isinstance(turn, bool) and math.isfinite(turn)):
+        if not finite_number(turn):
             problems.append(f"{at}: turn_deg must be a number of degrees")
             return None
         return Part("box", float(size[2]), float(size[0]), turn_deg=float(turn), depth_mm=float(size[1]))

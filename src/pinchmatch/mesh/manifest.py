@@ -41,6 +41,7 @@ import tomllib
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+from ..config import finite_number
 from ..errors import ConfigError, InternalError
 from .described import read_shape, shape_file
 from .frames import UNITS_MM, UP_VECTORS
@@ -123,7 +124,7 @@ class _Problems:
 
 
 def _number(value) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+    return finite_number(value)
 
 
 def _vector(value) -> tuple | None:
@@ -286,6 +287,9 @@ def read_manifest(path: str | os.PathLike) -> list[ObjectSpec]:
         raise ConfigError(f"{path}: the manifest is not UTF-8 text; save it as UTF-8 TOML") from None
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"{path}: not valid TOML ({exc}); fix the manifest (see docs/manifest.md)") from None
+    except ValueError as exc:  # an integer of thousands of digits
+        raise ConfigError(f"{path}: a value the manifest cannot hold ({str(exc)[:60]}); fix the manifest "
+                          "(see docs/manifest.md)") from None
     except RecursionError:
         raise ConfigError(f"{path}: nested too deep to be a manifest; fix the manifest (see docs/manifest.md)") from None
     problems = _Problems(path)
