@@ -341,3 +341,19 @@ def test_with_no_usable_prop_the_virtual_files_are_checked_in_the_same_run(tmp_p
     assert code == 2 and len(lines) == 1, err
     assert "prop.stl" in lines[0] and "thing.stl" in lines[0] and "--units" in lines[0]
     assert not (tmp_path / "out").exists()
+
+
+def test_a_name_longer_than_a_file_name_may_be_still_gets_its_scene(tmp_path, capsys):
+    """An object named by 80 CJK characters (240 bytes of UTF-8; its scene's name would be 240 + 11): the run
+    writes its scene under a name cut on a character boundary, and matches.json records it."""
+    prop = tmp_path / "prop.stl"
+    trimesh.creation.box(extents=(40.0, 30.0, 20.0)).export(prop)
+    long = tmp_path / ("\u6f22" * 80 + ".stl")
+    trimesh.creation.box(extents=(30.0, 30.0, 20.0)).export(long)
+    out = tmp_path / "out"
+    assert main(["match", "--tangible", str(prop), "--virtual", str(long), "--count", "60", "-q", "--no-view",
+                 "-o", str(out)]) == 0, capsys.readouterr().err
+    (m,) = json.loads((out / "matches.json").read_text())["matches"]
+    scene = out / m["scene_file"]
+    assert scene.is_file() and len(scene.name.encode("utf-8")) < 255
+    assert scene.stem == "\u6f22" * 50  # 150 bytes: whole characters only

@@ -323,6 +323,11 @@ def cost_matrix_section(virtual_names: list[str], tangible_names: list[str], val
             "values": [[json_number(x, 6) for x in row] for row in values]}
 
 
+#: the longest scene or figure stem, in bytes of UTF-8: with a suffix for uniqueness (``_12``), the
+#: extension and a temporary file's suffix, well within the 255 bytes a file name may take
+MAX_STEM_BYTES = 150
+
+
 def scene_stems(virtual_names: list[str]) -> list[str]:
     """File stems for the virtual objects' scenes and figures, unique by construction.
 
@@ -330,12 +335,15 @@ def scene_stems(virtual_names: list[str]) -> list[str]:
     characters) as ``_``; a stem already taken (case-insensitively: macOS and Windows fold case)
     gets ``_2``, ``_3``, ... until it is free, in the order of the names. ``a.obj``, ``a.stl``,
     ``a_2.stl`` give ``a``, ``a_2``, ``a_2_2``. ``matches.json`` records the file of each object's
-    scene and figure, so readers never derive them again.
+    scene and figure, so readers never derive them again. A stem is at most ``MAX_STEM_BYTES`` bytes of
+    UTF-8, cut on a character boundary: file systems take 255 bytes a name, and the name of an object or a
+    level's node may be longer (80 CJK characters are 240 bytes).
     """
     taken: set[str] = set()
     out = []
     for name in virtual_names:
         base = re.sub(r'[<>:"/\\|?*\x00-\x1f]', "_", Path(name).stem).strip(" .") or "object"
+        base = base.encode("utf-8")[:MAX_STEM_BYTES].decode("utf-8", errors="ignore").strip(" .") or "object"
         stem, k = base, 1
         while stem.lower() in taken:
             k += 1
