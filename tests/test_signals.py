@@ -6,6 +6,7 @@ import os
 import signal
 import subprocess
 import sys
+import textwrap
 import threading
 import time
 
@@ -143,3 +144,30 @@ def test_a_signal_after_the_result_is_published_says_so(tmp_path):
     assert proc.returncode == 143 and err.strip() == ("pinchmatch: terminated; the output folder holds the new "
                                                       "result (the run had finished)"), err
     assert (out / "matches.json").read_text() == "{}"
+
+
+@pytest.mark.parametrize("delay_s", [0.1, 0.3])
+def test_a_ctrl_c_while_the_fork_server_loads_the_pipeline_prints_no_traceback(delay_s):
+    """The fork server imports the whole pipeline before Python's multiprocessing installs its own
+    handlers; SIGINT sent to it in that time (a terminal's Ctrl-C reaches the whole group) is ignored, so
+    no traceback reaches the user's terminal, and the server stays up for the workers."""
+    script = textwrap.dedent(f"""
+        import os, signal, sys, time
+        from multiprocessing import forkserver
+        from pinchmatch.runner.forkserver import start_worker_server
+        if not start_worker_server():
+            print("no fork server"); sys.exit(0)
+        pid = forkserver._forkserver._forkserver_pid
+        time.sleep({delay_s})
+        os.kill(pid, signal.SIGINT)
+        time.sleep(3.0)
+        with open(f"/proc/{{pid}}/status") as fh:
+            state = [line for line in fh if line.startswith("State:")][0]
+        print("alive" if "Z" not in state.split()[1] else "dead")
+    """)
+    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0, proc.stderr
+    if proc.stdout.strip() == "no fork server":
+        pytest.skip("no fork server on this system")
+    assert proc.stdout.strip() == "alive"
+    assert "Traceback" not in proc.stderr and "KeyboardInterrupt" not in proc.stderr, proc.stderr

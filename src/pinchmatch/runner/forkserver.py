@@ -12,6 +12,11 @@ What forks is sane: the server is started with BLAS held to one thread (no threa
 the fork), does nothing but load, and each worker sets its own share of the cores
 (:func:`pinchmatch.runner.worker.init_worker`). Where there is no fork server, workers are spawned.
 
+The server starts with SIGINT ignored, a disposition that survives its ``exec``: it imports the whole
+pipeline before it installs its own handlers, and a Ctrl-C in that second would print Python's
+traceback. The command line's parent ends a run by killing its process group
+(:mod:`pinchmatch.cli.supervise`), the server and its workers with it.
+
 Imports nothing heavy: the command line calls it before loading the pipeline itself.
 """
 
@@ -19,6 +24,7 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import signal
 
 #: the module the server imports before it forks any worker
 PRELOAD = "pinchmatch.runner.preload"
@@ -45,9 +51,11 @@ def start_worker_server() -> bool:
 
     before = {name: os.environ.get(name) for name in SERVER_ENVIRONMENT}
     os.environ.update(SERVER_ENVIRONMENT)
+    interrupt = signal.signal(signal.SIGINT, signal.SIG_IGN)  # inherited through the server's exec
     try:
         forkserver.ensure_running()
     finally:
+        signal.signal(signal.SIGINT, interrupt)
         for name, value in before.items():
             if value is None:
                 os.environ.pop(name, None)
