@@ -152,3 +152,31 @@ def test_a_turned_box_is_the_box_turned_about_its_up(tmp_path):
     assert distance.max() < 1e-4, distance
     assert np.allclose(mesh.bounds, oracle.bounds, atol=1e-4)
     assert mesh.volume == pytest.approx(40 * 30 * 25, rel=1e-6)  # the STL holds float32
+
+
+def test_a_described_solid_is_kept_per_user_checked_and_named_by_the_code_that_builds_it(tmp_path, monkeypatch):
+    """The solid lives in a 0700 folder of this user's; a damaged file there is written again (not blamed on
+    the manifest); a folder others may write is not used; other code gives another file."""
+    import os
+    import stat
+    import tempfile
+
+    from pinchmatch.mesh import described
+    from pinchmatch.mesh.described import read_shape, shape_file
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    stack, problems = read_shape({"kind": "cylinder", "diameter_mm": 54, "height_mm": 66}, "props.toml")
+    assert not problems
+    path = shape_file(stack)
+    info = os.lstat(path.parent)
+    assert path.parent.name == f"pinchmatch-shapes-{os.getuid()}" and stat.S_IMODE(info.st_mode) == 0o700
+    whole = path.read_bytes()
+    path.write_bytes(whole[:1000])  # a damaged file: rewritten
+    assert shape_file(stack) == path and path.read_bytes() == whole
+    path.unlink()
+    os.chmod(path.parent, 0o777)  # a folder others may write: not trusted
+    elsewhere = shape_file(stack)
+    assert elsewhere.parent != path.parent and elsewhere.read_bytes() == whole and not path.exists()
+    os.chmod(path.parent, 0o700)
+    monkeypatch.setattr(described, "code_digest", lambda: "other code")
+    assert shape_file(stack).name != path.name

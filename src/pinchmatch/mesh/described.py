@@ -22,9 +22,11 @@ so a described prop and a designed one are the same solids: ``sphere`` (alone), 
 0 makes a cone) and ``barrel`` (the middle of an ellipsoid: ``diameter_mm`` at mid-height,
 ``end_diameter_mm`` at both cut faces).
 
-The solid is written once as a binary STL named by the digest of its parts, in a folder of the
-system's temporary directory (``SHAPES_FOLDER``), so that loading, the cache and the workers treat
-it as any mesh file; the same sizes give the same file, byte for byte.
+The solid is written once as a binary STL named by the digest of its parts and of the code that
+builds it, in this user's private folder of the system's temporary directory (``SHAPES_FOLDER``
+and the user id, mode 0700), so that loading, the cache and the workers treat it as any mesh file;
+the same sizes give the same file, byte for byte. A file there that is not a whole STL is written
+again.
 """
 
 from __future__ import annotations
@@ -32,10 +34,12 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import stat
 import tempfile
 from pathlib import Path
 
 from ..config import finite_number
+from ..options import code_digest
 from .stacks import Part, Stack, stack_mesh
 
 #: the folder of the temporary directory where described props are written
@@ -120,15 +124,43 @@ def read_shape(value, where: str) -> tuple[Stack | None, list[str]]:
     return Stack(tuple(parts)), []
 
 
+def _private_folder() -> Path:
+    """This user's folder of described solids: ``pinchmatch-shapes-<uid>`` in the temporary directory, made
+    0700 and used only while it is a real folder this user owns that no one else may write; otherwise a
+    fresh private folder of this process (shared temporary directories let anyone plant a file)."""
+    folder = Path(tempfile.gettempdir()) / f"{SHAPES_FOLDER}-{os.getuid()}"
+    try:
+        folder.mkdir(mode=0o700, exist_ok=True)
+        info = os.lstat(folder)
+        if stat.S_ISDIR(info.st_mode) and info.st_uid == os.getuid() and not info.st_mode & 0o077:
+            return folder
+    except OSError:
+        pass
+    return Path(tempfile.mkdtemp(prefix=f"{SHAPES_FOLDER}-"))
+
+
+def _whole_stl(path: Path) -> bool:
+    """A regular file holding a whole binary STL: 84 bytes of header and count, 50 bytes a triangle."""
+    try:
+        info = os.lstat(path)
+        if not stat.S_ISREG(info.st_mode) or info.st_size < 84:
+            return False
+        with open(path, "rb") as fh:
+            count = int.from_bytes(fh.read(84)[80:84], "little")
+        return count > 0 and info.st_size == 84 + 50 * count
+    except OSError:
+        return False
+
+
 def shape_file(stack: Stack) -> Path:
-    """The stack's solid as a binary STL in mm, +Z up, named by its parts (written once)."""
-    text = json.dumps([p.as_dict() for p in stack.parts], sort_keys=True)
+    """The stack's solid as a binary STL in mm, +Z up, named by its parts and the code that builds it
+    (written once per user; a damaged file is written again)."""
+    text = json.dumps([p.as_dict() for p in stack.parts], sort_keys=True) + code_digest()
     digest = hashlib.sha256(text.encode()).hexdigest()[:24]
-    folder = Path(tempfile.gettempdir()) / SHAPES_FOLDER
+    folder = _private_folder()
     path = folder / f"{digest}.stl"
-    if path.is_file():
+    if _whole_stl(path):
         return path
-    folder.mkdir(parents=True, exist_ok=True)
     data = stack_mesh(stack).export(file_type="stl")
     fd, partial = tempfile.mkstemp(dir=folder, suffix=".part")
     try:
