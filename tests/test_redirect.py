@@ -153,6 +153,7 @@ def test_a_pose_that_is_not_a_rigid_motion_is_one_line(tmp_path, capsys, kitchen
     (["--hand-start", "0,30,0"], "lies inside the prop can_prop"),
     (["--hand-start", "0,3e,0"], "give three numbers X,Y,Z"),
     (["--hand-start", "0,0,1e9"], "within 100000 mm"),
+    (["--hand-start", "0,0,99000"], "beyond an arm's reach (1000 mm)"),
     (["--max-redirect-deg", "0"], "--max-redirect-deg"),
     (["--redirect-threshold-deg", "100"], "--redirect-threshold-deg"),
 ])
@@ -162,6 +163,16 @@ def test_bad_redirection_options_are_one_line(tmp_path, capsys, kitchen, extra, 
                            kitchen / "kitchen.glb", "--split", "nodes", "--placement", "fixed", *extra, "-o", out)
     assert_bad_input(code, err, words)
     assert not out.exists()
+
+
+def test_placement_options_under_registered_placement_are_noted_as_ignored(tmp_path, capsys, kitchen):
+    out = tmp_path / "out"
+    code, out_text, err = run_cli(capsys, "match", "--tangible", kitchen / "props.toml", "--virtual",
+                                  kitchen / "kitchen.glb", "--split", "nodes", "--nodes", "can*", "--count", "60",
+                                  "--hand-start", "0,150,300",
+                           "--gain-range", "0.9,1.2", "--no-view", "-o", out)
+    assert code in (0, 3), err
+    assert "--hand-start, --gain-range are used with --placement fixed only; ignored" in " ".join((out_text + err).split())
 
 
 def test_fixed_placement_needs_a_level(tmp_path, capsys, kitchen):

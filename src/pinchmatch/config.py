@@ -214,6 +214,10 @@ DEFAULT_HAND_OFFSET_MM = (0.0, 150.0, 300.0)
 #: the reach gains a redirection may use (virtual over physical distance from the hand's start): the
 #: unnoticed hand-movement gains of HaRT (Zenner et al., the Haptic Retargeting Toolkit's defaults)
 GAIN_RANGE = (0.94, 1.14)
+#: the farthest a hand start may be from a prop it reaches for (mm): an arm's reach, 95th percentile (about
+#: 800 mm, shoulder to grip), with a lean; from farther, every offset is a small angle and redirection means
+#: nothing
+MAX_REACH_MM = 1000.0
 #: an object stays in the level (redirected) unless the carousel would cost this much less (JND)
 CAROUSEL_MARGIN_JND = 0.5
 #: the bounds of the options (deg, mm)

@@ -16,7 +16,7 @@ from ..export.view import write_page
 from ..files import check_writable, read_input, write_atomic
 from ..grasp.analysis import load_poses_file
 from ..grasp.pinches import PinchSettings
-from ..config import Config
+from ..config import CAROUSEL_MARGIN_JND, GAIN_RANGE, MAX_REACH_MM, Config
 from ..match.cost import complete_weights, parse_weights
 from ..match.search import MatchSettings
 from ..runner.matching import run_match
@@ -69,6 +69,13 @@ def check_placement(settings: MatchSettings, tangible_specs: list, virtual_specs
         if posed:
             ui.note(f"the pose of {', '.join(posed)} is used with --placement fixed only; ignored (each virtual "
                     "object is brought onto its prop)")
+        unused = [flag for flag, given in (("--hand-start", settings.hand_start_mm is not None),
+                                           ("--gain-range", tuple(settings.gain_range) != GAIN_RANGE),
+                                           ("--carousel-margin-jnd", settings.carousel_margin_jnd != CAROUSEL_MARGIN_JND))
+                  if given]
+        if unused:
+            ui.note(f"{', '.join(unused)} {'is' if len(unused) == 1 else 'are'} used with --placement fixed only; "
+                    "ignored under --placement registered")
         return
     loose = [s for s in virtual_specs if s.node is None]
     if loose:
@@ -85,6 +92,14 @@ def check_placement(settings: MatchSettings, tangible_specs: list, virtual_specs
         read = spec.with_defaults(units=units, up=up)
         meshes.append(load_mesh(read.path, units=read.units, up=read.up).mesh)
     starts = [hand_start(spec, settings.redirect, mesh.vertices) for spec, mesh in zip(tangible_specs, meshes)]
+    for spec, mesh, start in zip(tangible_specs, meshes, starts):
+        R, p = world_pose(spec)
+        far = float(np.linalg.norm(mesh.vertices @ R.T + p - start, axis=1).min())
+        if far > MAX_REACH_MM:
+            where = "--hand-start" if settings.hand_start_mm is not None else "the default hand start"
+            raise ConfigError(f"{where} {np.round(start, 1).tolist()} mm is {far:.0f} mm from the prop "
+                              f"{spec.display_name}, beyond an arm's reach ({MAX_REACH_MM:g} mm); give a --hand-start "
+                              "X,Y,Z where the user's hand rests, within reach of the props (mm, the level's frame)")
     for spec, mesh in zip(tangible_specs, meshes):
         R, p = world_pose(spec)
         for start in starts:
