@@ -95,3 +95,71 @@ def test_levels(tmp_path_factory, data):
         read_level(path)
     except PinchmatchError:
         pass
+
+
+EXTENSIONS = ["KHR_draco_mesh_compression", "EXT_meshopt_compression", "KHR_mesh_quantization",
+              "EXT_mesh_gpu_instancing", "KHR_materials_unlit", "KHR_texture_transform", "VENDOR_x"]
+
+
+@FUZZ
+@given(required=st.lists(st.sampled_from(EXTENSIONS) | st.text(max_size=12) | json_values, max_size=3),
+       node_extras=st.dictionaries(st.sampled_from(["extensions", "skin", "weights", "matrix"]), json_values,
+                                   max_size=2),
+       mesh_extras=st.dictionaries(st.sampled_from(["weights", "extensions"]), json_values, max_size=2),
+       sparse=st.booleans())
+def test_levels_with_extensions(tmp_path_factory, required, node_extras, mesh_extras, sparse):
+    """Required extensions, node and mesh extras and sparse accessors in any combination: the level is read
+    or refused in one line (the features the reader does not apply are named, never read as geometry)."""
+    from test_gltf_check import _changed
+
+    def change(doc):
+        doc["extensionsRequired"] = required
+        doc["nodes"][1].update(node_extras)
+        doc["meshes"][0].update(mesh_extras)
+        if sparse:
+            doc["accessors"][0]["sparse"] = {"count": 1}
+
+    path = tmp_path_factory.mktemp("x") / "level.glb"
+    path.write_bytes(_changed(LEVEL, change))
+    try:
+        read_level(path)
+    except PinchmatchError as exc:
+        assert "\n" not in str(exc)
+
+
+@FUZZ
+@given(journal=json_values, manifest=json_values, run=json_values)
+def test_received_control_folders(tmp_path_factory, journal, manifest, run):
+    """A result folder received with any journal, manifest and run record in its control folder: finishing
+    it touches nothing outside OUT and ends in a result or a one-line refusal."""
+    from pinchmatch.export.folder import recover
+
+    root = tmp_path_factory.mktemp("r")
+    out, outside = root / "out", root / "outside"
+    (out / ".pinchmatch" / "staging").mkdir(parents=True)
+    outside.mkdir()
+    (outside / "victim.txt").write_text("keep me")
+    for name, value in (("commit.json", journal), ("manifest.json", manifest), ("run.json", run)):
+        (out / ".pinchmatch" / name).write_text(json.dumps(value))
+    try:
+        recover(out)
+    except PinchmatchError as exc:
+        assert "\n" not in str(exc)
+    assert (outside / "victim.txt").read_text() == "keep me" and outside.exists()
+
+
+@FUZZ
+@given(value=json_values, field=st.sampled_from(["cost", "criteria", "landing", "alternatives", "position_mm",
+                                                 "equivalent_tangibles", "redirection", "p_noticed"]))
+def test_received_matches_documents(tmp_path_factory, value, field):
+    """Any JSON value in a field of a received matches.json: the page's data is made with numbers where the
+    page shows numbers, or the document is refused in one line."""
+    from pinchmatch.export.view import _checked_values
+
+    try:
+        _checked_values(f"matches.json: matches[0].{field}", value, field)
+    except PinchmatchError as exc:
+        assert "\n" not in str(exc)
+        return
+    text = json.dumps(value)
+    assert "<" not in text or field in ("criteria", "equivalent_tangibles", "landing", "redirection")

@@ -210,3 +210,45 @@ def test_a_document_the_checks_cannot_read_is_refused_not_handed_on(tmp_path, da
     with pytest.raises(MeshError, match=message) as info:
         load_mesh(tmp_path / "level.glb")
     assert "level.glb" in str(info.value) and "\n" not in str(info.value)
+
+
+def _changed(data: bytes, change) -> bytes:
+    """A GLB with its JSON document changed by ``change(doc)``, its binary chunk kept."""
+    length = struct.unpack("<I", data[12:16])[0]
+    doc = json.loads(data[20:20 + length])
+    change(doc)
+    rest = data[20 + length:]
+    text = json.dumps(doc).encode()
+    text += b" " * (-len(text) % 4)
+    body = struct.pack("<I4s", len(text), b"JSON") + text + rest
+    return struct.pack("<4sII", b"glTF", 2, 12 + len(body)) + body
+
+
+@pytest.mark.parametrize("change, words", [
+    (lambda d: d.update(extensionsRequired=["KHR_draco_mesh_compression"]), "KHR_draco_mesh_compression (Draco"),
+    (lambda d: d.update(extensionsRequired=["EXT_meshopt_compression"]), "EXT_meshopt_compression (meshopt"),
+    (lambda d: d.update(extensionsRequired=["KHR_mesh_quantization"]), "KHR_mesh_quantization (quantized"),
+    (lambda d: d.update(extensionsRequired=["VENDOR_unknown_thing"]), "the required extension VENDOR_unknown_thing"),
+    (lambda d: d["nodes"][0].update(extensions={"EXT_mesh_gpu_instancing": {"attributes": {}}}), "GPU instancing"),
+    (lambda d: d["nodes"][0].update(skin=0), "a skinned mesh on node 'box'"),
+    (lambda d: d["accessors"][0].update(sparse={"count": 1, "indices": {}, "values": {}}), "sparse accessors"),
+    (lambda d: d["meshes"][0].update(weights=[0.5]), "morph targets with default weights"),
+])
+def test_gltf_features_the_reader_does_not_apply_are_refused_by_name(tmp_path, capsys, change, words):
+    path = tmp_path / "level.glb"
+    path.write_bytes(_changed(glb([{"name": "box", "mesh": 0}], [0]), change))
+    with pytest.raises(MeshError, match="which pinchmatch does not apply") as info:
+        read_level(path)
+    assert words in str(info.value) and "\n" not in str(info.value)
+
+
+def test_extensions_that_change_no_geometry_are_read():
+    data = _changed(glb([{"name": "box", "mesh": 0}], [0]),
+                    lambda d: d.update(extensionsRequired=["KHR_materials_unlit", "KHR_texture_transform"]))
+    import tempfile
+    from pathlib import Path
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "level.glb"
+        path.write_bytes(data)
+        (node,) = read_level(path)
+        assert node.name == "box" and node.faces == 12

@@ -155,11 +155,54 @@ def check_buffers(path: Path, document: dict) -> None:
                             "the file, or export a .glb, which holds its buffers")
 
 
+#: extensions a file may require that change nothing pinchmatch reads (materials, textures, lights)
+HARMLESS_EXTENSIONS = ("KHR_materials_", "KHR_texture_", "KHR_lights_punctual", "EXT_texture_webp",
+                       "KHR_materials_variants")
+#: what the reader does not apply, and how to export instead
+UNSUPPORTED = {
+    "KHR_draco_mesh_compression": "Draco-compressed meshes",
+    "EXT_meshopt_compression": "meshopt-compressed buffers",
+    "KHR_meshopt_compression": "meshopt-compressed buffers",
+    "EXT_mesh_gpu_instancing": "GPU instancing (one mesh drawn at many places)",
+    "KHR_mesh_quantization": "quantized vertex positions",
+}
+
+
+def check_features(path: Path, document: dict) -> None:
+    """Refuse, naming it, what the reader would not apply and so read as other geometry: a required
+    extension it does not know or cannot apply (Draco, meshopt, quantization), GPU instancing on a node,
+    sparse accessors, morph targets with default weights, and skinned nodes (whose transform the
+    specification says to ignore)."""
+    def refuse(what: str):
+        raise MeshError(f"{path}: uses {what}, which pinchmatch does not apply (the geometry would be read wrong); "
+                        "export it again without it (apply modifiers, skins and morphs; no compression)")
+
+    required = document.get("extensionsRequired", [])
+    for name in required if isinstance(required, list) else []:
+        if isinstance(name, str) and not name.startswith(HARMLESS_EXTENSIONS):
+            refuse(f"the required extension {name}" + (f" ({UNSUPPORTED[name]})" if name in UNSUPPORTED else ""))
+    nodes = document.get("nodes", [])
+    for k, node in enumerate(nodes if isinstance(nodes, list) else []):
+        if isinstance(node, dict) and "EXT_mesh_gpu_instancing" in (node.get("extensions") or {}):
+            refuse(f"GPU instancing (EXT_mesh_gpu_instancing) on node {node.get('name', k)!r}")
+        if isinstance(node, dict) and "skin" in node and "mesh" in node:
+            refuse(f"a skinned mesh on node {node.get('name', k)!r}")
+    accessors = document.get("accessors", [])
+    if any(isinstance(a, dict) and "sparse" in a for a in (accessors if isinstance(accessors, list) else [])):
+        refuse("sparse accessors")
+    meshes = document.get("meshes", [])
+    for k, mesh in enumerate(meshes if isinstance(meshes, list) else []):
+        weights = mesh.get("weights") if isinstance(mesh, dict) else None
+        if isinstance(weights, list) and any(w for w in weights):
+            refuse(f"morph targets with default weights on mesh {mesh.get('name', k)!r}")
+
+
 def check_gltf(path: Path, file_type: str, *, split: bool = False) -> None:
-    """Check a glTF or GLB document before it is read (hierarchy, external files, and for a level to be
-    split, its mesh nodes' names)."""
+    """Check a glTF or GLB document before it is read (hierarchy, what the reader does not apply,
+    external files, and for a level to be split, its mesh nodes' names)."""
     document = gltf_document(path, file_type)
     check_hierarchy(path, document)
+    check_features(path, document)
     if split:
         check_unique_names(path, document)
     check_buffers(path, document)
