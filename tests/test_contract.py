@@ -357,3 +357,36 @@ def test_a_name_longer_than_a_file_name_may_be_still_gets_its_scene(tmp_path, ca
     scene = out / m["scene_file"]
     assert scene.is_file() and len(scene.name.encode("utf-8")) < 255
     assert scene.stem == "\u6f22" * 50  # 150 bytes: whole characters only
+
+
+@pytest.mark.parametrize("case, words", [
+    ("tiny shape", "diameter_mm, height_mm must be from 1 to 1000 mm"),
+    ("huge shape", "object big (its shape): no feasible pinch"),
+    ("dangling out", "a symbolic link to"),
+    ("folder file", "a folder, not a mesh file"),
+])
+def test_small_cases_name_the_real_problem(tmp_path, capsys, case, words):
+    """A shape too small for a millimetre, a described prop too big to pinch (named by its manifest, not its
+    solid's file), -o a link to nothing, and file = "." each end in one line that says what is wrong."""
+    prop = tmp_path / "prop.stl"
+    trimesh.creation.box(extents=(40.0, 30.0, 20.0)).export(prop)
+    manifest = tmp_path / "props.toml"
+    out = tmp_path / "out"
+    tangible = manifest
+    if case == "tiny shape":
+        manifest.write_text('[[object]]\nname = "t"\nshape = { kind = "cylinder", diameter_mm = 0.001, '
+                            'height_mm = 0.001 }\n')
+    elif case == "huge shape":
+        manifest.write_text('[[object]]\nname = "big"\nshape = { kind = "cylinder", diameter_mm = 1000, '
+                            'height_mm = 1000 }\n')
+    elif case == "dangling out":
+        tangible = prop
+        out.symlink_to(tmp_path / "nowhere")
+    else:
+        manifest.write_text('[[object]]\nfile = "."\n')
+    assert main(["match", "--tangible", str(tangible), "--virtual", str(prop), "--count", "50", "-q", "-o",
+                 str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and words in err[0] and "Traceback" not in err[0], err
+    assert "pinchmatch-shapes" not in err[0]
+    assert not (tmp_path / "nowhere").exists()

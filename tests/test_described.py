@@ -95,7 +95,7 @@ def test_a_described_can_serves_the_same_can_as_a_mesh_in_metres(tmp_path, capsy
     ('{ kind = "cylindre", diameter_mm = 54, height_mm = 66 }', "kind 'cylindre' is not a shape"),
     ('{ kind = "cylinder", diameter_mm = 54 }', "(missing: height_mm)"),
     ('{ kind = "cylinder", diameter_mm = 54, height_mm = 66, colour = 1 }', "(unknown: colour)"),
-    ('{ kind = "cylinder", diameter_mm = -5, height_mm = 66 }', "diameter_mm must be above 0"),
+    ('{ kind = "cylinder", diameter_mm = -5, height_mm = 66 }', "diameter_mm must be from 1 to 1000 mm"),
     ('{ kind = "box", size_mm = [40, 30] }', "size_mm must be [across X, across Y, tall]"),
     ('{ kind = "barrel", diameter_mm = 40, end_diameter_mm = 50, height_mm = 30 }', "must be below its diameter"),
     ('[{ kind = "sphere", diameter_mm = 40 }, { kind = "sphere", diameter_mm = 40 }]', "a sphere stands alone"),

@@ -86,6 +86,9 @@ class OutputFolder:
         self._created = False
 
     def __enter__(self) -> Path:
+        if self.out.is_symlink() and not self.out.exists():
+            raise OutputError(f"{self.out}: a symbolic link to {os.readlink(self.out)}, which does not exist; make "
+                              "that folder first, or choose another -o")
         self._created = not self.out.exists()
         check_control(self.out)
         try:

@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import os
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -20,6 +21,7 @@ from ..mesh.support import support_plane
 from ..files import read_input
 from .features import PinchFeatures, pinch_features
 from ..mesh.load import LoadedMesh, load_mesh
+from ..mesh.described import SHAPES_FOLDER
 from ..mesh.manifest import ObjectSpec
 from .pinches import PinchSettings, Pinches, check_pinches
 from .sampling import sample_pinches
@@ -103,6 +105,16 @@ def analyze_spec(spec: ObjectSpec, *, patch_radius_mm: float = 8.0, progress=Non
     return ObjectAnalysis(loaded, props, context, spec)
 
 
+def source_of(obj: ObjectAnalysis) -> str:
+    """How a message names the object: its file, with its node in a level; for a prop a manifest describes
+    by its shape, the manifest and the object (its solid's file is pinchmatch's own)."""
+    spec = obj.spec
+    if spec is not None and spec.manifest and Path(obj.loaded.path).parent.name.startswith(SHAPES_FOLDER):
+        return f"{spec.manifest}: object {spec.display_name} (its shape)"
+    node = spec.node if spec is not None else None
+    return f"{obj.loaded.path} (node {node})" if node else str(obj.loaded.path)
+
+
 def find_pinches(obj: ObjectAnalysis, *, settings: PinchSettings = PinchSettings()) -> tuple[Pinches, PinchFeatures]:
     """Feasible pinches spread over ``obj`` and their features.
 
@@ -112,7 +124,7 @@ def find_pinches(obj: ObjectAnalysis, *, settings: PinchSettings = PinchSettings
     (50, (50,), (50, 2))
     """
     node = obj.spec.node if obj.spec is not None else None
-    source = f"{obj.loaded.path} (node {node})" if node else obj.loaded.path
+    source = source_of(obj)
     too_wide(obj.loaded.mesh, settings, source, node)
     pinches = sample_pinches(obj.context, settings=settings, source=source)
     return pinches, pinch_features(pinches, obj.props)

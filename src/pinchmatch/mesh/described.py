@@ -46,6 +46,9 @@ from .stacks import Part, Stack, stack_mesh
 SHAPES_FOLDER = "pinchmatch-shapes"
 #: a described prop is held in one hand: every size at most this (mm)
 MAX_SIZE_MM = 1000.0
+#: the least size of a part (mm): smaller than a millimetre, no fingertip feels it and the solid's union
+#: falls below the mesh tolerances
+MIN_SIZE_MM = 1.0
 #: parts in one described stack at most
 MAX_DESCRIBED_PARTS = 8
 #: each kind's keys: required, then optional
@@ -59,7 +62,7 @@ SHAPE_KEYS = {
 
 
 def _size(value) -> bool:
-    return finite_number(value) and 0 < value <= MAX_SIZE_MM
+    return finite_number(value) and MIN_SIZE_MM <= value <= MAX_SIZE_MM
 
 
 def _part(table, at: str, problems: list[str]) -> Part | None:
@@ -81,8 +84,8 @@ def _part(table, at: str, problems: list[str]) -> Part | None:
     if kind == "box":
         size = table["size_mm"]
         if not (isinstance(size, list) and len(size) == 3 and all(_size(v) for v in size)):
-            problems.append(f"{at}: size_mm must be [across X, across Y, tall], each above 0 and at most "
-                            f"{MAX_SIZE_MM:g} mm")
+            problems.append(f"{at}: size_mm must be [across X, across Y, tall], each from {MIN_SIZE_MM:g} to "
+                            f"{MAX_SIZE_MM:g} mm (sizes are in mm)")
             return None
         turn = table.get("turn_deg", 0.0)
         if not finite_number(turn):
@@ -95,7 +98,7 @@ def _part(table, at: str, problems: list[str]) -> Part | None:
     if top is not None and not (_size(top) or (kind == "frustum" and top == 0)):
         bad.append("top_diameter_mm" if kind == "frustum" else "end_diameter_mm")
     if bad:
-        problems.append(f"{at}: {', '.join(bad)} must be above 0 and at most {MAX_SIZE_MM:g} mm"
+        problems.append(f"{at}: {', '.join(bad)} must be from {MIN_SIZE_MM:g} to {MAX_SIZE_MM:g} mm (sizes are in mm)"
                         + (" (a cone's top_diameter_mm may be 0)" if kind == "frustum" else ""))
         return None
     d = float(sizes["diameter_mm"])

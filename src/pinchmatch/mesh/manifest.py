@@ -330,7 +330,10 @@ def read_manifest(path: str | os.PathLike) -> list[ObjectSpec]:
             continue
         file = path.parent / given
         options = base | _options(table, where, problems)
-        if not file.is_file():
+        if file.is_dir():
+            problems.add(where, "file", f"{file}: a folder, not a mesh file; give the mesh file's path (relative to "
+                                        "the manifest's folder)")
+        elif not file.is_file():
             problems.add(where, "file", f"{file}: no such file; check the path (relative to the manifest's folder)")
         elif file.suffix.lower() not in MESH_EXTENSIONS:
             problems.add(where, "file", f"{file}: not a mesh file; use one of {', '.join(MESH_EXTENSIONS)}")
