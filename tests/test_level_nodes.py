@@ -118,3 +118,36 @@ def test_editing_one_node_recomputes_that_node_only(tmp_path, capsys):
         assert second[name]["cost"] == first[name]["cost"]
         assert np.allclose(second[name]["tangible_pose"]["p1_mm"], first[name]["tangible_pose"]["p1_mm"])
     assert set(second) == {"can_a", "can_b", "box_c", "can_d"}
+
+
+def test_a_level_of_many_nodes_is_read_once_not_once_per_node(tmp_path, monkeypatch, capsys):
+    """300 mesh nodes: loading 60 of them reads the file once (a level of thousands of nodes was quadratic);
+    a changed file is read again; the run says how many objects the level makes before it starts."""
+    import trimesh
+
+    from pinchmatch.cli.main import main
+    from pinchmatch.mesh import load
+    from pinchmatch.mesh.load import load_mesh, read_level
+
+    scene = trimesh.Scene()
+    for i in range(300):
+        scene.add_geometry(trimesh.creation.box(extents=(0.05, 0.04, 0.03)), node_name=f"box{i}", geom_name=f"g{i}",
+                           transform=trimesh.transformations.translation_matrix([0.1 * i, 0.0, 0.0]))
+    path = tmp_path / "level.glb"
+    scene.export(path)
+    reads = []
+    real = load._load
+    monkeypatch.setattr(load, "_load", lambda *a, **k: reads.append(a[0]) or real(*a, **k))
+    nodes = read_level(path)
+    for node in nodes[:60]:
+        mesh = load_mesh(path, node=node.name).mesh
+        assert abs(mesh.centroid[0] - 100.0 * int(node.name[3:])) < 1e-6  # its own triangles, in mm
+    assert len(reads) == 2  # once to list the nodes, once for the objects
+    scene.export(path)  # the same level written again: another file state
+    load_mesh(path, node="box1")
+    assert len(reads) == 3
+    prop = tmp_path / "prop.stl"
+    trimesh.creation.box(extents=(40.0, 30.0, 20.0)).export(prop)
+    assert main(["match", "--tangible", str(prop), "--virtual", str(path), "--split", "nodes", "--nodes", "box1?",
+                 "--count", "40", "--no-view", "-o", str(tmp_path / "out")]) in (0, 3)
+    assert f"{path}: 10 nodes, one object each" in capsys.readouterr().out

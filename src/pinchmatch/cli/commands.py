@@ -27,7 +27,7 @@ from ..grasp.pinches import PinchSettings
 from ..export.folder import OutputFolder, exclusive
 from ..mesh.properties import parse_vector
 from .console import Presenter
-from .runs import (EXIT_SOME_FAILED, check_match_flags, check_placement, given_poses, match_job, standing, match_settings_of, object_tasks,
+from .runs import (EXIT_SOME_FAILED, check_match_flags, check_placement, given_poses, level_note, match_job, standing, match_settings_of, object_tasks,
                    out_folder, pinch_settings_of, print_match, table_rows, virtual_level_specs, write_matches)
 from .universal import cmd_design, cmd_select, demo_design
 from ..export.documents import (features_document, flipped_note, matches_rows, poses_csv, poses_document, scene_stems,
@@ -158,6 +158,8 @@ def _cmd_match(args) -> int:
     cache = None if args.no_cache else FeatureCache(args.cache)
     job = match_job(args, settings, match_settings, cache)
     ui = Presenter(quiet=args.quiet, json_mode=args.json)
+    if note := level_note(virtual_specs):
+        ui.note(note)
     check_placement(match_settings, tangible_specs, virtual_specs, ui, units=args.units, up=args.up)
     run_settings = {**settings.as_dict(), **match_settings.as_dict(), "units": args.units, "up": args.up,
                     "split": args.split or "none", "support": args.support}

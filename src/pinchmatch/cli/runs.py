@@ -119,6 +119,17 @@ def virtual_level_specs(args) -> list:
                         skip_nodes=args.skip_nodes or ())
 
 
+def level_note(specs: list) -> str | None:
+    """Before the run: how many objects each split level makes (a level of thousands of nodes is a long run)."""
+    counts: dict[str, int] = {}
+    for spec in specs:
+        if spec.node is not None:
+            counts[spec.path] = counts.get(spec.path, 0) + 1
+    if not counts:
+        return None
+    return "; ".join(f"{path}: {n} node{'s' if n != 1 else ''}, one object each" for path, n in counts.items())
+
+
 def standing(specs: list, args, role: str) -> list:
     """The specs with the run's ``--support`` where their manifest says nothing: every prop stands, and
     every node of a level; a virtual object of its own file does not (it is not anywhere)."""

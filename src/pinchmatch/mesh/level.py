@@ -10,6 +10,8 @@ several nodes) gives one object per node.
 
 from __future__ import annotations
 
+import os
+
 from dataclasses import dataclass
 
 import numpy as np
@@ -42,6 +44,24 @@ def level_nodes(scene: trimesh.Scene) -> list[LevelNode]:
         if isinstance(mesh, trimesh.Trimesh) and len(mesh.faces):
             out.append(LevelNode(str(node), _path(scene, node), int(len(mesh.faces))))
     return sorted(out, key=lambda n: (n.path, n.name))
+
+
+#: the level read last, by its file's identity and state: a level of many nodes is read once per process,
+#: not once per node (each node's object reads only its own triangles out of it)
+_LAST_LEVEL: dict = {}
+
+
+def remembered_scene(path, read, *, split: bool) -> trimesh.Scene:
+    """The scene of the level file ``path``, read by ``read()`` unless it is the level read last (with the same
+    ``split`` checks) and the file has not changed since (same inode, size and modification time). Nothing is
+    kept but that one level."""
+    info = os.stat(path)
+    key = (os.path.realpath(path), info.st_ino, info.st_size, info.st_mtime_ns, split)
+    if key not in _LAST_LEVEL:
+        scene = read()
+        _LAST_LEVEL.clear()
+        _LAST_LEVEL[key] = scene
+    return _LAST_LEVEL[key]
 
 
 def node_mesh(scene: trimesh.Scene, node: str) -> trimesh.Trimesh | None:

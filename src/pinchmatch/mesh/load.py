@@ -22,7 +22,7 @@ from ..files import holds_result
 from .frames import UNITS_MM, check_units, parse_up
 from .gltf_check import PercentDecoding, check_gltf
 from . import topology
-from .level import LevelNode, level_nodes, node_mesh, scene_node_digests
+from .level import LevelNode, level_nodes, node_mesh, remembered_scene, scene_node_digests
 
 log = logging.getLogger(__name__)
 
@@ -312,7 +312,7 @@ def _level_scene(path: Path) -> trimesh.Scene:
     if file_type not in GLTF_TYPES:
         raise MeshError(f"{path}: only a glTF or GLB scene can be split into its nodes; "
                         "leave out split = \"nodes\" for this file")
-    return _load(path, file_type, split=True, force="scene")
+    return remembered_scene(path, lambda: _load(path, file_type, split=True, force="scene"), split=True)
 
 
 def read_level(path: str | os.PathLike) -> list[LevelNode]:
@@ -327,7 +327,7 @@ def read_level(path: str | os.PathLike) -> list[LevelNode]:
 
 def _read(path: Path, file_type: str, node: str | None = None) -> trimesh.Trimesh:
     if node is not None:
-        mesh = node_mesh(_load(path, file_type, force="scene"), node)
+        mesh = node_mesh(remembered_scene(path, lambda: _load(path, file_type, force="scene"), split=False), node)
         if mesh is None:
             raise MeshError(f"{path}: the scene has no mesh node named {node!r}; "
                             "check the name against the file (pinchmatch names level nodes as the file does)")
