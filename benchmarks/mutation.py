@@ -213,8 +213,6 @@ EQUIVALENT.update({
     ("match/landing.py", "contact[0], face[0] = p[k], f[k]  # the target itself", "0 -> 1"):
         "the pattern's first point, a finger closing on its target along the pinch line, meets the surface at the "
         "target itself",
-    ("export/folder.py", "elif isinstance(kept, str) and _inside(kept) and (control / kept).is_file():",
-     "drop isinstance(...)"): "kept is a name or None, and None was handled before: a string's test is always true",
     ("export/folder.py", "control = Path(out) / CONTROL", "drop Path(...)"):
         "every caller passes a Path (the supervisor's output, the next run's OutputFolder)",
     ("export/folder.py", "files = json.loads((Path(out) / CONTROL / \"manifest.json\").read_text(encoding=\"utf-8\"))"

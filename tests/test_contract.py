@@ -2,6 +2,8 @@
 
 import json
 import os
+import subprocess
+import sys
 import time
 
 import numpy as np
@@ -216,11 +218,52 @@ def test_a_mesh_too_large_for_the_free_memory_is_refused_before_reading(tmp_path
 
     path = tmp_path / "big.stl"
     _icosphere().export(path)
-    monkeypatch.setattr(load, "available_memory_bytes", lambda: 20 * path.stat().st_size)  # far too little
+    monkeypatch.setattr(load, "memory_headroom", lambda: (20 * path.stat().st_size, "0.0 GiB left of the control "
+                                                          "group's 0.1 GiB (container limit)"))  # far too little
     code, _, err = run_cli(capsys, "poses", path, "-o", tmp_path / "o.json")
-    assert_bad_input(code, err, "big.stl", "GiB to analyse, more than the", "decimate it")
-    monkeypatch.setattr(load, "available_memory_bytes", lambda: None)  # unknown: not checked
+    assert_bad_input(code, err, "big.stl", "GiB to analyse, more than the 0.0 GiB left of the control group's",
+                     "decimate it")
+    monkeypatch.setattr(load, "memory_headroom", lambda: None)  # unknown: not checked
     assert run_cli(capsys, "poses", path, "--count", 10, "-q", "-o", tmp_path / "o.json")[0] == 0
+
+
+@pytest.mark.parametrize("limit_kib, words", [
+    (600_000, "'ulimit -v' allows 0.6 GiB of address space, less than the 1.0 GiB"),
+    (1_300_000, None),
+])
+def test_an_address_space_limit_is_said_in_one_line(tmp_path, limit_kib, words):
+    """Under ``ulimit -v``: too little to start is refused at once, naming the limit; a limit a run can
+    live with either finishes or, where a mesh needs more than is left, is refused before reading it;
+    never an internal error, a missing shared object or a crash."""
+    prop = tmp_path / "prop.stl"
+    _icosphere().export(prop)
+    script = (f"import resource, sys; resource.setrlimit(resource.RLIMIT_AS, ({limit_kib * 1024}, "
+              f"{limit_kib * 1024})); from pinchmatch.cli.main import console; sys.argv = ['pinchmatch', 'match', "
+              f"'--tangible', {str(prop)!r}, '--virtual', {str(prop)!r}, '--count', '40', '--no-view', '-q', "
+              f"'--no-cache', '-o', {str(tmp_path / 'out')!r}]; console()")
+    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300)
+    assert "Traceback" not in proc.stderr and "internal error" not in proc.stderr, proc.stderr
+    if words is None:
+        assert proc.returncode in (0, 2), proc.stderr
+        assert proc.returncode == 0 or "memory" in proc.stderr
+    else:
+        assert proc.returncode == 2 and words in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
+
+
+def test_running_out_of_memory_is_one_line(tmp_path, capsys, monkeypatch):
+    """A MemoryError anywhere in a run: one line with the limits and what to do, exit 2."""
+    from pinchmatch.match import scene
+
+    def exhausted(*args, **kwargs):
+        raise MemoryError()
+
+    monkeypatch.setattr(scene, "match_one", exhausted)
+    prop = tmp_path / "prop.stl"
+    _icosphere().export(prop)
+    code, _, err = run_cli(capsys, "match", "--tangible", prop, "--virtual", prop, "--count", 30, "--jobs", 1,
+                           "--no-view", "-o", tmp_path / "out")
+    assert code == 2 and "ran out of memory (limits:" in err and "--jobs 1" in err
+    assert len(err.strip().splitlines()) == 1 and not (tmp_path / "out").exists()
 
 
 def test_loading_names_each_stage_as_it_starts(tmp_path):

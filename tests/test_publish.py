@@ -432,3 +432,18 @@ def test_a_run_whose_process_is_killed_is_taken_back_or_finished_by_the_next(tmp
         assert snapshot(out) == before
     assert not (out / ".pinchmatch" / "staging").exists() and not (out / ".pinchmatch" / "run.json").exists()
     assert not (out / ".pinchmatch" / "replaced").exists()
+
+
+@pytest.mark.parametrize("run", [{"undo": [1, "x", ["a.txt", 5], ["b.txt", ["c"]], [7, None]]}, {"undo": 3},
+                                 {"created": "yes", "undo": [["../victim.txt", None]]}, [1, 2]])
+def test_a_received_run_record_of_any_shape_is_taken_back_safely(tmp_path, run):
+    """A run record (``run.json``) that this code did not write: entries of other shapes are skipped, nothing
+    outside OUT is touched, and the folder is recovered without an internal error."""
+    out = tmp_path / "out"
+    (out / ".pinchmatch").mkdir(parents=True)
+    victim = tmp_path / "victim.txt"
+    victim.write_text("keep me")
+    (out / "a.txt").write_text("mine")
+    (out / ".pinchmatch" / "run.json").write_text(json.dumps(run))
+    recover(out)
+    assert victim.read_text() == "keep me"

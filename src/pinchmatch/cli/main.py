@@ -21,6 +21,7 @@ import sys
 
 from ..errors import PinchmatchError, RunError, route_warnings
 from ..cores import default_jobs
+from ..memory import address_space_problem, out_of_memory_message
 from ..runner.forkserver import start_worker_server
 from .parser import build_parser, check_option_names, join_vector_values
 from .supervise import SIGNAL_EXIT, left_as_it_was, supervise
@@ -45,6 +46,9 @@ def _main(argv: list[str]) -> int:
         if args.command is None:
             build_parser().print_help()
             return 2
+        if problem := address_space_problem():
+            print(f"pinchmatch: error: {problem}", file=sys.stderr)
+            return 2
         if _wants_local_workers(args):
             start_worker_server()  # it loads the pipeline for the workers while this process does the same
         from .commands import COMMANDS  # the pipeline: loaded for a command, not for --help
@@ -56,6 +60,9 @@ def _main(argv: list[str]) -> int:
     except RunError as exc:  # not the input's fault: an internal error, in one line
         print(f"pinchmatch: internal error: {exc}", file=sys.stderr)
         return 1
+    except MemoryError:  # no input is wrong, and no traceback says more than the limit met
+        print(f"pinchmatch: error: {out_of_memory_message()}", file=sys.stderr)
+        return 2
     except KeyboardInterrupt:  # Ctrl-C where main runs in the terminal's process (not under the console script)
         return _interrupted(signal.SIGINT, command)
     except Exception as exc:  # an internal error: say so, traceback on request

@@ -194,7 +194,11 @@ def _take_back(out: Path, run: dict) -> None:
     if run.get("created"):
         shutil.rmtree(out, ignore_errors=True)  # a folder this run made and did not finish
         return
-    for name, kept in reversed(run.get("undo", [])):
+    undo = run.get("undo")
+    for entry in reversed(undo if isinstance(undo, list) else []):
+        if not (isinstance(entry, list) and len(entry) == 2):
+            continue  # not a record this code wrote (a folder received from elsewhere)
+        name, kept = entry
         if not (isinstance(name, str) and _really_inside(out, name)):
             continue
         target = out / name

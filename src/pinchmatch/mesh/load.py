@@ -22,6 +22,7 @@ from ..files import holds_result
 from .frames import UNITS_MM, check_units, parse_up
 from .gltf_check import PercentDecoding, check_gltf
 from . import topology
+from ..memory import memory_headroom
 from .level import LevelNode, level_nodes, node_mesh, remembered_scene, scene_node_digests
 
 log = logging.getLogger(__name__)
@@ -167,26 +168,15 @@ def _check_binary_stl(path: Path, size: int) -> None:
 PEAK_BYTES_PER_FILE_BYTE = {"stl": 20.0, "ply": 20.0, "glb": 20.0, "gltf": 12.0, "obj": 12.0, "off": 12.0}
 
 
-def available_memory_bytes() -> int | None:
-    """Memory this process can still take: MemAvailable on Linux, else None (not checked)."""
-    try:
-        with open("/proc/meminfo") as fh:
-            for line in fh:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except (OSError, ValueError, IndexError):
-        return None
-    return None
-
-
 def _check_memory(path: Path, size: int, file_type: str) -> None:
-    """Refuse, before reading it, a mesh whose analysis would need more memory than is free."""
+    """Refuse, before reading it, a mesh whose analysis would need more memory than this process may still
+    take (the machine's, ``ulimit -v``'s or its control group's: :func:`pinchmatch.memory.memory_headroom`)."""
     need = size * PEAK_BYTES_PER_FILE_BYTE.get(file_type, 20.0)
-    free = available_memory_bytes()
-    if free is not None and need > 0.9 * free:
+    headroom = memory_headroom()
+    if headroom is not None and need > 0.9 * headroom[0]:
         raise MeshError(f"{path}: a {size / 2**20:.0f} MiB mesh needs about {need / 2**30:.1f} GiB to analyse, more "
-                        f"than the {free / 2**30:.1f} GiB free; decimate it (to about a million faces) or use a "
-                        "machine with more memory")
+                        f"than the {headroom[1]}; decimate it (to about a million faces) or give the run more "
+                        "memory")
 
 
 _PLY_SIZES = {"char": 1, "uchar": 1, "int8": 1, "uint8": 1, "short": 2, "ushort": 2, "int16": 2, "uint16": 2,
