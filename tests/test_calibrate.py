@@ -332,3 +332,68 @@ def test_weights_fitted_with_com_are_read_back_by_a_run_of_the_papers_criteria(t
     assert main(["calibrate", str(both), "--criteria", "width,com,mass", "-o", str(tmp_path / "both.json"),
                  "-q"]) == 2
     assert "com and mass" in capsys.readouterr().err
+
+
+def _study(seed=0):
+    """A synthetic study: 74 placements rated by 3 raters on a 7-point scale, true weights width 3, kmax 0.3,
+    axis 1 and normal 1; axis differs by 0.5 JND in one placement and 0.15 in another (0.05 elsewhere), normal
+    never above 0.3: neither is ever near noticeable, so the ratings cannot tell their weights."""
+    rng = np.random.default_rng(seed)
+    n = 74
+    jnd = np.column_stack([rng.uniform(0.0, 1.6, n), rng.uniform(0.0, 3.0, n), np.full(n, 0.05),
+                           rng.uniform(0.0, 0.3, n)])
+    jnd[7, 2], jnd[30, 2] = 0.5, 0.15
+    p = 1.0 - 2.0 ** -(jnd ** 3.5 @ np.array([3.0, 0.3, 1.0, 1.0]))
+    lines = ["pair,width_jnd,kmax_jnd,axis_jnd,normal_jnd,rating"]
+    for k in range(n):
+        for _ in range(3):
+            rating = float(np.clip(np.round(6.5 - 5.0 * p[k] + rng.normal(0.0, 0.6)), 1, 7))
+            lines.append(f"{k},{','.join(f'{v:.4f}' for v in jnd[k])},{rating:g}")
+    return "\n".join(lines) + "\n"
+
+
+def test_weights_the_table_cannot_determine_keep_their_defaults_with_an_interval_each():
+    fit = calibrate(read_ratings(_study(), "study.csv"))
+    assert set(fit.intervals) == {"width", "kmax", "axis", "normal"}
+    lo, hi = fit.intervals["width"]
+    assert lo <= 3.0 <= hi and hi <= 4.0 * lo  # determined, and the truth inside
+    assert {"axis", "normal"} <= set(fit.undetermined)
+    assert fit.weights["axis"] == 1.0 and fit.weights["normal"] == 1.0  # left at their defaults
+    assert "width" not in fit.undetermined and fit.weights["width"] == fit.fitted_weights["width"]
+    doc = fit.as_dict("study.csv")["fit"]
+    assert set(doc["undetermined"]) >= {"axis", "normal"} and len(doc["weight_intervals_90"]["width"]) == 2
+    again = calibrate(read_ratings(_study(), "study.csv"))
+    assert again.intervals == fit.intervals  # seeded
+
+
+def test_tables_as_spreadsheets_write_them_are_read_alike():
+    """Semicolons with decimal commas, tabs, and CR-only line endings give the table the comma CSV gives."""
+    text = _study()
+    plain = read_ratings(text, "a.csv")
+    for variant in (text.replace(",", ";").replace(".", ","), text.replace(",", "\t"), text.replace("\n", "\r"),
+                    text.replace("\n", "\r\n")):
+        r = read_ratings(variant, "b.csv")
+        assert r.criteria == plain.criteria
+        np.testing.assert_array_equal(r.rating, plain.rating)
+        np.testing.assert_array_equal(r.jnd, plain.jnd)
+
+
+def test_a_bad_cell_is_named_by_its_line():
+    """Line numbers count the file's lines (a blank line and an unrated trial before the bad cell)."""
+    text = "pair,width_jnd,rating\n1,0.2,6\n\n2,0.4,\n3,abc,5\n"
+    with pytest.raises(ConfigError, match=r"b.csv: line 5: width_jnd = 'abc' is not a number"):
+        read_ratings(text, "b.csv")
+    with pytest.raises(ConfigError, match=r"no 'rating' column \(the header reads 'pair', 'width_jnd'\)"):
+        read_ratings("pair;width_jnd\n1;0,2\n", "b.csv")
+
+
+def test_a_table_the_defaults_rank_is_kept_at_the_defaults_when_no_fit_predicts(monkeypatch):
+    """When the fit finds no weight, a table that the default weights do rank is not refused: the defaults
+    are written, as when a fit ranks held-out ratings no better than they do."""
+    from pinchmatch.match import calibrate as module
+
+    r = read_ratings(_study(), "study.csv")
+    monkeypatch.setattr(module, "_fit", lambda x, rating: (np.zeros(x.shape[1]), 5.0, 0.0))
+    fit = module.calibrate(r)
+    assert fit.kept == "defaults" and fit.default_spearman < 0
+    assert all(fit.weights[c] == v for c, v in module.complete_weights({}).items())

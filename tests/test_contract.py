@@ -309,7 +309,7 @@ def test_each_validator_says_what_to_change(tmp_path, capsys, argv, words):
     (["design", "--virtual", "{prop}", "-k", "100"], "at most 8 props"),
     (["design", "--virtual", "{prop}", "--max-height-mm", "1e9"], "at most 1000 mm"),
     (["calibrate", "{pipe}"], "not a regular file"),
-    (["calibrate", "{ragged}"], "row 3 has 2 cells"),
+    (["calibrate", "{ragged}"], "line 3 has 2 cells"),
     (["calibrate", "{quote}"], "check its quotes"),
     (["calibrate", "{dupcol}"], "appears twice"),
     (["calibrate", "{unknown}"], "unknown column 'grip_jnd'"),

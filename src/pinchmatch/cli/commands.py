@@ -211,17 +211,25 @@ def _cmd_calibrate(args) -> int:
     if left_out:
         document["fit"]["not_fitted"] = left_out
     write_atomic(args.output, to_json(document))
-    rows = [("criterion", "fitted", "written")] + [(c, f"{fit.fitted_weights[c]:.3f}", f"{fit.weights[c]:.3f}")
-                                                   for c in ratings.criteria]
+    intervals = fit.intervals or {}
+    rows = [("criterion", "fitted", "90 % interval", "written")] + [
+        (c, f"{fit.fitted_weights[c]:.3f}",
+         f"{intervals[c][0]:.3f}-{intervals[c][1]:.3f}" if c in intervals else "-", f"{fit.weights[c]:.3f}")
+        for c in ratings.criteria]
     ui.table(table_rows(rows, "criteria"),
              title=f"weights fitted to {fit.rows} ratings of {fit.pairs} placements ({fit.pooling} pooling)")
     if left_out:
         ui.note("not fitted, kept at their defaults: " + "; ".join(f"{c} {why}" for c, why in left_out.items()))
+    if fit.undetermined:
+        ui.warn("the table does not determine " + ", ".join(
+            f"{c} (90 % interval {intervals[c][0]:.2f}-{intervals[c][1]:.2f})" for c in fit.undetermined)
+            + f"; {'it keeps its' if len(fit.undetermined) == 1 else 'they keep their'} default in {args.output} "
+            "(rate placements that differ in it; --force writes the fit)")
     by = "by placement" if fit.hold_out == "placement" else "one virtual object out at a time"
     ui.note(f"held-out rank correlation of cost and rating ({fit.folds} folds, {by}; -1 is perfect): "
             f"fitted {fit.held_out_spearman:+.3f}, default weights {fit.default_spearman:+.3f}; wrote {args.output}")
     if fit.kept == "defaults":
-        ui.warn(f"the fitted weights rank held-out ratings worse than the default weights, so {args.output} keeps "
+        ui.warn(f"the fitted weights rank held-out ratings no better than the default weights, so {args.output} keeps "
                 "the defaults (the fitted ones are under fit.fitted_weights); --force writes the fitted weights")
     ui.document(to_json(document))
     return 0

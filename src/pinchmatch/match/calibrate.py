@@ -69,6 +69,13 @@ STARTS = (1.0, 0.25, 4.0)
 ZERO_FIT = 1e-9
 #: ways of holding rows out
 HOLD_OUTS = ("placement", "object")
+#: resamples of the placements (with replacement) that give each fitted weight its interval
+BOOTSTRAP = 100
+#: the interval: these quantiles of the resampled weights (a 90 % interval)
+INTERVAL = (0.05, 0.95)
+#: a weight whose interval's ends differ by more than this factor is not determined by the table: it keeps
+#: its default (within a factor of 2 either side of the estimate, a weight says something)
+DETERMINED_RATIO = 4.0
 
 
 def exponent_of(pooling: str) -> float:
@@ -104,6 +111,8 @@ class Calibration:
     hold_out: str
     rows: int
     pairs: int
+    intervals: dict = None  # {criterion: (low, high)}: each fitted weight's 90 % bootstrap interval
+    undetermined: tuple = ()  # the fitted weights whose interval is too wide: kept at their defaults
 
     @property
     def criteria(self) -> str:
@@ -122,7 +131,10 @@ class Calibration:
                         "held_out_spearman_fitted": round(self.held_out_spearman, 4),
                         "held_out_spearman_default": round(self.default_spearman, 4),
                         "kept": self.kept,
-                        "fitted_weights": {c: round(w, 6) for c, w in self.fitted_weights.items()}}}
+                        "fitted_weights": {c: round(w, 6) for c, w in self.fitted_weights.items()},
+                        "weight_intervals_90": {c: [round(lo, 6), round(hi, 6)]
+                                                for c, (lo, hi) in (self.intervals or {}).items()},
+                        "undetermined": list(self.undetermined)}}
 
 
 def read_ratings(text: str, source: str, *, criteria: tuple | None = None) -> Ratings:
@@ -133,11 +145,17 @@ def read_ratings(text: str, source: str, *, criteria: tuple | None = None) -> Ra
     >>> r.criteria, r.rating.tolist(), r.jnd.tolist()
     (('width', 'kmax'), [6.0, 3.0], [[0.2, 0.1], [1.5, 0.3]])
     """
+    text = text.replace("\r\n", "\n").replace("\r", "\n")  # CR-only line endings: old spreadsheet exports
+    delimiter, decimal_comma = _dialect(text)
     try:
-        table = list(csv.reader(io.StringIO(text), strict=True))
+        reader = csv.reader(io.StringIO(text), strict=True, delimiter=delimiter)
+        table, lines = [], []
+        for row in reader:
+            if row:  # blank lines
+                table.append(row)
+                lines.append(reader.line_num)
     except csv.Error as exc:
         raise ConfigError(f"{source}: not a CSV table ({exc}); check its quotes") from None
-    table = [row for row in table if row]  # blank lines
     if len(table) < 2:
         raise ConfigError(f"{source}: no rated rows; give a CSV with a header and one row per rated trial")
     names = [n.strip() for n in table[0]]
@@ -148,13 +166,14 @@ def read_ratings(text: str, source: str, *, criteria: tuple | None = None) -> Ra
     if unknown:
         raise ConfigError(f"{source}: unknown column {', '.join(map(repr, unknown))}; the criteria are "
                           f"{', '.join(CRITERIA)}")
-    for line, row in enumerate(table[1:], start=2):
+    for line, row in zip(lines[1:], table[1:]):
         if len(row) != len(names):
-            raise ConfigError(f"{source}: row {line} has {len(row)} cells and the header {len(names)}; fix that row")
+            raise ConfigError(f"{source}: line {line} has {len(row)} cells and the header {len(names)}; fix that row")
     rows = [dict(zip(names, row)) for row in table[1:]]
     header = set(names)
     if "rating" not in header:
-        raise ConfigError(f"{source}: no 'rating' column; the table needs rating and <criterion>_jnd columns "
+        raise ConfigError(f"{source}: no 'rating' column (the header reads {', '.join(map(repr, names[:6]))}); the "
+                          "table needs rating and <criterion>_jnd columns, separated by commas, semicolons or tabs "
                           "(docs/study.md)")
     present = tuple(c for c in CRITERIA if f"{c}_jnd" in header)
     if criteria is not None:
@@ -166,14 +185,16 @@ def read_ratings(text: str, source: str, *, criteria: tuple | None = None) -> Ra
     if not present:
         raise ConfigError(f"{source}: no <criterion>_jnd column (one of "
                           f"{', '.join(c + '_jnd' for c in CRITERIA)})")
+    rated_lines = [line for line, r in zip(lines[1:], rows) if (r.get("rating") or "").strip()]
     rated = [r for r in rows if (r.get("rating") or "").strip()]  # an unrated trial (skipped) is left out
     values = np.empty((len(rated), len(present) + 1))
     for i, r in enumerate(rated):
         for k, name in enumerate(("rating",) + tuple(f"{c}_jnd" for c in present)):
+            cell = r[name].strip().replace(",", ".") if decimal_comma else r[name]
             try:
-                values[i, k] = float(r[name])
+                values[i, k] = float(cell)
             except (TypeError, ValueError):
-                raise ConfigError(f"{source}: row {i + 2}: {name} = {r[name]!r} is not a number") from None
+                raise ConfigError(f"{source}: line {rated_lines[i]}: {name} = {r[name]!r} is not a number") from None
     if not np.isfinite(values).all() or (values[:, 1:] < 0).any():
         raise ConfigError(f"{source}: a rating or a difference is not finite, or a difference is negative; "
                           "the <criterion>_jnd columns are sizes in JND (0 or more)")
@@ -191,6 +212,17 @@ def read_ratings(text: str, source: str, *, criteria: tuple | None = None) -> Ra
         names: dict = {}
         objects = np.array([names.setdefault(r["object"], len(names)) for r in rated], dtype=np.int64)
     return Ratings(present, values[:, 1:], values[:, 0], placement_groups(keys, values[:, 1:]), source, objects)
+
+
+def _dialect(text: str) -> tuple[str, bool]:
+    """The header's delimiter, as spreadsheets write CSV: commas, semicolons (where the decimal mark is a
+    comma: the numbers are then read with either mark) or tabs; and whether decimal commas are read."""
+    header = text.split("\n", 1)[0]
+    counts = {d: header.count(d) for d in (",", ";", "\t")}
+    delimiter = max(counts, key=lambda d: (counts[d], d == ","))
+    if counts[delimiter] == 0:
+        delimiter = ","
+    return delimiter, delimiter != ","
 
 
 def placement_groups(keys: list, jnd: np.ndarray) -> np.ndarray:
@@ -371,11 +403,17 @@ def calibrate(r: Ratings, *, pooling: str = "quick", seed: int = 0, hold_out: st
     _check(r, beta)
     x = r.jnd ** beta
     default_rho = _spearman(x.sum(axis=1), r.rating)
+    defaults = complete_weights({})
     w, intercept, drop = _fit(x, r.rating)
+    fold, folds = _folds(r, hold_out, seed)
+    common = dict(pooling=pooling, intercept=intercept, drop=drop, default_spearman=default_rho, folds=folds,
+                  hold_out=hold_out, rows=len(r.rating), pairs=int(r.pair.max() + 1))
     # the optimiser stops a hair above its bounds: a weight or a drop this small is none
     if not (w > ZERO_FIT).any() or drop <= ZERO_FIT * max(1.0, float(np.ptp(r.rating))):
+        if default_rho < 0 and not force:  # the defaults rank the table: keep them, as below
+            return Calibration(weights=defaults, fitted_weights=defaults | dict(zip(r.criteria, map(float, w))),
+                               kept="defaults", held_out_spearman=0.0, **common)
         raise ConfigError(_unpredictive(r, default_rho, "no weight above 0 fits them"))
-    fold, folds = _folds(r, hold_out, seed)
     held_out = np.empty(len(r.rating))
     for f in range(folds):
         test = fold == f
@@ -384,16 +422,30 @@ def calibrate(r: Ratings, *, pooling: str = "quick", seed: int = 0, hold_out: st
         wf, _, bf = _fit(x[~test], r.rating[~test])
         held_out[test] = bf * noticed(x[test], wf)
     held = _spearman(held_out, r.rating)
-    if not held < 0:
+    if not held < 0 and not (default_rho < 0 and not force):
         raise ConfigError(_unpredictive(r, default_rho, f"held out, the fitted cost does not fall with the rating "
                                                         f"(rank correlation {held:+.2f})"))
-    defaults = complete_weights({})
+    intervals = _intervals(x, r, seed)
+    loose = tuple(c for c, (lo, hi) in intervals.items() if not hi <= DETERMINED_RATIO * lo)
     fitted = defaults | {c: float(v) for c, v in zip(r.criteria, w)}
-    kept = "fitted" if force or held <= default_rho else "defaults"
-    weights = fitted if kept == "fitted" else defaults
-    return Calibration(weights=weights, fitted_weights=fitted, kept=kept, pooling=pooling, intercept=intercept,
-                       drop=drop, held_out_spearman=held, default_spearman=default_rho, folds=folds,
-                       hold_out=hold_out, rows=len(r.rating), pairs=int(r.pair.max() + 1))
+    kept = "fitted" if force or (held < 0 and held <= default_rho) else "defaults"
+    weights = (fitted | {c: defaults[c] for c in loose if not force}) if kept == "fitted" else defaults
+    return Calibration(weights=weights, fitted_weights=fitted, kept=kept, held_out_spearman=held, intervals=intervals,
+                       undetermined=loose if kept == "fitted" and not force else (), **common)
+
+
+def _intervals(x: np.ndarray, r: Ratings, seed: int) -> dict:
+    """{criterion: (low, high)}: the ``INTERVAL`` quantiles of each weight refitted to ``BOOTSTRAP`` resamples
+    of the placements (with replacement, each placement's rows together), seeded."""
+    rng = np.random.default_rng([seed, 1])
+    pairs = int(r.pair.max() + 1)
+    members = [np.flatnonzero(r.pair == k) for k in range(pairs)]
+    found = np.empty((BOOTSTRAP, x.shape[1]))
+    for b in range(BOOTSTRAP):
+        rows = np.concatenate([members[k] for k in rng.integers(0, pairs, pairs)])
+        found[b] = _fit(x[rows], r.rating[rows])[0]
+    low, high = np.quantile(found, INTERVAL, axis=0)
+    return {c: (float(lo), float(hi)) for c, lo, hi in zip(r.criteria, low, high)}
 
 
 def _unpredictive(r: Ratings, default_rho: float, why: str) -> str:
