@@ -216,6 +216,8 @@ def test_view_takes_the_result_document_and_opens_the_page_where_there_is_a_disp
     ("huge integer", "matches.json: not valid JSON"),
     ("scene link", "is a link (to"),
     ("scene folder link", "is a link (to"),
+    ("matches link", "matches.json: a link (to"),
+    ("plan link", "study_plan.json: a link (to"),
 ])
 def test_view_cli_fails_cleanly(demo_out, tmp_path, capsys, damage, message):
     out = tmp_path / "run"
@@ -253,6 +255,16 @@ def test_view_cli_fails_cleanly(demo_out, tmp_path, capsys, damage, message):
     elif damage == "huge integer":
         text = (out / "matches.json").read_text()
         (out / "matches.json").write_text(text.replace('"cost": ', '"cost": ' + "9" * 5000 + ", \"x\": ", 1))
+    elif damage in ("matches link", "plan link"):
+        name = "matches.json" if damage == "matches link" else "study_plan.json"
+        secret = tmp_path / "secret"
+        secret.mkdir()
+        if (out / name).exists():
+            (secret / name).write_bytes((out / name).read_bytes())
+            (out / name).unlink()
+        else:
+            (secret / name).write_text('{"schema": "pinchmatch.study-plan/1", "pairs": []}')
+        (out / name).symlink_to(secret / name)
     elif damage in ("scene link", "scene folder link"):
         secret = tmp_path / "secret"
         secret.mkdir()

@@ -46,6 +46,7 @@ def read_matches(out: Path) -> dict:
     path = out / "matches.json"
     lines = out / "matches.jsonl"
     if not path.is_file() and lines.is_file():
+        _own_file(lines)
         try:
             with open(lines, encoding="utf-8") as fh:
                 return matches_from_lines(fh)
@@ -58,8 +59,18 @@ def read_matches(out: Path) -> dict:
                      "point view at the folder a match or demo run wrote")
 
 
+def _own_file(path: Path) -> None:
+    """Refuse a file of a result folder that is a link, or lies outside the folder: a folder received from
+    elsewhere may point anywhere, and the page would carry what it points to."""
+    real, base = Path(os.path.realpath(path)), Path(os.path.realpath(path.parent))
+    if path.is_symlink() or real.parent != base:
+        raise ConfigError(f"{path}: a link (to {real}); view reads only the files inside the result folder: copy "
+                          "the file there or run pinchmatch again")
+
+
 def _document(path: Path, schema: str, what: str, rewrite: str, otherwise: str) -> dict:
     """A JSON document pinchmatch wrote, with the schema it must have, or a ConfigError naming the file."""
+    _own_file(path)
     try:
         document = json.loads(path.read_text(encoding="utf-8"))
     except (ValueError, RecursionError) as exc:  # not UTF-8, not JSON, or an integer of thousands of digits
