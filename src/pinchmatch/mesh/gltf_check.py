@@ -171,8 +171,8 @@ UNSUPPORTED = {
 def check_features(path: Path, document: dict) -> None:
     """Refuse, naming it, what the reader would not apply and so read as other geometry: a required
     extension it does not know or cannot apply (Draco, meshopt, quantization), GPU instancing on a node,
-    sparse accessors, morph targets with default weights, and skinned nodes (whose transform the
-    specification says to ignore)."""
+    per-node morph weights, and skinned nodes (whose transform the specification says to ignore). Sparse
+    accessors and meshes' default morph weights are applied (:mod:`gltf_apply`)."""
     def refuse(what: str):
         raise MeshError(f"{path}: uses {what}, which pinchmatch does not apply (the geometry would be read wrong); "
                         "export it again without it (apply modifiers, skins and morphs; no compression)")
@@ -187,25 +187,24 @@ def check_features(path: Path, document: dict) -> None:
             refuse(f"GPU instancing (EXT_mesh_gpu_instancing) on node {node.get('name', k)!r}")
         if isinstance(node, dict) and "skin" in node and "mesh" in node:
             refuse(f"a skinned mesh on node {node.get('name', k)!r}")
-    accessors = document.get("accessors", [])
-    if any(isinstance(a, dict) and "sparse" in a for a in (accessors if isinstance(accessors, list) else [])):
-        refuse("sparse accessors")
-    meshes = document.get("meshes", [])
-    for k, mesh in enumerate(meshes if isinstance(meshes, list) else []):
-        weights = mesh.get("weights") if isinstance(mesh, dict) else None
-        if isinstance(weights, list) and any(w for w in weights):
-            refuse(f"morph targets with default weights on mesh {mesh.get('name', k)!r}")
+        if isinstance(node, dict) and node.get("weights"):
+            refuse(f"morph weights of its own on node {node.get('name', k)!r} (a mesh's default weights are applied)")
+    for kind, key in (("accessors", "sparse"), ("meshes", "weights")):
+        entries = document.get(kind, [])
+        if not isinstance(entries, list) or not all(isinstance(e, dict) for e in entries):
+            raise MeshError(f"{path}: its {kind} are not a list of objects; the file is corrupt, re-export it")
 
 
-def check_gltf(path: Path, file_type: str, *, split: bool = False) -> None:
+def check_gltf(path: Path, file_type: str, *, split: bool = False) -> dict:
     """Check a glTF or GLB document before it is read (hierarchy, what the reader does not apply,
-    external files, and for a level to be split, its mesh nodes' names)."""
+    external files, and for a level to be split, its mesh nodes' names); return the document."""
     document = gltf_document(path, file_type)
     check_hierarchy(path, document)
     check_features(path, document)
     if split:
         check_unique_names(path, document)
     check_buffers(path, document)
+    return document
 
 
 class PercentDecoding(trimesh.resolvers.FilePathResolver):

@@ -20,6 +20,7 @@ import trimesh
 from ..errors import ConfigError, MeshError
 from ..files import holds_result
 from .frames import UNITS_MM, check_units, parse_up
+from .gltf_apply import applied_glb, needs_applying
 from .gltf_check import PercentDecoding, check_gltf
 from . import topology
 from ..memory import memory_headroom
@@ -271,12 +272,14 @@ def _check_readable(path: Path) -> None:
 
 
 def _load(path: Path, file_type: str, *, split: bool = False, **kwargs):
-    if file_type in GLTF_TYPES:
-        check_gltf(path, file_type, split=split)
+    source, read_as = str(path), file_type
     if file_type in GLTF_TYPES:  # a .glb may name external buffers too: found beside it, as a .gltf's
+        document = check_gltf(path, file_type, split=split)
         kwargs.setdefault("resolver", PercentDecoding(str(path)))
+        if needs_applying(document):  # sparse accessors, default morph weights: applied first
+            source, read_as = trimesh.util.wrap_as_stream(applied_glb(path, file_type, document)), "glb"
     try:
-        return trimesh.load(str(path), file_type=file_type, process=False, **kwargs)
+        return trimesh.load(source, file_type=read_as, process=False, **kwargs)
     except (IndexError,) as exc:
         what = ("an index (of a node, mesh, accessor or vertex) points past its list" if file_type in GLTF_TYPES
                 else "a face refers to a vertex that does not exist")
