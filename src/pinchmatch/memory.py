@@ -22,26 +22,24 @@ MIN_ADDRESS_SPACE_BYTES = 1 << 30
 CGROUP_FILES = (("memory.max", "memory.current"), ("memory.limit_in_bytes", "memory.usage_in_bytes"))
 
 
-def _meminfo(key: str) -> int | None:
+def _proc_value(path: str, key: str) -> int | None:
+    """A ``key: N kB`` line of a /proc file, in bytes (None where the file or the line is missing)."""
     try:
-        with open("/proc/meminfo") as fh:
+        with open(path) as fh:
             for line in fh:
                 if line.startswith(key + ":"):
                     return int(line.split()[1]) * 1024
     except (OSError, ValueError, IndexError):
         return None
     return None
+
+
+def _meminfo(key: str) -> int | None:
+    return _proc_value("/proc/meminfo", key)
 
 
 def _own_status(key: str) -> int | None:
-    try:
-        with open("/proc/self/status") as fh:
-            for line in fh:
-                if line.startswith(key + ":"):
-                    return int(line.split()[1]) * 1024
-    except (OSError, ValueError, IndexError):
-        return None
-    return None
+    return _proc_value("/proc/self/status", key)
 
 
 def address_space_limit() -> int | None:
