@@ -251,3 +251,23 @@ def test_a_concave_patch_scales_by_its_curvature_s_size_not_its_sign():
     table[0, :, 5], table[1, :, 5] = 30.0, -30.0  # kmax of a convex and of a concave patch, per m
     s = CostModel().scales(table)
     assert s[0, 0, 5] == s[1, 0, 5] == pytest.approx(0.6666 * 30.0)
+
+
+def test_the_pooled_bound_of_identical_rows_is_zero_not_the_round_offs_nan():
+    """A table against itself: every matched entry differs by 0, which the blockwise expansion
+    |t|² - 2 t·v + |v|² leaves a few ulps either side of 0. The bound pools those parts with a power of 1.75
+    (quick): clipped, it is 0 and finite; a negative part would make it NaN."""
+    table = random_table(60, 11)
+    table[:, :, 4] = 30.0  # every ρ defined, so that each pose matches itself in every column
+    model = CostModel(weights=dict.fromkeys(CRITERIA, 1.0), criteria=CRITERIA, pooling="quick")
+    bound = np.concatenate([b for _, b in pooled_bound_blocks(table, table, model, block_rows=7)])
+    assert np.isfinite(bound).all() and (bound >= 0).all()
+    np.testing.assert_allclose(np.diag(bound), 0.0, atol=1e-6)
+
+
+def test_contributions_take_the_mass_offset_as_any_sequence():
+    t, v = random_table(2, 12)
+    model = CostModel(criteria=CRITERIA)
+    as_array = contributions(t, v, model, swapped=False, mass_delta_mm=np.array([3.0, -4.0, 12.0]))
+    assert contributions(t, v, model, swapped=False, mass_delta_mm=(3.0, -4.0, 12.0)) == as_array
+    assert contributions(t, v, model, swapped=False, mass_delta_mm=[3, -4, 12]) == as_array
