@@ -59,13 +59,15 @@ def read_matches(out: Path) -> dict:
                      "point view at the folder a match or demo run wrote")
 
 
-def _own_file(path: Path) -> None:
-    """Refuse a file of a result folder that is a link, or lies outside the folder: a folder received from
-    elsewhere may point anywhere, and the page would carry what it points to."""
-    real, base = Path(os.path.realpath(path)), Path(os.path.realpath(path.parent))
-    if path.is_symlink() or real.parent != base:
-        raise ConfigError(f"{path}: a link (to {real}); view reads only the files inside the result folder: copy "
-                          "the file there or run pinchmatch again")
+def _own_file(path: Path, out: Path | None = None, what: str = "") -> None:
+    """Refuse a file of the result folder ``out`` (default: the file's folder) that is a link, or lies
+    outside it: a folder received from elsewhere may point anywhere, and the page would carry what it points
+    to. ``what`` names the file in the message."""
+    out = path.parent if out is None else out
+    real = Path(os.path.realpath(path))
+    if path.is_symlink() or not real.is_relative_to(os.path.realpath(out)):
+        raise ConfigError(f"{path}: {what + ' is ' if what else ''}a link (to {real}); view reads only the files "
+                          f"inside {out}: copy it there or run pinchmatch again with -o {out}")
 
 
 def _document(path: Path, schema: str, what: str, rewrite: str, otherwise: str) -> dict:
@@ -152,10 +154,7 @@ def _page_data(out: Path, document: dict) -> dict:
         if Path(name).is_absolute() or ".." in Path(name).parts:
             raise ConfigError(f"{out / 'matches.json'}: scene file {name!r} of {m['virtual']} is not inside {out}; "
                               "run pinchmatch again to rewrite it")
-        real, base = Path(os.path.realpath(glb)), Path(os.path.realpath(out))
-        if glb.is_symlink() or not real.is_relative_to(base):
-            raise ConfigError(f"{glb}: the scene of {m['virtual']} is a link (to {real}); the page embeds only files "
-                              f"inside {out}: copy the scene there or run pinchmatch again with -o {out}")
+        _own_file(glb, out, f"the scene of {m['virtual']}")
         if not glb.is_file():
             raise ConfigError(f"{glb}: scene missing for {m['virtual']}; run pinchmatch again with -o {out}")
         reference = m.get("reference") or {}

@@ -101,11 +101,12 @@ def _uniform_contacts(context, n, rng):
     return p1, faces
 
 
-def cheap_candidates(context, n: int, settings: PinchSettings, rng) -> tuple[np.ndarray, np.ndarray]:
+def cheap_candidates(context, n: int, settings: PinchSettings, rng, rejected: dict | None = None):
     """Candidates from ``n`` contacts drawn area-uniformly: (m, 2, 3) points and (m, 2) triangles of
-    those that keep the cheap rules (with triangle normals), as the sampler's first round draws them."""
+    those that keep the cheap rules (with triangle normals), as the sampler's first round draws them;
+    ``rejected`` counts the others per rule."""
     p1, f1 = _uniform_contacts(context, n, rng)
-    return _draw(context, p1, f1, settings, rng, dict.fromkeys(RULES, 0))
+    return _draw(context, p1, f1, settings, rng, dict.fromkeys(RULES, 0) if rejected is None else rejected)
 
 
 def _local_contacts(context, seeds, n, radius, rng):
@@ -167,8 +168,7 @@ def sample_pinches(
     rejected = dict.fromkeys(RULES, 0)
     n_first = max(OVERSAMPLE * count, 2000)
     budget = MAX_DRAW_FACTOR * max(count, 50)
-    p1, f1 = _uniform_contacts(context, n_first, rng)
-    points, faces = _draw(context, p1, f1, settings, rng, rejected)
+    points, faces = cheap_candidates(context, n_first, settings, rng, rejected)
     drawn = n_first
     if len(points) == 0:
         raise NoFeasiblePinchError(_no_pinch_message(source, drawn, rejected, settings, context.support is not None))

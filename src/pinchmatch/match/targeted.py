@@ -68,16 +68,19 @@ def pinch_keys(points: np.ndarray, normals: np.ndarray, props) -> np.ndarray:
     psi = np.degrees(np.arccos(np.clip(np.abs(np.einsum("nkd,nd->nk", normals, u)), 0.0, 1.0)))
     offset = props.com_mm - mid
     lever = np.linalg.norm(offset - np.einsum("nd,nd->n", offset, u)[:, None] * u, axis=1)
-    return np.column_stack([width_jnd(width), com_distance / COM_JND_MM, tilt / ANGLE_JND_FLOOR_DEG,
-                            np.sort(psi, axis=1) / ANGLE_JND_FLOOR_DEG, lever / MASS_JND_FLOOR_MM])
+    return _keys(width, com_distance, tilt, psi, lever)
 
 
 def feature_keys(c: Candidates) -> np.ndarray:
     """(n, 6) :func:`pinch_keys` of every candidate pose, from its features."""
     f = c.features
-    return np.column_stack([width_jnd(f.width_mm), f.com_distance_mm / COM_JND_MM, f.tilt_deg / ANGLE_JND_FLOOR_DEG,
-                            np.sort(f.normal_angle_deg, axis=1) / ANGLE_JND_FLOOR_DEG,
-                            f.mass_perp_mm / MASS_JND_FLOOR_MM])
+    return _keys(f.width_mm, f.com_distance_mm, f.tilt_deg, f.normal_angle_deg, f.mass_perp_mm)
+
+
+def _keys(width_mm, com_distance_mm, tilt_deg, normal_angle_deg, lever_mm) -> np.ndarray:
+    """The key's columns, each over its just-noticeable difference (normal angles smaller first)."""
+    return np.column_stack([width_jnd(width_mm), com_distance_mm / COM_JND_MM, tilt_deg / ANGLE_JND_FLOOR_DEG,
+                            np.sort(normal_angle_deg, axis=1) / ANGLE_JND_FLOOR_DEG, lever_mm / MASS_JND_FLOOR_MM])
 
 
 def feature_pool(c: Candidates, settings: PinchSettings) -> tuple[np.ndarray, np.ndarray, cKDTree | None]:
@@ -135,6 +138,7 @@ def targeted_poses(search, pinch_settings: PinchSettings) -> tuple[list, Candida
     for t, T in enumerate(tangibles):
         found = nearest_feasible(T, v_keys, pinch_settings) if t in reachable else None
         grown.append(T if found is None else extend(T, found))
-    t_keys = np.concatenate([feature_keys(tangibles[c.tangible])[[c.t_pose]] for c in picks])
+    keys = {t: feature_keys(tangibles[t]) for t in {c.tangible for c in picks}}
+    t_keys = np.stack([keys[c.tangible][c.t_pose] for c in picks])
     found = nearest_feasible(virtual, np.unique(t_keys, axis=0), pinch_settings)
     return grown, virtual if found is None else extend(virtual, found)

@@ -70,11 +70,11 @@ def gltf_document(path: Path, file_type: str) -> dict:
     return document
 
 
-def external_files(path: Path, document: dict) -> list[tuple[str, Path]]:
-    """(uri, file) of every external buffer and image the document names, URIs percent-decoded as the
-    specification says and taken beside the file (a GLB's external buffers the same as a .gltf's)."""
+def external_files(path: Path, document: dict, kinds=("buffers", "images")) -> list[tuple[str, Path]]:
+    """(uri, file) of every external buffer and image (``kinds``) the document names, URIs percent-decoded as
+    the specification says and taken beside the file (a GLB's external buffers the same as a .gltf's)."""
     out = []
-    for kind in ("buffers", "images"):
+    for kind in kinds:
         entries = document.get(kind, [])
         for entry in entries if isinstance(entries, list) else []:
             uri = entry.get("uri") if isinstance(entry, dict) else None
@@ -149,7 +149,7 @@ def check_buffers(path: Path, document: dict) -> None:
         if not file.resolve().is_relative_to(folder):
             raise MeshError(f"{path}: its file {uri!r} lies outside the file's folder ({folder}); a glTF names its "
                             "files beside it: copy the file there, or export a .glb that holds it")
-    for uri, file in external_files(path, {"buffers": document.get("buffers", [])}):
+    for uri, file in external_files(path, document, kinds=("buffers",)):
         if not file.is_file():
             raise MeshError(f"{path}: its buffer file {uri!r} is missing (looked for {file}); copy it next to "
                             "the file, or export a .glb, which holds its buffers")
@@ -189,7 +189,7 @@ def check_features(path: Path, document: dict) -> None:
             refuse(f"a skinned mesh on node {node.get('name', k)!r}")
         if isinstance(node, dict) and node.get("weights"):
             refuse(f"morph weights of its own on node {node.get('name', k)!r} (a mesh's default weights are applied)")
-    for kind, key in (("accessors", "sparse"), ("meshes", "weights")):
+    for kind in ("accessors", "meshes"):  # what gltf_apply reads
         entries = document.get(kind, [])
         if not isinstance(entries, list) or not all(isinstance(e, dict) for e in entries):
             raise MeshError(f"{path}: its {kind} are not a list of objects; the file is corrupt, re-export it")
