@@ -117,7 +117,7 @@ EQUIVALENT: dict[tuple[str, str, str], str] = {
         "every caller passes (k, 3) vectors, whose last axis is axis 1",
     ("grasp/features.py", "u = seg / np.maximum(width, 1e-300)[:, None]", "1e-300 -> 2e-300"):
         "the floor only keeps a zero-width pinch from dividing by zero: any tiny floor gives the same zero vector",
-    ("match/cost.py", "s[..., 7:9] = np.maximum(MASS_JND_FRACTION * np.hypot(t[..., 7], t[..., 8]), "
+    ("match/cost.py", "s[..., 7:9] = np.maximum(fraction * np.hypot(t[..., 7], t[..., 8]), "
      "MASS_JND_FLOOR_MM)[..., None]", "9 -> 10"): "the table has 9 columns: the slice 7:10 is the slice 7:9",
     ("match/register.py", "has_mass = (np.linalg.norm(perp(dm_v), axis=1) > 1e-9) & "
      "(np.linalg.norm(perp(dm_t), axis=1) > 1e-9)", "1e-09 -> 2e-09"): _GUARD,

@@ -71,6 +71,19 @@ def demo_out(demo) -> Path:
     return demo.out
 
 
+@pytest.fixture(scope="session")
+def tripod_demo_out(tmp_path_factory) -> Path:
+    """The folder ``pinchmatch demo --grasp tripod`` wrote: the study with tripods."""
+    from pinchmatch.cli.main import main
+
+    out = tmp_path_factory.mktemp("tripod_demo") / "out"
+    stderr = io.StringIO()
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(stderr):
+        code = main(["demo", "--grasp", "tripod", "-o", str(out)])
+    assert code == 0, stderr.getvalue()
+    return out
+
+
 def run_cli(capsys, *argv):
     """``pinchmatch ARGV`` in this process: (exit code, stdout, stderr)."""
     from pinchmatch.cli.main import main

@@ -46,6 +46,16 @@ def browser():
 @pytest.fixture
 def headset(browser, demo_out):
     """Open the demo's page in a fresh browser context with an emulated headset; returns open(query)."""
+    yield from _headset(browser, demo_out)
+
+
+@pytest.fixture
+def tripod_headset(browser, tripod_demo_out):
+    """As ``headset``, for the page of ``demo --grasp tripod``."""
+    yield from _headset(browser, tripod_demo_out)
+
+
+def _headset(browser, demo_out):
     context = browser.new_context(viewport={"width": 1200, "height": 800})
     pages = []
 
@@ -257,3 +267,29 @@ def test_the_dynamic_task_waits_for_the_lift_before_the_rating(headset):
     pg.evaluate("drive.shift('right', [0, 0.1, 0])")  # lifted 10 cm and put back
     pg.evaluate("drive.shift('right', [0, -0.1, 0])")
     wait_phase(pg, "rating", 3000)
+
+
+def test_a_tripod_is_validated_when_all_three_fingertips_are_on_their_targets(tripod_headset):
+    pg = tripod_headset()
+    store_calibration(pg)
+    pg.click("#enter-vr")
+    wait_phase(pg, "guiding")
+    targets = np.array(pg.evaluate("pinchmatchXR.targets()"))
+    assert targets.shape == (3, 3)
+    # the middle fingertip 6 mm off its target, the thumb and the index on theirs: not validated
+    side = np.cross(targets[2] - targets[1], [0.0, 1.0, 0.0])
+    aim = targets + AWAY
+    aim[2] += 0.006 * side / np.linalg.norm(side)
+    pg.evaluate("([h, a, b, c]) => drive.tripod(h, a, b, c)", ["right", *aim.tolist()])
+    move_on(pg)
+    pg.wait_for_timeout(1500)
+    s = state(pg)
+    assert s["validated"] is False and not s["check"]["ok"], s["check"]
+    assert 5.0 < s["check"]["middle_error_mm"] < 7.0 and s["check"]["thumb_error_mm"] < 2.0, s["check"]
+    # every fingertip on its target: validated after the hold
+    pg.evaluate("([d]) => drive.shift('right', d)", [AWAY.tolist()])
+    pg.evaluate("([h, a, b, c]) => drive.tripod(h, a, b, c)", ["right", *(targets + AWAY).tolist()])
+    move_on(pg)
+    pg.wait_for_function("pinchmatchXR.state().validated", timeout=4000)
+    v = state(pg)["validation"]
+    assert max(v["thumb_error_mm"], v["index_error_mm"], v["middle_error_mm"]) < 2.0, v

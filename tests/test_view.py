@@ -456,3 +456,38 @@ def test_view_does_not_rewrite_the_page_of_a_folder_a_run_is_writing(demo_out, t
     finally:
         os.close(fd)
     assert main(["view", str(out), "-q"]) == 0
+
+
+def test_a_tripod_demo_shows_three_cones_per_grasp_and_its_alternatives(browser, tripod_demo_out):
+    """``demo --grasp tripod``: every scene has a cone and a finger per fingertip, the page draws them in the
+    three views, and an alternative's three cones replace the best's."""
+    doc = json.loads((tripod_demo_out / "matches.json").read_text())
+    assert doc["grasp"] == "tripod"
+    context = browser.new_context(viewport={"width": 1400, "height": 900})
+    pg = context.new_page()
+    errors = []
+    pg.on("pageerror", lambda e: errors.append(str(e)))
+    pg.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+    pg.goto((tripod_demo_out / "index.html").as_uri())
+    pg.wait_for_selector("body[data-shown='0']", timeout=30_000)
+    info = pg.evaluate("""async () => {
+        const data = JSON.parse(document.getElementById('pinchmatch-data').textContent);
+        const bytes = Uint8Array.from(atob(data.matches[1].glb_base64), c => c.charCodeAt(0));
+        const gltf = await new PM3.GLTFLoader().parseAsync(bytes.buffer, '');
+        const cones = ['cone_p1', 'cone_p2', 'cone_p3'].map(n => gltf.scene.getObjectByName(n).userData['pinchmatch:contact_mm']);
+        return {names: gltf.scene.children.map(c => c.name), cones,
+                virtual: gltf.scene.getObjectByName('virtual').userData['pinchmatch:virtual_contacts_mm']};
+    }""")
+    assert sorted(info["names"]) == ["cone_p1", "cone_p2", "cone_p3", "finger_p1", "finger_p2", "finger_p3",
+                                     "tangible", "virtual"]
+    m = doc["matches"][1]
+    np.testing.assert_allclose(info["cones"], m["tangible_pose"]["contacts_mm"], atol=1e-3)
+    assert len(info["virtual"]) == 9
+    for selector in ("#canvas-main", "#canvas-tangible", "#canvas-virtual"):
+        assert drawn_fraction(canvas_pixels(pg, selector)) > 0.01, selector
+    pg.locator("#matches li.match").nth(1).click()
+    pg.wait_for_selector("#choices button[data-choice='0']")
+    pg.click("#choices button[data-choice='0']")
+    pg.wait_for_selector("body[data-choice='alternative 1']")
+    assert errors == [], errors
+    context.close()

@@ -129,6 +129,10 @@ def _whole(value) -> bool:
     return isinstance(value, numbers.Integral) and not isinstance(value, bool)
 
 
+#: the grasps a run can look for: a thumb-index pinch, or a tripod (thumb against index and middle finger)
+GRASPS = ("pinch", "tripod")
+
+
 @dataclass(frozen=True)
 class PinchSettings:
     """Options of pinch sampling and feasibility (lengths in mm, angles in degrees)."""
@@ -153,6 +157,9 @@ class PinchSettings:
     approach_tilt_deg: float = option(30.0, group="pinch", kind="float",
                                       help="how far the hand's approach may lean towards either finger from the "
                                            "plane perpendicular to the pinch line; 0 to 90")
+    grasp: str = option("pinch", group="sampling", kind="choice", choices=GRASPS,
+                        help="the grasp: pinch (thumb and index) or tripod (thumb against index and middle "
+                             "finger; docs/method.md)")
 
     def __post_init__(self):
         lo, hi = FINGERTIP_RADIUS_RANGE_MM
@@ -177,6 +184,7 @@ class PinchSettings:
              "between 5 and 150 (a fingertip alone to a whole finger)"),
             ("--approach-tilt-deg", self.approach_tilt_deg, 0.0 <= self.approach_tilt_deg < 90.0,
              "between 0 and 90 (0 included)"),
+            ("--grasp", 0.0, self.grasp in GRASPS, " or ".join(GRASPS)),
         ]
         for flag, value, ok, want in checks:
             if not (ok and math.isfinite(float(value))):
@@ -196,6 +204,7 @@ class PinchSettings:
             "finger_radius_mm": self.finger_radius_mm,
             "finger_length_mm": self.finger_length_mm,
             "approach_tilt_deg": self.approach_tilt_deg,
+            "grasp": self.grasp,
         }
 
 

@@ -58,6 +58,34 @@ window.drive = (function () {
     return seen(handedness);
   }
 
+  // the hand pose configs (relaxed, pinch, point) the emulator interpolates a hand's joints between
+  function poseConfigs(hand) {
+    for (const key of Object.getOwnPropertySymbols(hand)) {
+      if (hand[key] && hand[key].poses) return Object.values(hand[key].poses);
+    }
+    throw new Error("no hand pose configs on the emulated hand");
+  }
+
+  // a tripod: thumb tip on a and index tip on b (as pinch), then the middle fingertip moved onto c by
+  // moving that joint in every pose config (the joints' offsets are in the hand's frame, the right hand's
+  // mirrored in x)
+  async function tripod(handedness, a, b, c) {
+    await pinch(handedness, a, b);
+    const hand = device.hands[handedness];
+    for (let k = 0; k < 3; k++) {
+      const t = seen(handedness);
+      const q = new THREE.Quaternion(hand.quaternion.x, hand.quaternion.y, hand.quaternion.z, hand.quaternion.w);
+      const d = V3(c).sub(V3(t.middle)).applyQuaternion(q.invert());
+      if (handedness === "right") d.x = -d.x;
+      for (const pose of poseConfigs(hand)) {
+        const m = pose.jointTransforms["middle-finger-tip"].offsetMatrix;
+        m[12] += d.x; m[13] += d.y; m[14] += d.z;
+      }
+      await settle();
+    }
+    return seen(handedness);
+  }
+
   // turn a hand by deg about an axis through a point (metres)
   async function turnAbout(handedness, point, axis, deg) {
     const hand = device.hands[handedness];
@@ -79,5 +107,5 @@ window.drive = (function () {
     device.quaternion.set(q.x, q.y, q.z, q.w);
   }
 
-  return { seen, shift, touch, pinch, turnAbout, look, wait };
+  return { seen, shift, touch, pinch, tripod, turnAbout, look, wait };
 })();

@@ -48,6 +48,24 @@ test("the direction: 13 degrees passes, 15 degrees fails, with the fingertips ke
   }
 });
 
+test("a tripod: thumb on the first target, index and middle on the others in either order, each within 5 mm", () => {
+  const T = [[0.1, 1.0, -0.3], [0.16, 1.01, -0.31], [0.155, 0.99, -0.28]];
+  const on = XR.checkGrasp({ thumb: T[0], index: T[1], middle: T[2] }, T);
+  assert.equal(on.ok, true);
+  const crossed = XR.checkGrasp({ thumb: T[0], index: T[2], middle: T[1] }, T);
+  assert.equal(crossed.ok, true);
+  assert.equal(crossed.order, "index on the third target");
+  const up = [0, 0, 1];
+  assert.equal(XR.checkGrasp({ thumb: T[0], index: T[1], middle: off(T[2], up, 4.9) }, T).ok, true);
+  const six = XR.checkGrasp({ thumb: T[0], index: T[1], middle: off(T[2], up, 6) }, T);
+  assert.equal(six.ok, false);
+  assert.ok(Math.abs(six.middle_error_mm - 6) < 1e-9);
+  // the thumb where a finger belongs: no order puts every fingertip on a target
+  assert.equal(XR.checkGrasp({ thumb: T[1], index: T[0], middle: T[2] }, T).ok, false);
+  // two targets are a pinch, judged as checkPinch judges it
+  assert.deepEqual(XR.checkGrasp({ thumb: T[1], index: T[0] }, T.slice(0, 2)), XR.checkPinch(T[1], T[0], T[0], T[1]));
+});
+
 test("the hold: validated after 1 s on target without a break, not before", () => {
   const h = new XR.HoldTimer(1);
   assert.equal(h.update(true, 10.0), 0);

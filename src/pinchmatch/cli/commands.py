@@ -17,7 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..grasp.analysis import analyze_object, find_pinches, load_poses_file, score_pinches
+from ..grasp.analysis import (analyze_object, find_pinches, load_poses_file, load_tripods_file, score_pinches,
+                              score_tripods)
 from ..runner.cache import FeatureCache
 from ..errors import ConfigError
 from ..config import Config
@@ -79,14 +80,17 @@ def _cmd_poses(args) -> int:
     settings = pinch_settings_of(args)  # validate options before any work
     if args.output:
         check_writable(args.output, folder=False)
-    given = load_poses_file(args.poses) if args.poses else None
+    tripods = settings.grasp == "tripod"
+    given = None if not args.poses else load_tripods_file(args.poses) if tripods else load_poses_file(args.poses)
     ui = Presenter(quiet=args.quiet)
     t0 = time.perf_counter()
     with ui.step("loading") as stage:  # a large mesh shows which stage its load is in
         obj = _object(args, progress=lambda name: stage(name, done=False))
     t1 = time.perf_counter()
     with ui.step("poses and features"):
-        if given is not None:
+        if given is not None and tripods:
+            pinches, features = score_tripods(obj, given, settings=settings, source=args.poses)
+        elif given is not None:
             pinches, features = score_pinches(obj, *given, settings=settings, source=args.poses)
         else:
             pinches, features = find_pinches(obj, settings=settings)
@@ -98,7 +102,8 @@ def _cmd_poses(args) -> int:
     lines = [
         f"{obj.name}: {len(obj.loaded.mesh.faces)} faces, {doc['object']['extent_mm']} mm, "
         f"watertight={obj.loaded.watertight}, axis from {obj.props.axis_source}",
-        f"{n_ok} feasible of {len(pinches)} pinches; load {t1 - t0:.2f} s, poses and features {t2 - t1:.2f} s",
+        f"{n_ok} feasible of {len(pinches)} {'tripods' if tripods else 'pinches'}; load {t1 - t0:.2f} s, "
+        f"poses and features {t2 - t1:.2f} s",
     ]
     if given is not None:
         for i in np.flatnonzero(~pinches.feasible):
@@ -114,20 +119,29 @@ def _cmd_features(args) -> int:
     settings = pinch_settings_of(args)
     if args.output:
         check_writable(args.output, folder=False)
-    p1 = parse_vector(args.p1, option="--p1")
-    p2 = parse_vector(args.p2, option="--p2")
-    if np.allclose(p1, p2, rtol=0, atol=1e-9):
-        raise ConfigError(f"--p1 and --p2 are the same point ({args.p1}); a pinch needs two contacts")
-    with Presenter(quiet=args.quiet).step("loading and scoring the pinch") as stage:
+    given = [parse_vector(args.p1, option="--p1"), parse_vector(args.p2, option="--p2")]
+    if args.p3:
+        given.append(parse_vector(args.p3, option="--p3"))
+    for i in range(len(given)):
+        for j in range(i):
+            if np.allclose(given[i], given[j], rtol=0, atol=1e-9):
+                raise ConfigError(f"--p{j + 1} and --p{i + 1} are the same point; a grasp needs distinct contacts")
+    kind = "tripod" if args.p3 else "pinch"
+    with Presenter(quiet=args.quiet).step(f"loading and scoring the {kind}") as stage:
         obj = _object(args, progress=lambda name: stage(name, done=False))
-        pinches, features = score_pinches(obj, p1, p2, settings=settings)
+        if args.p3:
+            pinches, features = score_tripods(obj, np.array(given), settings=settings)
+        else:
+            pinches, features = score_pinches(obj, *given, settings=settings)
     doc = features_document(obj.loaded, obj.props, _settings_dict(args, settings, obj), pinches, features,
-                            given=(p1, p2), ray_engine=obj.context.ray_engine_name)
+                            given=given, ray_engine=obj.context.ray_engine_name)
     pose = doc["pose"]
     verdict = "feasible" if pose["feasible"] else f"NOT feasible: breaks {', '.join(pose['broken_rules'])}"
+    size = (f"aperture {pose['aperture_mm']} mm, spacing {pose['spacing_mm']} mm" if args.p3
+            else f"width {pose['width_mm']} mm")
     lines = [
-        f"{obj.name}: pinch {verdict}",
-        f"  width {pose['width_mm']} mm, com distance {pose['com_distance_mm']} mm, tilt {pose['tilt_deg']} deg",
+        f"{obj.name}: {kind} {verdict}",
+        f"  {size}, com distance {pose['com_distance_mm']} mm, tilt {pose['tilt_deg']} deg",
         "  approach " + (f"{pose['approach']} (fingers clear by {pose['approach_clearance_mm']} mm)"
                          if pose["approach_clearance_mm"] is not None else "none: no hand gets to both contacts"),
     ]
@@ -152,8 +166,8 @@ def _cmd_match(args) -> int:
     out = out_folder(args)
     tangible_specs = standing(object_specs(args.tangible, option="--tangible"), args, "tangible")
     virtual_specs = standing(virtual_level_specs(args), args, "virtual")
-    given_t = given_poses(args.tangible_poses, tangible_specs, "--tangible-poses")
-    given_v = given_poses(args.virtual_poses, virtual_specs, "--virtual-poses")
+    given_t = given_poses(args.tangible_poses, tangible_specs, "--tangible-poses", settings.grasp)
+    given_v = given_poses(args.virtual_poses, virtual_specs, "--virtual-poses", settings.grasp)
     check_match_flags(args)
     cache = None if args.no_cache else FeatureCache(args.cache)
     job = match_job(args, settings, match_settings, cache)

@@ -19,7 +19,7 @@ from ..config import MatchSettings, PinchSettings
 from ..options import field_default, flag_of, offered
 
 #: options whose value is a vector and may start with a minus sign
-VECTOR_OPTIONS = ("--p1", "--p2", "--com", "--axis")
+VECTOR_OPTIONS = ("--p1", "--p2", "--p3", "--com", "--axis")
 
 
 class _Parser(argparse.ArgumentParser):
@@ -356,11 +356,17 @@ def build_parser() -> argparse.ArgumentParser:
     poses = sub.add_parser("poses", help="feasible pinches of one mesh, with their haptic features")
     _add_object_options(poses)
     _add_sampling_options(poses)
-    poses.add_argument("--poses", metavar="FILE", help='check these pinches instead: JSON list of {"p1_mm": [...], "p2_mm": [...]}')
+    poses.add_argument("--poses", metavar="FILE", help='check these pinches instead: JSON list of {"p1_mm": [...], '
+                                                       '"p2_mm": [...]} (with --grasp tripod: of {"contacts_mm": '
+                                                       '[[...], [...], [...]]}, thumb, index, middle)')
     poses.add_argument("--format", choices=("json", "csv"), default="json", help="output format (default json)")
 
-    features = sub.add_parser("features", help="the features of one given pinch, and whether it is feasible")
+    features = sub.add_parser("features", help="the features of one given pinch (or tripod, with --p3), and whether "
+                                               "it is feasible")
     _add_object_options(features)
     features.add_argument("--p1", required=True, metavar="X,Y,Z", help="first contact, mm")
     features.add_argument("--p2", required=True, metavar="X,Y,Z", help="second contact, mm")
+    features.add_argument("--p3", metavar="X,Y,Z",
+                          help="a third contact, mm: the grasp is then a tripod, --p1 the thumb's contact, --p2 the "
+                               "index's and --p3 the middle finger's")
     return parser

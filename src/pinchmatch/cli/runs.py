@@ -14,7 +14,7 @@ from ..export.documents import equivalent_note, flipped_note, matches_legend, re
 from ..export.sink import MatchesSink
 from ..export.view import write_page
 from ..files import check_writable, read_input, write_atomic
-from ..grasp.analysis import load_poses_file
+from ..grasp.analysis import load_poses_file, load_tripods_file
 from ..grasp.pinches import PinchSettings
 from ..config import CAROUSEL_MARGIN_JND, GAIN_RANGE, MAX_REACH_MM, Config
 from ..match.cost import complete_weights, parse_weights
@@ -136,12 +136,15 @@ def standing(specs: list, args, role: str) -> list:
     return [spec.standing(args.support) if role == "tangible" or spec.node else spec for spec in specs]
 
 
-def given_poses(files, paths, option) -> list:
-    """Per object, the given poses or None; ``files`` must be one per object."""
+def given_poses(files, paths, option, grasp: str = "pinch") -> list:
+    """Per object, the given poses or None; ``files`` must be one per object. Pinches are (p1_mm, p2_mm);
+    tripods (``grasp``) a tuple of their (n, 3, 3) contacts."""
     if not files:
         return [None] * len(paths)
     if len(files) != len(paths):
         raise ConfigError(f"{option}: got {len(files)} files for {len(paths)} objects; give one per object, in order")
+    if grasp == "tripod":
+        return [(load_tripods_file(f),) for f in files]
     return [load_poses_file(f) for f in files]
 
 

@@ -19,11 +19,13 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..version import __version__
-from ..grasp.features import PinchFeatures
+from ..grasp.features import PinchFeatures, TripodFeatures
 from ..mesh.load import LoadedMesh
 from ..match.candidates import mass_ratio
 from ..match.search import contact_offset_mm, criterion_table, p_noticed
-from ..grasp.pinches import RULES, Pinches
+from ..grasp.pinches import RULES, Pinches  # noqa: F401 (RULES re-exported)
+from ..grasp.spread import other_order
+from ..grasp.tripod_rules import FINGERS, Tripods
 from ..mesh.properties import ObjectProperties
 
 SCHEMA_POSES = "pinchmatch.poses/1"
@@ -68,19 +70,12 @@ def object_section(loaded: LoadedMesh, props: ObjectProperties, *, ray_engine: s
 
 
 def pose_records(pinches: Pinches, features: PinchFeatures) -> list[dict]:
-    """One JSON record per pinch: contacts, normals and the seven features."""
+    """One JSON record per pinch: contacts, normals and the seven features (per tripod: :func:`tripod_records`)."""
+    if isinstance(pinches, Tripods):
+        return tripod_records(pinches, features)
     records = []
     for i in range(len(pinches)):
-        patches = [
-            {
-                "normal_angle_deg": json_number(features.normal_angle_deg[i, k], 3),
-                "curvature_axis_angle_deg": json_number(features.curvature_axis_angle_deg[i, k], 3),
-                "kappa_max_per_m": json_number(features.kappa_max_per_m[i, k], 3),
-                "kappa_min_per_m": json_number(features.kappa_min_per_m[i, k], 3),
-                "kappa_max_direction": json_vector(pinches.dir_max[i, k], 6),
-            }
-            for k in range(2)
-        ]
+        patches = _patch_records(pinches, features, i)
         records.append(
             {
                 "index": i,
@@ -102,13 +97,50 @@ def pose_records(pinches: Pinches, features: PinchFeatures) -> list[dict]:
     return records
 
 
+def _patch_records(grasps: Pinches, features: PinchFeatures, i: int) -> list[dict]:
+    """Grasp i's contact patches, one record per contact."""
+    return [
+        {
+            "normal_angle_deg": json_number(features.normal_angle_deg[i, k], 3),
+            "curvature_axis_angle_deg": json_number(features.curvature_axis_angle_deg[i, k], 3),
+            "kappa_max_per_m": json_number(features.kappa_max_per_m[i, k], 3),
+            "kappa_min_per_m": json_number(features.kappa_min_per_m[i, k], 3),
+            "kappa_max_direction": json_vector(grasps.dir_max[i, k], 6),
+        }
+        for k in range(grasps.points.shape[1])
+    ]
+
+
+def tripod_records(tripods: Tripods, features: TripodFeatures) -> list[dict]:
+    """One JSON record per tripod: ``contacts_mm`` and ``normals`` (thumb, index, middle), the grasp's
+    features and a patch per contact (docs/output-format.md)."""
+    return [{
+        "index": i,
+        "fingers": list(FINGERS),
+        "contacts_mm": [json_vector(p) for p in tripods.points[i]],
+        "normals": [json_vector(n, 6) for n in tripods.normals[i]],
+        "face_index": [int(f) for f in tripods.face_index[i]],
+        "aperture_mm": json_number(features.width_mm[i]),
+        "spacing_mm": json_number(features.spacing_mm[i]),
+        "com_distance_mm": json_number(features.com_distance_mm[i]),
+        "tilt_deg": json_number(features.tilt_deg[i], 3),
+        "lever_arm_mm": json_number(features.lever_arm_mm[i]),
+        "approach": json_vector(tripods.approach[i], 6),
+        "approach_clearance_mm": json_number(tripods.approach_clearance_mm[i], 3),
+        "patches": _patch_records(tripods, features, i),
+        "feasible": bool(tripods.feasible[i]),
+        "broken_rules": tripods.broken_rules(i),
+    } for i in range(len(tripods))]
+
+
 def poses_document(loaded, props, settings: dict, pinches, features, *, ray_engine: str) -> dict:
     return {
         "schema": SCHEMA_POSES,
         "version": __version__,
         "settings": settings,
         "object": object_section(loaded, props, ray_engine=ray_engine),
-        "rejected_candidates": {rule: int(pinches.rejected.get(rule, 0)) for rule in RULES},
+        "grasp": "tripod" if isinstance(pinches, Tripods) else "pinch",
+        "rejected_candidates": {rule: int(pinches.rejected.get(rule, 0)) for rule in pinches.rules},
         "pose_count": len(pinches),
         "poses": pose_records(pinches, features),
     }
@@ -116,8 +148,8 @@ def poses_document(loaded, props, settings: dict, pinches, features, *, ray_engi
 
 def features_document(loaded, props, settings: dict, pinches, features, *, given, ray_engine: str) -> dict:
     record = pose_records(pinches, features)[0]
-    record["given_p1_mm"] = json_vector(given[0])
-    record["given_p2_mm"] = json_vector(given[1])
+    for k, point in enumerate(given, start=1):
+        record[f"given_p{k}_mm"] = json_vector(point)
     record["snap_distance_mm"] = json_vector(pinches.snap_distance_mm[0])
     return {
         "schema": SCHEMA_FEATURES,
@@ -142,15 +174,31 @@ CSV_COLUMNS = (
 )
 
 
+TRIPOD_CSV_COLUMNS = (
+    ["index", "feasible"]
+    + [f"{f}_{c}_mm" for f in FINGERS for c in "xyz"]
+    + [f"{f}_n{c}" for f in FINGERS for c in "xyz"]
+    + ["aperture_mm", "spacing_mm", "com_distance_mm", "tilt_deg", "lever_arm_mm"]
+    + [f"approach_{c}" for c in "xyz"] + ["approach_clearance_mm"]
+    + [f"{f}_{name}" for f in FINGERS
+       for name in ("normal_angle_deg", "curvature_axis_angle_deg", "kappa_max_per_m", "kappa_min_per_m")]
+)
+
+
 def poses_csv(document: dict) -> str:
     """The poses of a poses document as CSV, one row per pose (units in the header)."""
     out = io.StringIO()
     writer = csv.writer(out, lineterminator="\n")
-    writer.writerow(CSV_COLUMNS)
+    tripods = document.get("grasp") == "tripod"
+    writer.writerow(TRIPOD_CSV_COLUMNS if tripods else CSV_COLUMNS)
     for pose in document["poses"]:
         row = [pose["index"], int(pose["feasible"])]
-        row += pose["p1_mm"] + pose["p2_mm"] + pose["n1"] + pose["n2"]
-        row += [pose["width_mm"], pose["com_distance_mm"], pose["tilt_deg"]]
+        if tripods:
+            row += sum(pose["contacts_mm"], []) + sum(pose["normals"], [])
+            row += [pose[k] for k in ("aperture_mm", "spacing_mm", "com_distance_mm", "tilt_deg", "lever_arm_mm")]
+        else:
+            row += pose["p1_mm"] + pose["p2_mm"] + pose["n1"] + pose["n2"]
+            row += [pose["width_mm"], pose["com_distance_mm"], pose["tilt_deg"]]
         row += pose["approach"] + [pose["approach_clearance_mm"]]
         for patch in pose["patches"]:
             row += [patch["normal_angle_deg"], patch["curvature_axis_angle_deg"],
@@ -183,7 +231,11 @@ def _candidate_record(candidates, i: int, *, swapped: bool = False) -> dict:
     one = candidates.subset([i])
     record = pose_records(one.pinches, one.features)[0]
     record.update(_index(candidates, i))
-    if swapped:
+    if swapped and "contacts_mm" in record:  # a tripod: index and middle change places
+        other = other_order(3)
+        for key in ("contacts_mm", "normals", "face_index", "patches"):
+            record[key] = [record[key][k] for k in other]
+    elif swapped:
         record["p1_mm"], record["p2_mm"] = record["p2_mm"], record["p1_mm"]
         record["n1"], record["n2"] = record["n2"], record["n1"]
         record["face_index"] = record["face_index"][::-1]
@@ -241,7 +293,12 @@ def up_turn_deg(transform: np.ndarray, up_virtual: np.ndarray, up_tangible: np.n
 def _contacts(candidates, i: int, *, swapped: bool = False) -> dict:
     p, n = candidates.pinches.points[i], candidates.pinches.normals[i]
     if swapped:
-        p, n = p[::-1], n[::-1]
+        p, n = p[other_order(len(p))], n[other_order(len(p))]
+    if len(p) > 2:
+        return {**_index(candidates, i), "contacts_mm": [json_vector(c) for c in p],
+                "normals": [json_vector(c, 6) for c in n], "approach": json_vector(candidates.pinches.approach[i], 6),
+                "aperture_mm": json_number(float(np.linalg.norm(p[1:].mean(axis=0) - p[0]))),
+                "finger_order_swapped": bool(swapped)}
     return {**_index(candidates, i), "p1_mm": json_vector(p[0]), "p2_mm": json_vector(p[1]),
             "n1": json_vector(n[0], 6), "n2": json_vector(n[1], 6),
             "approach": json_vector(candidates.pinches.approach[i], 6), "finger_order_swapped": bool(swapped)}
@@ -313,9 +370,10 @@ def match_entry(scene, vm) -> dict:
 
 
 def matches_header(settings: dict, tangibles: list[dict]) -> dict:
-    """What a matches document says before any virtual object: schema, settings, frames, tangibles."""
-    return {"schema": SCHEMA_MATCHES, "version": __version__, "settings": settings, "frames": FRAME_NOTE,
-            "tangibles": tangibles}
+    """What a matches document says before any virtual object: schema, settings, the grasp, frames, tangibles."""
+    return {"schema": SCHEMA_MATCHES, "version": __version__, "settings": settings,
+            "grasp": settings.get("grasp", "pinch"),
+            "frames": FRAME_NOTE, "tangibles": tangibles}
 
 
 def cost_matrix_section(virtual_names: list[str], tangible_names: list[str], values) -> dict:

@@ -169,11 +169,14 @@ def _silhouette(ax, mesh) -> None:
         ax.fill(loop[:, 0], loop[:, 2], facecolor="#dfe3e8", edgecolor="#4b5563", linewidth=1.0)
 
 
-def _pose(ax, p1, p2, color, *, dz=0.0, flipped=False, label_dx=0.0) -> None:
-    x = [p1[0], p2[0]]
-    z = [p1[2] + dz, p2[2] + dz]
+def _pose(ax, contacts, color, *, dz=0.0, flipped=False, label_dx=0.0) -> None:
+    """A grasp in the side view: a line from the first contact to the middle of the others (a pinch's two
+    contacts; a tripod's thumb and its fingers' middle), a dot on every contact."""
+    p = np.asarray(contacts, dtype=np.float64)
+    line = np.array([p[0], p[1:].mean(axis=0)])
+    x, z = line[:, 0], line[:, 2] + dz
     ax.plot(x, z, color=color, linewidth=2.2, solid_capstyle="round")
-    ax.plot(x, z, "o", color=color, markersize=4.5)
+    ax.plot(p[:, 0], p[:, 2] + dz, "o", color=color, markersize=4.5)
     if flipped:
         ax.text(max(x) + 3 + label_dx, z[1], "F", color=color, fontsize=10, fontweight="bold", va="center")
 
@@ -194,20 +197,20 @@ def study_figure(tangible_mesh, tangible_points_mm: np.ndarray, virtual_meshes: 
         ax = axes[row, 0]
         _silhouette(ax, tangible_mesh)
         for k, part in enumerate(parts):
-            _pose(ax, *tangible_points_mm[k], PART_COLORS.get(part, "black"))
+            _pose(ax, tangible_points_mm[k], PART_COLORS.get(part, "black"))
         ax.set_ylabel(f"{label}\nheight (mm)")
         ax.set_title("tangible\n" + "/".join(parts) if row == 0 else "", fontsize=9)
         for j, mesh in enumerate(virtual_meshes, start=1):
             ax = axes[row, j]
             _silhouette(ax, mesh)
-            chosen = [r for r in rows if r["virtual"] == j and r[key]["p1_mm"] is not None]
+            chosen = [r for r in rows if r["virtual"] == j and r[key]["contacts_mm"] is not None]
             heights = np.array([r[key]["height_mm"] for r in chosen])
             for k, r in enumerate(chosen):
                 pose = r[key]
                 # a pose chosen for several tangible parts is drawn once per part, 2 mm apart, F labels side by side
                 same = np.flatnonzero(np.abs(heights - heights[k]) < 1.0)
                 rank = int(np.searchsorted(same, k))
-                _pose(ax, pose["p1_mm"], pose["p2_mm"], PART_COLORS.get(r["tangible_part"], "black"),
+                _pose(ax, pose["contacts_mm"], PART_COLORS.get(r["tangible_part"], "black"),
                       dz=(rank - (len(same) - 1) / 2) * 2.5, flipped=pose["flipped"], label_dx=rank * 7.0)
             ax.set_title(f"VO{j}\n{titles.get(j, '')}" if row == 0 else "", fontsize=9)
     for ax in axes.ravel():

@@ -1,4 +1,4 @@
-"""glTF scenes of matches: the tangible, the registered virtual object, two green cones and the two fingers.
+"""glTF scenes of matches: the tangible, the registered virtual object, a green cone and a finger per fingertip.
 
 glTF conventions: metres and +Y up. pinchmatch works in mm in each file's
 frame, so every scene applies C = Q / 1000, where Q is the smallest rotation
@@ -9,8 +9,9 @@ Q·R·Qᵀ with translation Q·t/1000, applied to its own vertices Q·v/1000. So
 the node matrix is what an engine reads, and the mm transform stays in the
 extras.
 
-Node names: ``tangible``, ``virtual``, ``cone_p1``, ``cone_p2``, and
-``finger_p1``, ``finger_p2``: semi-transparent capsules of the hand model
+Node names: ``tangible``, ``virtual``, ``cone_p1``, ``cone_p2`` (a tripod's: ``cone_p1`` the thumb's,
+``cone_p2`` the index's, ``cone_p3`` the middle finger's), and
+``finger_p1``, ``finger_p2`` (``finger_p3``): semi-transparent capsules of the hand model
 (:mod:`hand`) along the tangible pose's approach, so a user sees where the
 hand comes from. Match data sits in node and scene extras as flat keys
 prefixed ``pinchmatch:``; the approach of both poses is among them.
@@ -25,6 +26,7 @@ import trimesh
 from trimesh.visual.material import PBRMaterial
 
 from ..grasp.hand import Hand
+from ..grasp.spread import other_order
 from ..match.search import contact_offset_mm
 from ..mesh.frames import rotations_between
 from ..files import write_atomic
@@ -87,9 +89,17 @@ def _flat(prefix_values: dict) -> dict:
 
 
 def virtual_contacts_mm(virtual, choice) -> np.ndarray:
-    """(2, 3) the virtual pose's contacts in the virtual object's frame, ordered to meet the tangible's p1, p2."""
+    """(F, 3) the virtual pose's contacts in the virtual object's frame, ordered to meet the tangible's
+    (p1, p2; a tripod's thumb, index, middle)."""
     p = virtual.pinches.points[choice.v_pose]
-    return p[::-1] if choice.swapped else p
+    return p[other_order(len(p))] if choice.swapped else p
+
+
+def closing_directions(points: np.ndarray) -> np.ndarray:
+    """(F, 3) unit directions the fingertips close along onto contacts (F, 3): the first (p1, the thumb)
+    towards the others' middle, each other towards the first."""
+    toward = np.concatenate([points[1:].mean(axis=0, keepdims=True) - points[:1], points[:1] - points[1:]])
+    return toward / np.linalg.norm(toward, axis=1, keepdims=True)
 
 
 def virtual_approach(virtual, choice) -> np.ndarray:
@@ -98,7 +108,7 @@ def virtual_approach(virtual, choice) -> np.ndarray:
 
 
 def match_scene_glb(tangible, virtual, choice, *, extras: dict | None = None, hand: Hand = Hand()) -> bytes:
-    """One match as GLB bytes: tangible, registered virtual object (semi-transparent), two cones."""
+    """One match as GLB bytes: tangible, registered virtual object (semi-transparent), a cone per fingertip."""
     Q = gltf_rotation(tangible.obj.loaded.up)
     to_gltf = lambda points_mm: (np.asarray(points_mm) @ Q.T) / 1000.0  # noqa: E731
 
@@ -125,8 +135,7 @@ def match_scene_glb(tangible, virtual, choice, *, extras: dict | None = None, ha
                        geom_name="virtual", transform=node, metadata=_flat(info | (extras or {})))
 
     p = tangible.pinches.points[choice.t_pose]
-    u = (p[1] - p[0]) / np.linalg.norm(p[1] - p[0])
-    for k, (contact, toward) in enumerate(((p[0], u), (p[1], -u)), start=1):
+    for k, (contact, toward) in enumerate(zip(p, closing_directions(p)), start=1):
         cone = fingertip_cone(contact, toward)
         scene.add_geometry(_styled(cone, to_gltf(cone.vertices), GREEN), node_name=f"cone_p{k}",
                            geom_name=f"cone_p{k}",
@@ -134,7 +143,7 @@ def match_scene_glb(tangible, virtual, choice, *, extras: dict | None = None, ha
     approach = tangible.pinches.approach[choice.t_pose]
     if np.isfinite(approach).all():
         normals = tangible.pinches.normals[choice.t_pose]
-        for k in range(2):
+        for k in range(len(p)):
             start = p[k] + hand.fingertip_radius_mm * normals[k]
             capsule = finger_capsule(start, approach, hand.finger_length_mm, hand.finger_radius_mm)
             scene.add_geometry(_styled(capsule, to_gltf(capsule.vertices), FINGER_COLOR, blend=True),

@@ -131,7 +131,7 @@ def _page_data(out: Path, document: dict) -> dict:
             _checked_values(f"{out / 'matches.json'}: matches[{k}].{field}", m.get(field), field)
         for side in ("tangible_pose", "virtual_pose"):
             pose = m.get(side) or {}
-            for field in ("width_mm", "p1_mm", "p2_mm"):
+            for field in _pose_fields(pose):
                 _checked_values(f"{out / 'matches.json'}: matches[{k}].{side}.{field}", pose.get(field), field)
         reference = m.get("reference") or {}
         _checked_values(f"{out / 'matches.json'}: matches[{k}].reference.cost", reference.get("cost"), "cost")
@@ -140,7 +140,7 @@ def _page_data(out: Path, document: dict) -> dict:
             for field in _ALTERNATIVE_FIELDS:
                 _checked_values(f"{where}.{field}", a.get(field) if isinstance(a, dict) else a, field)
             pose = a.get("tangible_pose") if isinstance(a, dict) else None
-            for field in ("p1_mm", "p2_mm"):
+            for field in _pose_fields(pose or {})[1:]:
                 _checked_values(f"{where}.tangible_pose.{field}", (pose or {}).get(field), field)
     stems = scene_stems([m["virtual"] for m in document["matches"]])
     poses = {t["name"]: t.get("pose") for t in document["tangibles"]}
@@ -161,7 +161,7 @@ def _page_data(out: Path, document: dict) -> dict:
         alternatives = [{
             "tangible": a["tangible"], "cost": a["cost"], "flipped": a["flipped"], "up_turn_deg": a.get("up_turn_deg"),
             "transform": [x for row in a["transform_virtual_to_tangible"] for x in row],
-            "p1_mm": a["tangible_pose"]["p1_mm"], "p2_mm": a["tangible_pose"]["p2_mm"],
+            "contacts_mm": _contacts_of(a["tangible_pose"]),
         } for a in m.get("alternatives", [])]
         matches.append({
             "virtual": m["virtual"],
@@ -175,8 +175,8 @@ def _page_data(out: Path, document: dict) -> dict:
             "contact_offset_mm": m["contact_offset_mm"],
             "position_mm": m["position_mm"],
             "quaternion_xyzw": m["quaternion_xyzw"],
-            "tangible_width_mm": m["tangible_pose"]["width_mm"],
-            "virtual_width_mm": m["virtual_pose"]["width_mm"],
+            "tangible_width_mm": _width_of(m["tangible_pose"]),
+            "virtual_width_mm": _width_of(m["virtual_pose"]),
             "reference_cost": reference.get("cost"),
             "reference_reason": reference.get("reason"),
             "up_turn_deg": m.get("up_turn_deg"),
@@ -200,13 +200,27 @@ def _page_data(out: Path, document: dict) -> dict:
             "study": _study_plan(out, {m["virtual"] for m in matches})}
 
 
+def _pose_fields(pose: dict) -> tuple:
+    """The fields of a pose record the page reads: a pinch's width and contacts, a tripod's aperture and contacts."""
+    return ("aperture_mm", "contacts_mm") if "contacts_mm" in pose else ("width_mm", "p1_mm", "p2_mm")
+
+
+def _contacts_of(pose: dict) -> list:
+    return pose["contacts_mm"] if "contacts_mm" in pose else [pose["p1_mm"], pose["p2_mm"]]
+
+
+def _width_of(pose: dict):
+    return pose["aperture_mm"] if "contacts_mm" in pose else pose["width_mm"]
+
+
 def _scene_fields(m: dict, poses: dict) -> dict:
     """Under ``--placement fixed``, what the headset's scene mode needs of a match: its redirection,
     the virtual pinch in the level's frame (mm) and where its prop stands in the level."""
     if m.get("redirection") is None:
         return {}
-    return {"redirection": m["redirection"], "virtual_p1_mm": m["virtual_pose"]["p1_mm"],
-            "virtual_p2_mm": m["virtual_pose"]["p2_mm"], "prop_pose": poses.get(m["tangible"])}
+    contacts = _contacts_of(m["virtual_pose"])
+    return {"redirection": m["redirection"], "virtual_contacts_mm": contacts, "virtual_p1_mm": contacts[0],
+            "virtual_p2_mm": contacts[1], "prop_pose": poses.get(m["tangible"])}
 
 
 def _study_plan(out: Path, matched: set) -> dict | None:

@@ -8,6 +8,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 from dataclasses import dataclass
@@ -19,12 +20,14 @@ from ..config import finite_number
 from ..errors import ConfigError, ContactError, NoFeasiblePinchError
 from ..mesh.support import support_plane
 from ..files import read_input
-from .features import PinchFeatures, pinch_features
+from .features import PinchFeatures, TripodFeatures, pinch_features, tripod_features
 from ..mesh.load import LoadedMesh, load_mesh
 from ..mesh.described import SHAPES_FOLDER
 from ..mesh.manifest import ObjectSpec
 from .pinches import PinchSettings, Pinches, check_pinches
 from .sampling import sample_pinches
+from .tripod_rules import FINGERS, Tripods, check_tripods
+from .tripods import sample_tripods
 from ..mesh.properties import ObjectProperties, object_properties
 from ..mesh.surface import SurfaceContext
 
@@ -126,6 +129,9 @@ def find_pinches(obj: ObjectAnalysis, *, settings: PinchSettings = PinchSettings
     node = obj.spec.node if obj.spec is not None else None
     source = source_of(obj)
     too_wide(obj.loaded.mesh, settings, source, node)
+    if settings.grasp == "tripod":
+        tripods = sample_tripods(obj.context, settings=settings, source=source)
+        return tripods, tripod_features(tripods, obj.props)
     pinches = sample_pinches(obj.context, settings=settings, source=source)
     return pinches, pinch_features(pinches, obj.props)
 
@@ -190,6 +196,74 @@ def score_pinches(
     return pinches, pinch_features(pinches, obj.props)
 
 
+def score_tripods(obj: ObjectAnalysis, points_mm: np.ndarray, *, settings: PinchSettings = PinchSettings(),
+                  source: str | None = None) -> tuple[Tripods, TripodFeatures]:
+    """Snap user-given tripods (n, 3, 3): thumb, index, middle) to the surface, check them and compute their
+    features, as :func:`score_pinches` does for pinches.
+
+    Raises
+    ------
+    ContactError
+        A contact is farther than ``settings.snap_tolerance_mm`` from the surface.
+    """
+    points = np.asarray(points_mm, dtype=np.float64).reshape(-1, 3, 3)
+    n = len(points)
+    closest, distance, face = obj.context.closest_points(points.reshape(-1, 3))
+    distance = distance.reshape(n, 3)
+    far = np.argwhere(distance > settings.snap_tolerance_mm)
+    if len(far):
+        i, k = far[0]
+        label = FINGERS[k] if n == 1 else f"pose {i} {FINGERS[k]}"
+        raise ContactError(
+            f"{source or obj.loaded.path}: the {label} contact ({', '.join(f'{c:g}' for c in points[i, k])}) mm is "
+            f"{distance[i, k]:.2f} mm from the surface (tolerance {settings.snap_tolerance_mm:g} mm); "
+            "give a point on the surface, in the file's frame and in mm (check --units)")
+    tripods = check_tripods(obj.context, closest.reshape(n, 3, 3), face.reshape(n, 3), settings=settings)
+    tripods = dataclasses.replace(tripods, snap_distance_mm=distance)
+    return tripods, tripod_features(tripods, obj.props)
+
+
+def _poses_list(path: str):
+    """The JSON of a poses file, its ``poses`` list where it is a poses document; ConfigError where it cannot be
+    read or is no JSON."""
+    raw = read_input(path, "JSON poses file", limit_bytes=MAX_POSES_FILE_BYTES,
+                     too_big=f"more than a poses file of {MAX_GIVEN_POSES:,} poses needs; split it or give fewer poses")
+    try:
+        data = json.loads(raw.decode("utf-8"))
+    except (ValueError, RecursionError) as exc:  # not JSON, not UTF-8, or an integer of thousands of digits
+        raise ConfigError(f"{path}: not valid JSON ({type(exc).__name__}: {str(exc)[:80]}); fix the file") from None
+    if isinstance(data, dict) and isinstance(data.get("poses"), list):
+        data = data["poses"]
+    return data
+
+
+def load_tripods_file(path: str | os.PathLike) -> np.ndarray:
+    """Read user-given tripods: a JSON list of ``{"contacts_mm": [[x, y, z], [x, y, z], [x, y, z]]}`` (thumb,
+    index, middle), or a ``pinchmatch poses --grasp tripod`` document; (n, 3, 3) float64.
+
+    Raises
+    ------
+    ConfigError
+        Missing file, invalid JSON, or an entry without three finite 3-vectors.
+    """
+    path = os.fspath(path)
+    data = _poses_list(path)
+    if not isinstance(data, list) or not data or len(data) > MAX_GIVEN_POSES:
+        raise ConfigError(f'{path}: expected a JSON list of 1 to {MAX_GIVEN_POSES:,} tripods, each '
+                          '{"contacts_mm": [[x, y, z], [x, y, z], [x, y, z]]} (thumb, index, middle)')
+    out = []
+    for i, entry in enumerate(data):
+        try:
+            contacts = np.stack([_three_numbers(c) for c in entry["contacts_mm"]])
+        except (KeyError, TypeError, ValueError):
+            contacts = np.zeros(0)
+        if contacts.shape != (3, 3) or not (np.abs(contacts) < MAX_COORDINATE_MM).all():
+            raise ConfigError(f'{path}: tripod {i} needs "contacts_mm", three points of three finite numbers each '
+                              f"(mm, below {MAX_COORDINATE_MM:g} in size; thumb, index, middle); fix that entry")
+        out.append(contacts)
+    return np.array(out)
+
+
 def _three_numbers(value) -> np.ndarray:
     """A JSON list of three numbers as an array; text ("20") and booleans are not numbers."""
     if not isinstance(value, list) or not all(finite_number(v) for v in value):
@@ -212,14 +286,7 @@ def load_poses_file(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
         Missing file, invalid JSON, or an entry without two finite 3-vectors.
     """
     path = os.fspath(path)
-    raw = read_input(path, "JSON poses file", limit_bytes=MAX_POSES_FILE_BYTES,
-                     too_big=f"more than a poses file of {MAX_GIVEN_POSES:,} poses needs; split it or give fewer poses")
-    try:
-        data = json.loads(raw.decode("utf-8"))
-    except (ValueError, RecursionError) as exc:  # not JSON, not UTF-8, or an integer of thousands of digits
-        raise ConfigError(f"{path}: not valid JSON ({type(exc).__name__}: {str(exc)[:80]}); fix the file") from None
-    if isinstance(data, dict) and isinstance(data.get("poses"), list):
-        data = data["poses"]
+    data = _poses_list(path)
     if not isinstance(data, list) or not data:
         raise ConfigError(
             f'{path}: expected a non-empty JSON list of {{"p1_mm": [x, y, z], "p2_mm": [x, y, z]}}'

@@ -32,6 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .pinches import Pinches
+from .tripod_rules import Tripods, contact_plane_normals
 from ..mesh.properties import ObjectProperties
 
 #: below this anisotropy (1/m) the κmax direction is undefined: the curvature
@@ -66,6 +67,19 @@ def _acute_deg(cosine: np.ndarray) -> np.ndarray:
     return np.degrees(np.arccos(np.clip(np.abs(cosine), 0.0, 1.0)))
 
 
+def _axis_angles(grasps: Pinches, a: np.ndarray) -> np.ndarray:
+    """(n, F) ρ per contact: the angle between its κmax direction and the axis ``a`` projected on its tangent
+    plane, 0-90; NaN where undefined (module notes)."""
+    normals = grasps.normals
+    a_t = a[None, None, :] - (normals @ a)[..., None] * normals
+    a_t_norm = np.linalg.norm(a_t, axis=-1)
+    rho = _acute_deg(np.einsum("nkd,nkd->nk", grasps.dir_max, a_t) / np.maximum(a_t_norm, 1e-300))
+    undefined = (grasps.kappa_max_per_m - grasps.kappa_min_per_m < UMBILIC_PER_M) | (
+        a_t_norm < np.sin(np.radians(AXIS_NORMAL_DEG))
+    )
+    return np.where(undefined, np.nan, rho)
+
+
 def pinch_features(pinches: Pinches, props: ObjectProperties) -> PinchFeatures:
     """The seven features of every pinch, from its contacts and patches.
 
@@ -86,15 +100,7 @@ def pinch_features(pinches: Pinches, props: ObjectProperties) -> PinchFeatures:
 
     normals = pinches.normals  # (n, 2, 3)
     psi = _acute_deg(np.einsum("nkd,nd->nk", normals, u))
-
-    a_t = a[None, None, :] - (normals @ a)[..., None] * normals  # (n, 2, 3)
-    a_t_norm = np.linalg.norm(a_t, axis=-1)
-    cos_rho = np.einsum("nkd,nkd->nk", pinches.dir_max, a_t) / np.maximum(a_t_norm, 1e-300)
-    rho = _acute_deg(cos_rho)
-    undefined = (pinches.kappa_max_per_m - pinches.kappa_min_per_m < UMBILIC_PER_M) | (
-        a_t_norm < np.sin(np.radians(AXIS_NORMAL_DEG))
-    )
-    rho = np.where(undefined, np.nan, rho)
+    rho = _axis_angles(pinches, a)
 
     offset = props.com_mm - mid
     along = np.einsum("nd,nd->n", offset, u)
@@ -111,3 +117,59 @@ def pinch_features(pinches: Pinches, props: ObjectProperties) -> PinchFeatures:
         mass_along_mm=np.stack([along, -along], axis=-1),
         mass_perp_mm=perp,
     )
+
+
+@dataclass(frozen=True)
+class TripodFeatures(PinchFeatures):
+    """Features of n tripods (thumb, index, middle), the per-contact arrays (n, 3).
+
+    ``width_mm`` is the aperture: from the thumb's contact to the middle of the two fingers'. ``com_distance_mm``
+    is measured from the contacts' centroid g along the principal axis; ``tilt_deg`` is the angle between the
+    plane of the contacts and the plane orthogonal to the axis (0-90); ``normal_angle_deg`` is, per contact,
+    the angle between its normal and the line to the other side (the thumb's to the fingers' middle, each
+    finger's to the thumb), 0-90. ``spacing_mm`` (n,) is the distance between the two fingers' contacts, and
+    ``lever_arm_mm`` (n,) the centre of mass's distance from g: the lever of the torque the weight pulls with
+    about the fingertips, its largest over the orientations the object is held in. ``mass_along_mm`` (n, 3)
+    holds the lever arm for each contact and ``mass_perp_mm`` (n,) is 0: the only part of the offset that no
+    turn of the object changes, so that the search's separable bound holds whatever the registration.
+    """
+
+    spacing_mm: np.ndarray = None
+    lever_arm_mm: np.ndarray = None
+
+
+def tripod_shape(points: np.ndarray, normals: np.ndarray, props: ObjectProperties) -> dict:
+    """The features of tripods that need no patch curvature, from contacts and normals (n, 3, 3):
+    ``width_mm`` (the aperture), ``com_distance_mm``, ``tilt_deg``, ``normal_angle_deg`` (n, 3), ``spacing_mm``
+    and ``lever_arm_mm`` (:class:`TripodFeatures`)."""
+    a = props.principal_axis / np.linalg.norm(props.principal_axis)
+    middle = points[:, 1:].mean(axis=1)
+    centroid = points.mean(axis=1)
+    towards = np.stack([middle - points[:, 0], points[:, 0] - points[:, 1], points[:, 0] - points[:, 2]], axis=1)
+    towards /= np.maximum(np.linalg.norm(towards, axis=2, keepdims=True), 1e-300)
+    return {"width_mm": np.linalg.norm(middle - points[:, 0], axis=1),
+            "com_distance_mm": np.abs((centroid - props.com_mm) @ a),
+            "tilt_deg": _acute_deg(contact_plane_normals(points, normals) @ a),
+            "normal_angle_deg": _acute_deg(np.einsum("nkd,nkd->nk", normals, towards)),
+            "spacing_mm": np.linalg.norm(points[:, 2] - points[:, 1], axis=1),
+            "lever_arm_mm": np.linalg.norm(props.com_mm - centroid, axis=1)}
+
+
+def tripod_features(tripods: Tripods, props: ObjectProperties) -> TripodFeatures:
+    """The features of every tripod (:class:`TripodFeatures`), from its contacts and patches."""
+    shape = tripod_shape(tripods.points, tripods.normals, props)
+    a = props.principal_axis / np.linalg.norm(props.principal_axis)
+    lever = shape["lever_arm_mm"]
+    return TripodFeatures(
+        **shape,
+        curvature_axis_angle_deg=_axis_angles(tripods, a),
+        kappa_max_per_m=tripods.kappa_max_per_m.copy(),
+        kappa_min_per_m=tripods.kappa_min_per_m.copy(),
+        mass_along_mm=np.repeat(lever[:, None], 3, axis=1),
+        mass_perp_mm=np.zeros(len(lever)),
+    )
+
+
+def grasp_features(grasps: Pinches, props: ObjectProperties) -> PinchFeatures:
+    """The features of pinches or of tripods, as their kind has them."""
+    return tripod_features(grasps, props) if isinstance(grasps, Tripods) else pinch_features(grasps, props)

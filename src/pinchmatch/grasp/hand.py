@@ -7,7 +7,9 @@ Model (lengths in mm):
 - **Finger:** a capsule of radius ``r_f`` whose axis runs from c_i along the
   hand's approach direction h for ``L`` (the distal and middle phalanges).
 - **One hand:** both fingers share h. The pads face each other, so h lies
-  within ``approach_tilt_deg`` of the plane perpendicular to the pinch line u:
+  within ``approach_tilt_deg`` of the plane perpendicular to the pinch line u
+  (for a tripod, the line from the thumb to the middle of the two fingers
+  opposite it, whose tips may lie at most ``finger_stagger_mm`` apart along h):
   h(θ, α) = cos α (cos θ e1 + sin θ e2) + sin α u, |α| ≤ A. e1 points away
   from the centroid of the surface, perpendicular to u, so θ = 0 is "from
   outside the object"; e2 = u × e1.
@@ -99,6 +101,10 @@ CLEARANCE_CAP_MM = 1.0
 MAX_CELLS_PER_PINCH = 32
 #: test spheres per finger queried together, each batch only where the earlier ones clear
 STAGE_SPHERES = 2
+#: how far the fingertips beside the thumb's opposite (index and middle of a tripod) may lie apart along the
+#: approach: the middle finger is about 8 mm longer than the index (hand anthropometry, e.g. Greiner 1991),
+#: and flexing one finger a little more than the other makes up about as much again; a documented choice
+FINGER_STAGGER_MM = 20.0
 #: how far below the support's horizontal a hand's approach may point (a hand sliding along the table)
 SUPPORT_LEVEL_TOLERANCE = 1e-9
 
@@ -112,6 +118,7 @@ class Hand:
     finger_length_mm: float = 45.0
     approach_tilt_deg: float = 30.0
     tolerance_mm: float = PAD_TOLERANCE_MM
+    finger_stagger_mm: float = FINGER_STAGGER_MM
 
     @property
     def test_radius_mm(self) -> float:
@@ -155,8 +162,8 @@ def approach_frame(context, points: np.ndarray, axis: np.ndarray | None = None):
     to it, pointing away from the surface's centroid. On the line through the centroid along u,
     where "away" has no direction, e1 is the surface's principal axis of least spread (the
     symmetry axis of a ring, a plate, a disc), or of middle spread when that one lies along u."""
-    if axis is None:
-        seg = points[:, 1] - points[:, 0]
+    if axis is None:  # the thumb (contact 0) towards the other fingers' middle
+        seg = points[:, 1:].mean(axis=1) - points[:, 0]
         u = seg / np.maximum(np.linalg.norm(seg, axis=1, keepdims=True), 1e-300)
     else:
         u = axis
@@ -202,37 +209,47 @@ def _obstacle_distances(context, centres, cap):
 
 
 def _axis_distances(context, tips, h, offsets, cap, rho, delta=None):
-    """(m, 2, P) distance from each test centre to the nearest sample (or the support), capped at ``cap``.
+    """(m, F, P) distance from each test centre to the nearest sample (or the support), capped at ``cap``.
 
-    tips : (m, 2, 3) fingertip centres, h : (m, 3), delta : (m,) how far, per mm along the
+    tips : (m, F, 3) fingertip centres (F fingers of one hand), h : (m, 3), delta : (m,) how far, per mm along the
     finger, a test centre can move within the cell of directions around h (0: h alone). A
     row is ruled out by one test sphere with d + offset·δ < ρ, so
     the spheres are queried a few at a time, coarse to fine along the finger, each batch only
     for the rows no earlier sphere ruled out. The spheres not queried read ``cap``, which
     changes no decision: a ruled-out row neither fits nor bounds a cell above ρ."""
-    m = len(h)
+    m, fingers = len(h), tips.shape[1]
     delta = np.zeros(m) if delta is None else delta
-    d = np.full((m, 2, len(offsets)), cap)
+    d = np.full((m, fingers, len(offsets)), cap)
     rows = np.arange(m)
     order = _coarse_to_fine(len(offsets))
     for start in range(0, len(order), STAGE_SPHERES):
         stage = np.array(order[start:start + STAGE_SPHERES])
         off = offsets[stage]
         centres = tips[rows][:, :, None, :] + off[None, None, :, None] * h[rows][:, None, None, :]
-        q = _obstacle_distances(context, centres.reshape(-1, 3), cap).reshape(len(rows), 2, len(off))
-        d[np.ix_(rows, [0, 1], stage)] = q
+        q = _obstacle_distances(context, centres.reshape(-1, 3), cap).reshape(len(rows), fingers, len(off))
+        d[np.ix_(rows, np.arange(fingers), stage)] = q
         rows = rows[(q + off * delta[rows, None, None] >= rho).all(axis=(1, 2))]
         if not len(rows):
             break
     return d
 
 
+def _staggered(tips, h, limit):
+    """(m,) bool: the fingers opposite the thumb (tips 1…F-1) lie further apart along h than ``limit``
+    (never for a pinch's single finger)."""
+    if tips.shape[1] < 3:
+        return np.zeros(len(h), dtype=bool)
+    along = np.einsum("mfd,md->mf", tips[:, 1:], h)
+    return along.max(axis=1) - along.min(axis=1) > limit
+
+
 def _hand_free(context, tips, h, length):
     """(m,) bool: beyond each finger's end, the line on along h meets no surface (the hand gets out),
     and h does not point below the support's horizontal (no hand comes from under the table)."""
+    fingers = tips.shape[1]
     ends = (tips + length * h[:, None, :]).reshape(-1, 3)
-    face = context.rays.intersects_first(ends, np.repeat(h, 2, axis=0))
-    free = (np.asarray(face) < 0).reshape(-1, 2).all(axis=1)
+    face = context.rays.intersects_first(ends, np.repeat(h, fingers, axis=0))
+    free = (np.asarray(face) < 0).reshape(-1, fingers).all(axis=1)
     if context.support is not None:
         free &= h @ context.support.normal >= -SUPPORT_LEVEL_TOLERANCE
     return free
@@ -240,13 +257,13 @@ def _hand_free(context, tips, h, length):
 
 def reach(context, points: np.ndarray, normals: np.ndarray, hand: Hand,
           *, approach: np.ndarray | None = None, thorough: bool = True) -> Reach:
-    """The reach rule for n pinches.
+    """The reach rule for n grasps of F fingers (2: a pinch; 3: a tripod).
 
     Parameters
     ----------
     context : SurfaceContext
-    points, normals : (n, 2, 3) float64
-        Contacts and unit outward normals.
+    points, normals : (n, F, 3) float64
+        Contacts and unit outward normals, the thumb's first.
     approach : (n, 3) float64, optional
         A direction to try first (an earlier answer for nearly the same pinch); where it
         clears it is kept and nothing else is searched.
@@ -284,10 +301,17 @@ def reach(context, points: np.ndarray, normals: np.ndarray, hand: Hand,
     #    most clearance.
     k = QUICK_DIRECTIONS
     theta = np.arange(k) * (2.0 * np.pi / k)
-    for group in ("perpendicular", "perpendicular, between", "tangent", "principal", "frame", "leaned"):
+    groups = ("perpendicular", "perpendicular, between", "tangent", "principal", "frame", "leaned")
+    if points.shape[1] > 2:  # a tripod: first the two directions with its fingers side by side
+        groups = ("side by side",) + groups
+    for group in groups:
         if not len(pending):
             break
-        if group in ("principal", "frame"):
+        if group == "side by side":
+            side = np.cross(u[pending], tips[pending, 2] - tips[pending, 1])
+            side /= np.maximum(np.linalg.norm(side, axis=1, keepdims=True), 1e-300)
+            h = np.stack([side, -side], axis=1).reshape(-1, 3)
+        elif group in ("principal", "frame"):
             axes = context.principal_axes.T if group == "principal" else np.eye(3)
             h = np.tile(np.concatenate([axes, -axes]), (len(pending), 1))
         elif group == "leaned":
@@ -299,7 +323,7 @@ def reach(context, points: np.ndarray, normals: np.ndarray, hand: Hand,
         else:
             angles = theta
             if group == "tangent":
-                axis = normals[pending, 0] - normals[pending, 1]
+                axis = normals[pending, 0] - normals[pending, 1:].mean(axis=1)
                 norm = np.linalg.norm(axis, axis=1, keepdims=True)
                 axis = np.where(norm > 1e-9, axis / np.maximum(norm, 1e-300), u[pending])
                 _, f1, f2 = approach_frame(context, points[pending], axis=axis)
@@ -332,7 +356,7 @@ def _quick(context, hand, pending, h, geometry, sin_tilt, found):
     rows = np.repeat(pending, k)
     in_band = np.abs(np.einsum("ij,ij->i", h, u[rows])) <= sin_tilt
     d = _axis_distances(context, tips[rows], h, offsets, cap, rho)
-    clears = in_band & (d >= rho).all(axis=(1, 2))
+    clears = in_band & (d >= rho).all(axis=(1, 2)) & ~_staggered(tips[rows], h, hand.finger_stagger_mm)
     clears[clears] = _hand_free(context, tips[rows[clears]], h[clears], hand.finger_length_mm)
     clears = clears.reshape(-1, k)
     margin = (d.min(axis=(1, 2)) - hand.finger_radius_mm).reshape(-1, k)
@@ -365,7 +389,8 @@ def _search_band(context, tips, u, e1, e2, pending, hand, offsets, rho, cap):
     alpha = np.tile(alpha0, len(pending))
     hint = np.full(len(rows), -1)  # the (finger, sphere) that bounded the parent cell tightest
     length = hand.finger_length_mm
-    flat_offsets = np.tile(offsets, 2)  # (2P,): finger-major, as d.reshape(m, 2P)
+    fingers = tips.shape[1]
+    flat_offsets = np.tile(offsets, fingers)  # (FP,): finger-major, as d.reshape(m, FP)
     decided = np.zeros(len(tips), dtype=bool)
     out_rows, out_h, out_margin = [], [], []
     while len(rows):
@@ -379,15 +404,20 @@ def _search_band(context, tips, u, e1, e2, pending, hand, offsets, rho, cap):
         # first the sphere that bounded the parent: most cells that can be dropped are dropped by it
         has_hint = hint >= 0
         live = np.ones(len(rows), dtype=bool)
+        if fingers > 2:  # and the cells whose every direction staggers the fingers beyond the limit
+            apart = tips[rows, 2] - tips[rows, 1]
+            least = np.abs(np.einsum("md,md->m", apart, h)) - np.linalg.norm(apart, axis=1) * delta
+            live = least <= hand.finger_stagger_mm
+            has_hint &= live
         if has_hint.any():
             i = np.flatnonzero(has_hint)
             f, j = np.divmod(hint[i], len(offsets))
             centre = tips[rows[i], f] + offsets[j][:, None] * h[i]
             live[i] = _obstacle_distances(context, centre, cap) + offsets[j] * delta[i] >= rho
         idx = np.flatnonzero(live)
-        d = _axis_distances(context, tips[rows[idx]], h[idx], offsets, cap, rho, delta[idx]).reshape(len(idx), 2 * len(offsets))
+        d = _axis_distances(context, tips[rows[idx]], h[idx], offsets, cap, rho, delta[idx]).reshape(len(idx), fingers * len(offsets))
         margin = d.min(axis=1) - hand.finger_radius_mm
-        fits = (d >= rho).all(axis=1)
+        fits = (d >= rho).all(axis=1) & ~_staggered(tips[rows[idx]], h[idx], hand.finger_stagger_mm)
         clears = fits.copy()
         if fits.any():
             clears[fits] = _hand_free(context, tips[rows[idx[fits]]], h[idx[fits]], length)

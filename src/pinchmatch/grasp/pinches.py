@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import numpy as np
 
@@ -89,11 +90,14 @@ class Pinches:
     def __len__(self) -> int:
         return len(self.points)
 
+    #: the rules of ``broken``'s columns
+    rules: ClassVar[tuple] = RULES
+
     def broken_rules(self, i: int) -> list[str]:
-        return [rule for rule, bad in zip(RULES, self.broken[i]) if bad]
+        return [rule for rule, bad in zip(self.rules, self.broken[i]) if bad]
 
     def subset(self, keep: np.ndarray) -> "Pinches":
-        return Pinches(**{f: getattr(self, f)[keep] for f in ARRAY_FIELDS}, rejected=dict(self.rejected))
+        return type(self)(**{f: getattr(self, f)[keep] for f in ARRAY_FIELDS}, rejected=dict(self.rejected))
 
 
 #: the per-pinch arrays of :class:`Pinches`, in declaration order
@@ -136,7 +140,7 @@ def clearance_broken(context: SurfaceContext, points: np.ndarray, normals: np.nd
     clear = context.min_distance_to_samples(centres) >= r - CLEARANCE_TOLERANCE_MM
     if context.support is not None:  # and above what the object stands on
         clear &= context.support.heights(centres) >= r - CLEARANCE_TOLERANCE_MM
-    return ~clear.reshape(-1, 2).all(axis=1)
+    return ~clear.reshape(len(points), points.shape[1]).all(axis=1)
 
 
 def reach_rule(context: SurfaceContext, points: np.ndarray, normals: np.ndarray, settings: PinchSettings,
@@ -186,18 +190,20 @@ def patches(context, points, face_normals, settings) -> PatchGeometry:
     )
 
 
-def assemble(points, points_faces, geom: PatchGeometry, broken, found: Reach, rejected, snap=None) -> Pinches:
-    n = len(broken)
-    return Pinches(
-        points=points.reshape(n, 2, 3),
-        normals=geom.normal.reshape(n, 2, 3),
-        face_index=points_faces.reshape(n, 2),
-        kappa_max_per_m=geom.kappa_max_per_m.reshape(n, 2),
-        kappa_min_per_m=geom.kappa_min_per_m.reshape(n, 2),
-        dir_max=geom.dir_max.reshape(n, 2, 3),
+def assemble(points, points_faces, geom: PatchGeometry, broken, found: Reach, rejected, snap=None,
+             kind: type | None = None) -> Pinches:
+    """The grasps (a :class:`Pinches`, or ``kind``) of n checked candidates, points (n, F, 3)."""
+    n, f = len(broken), points.shape[1]
+    return (kind or Pinches)(
+        points=points.reshape(n, f, 3),
+        normals=geom.normal.reshape(n, f, 3),
+        face_index=points_faces.reshape(n, f),
+        kappa_max_per_m=geom.kappa_max_per_m.reshape(n, f),
+        kappa_min_per_m=geom.kappa_min_per_m.reshape(n, f),
+        dir_max=geom.dir_max.reshape(n, f, 3),
         feasible=~broken.any(axis=1),
         broken=broken,
-        snap_distance_mm=np.zeros((n, 2)) if snap is None else snap.reshape(n, 2),
+        snap_distance_mm=np.zeros((n, f)) if snap is None else snap.reshape(n, f),
         approach=found.approach,
         approach_clearance_mm=found.clearance_mm,
         rejected=rejected,
@@ -272,7 +278,7 @@ def check_reach(context: SurfaceContext, pinches: Pinches, *, settings: PinchSet
     would have given them in one go."""
     found = reach_rule(context, pinches.points, pinches.normals, settings, approach, thorough)
     broken = pinches.broken.copy()
-    broken[:, RULES.index("reach")] = ~found.ok
+    broken[:, pinches.rules.index("reach")] = ~found.ok
     return dataclasses.replace(pinches, broken=broken, feasible=~broken.any(axis=1), approach=found.approach,
                                approach_clearance_mm=found.clearance_mm)
 
@@ -280,4 +286,4 @@ def check_reach(context: SurfaceContext, pinches: Pinches, *, settings: PinchSet
 def concat_pinches(parts: list[Pinches], rejected: dict | None = None) -> Pinches:
     """The pinches of ``parts`` in order; ``rejected`` from the last part unless given."""
     arrays = {f: np.concatenate([getattr(p, f) for p in parts]) for f in ARRAY_FIELDS}
-    return Pinches(**arrays, rejected=dict(parts[-1].rejected if rejected is None else rejected))
+    return type(parts[-1])(**arrays, rejected=dict(parts[-1].rejected if rejected is None else rejected))

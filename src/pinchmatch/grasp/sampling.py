@@ -54,7 +54,7 @@ LOCAL_RADIUS_TIPS = 1.5
 PRECHECK_ABOVE = 0.05
 
 
-def _cone_directions(normals: np.ndarray, half_angle_deg: float, rng) -> np.ndarray:
+def cone_directions(normals: np.ndarray, half_angle_deg: float, rng) -> np.ndarray:
     """Unit directions uniform in solid angle within the cone around -normal."""
     n = len(normals)
     cos_t = 1.0 - rng.random(n) * (1.0 - np.cos(np.radians(half_angle_deg)))
@@ -67,7 +67,7 @@ def _cone_directions(normals: np.ndarray, half_angle_deg: float, rng) -> np.ndar
 def _draw(context, p1, face1, settings, rng, rejected):
     """Candidates from contacts p1: exits along directions in the friction cone, cheap rules applied."""
     n1 = context.face_normals[face1]
-    d = _cone_directions(n1, settings.friction_cone_deg, rng)
+    d = cone_directions(n1, settings.friction_cone_deg, rng)
     ray, face2, dist = context.exits(p1, d, max_distance=settings.max_width_mm * (1 + 1e-6), max_hits=MAX_EXITS)
     n_rays = len(p1)
     # a ray with no exit within the largest width offers no second contact
@@ -89,7 +89,7 @@ def _count_first(broken, rejected):
         rejected[rule] += int((bad & (first == j)).sum())
 
 
-def _uniform_contacts(context, n, rng):
+def uniform_contacts(context, n, rng):
     mesh = context.mesh
     area = context.contact_area_mm2  # 0 on triangles the object's regions rule out
     faces = rng.choice(len(area), size=n, p=area / area.sum())
@@ -105,11 +105,11 @@ def cheap_candidates(context, n: int, settings: PinchSettings, rng, rejected: di
     """Candidates from ``n`` contacts drawn area-uniformly: (m, 2, 3) points and (m, 2) triangles of
     those that keep the cheap rules (with triangle normals), as the sampler's first round draws them;
     ``rejected`` counts the others per rule."""
-    p1, f1 = _uniform_contacts(context, n, rng)
+    p1, f1 = uniform_contacts(context, n, rng)
     return _draw(context, p1, f1, settings, rng, dict.fromkeys(RULES, 0) if rejected is None else rejected)
 
 
-def _local_contacts(context, seeds, n, radius, rng):
+def local_contacts(context, seeds, n, radius, rng):
     """n contacts near ``seeds`` (contacts of feasible pinches): random dense-sample points within ``radius``."""
     sample = context.sample
     k = int(min(64, len(sample.points)))
@@ -184,10 +184,7 @@ def sample_pinches(
         need = count - n_feasible
         if need <= 0:
             break
-        share = n_feasible / n_checked if n_checked else 1.0
-        want = int(np.ceil(SELECT_MARGIN * need / max(share, 0.05)))
-        want = min(want, PROBE_PICKS) if round_ == 0 else min(want, 4 * need + PROBE_PICKS)
-        local_mode = n_checked > 0 and n_feasible > 0 and share < LOCAL_BELOW
+        want, local_mode = round_plan(need, n_feasible, n_checked, round_)
         short = int((uniform.nearest >= 0).sum() + (local.nearest >= 0).sum()) < want
         if (local_mode or short) and drawn < budget:
             # more candidates: near the feasible contacts found so far, or anywhere while none is
@@ -195,20 +192,13 @@ def sample_pinches(
             if n_feasible:
                 # the rounds' own finds are spread as the feasible pinches are; the strata's lean to rare widths
                 seeds = np.concatenate([p.points.reshape(-1, 3) for p in (parts[n_strata:] or parts)])
-                more_p, more_f = _local_contacts(context, seeds, n_more, local_radius, rng)
+                more_p, more_f = local_contacts(context, seeds, n_more, local_radius, rng)
             else:
-                more_p, more_f = _uniform_contacts(context, n_more, rng)
+                more_p, more_f = uniform_contacts(context, n_more, rng)
             drawn += n_more
             new_points, new_faces = _draw(context, more_p, more_f, settings, rng, rejected)
             (local if n_feasible else uniform).add(new_points, new_faces, picked)
-        # in local mode the candidates near feasible pinches go first
-        first, second = (local, uniform) if local_mode else (uniform, local)
-        a = first.pick(want)
-        second.saw(first.points[a])
-        b = second.pick(want - len(a))
-        first.saw(second.points[b])
-        chosen = np.concatenate([first.points[a], second.points[b]])
-        chosen_f = np.concatenate([first.faces[a], second.faces[b]])
+        chosen, chosen_f = pick_round(uniform, local, want, local_mode)
         if len(chosen) == 0:
             break
         picked = np.concatenate([picked, chosen])
@@ -224,6 +214,27 @@ def sample_pinches(
     result = concat_pinches(parts, rejected).subset(np.arange(min(count, n_feasible)))
     log.info("%s: %d feasible pinches from %d candidates", source, len(result), drawn)
     return result
+
+
+def round_plan(need: int, n_feasible: int, n_checked: int, round_: int) -> tuple[int, bool]:
+    """How many picks a round checks to find ``need`` more grasps, judged by the feasible share so far (the
+    first round probes at most ``PROBE_PICKS``), and whether it draws near the feasible ones (local mode:
+    few picks were feasible)."""
+    share = n_feasible / n_checked if n_checked else 1.0
+    want = int(np.ceil(SELECT_MARGIN * need / max(share, 0.05)))
+    want = min(want, PROBE_PICKS) if round_ == 0 else min(want, 4 * need + PROBE_PICKS)
+    return want, n_checked > 0 and n_feasible > 0 and share < LOCAL_BELOW
+
+
+def pick_round(uniform: Pool, local: Pool, want: int, local_mode: bool) -> tuple[np.ndarray, np.ndarray]:
+    """A round's ``want`` picks from both pools in their spread orders, the local pool's first in local mode,
+    each pool's spread counting the other's picks: (points, faces)."""
+    first, second = (local, uniform) if local_mode else (uniform, local)
+    a = first.pick(want)
+    second.saw(first.points[a])
+    b = second.pick(want - len(a))
+    first.saw(second.points[b])
+    return np.concatenate([first.points[a], second.points[b]]), np.concatenate([first.faces[a], second.faces[b]])
 
 
 def _check_picks(context, points, faces, settings, rejected, *, precheck: bool = True) -> Pinches:

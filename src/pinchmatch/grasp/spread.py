@@ -22,16 +22,23 @@ from scipy.spatial import cKDTree
 BLOCK = 64
 
 
+def other_order(fingers: int) -> list[int]:
+    """The contacts of a grasp of ``fingers`` contacts in its other finger order, the same grasp: a pinch
+    held the other way round (p2, p1); a tripod with index and middle swapped (the thumb stays)."""
+    return [1, 0] if fingers == 2 else [0] + list(range(fingers - 1, 0, -1))
+
+
 def _pair_vectors(points: np.ndarray):
-    """Centred 6-vectors of pinches in both finger orders, for the spread distance."""
-    n = len(points)
-    return points.reshape(n, 6), points[:, ::-1].reshape(n, 6)
+    """Centred 3F-vectors of grasps (n, F, 3) in both finger orders, for the spread distance."""
+    n, fingers = len(points), points.shape[1]
+    return points.reshape(n, 3 * fingers), points[:, other_order(fingers)].reshape(n, 3 * fingers)
 
 
 def spread_order(points: np.ndarray, count: int, nearest: np.ndarray | None = None):
-    """Farthest-point order of pinches, treating (p1, p2) and (p2, p1) as the same.
+    """Farthest-point order of pinches, treating (p1, p2) and (p2, p1) as the same (or of tripods, their
+    two fingers in either order: :func:`other_order`).
 
-    points : (n, 2, 3). Each next pick is the pinch farthest from all picked
+    points : (n, F, 3). Each next pick is the pinch farthest from all picked
     so far, so any prefix covers the graspable regions evenly, without clumps.
 
     Returns ``(chosen, nearest)``: the indices of up to ``count`` new picks
@@ -96,8 +103,8 @@ class Pool:
     nearest: np.ndarray  # squared spread distance to the nearest pick, -1 once picked
 
     @classmethod
-    def empty(cls) -> "Pool":
-        return cls(np.zeros((0, 2, 3)), np.zeros((0, 2), np.int64), np.zeros(0))
+    def empty(cls, fingers: int = 2) -> "Pool":
+        return cls(np.zeros((0, fingers, 3)), np.zeros((0, fingers), np.int64), np.zeros(0))
 
     def add(self, points, faces, picked_points):
         self.nearest = np.concatenate([self.nearest, _nearest_to(points, picked_points)])

@@ -23,9 +23,11 @@ def _block_max(nearest, perm, lo, hi):
 
 @njit(cache=True, nogil=True)
 def farthest(a, b, sq, nearest, current, chosen, perm, starts, centre, radius, slack):
-    """The farthest-point loop over pinches in block order: ``len(chosen)`` picks from ``current``
+    """The farthest-point loop over grasps (rows of ``a``, the same grasps in the other finger order in ``b``) in
+    block order: ``len(chosen)`` picks from ``current``
     on, updating ``nearest``; blocks that the pick cannot come nearer to are skipped."""
     blocks = len(starts) - 1
+    dims = a.shape[1]
     top = np.empty(blocks)
     top_at = np.empty(blocks, np.int64)
     for k in range(blocks):
@@ -40,7 +42,7 @@ def farthest(a, b, sq, nearest, current, chosen, perm, starts, centre, radius, s
                 continue  # every pinch of the block is picked
             da = 0.0
             db = 0.0
-            for c in range(6):
+            for c in range(dims):
                 da += (centre[k, c] - q[c]) ** 2
                 db += (centre[k, c] - r[c]) ** 2
             gap = math.sqrt(min(da, db)) - radius[k]
@@ -49,8 +51,11 @@ def farthest(a, b, sq, nearest, current, chosen, perm, starts, centre, radius, s
             changed = False
             for j in range(starts[k], starts[k + 1]):
                 # |x - q|² = |x|² + |q|² - 2 x·q, with the better of the two finger orders
-                dot_a = a[j, 0] * q[0] + a[j, 1] * q[1] + a[j, 2] * q[2] + a[j, 3] * q[3] + a[j, 4] * q[4] + a[j, 5] * q[5]
-                dot_b = b[j, 0] * q[0] + b[j, 1] * q[1] + b[j, 2] * q[2] + b[j, 3] * q[3] + b[j, 4] * q[4] + b[j, 5] * q[5]
+                dot_a = 0.0
+                dot_b = 0.0
+                for c in range(dims):
+                    dot_a += a[j, c] * q[c]
+                    dot_b += b[j, c] * q[c]
                 d = sq[j] + sq_q - 2.0 * max(dot_a, dot_b)
                 if d < nearest[j]:
                     nearest[j] = d

@@ -51,9 +51,15 @@ def width_jnd(width_mm) -> np.ndarray:
                     knee / WIDTH_JND_FLOOR_MM + np.log(np.maximum(w, knee) / knee) / WIDTH_JND_FRACTION)
 
 
+def grip_width_mm(points: np.ndarray) -> np.ndarray:
+    """(n,) the width of each grasp (n, F, 3): from the thumb (contact 0) to the middle of the others (a
+    pinch's width, a tripod's aperture)."""
+    return np.linalg.norm(points[:, 1:].mean(axis=1) - points[:, 0], axis=1)
+
+
 def stratum_of(points: np.ndarray) -> np.ndarray:
-    """(n,) the width stratum of each pinch (n, 2, 3)."""
-    return np.floor(width_jnd(np.linalg.norm(points[:, 1] - points[:, 0], axis=1)) / STRATUM_JND).astype(np.int64)
+    """(n,) the width stratum of each grasp (n, F, 3)."""
+    return np.floor(width_jnd(grip_width_mm(points)) / STRATUM_JND).astype(np.int64)
 
 
 def quota_per_stratum(count: int, strata: int) -> int:
@@ -70,7 +76,7 @@ def stratified_checks(pool: Pool, count: int, check) -> list:
     labels, inverse = np.unique(strata, return_inverse=True)
     quota = quota_per_stratum(count, len(labels))
     if quota == 0 or len(pool.points) == 0:
-        return [], np.zeros((0, 2, 3))
+        return [], np.zeros((0,) + pool.points.shape[1:])
     # each stratum's spread order over its contacts, up to what it may spend
     limit = quota * TRIES_PER_PINCH
     orders = []

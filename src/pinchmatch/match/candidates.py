@@ -12,8 +12,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import NoFeasiblePinchError
-from ..grasp.analysis import ObjectAnalysis, find_pinches, score_pinches
-from ..grasp.features import PinchFeatures, pinch_features
+from ..grasp.analysis import ObjectAnalysis, find_pinches, score_pinches, score_tripods
+from ..grasp.features import PinchFeatures, grasp_features
 from ..grasp.pinches import Pinches, PinchSettings, concat_pinches
 from .cost import MASS_COLUMNS, feature_table, mass_term, separable_terms
 
@@ -48,7 +48,7 @@ class Candidates:
 
 def features_subset(features: PinchFeatures, keep: np.ndarray) -> PinchFeatures:
     """The features of the pinches at positions ``keep``."""
-    return PinchFeatures(**{f.name: getattr(features, f.name)[keep] for f in dataclasses.fields(features)})
+    return type(features)(**{f.name: getattr(features, f.name)[keep] for f in dataclasses.fields(features)})
 
 
 def candidate_poses(
@@ -74,6 +74,8 @@ def candidate_poses(
     """
     if given is None:
         pinches, features = find_pinches(obj, settings=settings)
+    elif settings.grasp == "tripod":  # given as a tuple of one (n, 3, 3) array
+        pinches, features = score_tripods(obj, *given, settings=settings, source=source)
     else:
         pinches, features = score_pinches(obj, *given, settings=settings, source=source)
     keep = np.flatnonzero(pinches.feasible)
@@ -94,7 +96,7 @@ REFINED_INDEX = -1
 def extend(base: Candidates, pinches: Pinches) -> Candidates:
     """``base`` with feasible ``pinches`` added (features computed, index ``REFINED_INDEX``): how refinement and the
     targeted step grow an object's candidates."""
-    features = pinch_features(pinches, base.obj.props)
+    features = grasp_features(pinches, base.obj.props)
     extra = Candidates(base.obj, pinches, features, feature_table(features),
                        np.full(len(pinches), REFINED_INDEX, dtype=base.index.dtype), base.given)
     return Candidates(base.obj, concat_pinches([base.pinches, pinches], base.pinches.rejected),
@@ -104,8 +106,8 @@ def extend(base: Candidates, pinches: Pinches) -> Candidates:
 
 def concat_features(parts: list[PinchFeatures]) -> PinchFeatures:
     """The features of ``parts``' pinches, in order."""
-    return PinchFeatures(**{f.name: np.concatenate([getattr(p, f.name) for p in parts])
-                            for f in dataclasses.fields(PinchFeatures)})
+    return type(parts[0])(**{f.name: np.concatenate([getattr(p, f.name) for p in parts])
+                             for f in dataclasses.fields(parts[0])})
 
 
 def merge_candidates(first: Candidates, second: Candidates) -> Candidates:

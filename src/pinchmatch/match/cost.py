@@ -49,6 +49,7 @@ from ..errors import ConfigError
 from ..config import CRITERIA, DEFAULT_CRITERIA, MAX_WEIGHT, PAPER_CRITERIA, POOLINGS, Weights, complete_weights  # noqa: F401 (re-exported)
 from ..config import WIDTH_JND_FLOOR_MM, WIDTH_JND_FRACTION  # noqa: F401 (re-exported)
 from ..grasp.features import PinchFeatures
+from ..grasp.spread import other_order
 
 #: Quick pooling's exponent, the common slope of the criteria's Weibull psychometric functions: 3.5,
 #: the slope at which a Weibull function matches a cumulative Gaussian (Quick 1974), within the 3-4
@@ -68,6 +69,9 @@ COM_JND_MM = 20.0
 #: pinch is discriminated at a Weber fraction of 22-44 % (van Beek et al. 2021): 22 % of the tangible's
 #: offset, floor 20 mm (proprioceptive accuracy, as for d)
 MASS_JND_FRACTION, MASS_JND_FLOOR_MM = 0.22, 20.0
+#: a tripod's lever arm: the torque it pulls with is discriminated at 12.7 % (Jandura and Srinivasan
+#: 1994, 60 mN·m); the same floor
+TORQUE_JND_FRACTION = 0.127
 
 #: ``range`` normalisation: a feature whose range is below this (in its unit) is constant over the run
 RANGE_TOLERANCE = 1e-6
@@ -82,13 +86,21 @@ N_COLUMNS = len(COLUMNS)
 
 
 def feature_table(features: PinchFeatures) -> np.ndarray:
-    """(n, 2, 9) float64: per pose and patch, the columns of COLUMNS (NaN = undefined ρ)."""
-    n = len(features.width_mm)
+    """(n, F, 9) float64: per pose and patch (F = 2 for a pinch, 3 for a tripod), the columns of COLUMNS
+    (NaN = undefined ρ).
+
+    A tripod's ``width`` column holds its two widths: the aperture in the thumb's row and the fingers'
+    spacing in theirs, so that its width criterion pools both in width JNDs (a third the aperture's, two
+    thirds the spacing's: two fingertips feel the spacing, a documented choice)."""
+    n, fingers = features.normal_angle_deg.shape
     pose = np.stack([features.width_mm, features.com_distance_mm, features.tilt_deg], axis=-1)  # (n, 3)
+    pose = np.repeat(pose[:, None, :], fingers, axis=1)
+    if fingers == 3:
+        pose[:, 1:, 0] = features.spacing_mm[:, None]
     patch = np.stack([features.normal_angle_deg, features.curvature_axis_angle_deg,
                       features.kappa_max_per_m, features.kappa_min_per_m, features.mass_along_mm,
-                      np.broadcast_to(features.mass_perp_mm[:, None], (n, 2))], axis=-1)  # (n, 2, 6)
-    return np.concatenate([np.broadcast_to(pose[:, None, :], (n, 2, 3)), patch], axis=-1)
+                      np.broadcast_to(features.mass_perp_mm[:, None], (n, fingers))], axis=-1)  # (n, F, 6)
+    return np.concatenate([pose, patch], axis=-1)
 
 
 def parse_weights(text: str | None, *, criteria: tuple = DEFAULT_CRITERIA) -> dict[str, float]:
@@ -223,14 +235,15 @@ class CostModel:
         s[..., 1] = COM_JND_MM
         s[..., 2:5] = np.maximum(ANGLE_JND_FRACTION * t[..., 2:5], ANGLE_JND_FLOOR_DEG)
         s[..., 5:7] = np.maximum(CURVATURE_JND_FRACTION * t[..., 5:7], CURVATURE_JND_FLOOR_PER_M)
-        s[..., 7:9] = np.maximum(MASS_JND_FRACTION * np.hypot(t[..., 7], t[..., 8]), MASS_JND_FLOOR_MM)[..., None]
+        fraction = TORQUE_JND_FRACTION if table.ndim >= 2 and table.shape[-2] == 3 else MASS_JND_FRACTION  # a tripod's
+        s[..., 7:9] = np.maximum(fraction * np.hypot(t[..., 7], t[..., 8]), MASS_JND_FLOOR_MM)[..., None]
         return s
 
-    def column_weights(self) -> np.ndarray:
-        """(2, 9): each entry's weight: a criterion's contribution is the mean of its entries over
-        the two patches, and ``mass`` sums its two columns (along the line and lever arm)."""
+    def column_weights(self, fingers: int = 2) -> np.ndarray:
+        """(F, 9): each entry's weight: a criterion's contribution is the mean of its entries over
+        the F patches, and ``mass`` sums its two columns (along the line and lever arm)."""
         w = np.array([self.weights[c] for c in CRITERIA])[COLUMN_CRITERION]
-        return np.broadcast_to(w / 2.0, (2, N_COLUMNS))
+        return np.broadcast_to(w / fingers, (fingers, N_COLUMNS))
 
 
 def feature_ranges(*tables: np.ndarray) -> np.ndarray:
@@ -266,7 +279,8 @@ def _factors(virtual: np.ndarray, spread: np.ndarray | None = None) -> list[np.n
     nv = len(virtual)
     out = []
     spread = np.zeros_like(virtual) if spread is None else spread
-    for v, var in ((virtual, spread), (virtual[:, ::-1], spread[:, ::-1])):
+    other = other_order(virtual.shape[1])
+    for v, var in ((virtual, spread), (virtual[:, other], spread[:, other])):
         v, var = v.reshape(nv, -1), var.reshape(nv, -1)
         ok = (~np.isnan(v)).astype(np.float64)
         vv = np.nan_to_num(v)
@@ -305,7 +319,7 @@ def pair_cost_blocks(tangible: np.ndarray, virtual: np.ndarray, model: CostModel
     from one block to the next: use or copy each before taking the next.
     """
     nv = len(virtual)
-    w = model.column_weights().reshape(-1)
+    w = model.column_weights(virtual.shape[1]).reshape(-1)
     t_spread, v_spread = spreads if spreads is not None else (None, None)
     v_orders = _factors(virtual, v_spread)
     rows = max(1, min(block_rows, len(tangible)))
@@ -339,12 +353,13 @@ def pooled_bound_blocks(tangible: np.ndarray, virtual: np.ndarray, model: CostMo
     the price of :func:`pair_cost_blocks`, for when its bound leaves too many pairs to evaluate.
     ``extra``: as :func:`pair_cost_blocks`' (pooled with weight 1).
     """
-    nv = len(virtual)
-    w = model.column_weights().reshape(-1)
-    criterion = np.tile(COLUMN_CRITERION, 2)  # each entry of a row of two patches
+    nv, fingers = len(virtual), virtual.shape[1]
+    w = model.column_weights(fingers).reshape(-1)
+    criterion = np.tile(COLUMN_CRITERION, fingers)  # each entry of a row of F patches
     weights = model.weight_vector()
     used = [c for c in range(len(CRITERIA)) if weights[c] > 0]
-    columns = {c: np.concatenate([e, e + 2 * N_COLUMNS, e + 4 * N_COLUMNS])
+    width = fingers * N_COLUMNS
+    columns = {c: np.concatenate([e, e + width, e + 2 * width])
                for c in used for e in [np.flatnonzero(criterion == c)]}
     v_orders = _factors(virtual)
     half = model.exponent / 2.0
@@ -415,7 +430,7 @@ def contributions(tangible_row: np.ndarray, virtual_row: np.ndarray, model: Cost
     registration, gives the exact ``mass`` contribution; without it, its lower bound. The cost
     is Σ weight x contribution.
     """
-    v = virtual_row[::-1] if swapped else virtual_row
+    v = virtual_row[other_order(len(virtual_row))] if swapped else virtual_row
     terms = separable_terms(tangible_row[None], v[None], model)[0]
     if mass_delta_mm is not None:
         terms[7] = mass_term(tangible_row[None], np.asarray(mass_delta_mm, float)[None], model)[0]

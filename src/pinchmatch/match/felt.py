@@ -38,8 +38,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..grasp.features import pinch_features
-from ..grasp.pinches import Pinches, patches
+from ..grasp.features import grasp_features
+from ..grasp.pinches import patches
+from ..grasp.spread import other_order
 from .candidates import Candidates, pair_terms
 from .cost import CRITERIA, WIDTH_JND_FLOOR_MM, WIDTH_JND_FRACTION, CostModel, feature_table
 from .landing import LANDING_AXIS_DEG, MISS_JND, RING_POINTS, disc_offsets
@@ -89,9 +90,10 @@ class LandingTable:
 
 @dataclass(frozen=True)
 class _Landed:
-    """Where the fingers of k poses land (n points per finger): ``points`` (2, k, n, 3) mm, ``faces``
-    (2, k, n), -1 where the finger meets nothing (then ``aimed`` (2, k, n, 3) is where it was aimed),
-    ``line`` (k, 3) the unit pinch line, ``frame`` (k, 2, 3) the rings' directions, ``offsets`` (n, 2)."""
+    """Where the F fingers of k poses land (n points per finger): ``points`` (F, k, n, 3) mm, ``faces``
+    (F, k, n), -1 where the finger meets nothing (then ``aimed`` (F, k, n, 3) is where it was aimed),
+    ``line`` (k, 3) the unit pinch line (a tripod's: from the thumb to its fingers' middle), ``frame``
+    (k, 2, 3) the rings' directions, ``offsets`` (n, 2)."""
 
     points: np.ndarray
     faces: np.ndarray
@@ -102,22 +104,25 @@ class _Landed:
 
 
 def _land(candidates: Candidates, poses: np.ndarray, radius_mm: float, axis_deg: float, rings) -> _Landed:
-    """Each finger of each pose closed along the pinch line onto the surface, aimed at the target and at
-    the rings' points around it (:func:`disc_offsets`, in :func:`move_directions`' frame)."""
+    """Each finger of each pose closed onto the surface, aimed at the target and at the rings' points
+    around it (:func:`disc_offsets`, in :func:`move_directions`' frame): a pinch's fingers along its
+    line, a tripod's thumb towards its fingers' middle and each finger towards the thumb."""
     obj = candidates.obj
     k = len(poses)
-    p = candidates.pinches.points[poses]  # (k, 2, 3)
+    p = candidates.pinches.points[poses]  # (k, F, 3)
     f = candidates.pinches.face_index[poses]
     frame = move_directions(p, obj.props.principal_axis)  # (k, 2, 3)
     offsets = disc_offsets(radius_mm, rings)
     n = len(offsets)
-    u = p[:, 1] - p[:, 0]
+    u = p[:, 1:].mean(axis=1) - p[:, 0]
     u = u / np.linalg.norm(u, axis=1, keepdims=True)
+    closing = np.concatenate([u[:, None], p[:, :1] - p[:, 1:]], axis=1)  # (k, F, 3)
+    closing /= np.linalg.norm(closing, axis=2, keepdims=True)
     back = radius_mm * math.tan(math.radians(axis_deg)) + radius_mm + 1.0
     landed, faces, aimed = [], [], []
-    for finger, sign in ((0, 1.0), (1, -1.0)):
+    for finger in range(p.shape[1]):
         aimed.append(p[:, finger, None, :] + np.einsum("pa,kad->kpd", offsets, frame))  # (k, n, 3)
-        toward = np.broadcast_to(sign * u[:, None, :], (k, n, 3)).reshape(-1, 3).copy()
+        toward = np.broadcast_to(closing[:, finger, None, :], (k, n, 3)).reshape(-1, 3).copy()
         contact, face = close_fingers(obj.context, aimed[-1].reshape(-1, 3), toward, back)
         contact, face = contact.reshape(k, n, 3), face.reshape(k, n)
         contact[:, 0], face[:, 0] = p[:, finger], f[:, finger]  # the target itself
@@ -145,39 +150,40 @@ def _field_patches(context, points: np.ndarray, faces: np.ndarray, settings, spa
 
 def _tables(candidates: Candidates, landed: _Landed, geom, radius_mm: float, axis_deg: float, rings) -> LandingTable:
     """The :class:`LandingTable` s of the poses ``landed`` holds, their landing points' patches ``geom``
-    (arrays of 2·k·n, in ``landed.points``' order)."""
-    _, k, n, _ = landed.points.shape
-    normal = geom.normal.reshape(2, k, n, 3)
-    kmax, kmin = geom.kappa_max_per_m.reshape(2, k, n), geom.kappa_min_per_m.reshape(2, k, n)
-    dmax = geom.dir_max.reshape(2, k, n, 3)
-    i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
-    i, j = i.ravel(), j.ravel()
-    m = k * n * n
+    (arrays of F·k·n, in ``landed.points``' order): every combination of one landing point per finger."""
+    fingers, k, n, _ = landed.points.shape
+    normal = geom.normal.reshape(fingers, k, n, 3)
+    kmax, kmin = geom.kappa_max_per_m.reshape(fingers, k, n), geom.kappa_min_per_m.reshape(fingers, k, n)
+    dmax = geom.dir_max.reshape(fingers, k, n, 3)
+    idx = np.indices((n,) * fingers).reshape(fingers, -1)  # (F, n^F): the first finger's point slowest
+    combos = idx.shape[1]
+    m = k * combos
 
-    def pair(a: np.ndarray) -> np.ndarray:  # (2, k, n, ...) per finger -> (k·n², 2, ...)
-        return np.stack([a[0][:, i], a[1][:, j]], axis=2).reshape((m, 2) + a.shape[3:])
+    def pair(a: np.ndarray) -> np.ndarray:  # (F, k, n, ...) per finger -> (k·n^F, F, ...)
+        return np.stack([a[f][:, idx[f]] for f in range(fingers)], axis=2).reshape((m, fingers) + a.shape[3:])
 
     points = pair(landed.points)
-    pairs = Pinches(points=points, normals=pair(normal), face_index=pair(landed.faces),
-                    kappa_max_per_m=pair(kmax), kappa_min_per_m=pair(kmin),
-                    dir_max=pair(dmax), feasible=np.ones(m, dtype=bool),
-                    broken=np.zeros((m, 7), dtype=bool), snap_distance_mm=np.zeros((m, 2)),
-                    approach=np.full((m, 3), np.nan), approach_clearance_mm=np.full(m, np.nan))
-    rows = feature_table(pinch_features(pairs, candidates.obj.props)).reshape(k, n * n, 2, -1)
+    kind = type(candidates.pinches)
+    pairs = kind(points=points, normals=pair(normal), face_index=pair(landed.faces),
+                 kappa_max_per_m=pair(kmax), kappa_min_per_m=pair(kmin),
+                 dir_max=pair(dmax), feasible=np.ones(m, dtype=bool),
+                 broken=np.zeros((m, len(kind.rules)), dtype=bool), snap_distance_mm=np.zeros((m, fingers)),
+                 approach=np.full((m, 3), np.nan), approach_clearance_mm=np.full(m, np.nan))
+    rows = feature_table(grasp_features(pairs, candidates.obj.props)).reshape(k, combos, fingers, -1)
     met = landed.faces >= 0
-    hit = met[0][:, i] & met[1][:, j]
+    hit = np.logical_and.reduce([met[f][:, idx[f]] for f in range(fingers)])
     # the axis tolerance on where the fingers land; a finger that meets nothing, where it was aimed
     ends = np.where(met[..., None], landed.points, landed.aimed)
-    axis = ends[1][:, j] - ends[0][:, i]  # (k, n², 3)
+    axis = np.mean([ends[f][:, idx[f]] for f in range(1, fingers)], axis=0) - ends[0][:, idx[0]]  # (k, n^F, 3)
     cos = np.einsum("kpd,kd->kp", axis, landed.line) / np.maximum(np.linalg.norm(axis, axis=2), 1e-300)
     within = cos >= math.cos(math.radians(axis_deg)) - 1e-12
     within[:, 0] = True  # the nominal landing is the match itself
     w = ring_weights(radius_mm, rings)
-    weights = np.where(within, (w[i] * w[j])[None], 0.0)
+    weights = np.where(within, np.prod([w[idx[f]] for f in range(fingers)], axis=0)[None], 0.0)
     angles = np.arctan2(landed.offsets[:, 1], landed.offsets[:, 0])
     ring = np.concatenate([[0]] + [np.full(c, r + 1) for r, c in enumerate(rings)])
     angles = np.where(ring == 0, 0.0, angles)
-    return LandingTable(points.reshape(k, n * n, 2, 3), rows, hit, weights, landed.frame,
+    return LandingTable(points.reshape(k, combos, fingers, 3), rows, hit, weights, landed.frame,
                         np.broadcast_to(angles, (k, n)), np.broadcast_to(ring, (k, n)))
 
 
@@ -216,10 +222,10 @@ def landing_moments(candidates: Candidates, radius_mm: float, settings, *, poses
     landed = _land(candidates, poses, radius_mm, axis_deg, rings)
     geom = _field_patches(candidates.obj.context, landed.points.reshape(-1, 3), landed.faces.reshape(-1), settings,
                           patch_spacing_mm)
-    n = landed.points.shape[2]
+    fingers, n = landed.points.shape[0], landed.points.shape[2]
     fields = ("normal", "kappa_max_per_m", "kappa_min_per_m", "dir_max")
-    per_point = {f: getattr(geom, f).reshape((2, len(poses), n) + getattr(geom, f).shape[1:]) for f in fields}
-    mean = np.empty((len(poses), 2, candidates.table.shape[-1]))
+    per_point = {f: getattr(geom, f).reshape((fingers, len(poses), n) + getattr(geom, f).shape[1:]) for f in fields}
+    mean = np.empty((len(poses), fingers, candidates.table.shape[-1]))
     var = np.empty_like(mean)
     for start in range(0, len(poses), MOMENT_CHUNK):
         sl = slice(start, start + MOMENT_CHUNK)
@@ -320,16 +326,13 @@ def felt_cost(tangible: Candidates, virtual: Candidates, choice, model: CostMode
     t = tables.table(tangible, choice.t_pose)
     v = tables.table(virtual, choice.v_pose)
     R = choice.transform[:3, :3]
-    n = len(v.angles)
+    n, fingers = len(v.angles), v.points.shape[-2]
     match = _matched_points(t, v, R)
-    i, j = np.divmod(np.arange(n * n), n)
-    # the virtual pair (i, j) in the prop's finger order, and the prop's points the fingers land on
-    if choice.swapped:
-        t_pair = match[j] * n + match[i]
-        v_rows = v.rows[:, ::-1]
-    else:
-        t_pair = match[i] * n + match[j]
-        v_rows = v.rows
+    idx = np.indices((n,) * fingers).reshape(fingers, -1)
+    # each virtual landing in the prop's finger order, and the prop's points the fingers land on
+    order = other_order(fingers) if choice.swapped else list(range(fingers))
+    t_pair = np.ravel_multi_index(tuple(match[idx[order[f]]] for f in range(fingers)), (n,) * fingers)
+    v_rows = v.rows[:, order]
     keep = np.flatnonzero(v.weights > 0)
     t_pair = t_pair[keep]
     hit = v.hit[keep] & t.hit[t_pair]

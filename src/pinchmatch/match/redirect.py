@@ -19,7 +19,8 @@ or on its p2 when swapped):
 - ``offset_mm``: the distance between them;
 - ``angle_deg``: the angle at the hand's start between the directions to the two targets, the
   quantity that body-warping studies threshold (Zenner and Krüger 2019);
-- ``axis_turn_deg``: the turn from the physical pinch axis (p1 to p2) to the virtual one.
+- ``axis_turn_deg``: the turn from the physical pinch axis (p1 to p2; a tripod's thumb to the middle of its
+  fingers) to the virtual one.
 
 Cost, in threshold units (1 = at the threshold, as a criterion at 1 JND): ``angle_deg /
 threshold_deg`` and ``axis_turn_deg / axis_threshold_deg``, each squared and pooled with the haptic
@@ -134,7 +135,8 @@ def redirection(tangible_obj, t_points: np.ndarray, v_points: np.ndarray, redire
     start = hand_start(spec, redirect, tangible_obj.loaded.mesh.vertices)
     pt, vt = physical.mean(axis=1), virtual.mean(axis=1)
     angle = _angle_deg(pt - start, vt - start)
-    turn = _angle_deg(physical[:, 1] - physical[:, 0], virtual[:, 1] - virtual[:, 0])
+    # the grasp's axis: a pinch's p1 to p2, a tripod's thumb to the middle of its fingers
+    turn = _angle_deg(physical[:, 1:].mean(axis=1) - physical[:, 0], virtual[:, 1:].mean(axis=1) - virtual[:, 0])
     gain = reach_gain(start, pt, vt)
     terms = np.stack([(angle / redirect.threshold_deg) ** 2, (turn / redirect.axis_threshold_deg) ** 2], axis=-1)
     low, high = redirect.gain_range

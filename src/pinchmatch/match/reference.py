@@ -118,6 +118,8 @@ def reference_pose(tangible: Candidates, t_pose: int, virtual: Candidates, model
     :func:`line_pinch`.
     """
     p = tangible.pinches.points[t_pose]
+    if len(p) != 2:
+        return Reference(None, None, None, None, "the paper's reference places a pinch: a tripod has none")
     pinches = line_pinch(virtual, p.mean(axis=0), p[1] - p[0], settings=settings, near=p, memo=memo)
     if pinches is None:
         return Reference(None, None, None, None, "the tangible's pinch line misses the virtual object")

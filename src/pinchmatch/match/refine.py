@@ -40,6 +40,8 @@ import numpy as np
 
 from ..grasp.curvature import tangent_frame
 from ..grasp.pinches import ARRAY_FIELDS, PinchSettings, Pinches, check_pinches, check_reach
+from ..grasp.spread import other_order
+from ..grasp.tripod_rules import Tripods, check_tripods
 from .candidates import REFINED_INDEX, Candidates, extend, felt_table, mass_ratio  # noqa: F401 (re-exported)
 from .cost import CostModel, separable_terms
 from .search import Search, cost_row, evaluate_pairs
@@ -73,10 +75,11 @@ class _Grown:
 
 
 def move_directions(points: np.ndarray, axis: np.ndarray) -> np.ndarray:
-    """(k, 2, 3) unit directions perpendicular to each pinch line: along the object's ``axis``
+    """(k, 2, 3) unit directions perpendicular to each pinch line (a tripod's: from the thumb to the middle
+    of its fingers): along the object's ``axis``
     projected off the line, and across it (the line x that). Where the axis lies along the line,
     any perpendicular pair."""
-    u = points[:, 1] - points[:, 0]
+    u = points[:, 1:].mean(axis=1) - points[:, 0]
     u = u / np.maximum(np.linalg.norm(u, axis=1, keepdims=True), 1e-300)
     along = axis[None, :] - (u @ axis)[:, None] * u
     size = np.linalg.norm(along, axis=1)
@@ -91,6 +94,12 @@ def move_directions(points: np.ndarray, axis: np.ndarray) -> np.ndarray:
 #: along e1 and e2, both ways: 16 moves
 MOVES = np.array([(d, sign * a, sign * b) for a, b in ((1, 0), (0, 1), (1, 1), (1, -1)) for d in (0, 1)
                   for sign in (1, -1)], dtype=np.int64)
+#: a tripod's (thumb, index, middle): each contact alone, all together (the tripod slides), the thumb
+#: against the fingers (it turns about the fingers' middle) and the fingers against each other (they
+#: turn about the aperture line), along e1 and e2, both ways: 24 moves
+TRIPOD_MOVES = np.array([(d, sign * a, sign * b, sign * c)
+                         for a, b, c in ((1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 1, 1), (1, -1, -1), (0, 1, -1))
+                         for d in (0, 1) for sign in (1, -1)], dtype=np.int64)
 
 
 def moved_poses(c: Candidates, poses: np.ndarray, steps: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -101,21 +110,24 @@ def moved_poses(c: Candidates, poses: np.ndarray, steps: np.ndarray) -> tuple[np
     closes along the new pinch line from its own side, from ``2·step + 1`` mm back, and the
     contact is the first surface the finger meets facing it. A contact that does not move stays."""
     points = c.pinches.points[poses]
+    fingers = points.shape[1]
     dirs = move_directions(points, c.obj.props.principal_axis)  # (k, 2, 3)
-    k, n_moves = len(poses), len(MOVES)
+    table = MOVES if fingers == 2 else TRIPOD_MOVES
+    k, n_moves = len(poses), len(table)
     which = np.repeat(np.arange(k), n_moves)
-    move = np.tile(MOVES, (k, 1))
+    move = np.tile(table, (k, 1))
     step = steps[which]
     offset = dirs[which, move[:, 0]]  # (m, 3)
     new = points[which] + (move[:, 1:, None] * step[:, None, None]) * offset[:, None, :]
     faces = c.pinches.face_index[poses][which].copy()
-    u = new[:, 1] - new[:, 0]
-    u = u / np.maximum(np.linalg.norm(u, axis=1, keepdims=True), 1e-300)
+    # the thumb (the first finger) closes towards the others' middle, each other finger towards it
+    toward = np.concatenate([new[:, 1:].mean(axis=1, keepdims=True) - new[:, :1], new[:, :1] - new[:, 1:]], axis=1)
+    toward /= np.maximum(np.linalg.norm(toward, axis=2, keepdims=True), 1e-300)
     back = 2.0 * step + 1.0
     ok = np.ones(len(which), dtype=bool)
-    for contact, toward in ((0, u), (1, -u)):  # the first finger closes along +u, the second along -u
+    for contact in range(fingers):
         rows = np.flatnonzero(move[:, 1 + contact] != 0)
-        point, face = close_fingers(c.obj.context, new[rows, contact], toward[rows], back[rows])
+        point, face = close_fingers(c.obj.context, new[rows, contact], toward[rows, contact], back[rows])
         met = face >= 0
         ok[rows[~met]] = False
         new[rows[met], contact] = point[met]
@@ -164,8 +176,11 @@ def propose(grown: "_Grown", poses: list[int], steps: list[float], settings: Pin
     points, faces, which = moved_poses(c, poses, np.asarray(steps, dtype=np.float64))
     if not len(points):
         return _Moves(None, which, np.zeros((0, 3)), base)
-    checked = check_pinches(c.obj.context, points[:, 0], points[:, 1], settings=settings, faces=faces,
-                            with_reach=False)
+    if isinstance(c.pinches, Tripods):
+        checked = check_tripods(c.obj.context, points, faces, settings=settings, with_reach=False)
+    else:
+        checked = check_pinches(c.obj.context, points[:, 0], points[:, 1], settings=settings, faces=faces,
+                                with_reach=False)
     keep = np.flatnonzero(checked.feasible)
     return _Moves(checked.subset(keep), which[keep], c.pinches.approach[poses][which[keep]], base)
 
@@ -189,7 +204,7 @@ def _replace_rows(pinches: Pinches, rows: np.ndarray, new: Pinches) -> Pinches:
         a = getattr(pinches, name).copy()
         a[rows] = getattr(new, name)
         arrays[name] = a
-    return Pinches(**arrays, rejected=dict(pinches.rejected))
+    return type(pinches)(**arrays, rejected=dict(pinches.rejected))
 
 
 @dataclass
@@ -329,7 +344,8 @@ def separable_sums(T: Candidates, V: Candidates, it: np.ndarray, iv: np.ndarray,
     t_rows = T.table[it]
     v_rows = felt_table(V.table[iv], mass_ratio(T, V))
     w = model.weight_vector()
-    return np.minimum(separable_terms(t_rows, v_rows, model) @ w, separable_terms(t_rows, v_rows[:, ::-1], model) @ w)
+    other = other_order(v_rows.shape[1])
+    return np.minimum(separable_terms(t_rows, v_rows, model) @ w, separable_terms(t_rows, v_rows[:, other], model) @ w)
 
 
 def refined_search(tangibles: list[Candidates], virtual: Candidates, model: CostModel, settings, *,

@@ -25,6 +25,9 @@ MASS_TIE_WEIGHT = 0.1
 AXIS_TIE_WEIGHT = 0.05
 #: a normal this close to the pinch line does not take part in choosing the roll
 NORMAL_ALONG_LINE_DEG = 5.0
+#: a contact's normal counts in the fit of three contacts as a point this far out along it (mm): about a
+#: fingertip's radius, so that the pads' facing matters as much as where they are
+NORMAL_LEVER_MM = 8.0
 #: a registration that turns the virtual object's up direction more than 90° (cosine below this)
 #: is ``flipped``
 FLIP_COSINE = -1e-6
@@ -71,6 +74,8 @@ def register_poses(
     array([[-10.,   0.,   0.],
            [ 10.,   0.,   0.]])
     """
+    if tangible_points.shape[1] > 2:
+        return register_contacts(tangible_points, tangible_normals, virtual_points, virtual_normals)
     k = len(tangible_points)
     tc, vc = np.broadcast_to(tangible_com, (k, 3)), np.broadcast_to(virtual_com, (k, 3))
     ta, va = np.broadcast_to(tangible_axis, (k, 3)), np.broadcast_to(virtual_axis, (k, 3))
@@ -103,6 +108,37 @@ def register_poses(
     R = _about(ut, np.arctan2(sin_sum, cos_sum)) @ R1
 
     T = np.zeros((k, 4, 4))
+    T[:, :3, :3] = R
+    T[:, :3, 3] = tm - np.einsum("kij,kj->ki", R, vm)
+    T[:, 3, 3] = 1.0
+    return T
+
+
+def register_contacts(tangible_points: np.ndarray, tangible_normals: np.ndarray, virtual_points: np.ndarray,
+                      virtual_normals: np.ndarray) -> np.ndarray:
+    """(k, 4, 4) rigid transforms (mm, det +1) taking k virtual grasps of three or more contacts (k, F, 3),
+    the virtual ones in finger order, onto k tangible ones: the least-squares fit (Kabsch 1976; Umeyama
+    1991) of the contacts about their centroids, and of the patch normals, each counted as a point
+    ``NORMAL_LEVER_MM`` out along it. The centroids coincide; three contacts fix every turn, so the
+    centres of mass and axes need no part.
+
+    >>> tangible = np.array([[[0.0, 0.0, 0.0], [30.0, -10.0, 0.0], [30.0, 10.0, 0.0]]])  # a tripod in z = 0
+    >>> virtual = tangible @ np.array([[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]) + 5.0  # turned, moved
+    >>> normals = np.array([[[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 0.0, 0.0]]])
+    >>> T = register_contacts(tangible, normals, virtual, normals @ [[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    >>> np.allclose(virtual[0] @ T[0, :3, :3].T + T[0, :3, 3], tangible[0])
+    True
+    """
+    tm, vm = tangible_points.mean(axis=1), virtual_points.mean(axis=1)
+    x = np.concatenate([virtual_points - vm[:, None], NORMAL_LEVER_MM * virtual_normals], axis=1)
+    y = np.concatenate([tangible_points - tm[:, None], NORMAL_LEVER_MM * tangible_normals], axis=1)
+    U, _, Vt = np.linalg.svd(np.einsum("kni,knj->kij", x, y))
+    d = np.sign(np.linalg.det(np.einsum("kij,kjl->kil", U, Vt)))
+    D = np.zeros((len(x), 3, 3))
+    D[:, 0, 0] = D[:, 1, 1] = 1.0
+    D[:, 2, 2] = np.where(d == 0, 1.0, d)
+    R = np.einsum("kji,kjl,kml->kim", Vt, D, U)  # V D Uᵀ
+    T = np.zeros((len(x), 4, 4))
     T[:, :3, :3] = R
     T[:, :3, 3] = tm - np.einsum("kij,kj->ki", R, vm)
     T[:, 3, 3] = 1.0

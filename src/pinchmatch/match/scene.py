@@ -26,6 +26,7 @@ from .reference import Reference, reference_pose
 from .refine import refined_search
 from .redirect import redirection
 from ..config import Config, config_of
+from ..grasp.spread import other_order
 from .search import Choice, MatchSettings, Search, cost_model, cost_row, p_noticed, pinch_distance
 from .steady import STEADY_CHOICES, SteadySearch
 
@@ -280,12 +281,9 @@ def _ranked(search: Search, steady: SteadySearch | None, allowed: list[int], cou
 
 
 def _near(a: Choice, b: Choice, distinct_mm: float) -> bool:
-    """Is ``a`` a near duplicate of ``b`` (the same tangible, both pinches within ``distinct_mm``)?"""
-    def pinch(pose):
-        return np.array([pose.p1_mm, pose.p2_mm])
-
+    """Is ``a`` a near duplicate of ``b`` (the same tangible, both grasps within ``distinct_mm``)?"""
     return a.tangible == b.tangible and all(
-        float(pinch_distance(pinch(x)[None], pinch(y))[0]) < distinct_mm
+        float(pinch_distance(x.contacts_mm[None], y.contacts_mm)[0]) < distinct_mm
         for x, y in ((a.tangible_pose, b.tangible_pose), (a.virtual_pose, b.virtual_pose)))
 
 
@@ -361,7 +359,7 @@ def _placed(search: Search, allowed: tuple, *, pinch_settings: PinchSettings, in
     tangible = vm.tangibles[best.tangible]
     v_points = vm.candidates.pinches.points[best.v_pose]
     moved = redirection(tangible.obj, tangible.pinches.points[best.t_pose][None],
-                        (v_points[::-1] if best.swapped else v_points)[None], settings.redirect)
+                        (v_points[other_order(len(v_points))] if best.swapped else v_points)[None], settings.redirect)
     return dataclasses.replace(vm, redirection=moved.record(0, mode) | costs)
 
 

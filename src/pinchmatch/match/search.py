@@ -38,6 +38,7 @@ from .candidates import Candidates, felt_table, mass_ratio, pair_terms
 from .cost import (CRITERIA, CostModel, feature_ranges, pair_cost_blocks, pooled_bound_blocks, total)
 from .redirect import Redirect, pair_budget, placed_transform, redirection, world_pose
 from .register import FLIP_COSINE, register_poses
+from ..grasp.spread import other_order
 
 #: pose pairs kept per (virtual, tangible) object pair before the exact evaluation: one per
 #: POOL_PAIRS_PER_KEPT pose pairs, within [MIN_POOL, MAX_POOL]; grows x4 when short
@@ -139,7 +140,8 @@ def evaluate_pairs(
     for order in (False, True) if swapped is None else (swapped,):
         vp, vn, v_rows = virtual.pinches.points[iv], virtual.pinches.normals[iv], virtual.table[iv]
         if order:
-            vp, vn, v_rows = vp[:, ::-1], vn[:, ::-1], v_rows[:, ::-1]
+            other = other_order(vp.shape[1])
+            vp, vn, v_rows = vp[:, other], vn[:, other], v_rows[:, other]
         X = register_poses(tp, tn, vp, vn, tangible_com=t_props.com_mm, virtual_com=v_props.com_mm,
                            tangible_axis=t_props.principal_axis, virtual_axis=v_props.principal_axis)
         # registered, the virtual object turns with the registration; fixed, it stays as the level has it,
@@ -235,31 +237,48 @@ class _PairPool:
 
 
 def pinch_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Order-free distance between pinches a (k, 2, 3) and b (2, 3): the larger contact displacement."""
-    direct = np.maximum(np.linalg.norm(a[:, 0] - b[0], axis=1), np.linalg.norm(a[:, 1] - b[1], axis=1))
-    crossed = np.maximum(np.linalg.norm(a[:, 0] - b[1], axis=1), np.linalg.norm(a[:, 1] - b[0], axis=1))
+    """Order-free distance between grasps a (k, F, 3) and b (F, 3): the largest contact displacement, in the
+    nearer of the two finger orders (:func:`pinchmatch.grasp.spread.other_order`)."""
+    direct = np.linalg.norm(a - b, axis=2).max(axis=1)
+    crossed = np.linalg.norm(a - b[other_order(len(b))], axis=2).max(axis=1)
     return np.minimum(direct, crossed)
 
 
 @dataclass(frozen=True)
 class Pose:
-    """One pinch of a choice, in its object's frame (mm), as matches.json names it: the contacts
-    ``p1_mm`` and ``p2_mm`` (3,), their outward normals ``n1`` and ``n2`` (3,), and the hand's
-    ``approach`` (3,) unit direction from the pinch towards the palm (NaN for a pose given without one).
-    A virtual pose is in the tangible's finger order: its ``p1_mm`` meets the tangible's ``p1_mm``."""
+    """One grasp of a choice, in its object's frame (mm), as matches.json names it: the contacts
+    ``contacts_mm`` (F, 3) (a pinch's p1 and p2; a tripod's thumb, index and middle), their outward
+    ``normals`` (F, 3), and the hand's ``approach`` (3,) unit direction from the fingertips towards the
+    palm (NaN for a pose given without one). A virtual pose is in the tangible's finger order: its
+    first contact meets the tangible's first, and so on."""
 
-    p1_mm: np.ndarray
-    p2_mm: np.ndarray
-    n1: np.ndarray
-    n2: np.ndarray
+    contacts_mm: np.ndarray
+    normals: np.ndarray
     approach: np.ndarray
+
+    @property
+    def p1_mm(self) -> np.ndarray:
+        return self.contacts_mm[0]
+
+    @property
+    def p2_mm(self) -> np.ndarray:
+        return self.contacts_mm[1]
+
+    @property
+    def n1(self) -> np.ndarray:
+        return self.normals[0]
+
+    @property
+    def n2(self) -> np.ndarray:
+        return self.normals[1]
 
     @classmethod
     def of(cls, candidates: Candidates, i: int, swapped: bool = False) -> "Pose":
         p, n = candidates.pinches.points[i], candidates.pinches.normals[i]
         if swapped:
-            p, n = p[::-1], n[::-1]
-        return cls(p[0].copy(), p[1].copy(), n[0].copy(), n[1].copy(), candidates.pinches.approach[i].copy())
+            other = other_order(len(p))
+            p, n = p[other], n[other]
+        return cls(p.copy(), n.copy(), candidates.pinches.approach[i].copy())
 
 
 @dataclass(frozen=True)
@@ -461,7 +480,9 @@ def jnd_terms(tangible: Candidates, virtual: Candidates, choice: Choice) -> np.n
     """(8,) each criterion's contribution for a choice in just-noticeable differences (JND²)."""
     v_row = virtual.table[choice.v_pose][None]
     jnd_model = CostModel(normalize="jnd", criteria=CRITERIA, weights=dict.fromkeys(CRITERIA, 1.0))
-    return pair_terms(tangible, virtual, tangible.table[choice.t_pose][None], v_row[:, ::-1] if choice.swapped else v_row,
+    if choice.swapped:
+        v_row = v_row[:, other_order(v_row.shape[1])]
+    return pair_terms(tangible, virtual, tangible.table[choice.t_pose][None], v_row,
                       jnd_model, delta=choice.mass_delta_mm[None])[0][0]
 
 

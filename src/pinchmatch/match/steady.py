@@ -36,6 +36,7 @@ import numpy as np
 from .candidates import Candidates, felt_table, mass_ratio
 from .cost import separable_terms
 from .felt import landing_moments
+from ..grasp.spread import other_order
 from .search import Choice, Search, evaluate_pairs, pool_pairs, take_pairs
 
 #: the landings the moments are made of: the target and this many points on a ring at the radius
@@ -101,9 +102,9 @@ class SteadySearch:
         order = np.lexsort((iv, it))  # the pool's own order depends on its blocks
         it, iv = it[order], iv[order]
         r = evaluate_pairs(T, V, it, iv, model=model, keep_upright=settings.keep_upright, redirect=settings.redirect)
-        swapped = r.swapped[:, None, None]
-        v_mean = np.where(swapped, mv[0][iv][:, ::-1], mv[0][iv])
-        v_var = np.where(swapped, mv[1][iv][:, ::-1], mv[1][iv])
+        swapped, other = r.swapped[:, None, None], other_order(mv[0].shape[1])
+        v_mean = np.where(swapped, mv[0][iv][:, other], mv[0][iv])
+        v_var = np.where(swapped, mv[1][iv][:, other], mv[1][iv])
         terms = expected_terms((mt[0][it], mt[1][it]), (v_mean, v_var), mass_ratio(T, V), model)
         # the mass offset exact on target (it needs the registration), and its spread
         terms[:, 7] += r.terms[:, 7] - separable_terms(mt[0][it], felt_table(v_mean, mass_ratio(T, V)), model)[:, 7]

@@ -35,7 +35,10 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..grasp.pinches import PinchSettings, check_pinches
-from ..grasp.sampling import cheap_candidates
+from ..grasp.features import TripodFeatures, tripod_shape
+from ..grasp.sampling import uniform_contacts, cheap_candidates
+from ..grasp.tripod_rules import TRIPOD_RULES, Tripods, check_tripods
+from ..grasp.tripods import candidate_tripods
 from ..grasp.strata import width_jnd
 from .candidates import Candidates, extend
 from .cost import ANGLE_JND_FLOOR_DEG, COM_JND_MM, MASS_JND_FLOOR_MM
@@ -71,22 +74,38 @@ def pinch_keys(points: np.ndarray, normals: np.ndarray, props) -> np.ndarray:
     return _keys(width, com_distance, tilt, psi, lever)
 
 
+def tripod_keys(points: np.ndarray, normals: np.ndarray, props) -> np.ndarray:
+    """(n, 8) the key of tripods ((n, 3, 3) contacts and outward normals): as :func:`pinch_keys`'s, the lever
+    arm from the contacts' centroid, and the fingers' spacing in JND of width; the two fingers' normal
+    angles smaller first."""
+    f = tripod_shape(points, normals, props)
+    return _keys(f["width_mm"], f["com_distance_mm"], f["tilt_deg"], f["normal_angle_deg"], f["lever_arm_mm"],
+                 f["spacing_mm"])
+
+
 def feature_keys(c: Candidates) -> np.ndarray:
-    """(n, 6) :func:`pinch_keys` of every candidate pose, from its features."""
+    """(n, 6) :func:`pinch_keys` of every candidate pose, from its features (of tripods, :func:`tripod_keys`)."""
     f = c.features
+    if isinstance(f, TripodFeatures):
+        return _keys(f.width_mm, f.com_distance_mm, f.tilt_deg, f.normal_angle_deg, f.lever_arm_mm, f.spacing_mm)
     return _keys(f.width_mm, f.com_distance_mm, f.tilt_deg, f.normal_angle_deg, f.mass_perp_mm)
 
 
-def _keys(width_mm, com_distance_mm, tilt_deg, normal_angle_deg, lever_mm) -> np.ndarray:
-    """The key's columns, each over its just-noticeable difference (normal angles smaller first)."""
-    return np.column_stack([width_jnd(width_mm), com_distance_mm / COM_JND_MM, tilt_deg / ANGLE_JND_FLOOR_DEG,
-                            np.sort(normal_angle_deg, axis=1) / ANGLE_JND_FLOOR_DEG, lever_mm / MASS_JND_FLOOR_MM])
+def _keys(width_mm, com_distance_mm, tilt_deg, normal_angle_deg, lever_mm, spacing_mm=None) -> np.ndarray:
+    """The key's columns, each over its just-noticeable difference (a pinch's normal angles smaller first, a
+    tripod's thumb first and its fingers' smaller first)."""
+    angles = np.sort(normal_angle_deg, axis=1) if normal_angle_deg.shape[1] == 2 else \
+        np.column_stack([normal_angle_deg[:, 0], np.sort(normal_angle_deg[:, 1:], axis=1)])
+    columns = [width_jnd(width_mm), com_distance_mm / COM_JND_MM, tilt_deg / ANGLE_JND_FLOOR_DEG,
+               angles / ANGLE_JND_FLOOR_DEG, lever_mm / MASS_JND_FLOOR_MM]
+    return np.column_stack(columns + ([] if spacing_mm is None else [width_jnd(spacing_mm)]))
 
 
 def feature_pool(c: Candidates, settings: PinchSettings) -> tuple[np.ndarray, np.ndarray, cKDTree | None]:
     """The feature pool of ``c``'s object (module notes): (m, 2, 3) contacts, (m, 2) triangles and a
     KD-tree over their keys (None when no candidate keeps the cheap rules), made once per object."""
-    key = (int(settings.seed), max(POOL_MIN, POOL_PER_POSE * int(settings.count)))
+    tripods = isinstance(c.pinches, Tripods)
+    key = (int(settings.seed), max(POOL_MIN, POOL_PER_POSE * int(settings.count)), tripods)
     memo = _POOLS.get(id(c.obj))
     if memo is None or memo[0]() is not c.obj:
         memo = (weakref.ref(c.obj), {})
@@ -94,10 +113,15 @@ def feature_pool(c: Candidates, settings: PinchSettings) -> tuple[np.ndarray, np
         weakref.finalize(c.obj, _POOLS.pop, id(c.obj), None)
     if key not in memo[1]:
         rng = np.random.default_rng([key[0], POOL_STREAM])
-        points, faces = cheap_candidates(c.obj.context, key[1], settings, rng)
-        normals = c.obj.context.face_normals[faces]
-        tree = cKDTree(pinch_keys(points, normals, c.obj.props)) if len(points) else None
-        memo[1][key] = (points, faces, tree)
+        context = c.obj.context
+        if tripods:
+            rejected = dict.fromkeys(TRIPOD_RULES, 0)
+            points, faces = candidate_tripods(context, *uniform_contacts(context, key[1], rng), settings, rng, rejected)
+        else:
+            points, faces = cheap_candidates(context, key[1], settings, rng)
+        normals = context.face_normals[faces]
+        keys = (tripod_keys if tripods else pinch_keys)(points, normals, c.obj.props)
+        memo[1][key] = (points, faces, cKDTree(keys) if len(points) else None)
     return memo[1][key]
 
 
@@ -117,7 +141,10 @@ def nearest_feasible(c: Candidates, keys: np.ndarray, settings: PinchSettings):
     idx = np.asarray(idx).reshape(len(keys), budget).T.ravel()  # rank by rank over the keys
     first = np.sort(np.unique(idx, return_index=True)[1])[:budget]
     idx = idx[first]
-    checked = check_pinches(c.obj.context, points[idx, 0], points[idx, 1], settings=settings, faces=faces[idx])
+    if isinstance(c.pinches, Tripods):
+        checked = check_tripods(c.obj.context, points[idx], faces[idx], settings=settings)
+    else:
+        checked = check_pinches(c.obj.context, points[idx, 0], points[idx, 1], settings=settings, faces=faces[idx])
     keep = np.flatnonzero(checked.feasible)
     return checked.subset(keep) if len(keep) else None
 

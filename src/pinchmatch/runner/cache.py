@@ -44,7 +44,8 @@ import trimesh
 from ..options import code_digest, digest
 from ..version import __version__
 from ..grasp.analysis import ObjectAnalysis, analyze_spec
-from ..grasp.features import PinchFeatures
+from ..grasp.features import PinchFeatures, TripodFeatures
+from ..grasp.tripod_rules import Tripods
 from ..files import AtomicFile
 from ..mesh.gltf_check import external_files, gltf_document
 from ..mesh.load import LoadedMesh, load_mesh, node_digests
@@ -90,6 +91,11 @@ PINCH_ARRAYS = list(ARRAY_FIELDS)
 PROPS_ARRAYS = ("com_mm", "principal_axis", "variances_mm2", "bounds_mm")
 PROPS_VALUES = ("axis_source", "com_source", "volume_mm3", "area_mm2")
 FEATURE_ARRAYS = [f.name for f in dataclasses.fields(PinchFeatures)]
+TRIPOD_FEATURE_ARRAYS = [f.name for f in dataclasses.fields(TripodFeatures)]
+
+
+def _feature_arrays(grasps) -> list[str]:
+    return TRIPOD_FEATURE_ARRAYS if isinstance(grasps, Tripods) else FEATURE_ARRAYS
 
 
 def default_cache_dir() -> Path:
@@ -341,6 +347,7 @@ def to_payload(candidates: Candidates) -> tuple[dict, dict]:
     meta = {"version": __version__, "spec": spec_to_dict(spec), "units_in": loaded.units_in,
             "up_label": loaded.up_label, "watertight": bool(loaded.watertight), "repairs": list(loaded.repairs),
             "warnings": list(loaded.warnings), "given": bool(candidates.given),
+            "grasp": "tripod" if isinstance(candidates.pinches, Tripods) else "pinch",
             "patch_radius_mm": candidates.obj.context.patch_radius_mm,
             "rejected": {str(k): int(v) for k, v in candidates.pinches.rejected.items()},
             "props": {name: getattr(candidates.obj.props, name) for name in PROPS_VALUES}}
@@ -348,7 +355,7 @@ def to_payload(candidates: Candidates) -> tuple[dict, dict]:
               "index": candidates.index}
     arrays |= {f"props.{name}": getattr(candidates.obj.props, name) for name in PROPS_ARRAYS}
     arrays |= {f"pinches.{name}": getattr(candidates.pinches, name) for name in PINCH_ARRAYS}
-    arrays |= {f"features.{name}": getattr(candidates.features, name) for name in FEATURE_ARRAYS}
+    arrays |= {f"features.{name}": getattr(candidates.features, name) for name in _feature_arrays(candidates.pinches)}
     return meta, arrays
 
 
@@ -371,10 +378,12 @@ def _rebuild(meta: dict, arrays: dict, spec: ObjectSpec, *, patch_radius_mm: flo
                              support=support_plane(spec, mesh.vertices, arrays["up"]))
     obj = ObjectAnalysis(loaded, props, context,
                          spec)
-    pinches = Pinches(**{name: arrays[f"pinches.{name}"] for name in PINCH_ARRAYS}, rejected=meta["rejected"])
-    features = PinchFeatures(**{name: arrays[f"features.{name}"] for name in FEATURE_ARRAYS})
+    tripods = meta.get("grasp", "pinch") == "tripod"
+    kinds = (Tripods, TripodFeatures, TRIPOD_FEATURE_ARRAYS) if tripods else (Pinches, PinchFeatures, FEATURE_ARRAYS)
+    pinches = kinds[0](**{name: arrays[f"pinches.{name}"] for name in PINCH_ARRAYS}, rejected=meta["rejected"])
+    features = kinds[1](**{name: arrays[f"features.{name}"] for name in kinds[2]})
     n = len(pinches)
-    if not (len(arrays["index"]) == n and all(len(getattr(features, f)) == n for f in FEATURE_ARRAYS)
+    if not (len(arrays["index"]) == n and all(len(getattr(features, f)) == n for f in kinds[2])
             and all(len(arrays[f"pinches.{p}"]) == n for p in PINCH_ARRAYS)):
         raise DamagedEntry("the entry's arrays disagree in length")
     return Candidates(obj, pinches, features, feature_table(features), arrays["index"], meta["given"])

@@ -46,6 +46,9 @@ PART_HEIGHT_MM = 40.0
 ORDERS = tuple(itertools.permutations(PARTS))
 CANDIDATE_HEIGHTS_MM = PART_HEIGHT_MM * 3 * np.arange(1, 18) / 18.0
 TANGIBLE_HEIGHTS_MM = PART_HEIGHT_MM * (np.arange(3) + 0.5)
+#: a study tripod's fingers: on lines this far apart across the stack's axis (contacts on the cube's face
+#: 20 mm apart, two 16 mm pads side by side)
+TRIPOD_SPACING_MM = 20.0
 
 
 def part_at(order: tuple, height_mm: float) -> str:
@@ -57,16 +60,23 @@ def part_at(order: tuple, height_mm: float) -> str:
     return order[int(np.clip(np.floor(level), 0, len(order) - 1))]
 
 
-def horizontal_poses(obj, heights_mm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Pinches along X through the Z axis at the given heights: where the fingers meet the surface."""
-    p1, p2 = [], []
+def horizontal_poses(obj, heights_mm: np.ndarray, grasp: str = "pinch") -> tuple:
+    """Pinches along X through the Z axis at the given heights, where the fingers meet the surface:
+    (p1, p2) arrays. Tripods (``grasp``): the thumb where the pinch's first finger is, the index and the
+    middle finger on lines along X ``TRIPOD_SPACING_MM`` apart across the axis, from the other side:
+    a tuple of their (n, 3, 3) contacts."""
+    lines = [np.zeros(2)] if grasp == "pinch" else [np.zeros(2), [-TRIPOD_SPACING_MM / 2, 0], [TRIPOD_SPACING_MM / 2, 0]]
+    found = []
     for z in heights_mm:
-        contacts = line_contacts(obj, np.array([0.0, 0.0, z]), np.array([1.0, 0.0, 0.0]))
-        if contacts is None:
-            raise InternalError(f"the study object has no surface at z = {z} mm")
-        p1.append(contacts[0])
-        p2.append(contacts[1])
-    return np.array(p1), np.array(p2)
+        row = []
+        for y, _ in lines:
+            contacts = line_contacts(obj, np.array([0.0, y, z]), np.array([1.0, 0.0, 0.0]))
+            if contacts is None:
+                raise InternalError(f"the study object has no surface at y = {y}, z = {z} mm")
+            row.append(contacts)
+        found.append(row[0] if grasp == "pinch" else [row[0][0], row[1][1], row[2][1]])
+    found = np.array(found)
+    return (found[:, 0], found[:, 1]) if grasp == "pinch" else (found,)
 
 
 @dataclass
@@ -101,6 +111,16 @@ def _expected(tangible: Candidates, t_pose: int, virtual: Candidates, v_pose: in
     return felt_cost(tangible, virtual, choice, model, tables).expected
 
 
+def _contacts_fields(prefix: str, points) -> dict:
+    """A pose's contacts as the study's records name them: ``contacts_mm`` (every grasp), and a pinch's
+    ``p1_mm`` and ``p2_mm``, each under ``prefix``; null where there is no pose."""
+    vectors = [None if p[0] is None else json_vector(p) for p in points]
+    out = {f"{prefix}contacts_mm": None if vectors[0] is None else vectors}
+    if len(vectors) == 2:
+        out |= {f"{prefix}p1_mm": vectors[0], f"{prefix}p2_mm": vectors[1]}
+    return out
+
+
 def _pose_entry(order, candidates: Candidates, v_pose: int, *, points=None, flipped, cost, cost_paper,
                 reason=None, transform=None, swapped=False, terms=None, cost_expected=None) -> dict:
     """One virtual pose of a row. ``transform`` (virtual -> tangible, mm), ``swapped`` (the virtual p1
@@ -111,8 +131,7 @@ def _pose_entry(order, candidates: Candidates, v_pose: int, *, points=None, flip
     entry = {
         "part": part_at(order, height) if height is not None else None,
         "height_mm": json_number(height, 2) if height is not None else None,
-        "p1_mm": json_vector(pts[0]) if pts is not None else None,
-        "p2_mm": json_vector(pts[1]) if pts is not None else None,
+        **_contacts_fields("", pts if pts is not None else np.full((candidates.pinches.points.shape[1], 3), None)),
         "flipped": flipped,
         "cost": json_number(cost) if cost is not None else None,
         "cost_paper": json_number(cost_paper) if cost_paper is not None else None,
@@ -132,7 +151,8 @@ def run_study(folder: Path, *, full: bool = False, settings: PinchSettings = Pin
     say = progress or (lambda message: None)
     tangible_path, virtual_paths = write_study_meshes(folder)
     t_obj = analyze_object(tangible_path, units="mm", up="z")
-    tangible = candidate_poses(t_obj, settings=settings, given=horizontal_poses(t_obj, TANGIBLE_HEIGHTS_MM),
+    tangible = candidate_poses(t_obj, settings=settings,
+                               given=horizontal_poses(t_obj, TANGIBLE_HEIGHTS_MM, settings.grasp),
                                source="study tangible poses")
     if len(tangible) != 3:
         raise InternalError("a study tangible pose is not feasible")
@@ -140,7 +160,8 @@ def run_study(folder: Path, *, full: bool = False, settings: PinchSettings = Pin
     for j, path in enumerate(virtual_paths, start=1):
         say(f"VO{j}: {' / '.join(ORDERS[j - 1])}")
         obj = analyze_object(path, units="mm", up="z")
-        candidates = candidate_poses(obj, settings=settings, given=horizontal_poses(obj, CANDIDATE_HEIGHTS_MM),
+        candidates = candidate_poses(obj, settings=settings,
+                                     given=horizontal_poses(obj, CANDIDATE_HEIGHTS_MM, settings.grasp),
                                      source=f"VO{j} candidate poses")
         if full:
             candidates = merge_candidates(candidate_poses(obj, settings=settings), candidates)
@@ -177,8 +198,7 @@ def run_study(folder: Path, *, full: bool = False, settings: PinchSettings = Pin
                 "tangible_height_mm": float(TANGIBLE_HEIGHTS_MM[i]),
                 "virtual": j + 1,
                 "virtual_order": list(order),
-                "tangible_p1_mm": json_vector(tangible.pinches.points[i, 0]),
-                "tangible_p2_mm": json_vector(tangible.pinches.points[i, 1]),
+                **_contacts_fields("tangible_", tangible.pinches.points[i]),
                 "ours": _pose_entry(order, V, k_ours, flipped=bool(ours.flipped[k_ours]),
                                     cost=ours.cost[k_ours], cost_paper=paper.cost[k_ours],
                                     transform=ours.transform[k_ours], swapped=ours.swapped[k_ours],

@@ -66,7 +66,7 @@ class Job:
 class ObjectTask:
     role: str
     path: str
-    given: tuple | None = None  # (p1_mm, p2_mm) arrays of given poses
+    given: tuple | None = None  # (p1_mm, p2_mm) arrays of given pinches, or (contacts,) of tripods (n, 3, 3)
     source: str | None = None  # the poses file they came from
     spec: ObjectSpec | None = None  # a manifest entry or a level node (None: the file, with the job's options)
 

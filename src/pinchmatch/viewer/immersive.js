@@ -61,8 +61,9 @@
     hand.addEventListener("connected", (e) => { hand.userData.handedness = e.data && e.data.handedness; });
     scene.add(hand);
     const tips = { thumb: new THREE.Mesh(new THREE.SphereGeometry(TIP_RADIUS_M, 16, 12), tipMaterial),
-                   index: new THREE.Mesh(new THREE.SphereGeometry(TIP_RADIUS_M, 16, 12), tipMaterial) };
-    scene.add(tips.thumb, tips.index);
+                   index: new THREE.Mesh(new THREE.SphereGeometry(TIP_RADIUS_M, 16, 12), tipMaterial),
+                   middle: new THREE.Mesh(new THREE.SphereGeometry(TIP_RADIUS_M, 16, 12), tipMaterial) };
+    scene.add(tips.thumb, tips.index, tips.middle);
     return { hand, tips };
   });
 
@@ -104,7 +105,7 @@
   const panel = new Panel();
 
   // ---- what is shown: a match of the page, or a pair of the study plan ----------------------------------
-  let shown = null; // { root, virtual, cones, C, p1, p2 (prop frame, metres), material }
+  let shown = null; // { root, virtual, cones, C, targets (a pinch's two, a tripod's three; prop frame, metres), material }
 
   function matrixRows(rows) {
     return new THREE.Matrix4().set(...rows.flat());
@@ -115,29 +116,29 @@
     const root = gltf.scene.clone(true);
     const C = new THREE.Matrix4().fromArray(root.userData["pinchmatch:file_mm_to_gltf_m"]).transpose();
     const get = (name) => root.getObjectByName(name);
-    const virtual = get("virtual"), tangible = get("tangible"), cones = [get("cone_p1"), get("cone_p2")];
+    const virtual = get("virtual"), tangible = get("tangible");
+    const cones = ["cone_p1", "cone_p2", "cone_p3"].map(get).filter(Boolean); // a tripod's three
     tangible.visible = false; // the hand feels the real prop; the eye sees the virtual object
     const material = virtual.material.clone();
     Object.assign(material, { transparent: false, opacity: 1, depthWrite: true });
     virtual.material = material;
-    let p1, p2;
+    let targets;
     if (pair) { // the pair's placement and its fingertip targets on the prop
       virtual.matrix.copy(C.clone().multiply(matrixRows(pair.transform_virtual_to_tangible)).multiply(C.clone().invert()));
       virtual.matrix.decompose(virtual.position, virtual.quaternion, virtual.scale);
-      p1 = new THREE.Vector3(...pair.tangible_p1_mm).applyMatrix4(C);
-      p2 = new THREE.Vector3(...pair.tangible_p2_mm).applyMatrix4(C);
-      const u = p2.clone().sub(p1).normalize();
+      targets = (pair.tangible_contacts_mm || [pair.tangible_p1_mm, pair.tangible_p2_mm])
+        .map((q) => new THREE.Vector3(...q).applyMatrix4(C));
+      const material = cones[0].material;
       cones.forEach((c) => c.removeFromParent());
-      cones.splice(0, 2, V.cone(cones[0].material, p1, u), V.cone(cones[0].material, p2, u.clone().negate()));
+      cones.splice(0, cones.length, ...V.fingertipCones(material, targets));
       cones.forEach((c) => root.add(c));
-      for (const name of ["finger_p1", "finger_p2"]) { const f = get(name); if (f) f.visible = false; }
+      for (const name of ["finger_p1", "finger_p2", "finger_p3"]) { const f = get(name); if (f) f.visible = false; }
     } else {
-      p1 = new THREE.Vector3(...contactOf(root, "cone_p1"));
-      p2 = new THREE.Vector3(...contactOf(root, "cone_p2"));
+      targets = cones.map((c) => new THREE.Vector3(...contactOf(root, c.name)));
     }
     content.clear();
     content.add(root);
-    shown = { root, virtual, cones, C, p1, p2, material, baseColor: material.color.clone() };
+    shown = { root, virtual, cones, C, targets, material, baseColor: material.color.clone() };
     return shown;
   }
 
@@ -151,8 +152,7 @@
 
   function targetsInRoom() {
     propFrame.updateMatrixWorld(true);
-    return [shown.p1.clone().applyMatrix4(propFrame.matrix).toArray(),
-            shown.p2.clone().applyMatrix4(propFrame.matrix).toArray()];
+    return shown.targets.map((q) => q.clone().applyMatrix4(propFrame.matrix).toArray());
   }
 
   function paint(color) {
@@ -165,13 +165,17 @@
   function tips() {
     return hands.map(({ hand, tips: spheres }) => {
       const j = hand.joints || {};
-      const thumb = j["thumb-tip"], index = j["index-finger-tip"];
+      const thumb = j["thumb-tip"], index = j["index-finger-tip"], middle = j["middle-finger-tip"];
       const ok = thumb && index && thumb.visible && index.visible;
       spheres.thumb.visible = spheres.index.visible = Boolean(ok);
+      const tripod = Boolean(ok && shown && shown.targets.length === 3 && middle && middle.visible);
+      spheres.middle.visible = tripod;
       if (!ok) return null;
       spheres.thumb.position.copy(thumb.position);
       spheres.index.position.copy(index.position);
+      if (tripod) spheres.middle.position.copy(middle.position);
       return { handedness: hand.userData.handedness || null, thumb: thumb.position.toArray(),
+               middle: middle && middle.visible ? middle.position.toArray() : null,
                index: index.position.toArray() };
     });
   }
@@ -319,12 +323,13 @@
   }
 
   function guideStep(t, seen) {
-    const [p1, p2] = targetsInRoom();
+    const targets = targetsInRoom();
+    const worst = (c) => Math.max(c.thumb_error_mm, c.index_error_mm, c.middle_error_mm || 0);
     let best = null;
     seen.forEach((h, i) => {
-      if (!h) return;
-      const c = XR.checkPinch(h.thumb, h.index, p1, p2, limits);
-      if (!best || Math.max(c.thumb_error_mm, c.index_error_mm) < Math.max(best.thumb_error_mm, best.index_error_mm)) {
+      if (!h || (targets.length === 3 && !h.middle)) return;
+      const c = XR.checkGrasp(h, targets, limits);
+      if (!best || worst(c) < worst(best)) {
         best = { ...c, hand: h, handIndex: i };
       }
     });
@@ -337,8 +342,9 @@
     if (!state.study) { // then the page's next match, so that every object can be tried in one session
       paint(GREEN);
       const next = (Math.max(V.current(), 0) + 1) % DATA.matches.length;
+      const middle = best.middle_error_mm === undefined ? "" : `, middle ${best.middle_error_mm.toFixed(1)} mm`;
       say(`Validated in ${validation.time_s.toFixed(2)} s: thumb ${best.thumb_error_mm.toFixed(1)} mm, index ` +
-          `${best.index_error_mm.toFixed(1)} mm and ${best.angle_error_deg.toFixed(1)} degrees off the targets.` +
+          `${best.index_error_mm.toFixed(1)} mm${middle} and ${best.angle_error_deg.toFixed(1)} degrees off the targets.` +
           (DATA.matches.length > 1 ? ` Next: ${DATA.matches[next].virtual}.` : ""));
       state.phase = "done";
       if (DATA.matches.length > 1) {
@@ -382,8 +388,8 @@
     buttons.forEach((b) => b.removeFromParent());
     const question = DATA.study.question;
     say(`${question} Press a number with a fingertip: 1 (${DATA.study.scale.labels[0]}) to 7 (${DATA.study.scale.labels[1]}).`);
-    const [p1, p2] = targetsInRoom();
-    const centre = new THREE.Vector3(...p1).add(new THREE.Vector3(...p2)).multiplyScalar(0.5);
+    const targets = targetsInRoom();
+    const centre = targets.reduce((a, q) => a.add(new THREE.Vector3(...q)), new THREE.Vector3()).multiplyScalar(1 / targets.length);
     buttons = [1, 2, 3, 4, 5, 6, 7].map((value, k) => {
       const canvas = document.createElement("canvas");
       canvas.width = canvas.height = 64;

@@ -143,16 +143,16 @@ window.PinchmatchScene = (function () {
       showAtProp(false);
     }
 
-    // the current task's targets in the room: [virtual p1, p2], [physical p1, p2], the hand's start
+    // the current task's targets in the room: [virtual p1, p2], [physical p1, p2] (a tripod's three each), the
+    // hand's start
     function targets() {
       const m = DATA.matches[tasks()[st.task]];
       const o = objects.get(tasks()[st.task]);
       const C = new THREE.Matrix4().fromArray(o.root.userData["pinchmatch:file_mm_to_gltf_m"]).transpose();
-      const physical = ["cone_p1", "cone_p2"].map((n) =>
-        room(new THREE.Vector3(...o.root.getObjectByName(n).userData["pinchmatch:contact_mm"]).applyMatrix4(C),
-             api.propFrame));
+      const physical = ["cone_p1", "cone_p2", "cone_p3"].map((n) => o.root.getObjectByName(n)).filter(Boolean).map((c) =>
+        room(new THREE.Vector3(...c.userData["pinchmatch:contact_mm"]).applyMatrix4(C), api.propFrame));
       if (m.redirection.mode === "carousel") return { virtual: physical, physical, start: null };
-      const virtual = [m.virtual_p1_mm, m.virtual_p2_mm].map((p) => room(mm(p), level));
+      const virtual = (m.virtual_contacts_mm || [m.virtual_p1_mm, m.virtual_p2_mm]).map((p) => room(mm(p), level));
       return { virtual, physical, start: room(mm(m.redirection.hand_start_mm), level) };
     }
 
@@ -201,15 +201,18 @@ window.PinchmatchScene = (function () {
       if (m.redirection.mode === "redirect" && cones.children.length) {
         const tg = targets();
         const start = tg.start.toArray();
-        const physical = tg.physical[0].clone().add(tg.physical[1]).multiplyScalar(0.5).toArray();
-        const virtual = tg.virtual[0].clone().add(tg.virtual[1]).multiplyScalar(0.5).toArray();
+        // the grasp's middle: a pinch's midpoint, a tripod's centroid (the targets' and the fingertips')
+        const centroid = (ps) => ps.reduce((a, q) => a.add(q), new THREE.Vector3()).multiplyScalar(1 / ps.length).toArray();
+        const physical = centroid(tg.physical), virtual = centroid(tg.virtual);
         rendered = real.map((h) => {
           if (!h) return null;
-          const mid = h.thumb.map((x, k) => (x + h.index[k]) / 2);
+          const tips = [h.thumb, h.index, ...(tg.physical.length === 3 && h.middle ? [h.middle] : [])];
+          const mid = centroid(tips.map((p) => new THREE.Vector3(...p)));
           const d = XR.warpOffset(start, physical, virtual, mid);
           st.ratio = XR.warpRatio(start, physical, mid);
           st.offset_mm = d.map((x) => x * 1000);
-          return { ...h, thumb: h.thumb.map((x, k) => x + d[k]), index: h.index.map((x, k) => x + d[k]) };
+          const moved = (p) => (p ? p.map((x, k) => x + d[k]) : p);
+          return { ...h, thumb: moved(h.thumb), index: moved(h.index), middle: moved(h.middle) };
         });
       }
       st.real = real;
@@ -235,10 +238,11 @@ window.PinchmatchScene = (function () {
     function validateStep(t, rendered) {
       const tg = targets();
       let best = null;
+      const worst = (c) => Math.max(c.thumb_error_mm, c.index_error_mm, c.middle_error_mm || 0);
       rendered.forEach((h) => {
-        if (!h) return;
-        const c = XR.checkPinch(h.thumb, h.index, tg.virtual[0].toArray(), tg.virtual[1].toArray(), api.limits);
-        if (!best || Math.max(c.thumb_error_mm, c.index_error_mm) < Math.max(best.thumb_error_mm, best.index_error_mm)) best = c;
+        if (!h || (tg.virtual.length === 3 && !h.middle)) return;
+        const c = XR.checkGrasp(h, tg.virtual.map((q) => q.toArray()), api.limits);
+        if (!best || worst(c) < worst(best)) best = c;
       });
       st.check = best;
       st.held_s = hold.update(Boolean(best && best.ok), t);

@@ -93,6 +93,14 @@
     return mesh;
   }
 
+  // A cone on each contact, each closing as the scene's: the first (p1, the thumb) towards the others'
+  // middle, each other towards the first.
+  function fingertipCones(material, contacts) {
+    const middle = contacts.slice(1).reduce((a, q) => a.add(q), new THREE.Vector3()).divideScalar(contacts.length - 1);
+    return contacts.map((q, k) => cone(material, q,
+      (k === 0 ? middle.clone().sub(q) : contacts[0].clone().sub(q)).normalize()));
+  }
+
   // The scene's objects for the three views.
   function parts(gltf) {
     const root = gltf.scene;
@@ -102,14 +110,14 @@
       return node;
     };
     const tangible = get("tangible"), virtual = get("virtual");
+    // a cone per fingertip: a pinch's two, a tripod's three (thumb, index, middle)
     const cones = [get("cone_p1"), get("cone_p2")];
+    if (root.getObjectByName("cone_p3")) cones.push(get("cone_p3"));
     // the hand model's finger capsules, where the pose has an approach (older scenes have none)
-    const fingers = ["finger_p1", "finger_p2"].map((name) => root.getObjectByName(name)).filter(Boolean);
+    const fingers = cones.map((_, k) => root.getObjectByName(`finger_p${k + 1}`)).filter(Boolean);
     const C = new THREE.Matrix4().fromArray(root.userData["pinchmatch:file_mm_to_gltf_m"]).transpose();
     const p = virtual.userData["pinchmatch:virtual_contacts_mm"];
-    const p1 = new THREE.Vector3(p[0], p[1], p[2]).applyMatrix4(C);
-    const p2 = new THREE.Vector3(p[3], p[4], p[5]).applyMatrix4(C);
-    const u = p2.clone().sub(p1).normalize();
+    const contacts = cones.map((_, k) => new THREE.Vector3(p[3 * k], p[3 * k + 1], p[3 * k + 2]).applyMatrix4(C));
     const ownVirtual = virtual.clone(); // in its own frame (identity), and opaque there
     ownVirtual.matrix.identity();
     ownVirtual.matrix.decompose(ownVirtual.position, ownVirtual.quaternion, ownVirtual.scale);
@@ -118,8 +126,8 @@
     const green = cones[0].material;
     return {
       main: [root],
-      tangible: [tangible.clone(), cones[0].clone(), cones[1].clone(), ...fingers.map((f) => f.clone())],
-      virtual: [ownVirtual, cone(green, p1, u), cone(green, p2, u.clone().negate())],
+      tangible: [tangible.clone(), ...cones.map((c) => c.clone()), ...fingers.map((f) => f.clone())],
+      virtual: [ownVirtual, ...fingertipCones(green, contacts)],
       virtualNode: virtual, tangibleNode: tangible, cones, fingers, root, C, green,
       bestMatrix: virtual.matrix.clone(),
     };
@@ -308,9 +316,7 @@
       const T = new THREE.Matrix4().fromArray(alt.transform).transpose();
       const M = p.C.clone().multiply(T).multiply(p.C.clone().invert());
       p.virtualNode.matrix.copy(M);
-      const q1 = new THREE.Vector3(...alt.p1_mm).applyMatrix4(p.C), q2 = new THREE.Vector3(...alt.p2_mm).applyMatrix4(p.C);
-      const u = q2.clone().sub(q1).normalize();
-      extraCones = [cone(p.green, q1, u), cone(p.green, q2, u.clone().negate())];
+      extraCones = fingertipCones(p.green, alt.contacts_mm.map((q) => new THREE.Vector3(...q).applyMatrix4(p.C)));
       for (const c of extraCones) p.root.add(c);
     } else {
       p.virtualNode.matrix.copy(p.bestMatrix);
@@ -387,7 +393,7 @@
   });
 
   // what the headset mode (immersive.js) builds on
-  window.pinchmatchViewer = { DATA, view: views.main, loadScene, cone, current: () => current, select };
+  window.pinchmatchViewer = { DATA, view: views.main, loadScene, cone, fingertipCones, current: () => current, select };
 
   document.getElementById("summary").textContent = DATA.summary;
   listEntries();

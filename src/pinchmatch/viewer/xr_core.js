@@ -36,6 +36,25 @@
              angle_error_deg: best.angle };
   }
 
+  // Is the grasp on its targets? A pinch (two targets) as checkPinch; a tripod (three: the thumb's, the
+  // index's, the middle finger's) with the thumb on the first and index and middle on the other two in
+  // either order (the order with the smaller worst error is judged), every fingertip within pos_mm and the
+  // direction from the thumb to the fingers' middle within angle_deg of the targets'. hand: { thumb, index,
+  // middle } fingertip positions.
+  function checkGrasp(hand, targets, limits = DEFAULT_LIMITS) {
+    if (targets.length === 2) return checkPinch(hand.thumb, hand.index, targets[0], targets[1], limits);
+    const mid = (a, b) => [(a[0] + b[0]) / 2, (a[1] + b[1]) / 2, (a[2] + b[2]) / 2];
+    const [t0, t1, t2] = targets;
+    const orders = [[t1, t2, "index on the second target"], [t2, t1, "index on the third target"]].map(([a, b, name]) => {
+      const errors = [norm(sub(hand.thumb, t0)), norm(sub(hand.index, a)), norm(sub(hand.middle, b))].map((e) => e * 1000);
+      return { name, errors, angle: angleDeg(sub(mid(hand.index, hand.middle), hand.thumb), sub(mid(a, b), t0)) };
+    });
+    const best = Math.max(...orders[0].errors) <= Math.max(...orders[1].errors) ? orders[0] : orders[1];
+    const ok = best.errors.every((e) => e <= limits.pos_mm) && best.angle <= limits.angle_deg;
+    return { ok, order: best.name, thumb_error_mm: best.errors[0], index_error_mm: best.errors[1],
+             middle_error_mm: best.errors[2], angle_error_deg: best.angle };
+  }
+
   // A pinch is validated once it has been on target for hold_s without a break; it stays validated
   // until reset.
   class HoldTimer {
@@ -317,7 +336,7 @@
     return { radius, angles };
   }
 
-  return { DEFAULT_LIMITS, MAX_CALIBRATION_RMS_MM, checkPinch, HoldTimer, SteadyTouch, limitsFromQuery, rigidFit, spreadOk,
+  return { DEFAULT_LIMITS, MAX_CALIBRATION_RMS_MM, checkPinch, checkGrasp, HoldTimer, SteadyTouch, limitsFromQuery, rigidFit, spreadOk,
            calibrationPoints, toCSV, angleDeg, landingNote, warpRatio, warpOffset, quaternionRows, levelToProp,
            carouselQueue, carouselRing };
 });

