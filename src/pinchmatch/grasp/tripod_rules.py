@@ -117,7 +117,7 @@ def _some_point_inside(G: np.ndarray, C: np.ndarray) -> np.ndarray:
     safe = np.where(regular, det, 1.0)
     x = np.stack([(C[:, i] * G[:, j, 1] - G[:, i, 1] * C[:, j]) / safe,
                   (G[:, i, 0] * C[:, j] - C[:, i] * G[:, j, 0]) / safe], axis=-1)
-    slack = np.einsum("nvj,nkj->nvk", x, G) - C[:, None, :]
+    slack = np.matmul(x, G.transpose(0, 2, 1)) - C[:, None, :]
     tol = 1e-9 * (1.0 + np.abs(C).max(axis=1) + np.abs(x).max(axis=(1, 2)))
     return ((slack >= -tol[:, None, None]).all(axis=2) & regular).any(axis=1)
 
@@ -193,14 +193,17 @@ def spacing_broken(points: np.ndarray, normals: np.ndarray, settings: PinchSetti
     return (s < 2.0 * (settings.fingertip_radius_mm - CLEARANCE_TOLERANCE_MM)) | (s > MAX_SPACING_MM)
 
 
-def cheap_broken(context, points, normals, settings, cone_deg) -> np.ndarray:
-    """(n, len(TRIPOD_RULES)) bool of the rules that need no patches and no approach search."""
+def cheap_broken(context, points, normals, settings, cone_deg, *, every: bool = True) -> np.ndarray:
+    """(n, len(TRIPOD_RULES)) bool of the rules that need no patches and no approach search. Without ``every``,
+    balance, the dearest, is tested only where the others hold (a sampler's candidates: one broken rule is
+    enough to drop them)."""
     broken = np.zeros((len(points), len(TRIPOD_RULES)), dtype=bool)
     broken[:, 0] = region_broken(context, points)
     broken[:, 1] = aperture_broken(points, settings)
     broken[:, 2] = spacing_broken(points, normals, settings)
-    broken[:, 3] = balance_broken(points, normals, cone_deg)
     broken[:, 4] = clearance_broken(context, points, normals, settings)
+    rows = np.arange(len(points)) if every else np.flatnonzero(~broken.any(axis=1))
+    broken[rows, 3] = balance_broken(points[rows], normals[rows], cone_deg)
     return broken
 
 

@@ -82,16 +82,18 @@ def candidate_tripods(context: SurfaceContext, p0: np.ndarray, f0: np.ndarray, s
     rejected["spacing"] += int((~found).sum())
     points, faces = points[found], faces[found]
     broken = cheap_broken(context, points, context.face_normals[faces], settings,
-                          settings.friction_cone_deg + PREFILTER_MARGIN_DEG)
+                          settings.friction_cone_deg + PREFILTER_MARGIN_DEG, every=False)
     count_first(broken, rejected)
     keep = ~broken.any(axis=1)
     return points[keep], faces[keep]
 
 
-def _check_picks(context, points, faces, settings, rejected) -> Tripods:
+def _check_picks(context, points, faces, settings, rejected, *, thorough: bool = True) -> Tripods:
     """The feasible ones among picks: reach first with triangle normals (picks no hand gets to are not
-    fitted), then every rule with the normals of fitted patches."""
-    early = reach_rule(context, points, context.face_normals[faces], settings)
+    fitted), then every rule with the normals of fitted patches. Without ``thorough`` the hand tries its
+    quick directions only: a pick found reachable is, a few reachable ones are passed over (the spread
+    rounds' picks, after the strata have looked for every kind of tripod thoroughly)."""
+    early = reach_rule(context, points, context.face_normals[faces], settings, thorough=thorough)
     rejected["reach"] += int((~early.ok).sum())
     part = check_tripods(context, points[early.ok], faces[early.ok], settings=settings,
                          approach=early.approach[early.ok], rejected=rejected)
@@ -139,7 +141,7 @@ def sample_tripods(context: SurfaceContext, *, settings: PinchSettings = PinchSe
         if not len(chosen_points):
             break
         picked = np.concatenate([picked, chosen_points])
-        part = _check_picks(context, chosen_points, chosen_faces, settings, rejected)
+        part = _check_picks(context, chosen_points, chosen_faces, settings, rejected, thorough=False)
         n_checked += len(chosen_points)
         n_feasible += len(part)
         parts.append(part)
