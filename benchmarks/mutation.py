@@ -113,6 +113,11 @@ EQUIVALENT: dict[tuple[str, str, str], str] = {
     ("match/cost.py", "def pair_costs(tangible: np.ndarray, virtual: np.ndarray, model: CostModel, *, "
      "block_rows: int = 2048):", "2048 -> 2049"):
         "the block size splits the tangible rows into blocks, each row's costs are computed alike in any block",
+    ("match/cost.py", "s = model.scales(tangible_rows)[:, 0, 7]", "0 -> 1"):
+        "the mass columns' scale is of the offset's length, the same in every contact's row (a pinch's second row "
+        "holds the offset along the line negated)",
+    ("match/cost.py", "buffers = np.empty((2, rows, nv))  # allocated once: no page faults per block", "2 -> 3"):
+        "a third buffer is allocated and never written or read: the two orders use the first two",
     ("match/register.py", "return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-300)", "drop -1"):
         "every caller passes (k, 3) vectors, whose last axis is axis 1",
     ("grasp/features.py", "u = seg / np.maximum(width, 1e-300)[:, None]", "1e-300 -> 2e-300"):

@@ -271,3 +271,52 @@ def test_contributions_take_the_mass_offset_as_any_sequence():
     as_array = contributions(t, v, model, swapped=False, mass_delta_mm=np.array([3.0, -4.0, 12.0]))
     assert contributions(t, v, model, swapped=False, mass_delta_mm=(3.0, -4.0, 12.0)) == as_array
     assert contributions(t, v, model, swapped=False, mass_delta_mm=[3, -4, 12]) == as_array
+
+
+def _tripod_table(n, seed):
+    """Feature tables of n tripods as feature_table makes them: the aperture in the thumb's row and the spacing
+    in both fingers', the com distance, tilt and lever arm in every row, 0 across the grasp; ρ undefined at
+    random."""
+    rng = np.random.default_rng(seed)
+    t = np.empty((n, 3, 9))
+    t[:, 0, 0] = rng.uniform(10, 80, n)
+    t[:, 1:, 0] = rng.uniform(16, 45, n)[:, None]
+    t[:, :, 1] = rng.uniform(0, 60, n)[:, None]
+    t[:, :, 2] = rng.uniform(0, 90, n)[:, None]
+    t[:, :, 3] = rng.uniform(0, 30, (n, 3))
+    t[:, :, 4] = rng.uniform(0, 90, (n, 3))
+    t[:, :, 4][rng.random((n, 3)) < 0.3] = np.nan
+    t[:, :, 5] = rng.uniform(0, 100, (n, 3))
+    t[:, :, 6] = t[:, :, 5] - rng.uniform(0, 100, (n, 3))
+    t[:, :, 7] = rng.uniform(0, 90, n)[:, None]
+    t[:, :, 8] = 0.0
+    return t
+
+
+def test_tripod_pairs_cost_the_written_out_sum_in_the_better_order_of_the_fingers():
+    """The blockwise pass and the pooled bound over tripod tables (three rows, index and middle in either
+    order) against each pair's sum written out entry by entry; the lever arm's scale is the torque JND."""
+    from pinchmatch.match.cost import distinct_entries
+
+    T, V = _tripod_table(9, 1), _tripod_table(7, 2)
+    model = CostModel(dict.fromkeys(CRITERIA, 1.0), "jnd", None, CRITERIA)
+    s = model.scales(T)
+    np.testing.assert_allclose(s[:, :, 7], np.maximum(0.127 * T[:, :, 7], 20.0))
+    np.testing.assert_allclose(s[:, 0, 0], np.maximum(0.0575 * T[:, 0, 0], 0.4), rtol=1e-9)
+    w = model.column_weights(3)  # (3, 9): every entry a third of its criterion's weight
+    np.testing.assert_allclose(w, np.broadcast_to(model.column_weights(2)[0] * 2 / 3, (3, 9)))
+    want = np.empty((9, 7))
+    for i in range(9):
+        for j in range(7):
+            orders = []
+            for vv in (V[j], V[j][[0, 2, 1]]):
+                z = w * ((vv - T[i]) / s[i]) ** 2
+                orders.append(float(np.nansum(z)))
+            want[i, j] = min(orders)
+    got, swapped = pair_costs(T, V, model)
+    np.testing.assert_allclose(got, want, rtol=1e-12)
+    assert swapped.any() and not swapped.all()
+    keep, repeats = distinct_entries(3)
+    assert len(keep) == 17 and repeats.sum() == 24  # 27 entries less the three across the grasp (always 0)
+    bound = np.concatenate([b for _, b in pooled_bound_blocks(T, V, model, block_rows=4)])
+    assert np.all(bound <= got ** (1 / 2) * 10) and np.all(bound > 0)

@@ -83,3 +83,39 @@ def test_a_normal_within_five_degrees_of_the_line_has_no_say_in_the_roll(side):
                            swapped=False, tangible_com=com, virtual_com=com, tangible_axis=axis, virtual_axis=axis)
     if side == "virtual":  # at 6° the normal has its say: the roll turns towards it
         assert abs(tilted[2, 1]) > 1e-3
+
+
+@pytest.mark.parametrize("seed", [2, 9])
+def test_three_contacts_register_back_onto_the_original_at_a_random_place(seed):
+    """A tripod's contacts and normals, turned and moved at random: the fit undoes the motion exactly; with
+    the contacts perturbed, the placed contacts stay within the perturbation and the fit is a rotation."""
+    from pinchmatch.match.register import NORMAL_LEVER_MM, register_contacts
+
+    rng = np.random.default_rng(seed)
+    p = np.array([[-25.0, 3.0, 1.0], [22.0, -11.0, 4.0], [24.0, 12.0, -2.0]]) + rng.normal(size=3) * 40.0
+    n = np.array([[-1.0, 0.1, 0.0], [0.9, -0.3, 0.1], [0.9, 0.4, -0.1]])
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    R, t = random_rigid(seed)
+    vp, vn = p @ R.T + t, n @ R.T
+    T = register_contacts(p[None], n[None], vp[None], vn[None])[0]
+    assert T.shape == (4, 4)
+    np.testing.assert_array_equal(T[3], [0.0, 0.0, 0.0, 1.0])
+    np.testing.assert_allclose(vp @ T[:3, :3].T + T[:3, 3], p, atol=1e-9)
+    np.testing.assert_allclose(T[:3, :3], R.T, atol=1e-12)
+    np.testing.assert_allclose(np.linalg.det(T[:3, :3]), 1.0, atol=1e-12)
+    # the centroids meet, whatever the noise; the normals weigh as points NORMAL_LEVER_MM out along them
+    noisy = vp + rng.normal(size=(3, 3)) * 0.5
+    T = register_contacts(p[None], n[None], noisy[None], vn[None])[0]
+    placed = noisy @ T[:3, :3].T + T[:3, 3]
+    np.testing.assert_allclose(placed.mean(axis=0), p.mean(axis=0), atol=1e-9)
+    assert np.linalg.norm(placed - p, axis=1).max() < 2.0
+    assert NORMAL_LEVER_MM == 8.0
+    # a virtual normal turned 40 degrees pulls the fit away from the contacts' own (a normal reversed exactly
+    # would not: it adds no torque at that rotation)
+    from scipy.spatial.transform import Rotation
+
+    axis = np.cross(vn[0], [0.0, 0.0, 1.0])
+    tilted = vn.copy()
+    tilted[0] = Rotation.from_rotvec(np.radians(40.0) * axis / np.linalg.norm(axis)).apply(vn[0])
+    turned = register_contacts(p[None], n[None], vp[None], tilted[None])[0]
+    assert np.abs(turned[:3, :3] - R.T).max() > 1e-3

@@ -33,13 +33,18 @@ def _exported(tmp_path, name, mesh, *, turned=False):
 
 
 def _tables(rng, n):
-    """A feature table of n random poses in plausible units, some ρ undefined, and a variance per entry."""
+    """A feature table of n random poses in plausible units, some ρ undefined, and a variance per entry. As
+    every feature table (and its landings' moments) has them, the pose columns and the lever arm are the same
+    in both patches' rows, their variances too."""
     table = np.stack([rng.uniform(10, 80, n), rng.uniform(0, 60, n), rng.uniform(0, 40, n)], axis=1)[:, None, :]
     patch = np.stack([rng.uniform(0, 30, (n, 2)), rng.uniform(0, 90, (n, 2)), rng.uniform(0, 80, (n, 2)),
-                      rng.uniform(-20, 40, (n, 2)), rng.uniform(-30, 30, (n, 2)), rng.uniform(0, 40, (n, 2))], axis=-1)
+                      rng.uniform(-20, 40, (n, 2)), rng.uniform(-30, 30, (n, 2)),
+                      np.repeat(rng.uniform(0, 40, (n, 1)), 2, axis=1)], axis=-1)
     rows = np.concatenate([np.broadcast_to(table, (n, 2, 3)), patch], axis=-1).copy()
     rows[rng.random((n, 2)) < 0.2, 4] = np.nan
-    return rows, rng.uniform(0, 25, rows.shape)
+    var = rng.uniform(0, 25, rows.shape)
+    var[:, 1, [0, 1, 2, 8]] = var[:, 0, [0, 1, 2, 8]]
+    return rows, var
 
 
 def test_the_spread_pass_is_the_expected_separable_cost_of_every_pair():

@@ -273,15 +273,37 @@ def ranges_from_bounds(bounds: list[np.ndarray]) -> np.ndarray:
     return ranges
 
 
+def distinct_entries(fingers: int) -> tuple[np.ndarray, np.ndarray]:
+    """The entries of a flattened (F, 9) table row that the blockwise passes compare, and how many of the
+    row's entries each stands for. Every contact's row repeats the pose columns (width, com distance,
+    tilt) and the lever arm; they count once, weighed by their repeats: a pinch's 18 entries make 14, a
+    tripod's 27 make 17 (its two fingers' spacing once, its mass offset across the grasp always 0, left
+    out). The same sums, in fewer products."""
+    repeated = [0, 1, 2, 8] if fingers == 2 else [1, 2, 7, 8]
+    keep, repeats = [], []
+    for row in range(fingers):
+        for column in range(N_COLUMNS):
+            if column in repeated and row > 0:
+                continue
+            if fingers > 2 and column == 0 and row == 2:  # the spacing: in both fingers' rows
+                continue
+            if fingers > 2 and column == 8:  # a tripod's offset across its line: 0 in every row
+                continue
+            keep.append(row * N_COLUMNS + column)
+            repeats.append(fingers if column in repeated else 2 if fingers > 2 and column == 0 and row == 1 else 1)
+    return np.array(keep), np.array(repeats, dtype=np.float64)
+
+
 def _factors(virtual: np.ndarray, spread: np.ndarray | None = None) -> list[np.ndarray]:
-    """Virtual factors for both finger orders: (nv, 3 x 18) = [(v² + σ²) m, v m, m], m = defined, σ² the
-    ``spread`` (a variance per entry, 0 without one)."""
+    """Virtual factors for both finger orders over the :func:`distinct_entries` of a row: (nv, 3 x E) =
+    [(v² + σ²) m, v m, m], m = defined, σ² the ``spread`` (a variance per entry, 0 without one)."""
     nv = len(virtual)
     out = []
     spread = np.zeros_like(virtual) if spread is None else spread
     other = other_order(virtual.shape[1])
+    keep, _ = distinct_entries(virtual.shape[1])
     for v, var in ((virtual, spread), (virtual[:, other], spread[:, other])):
-        v, var = v.reshape(nv, -1), var.reshape(nv, -1)
+        v, var = v.reshape(nv, -1)[:, keep], var.reshape(nv, -1)[:, keep]
         ok = (~np.isnan(v)).astype(np.float64)
         vv = np.nan_to_num(v)
         out.append(np.ascontiguousarray(np.concatenate([(vv * vv + np.nan_to_num(var)) * ok, vv * ok, ok], axis=1).T))
@@ -289,16 +311,23 @@ def _factors(virtual: np.ndarray, spread: np.ndarray | None = None) -> list[np.n
 
 
 def _tangible_factors(t: np.ndarray, model: CostModel, w: np.ndarray, spread: np.ndarray | None = None) -> np.ndarray:
-    """Tangible factors of a block of rows (k, 2, 9), column weights ``w`` (18,): (k, 3 x 18)
-    [a, -2 a t, a (t² + σ²)] with a = weight / s² (0 where ρ is undefined), so that
-    Σ a ((v - t)² + σ_v² + σ_t²) m_v = [a, -2 a t, a (t² + σ_t²)] · [(v² + σ_v²) m_v, v m_v, m_v]
-    (:func:`_factors`); σ² the ``spread`` of each entry (0 without one)."""
-    s = model.scales(t).reshape(len(t), -1)
-    var = 0.0 if spread is None else np.nan_to_num(spread.reshape(len(t), -1))
-    t = t.reshape(len(t), -1)
+    """Tangible factors of a block of rows (k, F, 9) over the :func:`distinct_entries` of a row, their
+    weights ``w`` (E,) (repeats included): (k, 3 x E) [a, -2 a t, a (t² + σ²)] with a = weight / s² (0
+    where ρ is undefined), so that Σ a ((v - t)² + σ_v² + σ_t²) m_v = [a, -2 a t, a (t² + σ_t²)] ·
+    [(v² + σ_v²) m_v, v m_v, m_v] (:func:`_factors`); σ² the ``spread`` of each entry (0 without one)."""
+    keep, _ = distinct_entries(t.shape[1])
+    s = model.scales(t).reshape(len(t), -1)[:, keep]
+    var = 0.0 if spread is None else np.nan_to_num(spread.reshape(len(t), -1)[:, keep])
+    t = t.reshape(len(t), -1)[:, keep]
     a = np.where(np.isnan(t), 0.0, w / s**2)
     tv = np.nan_to_num(t)
     return np.concatenate([a, -2.0 * a * tv, a * (tv * tv + var)], axis=1)
+
+
+def entry_weights(model: CostModel, fingers: int) -> np.ndarray:
+    """(E,) the weight of each of :func:`distinct_entries`, the entries it stands for included."""
+    keep, repeats = distinct_entries(fingers)
+    return model.column_weights(fingers).reshape(-1)[keep] * repeats
 
 
 def pair_cost_blocks(tangible: np.ndarray, virtual: np.ndarray, model: CostModel, *, block_rows: int = 2048,
@@ -319,7 +348,7 @@ def pair_cost_blocks(tangible: np.ndarray, virtual: np.ndarray, model: CostModel
     from one block to the next: use or copy each before taking the next.
     """
     nv = len(virtual)
-    w = model.column_weights(virtual.shape[1]).reshape(-1)
+    w = entry_weights(model, virtual.shape[1])
     t_spread, v_spread = spreads if spreads is not None else (None, None)
     v_orders = _factors(virtual, v_spread)
     rows = max(1, min(block_rows, len(tangible)))
@@ -354,11 +383,12 @@ def pooled_bound_blocks(tangible: np.ndarray, virtual: np.ndarray, model: CostMo
     ``extra``: as :func:`pair_cost_blocks`' (pooled with weight 1).
     """
     nv, fingers = len(virtual), virtual.shape[1]
-    w = model.column_weights(fingers).reshape(-1)
-    criterion = np.tile(COLUMN_CRITERION, fingers)  # each entry of a row of F patches
+    w = entry_weights(model, fingers)
+    keep, _ = distinct_entries(fingers)
+    criterion = np.tile(COLUMN_CRITERION, fingers)[keep]  # each distinct entry of a row of F patches
     weights = model.weight_vector()
     used = [c for c in range(len(CRITERIA)) if weights[c] > 0]
-    width = fingers * N_COLUMNS
+    width = len(keep)
     columns = {c: np.concatenate([e, e + width, e + 2 * width])
                for c in used for e in [np.flatnonzero(criterion == c)]}
     v_orders = _factors(virtual)

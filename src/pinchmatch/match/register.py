@@ -133,10 +133,9 @@ def register_contacts(tangible_points: np.ndarray, tangible_normals: np.ndarray,
     x = np.concatenate([virtual_points - vm[:, None], NORMAL_LEVER_MM * virtual_normals], axis=1)
     y = np.concatenate([tangible_points - tm[:, None], NORMAL_LEVER_MM * tangible_normals], axis=1)
     U, _, Vt = np.linalg.svd(np.einsum("kni,knj->kij", x, y))
-    d = np.sign(np.linalg.det(np.einsum("kij,kjl->kil", U, Vt)))
     D = np.zeros((len(x), 3, 3))
     D[:, 0, 0] = D[:, 1, 1] = 1.0
-    D[:, 2, 2] = np.where(d == 0, 1.0, d)
+    D[:, 2, 2] = np.linalg.det(np.einsum("kij,kjl->kil", U, Vt))  # ±1: -1 turns a reflection into a rotation
     R = np.einsum("kji,kjl,kml->kim", Vt, D, U)  # V D Uᵀ
     T = np.zeros((len(x), 4, 4))
     T[:, :3, :3] = R
