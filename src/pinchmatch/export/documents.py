@@ -23,7 +23,7 @@ from ..grasp.features import PinchFeatures, TripodFeatures
 from ..mesh.load import LoadedMesh
 from ..match.candidates import mass_ratio
 from ..match.search import contact_offset_mm, criterion_table, p_noticed
-from ..grasp.pinches import RULES, Pinches  # noqa: F401 (RULES re-exported)
+from ..grasp.pinches import Pinches
 from ..grasp.spread import other_order
 from ..grasp.tripod_rules import FINGERS, Tripods
 from ..mesh.properties import ObjectProperties

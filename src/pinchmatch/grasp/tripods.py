@@ -88,12 +88,12 @@ def candidate_tripods(context: SurfaceContext, p0: np.ndarray, f0: np.ndarray, s
     return points[keep], faces[keep]
 
 
-def _check_picks(context, points, faces, settings, rejected, *, thorough: bool = True) -> Tripods:
+def _check_picks(context, points, faces, settings, rejected) -> Tripods:
     """The feasible ones among picks: reach first with triangle normals (picks no hand gets to are not
-    fitted), then every rule with the normals of fitted patches. Without ``thorough`` the hand tries its
-    quick directions only: a pick found reachable is, a few reachable ones are passed over (the spread
-    rounds' picks, after the strata have looked for every kind of tripod thoroughly)."""
-    early = reach_rule(context, points, context.face_normals[faces], settings, thorough=thorough)
+    fitted), then every rule with the normals of fitted patches. The hand's whole search runs: with its
+    quick directions alone a mug samples twice as fast, but loses the tripods on its rim that a plate needs
+    (benchmarks/RESULTS.md)."""
+    early = reach_rule(context, points, context.face_normals[faces], settings)
     rejected["reach"] += int((~early.ok).sum())
     part = check_tripods(context, points[early.ok], faces[early.ok], settings=settings,
                          approach=early.approach[early.ok], rejected=rejected)
@@ -141,7 +141,7 @@ def sample_tripods(context: SurfaceContext, *, settings: PinchSettings = PinchSe
         if not len(chosen_points):
             break
         picked = np.concatenate([picked, chosen_points])
-        part = _check_picks(context, chosen_points, chosen_faces, settings, rejected, thorough=False)
+        part = _check_picks(context, chosen_points, chosen_faces, settings, rejected)
         n_checked += len(chosen_points)
         n_feasible += len(part)
         parts.append(part)
