@@ -111,27 +111,29 @@ def _expected(tangible: Candidates, t_pose: int, virtual: Candidates, v_pose: in
     return felt_cost(tangible, virtual, choice, model, tables).expected
 
 
-def _contacts_fields(prefix: str, points) -> dict:
-    """A pose's contacts as the study's records name them: ``contacts_mm`` (every grasp), and a pinch's
-    ``p1_mm`` and ``p2_mm``, each under ``prefix``; null where there is no pose."""
-    vectors = [None if p[0] is None else json_vector(p) for p in points]
-    out = {f"{prefix}contacts_mm": None if vectors[0] is None else vectors}
-    if len(vectors) == 2:
+def _contacts_fields(prefix: str, points, fingers: int) -> dict:
+    """A pose's contacts (``fingers`` of them, or None: no pose) as the study's records name them:
+    ``contacts_mm`` for every grasp, and a pinch's ``p1_mm`` and ``p2_mm``, each under ``prefix``; null where
+    there is no pose."""
+    vectors = [None] * fingers if points is None else [json_vector(p) for p in points]
+    out = {f"{prefix}contacts_mm": None if points is None else vectors}
+    if fingers == 2:
         out |= {f"{prefix}p1_mm": vectors[0], f"{prefix}p2_mm": vectors[1]}
     return out
 
 
-def _pose_entry(order, candidates: Candidates, v_pose: int, *, points=None, flipped, cost, cost_paper,
+def _pose_entry(order, candidates: Candidates, v_pose: int | None, *, points=None, flipped, cost, cost_paper,
                 reason=None, transform=None, swapped=False, terms=None, cost_expected=None) -> dict:
-    """One virtual pose of a row. ``transform`` (virtual -> tangible, mm), ``swapped`` (the virtual p1
+    """One virtual pose of a row: candidate ``v_pose``, or the contacts ``points`` (neither: no pose, the
+    reference's fingers met nothing). ``transform`` (virtual -> tangible, mm), ``swapped`` (the virtual p1
     lies on the tangible's p2) and ``terms`` (each criterion's contribution in JND², under our
     criteria) describe the pose pair as the headset's study shows and rates it."""
-    pts = candidates.pinches.points[v_pose] if points is None else points
+    pts = points if points is not None else None if v_pose is None else candidates.pinches.points[v_pose]
     height = float(pts[:, 2].mean()) if pts is not None else None
     entry = {
         "part": part_at(order, height) if height is not None else None,
         "height_mm": json_number(height, 2) if height is not None else None,
-        **_contacts_fields("", pts if pts is not None else np.full((candidates.pinches.points.shape[1], 3), None)),
+        **_contacts_fields("", pts, candidates.pinches.points.shape[1]),
         "flipped": flipped,
         "cost": json_number(cost) if cost is not None else None,
         "cost_paper": json_number(cost_paper) if cost_paper is not None else None,
@@ -198,7 +200,7 @@ def run_study(folder: Path, *, full: bool = False, settings: PinchSettings = Pin
                 "tangible_height_mm": float(TANGIBLE_HEIGHTS_MM[i]),
                 "virtual": j + 1,
                 "virtual_order": list(order),
-                **_contacts_fields("tangible_", tangible.pinches.points[i]),
+                **_contacts_fields("tangible_", tangible.pinches.points[i], tangible.pinches.points.shape[1]),
                 "ours": _pose_entry(order, V, k_ours, flipped=bool(ours.flipped[k_ours]),
                                     cost=ours.cost[k_ours], cost_paper=paper.cost[k_ours],
                                     transform=ours.transform[k_ours], swapped=ours.swapped[k_ours],
@@ -207,7 +209,7 @@ def run_study(folder: Path, *, full: bool = False, settings: PinchSettings = Pin
                                      cost=paper_pair.cost[0], cost_paper=paper.cost[k_paper],
                                      transform=paper_pair.transform[0], swapped=paper_pair.swapped[0],
                                      terms=paper_pair.terms[0], cost_expected=felt["paper"]),
-                "ref": _pose_entry(order, V, 0, points=ref.pinches.points[0] if ref.pinches is not None else None,
+                "ref": _pose_entry(order, V, None, points=ref.pinches.points[0] if ref.pinches is not None else None,
                                    flipped=ref.flipped,
                                    cost=ref.cost, cost_paper=reference_cost(tangible, i, V, ref, paper_model),
                                    reason=ref.reason, transform=np.eye(4), terms=ref.terms,
