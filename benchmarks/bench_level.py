@@ -2,6 +2,7 @@
 
     python benchmarks/bench_level.py            # 9 real objects, 1,000 poses each
     python benchmarks/bench_level.py --quick    # 300 poses
+    python benchmarks/bench_level.py --grasp tripod   # every run with tripods
 
 The level: robosuite's household objects and pybullet_data's duck, teddy and Lego brick (nobody here made
 them; read from the wheels on PyPI, ``benchmarks/assets.py``), stood up (their files' +Z to the level's +Y,
@@ -84,9 +85,10 @@ def build_level(folder: Path) -> tuple[dict, np.ndarray]:
 
 
 def under_table(pose: dict, normal: np.ndarray, height: float) -> bool:
-    """Does the pinch put a fingertip, a finger or the hand below the plane normal . x = height?"""
-    p = np.array([pose["p1_mm"], pose["p2_mm"]])
-    n = np.array([pose["n1"], pose["n2"]])
+    """Does the grasp (a pinch, or a tripod's three contacts) put a fingertip, a finger or the hand below the
+    plane normal . x = height?"""
+    p = np.array(pose["contacts_mm"] if "contacts_mm" in pose else [pose["p1_mm"], pose["p2_mm"]])
+    n = np.array(pose["normals"] if "normals" in pose else [pose["n1"], pose["n2"]])
     h = np.array(pose["approach"], dtype=float)
     tips = p + FINGERTIP_MM * n
     if (tips @ normal - height < FINGERTIP_MM - PAD_MM - 1e-6).any():
@@ -114,7 +116,7 @@ def check(doc: dict, prop_vertices: np.ndarray, lowest: dict, fixed: bool) -> tu
     return checked, tangible, virtual
 
 
-def seed_spread(folder: Path, placement: str, count: int, seeds: list[int]) -> str:
+def seed_spread(folder: Path, placement: str, count: int, seeds: list[int], grasp: str = "pinch") -> str:
     """One line: over ``seeds``, how much each object's ranked cost varies with the default options,
     (max - min) / mean per object (0 where every seed costs 0), its median and largest over the objects."""
     if len(seeds) < 2:
@@ -123,7 +125,7 @@ def seed_spread(folder: Path, placement: str, count: int, seeds: list[int]) -> s
     for seed in seeds:
         matches, _ = timed_match(["--tangible", str(folder / "props.toml"), "--virtual", str(folder / "kitchen.glb"),
                                   "--split", "nodes", "--placement", placement, "--count", str(count),
-                                  "--seed", str(seed)], folder / f"out_{placement}_seed{seed}")
+                                  "--seed", str(seed), "--grasp", grasp], folder / f"out_{placement}_seed{seed}")
         for name, m in matches.items():
             costs.setdefault(name, []).append(m["cost"] if m.get("cost") is not None else np.inf)
     spread = {name: (max(c) - min(c)) / np.mean(c) if np.mean(c) > 0 else 0.0 for name, c in costs.items()}
@@ -137,6 +139,8 @@ def main(argv=None) -> int:
     parser.add_argument("--quick", action="store_true", help="300 poses per object instead of 1,000")
     parser.add_argument("--seeds", default="0,1,2",
                         help="the default run over these seeds: how much each object's ranked cost varies")
+    parser.add_argument("--grasp", choices=("pinch", "tripod"), default="pinch",
+                        help="the grasp every run looks for (tripod: thumb against index and middle finger)")
     args = parser.parse_args(argv)
     count = 300 if args.quick else 1000
     rows = [("placement", "support", "rank", "pinches", "under the prop's table", "under the counter",
@@ -151,7 +155,8 @@ def main(argv=None) -> int:
                 out = folder / f"out_{placement}_{support}_{rank}"
                 matches, seconds = timed_match(
                     ["--tangible", str(folder / "props.toml"), "--virtual", str(folder / "kitchen.glb"), "--split",
-                     "nodes", "--placement", placement, "--support", support, "--rank", rank, "--count", str(count)],
+                     "nodes", "--placement", placement, "--support", support, "--rank", rank, "--count", str(count),
+                     "--grasp", args.grasp],
                     out)
                 doc = json.loads((out / "matches.json").read_text())
                 checked, tangible, virtual = check(doc, prop_vertices, lowest, placement == "fixed")
@@ -166,7 +171,8 @@ def main(argv=None) -> int:
             summary.append(f"{placement}: mean expected cost {e_default:.3f} ranked by it, {e_nominal:.3f} ranked "
                            f"on target ({e_default / e_nominal:.2f}x); wall time {t_default / t_nominal:.2f}x")
         for placement in ("fixed", "registered"):
-            summary.append(seed_spread(folder, placement, count, [int(x) for x in args.seeds.split(",") if x]))
+            summary.append(seed_spread(folder, placement, count, [int(x) for x in args.seeds.split(",") if x],
+                                       args.grasp))
     widths = [max(len(str(row[i])) for row in rows) for i in range(len(rows[0]))]
     print(f"# {len(lowest)} real objects on a counter at y = {COUNTER_Y_MM:g} mm, one scanned can as the prop, "
           f"{count} poses each; pinches: best choices and alternatives checked against the tables")

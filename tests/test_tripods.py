@@ -19,6 +19,7 @@ from pinchmatch.match.register import register_contacts, register_poses
 from pinchmatch.mesh.surface import SurfaceContext
 
 from conftest import random_rigid, run_cli
+from levels import standing_can, tabletop_level
 from test_pinches import _distance_to_surface
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
@@ -219,3 +220,41 @@ def test_match_with_tripods_writes_contacts_and_three_cones(tmp_path, capsys, sc
     tips = np.array(m["tangible_pose"]["contacts_mm"])
     np.testing.assert_allclose(np.linalg.norm(tips[1:].mean(axis=0) - tips[0]), m["tangible_pose"]["aperture_mm"],
                                atol=1e-3)
+
+
+def test_tripods_on_a_level_stay_above_the_tables_and_reach_the_level_file(tmp_path, capsys):
+    """A level of two objects on a table (y up, metres) and a can prop standing turned and off the origin on its
+    own: with the objects kept in place (the hand redirected), every tripod's fingertips and fingers stay above
+    the prop's table, and the level file carries each node's three contacts."""
+    box = trimesh.creation.box(extents=(0.05, 0.04, 0.045))
+    box.apply_translation([0.0, 0.0225, 0.0])
+    tabletop_level(tmp_path / "level.glb", [("can", standing_can(), (0.14, 0.0, -0.07)), ("box", box, (0.06, 0.0, -0.11))])
+    stand = Rotation.from_euler("y", 35, degrees=True) * Rotation.from_euler("x", -90, degrees=True)
+    (tmp_path / "props.toml").write_text(
+        '[[object]]\nname = "can_prop"\nshape = { kind = "cylinder", diameter_mm = 54, height_mm = 66 }\n'
+        f"pose = {{ position_mm = [120, 0, -80], quaternion_xyzw = {stand.as_quat().tolist()} }}\n")
+    out = tmp_path / "out"
+    code, _, err = run_cli(capsys, "match", "--tangible", tmp_path / "props.toml", "--virtual", tmp_path / "level.glb",
+                           "--split", "nodes", "--placement", "fixed", "--grasp", "tripod", "--count", 80,
+                           "--jobs", 1, "-o", out, "--no-cache", "-q", "--no-view")
+    assert code == 0, err
+    document = json.loads((out / "matches.json").read_text())
+    support = document["tangibles"][0]["support"]
+    normal, height = np.array(support["normal"]), support["height_mm"]
+    for m in document["matches"]:
+        for choice in [m] + m["alternatives"]:
+            pose = choice["tangible_pose"]
+            tips = np.array(pose["contacts_mm"]) + 8.0 * np.array(pose["normals"])
+            assert np.all(tips @ normal - height >= 8.0 - 0.3 - 1e-6)
+            assert np.array(pose["approach"]) @ normal >= -1e-9
+    data = (out / "level.glb").read_bytes()  # the level file's JSON chunk: each node's three contacts, placed
+    length = int.from_bytes(data[12:16], "little")
+    nodes = {n["name"]: n for n in json.loads(data[20:20 + length])["nodes"]}
+    R, position = stand.as_matrix(), np.array([120.0, 0.0, -80.0])
+    for m in document["matches"]:
+        x = nodes[m["virtual"]]["extras"]["pinchmatch"]
+        np.testing.assert_allclose(np.reshape(x["virtual_contacts_m"], (3, 3)),
+                                   np.array(m["virtual_pose"]["contacts_mm"]) / 1000.0, atol=2e-6)
+        t = np.array(m["tangible_pose"]["contacts_mm"])
+        np.testing.assert_allclose(np.reshape(x["physical_contacts_m"], (3, 3)), (t @ R.T + position) / 1000.0,
+                                   atol=2e-6)

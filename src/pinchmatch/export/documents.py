@@ -133,6 +133,12 @@ def tripod_records(tripods: Tripods, features: TripodFeatures) -> list[dict]:
     } for i in range(len(tripods))]
 
 
+def record_contacts(pose: dict) -> list:
+    """The contacts of a pose record (mm, its file's frame): a tripod's ``contacts_mm``, a pinch's ``p1_mm`` and
+    ``p2_mm``."""
+    return pose["contacts_mm"] if "contacts_mm" in pose else [pose["p1_mm"], pose["p2_mm"]]
+
+
 def poses_document(loaded, props, settings: dict, pinches, features, *, ray_engine: str) -> dict:
     return {
         "schema": SCHEMA_POSES,

@@ -26,6 +26,7 @@ import numpy as np
 import trimesh
 
 from ..match.redirect import world_pose
+from .documents import record_contacts
 
 SCHEMA_LEVEL = "pinchmatch.level/1"
 #: the name of a prop's node in the level
@@ -41,12 +42,12 @@ def node_extras(entry: dict, prop_spec) -> dict:
     r = entry.get("redirection") or {}
     R, p = world_pose(prop_spec)
     t = entry["tangible_pose"]
-    physical = np.array([t["p1_mm"], t["p2_mm"]], dtype=np.float64) @ R.T + p
+    physical = np.array(record_contacts(t), dtype=np.float64) @ R.T + p
     v = entry["virtual_pose"]
     out = {"mode": r.get("mode"), "prop": entry["tangible"], "cost": entry["cost"],
            "redirect_cost": r.get("redirect_cost"), "carousel_cost": r.get("carousel_cost"), "reason": r.get("reason"),
            "angle_deg": r.get("angle_deg"), "gain": r.get("gain"),
-           "virtual_contacts_m": _metres([v["p1_mm"], v["p2_mm"]]), "physical_contacts_m": _metres(physical)}
+           "virtual_contacts_m": _metres(record_contacts(v)), "physical_contacts_m": _metres(physical)}
     for key in ("virtual_target_mm", "physical_target_mm", "hand_start_mm"):
         if r.get(key) is not None:
             out[key.replace("_mm", "_m")] = _metres(r[key])

@@ -25,7 +25,7 @@ from ..version import __version__
 from ..config import finite_number
 from ..errors import ConfigError
 from ..files import write_atomic
-from .documents import SCHEMA_MATCHES, cost_unit, matches_from_lines, scene_file, scene_stems
+from .documents import SCHEMA_MATCHES, cost_unit, matches_from_lines, record_contacts, scene_file, scene_stems
 from .study_plan import SCHEMA_PLAN
 
 log = logging.getLogger(__name__)
@@ -161,7 +161,7 @@ def _page_data(out: Path, document: dict) -> dict:
         alternatives = [{
             "tangible": a["tangible"], "cost": a["cost"], "flipped": a["flipped"], "up_turn_deg": a.get("up_turn_deg"),
             "transform": [x for row in a["transform_virtual_to_tangible"] for x in row],
-            "contacts_mm": _contacts_of(a["tangible_pose"]),
+            "contacts_mm": record_contacts(a["tangible_pose"]),
         } for a in m.get("alternatives", [])]
         matches.append({
             "virtual": m["virtual"],
@@ -205,10 +205,6 @@ def _pose_fields(pose: dict) -> tuple:
     return ("aperture_mm", "contacts_mm") if "contacts_mm" in pose else ("width_mm", "p1_mm", "p2_mm")
 
 
-def _contacts_of(pose: dict) -> list:
-    return pose["contacts_mm"] if "contacts_mm" in pose else [pose["p1_mm"], pose["p2_mm"]]
-
-
 def _width_of(pose: dict):
     return pose["aperture_mm"] if "contacts_mm" in pose else pose["width_mm"]
 
@@ -218,7 +214,7 @@ def _scene_fields(m: dict, poses: dict) -> dict:
     the virtual pinch in the level's frame (mm) and where its prop stands in the level."""
     if m.get("redirection") is None:
         return {}
-    contacts = _contacts_of(m["virtual_pose"])
+    contacts = record_contacts(m["virtual_pose"])
     return {"redirection": m["redirection"], "virtual_contacts_mm": contacts, "virtual_p1_mm": contacts[0],
             "virtual_p2_mm": contacts[1], "prop_pose": poses.get(m["tangible"])}
 
