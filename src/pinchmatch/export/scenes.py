@@ -26,6 +26,7 @@ import trimesh
 from trimesh.visual.material import PBRMaterial
 
 from ..grasp.hand import Hand
+from ..grasp.pinches import closing_directions
 from ..grasp.spread import other_order
 from ..match.search import contact_offset_mm
 from ..mesh.frames import rotations_between
@@ -94,12 +95,6 @@ def virtual_contacts_mm(virtual, choice) -> np.ndarray:
     p = virtual.pinches.points[choice.v_pose]
     return p[other_order(len(p))] if choice.swapped else p
 
-
-def closing_directions(points: np.ndarray) -> np.ndarray:
-    """(F, 3) unit directions the fingertips close along onto contacts (F, 3): the first (p1, the thumb)
-    towards the others' middle, each other towards the first."""
-    toward = np.concatenate([points[1:].mean(axis=0, keepdims=True) - points[:1], points[:1] - points[1:]])
-    return toward / np.linalg.norm(toward, axis=1, keepdims=True)
 
 
 def virtual_approach(virtual, choice) -> np.ndarray:

@@ -115,6 +115,14 @@ def _line(points):
     return width, seg / np.maximum(width, 1e-300)[:, None]
 
 
+def closing_directions(points: np.ndarray) -> np.ndarray:
+    """(..., F, 3) unit directions the fingertips close along onto grasps' contacts (..., F, 3): the first (p1,
+    the thumb) towards the others' middle, each other towards the first (a pinch's: along its line, both ways)."""
+    toward = np.concatenate([points[..., 1:, :].mean(axis=-2, keepdims=True) - points[..., :1, :],
+                             points[..., :1, :] - points[..., 1:, :]], axis=-2)
+    return toward / np.maximum(np.linalg.norm(toward, axis=-1, keepdims=True), 1e-300)
+
+
 # -- the rules, each written once ------------------------------------------------------------
 
 def region_broken(context: SurfaceContext, points: np.ndarray) -> np.ndarray:

@@ -39,7 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..grasp.features import grasp_features
-from ..grasp.pinches import patches
+from ..grasp.pinches import closing_directions, patches
 from ..grasp.spread import other_order
 from .candidates import Candidates, pair_terms
 from .cost import CRITERIA, WIDTH_JND_FLOOR_MM, WIDTH_JND_FRACTION, CostModel, feature_table
@@ -116,8 +116,7 @@ def _land(candidates: Candidates, poses: np.ndarray, radius_mm: float, axis_deg:
     n = len(offsets)
     u = p[:, 1:].mean(axis=1) - p[:, 0]
     u = u / np.linalg.norm(u, axis=1, keepdims=True)
-    closing = np.concatenate([u[:, None], p[:, :1] - p[:, 1:]], axis=1)  # (k, F, 3)
-    closing /= np.linalg.norm(closing, axis=2, keepdims=True)
+    closing = closing_directions(p)  # (k, F, 3)
     back = radius_mm * math.tan(math.radians(axis_deg)) + radius_mm + 1.0
     landed, faces, aimed = [], [], []
     for finger in range(p.shape[1]):

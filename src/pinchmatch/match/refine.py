@@ -39,7 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..grasp.curvature import tangent_frame
-from ..grasp.pinches import ARRAY_FIELDS, PinchSettings, Pinches, check_pinches, check_reach
+from ..grasp.pinches import ARRAY_FIELDS, PinchSettings, Pinches, check_pinches, check_reach, closing_directions
 from ..grasp.spread import other_order
 from ..grasp.tripod_rules import Tripods, check_tripods
 from .candidates import REFINED_INDEX, Candidates, extend, felt_table, mass_ratio  # noqa: F401 (re-exported)
@@ -120,9 +120,7 @@ def moved_poses(c: Candidates, poses: np.ndarray, steps: np.ndarray) -> tuple[np
     offset = dirs[which, move[:, 0]]  # (m, 3)
     new = points[which] + (move[:, 1:, None] * step[:, None, None]) * offset[:, None, :]
     faces = c.pinches.face_index[poses][which].copy()
-    # the thumb (the first finger) closes towards the others' middle, each other finger towards it
-    toward = np.concatenate([new[:, 1:].mean(axis=1, keepdims=True) - new[:, :1], new[:, :1] - new[:, 1:]], axis=1)
-    toward /= np.maximum(np.linalg.norm(toward, axis=2, keepdims=True), 1e-300)
+    toward = closing_directions(new)
     back = 2.0 * step + 1.0
     ok = np.ones(len(which), dtype=bool)
     for contact in range(fingers):
