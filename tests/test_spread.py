@@ -80,3 +80,44 @@ def test_pool_keeps_one_order_across_added_candidates():
                               np.linalg.norm((picked[:i] - picked[i][::-1]).reshape(i, 6), axis=1)))
             for i in range(100, 200)]
     assert min(gaps) >= d_left - 1e-6
+
+
+def test_a_round_is_planned_by_the_rounds_own_yield_once_there_is_one():
+    from pinchmatch.grasp.sampling import PROBE_PICKS, SELECT_MARGIN, round_plan
+
+    # the strata checked 1,000 and found 300 (rare widths, mostly where no hand gets); the probe 256, 200
+    want, local = round_plan(1000, 500, 1256, 1, rounds=(200, 256))
+    assert want == int(np.ceil(SELECT_MARGIN * 1000 / (200 / 256))) and not local
+    # before any round, the first probes by what the strata saw, and a low yield there means local rounds
+    want, local = round_plan(1000, 300, 1000, 0)
+    assert want == PROBE_PICKS and local
+    # a round's own low yield still turns to local draws
+    assert round_plan(1000, 500, 1256, 2, rounds=(50, 256))[1]
+
+
+def test_a_scanned_mug_checks_about_as_many_picks_as_it_needs(tmp_path, monkeypatch):
+    """The YCB mug's width strata find few feasible pinches (most narrow candidates cross its wall), its
+    spread finds many: the rounds after them check about what the count needs, not the strata's share."""
+    import sys
+    from pathlib import Path
+
+    from pinchmatch import PinchSettings, analyze_object
+    from pinchmatch.grasp import sampling
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from assets import ycb_objects
+
+    [path] = ycb_objects(tmp_path, ["025_mug"])
+    obj = analyze_object(path, units="mm")
+    found = []
+    check = sampling._check_picks
+
+    def counting(*args, **kwargs):
+        part = check(*args, **kwargs)
+        found.append(len(part))
+        return part
+
+    monkeypatch.setattr(sampling, "_check_picks", counting)
+    pinches = sampling.sample_pinches(obj.context, settings=PinchSettings(count=1000, seed=0))
+    assert len(pinches) == 1000
+    assert sum(found) <= 1.25 * 1000

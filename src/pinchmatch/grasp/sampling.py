@@ -178,13 +178,14 @@ def sample_pinches(
     # every width stratum first; the rounds go on from what the strata found
     parts, picked = stratified_checks(uniform, count, lambda p, f: _check_picks(context, p, f, settings, rejected))
     n_feasible, n_checked = sum(len(p) for p in parts), len(picked)
-    n_strata = len(parts)
+    n_strata, strata_found, strata_checked = len(parts), n_feasible, n_checked
     local_radius = LOCAL_RADIUS_TIPS * settings.fingertip_radius_mm
     for round_ in range(MAX_ROUNDS):
         need = count - n_feasible
         if need <= 0:
             break
-        want, local_mode = round_plan(need, n_feasible, n_checked, round_)
+        want, local_mode = round_plan(need, n_feasible, n_checked, round_, (n_feasible - strata_found,
+                                                                           n_checked - strata_checked))
         short = int((uniform.nearest >= 0).sum() + (local.nearest >= 0).sum()) < want
         if (local_mode or short) and drawn < budget:
             # more candidates: near the feasible contacts found so far, or anywhere while none is
@@ -216,14 +217,19 @@ def sample_pinches(
     return result
 
 
-def round_plan(need: int, n_feasible: int, n_checked: int, round_: int) -> tuple[int, bool]:
-    """How many picks a round checks to find ``need`` more grasps, judged by the feasible share so far (the
-    first round probes at most ``PROBE_PICKS``), and whether it draws near the feasible ones (local mode:
-    few picks were feasible)."""
-    share = n_feasible / n_checked if n_checked else 1.0
+def round_plan(need: int, n_feasible: int, n_checked: int, round_: int,
+               rounds: tuple[int, int] = (0, 0)) -> tuple[int, bool]:
+    """How many picks a round checks to find ``need`` more grasps, and whether it draws near the feasible ones
+    (local mode: few picks were feasible). Both are judged by the feasible share of the rounds' own picks,
+    ``rounds`` (found, checked), once there are any, else of all ``n_checked`` so far: the width strata check
+    the rare widths hard, where the hand reaches few, and their share would have the spread's rounds check
+    far more than they need (and draw locally where the object is graspable all over). The first round
+    probes at most ``PROBE_PICKS``."""
+    found, checked = rounds if rounds[1] else (n_feasible, n_checked)
+    share = found / checked if checked else 1.0
     want = int(np.ceil(SELECT_MARGIN * need / max(share, 0.05)))
     want = min(want, PROBE_PICKS) if round_ == 0 else min(want, 4 * need + PROBE_PICKS)
-    return want, n_checked > 0 and n_feasible > 0 and share < LOCAL_BELOW
+    return want, checked > 0 and n_feasible > 0 and share < LOCAL_BELOW
 
 
 def pick_round(uniform: Pool, local: Pool, want: int, local_mode: bool) -> tuple[np.ndarray, np.ndarray]:

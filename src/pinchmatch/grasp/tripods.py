@@ -120,12 +120,14 @@ def sample_tripods(context: SurfaceContext, *, settings: PinchSettings = PinchSe
     uniform.add(points, faces, np.zeros((0, 3, 3)))
     parts, picked = stratified_checks(uniform, count, lambda p, f: _check_picks(context, p, f, settings, rejected))
     n_feasible, n_checked = sum(len(p) for p in parts), len(picked)
+    strata_found, strata_checked = n_feasible, n_checked
     for round_ in range(MAX_ROUNDS):
         need = count - n_feasible
         if need <= 0:
             break
         # where few picks are feasible (a plate's rim, a bowl's lip), new thumbs near the feasible thumbs
-        want, local_mode = round_plan(need, n_feasible, n_checked, round_)
+        want, local_mode = round_plan(need, n_feasible, n_checked, round_,
+                                      (n_feasible - strata_found, n_checked - strata_checked))
         short = int((uniform.nearest >= 0).sum() + (local.nearest >= 0).sum()) < want
         if (local_mode or short) and drawn < budget:
             more = int(min(budget - drawn, OVERSAMPLE * want))

@@ -22,6 +22,7 @@ import trimesh
 from scipy.spatial import cKDTree
 
 from ..cores import query_tree
+from .distance_field import DistanceField
 from .regions import ContactRegions
 from .support import SupportPlane
 
@@ -33,6 +34,11 @@ SAMPLES_PER_PATCH = 120
 MAX_SAMPLES = 400_000
 #: fixed seed of the dense sample: features of a pinch never depend on --seed
 SAMPLE_SEED = 20190323
+#: points per leaf of the sample's KD-tree: the hand's distance queries, most of its queries, run a fifth
+#: faster with 32 than with scipy's 16 (the answers are the same)
+TREE_LEAF_SIZE = 32
+#: the distance field decides "farther than this" without a grid cell (mm): beyond any finger's radius
+FIELD_MARGIN_MM = 20.0
 
 
 def _embree_installed() -> bool:
@@ -220,7 +226,12 @@ class SurfaceContext:
 
     @functools.cached_property
     def tree(self) -> cKDTree:
-        return cKDTree(self.sample.points)
+        return cKDTree(self.sample.points, leafsize=TREE_LEAF_SIZE)
+
+    @functools.cached_property
+    def distance_field(self) -> DistanceField:
+        """Sure bounds on the distance to the dense sample, from a grid (exact beyond ``FIELD_MARGIN_MM``)."""
+        return DistanceField.of(self.sample.points, margin_mm=FIELD_MARGIN_MM)
 
     @functools.cached_property
     def rays(self):
