@@ -205,15 +205,16 @@ def _coarse_to_fine(count: int) -> list[int]:
     return order
 
 
-def _obstacle_distances(context, centres, cap, below):
+def _obstacle_distances(context, centres, cap, below, bounds=None):
     """(k,) distance from each centre to the nearest surface sample or to the half-space below the
     object's support (0 inside it), capped at ``cap``: both are 1-Lipschitz, as the bounds need.
 
     Where the surface's distance field already decides, no KD-tree query is made: a centre sure to
     lie at least ``cap`` from every sample reads ``cap`` (as the query would), and one sure to lie
     closer than its ``below`` (k,) reads the field's upper bound, which is also below it: the
-    callers compare each distance with its ``below`` only, so every decision is the query's."""
-    lower, upper = context.distance_field.bounds(centres)
+    callers compare each distance with its ``below`` only, so every decision is the query's.
+    ``bounds``: the field's (lower, upper) of these centres, where the caller has them."""
+    lower, upper = context.distance_field.bounds(centres) if bounds is None else bounds
     q = np.where(lower >= cap, cap, upper)
     ask = np.flatnonzero((lower < cap) & (upper >= np.asarray(below) - DECIDED_BELOW_MM))
     if len(ask):
@@ -225,30 +226,49 @@ def _obstacle_distances(context, centres, cap, below):
     return q
 
 
-def _axis_distances(context, tips, h, offsets, cap, rho, delta=None):
+def _axis_distances(context, tips, h, offsets, cap, rho, delta=None, first=None):
     """(m, F, P) distance from each test centre to the nearest sample (or the support), capped at ``cap``.
 
     tips : (m, F, 3) fingertip centres (F fingers of one hand), h : (m, 3), delta : (m,) how far, per mm along the
     finger, a test centre can move within the cell of directions around h (0: h alone). A
-    row is ruled out by one test sphere with d + offset·δ < ρ, so
-    the spheres are queried a few at a time, coarse to fine along the finger, each batch only
-    for the rows no earlier sphere ruled out. The spheres not queried read ``cap``, which
-    changes no decision: a ruled-out row neither fits nor bounds a cell above ρ."""
+    row is ruled out by one test sphere with d + offset·δ < ρ. The distance field's bounds of every
+    sphere come first: a row that one sphere's upper bound surely rules out needs no query at all (its
+    spheres read that bound, or ``cap``). The other rows' spheres are queried a few at a time, coarse to
+    fine along the finger, each batch only for the rows no earlier sphere ruled out; ``first`` (m,), where
+    given and not -1, names one sphere per row (finger-major: finger · P + sphere) to query before them.
+    The spheres not queried read ``cap``, which changes no decision: a ruled-out row neither fits nor
+    bounds a cell above ρ."""
     m, fingers = len(h), tips.shape[1]
     delta = np.zeros(m) if delta is None else delta
-    d = np.full((m, fingers, len(offsets)), cap)
-    rows = np.arange(m)
+    shape = (m, fingers, len(offsets))
+    centres = tips[:, :, None, :] + offsets[None, None, :, None] * h[:, None, None, :]
+    lower, upper = (b.reshape(shape) for b in context.distance_field.bounds(centres.reshape(-1, 3)))
+    sure = upper if context.support is None else np.minimum(upper, np.maximum(context.support.heights(centres), 0.0))
+    out = sure + offsets * delta[:, None, None] < rho - DECIDED_BELOW_MM
+    ruled = out.any(axis=(1, 2))
+    d = np.full(shape, cap)
+    d[ruled] = np.where(out[ruled], sure[ruled], cap)
+    rows = np.flatnonzero(~ruled)
+    if first is not None and len(rows):
+        hinted = rows[first[rows] >= 0]
+        f, j = np.divmod(first[hinted], len(offsets))
+        slack = offsets[j] * delta[hinted]
+        q = _obstacle_distances(context, centres[hinted, f, j], cap, rho - slack,
+                                (lower[hinted, f, j], upper[hinted, f, j]))
+        d[hinted, f, j] = q
+        rows = np.setdiff1d(rows, hinted[q + slack < rho], assume_unique=True)
     order = _coarse_to_fine(len(offsets))
     for start in range(0, len(order), STAGE_SPHERES):
-        stage = np.array(order[start:start + STAGE_SPHERES])
-        off = offsets[stage]
-        centres = tips[rows][:, :, None, :] + off[None, None, :, None] * h[rows][:, None, None, :]
-        below = np.broadcast_to(rho - off[None, None, :] * delta[rows, None, None], (len(rows), fingers, len(off)))
-        q = _obstacle_distances(context, centres.reshape(-1, 3), cap, below.ravel()).reshape(len(rows), fingers, len(off))
-        d[np.ix_(rows, np.arange(fingers), stage)] = q
-        rows = rows[(q + off * delta[rows, None, None] >= rho).all(axis=(1, 2))]
         if not len(rows):
             break
+        stage = np.array(order[start:start + STAGE_SPHERES])
+        off = offsets[stage]
+        pick = np.ix_(rows, np.arange(fingers), stage)
+        below = np.broadcast_to(rho - off[None, None, :] * delta[rows, None, None], (len(rows), fingers, len(off)))
+        q = _obstacle_distances(context, centres[pick].reshape(-1, 3), cap, below.ravel(),
+                                (lower[pick].ravel(), upper[pick].ravel())).reshape(len(rows), fingers, len(off))
+        d[pick] = q
+        rows = rows[(q + off * delta[rows, None, None] >= rho).all(axis=(1, 2))]
     return d
 
 
@@ -419,22 +439,15 @@ def _search_band(context, tips, u, e1, e2, pending, hand, offsets, rho, cap):
                              np.sin(alpha) * np.sin(alpha - ha) + np.cos(alpha) * np.cos(alpha - ha) * np.cos(ht))
         delta = np.sqrt(np.maximum(2.0 - 2.0 * cos_far, 0.0))  # chord length of a unit vector
         h = _directions(u[rows], e1[rows], e2[rows], theta, alpha)
-        # first the sphere that bounded the parent: most cells that can be dropped are dropped by it
-        has_hint = hint >= 0
         live = np.ones(len(rows), dtype=bool)
-        if fingers > 2:  # and the cells whose every direction staggers the fingers beyond the limit
+        if fingers > 2:  # the cells whose every direction staggers the fingers beyond the limit are dropped
             apart = tips[rows, 2] - tips[rows, 1]
             least = np.abs(np.einsum("md,md->m", apart, h)) - np.linalg.norm(apart, axis=1) * delta
             live = least <= hand.finger_stagger_mm
-            has_hint &= live
-        if has_hint.any():
-            i = np.flatnonzero(has_hint)
-            f, j = np.divmod(hint[i], len(offsets))
-            centre = tips[rows[i], f] + offsets[j][:, None] * h[i]
-            slack = offsets[j] * delta[i]
-            live[i] = _obstacle_distances(context, centre, cap, rho - slack) + slack >= rho
         idx = np.flatnonzero(live)
-        d = _axis_distances(context, tips[rows[idx]], h[idx], offsets, cap, rho, delta[idx]).reshape(len(idx), fingers * len(offsets))
+        # the sphere that bounded the parent is queried first: most cells that can be dropped are dropped by it
+        d = _axis_distances(context, tips[rows[idx]], h[idx], offsets, cap, rho, delta[idx],
+                            first=hint[idx]).reshape(len(idx), fingers * len(offsets))
         margin = d.min(axis=1) - hand.finger_radius_mm
         fits = (d >= rho).all(axis=1) & ~_staggered(tips[rows[idx]], h[idx], hand.finger_stagger_mm)
         clears = fits.copy()
