@@ -32,8 +32,10 @@ from .steady import STEADY_CHOICES, SteadySearch
 
 
 #: unless ``--rank nominal``, this many distinct best choices on target (or top_k + 1, if more) and the
-#: steady search's ``STEADY_CHOICES`` are ranked by their cost over the landings
-RANKED_CHOICES = 32
+#: steady search's ``STEADY_CHOICES`` are ranked by their cost over the landings. The pair that feels best is
+#: often far down the order on target (a scanned marker's on a mustard bottle: between the 97th and the
+#: 128th), and a felt pair costs little beside the search, so the set is wide
+RANKED_CHOICES = 256
 #: and per tangible, for its row of the cost matrix (what select and design rank props by), this many of each
 ROW_CHOICES = 3
 #: another prop is equivalent to the best when its ranked cost is within this much of the best's, in JND,
