@@ -2,6 +2,7 @@
 and the command."""
 
 import json
+import re
 import time
 
 import numpy as np
@@ -217,7 +218,9 @@ def test_a_budget_too_small_is_refused_after_the_first_candidate_not_after_the_b
     out = tmp_path / "out"
     code, _, err = run_cli(capsys, "design", "--virtual", scene, "--count", 100, "--budget-s", 50, "-o", out,
                            "--jobs", 1)
-    assert code == 2 and "judging one candidate takes 20." in err, err
+    # the fake 20 s and the real judging time, which a loaded machine can stretch past a second
+    said = re.search(r"judging one candidate takes (\d+\.\d) s", err)
+    assert code == 2 and said and 20.0 <= float(said.group(1)) < 30.0, err
     assert len(judged) == 1
     assert not out.exists()
 

@@ -35,7 +35,7 @@ from .steady import STEADY_CHOICES, SteadySearch
 #: steady search's ``STEADY_CHOICES`` are ranked by their cost over the landings. The pair that feels best is
 #: often far down the order on target (a scanned marker's on a mustard bottle: between the 97th and the
 #: 128th), and a felt pair costs little beside the search, so the set is wide
-RANKED_CHOICES = 256
+RANKED_CHOICES = 128
 #: and per tangible, for its row of the cost matrix (what select and design rank props by), this many of each
 ROW_CHOICES = 3
 #: another prop is equivalent to the best when its ranked cost is within this much of the best's, in JND,
