@@ -14,6 +14,18 @@ def random_rigid(seed):
     return Rotation.random(random_state=rng).as_matrix(), rng.uniform(-200, 200, 3)
 
 
+def finger_axes(approach, u, splay_deg, fingers):
+    """(n, F, 3) each finger's direction: the hand's ``approach`` (n, 3) turned by ``splay_deg`` about
+    approach × u, away from the other finger (the thumb, finger 0, away from u; the others towards it),
+    by Rodrigues' formula (not the module's arithmetic)."""
+    k = np.cross(approach, u)
+    k /= np.linalg.norm(k, axis=1, keepdims=True)
+    out = []
+    for sign in [-1.0] + [1.0] * (fingers - 1):
+        out.append(Rotation.from_rotvec(k * np.radians(sign * splay_deg)).apply(approach))
+    return np.stack(out, axis=1)
+
+
 def transformed(mesh, R, t):
     out = mesh.copy()
     out.vertices = mesh.vertices @ R.T + t

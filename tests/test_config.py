@@ -24,7 +24,8 @@ from levels import standing_can, tabletop_level
 CHANGED = {
     "friction_cone_deg": "24", "min_width_mm": "3", "max_width_mm": "70", "fingertip_radius_mm": "9",
     "patch_radius_mm": "6", "count": "61", "seed": "3", "snap_tolerance_mm": "3", "finger_radius_mm": "6.5",
-    "finger_length_mm": "40", "approach_tilt_deg": "20", "grasp": "tripod",
+    "finger_length_mm": "40", "approach_tilt_deg": "20", "finger_splay_deg": "5",
+    "grasp": "tripod",
     "weights": "width=3", "criteria": "paper", "normalize": "range", "pooling": "sum", "top_k": "1",
     "one_to_one": None, "keep_upright": None, "distinct_mm": "40", "refine": "off", "landing_mm": "3",
     "rank": "nominal", "placement": "fixed", "hand_start_mm": "40,180,260", "redirect_threshold_deg": "6",

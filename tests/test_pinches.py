@@ -9,6 +9,7 @@ from pinchmatch import ConfigError, NoFeasiblePinchError, PinchSettings, check_p
 from pinchmatch.grasp.pinches import RULES
 from pinchmatch.mesh.surface import SurfaceContext
 from pinchmatch.mesh import shapes
+from conftest import finger_axes
 
 
 @pytest.fixture(scope="module")
@@ -52,7 +53,8 @@ def assert_rules_hold(mesh, pinches, settings, support=None):
     np.testing.assert_allclose(np.linalg.norm(h, axis=1), 1.0, atol=1e-9)
     assert np.all(np.abs(np.einsum("ij,ij->i", h, u)) <= np.sin(np.radians(settings.approach_tilt_deg)) + 1e-9)
     s = np.linspace(0.0, settings.finger_length_mm, 46)  # every mm along the finger
-    axis = (pinches.points + r * pinches.normals)[:, :, None, :] + s[None, None, :, None] * h[:, None, None, :]
+    fingers = finger_axes(h, u, settings.finger_splay_deg, 2)  # each leaned away from the other
+    axis = (pinches.points + r * pinches.normals)[:, :, None, :] + s[None, None, :, None] * fingers[:, :, None, :]
     assert np.all(_distance_to_surface(mesh, axis.reshape(-1, 3)) >= settings.finger_radius_mm - 0.3 - 0.5)
     # contacts on the surface
     _, on, _ = trimesh.proximity.closest_point(mesh, pinches.points.reshape(-1, 3))
@@ -61,7 +63,7 @@ def assert_rules_hold(mesh, pinches, settings, support=None):
         normal, height = support
         assert np.all(centres @ normal - height >= r - 0.3 - 1e-9)
         assert np.all(axis.reshape(-1, 3) @ normal - height >= settings.finger_radius_mm - 0.3 - 1e-9)
-        assert np.all(h @ normal >= -1e-9)
+        assert np.all(fingers @ normal >= -1e-9)
 
 
 def test_every_rule_holds_on_every_pose(box_ctx, box_pinches):
@@ -185,6 +187,7 @@ BOUNDS = [
     ("finger_radius_mm", [0.31, 8.0], [0.3, 8.01]),
     ("finger_length_mm", [5.0, 150.0], [4.9, 151.0]),
     ("approach_tilt_deg", [0.0, 89.9], [-0.1, 90.0]),
+    ("finger_splay_deg", [0.0, 45.0], [-0.1, 45.1]),
     ("friction_cone_deg", [0.1, 89.9], [0.0, 90.0]),
     ("max_width_mm", [0.6, 300.0], [0.5, 300.1]),
     ("min_width_mm", [0.0], [-0.1]),

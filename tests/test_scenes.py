@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 import trimesh
 
+from conftest import finger_axes
 from pinchmatch.export.scenes import CONE_HEIGHT_MM, gltf_rotation, write_scenes
 
 
@@ -32,16 +33,21 @@ def test_glb_round_trip_gives_named_nodes_transforms_and_extras(written):
         scene = trimesh.load(path)
         assert set(scene.graph.nodes_geometry) == {"tangible", "virtual", "cone_p1", "cone_p2",
                                                    "finger_p1", "finger_p2"}
-        # each finger: a capsule 45 mm long plus its two 8 mm caps, from its fingertip along the approach
+        # each finger: a capsule 45 mm long plus its two 8 mm caps, from its fingertip along its own axis,
+        # the approach leaned 15 deg away from the other finger
         T = study.scene.tangibles[vm.best.tangible]
         h = T.pinches.approach[vm.best.t_pose]
+        p = T.pinches.points[vm.best.t_pose]
+        u = (p[1] - p[0]) / np.linalg.norm(p[1] - p[0])
+        axes = finger_axes(h[None], u[None], 15.0, 2)[0]
         for k in range(2):
             finger = scene.geometry[f"finger_p{k + 1}"]
-            tip = (T.pinches.points[vm.best.t_pose, k] + 8.0 * T.pinches.normals[vm.best.t_pose, k]) @ Q.T / 1000.0
-            along = (finger.vertices - tip) @ (Q @ h)
+            tip = (p[k] + 8.0 * T.pinches.normals[vm.best.t_pose, k]) @ Q.T / 1000.0
+            along = (finger.vertices - tip) @ (Q @ axes[k])
             assert along.min() == pytest.approx(-0.008, abs=2e-4) and along.max() == pytest.approx(0.053, abs=2e-4)
             extras = scene.graph.transforms.edge_data[("world", f"finger_p{k + 1}")]["metadata"]
             np.testing.assert_allclose(extras["pinchmatch:approach"], h, atol=1e-9)
+            np.testing.assert_allclose(extras["pinchmatch:direction"], axes[k], atol=1e-9)
         assert scene.metadata["pinchmatch:units"] == "m" and scene.metadata["pinchmatch:up"] == "+y"
         # the tangible, in metres and +Y up: 120 mm tall along Y
         tangible = scene.geometry["tangible"]

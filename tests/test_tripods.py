@@ -13,6 +13,7 @@ from scipy.optimize import linprog
 from scipy.spatial.transform import Rotation
 
 from pinchmatch import Config, MatchSettings, PinchSettings, analyze_object, candidate_poses, match_scene
+from conftest import finger_axes
 from pinchmatch.grasp.tripod_rules import MAX_SPACING_MM, TRIPOD_RULES, Tripods, balance_broken, check_tripods
 from pinchmatch.grasp.tripods import sample_tripods
 from pinchmatch.match.register import register_contacts, register_poses
@@ -90,7 +91,7 @@ def assert_tripod_rules_hold(mesh, tripods, settings):
     assert np.all(np.abs(np.einsum("ij,ij->i", h, u)) <= np.sin(np.radians(settings.approach_tilt_deg)) + 1e-9)
     assert np.all(np.abs(np.einsum("ij,ij->i", tips[:, 2] - tips[:, 1], h)) <= 20.0 + 1e-9)
     s = np.linspace(0.0, settings.finger_length_mm, 46)
-    axis = tips[:, :, None, :] + s[None, None, :, None] * h[:, None, None, :]
+    axis = tips[:, :, None, :] + s[None, None, :, None] * finger_axes(h, u, settings.finger_splay_deg, 3)[:, :, None, :]
     assert np.all(_distance_to_surface(mesh, axis.reshape(-1, 3)) >= settings.finger_radius_mm - 0.3 - 0.5)
     # contacts on the surface, unit normals
     _, on, _ = trimesh.proximity.closest_point(mesh, p.reshape(-1, 3))

@@ -4,8 +4,8 @@
 
 Each panel shows the object (grey), eight of its pinches (green contacts joined by the
 pinch line: the widest, across the body, and the first of the spread order; on the mug,
-those on the handle first) and, for each, the two finger axes along the reported
-approach (45 mm, orange).
+those on the handle first) and, for each, the two finger axes: the reported
+approach leaned by the splay, away from the other finger (45 mm, orange).
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ import numpy as np  # noqa: E402
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
 
 from pinchmatch import PinchSettings, sample_pinches  # noqa: E402
+from pinchmatch.grasp.hand import finger_directions, hand_of  # noqa: E402
 from pinchmatch.mesh import vessels  # noqa: E402
 from pinchmatch.mesh.surface import SurfaceContext  # noqa: E402
 
@@ -40,7 +41,7 @@ def _handle(pinches):
 
 
 PANELS = [("cup: across the cavity, and across the wall", vessels.cup, (20, -60), _widest),
-          ("bowl: at the rim", vessels.bowl, (35, -60), lambda p: np.arange(8)),
+          ("bowl: across its wall", vessels.bowl, (35, -60), lambda p: np.arange(8)),
           ("mug: body and handle", vessels.mug, (20, -75), _handle)]
 
 
@@ -50,12 +51,13 @@ def panel(ax, title, make, view, choose, settings):
     shown = pinches.subset(choose(pinches))
     ax.add_collection3d(Poly3DCollection(mesh.triangles, facecolor=(0.7, 0.7, 0.72, 0.06), edgecolor="none"))
     tips = shown.points + settings.fingertip_radius_mm * shown.normals
+    along = finger_directions(shown.points, shown.approach, hand_of(settings))
     for i in range(len(shown)):
         p = shown.points[i]
         ax.plot(*p.T, color="tab:green", linewidth=1.0)
         ax.scatter(*p.T, color="tab:green", s=14, depthshade=False)
         for k in range(2):
-            axis = np.stack([tips[i, k], tips[i, k] + settings.finger_length_mm * shown.approach[i]])
+            axis = np.stack([tips[i, k], tips[i, k] + settings.finger_length_mm * along[i, k]])
             ax.plot(*axis.T, color="tab:orange", linewidth=4.0, alpha=0.55, solid_capstyle="round")
     lo, hi = mesh.bounds
     centre, half = (lo + hi) / 2.0, (hi - lo).max() / 2.0 + 25.0
@@ -76,7 +78,7 @@ def main(argv=None) -> int:
     for i, (title, make, view, choose) in enumerate(PANELS, start=1):
         panel(fig.add_subplot(1, 3, i, projection="3d"), title, make, view, choose, settings)
     fig.tight_layout(rect=(0, 0.05, 1, 0.93))
-    fig.text(0.5, 0.02, "Pinches (green) and the two fingers along each pinch's approach (orange, 45 mm)",
+    fig.text(0.5, 0.02, "Pinches (green) and the two fingers of each, in a V about its approach (orange, 45 mm)",
              ha="center", fontsize=10)
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out)

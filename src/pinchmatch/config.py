@@ -157,6 +157,9 @@ class PinchSettings:
     approach_tilt_deg: float = option(30.0, group="pinch", kind="float",
                                       help="how far the hand's approach may lean towards either finger from the "
                                            "plane perpendicular to the pinch line; 0 to 90")
+    finger_splay_deg: float = option(15.0, group="pinch", kind="float",
+                                     help="how far each finger leans from the hand's approach, away from the "
+                                          "other: the V of the thumb and index; 0 (side by side) to 45")
     grasp: str = option("pinch", group="sampling", kind="choice", choices=GRASPS,
                         help="the grasp: pinch (thumb and index) or tripod (thumb against index and middle "
                              "finger; docs/method.md)")
@@ -184,6 +187,8 @@ class PinchSettings:
              "between 5 and 150 (a fingertip alone to a whole finger)"),
             ("--approach-tilt-deg", self.approach_tilt_deg, 0.0 <= self.approach_tilt_deg < 90.0,
              "between 0 and 90 (0 included)"),
+            ("--finger-splay-deg", self.finger_splay_deg, 0.0 <= self.finger_splay_deg <= 45.0,
+             "between 0 and 45 (0: the fingers side by side)"),
             ("--grasp", 0.0, self.grasp in GRASPS, " or ".join(GRASPS)),
         ]
         for flag, value, ok, want in checks:
@@ -204,6 +209,7 @@ class PinchSettings:
             "finger_radius_mm": self.finger_radius_mm,
             "finger_length_mm": self.finger_length_mm,
             "approach_tilt_deg": self.approach_tilt_deg,
+            "finger_splay_deg": self.finger_splay_deg,
             "grasp": self.grasp,
         }
 

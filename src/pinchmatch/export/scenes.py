@@ -12,7 +12,8 @@ extras.
 Node names: ``tangible``, ``virtual``, ``cone_p1``, ``cone_p2`` (a tripod's: ``cone_p1`` the thumb's,
 ``cone_p2`` the index's, ``cone_p3`` the middle finger's), and
 ``finger_p1``, ``finger_p2`` (``finger_p3``): semi-transparent capsules of the hand model
-(:mod:`hand`) along the tangible pose's approach, so a user sees where the
+(:mod:`hand`), each along its finger's axis (the tangible pose's approach
+leaned away from the other finger by the splay), so a user sees where the
 hand comes from. Match data sits in node and scene extras as flat keys
 prefixed ``pinchmatch:``; the approach of both poses is among them.
 """
@@ -25,7 +26,7 @@ import numpy as np
 import trimesh
 from trimesh.visual.material import PBRMaterial
 
-from ..grasp.hand import Hand
+from ..grasp.hand import Hand, finger_directions
 from ..grasp.pinches import closing_directions
 from ..grasp.spread import other_order
 from ..match.search import contact_offset_mm
@@ -138,12 +139,15 @@ def match_scene_glb(tangible, virtual, choice, *, extras: dict | None = None, ha
     approach = tangible.pinches.approach[choice.t_pose]
     if np.isfinite(approach).all():
         normals = tangible.pinches.normals[choice.t_pose]
+        along = finger_directions(p[None], approach[None], hand)[0]  # the V of the fingers
         for k in range(len(p)):
             start = p[k] + hand.fingertip_radius_mm * normals[k]
-            capsule = finger_capsule(start, approach, hand.finger_length_mm, hand.finger_radius_mm)
+            capsule = finger_capsule(start, along[k], hand.finger_length_mm, hand.finger_radius_mm)
             scene.add_geometry(_styled(capsule, to_gltf(capsule.vertices), FINGER_COLOR, blend=True),
                                node_name=f"finger_p{k + 1}", geom_name=f"finger_p{k + 1}",
                                metadata=_flat({"role": "finger", "finger": f"p{k + 1}", "approach": approach,
+                                               "direction": along[k],
+                                               "finger_splay_deg": hand.finger_splay_deg,
                                                "finger_radius_mm": hand.finger_radius_mm,
                                                "finger_length_mm": hand.finger_length_mm}))
     C = np.eye(4)

@@ -4,9 +4,15 @@ Model (lengths in mm):
 
 - **Fingertip:** a sphere of radius ``r_tip`` touching the contact p_i from
   outside, centred at c_i = p_i + r_tip·n_i (the ``clearance`` rule checks it).
-- **Finger:** a capsule of radius ``r_f`` whose axis runs from c_i along the
-  hand's approach direction h for ``L`` (the distal and middle phalanges).
-- **One hand:** both fingers share h. The pads face each other, so h lies
+- **Finger:** a capsule of radius ``r_f`` whose axis runs from c_i along its
+  direction h_i for ``L`` (the distal and middle phalanges).
+- **The V of the fingers:** each h_i is the hand's approach h leaned by the
+  splay σ (``finger_splay_deg``) in the plane of h and u, away from the other
+  finger: h_i = h(θ, α - σ) for the thumb, h(θ, α + σ) for the others. The
+  pads of a pinch meet with the fingers converging, not side by side; parallel
+  fingers could not both follow a curved wall (outside a bowl, the finger runs
+  into the wall above it).
+- **One hand:** every finger leans from one h. The pads face each other, so h lies
   within ``approach_tilt_deg`` of the plane perpendicular to the pinch line u
   (for a tripod, the line from the thumb to the middle of the two fingers
   opposite it, whose tips may lie at most ``finger_stagger_mm`` apart along h):
@@ -24,11 +30,14 @@ sample and its height above the plane (0 below it), so no finger capsule dips be
 than the pad's tolerance; and the hand's approach h may not point below the plane's horizontal (h · up
 ≥ 0), so the hand behind the fingers, which runs on along h, never comes from under the table.
 The pinch is **reachable** when some h clears and the hand behind the
-fingers gets out: from each finger's end, the line on along h meets no
+fingers gets out: from each finger's end, the line on along h_i meets no
 surface. The proximal phalanx and the palm are far wider than a finger, so
 where the finger's own line runs into the object (a finger lying flat on the
-inside bottom of a cup, on a plate's well towards its rim) the hand cannot
-follow. This line is tested at each direction the search evaluates.
+inside bottom of a cup) the hand cannot follow. And the hand joins the
+fingers at their ends: the segment from the thumb's end to each other
+finger's meets no surface, so a sheet pinched far in from its edge (a
+plate's well) passes between the fingers, never through the hand. These
+tests are made at each direction the search evaluates.
 
 The axis test is exact with respect to the dense surface sample: test spheres
 of radius ρ = sqrt((r_f - tol)² + (Δ/2)²) sit on the axis every Δ. A sample
@@ -69,6 +78,10 @@ Search for h:
    ``MAX_CELLS_PER_PINCH`` cells per level, those with the largest bound; the
    guarantee holds where no more were open (a finger that can only slide
    exactly along a sheet leaves a thin band of directions open at every level).
+   The hand's tests are made at cell centres only: a cell whose centre's hand is
+   stuck is not refined, whether its fingers fit there or not (so the many
+   cells along the border of a region where the fingers fit but the hand does
+   not get out, deep in a mug, are dropped at once).
 
 Each direction or cell is tested sphere by sphere, a pair at a time, coarse to
 fine along the finger, each pair only where the earlier ones did not already
@@ -110,6 +123,9 @@ STAGE_SPHERES = 2
 #: approach: the middle finger is about 8 mm longer than the index (hand anthropometry, e.g. Greiner 1991),
 #: and flexing one finger a little more than the other makes up about as much again; a documented choice
 FINGER_STAGGER_MM = 20.0
+#: how far each finger leans from the hand's approach, away from the other finger (deg): the pads of a pinch meet
+#: with the fingers in a V, not side by side; a documented choice (docs/method.md)
+FINGER_SPLAY_DEG = 15.0
 #: how far under its threshold a distance field's bound must lie to stand for the query (mm): rounding aside
 DECIDED_BELOW_MM = 1e-6
 #: how far below the support's horizontal a hand's approach may point (a hand sliding along the table)
@@ -126,6 +142,7 @@ class Hand:
     approach_tilt_deg: float = 30.0
     tolerance_mm: float = PAD_TOLERANCE_MM
     finger_stagger_mm: float = FINGER_STAGGER_MM
+    finger_splay_deg: float = FINGER_SPLAY_DEG
 
     @property
     def test_radius_mm(self) -> float:
@@ -146,7 +163,7 @@ def hand_of(settings) -> Hand:
     """The hand of a run's :class:`pinchmatch.config.PinchSettings`."""
     return Hand(fingertip_radius_mm=settings.fingertip_radius_mm, finger_radius_mm=settings.finger_radius_mm,
                 finger_length_mm=settings.finger_length_mm, approach_tilt_deg=settings.approach_tilt_deg,
-                tolerance_mm=PAD_TOLERANCE_MM)
+                tolerance_mm=PAD_TOLERANCE_MM, finger_splay_deg=settings.finger_splay_deg)
 
 
 @dataclass(frozen=True)
@@ -164,16 +181,18 @@ class Reach:
     clearance_mm: np.ndarray
 
 
+def pinch_lines(points: np.ndarray) -> np.ndarray:
+    """(n, 3) unit pinch lines u: from the thumb (contact 0) towards the other fingers' middle."""
+    seg = points[:, 1:].mean(axis=1) - points[:, 0]
+    return seg / np.maximum(np.linalg.norm(seg, axis=1, keepdims=True), 1e-300)
+
+
 def approach_frame(context, points: np.ndarray, axis: np.ndarray | None = None):
     """u, e1 and e2 = u × e1, each (n, 3): u the pinch line (or ``axis``), e1 perpendicular
     to it, pointing away from the surface's centroid. On the line through the centroid along u,
     where "away" has no direction, e1 is the surface's principal axis of least spread (the
     symmetry axis of a ring, a plate, a disc), or of middle spread when that one lies along u."""
-    if axis is None:  # the thumb (contact 0) towards the other fingers' middle
-        seg = points[:, 1:].mean(axis=1) - points[:, 0]
-        u = seg / np.maximum(np.linalg.norm(seg, axis=1, keepdims=True), 1e-300)
-    else:
-        u = axis
+    u = pinch_lines(points) if axis is None else axis
     out = points.mean(axis=1) - context.centroid_mm
     out -= np.einsum("ij,ij->i", out, u)[:, None] * u
     norm = np.linalg.norm(out, axis=1)
@@ -190,6 +209,31 @@ def _directions(u, e1, e2, theta, alpha):
     """h(θ, α) for rows of frames and matching (m,) angles in radians."""
     ca = np.cos(alpha)[:, None]
     return ca * (np.cos(theta)[:, None] * e1 + np.sin(theta)[:, None] * e2) + np.sin(alpha)[:, None] * u
+
+
+def _splay_signs(fingers: int) -> np.ndarray:
+    """(F,) which way each finger leans from the hand's approach along the pinch line: the thumb
+    away from the others (-1), the others away from the thumb (+1)."""
+    return np.r_[-1.0, np.ones(fingers - 1)]
+
+
+def _finger_directions(u, h, splay, fingers):
+    """(m, F, 3) each finger's direction for hand approaches h (m, 3) and pinch lines u (m, 3): h leaned
+    by ``splay`` (radians) in the plane of h and u, away from the other finger; h itself for 0."""
+    if splay == 0.0:
+        return np.repeat(h[:, None, :], fingers, axis=1)
+    along = np.clip(np.einsum("md,md->m", h, u), -1.0, 1.0)
+    flat = h - along[:, None] * u
+    flat /= np.maximum(np.linalg.norm(flat, axis=1, keepdims=True), 1e-300)
+    alpha = np.arcsin(along)[:, None] + splay * _splay_signs(fingers)[None, :]
+    return np.cos(alpha)[:, :, None] * flat[:, None, :] + np.sin(alpha)[:, :, None] * u[:, None, :]
+
+
+def finger_directions(points: np.ndarray, approach: np.ndarray, hand: Hand) -> np.ndarray:
+    """(n, F, 3) the direction of each finger from its fingertip towards the hand, for contacts
+    ``points`` (n, F, 3, the thumb's first) held from ``approach`` (n, 3): what a viewer draws."""
+    return _finger_directions(pinch_lines(points), np.asarray(approach, dtype=np.float64),
+                              math.radians(hand.finger_splay_deg), points.shape[1])
 
 
 def _coarse_to_fine(count: int) -> list[int]:
@@ -229,8 +273,9 @@ def _obstacle_distances(context, centres, cap, below, bounds=None):
 def _axis_distances(context, tips, h, offsets, cap, rho, delta=None, first=None):
     """(m, F, P) distance from each test centre to the nearest sample (or the support), capped at ``cap``.
 
-    tips : (m, F, 3) fingertip centres (F fingers of one hand), h : (m, 3), delta : (m,) how far, per mm along the
-    finger, a test centre can move within the cell of directions around h (0: h alone). A
+    tips : (m, F, 3) fingertip centres (F fingers of one hand), h : (m, F, 3) each finger's direction,
+    delta : (m, F) how far, per mm along the finger, a test centre can move within the cell of directions
+    around h (0: h alone). A
     row is ruled out by one test sphere with d + offset·δ < ρ. The distance field's bounds of every
     sphere come first: a row that one sphere's upper bound surely rules out needs no query at all (its
     spheres read that bound, or ``cap``). The other rows' spheres are queried a few at a time, coarse to
@@ -239,12 +284,12 @@ def _axis_distances(context, tips, h, offsets, cap, rho, delta=None, first=None)
     The spheres not queried read ``cap``, which changes no decision: a ruled-out row neither fits nor
     bounds a cell above ρ."""
     m, fingers = len(h), tips.shape[1]
-    delta = np.zeros(m) if delta is None else delta
+    delta = np.zeros((m, fingers)) if delta is None else delta
     shape = (m, fingers, len(offsets))
-    centres = tips[:, :, None, :] + offsets[None, None, :, None] * h[:, None, None, :]
+    centres = tips[:, :, None, :] + offsets[None, None, :, None] * h[:, :, None, :]
     lower, upper = (b.reshape(shape) for b in context.distance_field.bounds(centres.reshape(-1, 3)))
     sure = upper if context.support is None else np.minimum(upper, np.maximum(context.support.heights(centres), 0.0))
-    out = sure + offsets * delta[:, None, None] < rho - DECIDED_BELOW_MM
+    out = sure + offsets * delta[:, :, None] < rho - DECIDED_BELOW_MM
     ruled = out.any(axis=(1, 2))
     d = np.full(shape, cap)
     d[ruled] = np.where(out[ruled], sure[ruled], cap)
@@ -252,7 +297,7 @@ def _axis_distances(context, tips, h, offsets, cap, rho, delta=None, first=None)
     if first is not None and len(rows):
         hinted = rows[first[rows] >= 0]
         f, j = np.divmod(first[hinted], len(offsets))
-        slack = offsets[j] * delta[hinted]
+        slack = offsets[j] * delta[hinted, f]
         q = _obstacle_distances(context, centres[hinted, f, j], cap, rho - slack,
                                 (lower[hinted, f, j], upper[hinted, f, j]))
         d[hinted, f, j] = q
@@ -264,11 +309,11 @@ def _axis_distances(context, tips, h, offsets, cap, rho, delta=None, first=None)
         stage = np.array(order[start:start + STAGE_SPHERES])
         off = offsets[stage]
         pick = np.ix_(rows, np.arange(fingers), stage)
-        below = np.broadcast_to(rho - off[None, None, :] * delta[rows, None, None], (len(rows), fingers, len(off)))
+        below = rho - off[None, None, :] * delta[rows, :, None]
         q = _obstacle_distances(context, centres[pick].reshape(-1, 3), cap, below.ravel(),
                                 (lower[pick].ravel(), upper[pick].ravel())).reshape(len(rows), fingers, len(off))
         d[pick] = q
-        rows = rows[(q + off * delta[rows, None, None] >= rho).all(axis=(1, 2))]
+        rows = rows[(q + off * delta[rows, :, None] >= rho).all(axis=(1, 2))]
     return d
 
 
@@ -282,14 +327,25 @@ def _staggered(tips, h, limit):
 
 
 def _hand_free(context, tips, h, length):
-    """(m,) bool: beyond each finger's end, the line on along h meets no surface (the hand gets out),
-    and h does not point below the support's horizontal (no hand comes from under the table)."""
+    """(m,) bool: beyond each finger's end, the line on along its direction h (m, F, 3) meets no surface
+    (the hand gets out), the segment from the thumb's end to each other finger's meets none (the web of
+    the hand joins them there: a sheet pinched far in from its edge passes between splayed fingers, never
+    through the hand), and no finger points below the support's horizontal (no hand comes from under the
+    table)."""
     fingers = tips.shape[1]
-    ends = (tips + length * h[:, None, :]).reshape(-1, 3)
-    face = context.rays.intersects_first(ends, np.repeat(h, fingers, axis=0))
+    ends = tips + length * h
+    face = context.rays.intersects_first(ends.reshape(-1, 3), h.reshape(-1, 3))
     free = (np.asarray(face) < 0).reshape(-1, fingers).all(axis=1)
+    # the hand joins the fingers' ends: nothing of the object lies between the thumb's end and another's
+    web = (ends[:, 1:] - ends[:, :1]).reshape(-1, 3)
+    span = np.linalg.norm(web, axis=1)
+    apart = span > 1e-9
+    _, hit = context.first_hit(np.repeat(ends[:, 0], fingers - 1, axis=0)[apart], web[apart])
+    joined = np.ones(len(span), dtype=bool)
+    joined[apart] = hit > span[apart]
+    free &= joined.reshape(-1, fingers - 1).all(axis=1)
     if context.support is not None:
-        free &= h @ context.support.normal >= -SUPPORT_LEVEL_TOLERANCE
+        free &= (h @ context.support.normal >= -SUPPORT_LEVEL_TOLERANCE).all(axis=1)
     return free
 
 
@@ -393,9 +449,10 @@ def _quick(context, hand, pending, h, geometry, sin_tilt, found):
     k = len(h) // len(pending)
     rows = np.repeat(pending, k)
     in_band = np.abs(np.einsum("ij,ij->i", h, u[rows])) <= sin_tilt
-    d = _axis_distances(context, tips[rows], h, offsets, cap, rho)
+    hf = _finger_directions(u[rows], h, math.radians(hand.finger_splay_deg), tips.shape[1])
+    d = _axis_distances(context, tips[rows], hf, offsets, cap, rho)
     clears = in_band & (d >= rho).all(axis=(1, 2)) & ~_staggered(tips[rows], h, hand.finger_stagger_mm)
-    clears[clears] = _hand_free(context, tips[rows[clears]], h[clears], hand.finger_length_mm)
+    clears[clears] = _hand_free(context, tips[rows[clears]], hf[clears], hand.finger_length_mm)
     clears = clears.reshape(-1, k)
     margin = (d.min(axis=(1, 2)) - hand.finger_radius_mm).reshape(-1, k)
     pick = np.argmax(np.where(clears, margin, -np.inf), axis=1)
@@ -419,6 +476,15 @@ def band_cells(hand: Hand):
     return tt.ravel(), aa.ravel(), half_theta, half_alpha
 
 
+def _far_chord(alpha, ht, ha):
+    """The chord from the direction at the centre of a θ-α cell (θ half width ``ht``, α centre ``alpha``
+    and half width ``ha``, radians) to the cell's farthest corner: on the sphere of directions, the
+    farthest point of a θ-α rectangle from its centre is a corner."""
+    cos_far = np.minimum(np.sin(alpha) * np.sin(alpha + ha) + np.cos(alpha) * np.cos(alpha + ha) * np.cos(ht),
+                         np.sin(alpha) * np.sin(alpha - ha) + np.cos(alpha) * np.cos(alpha - ha) * np.cos(ht))
+    return np.sqrt(np.maximum(2.0 - 2.0 * cos_far, 0.0))  # chord length of a unit vector
+
+
 def _search_band(context, tips, u, e1, e2, pending, hand, offsets, rho, cap):
     theta0, alpha0, ht, ha = band_cells(hand)
     c = len(theta0)
@@ -431,14 +497,18 @@ def _search_band(context, tips, u, e1, e2, pending, hand, offsets, rho, cap):
     flat_offsets = np.tile(offsets, fingers)  # (FP,): finger-major, as d.reshape(m, FP)
     decided = np.zeros(len(tips), dtype=bool)
     out_rows, out_h, out_margin = [], [], []
+    splay = math.radians(hand.finger_splay_deg) * _splay_signs(fingers)
     while len(rows):
         # how far a test centre s from the fingertip can move within a cell: s·chord, the chord
         # of the angle from the cell's centre to its farthest corner (on the sphere of directions,
-        # the farthest point of a θ-α rectangle from its centre is a corner)
-        cos_far = np.minimum(np.sin(alpha) * np.sin(alpha + ha) + np.cos(alpha) * np.cos(alpha + ha) * np.cos(ht),
-                             np.sin(alpha) * np.sin(alpha - ha) + np.cos(alpha) * np.cos(alpha - ha) * np.cos(ht))
-        delta = np.sqrt(np.maximum(2.0 - 2.0 * cos_far, 0.0))  # chord length of a unit vector
+        # the farthest point of a θ-α rectangle from its centre is a corner); each finger's cell is
+        # the hand's moved by its splay along α
+        delta = _far_chord(alpha, ht, ha)
         h = _directions(u[rows], e1[rows], e2[rows], theta, alpha)
+        finger_alpha = alpha[:, None] + splay[None, :]
+        hf = np.stack([_directions(u[rows], e1[rows], e2[rows], theta, finger_alpha[:, f])
+                       for f in range(fingers)], axis=1)
+        delta_f = _far_chord(finger_alpha, ht, ha)
         live = np.ones(len(rows), dtype=bool)
         if fingers > 2:  # the cells whose every direction staggers the fingers beyond the limit are dropped
             apart = tips[rows, 2] - tips[rows, 1]
@@ -446,13 +516,13 @@ def _search_band(context, tips, u, e1, e2, pending, hand, offsets, rho, cap):
             live = least <= hand.finger_stagger_mm
         idx = np.flatnonzero(live)
         # the sphere that bounded the parent is queried first: most cells that can be dropped are dropped by it
-        d = _axis_distances(context, tips[rows[idx]], h[idx], offsets, cap, rho, delta[idx],
+        d = _axis_distances(context, tips[rows[idx]], hf[idx], offsets, cap, rho, delta_f[idx],
                             first=hint[idx]).reshape(len(idx), fingers * len(offsets))
         margin = d.min(axis=1) - hand.finger_radius_mm
         fits = (d >= rho).all(axis=1) & ~_staggered(tips[rows[idx]], h[idx], hand.finger_stagger_mm)
         clears = fits.copy()
         if fits.any():
-            clears[fits] = _hand_free(context, tips[rows[idx[fits]]], h[idx[fits]], length)
+            clears[fits] = _hand_free(context, tips[rows[idx[fits]]], hf[idx[fits]], length)
         if clears.any():
             # per pinch, the clearing cell with the most clearance (first of equals in cell order)
             hit = np.flatnonzero(clears)
@@ -464,14 +534,17 @@ def _search_band(context, tips, u, e1, e2, pending, hand, offsets, rho, cap):
             out_h.append(h[idx[hit]])
             out_margin.append(margin[hit])
             decided[rows[idx[hit]]] = True
-        if length * delta.max() <= hand.tolerance_mm:
+        if length * delta_f.max() <= hand.tolerance_mm:
             break
         # a cell can hold a clearing direction only if every test sphere could move clear
-        slack = d + flat_offsets[None, :] * delta[idx, None]
+        slack = d + flat_offsets[None, :] * np.repeat(delta_f[idx], len(offsets), axis=1)
         bound = slack.min(axis=1)
         # a finger that fits where the hand behind it does not get out is not refined: the
-        # hand's line is tested at cell centres only
+        # hand's line is tested at cell centres only, and neither is a cell whose centre's hand is stuck
         keep = ~decided[rows[idx]] & ~fits & (bound >= rho)
+        if keep.any():
+            ask = np.flatnonzero(keep)
+            keep[ask] = _hand_free(context, tips[rows[idx[ask]]], hf[idx[ask]], length)
         cand = np.flatnonzero(keep)
         if len(cand):
             # per pinch, the most promising cells (largest bound, then cell order)

@@ -267,7 +267,7 @@ _RULE_HINTS = {
     "antipodal": "no opposite surfaces face each other: try a wider --friction-cone-deg",
     "clearance": "a fingertip does not fit: try a smaller --fingertip-radius-mm",
     "reach": "no approach lets both fingers get to the contacts: try a shorter --finger-length-mm, a thinner "
-             "--finger-radius-mm or a larger --approach-tilt-deg",
+             "--finger-radius-mm, or a larger --approach-tilt-deg or --finger-splay-deg",
     "patch": "too little surface around the contacts: try a smaller --patch-radius-mm",
     "surface": "the points are far from the surface",
 }
