@@ -19,7 +19,7 @@ then, per placement, the default's mean expected cost against ``--rank nominal``
 For every best choice and
 every alternative it checks, with planes worked out here from the prop's pose and the level's vertices (not
 read from the output): each fingertip sphere and finger capsule above the prop's table and, under ``fixed``,
-above the counter the virtual object stands on (within the pad's 0.3 mm), and no approach from below.
+above the counter the virtual object stands on (within the pad's 0.3 mm), and no finger's axis (the approach leaned by the splay) from below.
 It prints, per run, the pinches checked, those that reach under a table (tangible, virtual), the mean cost
 and the wall time. Last, per placement, the default run over ``--seeds`` (0, 1, 2): how much each object's
 ranked cost varies with the seed, (max - min) / mean, its median and largest over the objects.
@@ -84,6 +84,10 @@ def build_level(folder: Path) -> tuple[dict, np.ndarray]:
     return lowest, np.asarray(prop.vertices)
 
 
+#: the fingers' splay (the default of --finger-splay-deg): each leans this far from the approach
+SPLAY_DEG = 15.0
+
+
 def under_table(pose: dict, normal: np.ndarray, height: float) -> bool:
     """Does the grasp (a pinch, or a tripod's three contacts) put a fingertip, a finger or the hand below the
     plane normal . x = height?"""
@@ -95,8 +99,14 @@ def under_table(pose: dict, normal: np.ndarray, height: float) -> bool:
         return True
     if not np.isfinite(h).all():
         return False  # a given pose: no approach to check
-    ends = tips + LENGTH_MM * h
-    return bool((ends @ normal - height < FINGER_MM - PAD_MM - 1e-6).any() or h @ normal < -1e-9)
+    # each finger: the approach turned by the splay about h x u, the thumb away from the others, the others towards
+    u = p[1:].mean(axis=0) - p[0]
+    k = np.cross(h, u / np.linalg.norm(u))
+    k /= np.linalg.norm(k)
+    axes = np.array([Rotation.from_rotvec(k * math.radians(SPLAY_DEG * (-1.0 if i == 0 else 1.0))).apply(h)
+                     for i in range(len(p))])
+    ends = tips + LENGTH_MM * axes
+    return bool((ends @ normal - height < FINGER_MM - PAD_MM - 1e-6).any() or (axes @ normal < -1e-9).any())
 
 
 def check(doc: dict, prop_vertices: np.ndarray, lowest: dict, fixed: bool) -> tuple[int, int, int]:

@@ -27,8 +27,8 @@ either finger's axis (``tol``: the pad's compliance, as for the fingertip).
 table, a level's object on its counter) has the half-space below its support plane as part of what the
 fingers must clear: a test sphere's distance to the object is the smaller of its distance to the nearest
 sample and its height above the plane (0 below it), so no finger capsule dips below the table by more
-than the pad's tolerance; and the hand's approach h may not point below the plane's horizontal (h · up
-≥ 0), so the hand behind the fingers, which runs on along h, never comes from under the table.
+than the pad's tolerance; and no finger's axis h_i may point below the plane's horizontal (h_i · up
+≥ 0), so the hand behind the fingers, which runs on along them, never comes from under the table.
 The pinch is **reachable** when some h clears and the hand behind the
 fingers gets out: from each finger's end, the line on along h_i meets no
 surface. The proximal phalanx and the palm are far wider than a finger, so
@@ -249,7 +249,7 @@ def _coarse_to_fine(count: int) -> list[int]:
     return order
 
 
-def _obstacle_distances(context, centres, cap, below, bounds=None):
+def _obstacle_distances(context, centres, cap, below, bounds):
     """(k,) distance from each centre to the nearest surface sample or to the half-space below the
     object's support (0 inside it), capped at ``cap``: both are 1-Lipschitz, as the bounds need.
 
@@ -257,8 +257,8 @@ def _obstacle_distances(context, centres, cap, below, bounds=None):
     lie at least ``cap`` from every sample reads ``cap`` (as the query would), and one sure to lie
     closer than its ``below`` (k,) reads the field's upper bound, which is also below it: the
     callers compare each distance with its ``below`` only, so every decision is the query's.
-    ``bounds``: the field's (lower, upper) of these centres, where the caller has them."""
-    lower, upper = context.distance_field.bounds(centres) if bounds is None else bounds
+    ``bounds``: the field's (lower, upper) of these centres."""
+    lower, upper = bounds
     q = np.where(lower >= cap, cap, upper)
     ask = np.flatnonzero((lower < cap) & (upper >= np.asarray(below) - DECIDED_BELOW_MM))
     if len(ask):

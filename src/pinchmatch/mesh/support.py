@@ -13,8 +13,8 @@ from the table:
 
 The hand model (:mod:`pinchmatch.grasp.hand`) treats the half-space below the plane as part of the object:
 a finger's test spheres measure their distance to it as to the surface, the fingertip spheres must stay
-above it (:mod:`pinchmatch.grasp.pinches`'s ``clearance``), and the hand's approach never points below the
-horizontal of the support. What an object stands on is its spec's ``support``: ``"auto"`` (as above),
+above it (:mod:`pinchmatch.grasp.pinches`'s ``clearance``), and no finger's axis (nor so the hand behind it)
+points below the horizontal of the support. What an object stands on is its spec's ``support``: ``"auto"`` (as above),
 ``"none"`` or a height in mm; ``None`` means the run did not say (no support).
 """
 
