@@ -15,6 +15,7 @@ from pinchmatch.grasp.strata import stratum_of, width_jnd
 from pinchmatch.match.candidates import REFINED_INDEX, candidate_poses
 from pinchmatch.match.refine import refined_search
 from pinchmatch.match.search import MatchSettings, Search, cost_model, cost_row
+import pinchmatch.match.targeted as targeted
 from pinchmatch.match.targeted import feature_keys, pinch_keys, targeted_poses
 from pinchmatch.mesh import vessels
 from pinchmatch.mesh.shapes import cylinder
@@ -137,3 +138,27 @@ def test_the_targeted_step_is_deterministic_and_skipped_without_refinement(mug, 
     np.testing.assert_array_equal(one[1].pinches.points, two[1].pinches.points)
     off = refined_search([a], b, model, MatchSettings(refine=False), pinch_settings=settings)
     assert len(off.tangibles[0]) == len(a) and len(off.virtuals[0]) == len(b)
+
+
+def test_a_pool_candidate_is_checked_once_and_as_a_fresh_check_would(mug, tmp_path, monkeypatch):
+    """The targeted step asked twice with overlapping keys checks each pool candidate once (a third ask checks
+    nothing), and what it returns is what a process that never checked any gets, bit for bit."""
+    path, _ = mug
+    settings = PinchSettings(count=200, seed=5)
+    box_path, _ = _turned(tmp_path, "box", trimesh.creation.box((30.0, 45.0, 60.0)).subdivide().subdivide())
+    keys = feature_keys(candidate_poses(analyze_object(box_path), settings=settings))
+    checked = []
+    real = targeted.check_pinches
+    monkeypatch.setattr(targeted, "check_pinches", lambda context, p1, p2, **kw: checked.append(len(p1))
+                        or real(context, p1, p2, **kw))
+    warm = candidate_poses(analyze_object(path), settings=settings)
+    targeted.nearest_feasible(warm, keys[:6], settings)
+    first = sum(checked)
+    again = targeted.nearest_feasible(warm, keys[3:12], settings)
+    second = sum(checked) - first
+    assert 0 < second < targeted.NEAREST * len(np.unique(keys[3:12], axis=0))  # the shared candidates are not
+    targeted.nearest_feasible(warm, keys[3:12], settings)                     # checked again
+    assert sum(checked) == first + second
+    fresh = targeted.nearest_feasible(candidate_poses(analyze_object(path), settings=settings), keys[3:12], settings)
+    for field in ("points", "normals", "face_index", "feasible", "broken", "approach", "kappa_max_per_m"):
+        np.testing.assert_array_equal(getattr(again, field), getattr(fresh, field))

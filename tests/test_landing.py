@@ -256,3 +256,43 @@ def test_a_landing_table_weighs_exactly_the_pairs_within_the_axis_tolerance(tmp_
     w = ring_weights(5.0)
     i, j = np.divmod(np.arange(625), 25)
     np.testing.assert_allclose(table.weights[table.weights > 0], (w[i] * w[j])[table.weights > 0])
+
+
+def test_a_landing_table_is_made_once_per_object_whichever_candidates_ask(tmp_path, monkeypatch):
+    """A turned, moved, re-meshed sphere: every candidate's stored patch is the one a fresh fit at its contact
+    gives (the landing tables take a target's patch from its candidate); a later match asking for the same
+    contacts through other candidates (refinement's grown list) gets the tables made already; an object keeps
+    its newest tables only."""
+    from scipy.spatial.transform import Rotation
+
+    import pinchmatch.match.felt as felt
+    from pinchmatch.grasp.pinches import patches
+    from pinchmatch.match.candidates import extend
+
+    mesh = sphere(30.0).mesh
+    M = np.eye(4)
+    M[:3, :3], M[:3, 3] = Rotation.from_euler("yxz", [-48.0, 71.0, 16.0], degrees=True).as_matrix(), [85.0, -410.0, 33.0]
+    mesh.apply_transform(M)
+    (tmp_path / "ball.stl").write_bytes(mesh.export(file_type="stl"))
+    c = candidate_poses(analyze_object(tmp_path / "ball.stl"), settings=SETTINGS)
+    context = c.obj.context
+    fresh = patches(context, c.pinches.points, context.face_normals[c.pinches.face_index], SETTINGS)
+    for mine, theirs in (("normals", "normal"), ("kappa_max_per_m",) * 2, ("kappa_min_per_m",) * 2, ("dir_max",) * 2):
+        np.testing.assert_array_equal(getattr(c.pinches, mine).reshape(getattr(fresh, theirs).shape), getattr(fresh, theirs))
+    made = []
+    real = felt.landing_tables
+    monkeypatch.setattr(felt, "landing_tables", lambda cands, poses, *a, **k: made.append(len(poses))
+                        or real(cands, poses, *a, **k))
+    first = FeltTables(5.0, SETTINGS)
+    first.prefetch(c, range(10))
+    grown = extend(c, c.pinches.subset(np.array([2, 7])))
+    later = FeltTables(5.0, SETTINGS)
+    for pose, same in ((len(c), 2), (len(c) + 1, 7)):
+        np.testing.assert_array_equal(later.table(grown, pose).rows, first.table(c, same).rows)
+    assert made == [10]
+    np.testing.assert_array_equal(first.table(c, 0).rows, real(c, [0], 5.0, SETTINGS).rows[0])
+    monkeypatch.setattr(felt, "LANDING_MEMO_POSES", 4)
+    later.prefetch(c, range(10, 16))
+    assert made == [10, 6] and len(later._store(c)) == 4
+    np.testing.assert_array_equal(later.table(c, 0).rows, real(c, [0], 5.0, SETTINGS).rows[0])
+    assert made == [10, 6, 1]

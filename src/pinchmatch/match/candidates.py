@@ -7,6 +7,7 @@ tangible's; the cache stores them (:mod:`pinchmatch.runner.cache`).
 from __future__ import annotations
 
 import dataclasses
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -117,6 +118,17 @@ def merge_candidates(first: Candidates, second: Candidates) -> Candidates:
     return Candidates(first.obj, concat_pinches([first.pinches, second.pinches]), features,
                       np.concatenate([first.table, second.table]),
                       np.concatenate([first.index, second.index + offset]), first.given and second.given)
+
+
+def memo_of(store: dict, owner) -> dict:
+    """The memo that ``store`` keeps for ``owner`` (by identity) while ``owner`` lives: a process makes what
+    depends on one object alone (its landings, its feature pool) once however many matches ask."""
+    entry = store.get(id(owner))
+    if entry is None or entry[0]() is not owner:
+        entry = (weakref.ref(owner), {})
+        store[id(owner)] = entry
+        weakref.finalize(owner, store.pop, id(owner), None)
+    return entry[1]
 
 
 def mass_ratio(tangible: Candidates, virtual: Candidates) -> float:

@@ -16,7 +16,7 @@ closing along the pinch line meets it. Each point carries the truncated Gaussian
 stands for (0 to r/4, r/4 to 3r/4, 3r/4 to r), shared by its ring's points; a pair of landing points
 weighs the product of its fingers' weights, renormalised over the pairs within the axis tolerance.
 
-**Per pose, once** (:class:`LandingTable`, memoised per object in :class:`FeltTables`): its 25 landing
+**Per pose, once** (:class:`LandingTable`, kept per object by :class:`FeltTables`): its 25 landing
 points per finger, their patches (normal, principal curvatures) and the feature rows of all 625 pairs.
 **Per pose pair, no new geometry:** the hand lands on the prop at the prop's own landing points; the eye
 sees the corresponding points of the virtual object, the points of its table that the pair's registration
@@ -41,7 +41,7 @@ import numpy as np
 from ..grasp.features import grasp_features
 from ..grasp.pinches import closing_directions, patches
 from ..grasp.spread import other_order
-from .candidates import Candidates, pair_terms
+from .candidates import Candidates, memo_of, pair_terms
 from .cost import CRITERIA, WIDTH_JND_FLOOR_MM, WIDTH_JND_FRACTION, CostModel, feature_table
 from .landing import LANDING_AXIS_DEG, MISS_JND, RING_POINTS, disc_offsets
 from .redirect import world_pose
@@ -130,21 +130,51 @@ def _land(candidates: Candidates, poses: np.ndarray, radius_mm: float, axis_deg:
     return _Landed(np.stack(landed), np.stack(faces), np.stack(aimed), u, frame, offsets)
 
 
-def _field_patches(context, points: np.ndarray, faces: np.ndarray, settings, spacing_mm: float | None):
-    """The patch at each of ``points`` (m, 3) on ``faces``: fitted at each one (``spacing_mm`` None), or
-    once per cell of a grid of that spacing and of the faces' normals, at the cell's first point, and
-    shared by the cell's points."""
-    if spacing_mm is None or not spacing_mm >= MIN_CELL_MM:  # a grid finer than that fits every point anyway
-        return patches(context, points, context.face_normals[np.maximum(faces, 0)], settings)
+@dataclass(frozen=True)
+class _Patches:
+    """The patch of each landing point, as :class:`pinchmatch.grasp.curvature.PatchGeometry` names it."""
+
+    normal: np.ndarray
+    kappa_max_per_m: np.ndarray
+    kappa_min_per_m: np.ndarray
+    dir_max: np.ndarray
+
+
+_PATCH_FIELDS = tuple(f.name for f in dataclasses.fields(_Patches))
+
+
+def _field_patches(candidates: Candidates, poses: np.ndarray, landed: _Landed, settings,
+                   spacing_mm: float | None) -> _Patches:
+    """The patch at each landing point of ``poses`` (``landed``, in its (F, k, n) order, flattened): fitted at
+    each one (``spacing_mm`` None), or once per cell of a grid of that spacing and of the faces' normals and
+    shared by the cell's points. A target's patch is its candidate's own (fitted the same way when the
+    candidate was checked); a cell holding a target takes its first target's, any other cell is fitted at
+    its first point."""
+    context = candidates.obj.context
+    points, faces = landed.points.reshape(-1, 3), landed.faces.reshape(-1)
+    fingers, k, n = landed.points.shape[:3]
+    target = np.zeros((fingers, k, n), dtype=bool)
+    target[:, :, 0] = True
+    target = target.ravel()
+    own = {f: np.swapaxes(getattr(candidates.pinches, "normals" if f == "normal" else f)[poses], 0, 1)
+           for f in _PATCH_FIELDS}  # (F, k, ...) each target's, in the landing order
     normals = context.face_normals[np.maximum(faces, 0)]
-    # a cell per place and facing (normals binned about 30 degrees wide): across an edge, each face its own
-    cells = np.concatenate([np.floor(points / spacing_mm), np.round(2.0 * normals)], axis=1).astype(np.int64)
-    _, first, inverse = np.unique(cells, axis=0, return_index=True, return_inverse=True)
-    geom = patches(context, points[first], normals[first], settings)
-    return dataclasses.replace(geom, normal=geom.normal[inverse.ravel()],
-                               kappa_max_per_m=geom.kappa_max_per_m[inverse.ravel()],
-                               kappa_min_per_m=geom.kappa_min_per_m[inverse.ravel()],
-                               dir_max=geom.dir_max[inverse.ravel()])
+    if spacing_mm is None or not spacing_mm >= MIN_CELL_MM:  # a grid finer than that fits every point anyway
+        inverse = np.arange(len(points))
+    else:  # a cell per place and facing (normals binned about 30 degrees wide): across an edge, each face its own
+        cells = np.concatenate([np.floor(points / spacing_mm), np.round(2.0 * normals)], axis=1).astype(np.int64)
+        inverse = np.unique(cells, axis=0, return_inverse=True)[1].ravel()
+    order = np.lexsort((np.arange(len(points)), ~target, inverse))  # per cell: its targets first, then in order
+    first = order[np.r_[0, np.flatnonzero(np.diff(inverse[order])) + 1]] if len(order) else order
+    fit = first[~target[first]]
+    geom = patches(context, points[fit], normals[fit], settings)
+    out = {}
+    for f in _PATCH_FIELDS:
+        values = np.empty((len(points),) + own[f].shape[2:])
+        values[target] = own[f].reshape((-1,) + own[f].shape[2:])
+        values[fit] = getattr(geom, f)
+        out[f] = values[first][inverse]  # the cells come in order: cell c's first point is first[c]
+    return _Patches(**out)
 
 
 def _tables(candidates: Candidates, landed: _Landed, geom, radius_mm: float, axis_deg: float, rings) -> LandingTable:
@@ -191,8 +221,7 @@ def landing_tables(candidates: Candidates, poses, radius_mm: float, settings, *,
     """The landings of each of ``poses`` (k,) on its own object (see the module notes), stacked: every
     field of :class:`LandingTable` with a leading axis of k; vectorised over the poses."""
     landed = _land(candidates, np.asarray(poses, dtype=np.int64), radius_mm, axis_deg, rings)
-    context = candidates.obj.context
-    geom = _field_patches(context, landed.points.reshape(-1, 3), landed.faces.reshape(-1), settings, None)
+    geom = _field_patches(candidates, np.asarray(poses, dtype=np.int64), landed, settings, None)
     return _tables(candidates, landed, geom, radius_mm, axis_deg, rings)
 
 
@@ -219,10 +248,9 @@ def landing_moments(candidates: Candidates, radius_mm: float, settings, *, poses
     every pose), not at each point."""
     poses = np.arange(len(candidates)) if poses is None else np.asarray(poses, dtype=np.int64)
     landed = _land(candidates, poses, radius_mm, axis_deg, rings)
-    geom = _field_patches(candidates.obj.context, landed.points.reshape(-1, 3), landed.faces.reshape(-1), settings,
-                          patch_spacing_mm)
+    geom = _field_patches(candidates, poses, landed, settings, patch_spacing_mm)
     fingers, n = landed.points.shape[0], landed.points.shape[2]
-    fields = ("normal", "kappa_max_per_m", "kappa_min_per_m", "dir_max")
+    fields = _PATCH_FIELDS
     per_point = {f: getattr(geom, f).reshape((fingers, len(poses), n) + getattr(geom, f).shape[1:]) for f in fields}
     mean = np.empty((len(poses), fingers, candidates.table.shape[-1]))
     var = np.empty_like(mean)
@@ -251,31 +279,51 @@ def landing_moments(candidates: Candidates, radius_mm: float, settings, *, poses
     return mean, var
 
 
+_LANDINGS: dict[int, tuple] = {}
+#: landing tables an object keeps (about 0.13 MB each)
+LANDING_MEMO_POSES = 2048
+
+
 class FeltTables:
-    """The landing tables of a match's objects, each pose's computed once (the felt cost needs no new
-    geometry per pair)."""
+    """The landing tables of a match's objects. A table depends on its object and its pose's contacts alone,
+    so each is made once per process (kept with its object, :func:`memo_of`) whichever match, search or
+    grown list of candidates asks for it; the felt cost needs no new geometry per pair."""
 
     def __init__(self, radius_mm: float, settings):
         self.radius_mm, self.settings = float(radius_mm), settings
-        self._tables: dict[tuple[int, int], tuple[Candidates, LandingTable]] = {}
         #: the :class:`Felt` of choices felt already, by their search (kept alive by the caller) and pose pair
         self.felt: dict[tuple, Felt] = {}
 
+    def _store(self, candidates: Candidates) -> dict:
+        """The tables of ``candidates``' object for this radius and these settings, by :func:`_pose_key`."""
+        return memo_of(_LANDINGS, candidates.obj).setdefault(
+            (self.radius_mm, self.settings, type(candidates.pinches).__name__), {})
+
     def table(self, candidates: Candidates, pose: int) -> LandingTable:
-        self.prefetch(candidates, [pose])
-        return self._tables[(id(candidates), int(pose))][1]
+        store = self._store(candidates)
+        key = _pose_key(candidates.pinches, int(pose))
+        if key not in store:
+            self.prefetch(candidates, [pose])
+        return store[key]
 
     def prefetch(self, candidates: Candidates, poses) -> None:
         """Make the tables of ``poses`` of ``candidates`` that are not made yet, at once (a table does not
-        depend on which others are made with it)."""
-        # the candidates are kept with their tables: an id is never reused while they are
-        missing = sorted({int(p) for p in poses} - {p for c, p in self._tables if c == id(candidates)})
+        depend on which others are made with it); an object keeps its ``LANDING_MEMO_POSES`` newest."""
+        store = self._store(candidates)
+        missing = sorted({int(p) for p in poses if _pose_key(candidates.pinches, int(p)) not in store})
         if not missing:
             return
         stacked = landing_tables(candidates, missing, self.radius_mm, self.settings)
         for k, pose in enumerate(missing):
-            one = LandingTable(*(getattr(stacked, f.name)[k] for f in dataclasses.fields(LandingTable)))
-            self._tables[(id(candidates), pose)] = (candidates, one)
+            store[_pose_key(candidates.pinches, pose)] = LandingTable(*(getattr(stacked, f.name)[k]
+                                                                        for f in dataclasses.fields(LandingTable)))
+        for key in list(store)[:max(len(store) - LANDING_MEMO_POSES, 0)]:  # the oldest first
+            del store[key]
+
+
+def _pose_key(pinches, pose: int) -> bytes:
+    """What a pose's landing table depends on besides its object: its contacts and their triangles."""
+    return pinches.points[pose].tobytes() + pinches.face_index[pose].tobytes()
 
 
 def _matched_points(t: LandingTable, v: LandingTable, R: np.ndarray) -> np.ndarray:
@@ -345,8 +393,9 @@ def felt_cost(tangible: Candidates, virtual: Candidates, choice, model: CostMode
     cost = np.where(hit, cost, max(miss, float(cost[hit].max()) if hit.any() else miss))
     jnd = model.as_jnd()
     jnd_all = CostModel(normalize="jnd", criteria=CRITERIA, weights=dict.fromkeys(CRITERIA, 1.0))
-    jnd_terms, _ = pair_terms(tangible, virtual, t.rows[t_pair], v_rows[keep], jnd_all, R=R_mass,
-                              t_points=t.points[t_pair], v_points=v.points[keep])
+    jnd_terms = terms if model.normalize == "jnd" else pair_terms(  # the terms depend on the scales alone
+        tangible, virtual, t.rows[t_pair], v_rows[keep], jnd_all, R=R_mass, t_points=t.points[t_pair],
+        v_points=v.points[keep])[0]
     loud = tuple(c for k, c in enumerate(CRITERIA)
                  if c in model.criteria and (jnd_terms[hit, k] >= 1.0).any())
     chance = np.where(hit, jnd.p_noticed(jnd.pool(jnd_terms, choice.redirect_terms)), 1.0)  # a miss is noticed

@@ -452,9 +452,9 @@ class Search:
                 continue
             _, _, _, r = parts[by_owner[owner[i]]]
             picks.append(self.choice(j, int(owner[i]), int(it[i]), int(iv[i]), r, int(local[i])))
-            near = (owner == owner[i]) & (pinch_distance(t_pinch, t_pinch[i]) < self.settings.distinct_mm) \
-                & (pinch_distance(v_pinch, v_pinch[i]) < self.settings.distinct_mm)
-            alive &= ~near
+            near = np.flatnonzero(alive & (owner == owner[i]))  # the rest are out already, or on other tangibles
+            near = near[pinch_distance(t_pinch[near], t_pinch[i]) < self.settings.distinct_mm]
+            alive[near[pinch_distance(v_pinch[near], v_pinch[i]) < self.settings.distinct_mm]] = False
         return picks
 
     def choice(self, j: int, t: int, it: int, iv: int, r: PairResult, k: int) -> Choice:

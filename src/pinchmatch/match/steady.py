@@ -29,11 +29,9 @@ ranking through the best pairs on target.
 
 from __future__ import annotations
 
-import weakref
-
 import numpy as np
 
-from .candidates import Candidates, felt_table, mass_ratio
+from .candidates import Candidates, felt_table, mass_ratio, memo_of
 from .cost import separable_terms
 from .felt import landing_moments
 from ..grasp.spread import other_order
@@ -55,15 +53,11 @@ def moments_of(candidates: Candidates, radius_mm: float, settings) -> tuple[np.n
     """:func:`pinchmatch.match.felt.landing_moments` of every pose of ``candidates`` on ``MOMENT_RINGS``,
     made once per object and radius while the object lives (a tangible serves every virtual object)."""
     key = (float(radius_mm), float(settings.patch_radius_mm))
-    memo = _MOMENTS.get(id(candidates))
-    if memo is None or memo[0]() is not candidates:
-        memo = (weakref.ref(candidates), {})
-        _MOMENTS[id(candidates)] = memo
-        weakref.finalize(candidates, _MOMENTS.pop, id(candidates), None)
-    if key not in memo[1]:
-        memo[1][key] = landing_moments(candidates, radius_mm, settings, rings=MOMENT_RINGS,
+    memo = memo_of(_MOMENTS, candidates)
+    if key not in memo:
+        memo[key] = landing_moments(candidates, radius_mm, settings, rings=MOMENT_RINGS,
                                         patch_spacing_mm=MOMENT_SPACING_SHARE * radius_mm)
-    return memo[1][key]
+    return memo[key]
 
 
 def expected_terms(tangible_moments: tuple, virtual_moments: tuple, ratio: float, model) -> np.ndarray:

@@ -16,7 +16,8 @@ Before refinement, this step looks for it:
   tangible, and in each tangible's own best; for each distinct one, ``NEAREST`` of every
   tangible's pool candidates, nearest in the key first, get the full check (every rule, the hand's reach included). The
   other way round, each tangible's poses in its best pairs send the virtual object's nearest pool
-  candidates to the check.
+  candidates to the check. A pool candidate is checked once per process however many virtual
+  objects send it (a check does not depend on which others are checked with it).
 - The feasible ones join the candidates (as refined poses do: they have no place in the sampled
   list) and the exact search runs over the union before the local refinement starts from its best
   pairs (:func:`pinchmatch.match.refine.refined_search`).
@@ -29,18 +30,16 @@ about ten times the count), and one whose key is near the poses looked for only 
 
 from __future__ import annotations
 
-import weakref
-
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..grasp.pinches import PinchSettings, check_pinches
+from ..grasp.pinches import PinchSettings, check_pinches, concat_pinches
 from ..grasp.features import TripodFeatures, tripod_shape
 from ..grasp.sampling import uniform_contacts, cheap_candidates
 from ..grasp.tripod_rules import TRIPOD_RULES, Tripods, check_tripods
 from ..grasp.tripods import candidate_tripods
 from ..grasp.strata import width_jnd
-from .candidates import Candidates, extend
+from .candidates import Candidates, extend, memo_of
 from .cost import ANGLE_JND_FLOOR_DEG, COM_JND_MM, MASS_JND_FLOOR_MM
 
 #: candidates drawn into an object's feature pool per sampled pose, and at least
@@ -101,28 +100,48 @@ def _keys(width_mm, com_distance_mm, tilt_deg, normal_angle_deg, lever_mm, spaci
     return np.column_stack(columns + ([] if spacing_mm is None else [width_jnd(spacing_mm)]))
 
 
-def feature_pool(c: Candidates, settings: PinchSettings) -> tuple[np.ndarray, np.ndarray, cKDTree | None]:
-    """The feature pool of ``c``'s object (module notes): (m, 2, 3) contacts, (m, 2) triangles and a
-    KD-tree over their keys (None when no candidate keeps the cheap rules), made once per object."""
+class CheckedPool:
+    """The full checks of a feature pool's candidates made so far, each candidate's once: ``row`` (m,) its
+    row in the checked pinches (-1: not checked yet)."""
+
+    def __init__(self, count: int):
+        self.row = np.full(count, -1, dtype=np.int64)
+        self._parts: list = []
+        self._all = None
+
+    def checked(self, idx: np.ndarray, check) -> object:
+        """The checked pinches (or tripods) of pool candidates ``idx``, in that order; ``check(new)`` checks
+        the candidates ``new`` not checked before."""
+        new = np.unique(idx[self.row[idx] < 0])
+        if len(new):
+            start = sum(len(p.feasible) for p in self._parts)
+            self._parts.append(check(new))
+            self.row[new] = start + np.arange(len(new))
+            self._all = None
+        if self._all is None:
+            self._all = concat_pinches(self._parts)
+        return self._all.subset(self.row[idx])
+
+
+def feature_pool(c: Candidates, settings: PinchSettings) -> tuple[np.ndarray, np.ndarray, cKDTree | None, CheckedPool]:
+    """The feature pool of ``c``'s object (module notes): (m, 2, 3) contacts, (m, 2) triangles, a KD-tree
+    over their keys (None when no candidate keeps the cheap rules) and the checks made of them so far,
+    made once per object."""
     tripods = isinstance(c.pinches, Tripods)
-    key = (int(settings.seed), max(POOL_MIN, POOL_PER_POSE * int(settings.count)), tripods)
-    memo = _POOLS.get(id(c.obj))
-    if memo is None or memo[0]() is not c.obj:
-        memo = (weakref.ref(c.obj), {})
-        _POOLS[id(c.obj)] = memo
-        weakref.finalize(c.obj, _POOLS.pop, id(c.obj), None)
-    if key not in memo[1]:
-        rng = np.random.default_rng([key[0], POOL_STREAM])
-        context = c.obj.context
+    key = (settings, tripods)  # the checks depend on every setting, not only the seed and the count
+    memo = memo_of(_POOLS, c.obj)
+    if key not in memo:
+        rng = np.random.default_rng([int(settings.seed), POOL_STREAM])
+        context, count = c.obj.context, max(POOL_MIN, POOL_PER_POSE * int(settings.count))
         if tripods:
             rejected = dict.fromkeys(TRIPOD_RULES, 0)
-            points, faces = candidate_tripods(context, *uniform_contacts(context, key[1], rng), settings, rng, rejected)
+            points, faces = candidate_tripods(context, *uniform_contacts(context, count, rng), settings, rng, rejected)
         else:
-            points, faces = cheap_candidates(context, key[1], settings, rng)
+            points, faces = cheap_candidates(context, count, settings, rng)
         normals = context.face_normals[faces]
         keys = (tripod_keys if tripods else pinch_keys)(points, normals, c.obj.props)
-        memo[1][key] = (points, faces, cKDTree(keys) if len(points) else None)
-    return memo[1][key]
+        memo[key] = (points, faces, cKDTree(keys) if len(points) else None, CheckedPool(len(points)))
+    return memo[key]
 
 
 def nearest_feasible(c: Candidates, keys: np.ndarray, settings: PinchSettings):
@@ -132,7 +151,7 @@ def nearest_feasible(c: Candidates, keys: np.ndarray, settings: PinchSettings):
     each once, so that keys near each other share their budget instead of checking one place twice."""
     if c.given or not len(keys):
         return None
-    points, faces, tree = feature_pool(c, settings)
+    points, faces, tree, done = feature_pool(c, settings)
     if tree is None:
         return None
     keys = np.unique(keys, axis=0)
@@ -142,9 +161,10 @@ def nearest_feasible(c: Candidates, keys: np.ndarray, settings: PinchSettings):
     first = np.sort(np.unique(idx, return_index=True)[1])[:budget]
     idx = idx[first]
     if isinstance(c.pinches, Tripods):
-        checked = check_tripods(c.obj.context, points[idx], faces[idx], settings=settings)
+        checked = done.checked(idx, lambda new: check_tripods(c.obj.context, points[new], faces[new], settings=settings))
     else:
-        checked = check_pinches(c.obj.context, points[idx, 0], points[idx, 1], settings=settings, faces=faces[idx])
+        checked = done.checked(idx, lambda new: check_pinches(c.obj.context, points[new, 0], points[new, 1],
+                                                                 settings=settings, faces=faces[new]))
     keep = np.flatnonzero(checked.feasible)
     return checked.subset(keep) if len(keep) else None
 
