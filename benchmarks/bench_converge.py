@@ -25,7 +25,8 @@ lists the other prop among its ``equivalent_tangibles``), the median
 spread, the median of max - min itself (in the cost's units: with the default cost, 1 is a just
 noticeable difference), the mean cost, the regret (each run's expected cost over the landings against
 the least any setting and seed found for that object: mean and largest) and the mean wall time of a
-run; last, how often the default's cost at four times the count rises above its cost at the base count
+run (after one untimed warm-up run, which compiles the numba kernels as a project's first run does; they
+are cached on disk after it); last, how often the default's cost at four times the count rises above its cost at the base count
 by more than 0.1, and the default's time against the plain exact search's.
 """
 
@@ -147,6 +148,7 @@ def main(argv=None) -> int:
     plan = settings(count, "--refine" in help_text)
     print(f"# {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}; "
           f"{len(props)} props, {len(virtuals)} virtual objects, seeds {list(seeds)}")
+    run(props[:1], virtuals[:1], ["--count", "100"], 0, root / "warm-up")  # compiles, not timed
     results: dict[str, list[dict]] = {}
     times: dict[str, list[float]] = {}
     for seed in seeds:  # the settings interleaved, so that the machine's drift falls on all alike
