@@ -27,7 +27,8 @@ noticeable difference), the mean cost, the regret (each run's expected cost over
 the least any setting and seed found for that object: mean and largest) and the mean wall time of a
 run (after one untimed warm-up run, which compiles the numba kernels as a project's first run does; they
 are cached on disk after it); last, how often the default's cost at four times the count rises above its cost at the base count
-by more than 0.1, and the default's time against the plain exact search's.
+by more than 0.1 (each such object, seed and prop listed), and the default's time against the plain exact
+search's.
 """
 
 from __future__ import annotations
@@ -187,6 +188,11 @@ def main(argv=None) -> int:
         print(f"\n{four} against {one}, seed by seed: {sum(r > 0.1 for r in rises)} of {len(rises)} costs rise by more "
               f"than 0.1 (largest {max(rises):+.3f}); the default takes {np.mean(times[one]) / np.mean(times[plan[-1][0]]):.2f}x "
               f"the time of {plan[-1][0]}")
+        for seed, one_r, four_r in zip(seeds, results[one], results[four]):
+            for name in names:
+                if four_r[name][1] - one_r[name][1] > 0.1:
+                    print(f"  seed {seed}, {name}: {one_r[name][0]} {one_r[name][1]:.3f} at {one}, "
+                          f"{four_r[name][0]} {four_r[name][1]:.3f} at {four}")
     return 0
 
 
