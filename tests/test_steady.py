@@ -213,3 +213,23 @@ def test_equivalent_props_are_listed_and_ties_go_to_the_prop_given_first(tmp_pat
     row = np.array([1.05, 1.2, 1.0, np.inf, 1.1])
     assert equivalent_tangibles(best, row) == [(0, 1.05), (4, 1.1)]
     assert equivalent_tangibles(None, row) == []
+
+
+def test_the_felt_set_on_target_grows_with_the_count(tmp_path, monkeypatch):
+    """128 distinct best pairs on target are felt up to the default count, in proportion above it (a denser
+    sample holds more knife edges), at most 1,024; the row of each prop keeps its few."""
+    from pinchmatch.match import scene as scene_module
+    from pinchmatch.match.search import Search
+
+    assert [scene_module.ranked_choices(n) for n in (50, 1000, 1001, 4000, 100_000)] == [128, 128, 129, 512, 1024]
+    ball = candidate_poses(analyze_object(_exported(tmp_path, "ball", sphere(22.0, faces=8000).mesh, turned=True)),
+                           settings=PinchSettings(count=60, seed=1))
+    block = candidate_poses(analyze_object(_exported(tmp_path, "block", box((50.0, 36.0, 30.0), subdivide_mm=3.0).mesh)),
+                            settings=PinchSettings(count=60, seed=1))
+    asked = []
+    real = Search.choices
+    monkeypatch.setattr(Search, "choices", lambda self, j, allowed, count: asked.append(count) or real(self, j, allowed, count))
+    for count, want in ((1000, 128), (3000, 384)):
+        asked.clear()
+        match_scene([block], [ball], settings=MatchSettings(refine=False), pinch_settings=PinchSettings(count=count))
+        assert max(asked) == want and scene_module.ROW_CHOICES in asked

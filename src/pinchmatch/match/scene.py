@@ -11,6 +11,7 @@ object may use.
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -36,6 +37,11 @@ from .steady import STEADY_CHOICES, SteadySearch
 #: often far down the order on target (a scanned marker's on a mustard bottle: between the 97th and the
 #: 128th), and a felt pair costs little beside the search, so the set is wide
 RANKED_CHOICES = 128
+#: above the default count, the set on target grows in proportion, up to this many: a denser sample holds more
+#: knife edges, distinct but each barely better on target, that push the pairs that feel best out of a set of
+#: fixed size (the YCB scissors on the mustard bottle: 2.76 JND at four times the count with 128, 2.31 with 512,
+#: 2.40 at the default count)
+MAX_RANKED_CHOICES = 1024
 #: and per tangible, for its row of the cost matrix (what select and design rank props by), this many of each
 ROW_CHOICES = 3
 #: another prop is equivalent to the best when its ranked cost is within this much of the best's, in JND,
@@ -260,16 +266,24 @@ def _felt(search: Search, picks: list, tables: FeltTables) -> list[Choice]:
     return out
 
 
+def ranked_choices(count: int) -> int:
+    """How many distinct best pairs on target the match feels at a sampling count of ``count`` poses per object:
+    ``RANKED_CHOICES`` up to the default count, in proportion above it, at most ``MAX_RANKED_CHOICES``."""
+    default = PinchSettings().count
+    return int(min(max(RANKED_CHOICES, math.ceil(RANKED_CHOICES * count / default)), MAX_RANKED_CHOICES))
+
+
 def _ranked(search: Search, steady: SteadySearch | None, allowed: list[int], count: int,
-            tables: FeltTables, *, nominal: int = RANKED_CHOICES, by_steady: int = STEADY_CHOICES) -> list:
+            tables: FeltTables, *, nominal: int | None = None, by_steady: int = STEADY_CHOICES) -> list:
     """Up to ``count`` distinct best (choice, felt) of virtual object 0 among the ``allowed`` tangibles.
 
     Ranked on target (``steady`` None): the search's ``count`` best, exact. Else the ``nominal`` best
-    distinct on target and the steady search's ``by_steady`` best distinct, each felt exactly
+    distinct on target (default :func:`ranked_choices` of the run's count) and the steady search's ``by_steady`` best distinct, each felt exactly
     (:mod:`pinchmatch.match.felt`), by ``--rank``'s cost; ties by the cost on target, then tangible and
     poses; none a near duplicate of a better one."""
     if steady is None:
         return _felt(search, search.choices(0, allowed, count), tables)
+    nominal = ranked_choices(steady.pinch_settings.count) if nominal is None else nominal
     picks = search.choices(0, allowed, max(count, nominal)) + steady.choices(allowed, max(count, by_steady))
     felt = sorted(_felt(search, picks, tables),
                   key=lambda pf: (pf[0].cost, pf[0].cost_nominal, pf[0].tangible, pf[0].t_pose, pf[0].v_pose))
