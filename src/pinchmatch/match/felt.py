@@ -229,7 +229,12 @@ def landing_table(candidates: Candidates, pose: int, radius_mm: float, settings,
                   axis_deg: float = LANDING_AXIS_DEG, rings=RING_POINTS) -> LandingTable:
     """The landings of ``pose`` on its own object (see the module notes)."""
     stacked = landing_tables(candidates, [pose], radius_mm, settings, axis_deg=axis_deg, rings=rings)
-    return LandingTable(*(getattr(stacked, f.name)[0] for f in dataclasses.fields(LandingTable)))
+    return _one_table(stacked, 0)
+
+
+def _one_table(stacked: LandingTable, k: int) -> LandingTable:
+    """Pose ``k``'s table of tables stacked by :func:`landing_tables`."""
+    return LandingTable(*(getattr(stacked, f.name)[k] for f in dataclasses.fields(LandingTable)))
 
 
 #: poses whose landings are made at once by :func:`landing_moments` (memory: about 0.2 MB a pose)
@@ -250,8 +255,8 @@ def landing_moments(candidates: Candidates, radius_mm: float, settings, *, poses
     landed = _land(candidates, poses, radius_mm, axis_deg, rings)
     geom = _field_patches(candidates, poses, landed, settings, patch_spacing_mm)
     fingers, n = landed.points.shape[0], landed.points.shape[2]
-    fields = _PATCH_FIELDS
-    per_point = {f: getattr(geom, f).reshape((fingers, len(poses), n) + getattr(geom, f).shape[1:]) for f in fields}
+    per_point = {f: getattr(geom, f).reshape((fingers, len(poses), n) + getattr(geom, f).shape[1:])
+                 for f in _PATCH_FIELDS}
     mean = np.empty((len(poses), fingers, candidates.table.shape[-1]))
     var = np.empty_like(mean)
     for start in range(0, len(poses), MOMENT_CHUNK):
@@ -260,7 +265,7 @@ def landing_moments(candidates: Candidates, radius_mm: float, settings, *, poses
         chunk = _Landed(landed.points[:, sl], landed.faces[:, sl], landed.aimed[:, sl], landed.line[sl],
                         landed.frame[sl], landed.offsets)
         chunk_geom = dataclasses.replace(geom, **{f: per_point[f][:, sl].reshape((-1,) + per_point[f].shape[3:])
-                                                  for f in fields})
+                                                  for f in _PATCH_FIELDS})
         t = _tables(candidates, chunk, chunk_geom, radius_mm, axis_deg, rings)
         w_all = t.weights / t.weights.sum(axis=1, keepdims=True)
         w = np.where(t.hit, w_all, 0.0)[:, :, None, None] * ~np.isnan(t.rows)  # (k, n², 2, 9)
@@ -315,8 +320,7 @@ class FeltTables:
             return
         stacked = landing_tables(candidates, missing, self.radius_mm, self.settings)
         for k, pose in enumerate(missing):
-            store[_pose_key(candidates.pinches, pose)] = LandingTable(*(getattr(stacked, f.name)[k]
-                                                                        for f in dataclasses.fields(LandingTable)))
+            store[_pose_key(candidates.pinches, pose)] = _one_table(stacked, k)
         for key in list(store)[:max(len(store) - LANDING_MEMO_POSES, 0)]:  # the oldest first
             del store[key]
 

@@ -278,8 +278,8 @@ def _ranked(search: Search, steady: SteadySearch | None, allowed: list[int], cou
     """Up to ``count`` distinct best (choice, felt) of virtual object 0 among the ``allowed`` tangibles.
 
     Ranked on target (``steady`` None): the search's ``count`` best, exact. Else the ``nominal`` best
-    distinct on target (default :func:`ranked_choices` of the run's count) and the steady search's ``by_steady`` best distinct, each felt exactly
-    (:mod:`pinchmatch.match.felt`), by ``--rank``'s cost; ties by the cost on target, then tangible and
+    distinct on target (default :func:`ranked_choices` of the run's count) and the steady search's
+    ``by_steady`` best distinct, each felt exactly (:mod:`pinchmatch.match.felt`), by ``--rank``'s cost; ties by the cost on target, then tangible and
     poses; none a near duplicate of a better one."""
     if steady is None:
         return _felt(search, search.choices(0, allowed, count), tables)

@@ -106,21 +106,18 @@ class CheckedPool:
 
     def __init__(self, count: int):
         self.row = np.full(count, -1, dtype=np.int64)
-        self._parts: list = []
-        self._all = None
+        self._checked = None
 
     def checked(self, idx: np.ndarray, check) -> object:
         """The checked pinches (or tripods) of pool candidates ``idx``, in that order; ``check(new)`` checks
         the candidates ``new`` not checked before."""
         new = np.unique(idx[self.row[idx] < 0])
         if len(new):
-            start = sum(len(p.feasible) for p in self._parts)
-            self._parts.append(check(new))
+            start = 0 if self._checked is None else len(self._checked.feasible)
+            part = check(new)
+            self._checked = part if self._checked is None else concat_pinches([self._checked, part])
             self.row[new] = start + np.arange(len(new))
-            self._all = None
-        if self._all is None:
-            self._all = concat_pinches(self._parts)
-        return self._all.subset(self.row[idx])
+        return self._checked.subset(self.row[idx])
 
 
 def feature_pool(c: Candidates, settings: PinchSettings) -> tuple[np.ndarray, np.ndarray, cKDTree | None, CheckedPool]:
