@@ -162,3 +162,38 @@ def test_a_pool_candidate_is_checked_once_and_as_a_fresh_check_would(mug, tmp_pa
     fresh = targeted.nearest_feasible(candidate_poses(analyze_object(path), settings=settings), keys[3:12], settings)
     for field in ("points", "normals", "face_index", "feasible", "broken", "approach", "kappa_max_per_m"):
         np.testing.assert_array_equal(getattr(again, field), getattr(fresh, field))
+
+
+def _nearest_spread_mm(points, to):
+    """Each grasp's spread distance (either finger order) to the nearest of ``to``, mm."""
+    from scipy.spatial import cKDTree
+
+    tree = cKDTree(to.reshape(len(to), -1))
+    return np.minimum(tree.query(points.reshape(len(points), -1))[0],
+                      tree.query(points[:, ::-1].reshape(len(points), -1))[0])
+
+
+def test_a_larger_count_holds_the_sample_of_half_of_it_and_spreads_the_rest_away_from_it(mug, monkeypatch):
+    """Above the nested threshold, a count's sample begins with the sample of half the count, bit for bit,
+    at every level of the chain; the rest comes from a random stream of its own and is spread away from
+    the first half: its pinches lie farther from the first half's than as many sampled without it. Every
+    pinch kept obeys every rule. Tripods nest the same way."""
+    import pinchmatch.grasp.sampling as sampling
+    from pinchmatch.grasp.tripods import sample_tripods
+
+    monkeypatch.setattr(sampling, "NESTED_ABOVE", 150)
+    path, mesh = mug
+    obj = analyze_object(path)
+    samples = {c: sample_pinches(obj.context, settings=PinchSettings(count=c, seed=5)) for c in (150, 300, 600)}
+    for small, large in ((150, 300), (300, 600)):
+        assert len(samples[large]) == large
+        np.testing.assert_array_equal(samples[large].points[:small], samples[small].points)
+        np.testing.assert_array_equal(samples[large].kappa_max_per_m[:small], samples[small].kappa_max_per_m)
+    assert_rules_hold(mesh, samples[600], PinchSettings(count=600, seed=5))
+    first, rest = samples[600].points[:300], samples[600].points[300:]
+    unaware = sample_pinches(obj.context, settings=PinchSettings(count=300, seed=6)).points
+    aware, alone = (np.median(_nearest_spread_mm(p, first)) for p in (rest, unaware))
+    assert aware > 1.1 * alone, (aware, alone)
+    tripods = {c: sample_tripods(obj.context, settings=PinchSettings(count=c, seed=5, grasp="tripod")) for c in (120, 240)}
+    assert len(tripods[240]) == 240
+    np.testing.assert_array_equal(tripods[240].points[:120], tripods[120].points)

@@ -19,7 +19,9 @@ its distances to every earlier pick, so the result stays spread.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
+
 import numpy as np
 
 from .curvature import tangent_frame
@@ -52,6 +54,8 @@ LOCAL_RADIUS_TIPS = 1.5
 #: after the first round, reach is searched before the patches only where more than this share of
 #: the picks so far had no approach (elsewhere it is searched once, with the patches' normals)
 PRECHECK_ABOVE = 0.05
+#: a count above this is sampled nested: the sample of half the count first (the default count's)
+NESTED_ABOVE = 1000
 
 
 def cone_directions(normals: np.ndarray, half_angle_deg: float, rng) -> np.ndarray:
@@ -147,6 +151,9 @@ def sample_pinches(
     distances to every earlier pick, takes them in turn. All rounds together
     draw at most ``MAX_DRAW_FACTOR`` candidates per requested pinch.
 
+    A count above ``NESTED_ABOVE`` is sampled nested (:func:`nested_sample`): its first pinches are the
+    sample of half the count, so a larger count's sample holds a smaller one's.
+
     Raises
     ------
     NoFeasiblePinchError
@@ -158,12 +165,43 @@ def sample_pinches(
     >>> len(pinches), bool(pinches.feasible.all())
     (50, True)
     """
+    return nested_sample(_sample_pinches, context, settings, source)
+
+
+def nested_sample(sample, context, settings: PinchSettings, source: str):
+    """``sample(context, settings, source, seen, stream)`` made nested: a count up to ``NESTED_ABOVE`` is
+    sampled in one piece; a larger count is the nested sample of half the count (rounded up), then as many
+    more as it lacks, drawn from a random stream of their own (``stream``: the count) and spread away from
+    the first part's (``seen``: its grasps' points count as picks of the spread order). So a count's
+    sample starts with the sample of half of it, and of a quarter, down to ``NESTED_ABOVE``: four times
+    the default count holds the default's sample, and the exact search over it sees every pose the smaller
+    one offers. Where the rest finds nothing feasible, the first part is the sample."""
+    count = settings.count
+    if count <= NESTED_ABOVE:
+        return sample(context, settings, source)
+    inner = nested_sample(sample, context, dataclasses.replace(settings, count=(count + 1) // 2), source)
+    more = count - len(inner)
+    if more <= 0:
+        return inner
+    try:
+        outer = sample(context, dataclasses.replace(settings, count=more), source, seen=inner.points, stream=(count,))
+    except NoFeasiblePinchError:
+        return inner
+    rejected = {rule: inner.rejected.get(rule, 0) + outer.rejected.get(rule, 0) for rule in outer.rejected}
+    return concat_pinches([inner, outer], rejected)
+
+
+def _sample_pinches(context: SurfaceContext, settings: PinchSettings, source: str, seen: np.ndarray | None = None,
+                    stream: tuple = ()) -> Pinches:
+    """One piece of :func:`sample_pinches`: ``seen`` (m, 2, 3), pinches of an earlier piece that the spread
+    counts as picked; ``stream`` keys the random stream (none: the seed's own)."""
     check_patch_radius(context, settings)
     if not context.contact_area_mm2.any():
         raise NoFeasiblePinchError(f"{source}: the object's contact regions leave no surface to touch (every "
                                    "triangle is in an exclude region or outside the only regions); check "
                                    "the regions against the file's frame and units")
-    rng = np.random.default_rng(settings.seed)
+    rng = np.random.default_rng([settings.seed, *stream] if stream else settings.seed)
+    seen = np.zeros((0, 2, 3)) if seen is None else seen
     count = settings.count
     rejected = dict.fromkeys(RULES, 0)
     n_first = max(OVERSAMPLE * count, 2000)
@@ -172,13 +210,14 @@ def sample_pinches(
     drawn = n_first
     if len(points) == 0:
         raise NoFeasiblePinchError(_no_pinch_message(source, drawn, rejected, settings, context.support is not None))
-    uniform = Pool(points, faces, np.full(len(points), np.inf))
+    uniform = Pool.of(points, faces, seen)
     local = Pool.empty()
 
     # every width stratum first; the rounds go on from what the strata found
     parts, picked = stratified_checks(uniform, count, lambda p, f: _check_picks(context, p, f, settings, rejected))
     n_feasible, n_checked = sum(len(p) for p in parts), len(picked)
     n_strata, strata_found, strata_checked = len(parts), n_feasible, n_checked
+    picked = np.concatenate([seen, picked])  # an earlier piece's pinches count as picks for the spread
     local_radius = LOCAL_RADIUS_TIPS * settings.fingertip_radius_mm
     for round_ in range(MAX_ROUNDS):
         need = count - n_feasible

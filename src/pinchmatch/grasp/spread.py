@@ -103,6 +103,11 @@ class Pool:
     nearest: np.ndarray  # squared spread distance to the nearest pick, -1 once picked
 
     @classmethod
+    def of(cls, points, faces, picked_points) -> "Pool":
+        """Candidates whose spread counts ``picked_points`` (grasps picked before, (m, F, 3)) as picks."""
+        return cls(points, faces, _nearest_to(points, picked_points))
+
+    @classmethod
     def empty(cls, fingers: int = 2) -> "Pool":
         return cls(np.zeros((0, fingers, 3)), np.zeros((0, fingers), np.int64), np.zeros(0))
 

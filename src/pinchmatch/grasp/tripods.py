@@ -20,7 +20,8 @@ from ..errors import NoFeasiblePinchError
 from ..mesh.surface import SurfaceContext
 from .curvature import tangent_frame
 from .pinches import check_patch_radius, concat_pinches, reach_rule
-from .sampling import LOCAL_RADIUS_TIPS, cone_directions, local_contacts, pick_round, round_plan, uniform_contacts
+from .sampling import (LOCAL_RADIUS_TIPS, cone_directions, local_contacts, nested_sample, pick_round, round_plan,
+                       uniform_contacts)
 from .spread import Pool
 from .strata import stratified_checks
 from .tripod_rules import MAX_SPACING_MM, TRIPOD_RULES, Tripods, cheap_broken, check_tripods, count_first
@@ -108,19 +109,29 @@ def sample_tripods(context: SurfaceContext, *, settings: PinchSettings = PinchSe
     ------
     NoFeasiblePinchError
         No candidate passes; the message says how many each rule rejected.
+
+    A count above ``NESTED_ABOVE`` is sampled nested, as pinches are (:func:`nested_sample`).
     """
+    return nested_sample(_sample_tripods, context, settings, source)
+
+
+def _sample_tripods(context: SurfaceContext, settings: PinchSettings, source: str, seen: np.ndarray | None = None,
+                    stream: tuple = ()) -> Tripods:
+    """One piece of :func:`sample_tripods`, as :func:`pinchmatch.grasp.sampling._sample_pinches` is of pinches."""
     check_patch_radius(context, settings)
-    rng = np.random.default_rng([settings.seed, 3])
+    rng = np.random.default_rng([settings.seed, 3, *stream])
+    seen = np.zeros((0, 3, 3)) if seen is None else seen
     count = settings.count
     rejected = dict.fromkeys(TRIPOD_RULES, 0)
     drawn = max(OVERSAMPLE * count, 2000)
     budget = MAX_DRAW_FACTOR * max(count, 50)
     uniform, local = Pool.empty(3), Pool.empty(3)
     points, faces = candidate_tripods(context, *uniform_contacts(context, drawn, rng), settings, rng, rejected)
-    uniform.add(points, faces, np.zeros((0, 3, 3)))
+    uniform.add(points, faces, seen)
     parts, picked = stratified_checks(uniform, count, lambda p, f: _check_picks(context, p, f, settings, rejected))
     n_feasible, n_checked = sum(len(p) for p in parts), len(picked)
     strata_found, strata_checked = n_feasible, n_checked
+    picked = np.concatenate([seen, picked])  # an earlier piece's tripods count as picks for the spread
     for round_ in range(MAX_ROUNDS):
         need = count - n_feasible
         if need <= 0:
