@@ -205,3 +205,28 @@ def test_a_moved_pose_keeps_the_triangle_of_each_contact_that_did_not_move(objec
     alone = moved_poses(T, poses[1:2], np.full(1, 3.0))
     np.testing.assert_array_equal(alone[1], faces[which == 1])
     np.testing.assert_array_equal(alone[0], points[which == 1])
+
+
+def test_refinement_starts_from_more_pairs_at_a_larger_count(objects, monkeypatch):
+    """Up to the default count, 2 distinct best pairs on the best prop and 1 on each other contender; in
+    proportion above it (a denser sample holds more pairs near each good one), at most 16 and 8. The starts
+    handed to refinement are the search's best distinct pairs per prop, as many as that says."""
+    import pinchmatch.match.refine as refine_module
+
+    assert [refine_module.seed_counts(n) for n in (50, 1000, 1001, 4000, 100_000)] == \
+        [(2, 1), (2, 1), (3, 2), (8, 4), (16, 8)]
+    tangibles, virtual = [objects["oval"][0], objects["rod"][0]], objects["egg"][0]
+    model = cost_model(MatchSettings(), tangibles + [virtual])
+    starts = []
+    real = refine_module.refine
+    monkeypatch.setattr(refine_module, "CONTENDER_RATIO", 100.0)  # both props contend
+    monkeypatch.setattr(refine_module, "refine", lambda t, v, seeds, *a, **k: starts.append(seeds) or real(t, v, seeds, *a, **k))
+    for count in (1000, 3000):
+        refined_search(tangibles, virtual, model, MatchSettings(), pinch_settings=PinchSettings(count=count, seed=0))
+    for seeds, (on_best, on_other) in zip(starts, [(2, 1), (6, 3)]):
+        per_prop = {t: [s for s in seeds if s[0] == t] for t in {s[0] for s in seeds}}
+        best = min(per_prop, key=lambda t: min(s[3] for s in per_prop[t]))
+        assert len(per_prop[best]) == on_best
+        assert all(len(v) == on_other for t, v in per_prop.items() if t != best)
+        assert all(np.diff([s[3] for s in v]).min(initial=0.0) >= 0.0 for v in per_prop.values())  # best first
+        assert len(per_prop) == 2

@@ -120,6 +120,14 @@ def merge_candidates(first: Candidates, second: Candidates) -> Candidates:
                       np.concatenate([first.index, second.index + offset]), first.given and second.given)
 
 
+def with_count(base: int, count: int, most: int) -> int:
+    """``base`` at a sampling count up to the default (:class:`PinchSettings`' ``count``), in proportion above
+    it (rounded up), at most ``most``: how many of a search's best pairs a step takes, so that a denser sample,
+    which holds more pairs near each good one, looks as far into its order as a smaller one did."""
+    default = PinchSettings().count
+    return int(min(max(base, -(-base * int(count) // default)), max(most, base)))
+
+
 def memo_of(store: dict, owner) -> dict:
     """The memo that ``store`` keeps for ``owner`` (by identity) while ``owner`` lives: a process makes what
     depends on one object alone (its landings, its feature pool) once however many matches ask."""

@@ -5,7 +5,8 @@ poses; a sample is a sample, so another seed finds other pairs. First the target
 (:mod:`pinchmatch.match.targeted`) adds the poses each side needs, looked for by their features, and
 the search runs over the union. Refinement then takes the ``SEEDS`` best distinct pairs on the best
 tangible and the ``OTHER_SEEDS`` best on every other tangible that could serve the virtual object
-(its least cost so far within ``CONTENDER_RATIO`` of the best tangible's), and improves each by a pattern search over the four degrees of freedom of each pinch:
+(its least cost so far within ``CONTENDER_RATIO`` of the best tangible's), both in proportion to the count
+above the default (:func:`seed_counts`), and improves each by a pattern search over the four degrees of freedom of each pinch:
 
 - the contacts move by ``step`` along the object's axis (projected off the pinch line) and
   across it, both ways: each alone, both together (the pinch slides) and both opposite (the
@@ -42,15 +43,17 @@ from ..grasp.curvature import tangent_frame
 from ..grasp.pinches import ARRAY_FIELDS, PinchSettings, Pinches, check_pinches, check_reach, closing_directions
 from ..grasp.spread import other_order
 from ..grasp.tripod_rules import Tripods, check_tripods
-from .candidates import REFINED_INDEX, Candidates, extend, felt_table, mass_ratio  # noqa: F401 (re-exported)
+from .candidates import REFINED_INDEX, Candidates, extend, felt_table, mass_ratio, with_count  # noqa: F401 (re-exported)
 from .cost import CostModel, separable_terms
 from .search import Search, cost_row, evaluate_pairs
 from .targeted import targeted_poses
 
-#: distinct best pairs refined per tangible
+#: distinct best pairs refined per tangible, at the default count (in proportion above it: :func:`seed_counts`)
 SEEDS = 2
 #: on the other contending tangibles, this many
 OTHER_SEEDS = 1
+#: at most this many on the best tangible (and half as many on the others), however large the count
+MAX_SEEDS = 16
 #: tangibles whose sampled least cost is at most this times the best tangible's are refined
 CONTENDER_RATIO = 1.5
 #: the first and the smallest step of a contact (mm)
@@ -346,6 +349,15 @@ def separable_sums(T: Candidates, V: Candidates, it: np.ndarray, iv: np.ndarray,
     return np.minimum(separable_terms(t_rows, v_rows, model) @ w, separable_terms(t_rows, v_rows[:, other], model) @ w)
 
 
+def seed_counts(count: int) -> tuple[int, int]:
+    """How many distinct best pairs refinement starts from on the best tangible and on each other contender at a
+    sampling count of ``count`` poses per object: ``SEEDS`` and ``OTHER_SEEDS`` up to the default count, in
+    proportion above it. A denser sample holds more pairs near each good one on target, so the few best of a
+    smaller sample (whose poses a nested larger sample holds) lie further down its order: starting from as
+    many in proportion, refinement still climbs the basins the smaller sample's starts did."""
+    return with_count(SEEDS, count, MAX_SEEDS), with_count(OTHER_SEEDS, count, MAX_SEEDS // 2)
+
+
 def refined_search(tangibles: list[Candidates], virtual: Candidates, model: CostModel, settings, *,
                    pinch_settings: PinchSettings) -> Search:
     """The exact search of one virtual object against every tangible, over the sampled poses and,
@@ -366,9 +378,10 @@ def refined_search(tangibles: list[Candidates], virtual: Candidates, model: Cost
     row = cost_row(search, 0)
     finite = np.isfinite(row)
     best = float(row[finite].min())
+    on_best, on_other = seed_counts(pinch_settings.count)
     seeds = [(int(t), c.t_pose, c.v_pose, c.cost)
              for t in np.flatnonzero(finite & (row <= CONTENDER_RATIO * best))
-             for c in search.choices(0, [int(t)], SEEDS if row[t] == best else OTHER_SEEDS)]
+             for c in search.choices(0, [int(t)], on_best if row[t] == best else on_other)]
     grown_t, grown_v = refine(search.tangibles, search.virtuals[0], seeds, model, keep_upright=settings.keep_upright,
                               settings=pinch_settings, redirect=settings.redirect)
     return search.grown(grown_t, [grown_v])

@@ -11,7 +11,6 @@ object may use.
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -19,7 +18,7 @@ from scipy.optimize import linear_sum_assignment
 
 from ..errors import ConfigError
 from ..grasp.pinches import PinchSettings
-from .candidates import Candidates
+from .candidates import Candidates, with_count
 from .cost import CostModel
 from .felt import FeltTables, felt_cost
 from .landing import LANDING_AXIS_DEG, Landing
@@ -269,8 +268,7 @@ def _felt(search: Search, picks: list, tables: FeltTables) -> list[Choice]:
 def ranked_choices(count: int) -> int:
     """How many distinct best pairs on target the match feels at a sampling count of ``count`` poses per object:
     ``RANKED_CHOICES`` up to the default count, in proportion above it, at most ``MAX_RANKED_CHOICES``."""
-    default = PinchSettings().count
-    return int(min(max(RANKED_CHOICES, math.ceil(RANKED_CHOICES * count / default)), MAX_RANKED_CHOICES))
+    return with_count(RANKED_CHOICES, count, MAX_RANKED_CHOICES)
 
 
 def _ranked(search: Search, steady: SteadySearch | None, allowed: list[int], count: int,
