@@ -30,10 +30,12 @@ about ten times the count), and one whose key is near the poses looked for only 
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..grasp.pinches import PinchSettings, check_pinches, concat_pinches
+from ..grasp.pinches import PinchSettings, check_pinches, check_reach, concat_pinches
 from ..grasp.features import TripodFeatures, tripod_shape
 from ..grasp.sampling import uniform_contacts, cheap_candidates
 from ..grasp.tripod_rules import TRIPOD_RULES, Tripods, check_tripods
@@ -141,6 +143,22 @@ def feature_pool(c: Candidates, settings: PinchSettings) -> tuple[np.ndarray, np
     return memo[key]
 
 
+def _reach_last(context, part, settings: PinchSettings):
+    """``part`` (checked without the reach rule) with reach checked where every other rule holds, as one full
+    check gives it there: a pool candidate that breaks another rule is dropped whatever its reach, and the
+    hand's search is most of a check's price (its approach stays unknown, NaN)."""
+    rest = np.flatnonzero(part.feasible)
+    if not len(rest):
+        return part
+    reached = check_reach(context, part.subset(rest), settings=settings)
+    fields = {}
+    for name in ("broken", "approach", "approach_clearance_mm"):
+        values = getattr(part, name).copy()
+        values[rest] = getattr(reached, name)
+        fields[name] = values
+    return dataclasses.replace(part, feasible=~fields["broken"].any(axis=1), **fields)
+
+
 def nearest_feasible(c: Candidates, keys: np.ndarray, settings: PinchSettings):
     """The feasible pinches among ``NEAREST`` pool candidates per distinct key of ``keys`` on ``c``'s object,
     every rule checked (None when there are none, or ``c``'s poses were given). The candidates are taken
@@ -157,11 +175,13 @@ def nearest_feasible(c: Candidates, keys: np.ndarray, settings: PinchSettings):
     idx = np.asarray(idx).reshape(len(keys), budget).T.ravel()  # rank by rank over the keys
     first = np.sort(np.unique(idx, return_index=True)[1])[:budget]
     idx = idx[first]
+    context = c.obj.context
     if isinstance(c.pinches, Tripods):
-        checked = done.checked(idx, lambda new: check_tripods(c.obj.context, points[new], faces[new], settings=settings))
+        checked = done.checked(idx, lambda new: _reach_last(context, check_tripods(
+            context, points[new], faces[new], settings=settings, with_reach=False), settings))
     else:
-        checked = done.checked(idx, lambda new: check_pinches(c.obj.context, points[new, 0], points[new, 1],
-                                                                 settings=settings, faces=faces[new]))
+        checked = done.checked(idx, lambda new: _reach_last(context, check_pinches(
+            context, points[new, 0], points[new, 1], settings=settings, faces=faces[new], with_reach=False), settings))
     keep = np.flatnonzero(checked.feasible)
     return checked.subset(keep) if len(keep) else None
 
