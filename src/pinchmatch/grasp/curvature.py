@@ -43,7 +43,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..cores import query_tree, thread_budget
+from ..cores import thread_budget
+from ..mesh.neighbours import neighbours_within
 from ..mesh.surface import SurfaceContext
 
 #: neighbours considered per contact (the patch is cut from these by radius)
@@ -128,15 +129,8 @@ def patch_geometry(
         return PatchGeometry(empty3, empty3, empty, empty, empty3, empty3,
                              np.zeros(0, np.int64), empty, np.zeros(0, bool))
 
-    sample = context.sample
-    k = int(min(MAX_PATCH_SAMPLES, len(sample.points)))
-    dist, idx = query_tree(context.tree, points_mm, k=k, distance_upper_bound=radius,
-                           work=n * k // 16)
-    dist, idx = dist.reshape(n, k), idx.reshape(n, k)
-    used = int(np.isfinite(dist).sum(axis=1).max())  # trim columns no patch uses
-    dist, idx = dist[:, : max(used, 1)], idx[:, : max(used, 1)]
-    counts = np.isfinite(dist).sum(axis=1).astype(np.int64)  # sorted: the patch is a prefix
-    idx = np.ascontiguousarray(np.where(np.isfinite(dist), idx, 0), dtype=np.int64)
+    # the samples within the radius (the nearest MAX_PATCH_SAMPLES where there are more), by index
+    idx, counts = neighbours_within(context.tree, context.sample.points, points_mm, radius, MAX_PATCH_SAMPLES)
     out = (np.empty((n, 3)), np.empty((n, 3)), np.empty(n), np.empty(n), np.empty((n, 3)), np.empty((n, 3)),
            np.empty(n, np.int64), np.empty(n))
 
