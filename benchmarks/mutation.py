@@ -149,8 +149,6 @@ _SAME_TYPE = "every caller passes the type the call converts to, so the call ret
 EQUIVALENT.update({
     ("grasp/curvature.py", "radius = float(patch_radius_mm or context.patch_radius_mm)", "drop float(...)"):
         _SAME_TYPE,
-    ("grasp/curvature.py", "work=n * k // 16)", "// -> /"): _THREADS,
-    ("grasp/curvature.py", "work=n * k // 16)", "* -> /"): _THREADS,
     ("grasp/curvature.py", "workers = min(len(starts), thread_budget())", "drop min(...)"): _THREADS,
     ("grasp/pinches.py", "return (_angle_deg(u, -normals[:, 0]) > cone_deg) | (_angle_deg(-u, -normals[:, 1]) > "
      "cone_deg)", "> -> >="): _BOUNDARY,
