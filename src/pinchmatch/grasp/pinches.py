@@ -280,15 +280,19 @@ def check_pinches(
 
 
 def check_reach(context: SurfaceContext, pinches: Pinches, *, settings: PinchSettings = PinchSettings(),
-                approach: np.ndarray | None = None, thorough: bool = True) -> Pinches:
+                approach: np.ndarray | None = None, thorough: bool = True, rows: np.ndarray | None = None) -> Pinches:
     """``pinches`` (checked without reach: :func:`check_pinches`) with the reach rule checked too:
     ``feasible``, ``broken``, ``approach`` and ``approach_clearance_mm`` as :func:`check_pinches`
-    would have given them in one go."""
-    found = reach_rule(context, pinches.points, pinches.normals, settings, approach, thorough)
+    would have given them in one go. With ``rows``, only those pinches are checked (``approach``, where
+    given, one per row); the others keep what they have."""
+    rows = np.arange(len(pinches)) if rows is None else np.asarray(rows, dtype=np.int64)
+    found = reach_rule(context, pinches.points[rows], pinches.normals[rows], settings, approach, thorough)
     broken = pinches.broken.copy()
-    broken[:, pinches.rules.index("reach")] = ~found.ok
-    return dataclasses.replace(pinches, broken=broken, feasible=~broken.any(axis=1), approach=found.approach,
-                               approach_clearance_mm=found.clearance_mm)
+    broken[rows, pinches.rules.index("reach")] = ~found.ok
+    out_approach, clearance = pinches.approach.copy(), pinches.approach_clearance_mm.copy()
+    out_approach[rows], clearance[rows] = found.approach, found.clearance_mm
+    return dataclasses.replace(pinches, broken=broken, feasible=~broken.any(axis=1), approach=out_approach,
+                               approach_clearance_mm=clearance)
 
 
 def concat_pinches(parts: list[Pinches], rejected: dict | None = None) -> Pinches:

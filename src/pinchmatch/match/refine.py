@@ -40,7 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..grasp.curvature import tangent_frame
-from ..grasp.pinches import ARRAY_FIELDS, PinchSettings, Pinches, check_pinches, check_reach, closing_directions
+from ..grasp.pinches import PinchSettings, Pinches, check_pinches, check_reach, closing_directions
 from ..grasp.spread import other_order
 from ..grasp.tripod_rules import Tripods, check_tripods
 from .candidates import REFINED_INDEX, Candidates, extend, felt_table, mass_ratio, with_count  # noqa: F401 (re-exported)
@@ -193,19 +193,9 @@ def _confirm(context, moves: _Moves, rows: np.ndarray, settings: PinchSettings) 
     rows = rows[moves.reached[rows] == 0]
     if not len(rows):
         return
-    found = check_reach(context, moves.pinches.subset(rows), settings=settings, approach=moves.approach[rows],
-                        thorough=False)
-    moves.pinches = _replace_rows(moves.pinches, rows, found)
-    moves.reached[rows] = np.where(found.feasible, 1, -1)
-
-
-def _replace_rows(pinches: Pinches, rows: np.ndarray, new: Pinches) -> Pinches:
-    arrays = {}
-    for name in ARRAY_FIELDS:
-        a = getattr(pinches, name).copy()
-        a[rows] = getattr(new, name)
-        arrays[name] = a
-    return type(pinches)(**arrays, rejected=dict(pinches.rejected))
+    moves.pinches = check_reach(context, moves.pinches, settings=settings, approach=moves.approach[rows],
+                                thorough=False, rows=rows)
+    moves.reached[rows] = np.where(moves.pinches.feasible[rows], 1, -1)
 
 
 @dataclass

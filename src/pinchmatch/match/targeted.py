@@ -30,8 +30,6 @@ about ten times the count), and one whose key is near the poses looked for only 
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 from scipy.spatial import cKDTree
 
@@ -143,22 +141,6 @@ def feature_pool(c: Candidates, settings: PinchSettings) -> tuple[np.ndarray, np
     return memo[key]
 
 
-def _reach_last(context, part, settings: PinchSettings):
-    """``part`` (checked without the reach rule) with reach checked where every other rule holds, as one full
-    check gives it there: a pool candidate that breaks another rule is dropped whatever its reach, and the
-    hand's search is most of a check's price (its approach stays unknown, NaN)."""
-    rest = np.flatnonzero(part.feasible)
-    if not len(rest):
-        return part
-    reached = check_reach(context, part.subset(rest), settings=settings)
-    fields = {}
-    for name in ("broken", "approach", "approach_clearance_mm"):
-        values = getattr(part, name).copy()
-        values[rest] = getattr(reached, name)
-        fields[name] = values
-    return dataclasses.replace(part, feasible=~fields["broken"].any(axis=1), **fields)
-
-
 def nearest_feasible(c: Candidates, keys: np.ndarray, settings: PinchSettings):
     """The feasible pinches among ``NEAREST`` pool candidates per distinct key of ``keys`` on ``c``'s object,
     every rule checked (None when there are none, or ``c``'s poses were given). The candidates are taken
@@ -176,12 +158,16 @@ def nearest_feasible(c: Candidates, keys: np.ndarray, settings: PinchSettings):
     first = np.sort(np.unique(idx, return_index=True)[1])[:budget]
     idx = idx[first]
     context = c.obj.context
-    if isinstance(c.pinches, Tripods):
-        checked = done.checked(idx, lambda new: _reach_last(context, check_tripods(
-            context, points[new], faces[new], settings=settings, with_reach=False), settings))
-    else:
-        checked = done.checked(idx, lambda new: _reach_last(context, check_pinches(
-            context, points[new, 0], points[new, 1], settings=settings, faces=faces[new], with_reach=False), settings))
+
+    def check(new):  # every rule, the hand's search (most of a check's price) only where the others hold
+        if isinstance(c.pinches, Tripods):
+            part = check_tripods(context, points[new], faces[new], settings=settings, with_reach=False)
+        else:
+            part = check_pinches(context, points[new, 0], points[new, 1], settings=settings, faces=faces[new],
+                                 with_reach=False)
+        return check_reach(context, part, settings=settings, rows=np.flatnonzero(part.feasible))
+
+    checked = done.checked(idx, check)
     keep = np.flatnonzero(checked.feasible)
     return checked.subset(keep) if len(keep) else None
 
