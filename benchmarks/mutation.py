@@ -54,6 +54,7 @@ CORE = {
     "grasp/features.py": ["test_features.py"],
     "match/cost.py": ["test_cost.py"],
     "match/search.py": ["test_match.py", "test_cost.py", "test_redirect.py"],
+    "match/pairs.py": ["test_pairs.py", "test_match.py"],
     "match/register.py": ["test_register.py"],
     "mesh/frames.py": ["test_register.py", "test_load.py"],
     "mesh/properties.py": ["test_properties.py"],
@@ -102,9 +103,6 @@ EQUIVALENT: dict[tuple[str, str, str], str] = {
     ("match/search.py", "keep = np.flatnonzero(result.cost < tau)", "< -> <="):
         "the greedy pick keeps only pairs costing less than tau again, so a pooled pair costing exactly tau is "
         "never picked either way",
-    ("match/search.py", "return self.model.pooling == \"quick\" and size >= initial_pool(len(T), len(V)) * "
-     "4**TIGHT_AFTER", "drop initial_pool(...)"):
-        "which pools are selected by the pooled bound changes which pairs are evaluated, never the pairs found",
     ("match/search.py", "below = np.flatnonzero(result.cost < tau)", "< -> <="):
         "the greedy pick keeps only pairs costing less than tau again, so a pooled pair costing exactly tau is "
         "never picked either way",

@@ -403,7 +403,10 @@ def pooled_bound_blocks(tangible: np.ndarray, virtual: np.ndarray, model: CostMo
             for c in used:
                 part = left[:, columns[c]] @ order[columns[c]]  # weight x contribution
                 np.maximum(part, 0.0, out=part)  # round-off
-                pooled += weights[c] * (part / weights[c]) ** half
+                part /= weights[c]
+                np.power(part, half, out=part)
+                part *= weights[c]
+                pooled += part
             best = pooled if best is None else np.minimum(best, pooled)
         if extra is not None:  # as pair_cost_blocks' extra
             term, ok = extra(start, start + len(t))

@@ -11,7 +11,9 @@ The search is exact over the poses it is given (sampled, and refined: :mod:`pinc
    ``mass`` term, and ``--keep-upright``). Every pair left out costs at
    least ``tau``, so the pooled pairs costing less than ``tau`` are exactly
    the cheapest pairs of all. If they do not hold the best pair and
-   ``top_k`` distinct alternatives, the pool grows and step 1 repeats.
+   ``top_k`` distinct alternatives, the pool grows and step 1 repeats, from
+   the larger list step 1 kept where it can (:mod:`pinchmatch.match.pairs`),
+   evaluating only pairs not evaluated before.
 
 Alternatives are picked greedily by cost among pairs that are not near
 duplicates of those already picked: a pair is a near duplicate of another
@@ -37,6 +39,7 @@ from ..config import MatchSettings  # noqa: F401 (re-exported)
 from .candidates import Candidates, felt_table, mass_ratio, pair_terms
 from .cost import (CRITERIA, CostModel, feature_ranges, pair_cost_blocks, pooled_bound_blocks, total)
 from .redirect import Redirect, pair_budget, placed_transform, redirection, world_pose
+from .pairs import PairResult, Ranked, Seen, concat_pairs, smallest, take_pairs
 from .register import FLIP_COSINE, register_poses
 from ..grasp.spread import other_order
 
@@ -49,6 +52,12 @@ TIGHT_AFTER = 2
 TIGHT_ROUND_OFF = 1e-9
 #: pooled pairs are evaluated this many at a time (memory: about 2 kB per pair while evaluated)
 EVALUATE_CHUNK = 65_536
+#: a blockwise pass keeps this many times its pool's size, in order, where the pool's next growth selects
+#: by the same sum (separable, or the pooled bound): growths within them need no new pass
+RESERVE = 4
+#: pairs a pool remembers having evaluated, kept or not (about 250 bytes each), so that a growth evaluates
+#: only pairs it has not seen
+SEEN_PAIRS = 32_768
 
 
 def initial_pool(n_tangible: int, n_virtual: int) -> int:
@@ -71,36 +80,6 @@ def cost_model(settings: MatchSettings, candidates: list[Candidates], *, ranges:
         ranges = feature_ranges(*[c.table for c in candidates])
     return CostModel(dict(settings.weights), settings.normalize, ranges if settings.normalize == "range" else None,
                      tuple(settings.criteria), settings.pooling)
-
-
-@dataclass(frozen=True)
-class PairResult:
-    """Exact evaluation of k (tangible pose, virtual pose) pairs, in the better finger order.
-
-    cost (k,), terms (k, 8) contributions per criterion, swapped (k,) bool (virtual p1 on
-    tangible p2), transform (k, 4, 4) virtual -> tangible, flipped (k,) bool, mass_delta_mm
-    (k, 3) seen minus felt centre-of-mass offset in the tangible's frame, allowed (k,) bool
-    (False: flipped under ``keep_upright``, or redirected beyond the budget; cost is then inf),
-    redirect_terms (k, 2) the redirection's contributions (zero unless the placement is fixed).
-    """
-
-    cost: np.ndarray
-    terms: np.ndarray
-    swapped: np.ndarray
-    transform: np.ndarray
-    flipped: np.ndarray
-    mass_delta_mm: np.ndarray
-    allowed: np.ndarray
-    redirect_terms: np.ndarray
-
-
-def take_pairs(result: PairResult, keep) -> PairResult:
-    return PairResult(**{f.name: getattr(result, f.name)[keep] for f in dataclasses.fields(result)})
-
-
-def _concat(parts: list[PairResult]) -> PairResult:
-    return PairResult(**{f.name: np.concatenate([getattr(p, f.name) for p in parts])
-                         for f in dataclasses.fields(PairResult)})
 
 
 def evaluate_pairs(
@@ -170,7 +149,8 @@ def evaluate_pairs(
 
 
 def pool_pairs(tangible: Candidates, virtual: Candidates, model: CostModel, size: int, block_rows: int,
-               tight: bool = False, moments: tuple | None = None, redirect: Redirect | None = None):
+               tight: bool = False, moments: tuple | None = None, redirect: Redirect | None = None, *,
+               raw: bool = False):
     """The ``size`` pose pairs with the smallest separable sum (``tight``: the smallest pooled
     bound, :func:`pinchmatch.match.cost.pooled_bound_blocks`), and tau, a cost no pair left out is below.
     With ``moments`` ((mean, variance) of the tangible's rows, the same of the virtual's), the sum is the
@@ -178,7 +158,8 @@ def pool_pairs(tangible: Candidates, virtual: Candidates, model: CostModel, size
     ``redirect`` (the virtual object stays in the level) the sum gains a lower bound of the redirection
     angle's contribution and the pairs beyond the budget are left out (:func:`pinchmatch.match.redirect.pair_budget`).
 
-    Returns (it, iv, separable sum or bound, tau); tau is inf when no pair was left out.
+    Returns (it, iv, separable sum or bound, tau); tau is inf when no pair was left out. ``raw``: tau is
+    the least sum (or bound) of a pair left out, not a cost.
     """
     ratio = mass_ratio(tangible, virtual)
     t_table, v_table, spreads = tangible.table, virtual.table, None
@@ -217,16 +198,21 @@ def pool_pairs(tangible: Candidates, virtual: Candidates, model: CostModel, size
             keep = part[:size]
             vals, idx = vals[keep], idx[keep]
         kept_val, kept_idx = vals, idx
-    # every pair left out has a separable sum of at least tau, so a cost of at least its bound (tight:
-    # a bound of at least tau, less a margin for the round-off of its matrix products)
-    bound = tau * (1.0 - TIGHT_ROUND_OFF) if tight else \
-        float(model.bound_from_separable(tau, extra_weight=0.0 if redirect is None else 1.0))
-    return kept_idx // nv, kept_idx % nv, kept_val, bound
+    return kept_idx // nv, kept_idx % nv, kept_val, tau if raw else _bound(model, tau, tight, redirect)
+
+
+def _bound(model: CostModel, value: float, tight: bool, redirect: Redirect | None) -> float:
+    """The least cost of a pair whose separable sum (``tight``: pooled bound) is at least ``value``: its
+    bound (tight: the value, less a margin for the round-off of its matrix products)."""
+    return value * (1.0 - TIGHT_ROUND_OFF) if tight else \
+        float(model.bound_from_separable(value, extra_weight=0.0 if redirect is None else 1.0))
 
 
 @dataclass
 class _PairPool:
-    """Exactly evaluated pose pairs of one (virtual, tangible) object pair, all costing less than tau."""
+    """Exactly evaluated pose pairs of one (virtual, tangible) object pair, all costing less than tau; the
+    pass it came from (None when its candidates grew since) and the pairs evaluated for it (None past
+    ``SEEN_PAIRS``)."""
 
     tangible: int
     it: np.ndarray
@@ -234,6 +220,9 @@ class _PairPool:
     result: PairResult
     tau: float
     size: int
+    first: int
+    ranked: Ranked | None = None
+    seen: Seen | None = None
 
 
 def pinch_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -353,32 +342,68 @@ class Search:
             return old
         T, V = self.tangibles[t], self.virtuals[j]
         size = size or initial_pool(len(T), len(V))
-        it, iv, _, tau = pool_pairs(T, V, self.model, size, self.settings.block_rows, self._tight(size, T, V),
-                                    redirect=self.settings.redirect)
-        it, iv, result = self._below(T, V, it, iv, tau)
-        pool = _PairPool(t, it, iv, result, tau, size)
+        first = old.first if old is not None else size
+        tight = self._tight(size, first)
+        ranked = old.ranked if old is not None else None
+        if ranked is None or not ranked.serves(size, tight):
+            ranked = Ranked.of(*self._pass(T, V, size, first), tight)
+        it, iv, rest = ranked.first(size)
+        tau = _bound(self.model, rest, tight, self.settings.redirect)
+        it, iv, result, seen = self._below(T, V, it, iv, tau, old.seen if old is not None else None)
+        pool = _PairPool(t, it, iv, result, tau, size, first, ranked, seen)
         self.pools[(j, t)] = pool
         return pool
 
-    def _tight(self, size: int, T: Candidates, V: Candidates) -> bool:
-        """Pool by the pooled bound once a pool has grown ``TIGHT_AFTER`` times past its first size
-        under ``quick`` pooling: the separable sum's bound was too loose to close it."""
-        return self.model.pooling == "quick" and size >= initial_pool(len(T), len(V)) * 4**TIGHT_AFTER
+    def _pass(self, T: Candidates, V: Candidates, size: int, first: int, rows: tuple | None = None) -> tuple:
+        """:func:`pool_pairs` for a pool of ``size`` grown from ``first`` (the least value left out, raw),
+        keeping ``RESERVE`` times as many where the pool's next growth selects as this one does; over the
+        pairs of the poses ``rows`` (t_rows, v_rows) only, where given (indices of T's and V's)."""
+        tight = self._tight(size, first)
+        limit = size * RESERVE if self._tight(size * 4, first) == tight else size
+        if rows is None:
+            return pool_pairs(T, V, self.model, limit, self.settings.block_rows, tight,
+                              redirect=self.settings.redirect, raw=True)
+        t_rows, v_rows = rows
+        it, iv, value, rest = pool_pairs(T.subset(t_rows), V.subset(v_rows), self.model, limit,
+                                         self.settings.block_rows, tight, redirect=self.settings.redirect, raw=True)
+        return t_rows[it], v_rows[iv], value, rest
 
-    def _below(self, T: Candidates, V: Candidates, it: np.ndarray, iv: np.ndarray, tau: float):
-        """The pairs (it, iv) whose exact cost is below ``tau``, and their evaluation: evaluated
-        ``EVALUATE_CHUNK`` pairs at a time, so that a pool of millions (a prop whose poses all
-        look alike) never holds them all at once."""
-        keep, parts = [], []
-        for start in range(0, max(len(it), 1), EVALUATE_CHUNK):  # once at least: an empty result has its fields
-            sl = slice(start, start + EVALUATE_CHUNK)
-            result = evaluate_pairs(T, V, it[sl], iv[sl], model=self.model, keep_upright=self.settings.keep_upright,
+    def _tight(self, size: int, first: int) -> bool:
+        """Pool by the pooled bound once a pool has grown ``TIGHT_AFTER`` times past its ``first`` size
+        under ``quick`` pooling: the separable sum's bound was too loose to close it."""
+        return self.model.pooling == "quick" and size >= first * 4**TIGHT_AFTER
+
+    def _below(self, T: Candidates, V: Candidates, it: np.ndarray, iv: np.ndarray, tau: float,
+               seen: Seen | None = None):
+        """The pairs (it, iv) whose exact cost is below ``tau``, in the order given, their evaluation, and the
+        pairs evaluated so far: ``seen``'s, whose evaluation is taken from it, and those evaluated here (None
+        once more than ``SEEN_PAIRS``). Evaluated ``EVALUATE_CHUNK`` pairs at a time, so that a pool of
+        millions (a prop whose poses all look alike) never holds them all at once."""
+        at = seen.find(it, iv, len(V)) if seen is not None else np.full(len(it), -1)
+        new = np.flatnonzero(at < 0)
+        remember = (0 if seen is None else len(seen.it)) + len(new) <= SEEN_PAIRS
+        keep, parts, evaluated = [], [], []
+        for start in range(0, max(len(new), 1), EVALUATE_CHUNK):  # once at least: an empty result has its fields
+            rows = new[start:start + EVALUATE_CHUNK]
+            result = evaluate_pairs(T, V, it[rows], iv[rows], model=self.model, keep_upright=self.settings.keep_upright,
                                     redirect=self.settings.redirect)
+            evaluated.append(result)
             below = np.flatnonzero(result.cost < tau)
-            keep.append(start + below)
+            keep.append(rows[below])
+            parts.append(take_pairs(result, below))
+        known = np.flatnonzero(at >= 0)
+        if len(known):
+            result = take_pairs(seen.result, at[known])
+            below = np.flatnonzero(result.cost < tau)
+            keep.append(known[below])
             parts.append(take_pairs(result, below))
         keep = np.concatenate(keep)
-        return it[keep], iv[keep], _concat(parts)
+        order = np.argsort(keep, kind="stable")
+        keep, result = keep[order], take_pairs(concat_pairs(parts), order)
+        if not remember:
+            return it[keep], iv[keep], result, None
+        seen = seen or Seen(np.zeros(0, np.int64), np.zeros(0, np.int64), take_pairs(result, slice(0, 0)))
+        return it[keep], iv[keep], result, seen.plus(it[new], iv[new], concat_pairs(evaluated))
 
     def grown(self, tangibles: list, virtuals: list) -> "Search":
         """The search over the same objects with poses appended to their candidates (each list
@@ -388,19 +413,23 @@ class Search:
         for (j, t), old in self.pools.items():
             T, V = tangibles[t], virtuals[j]
             n_t, n_v = len(self.tangibles[t]), len(self.virtuals[j])
-            parts, tau = [(old.it, old.iv, old.result)], old.tau
+            parts, tau, seen, lists = [(old.it, old.iv, old.result)], old.tau, old.seen, []
+            tight = self._tight(old.size, old.first)
             for t_rows, v_rows in ((np.arange(n_t, len(T)), np.arange(len(V))), (np.arange(n_t), np.arange(n_v, len(V)))):
                 if not len(t_rows) or not len(v_rows):
                     continue
-                it, iv, _, block_tau = pool_pairs(T.subset(t_rows), V.subset(v_rows), self.model, old.size,
-                                                  self.settings.block_rows, self._tight(old.size, T, V),
-                                                  redirect=self.settings.redirect)
+                lists.append(out._pass(T, V, old.size, old.first, (t_rows, v_rows)))
+                it, iv, rest = smallest(*lists[-1], old.size)  # the block's pool of old.size
+                block_tau = _bound(self.model, rest, tight, self.settings.redirect)
                 tau = min(tau, block_tau)
-                parts.append(out._below(T, V, t_rows[it], v_rows[iv], block_tau))
+                it, iv, result, seen = out._below(T, V, it, iv, block_tau, seen)
+                parts.append((it, iv, result))
             it, iv = np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
-            result = _concat([p[2] for p in parts])
+            result = concat_pairs([p[2] for p in parts])
             keep = np.flatnonzero(result.cost < tau)
-            out.pools[(j, t)] = _PairPool(t, it[keep], iv[keep], take_pairs(result, keep), tau, old.size)
+            ranked = old.ranked.merged(lists) if old.ranked is not None and old.ranked.tight == tight else None
+            out.pools[(j, t)] = _PairPool(t, it[keep], iv[keep], take_pairs(result, keep), tau, old.size,
+                                          old.first, ranked, seen)
         return out
 
     def best_cost(self, j: int, t: int) -> float:
