@@ -276,3 +276,29 @@ def test_kd_tree_queries_keep_to_the_thread_budget():
         assert set(queries()) <= {1, 2}
     finally:
         set_thread_budget(before)
+
+
+@pytest.mark.parametrize("rank", ["expected", "nominal"])
+def test_a_tangibles_landing_moments_are_made_once_with_its_poses(meshes, monkeypatch, rank):
+    """The tangible task makes the steady search's moments; whoever rebuilds the tangible takes them as they
+    are (a worker makes none), the same arrays a worker would have made. Ranked on target, none are made."""
+    from pinchmatch.match import felt, steady
+    from pinchmatch.runner.tasks import Job, ObjectTask, candidates_task
+    from pinchmatch.runner.worker import tangible_of
+
+    settings = PinchSettings(count=60)
+    job = Job(units=None, up=None, config=Config(settings, MatchSettings(rank=rank)), scenes=False, figures=False)
+    computed = candidates_task(ObjectTask("tangible", str(meshes / "t" / "prop.stl")), job)
+    assert ("moments_key" in computed.meta) == (rank != "nominal")
+    if rank == "nominal":
+        return
+    made = []
+    real = felt.landing_moments
+    monkeypatch.setattr(steady, "landing_moments", lambda *a, **k: made.append(1) or real(*a, **k))
+    kept = tangible_of(computed.meta, computed.arrays)
+    mean, var = steady.moments_of(kept, job.match.landing_mm, settings)
+    assert not made  # taken as they came
+    fresh = tangible_of({k: v for k, v in computed.meta.items() if k != "moments_key"}, computed.arrays)
+    again = steady.moments_of(fresh, job.match.landing_mm, settings)
+    assert made == [1]
+    assert np.array_equal(mean, again[0], equal_nan=True) and np.array_equal(var, again[1], equal_nan=True)

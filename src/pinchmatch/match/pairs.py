@@ -4,7 +4,8 @@
 - :class:`Ranked`: the pairs one blockwise pass kept, smallest sum first, and the least sum of any pair it
   left out. A pool of any size up to the pass's is its first pairs, so a pool that grows needs no new
   pass while its selection (separable sum or pooled bound) stays the same. A search's candidates that
-  grow (refinement) add the new pairs' own passes to it (:meth:`Ranked.merged`).
+  grow (refinement) add the new pairs' own passes to it (:meth:`Ranked.merged`), and the grown pool is
+  its first pairs.
 - :class:`Seen`: every pair evaluated for a pool, kept or not, so that a pool that grows evaluates only
   pairs it has not seen.
 
@@ -97,15 +98,6 @@ class Ranked:
         return Ranked(*_ordered(it[below], iv[below], value[below]), rest, self.tight)
 
 
-def smallest(it: np.ndarray, iv: np.ndarray, value: np.ndarray, rest: float, size: int) -> tuple:
-    """(it, iv, least value of a pair left out) of the ``size`` pairs of least value among a pass's (any
-    order; ``rest``: the least value the pass left out), as :meth:`Ranked.first` would give them."""
-    if size < len(value):
-        part = np.argpartition(value, size)
-        return it[part[:size]], iv[part[:size]], min(float(value[part[size]]), rest)
-    return it, iv, rest
-
-
 @dataclass(frozen=True)
 class Seen:
     """Pairs evaluated for a pool, kept or not, in (tangible pose, virtual pose) order, and their results."""
@@ -113,6 +105,12 @@ class Seen:
     it: np.ndarray
     iv: np.ndarray
     result: PairResult
+
+    @classmethod
+    def of(cls, it: np.ndarray, iv: np.ndarray, result: PairResult) -> "Seen":
+        """The pairs (it, iv), any order, evaluated as ``result``."""
+        order = np.lexsort((iv, it))
+        return cls(it[order], iv[order], take_pairs(result, order))
 
     def find(self, it: np.ndarray, iv: np.ndarray, nv: int) -> np.ndarray:
         """(k,) where each pair lies in this list, -1 where it was not evaluated (``nv``: the virtual poses)."""
@@ -124,6 +122,5 @@ class Seen:
 
     def plus(self, it: np.ndarray, iv: np.ndarray, result: PairResult) -> "Seen":
         """This list with the pairs (it, iv) evaluated as ``result`` added."""
-        it, iv = np.concatenate([self.it, it]), np.concatenate([self.iv, iv])
-        order = np.lexsort((iv, it))
-        return Seen(it[order], iv[order], take_pairs(concat_pairs([self.result, result]), order))
+        return Seen.of(np.concatenate([self.it, it]), np.concatenate([self.iv, iv]),
+                       concat_pairs([self.result, result]))

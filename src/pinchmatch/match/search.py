@@ -39,7 +39,7 @@ from ..config import MatchSettings  # noqa: F401 (re-exported)
 from .candidates import Candidates, felt_table, mass_ratio, pair_terms
 from .cost import (CRITERIA, CostModel, feature_ranges, pair_cost_blocks, pooled_bound_blocks, total)
 from .redirect import Redirect, pair_budget, placed_transform, redirection, world_pose
-from .pairs import PairResult, Ranked, Seen, concat_pairs, smallest, take_pairs
+from .pairs import PairResult, Ranked, Seen, concat_pairs, take_pairs
 from .register import FLIP_COSINE, register_poses
 from ..grasp.spread import other_order
 
@@ -387,7 +387,8 @@ class Search:
             rows = new[start:start + EVALUATE_CHUNK]
             result = evaluate_pairs(T, V, it[rows], iv[rows], model=self.model, keep_upright=self.settings.keep_upright,
                                     redirect=self.settings.redirect)
-            evaluated.append(result)
+            if remember:
+                evaluated.append(result)
             below = np.flatnonzero(result.cost < tau)
             keep.append(rows[below])
             parts.append(take_pairs(result, below))
@@ -402,34 +403,30 @@ class Search:
         keep, result = keep[order], take_pairs(concat_pairs(parts), order)
         if not remember:
             return it[keep], iv[keep], result, None
-        seen = seen or Seen(np.zeros(0, np.int64), np.zeros(0, np.int64), take_pairs(result, slice(0, 0)))
-        return it[keep], iv[keep], result, seen.plus(it[new], iv[new], concat_pairs(evaluated))
+        evaluated = concat_pairs(evaluated)
+        return it[keep], iv[keep], result, (seen.plus(it[new], iv[new], evaluated) if seen is not None else
+                                           Seen.of(it[new], iv[new], evaluated))
 
     def grown(self, tangibles: list, virtuals: list) -> "Search":
         """The search over the same objects with poses appended to their candidates (each list
-        starts with this search's): pools known here carry over, so that only the pairs with a
-        new pose are searched (blockwise, as :meth:`pool` does) and evaluated."""
+        starts with this search's): pools known here carry over. Each pool's list takes the new pairs'
+        own blockwise passes (:meth:`pool`'s), and the grown pool of the same size is that list's first
+        pairs: only those not evaluated before are evaluated."""
         out = Search(tangibles, virtuals, self.model, self.settings)
         for (j, t), old in self.pools.items():
             T, V = tangibles[t], virtuals[j]
             n_t, n_v = len(self.tangibles[t]), len(self.virtuals[j])
-            parts, tau, seen, lists = [(old.it, old.iv, old.result)], old.tau, old.seen, []
             tight = self._tight(old.size, old.first)
-            for t_rows, v_rows in ((np.arange(n_t, len(T)), np.arange(len(V))), (np.arange(n_t), np.arange(n_v, len(V)))):
-                if not len(t_rows) or not len(v_rows):
-                    continue
-                lists.append(out._pass(T, V, old.size, old.first, (t_rows, v_rows)))
-                it, iv, rest = smallest(*lists[-1], old.size)  # the block's pool of old.size
-                block_tau = _bound(self.model, rest, tight, self.settings.redirect)
-                tau = min(tau, block_tau)
-                it, iv, result, seen = out._below(T, V, it, iv, block_tau, seen)
-                parts.append((it, iv, result))
-            it, iv = np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
-            result = concat_pairs([p[2] for p in parts])
-            keep = np.flatnonzero(result.cost < tau)
-            ranked = old.ranked.merged(lists) if old.ranked is not None and old.ranked.tight == tight else None
-            out.pools[(j, t)] = _PairPool(t, it[keep], iv[keep], take_pairs(result, keep), tau, old.size,
-                                          old.first, ranked, seen)
+            if old.ranked is not None and old.ranked.tight == tight:
+                new = ((np.arange(n_t, len(T)), np.arange(len(V))), (np.arange(n_t), np.arange(n_v, len(V))))
+                ranked = old.ranked.merged([out._pass(T, V, old.size, old.first, rows) for rows in new
+                                            if len(rows[0]) and len(rows[1])])
+            else:
+                ranked = Ranked.of(*out._pass(T, V, old.size, old.first), tight)
+            it, iv, rest = ranked.first(old.size)
+            tau = _bound(self.model, rest, tight, self.settings.redirect)
+            it, iv, result, seen = out._below(T, V, it, iv, tau, old.seen or Seen.of(old.it, old.iv, old.result))
+            out.pools[(j, t)] = _PairPool(t, it, iv, result, tau, old.size, old.first, ranked, seen)
         return out
 
     def best_cost(self, j: int, t: int) -> float:

@@ -51,13 +51,25 @@ _MOMENTS: dict[int, tuple] = {}
 
 def moments_of(candidates: Candidates, radius_mm: float, settings) -> tuple[np.ndarray, np.ndarray]:
     """:func:`pinchmatch.match.felt.landing_moments` of every pose of ``candidates`` on ``MOMENT_RINGS``,
-    made once per object and radius while the object lives (a tangible serves every virtual object)."""
-    key = (float(radius_mm), float(settings.patch_radius_mm))
+    made once per object and radius while the object lives (a tangible serves every virtual object), or
+    as :func:`keep_moments` was given them."""
+    key = moments_key(radius_mm, settings)
     memo = memo_of(_MOMENTS, candidates)
     if key not in memo:
         memo[key] = landing_moments(candidates, radius_mm, settings, rings=MOMENT_RINGS,
                                         patch_spacing_mm=MOMENT_SPACING_SHARE * radius_mm)
     return memo[key]
+
+
+def moments_key(radius_mm: float, settings) -> tuple[float, float]:
+    """What an object's moments depend on besides its poses: the landing radius and the patch radius."""
+    return float(radius_mm), float(settings.patch_radius_mm)
+
+
+def keep_moments(candidates: Candidates, key: tuple, moments: tuple[np.ndarray, np.ndarray]) -> None:
+    """Keep ``moments`` ((mean, variance), as :func:`moments_of` makes them under ``key``) for ``candidates``:
+    a run's workers take a tangible's moments made once, with its poses, instead of each making them."""
+    memo_of(_MOMENTS, candidates)[tuple(float(k) for k in key)] = moments
 
 
 def expected_terms(tangible_moments: tuple, virtual_moments: tuple, ratio: float, model) -> np.ndarray:

@@ -23,8 +23,8 @@ from ..match.candidates import Candidates
 from ..match.cost import feature_bounds, ranges_from_bounds
 from ..match.scene import allowed_tangibles
 from ..match.search import cost_model
-from .cache import from_payload
 from .executors import Executor
+from .worker import tangible_of
 from .tasks import (Failure, Job, ObjectTask, VirtualResult, bounds_task, candidates_task, load_task, row_task,
                     virtual_task)
 
@@ -90,7 +90,7 @@ def run_match(tangible_tasks: list[ObjectTask], virtual_tasks: list[ObjectTask],
                                    f"; {len(bad)} of the {len(virtual_tasks)} virtual files cannot be used "
                                    f"either (first: {bad[0].error})")
         raise none_usable("tangible", also)
-    tangibles = [from_payload(meta, arrays) for meta, arrays in payloads]
+    tangibles = [tangible_of(meta, arrays) for meta, arrays in payloads]
     shared = ex.share(payloads, tangibles)
     header(tangibles)
 

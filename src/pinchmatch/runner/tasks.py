@@ -34,6 +34,7 @@ from ..config import Config
 from ..match.refine import refined_search
 from ..match.scene import match_one, match_virtual
 from ..match.search import MatchSettings, cost_row
+from ..match.steady import moments_key, moments_of
 from ..mesh.load import load_mesh
 from ..mesh.manifest import ObjectSpec
 from .cache import FeatureCache, cached_candidates, to_payload
@@ -133,8 +134,15 @@ def _per_file(fn: Callable) -> Callable:
 
 @_per_file
 def candidates_task(task: ObjectTask, job: Job) -> Computed | Failure:
+    """A tangible's candidates, and where the match ranks by the felt cost, its poses' landing moments
+    (:func:`pinchmatch.match.steady.moments_of`): made once here, in parallel, for every worker."""
     c, cached, _ = _candidates(task, job)
-    return Computed(*to_payload(c), cached)
+    meta, arrays = to_payload(c)
+    if job.match.rank != "nominal" and job.match.landing_mm > 0:
+        key = moments_key(job.match.landing_mm, job.settings)
+        mean, var = moments_of(c, job.match.landing_mm, job.settings)
+        meta, arrays = meta | {"moments_key": list(key)}, arrays | {"moments.mean": mean, "moments.var": var}
+    return Computed(meta, arrays, cached)
 
 
 @_per_file

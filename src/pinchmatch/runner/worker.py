@@ -25,6 +25,7 @@ import numpy as np
 from ..cores import set_thread_budget
 from ..errors import route_warnings
 from ..match.candidates import Candidates
+from ..match.steady import keep_moments
 from .cache import from_payload
 
 #: where a task reports the stage it is in: set in each local worker (a queue to the run's process),
@@ -63,6 +64,14 @@ def stages_shown_by(show: Callable[[str, str], None]):
 _TANGIBLES: dict[str, list[Candidates]] = {}
 
 
+def tangible_of(meta: dict, arrays: dict) -> Candidates:
+    """A tangible's candidates from its payload, with the landing moments made with them, where they were."""
+    c = from_payload(meta, arrays)
+    if "moments_key" in meta:
+        keep_moments(c, tuple(meta["moments_key"]), (arrays["moments.mean"], arrays["moments.var"]))
+    return c
+
+
 def payload_token(payloads: list) -> str:
     """A digest of the tangibles' payloads: the key under which each worker keeps them."""
     h = hashlib.sha256()
@@ -92,7 +101,7 @@ def tangibles(shared) -> list[Candidates]:
             with open(source, "rb") as fh:
                 source = pickle.load(fh)
         _TANGIBLES.clear()
-        _TANGIBLES[token] = [from_payload(meta, arrays) for meta, arrays in source]
+        _TANGIBLES[token] = [tangible_of(meta, arrays) for meta, arrays in source]
     return _TANGIBLES[token]
 
 
