@@ -180,6 +180,7 @@ def pair_terms(tangible: Candidates, virtual: Candidates, t_rows: np.ndarray, v_
         seen = virtual.obj.props.com_mm - v_points.mean(axis=-2)
         seen = np.einsum("kij,kj->ki", R, seen) if R.ndim == 3 else seen @ R.T
         delta = ratio * seen - (tangible.obj.props.com_mm - t_points.mean(axis=-2))
-    terms = separable_terms(t_rows, felt_table(v_rows, ratio), model)
-    terms[:, 7] = mass_term(t_rows, delta, model)
+    scales = model.scales(t_rows)
+    terms = separable_terms(t_rows, felt_table(v_rows, ratio), model, scales=scales)
+    terms[:, 7] = mass_term(t_rows, delta, model, scales=scales)
     return terms, delta
