@@ -108,7 +108,7 @@ EQUIVALENT: dict[tuple[str, str, str], str] = {
     ("match/cost.py", "def pair_costs(tangible: np.ndarray, virtual: np.ndarray, model: CostModel, *, "
      "block_rows: int = 2048):", "2048 -> 2049"):
         "the block size splits the tangible rows into blocks, each row's costs are computed alike in any block",
-    ("match/cost.py", "s = model.scales(tangible_rows)[:, 0, 7]", "0 -> 1"):
+    ("match/cost.py", "s = (model.scales(tangible_rows) if scales is None else scales)[:, 0, 7]", "0 -> 1"):
         "the mass columns' scale is of the offset's length, the same in every contact's row (a pinch's second row "
         "holds the offset along the line negated)",
     ("match/cost.py", "buffers = np.empty((2, rows, nv))  # allocated once: no page faults per block", "2 -> 3"):

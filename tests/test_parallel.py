@@ -287,9 +287,10 @@ def test_a_tangibles_landing_moments_are_made_once_with_its_poses(meshes, monkey
     from pinchmatch.runner.worker import tangible_of
 
     settings = PinchSettings(count=60)
-    job = Job(units=None, up=None, config=Config(settings, MatchSettings(rank=rank)), scenes=False, figures=False)
+    job = Job(units=None, up=None, config=Config(settings, MatchSettings(rank=rank, refine=False)), scenes=False,
+              figures=False)
     computed = candidates_task(ObjectTask("tangible", str(meshes / "t" / "prop.stl")), job)
-    assert ("moments_key" in computed.meta) == (rank != "nominal")
+    assert ("moments_key" in computed.meta) == (rank != "nominal") and "pool_settings" not in computed.meta
     if rank == "nominal":
         return
     made = []
@@ -302,3 +303,43 @@ def test_a_tangibles_landing_moments_are_made_once_with_its_poses(meshes, monkey
     again = steady.moments_of(fresh, job.match.landing_mm, settings)
     assert made == [1]
     assert np.array_equal(mean, again[0], equal_nan=True) and np.array_equal(var, again[1], equal_nan=True)
+
+
+@pytest.mark.parametrize("refine", [True, False])
+def test_a_tangibles_feature_pool_and_distance_field_are_made_once_with_its_poses(meshes, monkeypatch, refine):
+    """Where the match refines, the tangible task draws the targeted step's feature pool and makes the
+    surface's distance field; a rebuilt tangible takes both (nothing drawn or made again), equal to what
+    it would have made, and the match over them is the same."""
+    from pinchmatch.match import targeted
+    from pinchmatch.match.scene import match_one
+    from pinchmatch.match.search import cost_model
+    from pinchmatch.runner.cache import from_payload
+    from pinchmatch.runner.tasks import Job, ObjectTask, candidates_task
+    from pinchmatch.runner.worker import tangible_of
+
+    settings = PinchSettings(count=60)
+    config = Config(settings, MatchSettings(refine=refine))
+    job = Job(units=None, up=None, config=config, scenes=False, figures=False)
+    computed = candidates_task(ObjectTask("tangible", str(meshes / "t" / "egg.stl")), job)
+    assert ("pool_settings" in computed.meta) == refine
+    if not refine:
+        return
+    drawn = []
+    real = targeted.cheap_candidates
+    monkeypatch.setattr(targeted, "cheap_candidates", lambda *a, **k: drawn.append(1) or real(*a, **k))
+    kept = tangible_of(computed.meta, computed.arrays)
+    points, faces, tree, _ = targeted.feature_pool(kept, settings)
+    field = kept.obj.context.distance_field
+    assert not drawn and "distance_field" in kept.obj.context.__dict__
+    fresh = from_payload(computed.meta, computed.arrays)  # rebuilt alone: draws and makes its own
+    f_points, f_faces, f_tree, _ = targeted.feature_pool(fresh, settings)
+    assert drawn == [1]
+    assert np.array_equal(points, f_points) and np.array_equal(faces, f_faces)
+    assert np.array_equal(tree.data, f_tree.data)
+    f_field = fresh.obj.context.distance_field
+    assert np.array_equal(field.distance_mm, f_field.distance_mm) and np.array_equal(field.origin_mm, f_field.origin_mm)
+    assert (field.voxel_mm, field.margin_mm) == (f_field.voxel_mm, f_field.margin_mm)
+    virtual = cached_candidates(str(meshes / "v" / "e1.stl"), cache=None, settings=settings)
+    a, b = (match_one([t], virtual, config, model=cost_model(config.match, [t, virtual]), details=False)
+            for t in (kept, fresh))
+    assert (a.best.t_pose, a.best.v_pose, a.best.cost) == (b.best.t_pose, b.best.v_pose, b.best.cost)

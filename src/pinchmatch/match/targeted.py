@@ -135,10 +135,17 @@ def feature_pool(c: Candidates, settings: PinchSettings) -> tuple[np.ndarray, np
             points, faces = candidate_tripods(context, *uniform_contacts(context, count, rng), settings, rng, rejected)
         else:
             points, faces = cheap_candidates(context, count, settings, rng)
-        normals = context.face_normals[faces]
-        keys = (tripod_keys if tripods else pinch_keys)(points, normals, c.obj.props)
-        memo[key] = (points, faces, cKDTree(keys) if len(points) else None, CheckedPool(len(points)))
+        keep_pool(c, settings, points, faces)
     return memo[key]
+
+
+def keep_pool(c: Candidates, settings: PinchSettings, points: np.ndarray, faces: np.ndarray) -> None:
+    """Take (``points``, ``faces``) as ``c``'s object's feature pool under ``settings``, as :func:`feature_pool`
+    draws it (a run's workers take a tangible's, drawn once with its poses), no checks made of it yet."""
+    tripods = isinstance(c.pinches, Tripods)
+    keys = (tripod_keys if tripods else pinch_keys)(points, c.obj.context.face_normals[faces], c.obj.props)
+    memo_of(_POOLS, c.obj)[(settings, tripods)] = (points, faces, cKDTree(keys) if len(points) else None,
+                                                   CheckedPool(len(points)))
 
 
 def nearest_feasible(c: Candidates, keys: np.ndarray, settings: PinchSettings):

@@ -233,6 +233,11 @@ class SurfaceContext:
         """Sure bounds on the distance to the dense sample, from a grid (exact beyond ``FIELD_MARGIN_MM``)."""
         return DistanceField.of(self.sample.points, margin_mm=FIELD_MARGIN_MM)
 
+    def keep_distance_field(self, field: DistanceField) -> None:
+        """Take ``field`` as this surface's :attr:`distance_field`: one made for the same sample elsewhere (a
+        run's workers take a tangible's, made once with its poses)."""
+        self.__dict__["distance_field"] = field
+
     @functools.cached_property
     def rays(self):
         return ray_engine(self.mesh)[0]

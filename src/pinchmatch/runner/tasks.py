@@ -35,6 +35,7 @@ from ..match.refine import refined_search
 from ..match.scene import match_one, match_virtual
 from ..match.search import MatchSettings, cost_row
 from ..match.steady import moments_key, moments_of
+from ..match.targeted import feature_pool
 from ..mesh.load import load_mesh
 from ..mesh.manifest import ObjectSpec
 from .cache import FeatureCache, cached_candidates, to_payload
@@ -134,14 +135,23 @@ def _per_file(fn: Callable) -> Callable:
 
 @_per_file
 def candidates_task(task: ObjectTask, job: Job) -> Computed | Failure:
-    """A tangible's candidates, and where the match ranks by the felt cost, its poses' landing moments
-    (:func:`pinchmatch.match.steady.moments_of`): made once here, in parallel, for every worker."""
+    """A tangible's candidates, and what every worker's matches would each make of it, made once here, in
+    parallel (:func:`pinchmatch.runner.worker.tangible_of` takes them): where the match ranks by the felt
+    cost, its poses' landing moments (:func:`pinchmatch.match.steady.moments_of`); where it refines, its
+    feature pool (:func:`pinchmatch.match.targeted.feature_pool`) and its surface's distance field (the
+    hand's reach)."""
     c, cached, _ = _candidates(task, job)
     meta, arrays = to_payload(c)
     if job.match.rank != "nominal" and job.match.landing_mm > 0:
         key = moments_key(job.match.landing_mm, job.settings)
         mean, var = moments_of(c, job.match.landing_mm, job.settings)
         meta, arrays = meta | {"moments_key": list(key)}, arrays | {"moments.mean": mean, "moments.var": var}
+    if job.match.refine and not c.given:
+        points, faces, _, _ = feature_pool(c, job.settings)
+        field = c.obj.context.distance_field
+        meta = meta | {"pool_settings": job.settings, "distance_field": [list(map(float, field.origin_mm)),
+                                                                          field.voxel_mm, field.margin_mm]}
+        arrays = arrays | {"pool.points": points, "pool.faces": faces, "distance_field": field.distance_mm}
     return Computed(meta, arrays, cached)
 
 

@@ -26,6 +26,8 @@ from ..cores import set_thread_budget
 from ..errors import route_warnings
 from ..match.candidates import Candidates
 from ..match.steady import keep_moments
+from ..match.targeted import keep_pool
+from ..mesh.distance_field import DistanceField
 from .cache import from_payload
 
 #: where a task reports the stage it is in: set in each local worker (a queue to the run's process),
@@ -65,10 +67,15 @@ _TANGIBLES: dict[str, list[Candidates]] = {}
 
 
 def tangible_of(meta: dict, arrays: dict) -> Candidates:
-    """A tangible's candidates from its payload, with the landing moments made with them, where they were."""
+    """A tangible's candidates from its payload, with what its task made of them, where it did
+    (:func:`pinchmatch.runner.tasks.candidates_task`)."""
     c = from_payload(meta, arrays)
     if "moments_key" in meta:
         keep_moments(c, tuple(meta["moments_key"]), (arrays["moments.mean"], arrays["moments.var"]))
+    if "pool_settings" in meta:
+        keep_pool(c, meta["pool_settings"], arrays["pool.points"], arrays["pool.faces"])
+        origin, voxel, margin = meta["distance_field"]
+        c.obj.context.keep_distance_field(DistanceField(np.array(origin), voxel, arrays["distance_field"], margin))
     return c
 
 
