@@ -103,6 +103,9 @@ EQUIVALENT: dict[tuple[str, str, str], str] = {
     ("match/search.py", "below = np.flatnonzero(result.cost < tau)", "< -> <="):
         "the greedy pick keeps only pairs costing less than tau again, so a pooled pair costing exactly tau is "
         "never picked either way",
+    ("match/pairs.py", "below = value < rest", "< -> <="):
+        "a pair whose value equals the rest may be listed or not: every pair left out is still at least the "
+        "rest, and a pool cut at it takes the rest as its bound either way",
     ("match/search.py", "size = float(np.sqrt(jnd[k]))", "drop float(...)"):
         "np.float64 is a subclass of float: it compares, formats and serialises (json) as the float does",
     ("match/cost.py", "def pair_costs(tangible: np.ndarray, virtual: np.ndarray, model: CostModel, *, "
