@@ -28,7 +28,7 @@ from .redirect import redirection
 from ..config import Config, config_of
 from ..grasp.spread import other_order
 from .search import Choice, MatchSettings, Search, cost_model, cost_row, p_noticed, pinch_distance
-from .steady import STEADY_CHOICES, SteadySearch
+from .steady import STEADY_CHOICES, SteadySearch, ranks_by_landings
 
 
 #: unless ``--rank nominal``, this many distinct best choices on target (or top_k + 1, if more) and the
@@ -244,7 +244,7 @@ def steady_search(search: Search, tangibles: list[Candidates], virtual: Candidat
     """The steady search beside ``search`` (over the sampled ``tangibles`` and ``virtual``), or None where
     the match ranks on target (``--rank nominal``, or a landing radius of 0)."""
     settings = search.settings
-    if settings.rank == "nominal" or settings.landing_mm <= 0:
+    if not ranks_by_landings(settings):
         return None
     return SteadySearch(search, tangibles, virtual, settings.landing_mm, pinch_settings)
 

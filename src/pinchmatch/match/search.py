@@ -210,9 +210,9 @@ def _bound(model: CostModel, value: float, tight: bool, redirect: Redirect | Non
 
 @dataclass
 class _PairPool:
-    """Exactly evaluated pose pairs of one (virtual, tangible) object pair, all costing less than tau; the
-    pass it came from (None when its candidates grew since) and the pairs evaluated for it (None past
-    ``SEEN_PAIRS``)."""
+    """Exactly evaluated pose pairs of one (virtual, tangible) object pair, all costing less than tau: the
+    first ``size`` of the list ``ranked`` (a pass's, with the passes of pairs added since merged in), grown
+    from ``first``; and the pairs evaluated for it (None past ``SEEN_PAIRS``)."""
 
     tangible: int
     it: np.ndarray
@@ -221,8 +221,8 @@ class _PairPool:
     tau: float
     size: int
     first: int
-    ranked: Ranked | None = None
-    seen: Seen | None = None
+    ranked: Ranked
+    seen: Seen | None
 
 
 def pinch_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -61,6 +61,12 @@ def moments_of(candidates: Candidates, radius_mm: float, settings) -> tuple[np.n
     return memo[key]
 
 
+def ranks_by_landings(settings) -> bool:
+    """Does a match under ``settings`` (:class:`~pinchmatch.config.MatchSettings`) rank by the felt cost, and so
+    search steadily (not ``--rank nominal``, and a landing radius above 0)?"""
+    return settings.rank != "nominal" and settings.landing_mm > 0
+
+
 def moments_key(radius_mm: float, settings) -> tuple[float, float]:
     """What an object's moments depend on besides its poses: the landing radius and the patch radius."""
     return float(radius_mm), float(settings.patch_radius_mm)

@@ -34,7 +34,7 @@ from ..config import Config
 from ..match.refine import refined_search
 from ..match.scene import match_one, match_virtual
 from ..match.search import MatchSettings, cost_row
-from ..match.steady import moments_key, moments_of
+from ..match.steady import moments_key, moments_of, ranks_by_landings
 from ..match.targeted import feature_pool
 from ..mesh.load import load_mesh
 from ..mesh.manifest import ObjectSpec
@@ -142,7 +142,7 @@ def candidates_task(task: ObjectTask, job: Job) -> Computed | Failure:
     hand's reach)."""
     c, cached, _ = _candidates(task, job)
     meta, arrays = to_payload(c)
-    if job.match.rank != "nominal" and job.match.landing_mm > 0:
+    if ranks_by_landings(job.match):
         key = moments_key(job.match.landing_mm, job.settings)
         mean, var = moments_of(c, job.match.landing_mm, job.settings)
         meta, arrays = meta | {"moments_key": list(key)}, arrays | {"moments.mean": mean, "moments.var": var}
