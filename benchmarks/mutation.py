@@ -51,6 +51,7 @@ CORE = {
     "grasp/jets.py": ["test_jets.py", "test_curvature.py"],
     "grasp/pinches.py": ["test_pinches.py", "test_contract.py"],
     "grasp/hand.py": ["test_hand.py", "test_pinches.py"],
+    "grasp/finger_spheres.py": ["test_hand_queries.py", "test_distance_field.py", "test_hand.py"],
     "grasp/features.py": ["test_features.py"],
     "match/cost.py": ["test_cost.py"],
     "match/search.py": ["test_match.py", "test_cost.py", "test_redirect.py"],

@@ -6,7 +6,7 @@ from scipy.spatial import cKDTree
 
 from conftest import random_rigid, transformed
 from pinchmatch import PinchSettings, sample_pinches
-from pinchmatch.grasp import hand as hand_module
+from pinchmatch.grasp import finger_spheres
 from pinchmatch.grasp.hand import Hand, reach
 from pinchmatch.mesh import vessels
 from pinchmatch.mesh.distance_field import DistanceField
@@ -93,7 +93,7 @@ def test_the_field_spares_most_queries_of_a_sampling_run(turned_mug, monkeypatch
     mesh, _, _ = turned_mug
     context = SurfaceContext(mesh)
     asked, total = [], []
-    query = hand_module.query_tree
+    query = finger_spheres.query_tree
 
     def counting(tree, points, **options):
         asked.append(len(points))
@@ -105,7 +105,7 @@ def test_the_field_spares_most_queries_of_a_sampling_run(turned_mug, monkeypatch
         total.append(len(points))
         return bounds(self, points)
 
-    monkeypatch.setattr(hand_module, "query_tree", counting)
+    monkeypatch.setattr(finger_spheres, "query_tree", counting)
     monkeypatch.setattr(DistanceField, "bounds", seen)
     sample_pinches(context, settings=PinchSettings(count=300, seed=0))
     assert sum(asked) < 0.9 * sum(total)

@@ -83,15 +83,11 @@ Search for h:
    cells along the border of a region where the fingers fit but the hand does
    not get out, deep in a mug, are dropped at once).
 
-Each direction or cell is tested sphere by sphere, a pair at a time, coarse to
-fine along the finger, each pair only where the earlier ones did not already
-rule it out: one sphere with d + s·δ < ρ decides, so most directions that run
-into the object cost a few distance queries, not all of them. A distance is
-looked up in the surface's coarse distance field first
-(:mod:`pinchmatch.mesh.distance_field`): a sphere sure to be farther than the
-cap, or sure to be closer than what would rule its row out, needs no KD-tree
-query, and every decision is the one the query would give (on a 262k-face
-scanned mug, about 4 in 10 queries are spared).
+The hand's test comes before the fingers': a direction or a cell whose hand
+is stuck fails whatever its fingers meet, so its test spheres are never
+queried (a hollow object has many such, and a ray costs less than the dozen
+distance queries of a finger). How the spheres' distances are queried, each
+only where a decision needs it, is :mod:`pinchmatch.grasp.finger_spheres`.
 """
 
 from __future__ import annotations
@@ -102,7 +98,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..config import CLEARANCE_TOLERANCE_MM
-from ..cores import query_tree
+from .finger_spheres import axis_distances
 
 #: allowed penetration (mm) of a fingertip or finger into the surface: the pad is soft
 PAD_TOLERANCE_MM = CLEARANCE_TOLERANCE_MM
@@ -117,8 +113,6 @@ CELL_ALPHA_DEG = 20.0
 CLEARANCE_CAP_MM = 1.0
 #: at most this many open cells per pinch and refinement level, the most promising kept
 MAX_CELLS_PER_PINCH = 32
-#: test spheres per finger queried together, each batch only where the earlier ones clear
-STAGE_SPHERES = 2
 #: how far the fingertips beside the thumb's opposite (index and middle of a tripod) may lie apart along the
 #: approach: the middle finger is about 8 mm longer than the index (hand anthropometry, e.g. Greiner 1991),
 #: and flexing one finger a little more than the other makes up about as much again; a documented choice
@@ -126,8 +120,6 @@ FINGER_STAGGER_MM = 20.0
 #: how far each finger leans from the hand's approach, away from the other finger (deg): the pads of a pinch meet
 #: with the fingers in a V, not side by side; a documented choice (docs/method.md)
 FINGER_SPLAY_DEG = 15.0
-#: how far under its threshold a distance field's bound must lie to stand for the query (mm): rounding aside
-DECIDED_BELOW_MM = 1e-6
 #: how far below the support's horizontal a hand's approach may point (a hand sliding along the table)
 SUPPORT_LEVEL_TOLERANCE = 1e-9
 
@@ -236,87 +228,6 @@ def finger_directions(points: np.ndarray, approach: np.ndarray, hand: Hand) -> n
                               math.radians(hand.finger_splay_deg), points.shape[1])
 
 
-def _coarse_to_fine(count: int) -> list[int]:
-    """0 … count-1 ordered so that each prefix is spread along the finger: 0, the far end,
-    then halving the gaps (a finger pushed into the object is usually caught early)."""
-    order, seen, step = [], set(), 1 << max(count - 1, 1).bit_length()
-    while step:
-        for i in range(0, count, step):
-            if i not in seen:
-                seen.add(i)
-                order.append(i)
-        step //= 2
-    return order
-
-
-def _obstacle_distances(context, centres, cap, below, bounds):
-    """(k,) distance from each centre to the nearest surface sample or to the half-space below the
-    object's support (0 inside it), capped at ``cap``: both are 1-Lipschitz, as the bounds need.
-
-    Where the surface's distance field already decides, no KD-tree query is made: a centre sure to
-    lie at least ``cap`` from every sample reads ``cap`` (as the query would), and one sure to lie
-    closer than its ``below`` (k,) reads the field's upper bound, which is also below it: the
-    callers compare each distance with its ``below`` only, so every decision is the query's.
-    ``bounds``: the field's (lower, upper) of these centres."""
-    lower, upper = bounds
-    q = np.where(lower >= cap, cap, upper)
-    ask = np.flatnonzero((lower < cap) & (upper >= np.asarray(below) - DECIDED_BELOW_MM))
-    if len(ask):
-        exact, _ = query_tree(context.tree, centres[ask], k=1, distance_upper_bound=cap, work=len(ask))
-        q[ask] = exact
-    q = np.minimum(q, cap)
-    if context.support is not None:
-        q = np.minimum(q, np.maximum(context.support.heights(centres), 0.0))
-    return q
-
-
-def _axis_distances(context, tips, h, offsets, cap, rho, delta=None, first=None):
-    """(m, F, P) distance from each test centre to the nearest sample (or the support), capped at ``cap``.
-
-    tips : (m, F, 3) fingertip centres (F fingers of one hand), h : (m, F, 3) each finger's direction,
-    delta : (m, F) how far, per mm along the finger, a test centre can move within the cell of directions
-    around h (0: h alone). A
-    row is ruled out by one test sphere with d + offset·δ < ρ. The distance field's bounds of every
-    sphere come first: a row that one sphere's upper bound surely rules out needs no query at all (its
-    spheres read that bound, or ``cap``). The other rows' spheres are queried a few at a time, coarse to
-    fine along the finger, each batch only for the rows no earlier sphere ruled out; ``first`` (m,), where
-    given and not -1, names one sphere per row (finger-major: finger · P + sphere) to query before them.
-    The spheres not queried read ``cap``, which changes no decision: a ruled-out row neither fits nor
-    bounds a cell above ρ."""
-    m, fingers = len(h), tips.shape[1]
-    delta = np.zeros((m, fingers)) if delta is None else delta
-    shape = (m, fingers, len(offsets))
-    centres = tips[:, :, None, :] + offsets[None, None, :, None] * h[:, :, None, :]
-    lower, upper = (b.reshape(shape) for b in context.distance_field.bounds(centres.reshape(-1, 3)))
-    sure = upper if context.support is None else np.minimum(upper, np.maximum(context.support.heights(centres), 0.0))
-    out = sure + offsets * delta[:, :, None] < rho - DECIDED_BELOW_MM
-    ruled = out.any(axis=(1, 2))
-    d = np.full(shape, cap)
-    d[ruled] = np.where(out[ruled], sure[ruled], cap)
-    rows = np.flatnonzero(~ruled)
-    if first is not None and len(rows):
-        hinted = rows[first[rows] >= 0]
-        f, j = np.divmod(first[hinted], len(offsets))
-        slack = offsets[j] * delta[hinted, f]
-        q = _obstacle_distances(context, centres[hinted, f, j], cap, rho - slack,
-                                (lower[hinted, f, j], upper[hinted, f, j]))
-        d[hinted, f, j] = q
-        rows = np.setdiff1d(rows, hinted[q + slack < rho], assume_unique=True)
-    order = _coarse_to_fine(len(offsets))
-    for start in range(0, len(order), STAGE_SPHERES):
-        if not len(rows):
-            break
-        stage = np.array(order[start:start + STAGE_SPHERES])
-        off = offsets[stage]
-        pick = np.ix_(rows, np.arange(fingers), stage)
-        below = rho - off[None, None, :] * delta[rows, :, None]
-        q = _obstacle_distances(context, centres[pick].reshape(-1, 3), cap, below.ravel(),
-                                (lower[pick].ravel(), upper[pick].ravel())).reshape(len(rows), fingers, len(off))
-        d[pick] = q
-        rows = rows[(q + off * delta[rows, :, None] >= rho).all(axis=(1, 2))]
-    return d
-
-
 def _staggered(tips, h, limit):
     """(m,) bool: the fingers opposite the thumb (tips 1…F-1) lie further apart along h than ``limit``
     (never for a pinch's single finger)."""
@@ -347,6 +258,18 @@ def _hand_free(context, tips, h, length):
     if context.support is not None:
         free &= (h @ context.support.normal >= -SUPPORT_LEVEL_TOLERANCE).all(axis=1)
     return free
+
+
+def _hand_gate(context, tips, h, length, possible=None):
+    """The gate of :func:`_axis_distances` for fingertips ``tips`` and finger directions ``h`` (m, F, 3): of
+    the rows it is asked about, those ``possible`` (m,) bool (default: all) whose hand gets out
+    (:func:`_hand_free`)."""
+    def gate(sub):
+        passed = np.ones(len(sub), dtype=bool) if possible is None else possible[sub].copy()
+        if passed.any():
+            passed[passed] = _hand_free(context, tips[sub[passed]], h[sub[passed]], length)
+        return passed
+    return gate
 
 
 def reach(context, points: np.ndarray, normals: np.ndarray, hand: Hand,
@@ -450,9 +373,11 @@ def _quick(context, hand, pending, h, geometry, sin_tilt, found):
     rows = np.repeat(pending, k)
     in_band = np.abs(np.einsum("ij,ij->i", h, u[rows])) <= sin_tilt
     hf = _finger_directions(u[rows], h, math.radians(hand.finger_splay_deg), tips.shape[1])
-    d = _axis_distances(context, tips[rows], hf, offsets, cap, rho)
-    clears = in_band & (d >= rho).all(axis=(1, 2)) & ~_staggered(tips[rows], h, hand.finger_stagger_mm)
-    clears[clears] = _hand_free(context, tips[rows[clears]], hf[clears], hand.finger_length_mm)
+    # a direction out of the band, or whose hand is stuck, fails whatever its fingers meet: not queried
+    possible = in_band & ~_staggered(tips[rows], h, hand.finger_stagger_mm)
+    d, refused = axis_distances(context, tips[rows], hf, offsets, cap, rho,
+                                gate=_hand_gate(context, tips[rows], hf, hand.finger_length_mm, possible))
+    clears = possible & ~refused & (d >= rho).all(axis=(1, 2))  # each asked the gate: its hand gets out
     clears = clears.reshape(-1, k)
     margin = (d.min(axis=(1, 2)) - hand.finger_radius_mm).reshape(-1, k)
     pick = np.argmax(np.where(clears, margin, -np.inf), axis=1)
@@ -516,13 +441,13 @@ def _search_band(context, tips, u, e1, e2, pending, hand, offsets, rho, cap):
             live = least <= hand.finger_stagger_mm
         idx = np.flatnonzero(live)
         # the sphere that bounded the parent is queried first: most cells that can be dropped are dropped by it
-        d = _axis_distances(context, tips[rows[idx]], hf[idx], offsets, cap, rho, delta_f[idx],
-                            first=hint[idx]).reshape(len(idx), fingers * len(offsets))
+        # a cell whose centre's hand is stuck is dropped whatever its fingers meet: its spheres are not queried
+        d, stuck = axis_distances(context, tips[rows[idx]], hf[idx], offsets, cap, rho, delta_f[idx],
+                                  first=hint[idx], gate=_hand_gate(context, tips[rows[idx]], hf[idx], length))
+        d = d.reshape(len(idx), fingers * len(offsets))
         margin = d.min(axis=1) - hand.finger_radius_mm
         fits = (d >= rho).all(axis=1) & ~_staggered(tips[rows[idx]], h[idx], hand.finger_stagger_mm)
-        clears = fits.copy()
-        if fits.any():
-            clears[fits] = _hand_free(context, tips[rows[idx[fits]]], hf[idx[fits]], length)
+        clears = fits & ~stuck  # a row that fits was asked the gate: its hand gets out
         if clears.any():
             # per pinch, the clearing cell with the most clearance (first of equals in cell order)
             hit = np.flatnonzero(clears)
@@ -541,10 +466,7 @@ def _search_band(context, tips, u, e1, e2, pending, hand, offsets, rho, cap):
         bound = slack.min(axis=1)
         # a finger that fits where the hand behind it does not get out is not refined: the
         # hand's line is tested at cell centres only, and neither is a cell whose centre's hand is stuck
-        keep = ~decided[rows[idx]] & ~fits & (bound >= rho)
-        if keep.any():
-            ask = np.flatnonzero(keep)
-            keep[ask] = _hand_free(context, tips[rows[idx[ask]]], hf[idx[ask]], length)
+        keep = ~decided[rows[idx]] & ~fits & ~stuck & (bound >= rho)
         cand = np.flatnonzero(keep)
         if len(cand):
             # per pinch, the most promising cells (largest bound, then cell order)
