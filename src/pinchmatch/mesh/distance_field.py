@@ -84,14 +84,17 @@ class DistanceField:
         """(lower, upper), each (n,): the distance from each point to the nearest sample lies between
         them (``upper`` is inf outside the grid, ``lower`` the margin there)."""
         points = np.asarray(points, dtype=np.float64)
-        shape = np.array(self.distance_mm.shape)
-        cells = np.floor((points - self.origin_mm) / self.voxel_mm).astype(np.int64)
+        shape = self.distance_mm.shape
+        scaled = (points - self.origin_mm) * (1.0 / self.voxel_mm)
+        cells = np.floor(scaled)
+        across = scaled - cells - 0.5  # from the voxel's centre, in voxels
+        cells = cells.astype(np.int64)
         inside = ((cells >= 0) & (cells < shape)).all(axis=1)
-        cells = np.clip(cells, 0, shape - 1)
-        centre = self.origin_mm + (cells + 0.5) * self.voxel_mm
-        off = np.linalg.norm(points - centre, axis=1)
-        e = self.distance_mm[cells[:, 0], cells[:, 1], cells[:, 2]].astype(np.float64)
-        slack = off + self.voxel_mm * math.sqrt(3.0) / 2.0 + GUARD * (1.0 + np.abs(points).max(initial=0.0))
+        np.clip(cells, 0, np.array(shape) - 1, out=cells)
+        e = self.distance_mm.ravel()[(cells[:, 0] * shape[1] + cells[:, 1]) * shape[2] + cells[:, 2]]
+        e = e.astype(np.float64)
+        off = self.voxel_mm * np.sqrt(np.einsum("ij,ij->i", across, across))
+        slack = off + (self.voxel_mm * math.sqrt(3.0) / 2.0 + GUARD * (1.0 + np.abs(points).max(initial=0.0)))
         slack += 2.4e-7 * e  # e was rounded to float32
         lower = np.where(inside, np.maximum(e - slack, 0.0), self.margin_mm)
         upper = np.where(inside, e + slack, np.inf)
