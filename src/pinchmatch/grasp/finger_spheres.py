@@ -126,6 +126,8 @@ def axis_distances(context, tips, h, offsets, cap, rho, delta=None, first=None, 
         stage = np.array(order[start:start + STAGE_SPHERES])
         slack = offsets[stage][None, None, :] * delta[rows, :, None]
         need = ~blocked[rows, None, None] | (slack <= least[rows, None, None])
+        if first is not None:  # the hinted sphere was queried already
+            need &= (np.arange(fingers)[:, None] * len(offsets) + stage)[None] != first[rows, None, None]
         at = np.nonzero(need)
         r, f, j = rows[at[0]], at[1], stage[at[2]]
         q = np.full(need.shape, cap)  # a sphere not asked decides nothing here, and keeps what it reads
