@@ -251,3 +251,26 @@ def test_a_support_is_reported_in_plain_rounded_numbers():
     record = plane.as_dict()
     assert record == {"normal": [0.123457, 0.99, 0.0], "height_mm": -33.123, "source": "pose"}
     assert all(type(c) is float for c in record["normal"]) and type(record["height_mm"]) is float
+
+
+def test_the_clearance_rule_decides_as_the_unbounded_distance_does():
+    """The fingertip test asks the KD-tree only up to its threshold: the verdicts are those of the exact
+    distance, on a mug turned at random, off the origin, at contacts anywhere (inside, the handle)."""
+    from conftest import random_rigid, transformed
+    from pinchmatch.config import CLEARANCE_TOLERANCE_MM
+    from pinchmatch.grasp.pinches import clearance_broken
+    from pinchmatch.mesh import vessels
+
+    R, t = random_rigid(31)
+    context = SurfaceContext(transformed(vessels.mug(), R, t))
+    rng = np.random.default_rng(4)
+    faces = rng.integers(0, len(context.mesh.faces), (3000, 2))
+    points = np.einsum("nfk,nfkd->nfd", rng.dirichlet(np.ones(3), (3000, 2)), context.mesh.triangles[faces])
+    normals = context.mesh.face_normals[faces]
+    settings = PinchSettings()
+    broken = clearance_broken(context, points, normals, settings)
+    centres = (points + settings.fingertip_radius_mm * normals).reshape(-1, 3)
+    exact, _ = cKDTree(context.sample.points).query(centres)
+    expected = ~(exact >= settings.fingertip_radius_mm - CLEARANCE_TOLERANCE_MM).reshape(-1, 2).all(axis=1)
+    np.testing.assert_array_equal(broken, expected)
+    assert 0.05 < broken.mean() < 0.95

@@ -145,9 +145,10 @@ def clearance_broken(context: SurfaceContext, points: np.ndarray, normals: np.nd
                      settings: PinchSettings) -> np.ndarray:
     r = settings.fingertip_radius_mm
     centres = (points + r * normals).reshape(-1, 3)
-    clear = context.min_distance_to_samples(centres) >= r - CLEARANCE_TOLERANCE_MM
+    least = r - CLEARANCE_TOLERANCE_MM
+    clear = context.min_distance_to_samples(centres, beyond_mm=least) >= least
     if context.support is not None:  # and above what the object stands on
-        clear &= context.support.heights(centres) >= r - CLEARANCE_TOLERANCE_MM
+        clear &= context.support.heights(centres) >= least
     return ~clear.reshape(len(points), points.shape[1]).all(axis=1)
 
 

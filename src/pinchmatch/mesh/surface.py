@@ -323,7 +323,8 @@ class SurfaceContext:
         closest, distance, face = trimesh.proximity.closest_point(self.mesh, points)
         return np.asarray(closest), np.asarray(distance), np.asarray(face, dtype=np.int64)
 
-    def min_distance_to_samples(self, points: np.ndarray) -> np.ndarray:
-        """Distance (mm) from each point to the nearest dense surface sample."""
-        distance, _ = query_tree(self.tree, points, k=1, work=len(points))
+    def min_distance_to_samples(self, points: np.ndarray, *, beyond_mm: float = np.inf) -> np.ndarray:
+        """Distance (mm) from each point to the nearest dense surface sample; inf where it is ``beyond_mm``
+        or more (the tree's search stops there: a caller that only compares with it pays less)."""
+        distance, _ = query_tree(self.tree, points, k=1, distance_upper_bound=beyond_mm, work=len(points))
         return distance
