@@ -261,9 +261,9 @@ def _hand_free(context, tips, h, length):
 
 
 def _hand_gate(context, tips, h, length, possible=None):
-    """The gate of :func:`_axis_distances` for fingertips ``tips`` and finger directions ``h`` (m, F, 3): of
-    the rows it is asked about, those ``possible`` (m,) bool (default: all) whose hand gets out
-    (:func:`_hand_free`)."""
+    """The gate of :func:`~pinchmatch.grasp.finger_spheres.axis_distances` for fingertips ``tips`` and
+    finger directions ``h`` (m, F, 3): of the rows it is asked about, those ``possible`` (m,) bool
+    (default: all) whose hand gets out (:func:`_hand_free`)."""
     def gate(sub):
         passed = np.ones(len(sub), dtype=bool) if possible is None else possible[sub].copy()
         if passed.any():
