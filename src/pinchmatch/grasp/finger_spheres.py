@@ -38,7 +38,7 @@ STAGE_SPHERES = 2
 DECIDED_BELOW_MM = 1e-6
 
 
-def coarse_to_fine(count: int) -> list[int]:
+def _coarse_to_fine(count: int) -> list[int]:
     """0 … count-1 ordered so that each prefix is spread along the finger: 0, the far end,
     then halving the gaps (a finger pushed into the object is usually caught early)."""
     order, seen, step = [], set(), 1 << max(count - 1, 1).bit_length()
@@ -51,7 +51,7 @@ def coarse_to_fine(count: int) -> list[int]:
     return order
 
 
-def obstacle_distances(context, centres, cap, below, bounds):
+def _obstacle_distances(context, centres, cap, below, bounds):
     """(k,) distance from each centre to the nearest surface sample or to the half-space below the
     object's support (0 inside it), capped at ``cap``: both are 1-Lipschitz, as the bounds need.
 
@@ -94,19 +94,20 @@ def axis_distances(context, tips, h, offsets, cap, rho, delta=None, first=None, 
     sure = upper if context.support is None else np.minimum(upper, np.maximum(context.support.heights(centres), 0.0))
     term = sure + offsets * delta[:, :, None]
     ruled = (term < rho - DECIDED_BELOW_MM).any(axis=(1, 2))
-    # a sphere surely closer than ρ reads its upper bound until it is queried, any other ``cap``
-    d = np.where(sure < rho, sure, cap)
+    close = sure < rho  # surely closer than ρ
+    # such a sphere reads its upper bound until it is queried, any other ``cap``
+    d = np.where(close, sure, cap)
     rows = np.flatnonzero(~ruled)
     # per row, a sure upper bound on its least d + offset·δ, and whether some sphere is surely closer than ρ:
     # then the centre does not fit, and a sphere whose offset·δ alone exceeds that least decides nothing
     least = term.min(axis=(1, 2))
-    blocked = (sure < rho).any(axis=(1, 2))
+    blocked = close.any(axis=(1, 2))
     if first is not None and len(rows):
         hinted = rows[first[rows] >= 0]
         f, j = np.divmod(first[hinted], len(offsets))
         slack = offsets[j] * delta[hinted, f]
-        q = obstacle_distances(context, centres[hinted, f, j], cap, rho - slack,
-                               (lower[hinted, f, j], upper[hinted, f, j]))
+        q = _obstacle_distances(context, centres[hinted, f, j], cap, rho - slack,
+                                (lower[hinted, f, j], upper[hinted, f, j]))
         d[hinted, f, j] = q
         least[hinted] = np.minimum(least[hinted], q + slack)
         blocked[hinted] |= q < rho
@@ -117,7 +118,7 @@ def axis_distances(context, tips, h, offsets, cap, rho, delta=None, first=None, 
         refused[rows[~passed]] = True
         rows = rows[passed]
     # the spheres that can rule a row out first (offset·δ < ρ), coarse to fine, then those that cannot
-    order = coarse_to_fine(len(offsets))
+    order = _coarse_to_fine(len(offsets))
     reach_out = offsets * delta.max(initial=0.0) < rho
     order = [j for j in order if reach_out[j]] + [j for j in order if not reach_out[j]]
     for start in range(0, len(order), STAGE_SPHERES):
@@ -131,8 +132,8 @@ def axis_distances(context, tips, h, offsets, cap, rho, delta=None, first=None, 
         at = np.nonzero(need)
         r, f, j = rows[at[0]], at[1], stage[at[2]]
         q = np.full(need.shape, cap)  # a sphere not asked decides nothing here, and keeps what it reads
-        q[need] = d[r, f, j] = obstacle_distances(context, centres[r, f, j], cap, rho - slack[need],
-                                                  (lower[r, f, j], upper[r, f, j]))
+        q[need] = d[r, f, j] = _obstacle_distances(context, centres[r, f, j], cap, rho - slack[need],
+                                                   (lower[r, f, j], upper[r, f, j]))
         least[rows] = np.minimum(least[rows], (q + slack).min(axis=(1, 2)))
         blocked[rows] |= (q < rho).any(axis=(1, 2))
         rows = rows[(q + slack >= rho).all(axis=(1, 2))]
