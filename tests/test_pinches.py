@@ -274,3 +274,24 @@ def test_the_clearance_rule_decides_as_the_unbounded_distance_does():
     expected = ~(exact >= settings.fingertip_radius_mm - CLEARANCE_TOLERANCE_MM).reshape(-1, 2).all(axis=1)
     np.testing.assert_array_equal(broken, expected)
     assert 0.05 < broken.mean() < 0.95
+
+
+def test_too_wide_refuses_a_wide_convex_object_and_leaves_a_wide_ring_to_sampling():
+    from conftest import random_rigid, transformed
+    from pinchmatch.grasp.analysis import _inner_hull_volume, too_wide
+
+    R, t = random_rigid(23)
+    settings = PinchSettings()  # the largest pinch: 100 mm
+    ball = transformed(shapes.sphere(70.0, faces=20_000).mesh, R, t)  # 140 mm across in every direction
+    with pytest.raises(NoFeasiblePinchError, match=r"ball: no feasible pinch: 1[34]\d x 1[34]\d x 1[34]\d mm"):
+        too_wide(ball, settings, "ball")
+    # a 200 mm ring whose tube a hand pinches (24 mm): its oriented box's least extent is 24 mm, and a thick
+    # ring 104 mm across its tube and 264 mm wide is not convex either: sampling decides for both
+    too_wide(transformed(shapes.torus(88.0, 12.0, faces=20_000).mesh, R, t), settings, "ring")
+    thick = transformed(shapes.torus(80.0, 52.0, faces=20_000).mesh, R, t)
+    assert np.sort(thick.bounding_box_oriented.primitive.extents)[0] > 100.0
+    too_wide(thick, settings, "thick ring")
+    # the hull of a few thousand vertices bounds the whole hull's volume from below, closely on a fine mesh
+    for mesh in (ball, thick):
+        inner, whole = _inner_hull_volume(mesh.vertices), mesh.convex_hull.volume
+        assert 0.95 * whole < inner <= whole * (1.0 + 1e-9)
