@@ -109,3 +109,16 @@ def test_the_field_spares_most_queries_of_a_sampling_run(turned_mug, monkeypatch
     monkeypatch.setattr(DistanceField, "bounds", seen)
     sample_pinches(context, settings=PinchSettings(count=300, seed=0))
     assert sum(asked) < 0.9 * sum(total)
+
+
+def test_points_beyond_any_grid_or_not_numbers_read_as_outside(turned_mug):
+    mesh, _, _ = turned_mug
+    points = SurfaceContext(mesh).sample.points
+    field = DistanceField.of(points, margin_mm=FIELD_MARGIN_MM)
+    x = np.array([[np.nan, 0.0, 0.0], [np.inf, 0.0, 0.0], [-np.inf, 1.0, 2.0], [1e6, -1e6, 0.0],
+                  points[0] + [0.0, np.nan, 0.0]])
+    lower, upper = field.bounds(x)
+    assert (lower == FIELD_MARGIN_MM).all() and np.isinf(upper).all()
+    # and a point on the surface among those that are not finite keeps its own bounds
+    lower, upper = field.bounds(np.vstack([x[[0, 1, 2, 4]], points[:1]]))
+    assert lower[-1] == 0.0 and upper[-1] < 2.0 * np.sqrt(3.0) * field.voxel_mm

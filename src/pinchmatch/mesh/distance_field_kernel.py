@@ -21,14 +21,15 @@ def field_bounds(points, origin, inverse_voxel, voxel, distance, guard, margin, 
     """For each row of ``points`` (n, 3): its voxel of the grid ``distance`` (a, b, c) float32, whose lowest
     corner is ``origin`` and side ``voxel`` (``inverse_voxel`` its inverse); ``lower[i]`` and ``upper[i]``
     bound the distance to the nearest sample: e ∓ (|x - g| + v·√3/2 + guard·(1 + max |x|) + 2.4e-7·e), the
-    voxel's value e and centre g, max |x| over every coordinate of ``points``; the margin and inf outside
-    the grid."""
+    voxel's value e and centre g, max |x| over the finite coordinates of ``points``; the margin and inf
+    outside the grid (and for a point that is not finite)."""
     shape = distance.shape
     flat = distance.ravel()
-    largest = 0.0
+    largest = 0.0  # over the finite coordinates: a point that is not one is outside, and spoils no other's guard
     for i in range(points.shape[0]):
         for axis in range(3):
-            largest = max(largest, abs(points[i, axis]))
+            if abs(points[i, axis]) < np.inf:
+                largest = max(largest, abs(points[i, axis]))
     constant = voxel * math.sqrt(3.0) / 2.0 + guard * (1.0 + largest)
     for i in range(points.shape[0]):
         inside = True
@@ -39,7 +40,7 @@ def field_bounds(points, origin, inverse_voxel, voxel, distance, guard, margin, 
             cell = np.floor(scaled)
             across = scaled - cell - 0.5  # from the voxel's centre, in voxels
             across2 += across * across
-            if cell < 0.0:
+            if not cell >= 0.0:  # below the grid, or not a number
                 inside = False
                 cell = 0.0
             elif cell > shape[axis] - 1:
