@@ -3,7 +3,8 @@ next to this file).
 
 The reach search asks the field for the bounds of a few million test centres per thousand pinches. In
 numpy the bounds take a dozen passes over (n, 3) temporaries; one pass per point reads its voxel and
-writes both bounds. The arithmetic is the module's, in the same order.
+writes both bounds, 2.5-4 times as fast. The arithmetic is the module's; its last bits may differ
+(by a few 1e-15 mm), which the field's rounding guard covers.
 
 Imported when a field is first asked for bounds, so that starting pinchmatch does not load numba.
 """
