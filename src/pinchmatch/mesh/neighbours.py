@@ -56,11 +56,11 @@ def neighbours_within(tree, samples: np.ndarray, points: np.ndarray, radius: flo
         slot = np.full(len(cubes), -1, dtype=np.int64)
         slot[asked] = np.arange(len(asked))
         centres = (cubes[asked] + 0.5) * side
-        lists = tree.query_ball_point(centres, (radius + 0.5 * np.sqrt(3.0) * side) * (1.0 + 1e-9))
+        # each cube's list ascending (scipy sorts each list it returns), the lists in cube order
+        lists = tree.query_ball_point(centres, (radius + 0.5 * np.sqrt(3.0) * side) * (1.0 + 1e-9), return_sorted=True)
         lengths = np.fromiter((len(found) for found in lists), dtype=np.int64, count=len(lists))
         candidates = np.fromiter(itertools.chain.from_iterable(lists), dtype=np.int64, count=int(lengths.sum()))
         starts = np.r_[0, np.cumsum(lengths)]
-        candidates = candidates[np.lexsort((candidates, np.repeat(np.arange(len(asked)), lengths)))]
         from .neighbours_kernel import within  # numba: imported when a cluster is first asked
 
         within(np.ascontiguousarray(samples, dtype=np.float64), points, grouped, slot[cube_of[grouped]], starts,
