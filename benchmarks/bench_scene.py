@@ -12,8 +12,9 @@ Both placements run side by side, as ``pinchmatch match`` runs from the command 
 fixed`` (the objects stay; the hand is redirected, or the carousel serves) and ``--placement
 registered``. Per object it prints the distance from the prop, the mode, the redirection angle as
 reported and as recomputed here from the reported targets and hand start, the reach gain, the redirected
-and the carousel's cost, the fixed and the registered cost, and how far the chosen tangible pinch moved
-between the two (mm, the larger contact displacement); then the redirects that cost more than their
+and the carousel's cost, the fixed and the registered cost, how far the chosen tangible pinch moved
+between the two (mm, the larger contact displacement) and the rest gap of each object shown on the prop (mm
+over the prop's table; - sunk into it); then how many sink or hover, then the redirects that cost more than their
 carousel plus the margin (none, by the rule), the gains, the split, the largest disagreement of the angles
 and the wall times side by side. Last, a level of 100 objects (the real ones again and again on a grid):
 the size of its page and the time Chromium takes to open it and show its first entry.
@@ -151,7 +152,7 @@ def main(argv=None) -> int:
         subprocess.run(argv, check=False, capture_output=True)
         page_mb, page_s = page_load(big / "out" / "index.html")
     head = ("object", "from prop mm", "mode", "angle deg", "recomputed", "gain", "redirect cost", "carousel cost",
-            "fixed cost", "registered cost", "pinch moved mm")
+            "fixed cost", "registered cost", "pinch moved mm", "rest gap mm fixed/registered")
     rows, worst = [head], 0.0
     for node, distance in placed:
         m, r = fixed[node], registered[node]
@@ -163,7 +164,8 @@ def main(argv=None) -> int:
 
         rows.append((node, f"{distance:.0f}", red["mode"], f"{red['angle_deg']:.2f}", f"{again:.2f}",
                      f"{red['gain']:.3f}", cost(red.get("redirect_cost")), cost(red.get("carousel_cost")),
-                     f"{m['cost']:.3g}", f"{r['cost']:.3g}", f"{pinch_moved_mm(m, r):.1f}"))
+                     f"{m['cost']:.3g}", f"{r['cost']:.3g}", f"{pinch_moved_mm(m, r):.1f}",
+                     "/".join("-" if x.get("rest_gap_mm") is None else f"{x['rest_gap_mm']:+.1f}" for x in (m, r))))
     widths = [max(len(str(row[i])) for row in rows) for i in range(len(head))]
     print(f"# {len(placed)} real objects around one prop, {count} poses each")
     for row in rows:
@@ -178,6 +180,11 @@ def main(argv=None) -> int:
     print(f"redirect {modes.count('redirect')}, carousel {modes.count('carousel')}; largest difference between "
           f"reported and recomputed angle {worst:.4f} deg; wall time fixed {t_fixed:.1f} s, registered "
           f"{t_registered:.1f} s ({t_fixed / t_registered:.2f}x)")
+    for name, doc in (("fixed (the carousel)", fixed), ("registered", registered)):
+        gaps = np.array([doc[node]["rest_gap_mm"] for node, _ in placed if doc[node].get("rest_gap_mm") is not None])
+        print(f"{name}: {len(gaps)} objects shown on the prop; sunk more than 2 mm into its table "
+              f"{int((gaps < -2.0).sum())}, more than 10 mm above it {int((gaps > 10.0).sum())}, not within 2 mm "
+              f"{int((np.abs(gaps) > 2.0).sum())} (rest_gap_mm as reported; bench_level.py re-measures it)")
     print(f"the page of a level of {PAGE_OBJECTS} objects (200 poses each): {page_mb:.1f} MB, first entry shown "
           f"{page_s:.2f} s after opening it (Chromium, headless)")
     return 0

@@ -30,6 +30,7 @@ CHANGED = {
     "one_to_one": None, "keep_upright": None, "distinct_mm": "40", "refine": "off", "landing_mm": "3",
     "rank": "nominal", "placement": "fixed", "hand_start_mm": "40,180,260", "redirect_threshold_deg": "6",
     "max_redirect_deg": "9", "axis_threshold_deg": "25", "gain_range": "0.9,1.2", "carousel_margin_jnd": "1.5",
+    "rest_sink_mm_per_jnd": "0.5", "rest_float_mm_per_jnd": "20", "user_mm": "100,900,-400",
 }
 #: fields of the records that are no option: they change how the work is split, never a result
 INTERNAL = {"block_rows"}

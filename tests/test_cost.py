@@ -320,3 +320,23 @@ def test_tripod_pairs_cost_the_written_out_sum_in_the_better_order_of_the_finger
     assert len(keep) == 17 and repeats.sum() == 24  # 27 entries less the three across the grasp (always 0)
     bound = np.concatenate([b for _, b in pooled_bound_blocks(T, V, model, block_rows=4)])
     assert np.all(bound <= got ** (1 / 2) * 10) and np.all(bound > 0)
+
+
+@pytest.mark.parametrize("pooling", ["quick", "sum"])
+def test_a_placement_s_visible_fault_adds_to_the_pooled_cost_in_the_pooling_s_units(pooling):
+    """A rest gap's JND-equivalents x add x to a cost in JND (quick) and x² to a sum of contributions (sum),
+    after the criteria and any redirection are pooled; none, or 0, changes no bit."""
+    rng = np.random.default_rng(3)
+    model = CostModel(pooling=pooling)
+    terms, extra, rest = rng.uniform(0, 4, (50, 8)), rng.uniform(0, 2, (50, 2)), rng.uniform(0, 3, 50)
+    pooled = model.pool(terms, extra)
+    added = rest if pooling == "quick" else rest ** 2
+    np.testing.assert_allclose(model.pool(terms, extra, rest), pooled + added, rtol=1e-12)
+    assert np.array_equal(model.pool(terms, extra, np.zeros(50)), pooled)
+    assert np.array_equal(model.pool(terms, None, None), model.pool(terms))
+    np.testing.assert_allclose(model.pool(terms[0], None, 1.5), model.pool(terms[0]) + (1.5 if pooling == "quick" else 2.25))
+
+
+def test_a_model_keeps_its_rest_rates_in_jnd_form():
+    model = CostModel(rest_mm_per_jnd=(0.5, 7.0))
+    assert model.as_jnd().rest_mm_per_jnd == (0.5, 7.0)

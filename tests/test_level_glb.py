@@ -64,7 +64,7 @@ def test_the_level_carries_the_prop_at_its_pose_and_each_node_s_match(level_out,
     nodes = {n["name"]: n for n in doc["nodes"]}
     assert {"counter", "can_near", "box_near", "can_far", "pinchmatch_prop_can_prop"} <= set(nodes)
     assert "extras" not in nodes["counter"]  # skipped: the level keeps it, unmatched
-    assert doc["scenes"][0]["extras"]["pinchmatch"]["schema"] == "pinchmatch.level/1"
+    assert doc["scenes"][0]["extras"]["pinchmatch"]["schema"] == "pinchmatch.level/2"
     R = TURN.as_matrix()
     for name, m in matches.items():
         x = nodes[name]["extras"]["pinchmatch"]
@@ -86,6 +86,71 @@ def test_the_level_carries_the_prop_at_its_pose_and_each_node_s_match(level_out,
     low, high = placed.bounds
     assert low[1] == pytest.approx(0.9, abs=1e-6) and high[1] == pytest.approx(0.966, abs=1e-6)
     np.testing.assert_allclose((low + high)[[0, 2]] / 2, POSITION_MM[[0, 2]] / 1000.0, atol=1e-3)
+
+
+def _world(doc: dict) -> dict:
+    """{node index: its world matrix} composed here from the file's nodes (TRS or matrix), root down."""
+    from levels import _trs
+
+    def local(node):
+        return np.array(node["matrix"], dtype=float).reshape(4, 4).T if "matrix" in node else _trs(node)
+
+    out = {}
+
+    def walk(i, parent):
+        out[i] = parent @ local(doc["nodes"][i])
+        for c in doc["nodes"][i].get("children", []):
+            walk(c, out[i])
+
+    for root in doc["scenes"][0]["nodes"]:
+        walk(root, np.eye(4))
+    return out
+
+
+def test_a_carousel_object_parented_to_its_tracked_prop_rests_on_the_table(level_out, tmp_path, capsys):
+    """Every carousel object is a node below its prop's node; placed by that local transform under the prop
+    where the pose puts it, and again under the prop moved and turned elsewhere (as a tracker moves it), its
+    mesh rests on the prop's table (within 2 mm below, 10 mm above); its fingertip joints are the pads of
+    matches.json's contacts, named as OpenXR's joints; masses under OMI_physics_body."""
+    out = _run(capsys, level_out, tmp_path / "out", "--placement", "fixed", "--max-redirect-deg", "0.5")
+    matches = {m["virtual"]: m for m in json.loads((out / "matches.json").read_text())["matches"]}
+    doc = _document(out / "level.glb")
+    world = _world(doc)
+    index = {n["name"]: i for i, n in enumerate(doc["nodes"])}
+    prop = index["pinchmatch_prop_can_prop"]
+    np.testing.assert_allclose(world[prop][:3, :3], TURN.as_matrix(), atol=1e-6)
+    np.testing.assert_allclose(world[prop][:3, 3], POSITION_MM / 1000.0, atol=1e-6)
+    assert "OMI_physics_body" in doc["extensionsUsed"]
+    assert "motion" in doc["nodes"][prop]["extensions"]["OMI_physics_body"]
+    table = 0.9
+    tracked = np.eye(4)
+    tracked[:3, :3] = Rotation.from_euler("y", -70, degrees=True).as_matrix() @ TURN.as_matrix()
+    tracked[:3, 3] = [-1.2, world[prop][1, 3] + 0.3, 2.0]  # elsewhere, on a table 0.3 m higher
+    carousels = [n for n in doc["nodes"] if n["name"].startswith("carousel_")]
+    assert {n["name"] for n in carousels} == {f"carousel_{name}" for name, m in matches.items()
+                                              if m["redirection"]["mode"] == "carousel"} and carousels
+    scene = trimesh.load(out / "level.glb", force="scene")
+    for node in carousels:
+        i = index[node["name"]]
+        assert i in doc["nodes"][prop]["children"]
+        name = node["extras"]["pinchmatch"]["node"]
+        mesh = scene.geometry[scene.graph[name][1]]  # the level node's own mesh, in its own frame
+        local = np.linalg.inv(world[prop]) @ world[i]
+        for place, floor in ((world[prop], table), (tracked, table + 0.3)):
+            seen = (place @ local @ np.c_[mesh.vertices, np.ones(len(mesh.vertices))].T).T[:, :3]
+            gap_mm = (seen[:, 1].min() - floor) * 1000.0
+            assert -2.0 - 1e-3 <= gap_mm <= 10.0, (name, gap_mm)
+            assert gap_mm == pytest.approx(matches[name]["rest_gap_mm"], abs=0.05)
+        joints = {doc["nodes"][c]["name"]: world[c][:3, 3] for c in node.get("children", [])}
+        v = matches[name]["virtual_pose"]
+        T = np.array(matches[name]["transform_virtual_to_tangible"])
+        for joint, p, n in (("thumb_tip", v["p1_mm"], v["n1"]), ("index_tip", v["p2_mm"], v["n2"])):
+            pad = np.array(p) + 8.0 * np.array(n)  # the seen pad, registered onto the prop, into the level
+            expected = world[prop] @ np.r_[(T[:3, :3] @ pad + T[:3, 3]) / 1000.0, 1.0]
+            np.testing.assert_allclose(joints[joint], expected[:3], atol=2e-6)
+        assert {"pinch_center", "wrist"} <= set(joints)
+        wrist = np.linalg.norm(joints["wrist"] - joints["pinch_center"]) * 1000.0
+        assert wrist == pytest.approx(110.0, abs=1e-3)
 
 
 def test_no_level_is_written_under_the_registered_placement(level_out, tmp_path, capsys):
@@ -158,3 +223,47 @@ def test_the_desktop_page_says_each_object_s_mode_and_lists_the_failed_node(leve
         assert errors == []
     finally:
         pg.close()
+
+
+def test_three_js_places_a_carousel_object_on_its_prop_s_table(level_out, tmp_path, capsys, browser):
+    """The level as three.js's GLTFLoader reads it (the page's own bundle): each carousel node, a child of its
+    prop's node, has its mesh resting on the prop's table at y = 0.9 m; moving the prop's node (as a tracker
+    does) carries it along, still resting on the prop's table, now 0.3 m higher."""
+    import base64
+
+    out = tmp_path / "out"
+    code, _, err = run_cli(capsys, "match", "--tangible", level_out / "props.toml", "--virtual",
+                           level_out / "kitchen.glb", "--split", "nodes", "--count", 120, "-o", out, "--jobs", 1,
+                           "--placement", "fixed", "--max-redirect-deg", "0.5", "--no-figures")
+    assert code == 0, err
+    pg = browser.new_page()
+    try:
+        pg.goto((out / "index.html").as_uri())
+        pg.wait_for_selector("body[data-shown='0']", timeout=30_000)
+        lows = pg.evaluate("""async (data) => {
+            const { THREE, GLTFLoader } = PM3;
+            const bytes = Uint8Array.from(atob(data), (c) => c.charCodeAt(0)).buffer;
+            const gltf = await new Promise((ok, fail) => new GLTFLoader().parse(bytes, "", ok, fail));
+            const prop = gltf.scene.getObjectByName("pinchmatch_prop_can_prop");
+            const lowest = () => {
+                gltf.scene.updateMatrixWorld(true);
+                const out = {};
+                prop.children.filter((c) => c.name.startsWith("carousel_")).forEach((c) => {
+                    const box = new THREE.Box3();
+                    c.traverse((o) => { if (o.isMesh) box.expandByObject(o, true); });
+                    out[c.name] = box.min.y;
+                });
+                return out;
+            };
+            const before = lowest();
+            prop.position.y += 0.3;
+            prop.rotateOnWorldAxis(new THREE.Vector3(0, 1, 0), 1.2);  // turned about the vertical
+            return [before, lowest()];
+        }""", base64.b64encode((out / "level.glb").read_bytes()).decode())
+    finally:
+        pg.close()
+    before, after = lows
+    assert before and set(before) == set(after)
+    for name in before:
+        assert -0.002 - 1e-6 <= before[name] - 0.9 <= 0.010, (name, before[name])
+        assert after[name] - before[name] == pytest.approx(0.3, abs=1e-4)

@@ -43,8 +43,12 @@ def _match(capsys, folder, out, *extra):
 def test_globs_keep_and_leave_out_nodes_by_name_and_in_a_manifest(tmp_path):
     _level(tmp_path)
     level = tmp_path / "kitchen.glb"
-    every = [s.node for s in object_specs([level], option="--virtual", split="nodes")]
-    assert sorted(every) == ["box_c", "can_a", "can_b", "counter"]
+    notes = []
+    every = [s.node for s in object_specs([level], option="--virtual", split="nodes", notes=notes)]
+    assert sorted(every) == ["box_c", "can_a", "can_b"]  # the counter they stand on is furniture
+    assert len(notes) == 1 and "node counter left out" in notes[0] and "--nodes 'counter'" in notes[0]
+    named = object_specs([level], option="--virtual", split="nodes", nodes=["count*", "can_a"])
+    assert sorted(s.node for s in named) == ["can_a", "counter"]  # named, it comes back
     kept = object_specs([level], option="--virtual", split="nodes", skip_nodes=["counter"])
     assert sorted(s.node for s in kept) == ["box_c", "can_a", "can_b"]
     cans = object_specs([level], option="--virtual", split="nodes", nodes=["can_*"], skip_nodes=["*_b"])

@@ -116,21 +116,26 @@ def test_keep_upright_still_holds_for_the_carousel(tmp_path, capsys, kitchen):
     assert all(not m["flipped"] for m in matches.values())
 
 
-def test_a_pose_with_the_registered_placement_is_ignored_with_a_note(tmp_path, capsys, kitchen):
-    plain_props = tmp_path / "plain.toml"
-    plain_props.write_text(PROP.split("pose =")[0])
-    a = _run(capsys, kitchen, tmp_path / "a")
-    code, out, err = run_cli(capsys, "match", "--tangible", plain_props, "--virtual", kitchen / "kitchen.glb",
-                             "--split", "nodes", "--count", 200, "-o", tmp_path / "b", "--no-view", "--jobs", 1)
-    b = {m["virtual"]: m for m in json.loads((tmp_path / "b" / "matches.json").read_text())["matches"]}
-    assert {k: v["cost"] for k, v in a.items()} == {k: v["cost"] for k, v in b.items()}
-    assert all("redirection" not in m for m in a.values())
-    _run(capsys, kitchen, tmp_path / "c")
-    # the note is printed by the run with the pose
+def test_a_pose_with_the_registered_placement_says_where_the_user_reaches_from(tmp_path, capsys, kitchen):
+    """Registered, nothing is redirected, and the prop's pose is used, not ignored: it stands the prop on the level's
+    table with the user in front (+Z), so every pinch is reached from the user's half or from above 35 degrees,
+    which the reported angles say and which the prop's file frame alone (no pose) cannot say."""
     code, out, err = run_cli(capsys, "match", "--tangible", kitchen / "props.toml", "--virtual",
-                             kitchen / "kitchen.glb", "--split", "nodes", "--count", 200, "-o", tmp_path / "d",
+                             kitchen / "kitchen.glb", "--split", "nodes", "--count", 200, "-o", tmp_path / "a",
                              "--no-view", "--jobs", 1)
-    assert "used with --placement fixed only; ignored" in out + err
+    assert code == 0, err
+    assert "ignored" not in " ".join((out + err).split())
+    a = {m["virtual"]: m for m in json.loads((tmp_path / "a" / "matches.json").read_text())["matches"]}
+    assert all("redirection" not in m for m in a.values())
+    R = quaternion_matrix(Z_UP_IN_Y_UP)
+    for m in a.values():
+        for choice in [m] + m["alternatives"]:
+            pose = choice["tangible_pose"]
+            h = R @ np.array(pose["approach"])  # into the level
+            mid = R @ (np.array(pose["p1_mm"]) + pose["p2_mm"]) / 2.0
+            elevation = math.degrees(math.asin(h[1]))
+            toward = np.array([h[0], 0.0, h[2]]) @ (np.array([0.0, 150.0, 300.0]) - mid * [1, 0, 1])
+            assert toward >= -1e-9 or elevation >= 35.0, (m["virtual"], elevation)
 
 
 @pytest.mark.parametrize("pose, words", [

@@ -491,3 +491,38 @@ def test_a_tripod_demo_shows_three_cones_per_grasp_and_its_alternatives(browser,
     pg.wait_for_selector("body[data-choice='alternative 1']")
     assert errors == [], errors
     context.close()
+
+
+@pytest.mark.parametrize("virtual_up", ["y", "z"])
+def test_the_virtual_pose_view_stands_each_object_on_its_own_up(browser, tmp_path, capsys, virtual_up):
+    """A tall bottle, as a y-up GLB (metres) and as a z-up STL (mm), matched on a z-up box prop: in the virtual
+    pose view it stands upright (its longest side along the view's vertical), and its rest on the prop is said."""
+    import trimesh
+
+    bottle = trimesh.creation.cylinder(radius=30.0, height=180.0, sections=32)  # mm, its axis along z
+    if virtual_up == "y":
+        bottle.apply_transform(trimesh.transformations.rotation_matrix(-np.pi / 2, [1, 0, 0]))  # axis along y
+        bottle.apply_scale(0.001)
+        bottle.export(tmp_path / "bottle.glb")
+        virtual = tmp_path / "bottle.glb"
+    else:
+        bottle.export(tmp_path / "bottle.stl")
+        virtual = tmp_path / "bottle.stl"
+    trimesh.creation.box(extents=(60.0, 60.0, 120.0)).export(tmp_path / "prop.stl")
+    out = tmp_path / "out"
+    code, _, err = run(capsys, "match", "--tangible", tmp_path / "prop.stl", "--virtual", virtual, "--count", 150,
+                       "--no-figures", "--no-cache", "--jobs", 1, "-o", out)
+    assert code == 0, err
+    pg = browser.new_page(viewport={"width": 1400, "height": 900})
+    pg.goto((out / "index.html").as_uri())
+    pg.wait_for_selector("body[data-shown='0']", timeout=30_000)
+    size = pg.evaluate("""(() => {
+        const { THREE } = PM3;
+        const own = window.pinchmatchViewer.views.virtual.content.children[0];
+        own.updateMatrixWorld(true);
+        const s = new THREE.Box3().setFromObject(own).getSize(new THREE.Vector3());
+        return [s.x, s.y, s.z];
+    })()""")
+    assert size[1] > 2.5 * max(size[0], size[2]), size  # 180 mm tall, 60 mm across
+    assert "table" in pg.inner_text("#details")
+    pg.close()

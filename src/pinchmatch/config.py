@@ -239,6 +239,21 @@ CAROUSEL_MARGIN_JND = 0.5
 MAX_THRESHOLD_DEG, MAX_HAND_START_MM = 90.0, 1e5
 PLACEMENTS = ("registered", "fixed")
 
+# where the user stands (:mod:`pinchmatch.match.comfort`)
+#: an approach from the far half of a prop (seen from the user) must come from at least this far above the
+#: horizontal (deg): lower, the wrist or forearm would turn beyond its functional range; a choice
+FAR_SIDE_MIN_ELEVATION_DEG = 35.0
+
+# how a virtual object shown on a prop rests on the prop's support (:mod:`pinchmatch.match.rest`)
+#: within this many mm below or above the support, a placed object reads as resting and costs nothing
+REST_TOLERANCE_MM = 2.0
+#: mm past the tolerance that cost one JND: sinking into the support (a violation of solidity, seen at
+#: once) and hovering above it (read as resting or just lifted); choices, reasoned in docs/matching.md
+REST_SINK_MM_PER_JND = 1.0
+REST_FLOAT_MM_PER_JND = 10.0
+#: the bounds of both rates (mm per JND)
+REST_RATE_RANGE_MM = (0.01, 1e4)
+
 
 @dataclass(frozen=True)
 class Redirect:
@@ -311,6 +326,16 @@ class MatchSettings:
                                         help="with --placement fixed: an object stays in the level, the hand "
                                              "redirected, unless the carousel costs this many JND less (keeping the "
                                              "level intact is worth that much: docs/redirection.md)")
+    user_mm: tuple | None = option(None, group="placement", kind="vector", flag="--user-at", metavar="X,Y,Z",
+                                   help="where the user stands, mm in the level's frame (y up): a prop standing on a "
+                                        "table is pinched from this side or from above (default: where the hand "
+                                        "starts, in front (+Z) of each prop; docs/method.md)")
+    rest_sink_mm_per_jnd: float = option(REST_SINK_MM_PER_JND, group="placement", kind="float",
+                                         help="an object shown on a prop that stands on a table costs one JND per "
+                                              "this many mm it sinks into the table beyond 2 mm (docs/matching.md)")
+    rest_float_mm_per_jnd: float = option(REST_FLOAT_MM_PER_JND, group="placement", kind="float",
+                                          help="an object shown on a prop that stands on a table costs one JND per "
+                                               "this many mm it hovers above the table beyond 2 mm")
 
     def __post_init__(self):
         if tuple(self.criteria) not in (DEFAULT_CRITERIA, PAPER_CRITERIA):
@@ -336,20 +361,23 @@ class MatchSettings:
             raise ConfigError(f"--pooling: unknown pooling {self.pooling!r}; use quick (probability summation, "
                               "the default) or sum (the paper's sum of squares)")
         self._check_redirect()
+        if self.user_mm is not None:
+            object.__setattr__(self, "user_mm", _point("--user-at", self.user_mm))
+        lo, hi = REST_RATE_RANGE_MM
+        for name in ("rest_sink_mm_per_jnd", "rest_float_mm_per_jnd"):
+            value = getattr(self, name)
+            if not (_finite(value) and lo <= value <= hi):
+                flag = "--" + name.replace("_", "-")
+                raise ConfigError(f"{flag}: {value!r} must be from {lo:g} to {hi:g} mm per JND (how many mm of "
+                                  "visible gap between a shown object and the table cost one just-noticeable "
+                                  "difference)")
 
     def _check_redirect(self) -> None:
         if self.placement not in PLACEMENTS:
             raise ConfigError(f"--placement: unknown placement {self.placement!r}; use registered (the virtual "
                               "object brought onto the prop) or fixed (it stays where the level puts it)")
         if self.hand_start_mm is not None:
-            try:
-                start = tuple(float(c) for c in self.hand_start_mm)
-            except (TypeError, ValueError, OverflowError):
-                start = ()
-            if len(start) != 3 or not all(math.isfinite(c) and abs(c) <= MAX_HAND_START_MM for c in start):
-                raise ConfigError(f"--hand-start: {self.hand_start_mm!r} must be three numbers X,Y,Z in mm within "
-                                  f"{MAX_HAND_START_MM:g} mm of the level's origin")
-            object.__setattr__(self, "hand_start_mm", start)
+            object.__setattr__(self, "hand_start_mm", _point("--hand-start", self.hand_start_mm))
         try:
             gains = tuple(float(g) for g in self.gain_range)
         except (TypeError, ValueError, OverflowError):
@@ -388,6 +416,9 @@ class MatchSettings:
             "landing_mm": self.landing_mm,
             "rank": self.rank,
             "placement": self.placement,
+            "user_mm": None if self.user_mm is None else list(self.user_mm),
+            "rest_sink_mm_per_jnd": self.rest_sink_mm_per_jnd,
+            "rest_float_mm_per_jnd": self.rest_float_mm_per_jnd,
         } | ({} if self.placement != "fixed" else {
             "hand_start_mm": None if self.hand_start_mm is None else list(self.hand_start_mm),
             "redirect_threshold_deg": self.redirect_threshold_deg,
@@ -412,6 +443,19 @@ def finite_number(value) -> bool:
 
 
 _finite = finite_number
+
+
+def _point(flag: str, value) -> tuple:
+    """``value`` as a point (x, y, z) in mm within ``MAX_HAND_START_MM`` of the level's origin, or a one-line
+    error naming ``flag``."""
+    try:
+        point = tuple(float(c) for c in value)
+    except (TypeError, ValueError, OverflowError):
+        point = ()
+    if len(point) != 3 or not all(math.isfinite(c) and abs(c) <= MAX_HAND_START_MM for c in point):
+        raise ConfigError(f"{flag}: {value!r} must be three numbers X,Y,Z in mm within "
+                          f"{MAX_HAND_START_MM:g} mm of the level's origin")
+    return point
 
 
 @dataclass(frozen=True)

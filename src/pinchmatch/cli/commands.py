@@ -31,7 +31,8 @@ from .console import Presenter
 from .runs import (EXIT_SOME_FAILED, check_match_flags, check_placement, given_poses, level_note, match_job, standing, match_settings_of, object_tasks,
                    out_folder, pinch_settings_of, print_match, table_rows, virtual_level_specs, write_matches)
 from .universal import cmd_design, cmd_select, demo_design
-from ..export.documents import (features_document, flipped_note, matches_rows, poses_csv, poses_document, scene_stems,
+from ..export.notes import flipped_note
+from ..export.documents import (features_document, matches_rows, poses_csv, poses_document, scene_stems,
                                 matches_legend, study_document, study_legend, study_rows, to_json)
 from ..runner.tasks import Job, virtual_result
 from ..export.sink import MatchesSink
@@ -165,13 +166,16 @@ def _cmd_match(args) -> int:
     match_settings = match_settings_of(args)
     out = out_folder(args)
     tangible_specs = standing(object_specs(args.tangible, option="--tangible"), args, "tangible")
-    virtual_specs = standing(virtual_level_specs(args), args, "virtual")
+    left_out: list[str] = []
+    virtual_specs = standing(virtual_level_specs(args, left_out), args, "virtual")
     given_t = given_poses(args.tangible_poses, tangible_specs, "--tangible-poses", settings.grasp)
     given_v = given_poses(args.virtual_poses, virtual_specs, "--virtual-poses", settings.grasp)
     check_match_flags(args)
     cache = None if args.no_cache else FeatureCache(args.cache)
     job = match_job(args, settings, match_settings, cache)
     ui = Presenter(quiet=args.quiet, json_mode=args.json)
+    for note in left_out:
+        ui.note(note)
     if note := level_note(virtual_specs):
         ui.note(note)
     check_placement(match_settings, tangible_specs, virtual_specs, ui, units=args.units, up=args.up)

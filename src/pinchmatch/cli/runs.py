@@ -10,7 +10,8 @@ from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 
 from ..errors import ConfigError, RunError
-from ..export.documents import equivalent_note, flipped_note, matches_legend, redirection_note, scene_stems
+from ..export.documents import matches_legend, scene_stems
+from ..export.notes import comfort_note, equivalent_note, flipped_note, redirection_note, rest_note
 from ..export.sink import MatchesSink
 from ..export.view import write_page
 from ..files import check_writable, read_input, write_atomic
@@ -63,12 +64,10 @@ def check_placement(settings: MatchSettings, tangible_specs: list, virtual_specs
                     units: str | None = None, up: str | None = None) -> None:
     """What ``--placement`` needs of the objects, checked before any work: under ``fixed`` every virtual
     object placed by a level and the hand's start outside every prop (read in the run's ``units`` and
-    ``up`` where its spec gives none); under ``registered`` a prop's pose is not used (a note says so)."""
+    ``up`` where its spec gives none); under ``registered`` the options of the redirection are not used (a note
+    says so), while a prop's pose still says where it stands: on which table, and on which side of it the user
+    is (:mod:`pinchmatch.match.comfort`)."""
     if settings.redirect is None:
-        posed = [s.display_name for s in tangible_specs if s.pose is not None]
-        if posed:
-            ui.note(f"the pose of {', '.join(posed)} is used with --placement fixed only; ignored (each virtual "
-                    "object is brought onto its prop)")
         unused = [flag for flag, given in (("--hand-start", settings.hand_start_mm is not None),
                                            ("--gain-range", tuple(settings.gain_range) != GAIN_RANGE),
                                            ("--carousel-margin-jnd", settings.carousel_margin_jnd != CAROUSEL_MARGIN_JND))
@@ -110,13 +109,13 @@ def check_placement(settings: MatchSettings, tangible_specs: list, virtual_specs
                                   "hand rests before it reaches")
 
 
-def virtual_level_specs(args) -> list:
+def virtual_level_specs(args, notes: list | None = None) -> list:
     """The virtual objects the command line names (``--virtual``), a level split as ``--split``, ``--nodes``
-    and ``--skip-nodes`` say."""
+    and ``--skip-nodes`` say, its furniture left out (a line each in ``notes``)."""
     from ..mesh.manifest import object_specs
 
     return object_specs(args.virtual, option="--virtual", split=args.split, nodes=args.nodes or (),
-                        skip_nodes=args.skip_nodes or ())
+                        skip_nodes=args.skip_nodes or (), notes=notes, units=args.units, up=args.up)
 
 
 def level_note(specs: list) -> str | None:
@@ -232,13 +231,18 @@ def write_levels(stage: Path, out: Path, doc: dict, virtual_tasks, result, run_s
 
     specs = {t.spec.display_name: t.spec for t in virtual_tasks if t.spec is not None and t.spec.node is not None}
     props = {c.name: c.obj for c in result.tangibles}
+    objects = {v["name"]: v for v in doc.get("virtuals", [])}
     levels = sorted({spec.path for spec in specs.values()})
     written = []
     for path in levels:
         entries = {specs[m["virtual"]].node: (m, props[m["tangible"]].spec) for m in doc["matches"]
                    if m.get("tangible") is not None and m["virtual"] in specs and specs[m["virtual"]].path == path}
+        virtuals = {specs[name].node: entry for name, entry in objects.items()
+                    if name in specs and specs[name].path == path}
         name = "level.glb" if len(levels) == 1 else f"level-{Path(path).stem}.glb"
-        data = level_glb(path, [(obj.spec, obj.loaded.mesh) for obj in props.values()], entries, run_settings)
+        units = next((s.units for s in specs.values() if s.path == path and s.units), None) or run_settings.get("units")
+        data = level_glb(path, [(obj.spec, obj.loaded.mesh, obj.props.com_mm, obj.mass_g) for obj in props.values()],
+                         entries, run_settings, virtuals=virtuals, units=units)
         write_atomic(stage / name, data)
         written.append(str(out / name))
     return written
@@ -252,6 +256,10 @@ def print_match(ui, sink, result, run_settings) -> None:
     if note := redirection_note(sink.redirections):
         ui.note(note)
     if note := equivalent_note(sink.equivalents):
+        ui.note(note)
+    if note := rest_note(sink.rests):
+        ui.note(note)
+    if note := comfort_note(sink.approaches):
         ui.note(note)
     if result.failed:
         ui.table(table_rows([("file", "role", "problem")] + [(f.path, f.role, f.error) for f in result.failed],

@@ -84,9 +84,12 @@ def cmd_select(args) -> int:
         raise ConfigError(f"--max-k {args.max_k}: the coverage curve must reach -k {args.k}; give --max-k {args.k} "
                           "or more")
     out = out_folder(args)
-    scene_specs = standing(virtual_level_specs(args), args, "virtual")
+    left_out: list[str] = []
+    scene_specs = standing(virtual_level_specs(args, left_out), args, "virtual")
     check_match_flags(args)
     ui = Presenter(quiet=args.quiet, json_mode=args.json)
+    for note in left_out:
+        ui.note(note)
     check_placement(match_settings, shelf_specs, scene_specs, ui, units=args.units, up=args.up)
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="pinchmatch-select-") as scratch:
@@ -169,13 +172,16 @@ def cmd_design(args) -> int:
                             budget_s=args.budget_s, seed=args.seed, evaluations=args.evaluations,
                             supports=not args.no_supports)
     design.check()
-    scene_specs = standing(virtual_level_specs(args), args, "virtual")
+    left_out: list[str] = []
+    scene_specs = standing(virtual_level_specs(args, left_out), args, "virtual")
     shelf_specs = standing(object_specs(args.tangible, option="--tangible"), args, "tangible") if args.tangible else []
     if shelf_specs and not 1 <= args.k <= len(shelf_specs):
         raise ConfigError(f"-k {args.k}: the shelf to compare with has {len(shelf_specs)} props; give at most that")
     out = out_folder(args)
     check_match_flags(args)
     ui = Presenter(quiet=args.quiet, json_mode=args.json)
+    for note in left_out:
+        ui.note(note)
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="pinchmatch-design-") as scratch:
         cache = FeatureCache(scratch if args.no_cache else args.cache)

@@ -285,6 +285,11 @@ def _choice_record(scene, vm, choice, *, full: bool) -> dict:
         "mass_ratio": json_number(mass_ratio(T, V), 6),
         "mass_mismatch_mm": json_vector(choice.mass_delta_mm),
         "mass_mismatch_vertical_mm": json_number(float(choice.mass_delta_mm @ up_t)),
+        "rest_gap_mm": None if choice.rest_gap_mm is None else json_number(choice.rest_gap_mm),
+        "approach_elevation_deg": None if choice.approach_elevation_deg is None else json_number(
+            choice.approach_elevation_deg, 2),
+        "approach_azimuth_deg": None if choice.approach_azimuth_deg is None else json_number(
+            choice.approach_azimuth_deg, 2),
     }
     return record
 
@@ -528,42 +533,6 @@ def cost_unit(settings: dict) -> str:
     if settings.get("pooling") == "sum":
         return "sum of weight x (difference / JND)^2 (1: just noticeable)"
     return "the differences in JND pooled by probability summation (1: noticed half of the time)"
-
-
-def flipped_note(rows: list[tuple], settings: dict) -> str | None:
-    """How many placements of a matches table turn their virtual object upside down, and the option
-    that keeps them upright (None when none does, or the run already keeps them upright)."""
-    column = rows[0].index("flipped")
-    flipped = sum(r[column] == "F" for r in rows[1:])
-    if not flipped or settings.get("keep_upright"):
-        return None
-    return (f"{flipped} of {len(rows) - 1} placements turn the virtual object upside down (F); --keep-upright "
-            "keeps every one upright, at some cost")
-
-
-def equivalent_note(equivalents: list[tuple]) -> str | None:
-    """Which objects another prop serves as well as their own (within 0.1 JND or 5 %), or None."""
-    if not equivalents:
-        return None
-    shown = "; ".join(f"{v}: {t} ~ {', '.join(others)}" for v, t, others in equivalents[:6])
-    more = f"; and {len(equivalents) - 6} more" if len(equivalents) > 6 else ""
-    return (f"{len(equivalents)} objects are served as well by another prop (within 0.1 JND or 5 %, "
-            f"equivalent_tangibles in matches.json): {shown}{more}")
-
-
-def redirection_note(redirections: list[dict]) -> str | None:
-    """Under ``--placement fixed``: how many matches redirect the hand (and the largest angle), how many
-    the carousel serves (None without redirection)."""
-    if not redirections:
-        return None
-    led = [r for r in redirections if r["mode"] == "redirect"]
-    carousel = len(redirections) - len(led)
-    beyond = sum(r["mode"] == "carousel" and r.get("redirect_cost") is None for r in redirections)
-    largest = (f" (largest angle {max(r['angle_deg'] for r in led):.2f} deg, gains "
-               f"{min(r['gain'] for r in led):.3g} to {max(r['gain'] for r in led):.3g})") if led else ""
-    why = f"{beyond} beyond the redirection budget, {carousel - beyond} cheaper there by more than the margin"
-    return (f"placement fixed: {len(led)} of {len(redirections)} virtual objects stay in place, the hand redirected"
-            f"{largest}; {carousel} served by the carousel ({why})")
 
 
 def matches_legend(settings: dict) -> list[str]:

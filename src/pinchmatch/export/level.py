@@ -1,20 +1,30 @@
-"""``OUT/level.glb``: a level as an engine loads it, with the prop at its pose and each node's match.
+"""``OUT/level.glb``: a level as an engine loads it, with each prop at its pose and each node's match.
 
 Under ``--placement fixed`` the objects stay where a level puts them; an engine (Unity, Unreal, a WebXR
-page) needs the level itself, the prop where it stands, and per node what to do: redirect the hand to
+page) needs the level itself, the props where they stand, and per node what to do: redirect the hand to
 the prop, or bring the object onto the prop (the carousel). This writes the level's own file back with:
 
-- every node and mesh of the level as the file holds them (metres, y up: the file's frame);
-- one node per prop, ``pinchmatch_prop_<name>``, its mesh placed by its manifest ``pose`` (the prop's
-  file in mm, turned and moved into the level, in metres);
+- every node and mesh of the level as the file holds them (its units, y up: the file's frame);
+- one node per prop, ``pinchmatch_prop_<name>``, at its manifest ``pose`` (turned and moved into the
+  level), with its mesh in its own frame below it: an engine moves that node with the tracked prop;
+- below a prop's node, for each object the carousel brings onto it, a node ``carousel_<node>`` holding the
+  object's own mesh, whose transform shows it registered on the prop, resting on the table where the prop
+  stands (:mod:`pinchmatch.match.rest`): parented to the tracked prop, it is in place;
+- below each matched node (and its carousel node), the grasp in the node's own frame, named as the OpenXR
+  hand joints: ``thumb_tip``, ``index_tip`` (and ``middle_tip`` for a tripod) at the centres of the
+  fingertip pads (each contact plus the fingertip radius along its normal), ``pinch_center`` between the
+  contacts, and ``wrist`` along the hand's approach, ``WRIST_MM`` from the pinch's centre;
+- the masses and centres of mass an engine's physics needs, on the prop and object nodes, under
+  OMI_physics_body's ``motion`` (``type``, ``mass`` in kg where known, ``centerOfMass`` in the node's frame);
 - in each matched node's ``extras.pinchmatch``: its ``mode`` (``redirect`` or ``carousel``), the prop, the
-  cost, both costs and the reason, the redirection's angle and gain, and, in the level's frame in metres,
-  the virtual and physical pinch targets, the four contacts and the hand's start; a prop node's
-  ``extras.pinchmatch`` says it is a prop; the scene's ``extras.pinchmatch`` gives the schema, the units
-  and the settings.
+  cost, both costs and the reason, the redirection's angle and gain, the rest gap and, in the level's frame
+  in metres, the virtual and physical pinch targets, the contacts and the hand's start; a prop node's and a
+  carousel node's ``extras.pinchmatch`` say what they are; the scene's gives the schema, the units and the
+  settings.
 
-trimesh writes the meshes, the materials and the scene graph; node extras, which trimesh's exporter has
-no field for, are set in the binary's JSON chunk afterwards (the chunk re-padded as glTF 2.0 requires).
+trimesh writes the meshes, the materials and the scene graph; what its exporter has no field for (node
+extras, the extension, the joints' names, which may repeat under several nodes while trimesh's graph needs
+them unique) is set in the binary's JSON chunk afterwards (the chunk re-padded as glTF 2.0 requires).
 """
 
 from __future__ import annotations
@@ -26,15 +36,22 @@ import numpy as np
 import trimesh
 
 from ..match.redirect import world_pose
+from ..mesh.frames import UNITS_MM
 from .documents import record_contacts
 
-SCHEMA_LEVEL = "pinchmatch.level/1"
-#: the name of a prop's node in the level
+SCHEMA_LEVEL = "pinchmatch.level/2"
+#: the name of a prop's node in the level, of its mesh's node, and of a carousel object's node below it
 PROP_NODE = "pinchmatch_prop_{}"
-
-
-def _metres(points_mm) -> list:
-    return [round(float(c) / 1000.0, 6) for c in np.asarray(points_mm, dtype=np.float64).reshape(-1)]
+PROP_MESH_NODE = "pinchmatch_prop_{}_mesh"
+CAROUSEL_NODE = "carousel_{}"
+#: the OpenXR hand joints at a grasp's fingertips, thumb first (XR_HAND_JOINT_*_TIP_EXT)
+FINGERTIP_JOINTS = ("thumb_tip", "index_tip", "middle_tip")
+#: how far the wrist is from the pinch's centre along the hand's approach (mm): the length of a hand from the
+#: pads of a thumb-index pinch to the wrist crease, about 60 % of an adult hand's 190 mm (a documented choice)
+WRIST_MM = 110.0
+#: joint nodes are named ``<owner><JOINT_SEPARATOR><joint>`` in trimesh's graph and renamed ``<joint>`` in the file
+JOINT_SEPARATOR = "::pinchmatch-joint::"
+OMI = "OMI_physics_body"
 
 
 def node_extras(entry: dict, prop_spec) -> dict:
@@ -46,41 +63,120 @@ def node_extras(entry: dict, prop_spec) -> dict:
     v = entry["virtual_pose"]
     out = {"mode": r.get("mode"), "prop": entry["tangible"], "cost": entry["cost"],
            "redirect_cost": r.get("redirect_cost"), "carousel_cost": r.get("carousel_cost"), "reason": r.get("reason"),
-           "angle_deg": r.get("angle_deg"), "gain": r.get("gain"),
+           "angle_deg": r.get("angle_deg"), "gain": r.get("gain"), "rest_gap_mm": entry.get("rest_gap_mm"),
            "virtual_contacts_m": _metres(record_contacts(v)), "physical_contacts_m": _metres(physical)}
     for key in ("virtual_target_mm", "physical_target_mm", "hand_start_mm"):
         if r.get(key) is not None:
             out[key.replace("_mm", "_m")] = _metres(r[key])
+    if r.get("mode") == "carousel":
+        out["carousel_node"] = CAROUSEL_NODE.format(entry["virtual_node"])
     return out
 
 
-def level_glb(level_path, props: list, entries: dict, settings: dict) -> bytes:
-    """The level file at ``level_path`` with ``props`` ([(spec, mesh in mm in its file frame)]) placed at
-    their poses and ``entries`` ({node name: (its matches.json entry, its prop's spec)}) in the nodes'
-    extras; ``settings``: the run's, for the scene's extras."""
+def _metres(points_mm) -> list:
+    return [round(float(c) / 1000.0, 6) for c in np.asarray(points_mm, dtype=np.float64).reshape(-1)]
+
+
+def _matrix(R: np.ndarray, t: np.ndarray) -> np.ndarray:
+    M = np.eye(4)
+    M[:3, :3], M[:3, 3] = R, t
+    return M
+
+
+def grasp_joints(entry: dict, node_world: np.ndarray, mm_per_unit: float, fingertip_radius_mm: float) -> dict:
+    """{joint name: (3,) its place in the node's own frame (the file's units)} for a matched node whose world
+    matrix (the file's units) is ``node_world``: the fingertip pads, the pinch's centre and the wrist."""
+    v = entry["virtual_pose"]
+    contacts = np.array(record_contacts(v), dtype=np.float64)
+    normals = np.array(v["normals"] if "normals" in v else [v["n1"], v["n2"]], dtype=np.float64)
+    pads = contacts + fingertip_radius_mm * normals
+    T = np.array(entry["transform_virtual_to_tangible"], dtype=np.float64)
+    approach = T[:3, :3].T @ np.array(entry["tangible_pose"]["approach"], dtype=np.float64)  # into the seen frame
+    centre = contacts.mean(axis=0)
+    places = dict(zip(FINGERTIP_JOINTS, pads))
+    places["pinch_center"] = centre
+    if np.isfinite(approach).all():
+        places["wrist"] = centre + WRIST_MM * approach
+    to_local = np.linalg.inv(node_world)
+    return {name: to_local[:3, :3] @ (q / mm_per_unit) + to_local[:3, 3] for name, q in places.items()}
+
+
+def _motion(mass_g, com_local) -> dict:
+    motion = {"type": "dynamic", "centerOfMass": [round(float(c), 6) for c in com_local]}
+    if mass_g is not None:
+        motion["mass"] = round(float(mass_g) / 1000.0, 6)
+    return {OMI: {"motion": motion}}
+
+
+def level_glb(level_path, props: list, entries: dict, settings: dict, *, virtuals: dict | None = None,
+              units: str | None = None) -> bytes:
+    """The level file at ``level_path`` (read in ``units``, glTF's metres where None) with ``props`` ([(spec, mesh
+    in mm in its file frame, centre of mass in mm, mass in g or None)]) at their poses, ``entries`` ({node name:
+    (its matches.json entry, its prop's spec)}) in the nodes' extras, their carousel nodes and grasp joints;
+    ``virtuals`` ({node name: its object entry of matches.json}) gives their masses and centres of mass;
+    ``settings``: the run's (the fingertip radius, and the scene's extras)."""
+    k = UNITS_MM[units or "m"]
     scene = trimesh.load(str(level_path), force="scene", process=False)
-    for spec, mesh in props:
+    base = scene.graph.base_frame
+    extras, extensions, renamed = {}, {}, {}
+    prop_nodes = {}
+    for spec, mesh, com_mm, mass_g in props:
         R, p = world_pose(spec)
-        placed = trimesh.Trimesh(vertices=(np.asarray(mesh.vertices) @ R.T + p) / 1000.0, faces=mesh.faces,
-                                 process=False)
-        name = PROP_NODE.format(spec.display_name)
-        placed.metadata["pinchmatch"] = {"role": "prop", "name": spec.display_name}
-        scene.add_geometry(placed, node_name=name, geom_name=name)
-    scene.metadata["pinchmatch"] = {"schema": SCHEMA_LEVEL, "units": "m", "up": "+y", "settings": settings}
-    data = scene.export(file_type="glb")
-    extras = {name: {"pinchmatch": node_extras(entry, spec)} for name, (entry, spec) in entries.items()}
-    extras |= {PROP_NODE.format(spec.display_name): {"pinchmatch": {"role": "prop", "name": spec.display_name}}
-               for spec, _ in props}
-    return with_node_extras(data, extras)
+        name, mesh_name = PROP_NODE.format(spec.display_name), PROP_MESH_NODE.format(spec.display_name)
+        scene.graph.update(frame_to=name, frame_from=base, matrix=_matrix(R, p / k))
+        own = trimesh.Trimesh(vertices=np.asarray(mesh.vertices) / k, faces=mesh.faces, process=False)
+        scene.add_geometry(own, node_name=mesh_name, geom_name=mesh_name, parent_node_name=name)
+        prop_nodes[spec.display_name] = name
+        extras[name] = {"pinchmatch": {"role": "prop", "name": spec.display_name, "mesh_node": mesh_name}}
+        extensions[name] = _motion(mass_g, np.asarray(com_mm, dtype=np.float64) / k)
+    radius = float(settings.get("fingertip_radius_mm", 8.0))
+    for node, (entry, spec) in entries.items():
+        entry = dict(entry, virtual_node=node)
+        extras[node] = {"pinchmatch": node_extras(entry, spec)}
+        world, geometry = scene.graph[node]
+        virtual = (virtuals or {}).get(node) or {}
+        com = virtual.get("com_mm")
+        inverse = np.linalg.inv(world)
+        if com is not None:
+            extensions[node] = _motion(virtual.get("mass_g"), inverse[:3, :3] @ (np.asarray(com) / k) + inverse[:3, 3])
+        owners = [node]
+        if (entry.get("redirection") or {}).get("mode") == "carousel":
+            T = np.array(entry["transform_virtual_to_tangible"], dtype=np.float64)
+            local = _matrix(T[:3, :3], T[:3, 3] / k) @ world  # the node's mesh, registered, in the prop's frame
+            carousel = CAROUSEL_NODE.format(node)
+            scene.graph.update(frame_to=carousel, frame_from=prop_nodes[entry["tangible"]], matrix=local,
+                               geometry=geometry)
+            extras[carousel] = {"pinchmatch": {"role": "carousel", "node": node, "prop": entry["tangible"],
+                                               "rest_gap_mm": entry.get("rest_gap_mm")}}
+            if node in extensions:
+                extensions[carousel] = extensions[node]
+            owners.append(carousel)
+        for owner in owners:
+            for joint, place in grasp_joints(entry, world, k, radius).items():
+                child = f"{owner}{JOINT_SEPARATOR}{joint}"
+                scene.graph.update(frame_to=child, frame_from=owner, matrix=_matrix(np.eye(3), place))
+                renamed[child] = joint
+    scene.metadata["pinchmatch"] = {"schema": SCHEMA_LEVEL, "units": units or "m", "up": "+y", "settings": settings}
+    return with_nodes_set(scene.export(file_type="glb"), extras, extensions, renamed)
 
 
-def with_node_extras(glb: bytes, extras: dict) -> bytes:
-    """GLB bytes with ``extras`` ({node name: dict}) set on the nodes of those names."""
+def with_nodes_set(glb: bytes, extras: dict, extensions: dict | None = None, renamed: dict | None = None) -> bytes:
+    """GLB bytes with ``extras`` and ``extensions`` ({node name: dict}) set on the nodes of those names, and the
+    nodes of ``renamed`` ({name: new name}) renamed; the extensions are listed as used."""
     length, = struct.unpack_from("<I", glb, 12)
     document = json.loads(glb[20:20 + length])
+    extensions, renamed = extensions or {}, renamed or {}
     for node in document.get("nodes", []):
-        if node.get("name") in extras:
-            node["extras"] = extras[node["name"]]
+        name = node.get("name")
+        if name in extras:
+            node["extras"] = extras[name]
+        if name in extensions:
+            node["extensions"] = {**node.get("extensions", {}), **extensions[name]}
+        if name in renamed:
+            node["name"] = renamed[name]
+    used = sorted({key for value in extensions.values() for key in value})
+    if used:
+        document["extensionsUsed"] = sorted(set(document.get("extensionsUsed", [])) | set(used))
     chunk = json.dumps(document, separators=(",", ":"), sort_keys=True).encode()
     chunk += b" " * (-len(chunk) % 4)  # a JSON chunk is padded with spaces to four bytes
     rest = glb[20 + length:]

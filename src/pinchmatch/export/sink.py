@@ -27,6 +27,8 @@ class MatchesSink:
         self.rows = matches_rows({"matches": []})
         self.redirections: list[dict] = []  # under --placement fixed, each match's
         self.equivalents: list[tuple] = []  # (virtual, its prop, [the equivalent props' names])
+        self.rests: list[tuple] = []  # (virtual, its rest gap in mm) where it is shown on a prop that stands
+        self.approaches: list[tuple] = []  # (virtual, elevation, azimuth in deg) where its prop stands
         self._header = None
         self._virtuals, self._matches, self._names, self._cost_rows, self._chosen = [], [], [], [], []
         self._lines = None  # the AtomicFile of matches.jsonl while it is being written
@@ -67,6 +69,10 @@ class MatchesSink:
         self._chosen.append(r.match.get("tangible"))
         if r.match.get("redirection") is not None:
             self.redirections.append(r.match["redirection"])
+        if r.match.get("rest_gap_mm") is not None:
+            self.rests.append((r.name, r.match["rest_gap_mm"]))
+        if r.match.get("approach_elevation_deg") is not None:
+            self.approaches.append((r.name, r.match["approach_elevation_deg"], r.match.get("approach_azimuth_deg")))
         if r.match.get("equivalent_tangibles"):
             self.equivalents.append((r.name, r.match["tangible"], [e["tangible"] for e in r.match["equivalent_tangibles"]]))
         if self._lines is not None:

@@ -118,7 +118,7 @@ def _checked_values(where: str, value, key: str = "") -> None:
 #: the parts of a match the page reads whose leaves are numbers (text only under ``_TEXT_KEYS``)
 _CHECKED_FIELDS = ("cost", "p_noticed", "noticeable", "criteria", "landing", "equivalent_tangibles", "flipped",
                    "contact_offset_mm", "position_mm", "quaternion_xyzw", "up_turn_deg", "redirection",
-                   "transform_virtual_to_tangible")
+                   "transform_virtual_to_tangible", "rest_gap_mm")
 #: of each alternative
 _ALTERNATIVE_FIELDS = ("tangible", "cost", "flipped", "up_turn_deg", "transform_virtual_to_tangible")
 
@@ -144,6 +144,7 @@ def _page_data(out: Path, document: dict) -> dict:
                 _checked_values(f"{where}.tangible_pose.{field}", (pose or {}).get(field), field)
     stems = scene_stems([m["virtual"] for m in document["matches"]])
     poses = {t["name"]: t.get("pose") for t in document["tangibles"]}
+    ups = {v.get("name"): _up_vector(v.get("up")) for v in document.get("virtuals", []) if isinstance(v, dict)}
     matches, unmatched = [], []
     for stem, m in zip(stems, document["matches"]):
         if m.get("tangible") is None:
@@ -180,6 +181,8 @@ def _page_data(out: Path, document: dict) -> dict:
             "reference_cost": reference.get("cost"),
             "reference_reason": reference.get("reason"),
             "up_turn_deg": m.get("up_turn_deg"),
+            "rest_gap_mm": m.get("rest_gap_mm"),
+            "virtual_up": ups.get(m["virtual"]),
             "alternatives": alternatives,
             "equivalent_tangibles": m.get("equivalent_tangibles", []),
             "criteria": [{"name": name, **values} for name, values in m["criteria"].items()],
@@ -207,6 +210,15 @@ def _pose_fields(pose: dict) -> tuple:
 
 def _width_of(pose: dict):
     return pose["aperture_mm"] if "contacts_mm" in pose else pose["width_mm"]
+
+
+def _up_vector(label) -> list | None:
+    """An object's up (``z``, ``-y``, ...) as a unit vector of its file's axes, or None for anything else."""
+    if not isinstance(label, str) or label.lstrip("-") not in ("x", "y", "z"):
+        return None
+    vector = [0.0, 0.0, 0.0]
+    vector["xyz".index(label.lstrip("-"))] = -1.0 if label.startswith("-") else 1.0
+    return vector
 
 
 def _scene_fields(m: dict, poses: dict) -> dict:

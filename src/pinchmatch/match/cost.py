@@ -48,6 +48,7 @@ import numpy as np
 from ..errors import ConfigError
 from ..config import CRITERIA, DEFAULT_CRITERIA, MAX_WEIGHT, PAPER_CRITERIA, POOLINGS, Weights, complete_weights  # noqa: F401 (re-exported)
 from ..config import WIDTH_JND_FLOOR_MM, WIDTH_JND_FRACTION  # noqa: F401 (re-exported)
+from ..config import REST_FLOAT_MM_PER_JND, REST_SINK_MM_PER_JND
 from ..grasp.features import PinchFeatures
 from ..grasp.spread import other_order
 
@@ -140,6 +141,8 @@ class CostModel:
     ranges : (9,) float64, per column, for ``"range"`` (see :func:`feature_ranges`)
     criteria : the criteria in use (reported); the others have weight 0
     pooling : ``"quick"`` or ``"sum"`` (module notes)
+    rest_mm_per_jnd : (sink, hover), the mm of visible gap between a placed object and its prop's support
+        that cost one JND (:mod:`pinchmatch.match.rest`)
 
     >>> model = CostModel({"width": 2.0})
     >>> model.weights["width"], model.weights["com"], model.weights["kmax"]
@@ -153,6 +156,7 @@ class CostModel:
     ranges: np.ndarray | None = None
     criteria: tuple = DEFAULT_CRITERIA
     pooling: str = "quick"
+    rest_mm_per_jnd: tuple = (REST_SINK_MM_PER_JND, REST_FLOAT_MM_PER_JND)
 
     def __post_init__(self):
         if self.normalize not in ("jnd", "range"):
@@ -177,17 +181,26 @@ class CostModel:
 
     def as_jnd(self) -> "CostModel":
         """The same criteria, weights and pooling, in just-noticeable differences (for ``p_noticed``)."""
-        return CostModel(self.weights, "jnd", None, self.criteria, self.pooling)
+        return CostModel(self.weights, "jnd", None, self.criteria, self.pooling, self.rest_mm_per_jnd)
 
     def weight_vector(self) -> np.ndarray:
         """(8,) the weights in the order of :data:`CRITERIA`."""
         return np.array([self.weights[c] for c in CRITERIA])
 
-    def pool(self, terms: np.ndarray, extra: np.ndarray | None = None) -> np.ndarray:
+    def pool(self, terms: np.ndarray, extra: np.ndarray | None = None, rest=None) -> np.ndarray:
         """The cost of (..., 8) contributions t_c: Σ w t (``sum``) or (Σ w t^(β/2))^(1/β) (``quick``).
 
         ``extra`` (..., m): further contributions in the same units, weight 1 each (the hand's
-        redirection: :mod:`pinchmatch.match.redirect`)."""
+        redirection: :mod:`pinchmatch.match.redirect`). ``rest`` (...) or a number: a visible fault of the
+        placement in JND-equivalents x (:mod:`pinchmatch.match.rest`), added to the pooled cost: x under
+        ``quick`` (the cost is in JND), x² under ``sum`` (the cost is in contributions)."""
+        cost = self._pooled(terms, extra)
+        if rest is None:
+            return cost
+        rest = np.asarray(rest, dtype=np.float64)
+        return cost + (rest if self.pooling == "quick" else rest * rest)
+
+    def _pooled(self, terms: np.ndarray, extra: np.ndarray | None) -> np.ndarray:
         terms = np.maximum(np.asarray(terms, dtype=np.float64), 0.0)
         w = self.weight_vector()
         if extra is not None:
@@ -479,6 +492,6 @@ def contributions(tangible_row: np.ndarray, virtual_row: np.ndarray, model: Cost
     return dict(zip(CRITERIA, terms.tolist()))
 
 
-def total(terms: np.ndarray, model: CostModel, extra: np.ndarray | None = None) -> np.ndarray:
-    """The model's cost of (..., 8) contributions and any ``extra`` ones (:meth:`CostModel.pool`)."""
-    return model.pool(terms, extra)
+def total(terms: np.ndarray, model: CostModel, extra: np.ndarray | None = None, rest=None) -> np.ndarray:
+    """The model's cost of (..., 8) contributions, any ``extra`` ones and a ``rest`` fault (:meth:`CostModel.pool`)."""
+    return model.pool(terms, extra, rest)

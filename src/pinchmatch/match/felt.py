@@ -391,7 +391,7 @@ def felt_cost(tangible: Candidates, virtual: Candidates, choice, model: CostMode
     R_mass = R if choice.redirect_terms is None else world_pose(tangible.obj.spec)[0].T
     terms, _ = pair_terms(tangible, virtual, t.rows[t_pair], v_rows[keep], model, R=R_mass,
                           t_points=t.points[t_pair], v_points=v.points[keep])
-    cost = np.asarray(model.pool(terms, choice.redirect_terms), dtype=np.float64)
+    cost = np.asarray(model.pool(terms, choice.redirect_terms, choice.rest_jnd), dtype=np.float64)
     cost[0] = nominal  # the nominal landing is the match itself, to the last bit
     miss = float(model.pool(np.full((1, len(CRITERIA)), MISS_JND ** 2) * (np.arange(len(CRITERIA)) == 0))[0])
     cost = np.where(hit, cost, max(miss, float(cost[hit].max()) if hit.any() else miss))

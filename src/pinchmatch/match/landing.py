@@ -167,7 +167,7 @@ def landing(tangible: Candidates, virtual: Candidates, choice, model: CostModel,
     R_mass = R if choice.redirect_terms is None else world_pose(tangible.obj.spec)[0].T
     terms, _ = pair_terms(tangible, virtual, t_rows, v_rows, model, R=R_mass, t_points=felt_p.points,
                           v_points=seen.points)
-    cost = model.pool(terms, choice.redirect_terms)  # a redirection is planned for the targets: as the match's
+    cost = model.pool(terms, choice.redirect_terms, choice.rest_jnd)  # a redirection is planned for the targets: as the match's
     jnd = model.as_jnd()
     jnd_all = CostModel(normalize="jnd", criteria=CRITERIA, weights=dict.fromkeys(CRITERIA, 1.0))
     jnd_terms, _ = pair_terms(tangible, virtual, t_rows, v_rows, jnd_all, R=R_mass, t_points=felt_p.points,

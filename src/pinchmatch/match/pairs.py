@@ -31,7 +31,10 @@ class PairResult:
     tangible p2), transform (k, 4, 4) virtual -> tangible, flipped (k,) bool, mass_delta_mm
     (k, 3) seen minus felt centre-of-mass offset in the tangible's frame, allowed (k,) bool
     (False: flipped under ``keep_upright``, or redirected beyond the budget; cost is then inf),
-    redirect_terms (k, 2) the redirection's contributions (zero unless the placement is fixed).
+    redirect_terms (k, 2) the redirection's contributions (zero unless the placement is fixed),
+    rest_gap_mm (k,) the placed object's lowest point over the prop's support (NaN where it is not shown
+    on a support: :mod:`pinchmatch.match.rest`), rest_jnd (k,) what the gap adds to the cost, in
+    JND-equivalents (0 where nothing is charged).
     """
 
     cost: np.ndarray
@@ -42,6 +45,8 @@ class PairResult:
     mass_delta_mm: np.ndarray
     allowed: np.ndarray
     redirect_terms: np.ndarray
+    rest_gap_mm: np.ndarray
+    rest_jnd: np.ndarray
 
 
 def take_pairs(result: PairResult, keep) -> PairResult:

@@ -215,10 +215,11 @@ WAVE = 2
 
 def refine(tangibles: list[Candidates], virtual: Candidates, seeds: list[tuple[int, int, int, float]],
            model: CostModel, *, keep_upright: bool, settings: PinchSettings,
-           redirect=None) -> tuple[list, Candidates]:
+           redirect=None, user_mm=None) -> tuple[list, Candidates]:
     """Pattern search from ``seeds`` (tangible, tangible pose, virtual pose, cost); returns every
     tangible's candidates and the virtual object's, with the feasible poses the search visited
-    (``redirect``: the hand's redirection, as :func:`pinchmatch.match.search.evaluate_pairs` takes it).
+    (``redirect``, ``user_mm``: the hand's redirection and where the user stands, as
+    :func:`pinchmatch.match.search.evaluate_pairs` takes them).
 
     Each round, every move keeping the rules but reach is costed against the other side's moves;
     a pair then takes its cheapest improving move whose poses reach holds for, checked in waves
@@ -256,7 +257,7 @@ def refine(tangibles: list[Candidates], virtual: Candidates, seeds: list[tuple[i
             cost = np.full(len(it), np.inf)
             if len(ask):
                 cost[ask] = evaluate_pairs(T, V, it[ask], iv[ask], model=model, keep_upright=keep_upright,
-                                           redirect=redirect).cost
+                                           redirect=redirect, user_mm=user_mm).cost
             for k, (i, p) in enumerate(mine):
                 rows = np.flatnonzero((owner == k) & (cost < p.cost * (1.0 - IMPROVEMENT)))
                 rows = rows[np.argsort(cost[rows], kind="stable")]
@@ -373,5 +374,5 @@ def refined_search(tangibles: list[Candidates], virtual: Candidates, model: Cost
              for t in np.flatnonzero(finite & (row <= CONTENDER_RATIO * best))
              for c in search.choices(0, [int(t)], on_best if row[t] == best else on_other)]
     grown_t, grown_v = refine(search.tangibles, search.virtuals[0], seeds, model, keep_upright=settings.keep_upright,
-                              settings=pinch_settings, redirect=settings.redirect)
+                              settings=pinch_settings, redirect=settings.redirect, user_mm=settings.user_mm)
     return search.grown(grown_t, [grown_v])

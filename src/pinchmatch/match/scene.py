@@ -19,6 +19,7 @@ from scipy.optimize import linear_sum_assignment
 from ..errors import ConfigError
 from ..grasp.pinches import PinchSettings
 from .candidates import Candidates, with_count
+from .comfort import comfort_score
 from .cost import CostModel
 from .felt import FeltTables, felt_cost
 from .landing import LANDING_AXIS_DEG, Landing
@@ -280,11 +281,12 @@ def _ranked(search: Search, steady: SteadySearch | None, allowed: list[int], cou
     ``by_steady`` best distinct, each felt exactly (:mod:`pinchmatch.match.felt`), by ``--rank``'s cost; ties by the cost on target, then tangible and
     poses; none a near duplicate of a better one."""
     if steady is None:
-        return _felt(search, search.choices(0, allowed, count), tables)
+        return comfort_first(search, _felt(search, search.choices(0, allowed, count), tables), tables.settings)
     nominal = ranked_choices(steady.pinch_settings.count) if nominal is None else nominal
     picks = search.choices(0, allowed, max(count, nominal)) + steady.choices(allowed, max(count, by_steady))
     felt = sorted(_felt(search, picks, tables),
                   key=lambda pf: (pf[0].cost, pf[0].cost_nominal, pf[0].tangible, pf[0].t_pose, pf[0].v_pose))
+    felt = comfort_first(search, felt, tables.settings)
     out: list = []
     for choice, f in felt:
         if len(out) >= count:
@@ -292,6 +294,22 @@ def _ranked(search: Search, steady: SteadySearch | None, allowed: list[int], cou
         if not any(_near(choice, other, search.settings.distinct_mm) for other, _ in out):
             out.append((choice, f))
     return out
+
+
+def comfort_first(search: Search, felt: list, pinch: PinchSettings) -> list:
+    """``felt`` [(choice, felt)], ranked by cost, with the choices that cost the same as the best (within
+    ``EQUIVALENT_JND`` or ``EQUIVALENT_SHARE`` of it, as :func:`equivalent_tangibles` judges props) put in
+    the order of their :func:`~pinchmatch.match.comfort.comfort_score`, most comfortable first (ties by
+    cost): among choices a person cannot tell apart by feel, the one reached most easily."""
+    if len(felt) < 2:
+        return felt
+    best = felt[0][0].cost
+    limit = best + max(EQUIVALENT_JND, EQUIVALENT_SHARE * best)
+    band = [pf for pf in felt if pf[0].cost <= limit]
+    scores = [comfort_score(search.tangibles[c.tangible], c.t_pose, search.settings.user_mm, pinch.fingertip_radius_mm)
+              for c, _ in band]
+    order = sorted(range(len(band)), key=lambda k: (-round(scores[k], 9), k))
+    return [band[k] for k in order] + felt[len(band):]
 
 
 def _near(a: Choice, b: Choice, distinct_mm: float) -> bool:

@@ -41,6 +41,8 @@ from .cost import (CRITERIA, CostModel, feature_ranges, pair_cost_blocks, pooled
 from .redirect import Redirect, pair_budget, placed_transform, redirection, world_pose
 from .pairs import PairResult, Ranked, Seen, concat_pairs, take_pairs
 from .register import FLIP_COSINE, register_poses
+from .comfort import approach_angles, comfortable_poses
+from .rest import rested
 from ..grasp.spread import other_order
 
 #: pose pairs kept per (virtual, tangible) object pair before the exact evaluation: one per
@@ -79,7 +81,8 @@ def cost_model(settings: MatchSettings, candidates: list[Candidates], *, ranges:
     if settings.normalize == "range" and ranges is None:
         ranges = feature_ranges(*[c.table for c in candidates])
     return CostModel(dict(settings.weights), settings.normalize, ranges if settings.normalize == "range" else None,
-                     tuple(settings.criteria), settings.pooling)
+                     tuple(settings.criteria), settings.pooling,
+                     (settings.rest_sink_mm_per_jnd, settings.rest_float_mm_per_jnd))
 
 
 def evaluate_pairs(
@@ -92,6 +95,7 @@ def evaluate_pairs(
     keep_upright: bool | None = None,
     swapped: bool | None = None,
     redirect: Redirect | None = None,
+    user_mm=None,
 ) -> PairResult:
     """Register k pose pairs (tangible pose ``it[i]``, virtual pose ``iv[i]``) and give their exact cost,
     in the better finger order, or in the order ``swapped`` when it is given.
@@ -100,7 +104,9 @@ def evaluate_pairs(
     ``keep_upright`` (default off) charges a placement that turns the virtual object upside down
     an infinite cost. With ``redirect`` the virtual object stays where it is and the hand is
     redirected (:mod:`pinchmatch.match.redirect`): the redirection joins the cost, a pair beyond the
-    budget is not allowed, and none is flipped.
+    budget is not allowed, and none is flipped. A tangible that stands on a table allows only the poses
+    reached comfortably from where the user stands (``user_mm``, the level's frame; default: where the hand
+    starts), unless it has none (:mod:`pinchmatch.match.comfort`).
 
     >>> from pinchmatch import PinchSettings, analyze_object, candidate_poses
     >>> can = candidate_poses(analyze_object(can_obj, units="m"), settings=PinchSettings(count=50, seed=0))
@@ -115,6 +121,7 @@ def evaluate_pairs(
     t_rows = tangible.table[it]
     t_props, v_props = tangible.obj.props, virtual.obj.props
     up_t, up_v = tangible.obj.loaded.up, virtual.obj.loaded.up
+    reachable = comfortable_poses(tangible, user_mm)
     results = []
     for order in (False, True) if swapped is None else (swapped,):
         vp, vn, v_rows = virtual.pinches.points[iv], virtual.pinches.normals[iv], virtual.table[iv]
@@ -130,13 +137,17 @@ def evaluate_pairs(
         if redirect is None:
             flipped = (R @ up_v) @ up_t < FLIP_COSINE
             allowed = ~flipped if keep_upright else np.ones(len(it), dtype=bool)
-            extra = np.zeros((len(it), 2))
+            moved_terms = np.zeros((len(it), 2))
         else:  # the virtual object stays where it is; flipped when the prop stands otherwise than the level's up
             moved = redirection(tangible.obj, tp, vp, redirect)
             flipped = np.full(len(it), bool((R @ up_v) @ up_t < FLIP_COSINE))
-            allowed, extra = moved.allowed, moved.terms
-        cost = np.where(allowed, total(terms, model, extra if redirect is not None else None), np.inf)
-        results.append(PairResult(cost, terms, np.full(len(it), order), X, flipped, delta, allowed, extra))
+            allowed, moved_terms = moved.allowed, moved.terms
+        if reachable is not None:
+            allowed = allowed & reachable[it]
+        gap, rest = rested(tangible.obj, virtual.obj, X, model, redirect)
+        cost = np.where(allowed, total(terms, model, moved_terms if redirect is not None else None, rest), np.inf)
+        results.append(PairResult(cost, terms, np.full(len(it), order), X, flipped, delta, allowed, moved_terms,
+                                  gap, rest))
     if len(results) == 1:
         return results[0]
     a, b = results
@@ -148,15 +159,28 @@ def evaluate_pairs(
     })
 
 
+def _only_rows(rows: np.ndarray, n_virtual: int, budget=None):
+    """A blockwise pass's ``extra`` that leaves out the tangible poses not in ``rows`` (bool) against each of
+    ``n_virtual`` virtual poses, besides what ``budget`` (another such function, or None) adds and leaves out."""
+    def block(start: int, stop: int):
+        term, ok = budget(start, stop) if budget is not None else (0.0, True)
+        return term, np.broadcast_to(ok & rows[start:stop, None], (stop - start, n_virtual))
+
+    return block
+
+
 def pool_pairs(tangible: Candidates, virtual: Candidates, model: CostModel, size: int, block_rows: int,
                tight: bool = False, moments: tuple | None = None, redirect: Redirect | None = None, *,
-               raw: bool = False):
+               raw: bool = False, user_mm=None):
     """The ``size`` pose pairs with the smallest separable sum (``tight``: the smallest pooled
     bound, :func:`pinchmatch.match.cost.pooled_bound_blocks`), and tau, a cost no pair left out is below.
     With ``moments`` ((mean, variance) of the tangible's rows, the same of the virtual's), the sum is the
     expected one of :mod:`pinchmatch.match.steady` over the first ``len(mean)`` poses of each. With
     ``redirect`` (the virtual object stays in the level) the sum gains a lower bound of the redirection
     angle's contribution and the pairs beyond the budget are left out (:func:`pinchmatch.match.redirect.pair_budget`).
+
+    The tangible's poses that the user cannot reach comfortably (``user_mm``: :func:`evaluate_pairs`) are left
+    out too.
 
     Returns (it, iv, separable sum or bound, tau); tau is inf when no pair was left out. ``raw``: tau is
     the least sum (or bound) of a pair left out, not a cost.
@@ -175,6 +199,9 @@ def pool_pairs(tangible: Candidates, virtual: Candidates, model: CostModel, size
     if redirect is not None:
         budget = pair_budget(tangible.obj, tangible.pinches.points[:len(t_table)].mean(axis=1),
                              virtual.pinches.points[:nv].mean(axis=1), redirect)
+    reachable = comfortable_poses(tangible, user_mm)
+    if reachable is not None:
+        budget = _only_rows(reachable[:len(t_table)], nv, budget)
     if tight:
         blocks = ((start, bound, None) for start, bound in pooled_bound_blocks(t_table, felt, model, extra=budget))
     else:
@@ -301,7 +328,14 @@ class Choice:
     - ``tangible_name``, ``virtual_name``: ``str``, the objects' names (a manifest's ``name``, a level
       node's, else the file's);
     - ``redirect_terms``: ``(2,) float64``, the hand redirection's contributions to ``cost`` under
-      ``placement="fixed"`` (:mod:`pinchmatch.match.redirect`), else ``None``.
+      ``placement="fixed"`` (:mod:`pinchmatch.match.redirect`), else ``None``;
+    - ``rest_gap_mm``: the placed virtual object's lowest point over the prop's support, mm (negative:
+      sunk into it), or None where it is not shown on a support (:mod:`pinchmatch.match.rest`);
+      ``rest_jnd`` what the gap adds to ``cost`` (JND-equivalents; 0 where nothing is charged);
+    - ``approach_elevation_deg``, ``approach_azimuth_deg``: the hand's approach to the tangible pinch seen from
+      where the user stands (:mod:`pinchmatch.match.comfort`): above the table's horizontal, and away from
+      the direction to the user (0: straight from the user); None where the prop is held in the hand or the
+      pose has no approach.
     """
 
     virtual: int
@@ -322,6 +356,10 @@ class Choice:
     virtual_pose: Pose | None = None
     cost_nominal: float | None = None
     p_noticed: float | None = None
+    rest_gap_mm: float | None = None
+    rest_jnd: float = 0.0
+    approach_elevation_deg: float | None = None
+    approach_azimuth_deg: float | None = None
 
     def __post_init__(self):
         if self.cost_nominal is None:  # as the search finds it: ranked by its cost on target
@@ -362,10 +400,11 @@ class Search:
         limit = size * RESERVE if self._tight(size * 4, first) == tight else size
         if rows is None:
             return pool_pairs(T, V, self.model, limit, self.settings.block_rows, tight,
-                              redirect=self.settings.redirect, raw=True)
+                              redirect=self.settings.redirect, raw=True, user_mm=self.settings.user_mm)
         t_rows, v_rows = rows
         it, iv, value, rest = pool_pairs(T.subset(t_rows), V.subset(v_rows), self.model, limit,
-                                         self.settings.block_rows, tight, redirect=self.settings.redirect, raw=True)
+                                         self.settings.block_rows, tight, redirect=self.settings.redirect, raw=True,
+                                         user_mm=self.settings.user_mm)
         return t_rows[it], v_rows[iv], value, rest
 
     def _tight(self, size: int, first: int) -> bool:
@@ -386,7 +425,7 @@ class Search:
         for start in range(0, max(len(new), 1), EVALUATE_CHUNK):  # once at least: an empty result has its fields
             rows = new[start:start + EVALUATE_CHUNK]
             result = evaluate_pairs(T, V, it[rows], iv[rows], model=self.model, keep_upright=self.settings.keep_upright,
-                                    redirect=self.settings.redirect)
+                                    redirect=self.settings.redirect, user_mm=self.settings.user_mm)
             if remember:
                 evaluated.append(result)
             below = np.flatnonzero(result.cost < tau)
@@ -489,7 +528,19 @@ class Search:
         return Choice(j, t, it, iv, float(r.cost[k]), r.terms[k], bool(r.swapped[k]), r.transform[k], bool(r.flipped[k]),
                       r.mass_delta_mm[k], T.name, V.name, r.redirect_terms[k] if fixed else None,
                       placed_transform(T.obj.spec) if fixed else r.transform[k],
-                      Pose.of(T, it), Pose.of(V, iv, bool(r.swapped[k])))
+                      Pose.of(T, it), Pose.of(V, iv, bool(r.swapped[k])),
+                      rest_gap_mm=None if np.isnan(r.rest_gap_mm[k]) else float(r.rest_gap_mm[k]),
+                      rest_jnd=float(r.rest_jnd[k]), **_approach_fields(T, it, self.settings.user_mm))
+
+
+def _approach_fields(tangible: Candidates, pose: int, user_mm) -> dict:
+    """A choice's ``approach_elevation_deg`` and ``approach_azimuth_deg`` on tangible pose ``pose``."""
+    if tangible.obj.context.support is None or not np.isfinite(tangible.pinches.approach[pose]).all():
+        return {}
+    elevation, azimuth = approach_angles(tangible.obj, tangible.pinches.points[pose:pose + 1],
+                                         tangible.pinches.approach[pose:pose + 1], user_mm)
+    return {"approach_elevation_deg": float(elevation[0]),
+            "approach_azimuth_deg": None if np.isnan(azimuth[0]) else float(azimuth[0])}
 
 
 def cost_row(search: "Search", j: int) -> np.ndarray:

@@ -110,10 +110,11 @@ class SteadySearch:
         mt = moments_of(self.sampled_tangibles[t], self.radius_mm, self.pinch_settings)
         mv = moments_of(self.sampled_virtual, self.radius_mm, self.pinch_settings)
         it, iv, _, _ = pool_pairs(T, V, model, STEADY_POOL, settings.block_rows, moments=(mt, mv),
-                                  redirect=settings.redirect)
+                                  redirect=settings.redirect, user_mm=settings.user_mm)
         order = np.lexsort((iv, it))  # the pool's own order depends on its blocks
         it, iv = it[order], iv[order]
-        r = evaluate_pairs(T, V, it, iv, model=model, keep_upright=settings.keep_upright, redirect=settings.redirect)
+        r = evaluate_pairs(T, V, it, iv, model=model, keep_upright=settings.keep_upright, redirect=settings.redirect,
+                           user_mm=settings.user_mm)
         swapped, other = r.swapped[:, None, None], other_order(mv[0].shape[1])
         v_mean = np.where(swapped, mv[0][iv][:, other], mv[0][iv])
         v_var = np.where(swapped, mv[1][iv][:, other], mv[1][iv])
@@ -121,7 +122,7 @@ class SteadySearch:
         # the mass offset exact on target (it needs the registration), and its spread
         terms[:, 7] += r.terms[:, 7] - separable_terms(mt[0][it], felt_table(v_mean, mass_ratio(T, V)), model)[:, 7]
         extra = r.redirect_terms if settings.redirect is not None else None
-        key = np.where(np.isfinite(r.cost), model.pool(terms, extra), np.inf)
+        key = np.where(np.isfinite(r.cost), model.pool(terms, extra, r.rest_jnd), np.inf)
         ok = np.flatnonzero(np.isfinite(key))
         return (t, it[ok], iv[ok], take_pairs(r, ok)), key[ok]
 

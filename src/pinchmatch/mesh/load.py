@@ -295,10 +295,10 @@ def _load(path: Path, file_type: str, *, split: bool = False, **kwargs):
 def node_digests(path: str | os.PathLike) -> dict[str, str]:
     """{node: digest of its triangles in the world} for every mesh node of a glTF/GLB level
     (:func:`pinchmatch.mesh.level.scene_node_digests`)."""
-    return scene_node_digests(_level_scene(Path(path)))
+    return scene_node_digests(level_scene(Path(path)))
 
 
-def _level_scene(path: Path) -> trimesh.Scene:
+def level_scene(path: Path) -> trimesh.Scene:
     """A glTF/GLB file read as a scene of nodes, for splitting; MeshError for any other file."""
     _check_readable(path)
     file_type = _file_type(path)
@@ -312,7 +312,7 @@ def read_level(path: str | os.PathLike) -> list[LevelNode]:
     """The mesh nodes of a glTF/GLB scene (see :mod:`pinchmatch.mesh.level`), for splitting it into
     one object per node. Raises MeshError for a file that cannot be read or holds no mesh node."""
     path = Path(path)
-    nodes = level_nodes(_level_scene(path))
+    nodes = level_nodes(level_scene(path))
     if not nodes:
         raise MeshError(f"{path}: the scene has no node holding triangles; re-export the level with its meshes")
     return nodes

@@ -45,6 +45,7 @@ from ..config import finite_number
 from ..errors import ConfigError, InternalError
 from .described import read_shape, shape_file
 from .frames import UNITS_MM, UP_VECTORS
+from .furniture import level_furniture
 from .load import GLTF_TYPES, MESH_EXTENSIONS, mesh_files, read_level
 from .regions import ContactRegions, Region
 
@@ -373,12 +374,15 @@ def _described(table: dict, where: str, base: dict, manifest: Path, problems: _P
     return ObjectSpec(str(file), regions=regions, manifest=str(manifest), units="mm", up="z", **options)
 
 
-def node_specs(spec: ObjectSpec, nodes, *, only: tuple = (), skip: tuple = ()) -> list[ObjectSpec]:
+def node_specs(spec: ObjectSpec, nodes, *, only: tuple = (), skip: tuple = (), furniture: dict | None = None,
+               notes: list | None = None) -> list[ObjectSpec]:
     """One spec per mesh node of a level (``nodes`` from :func:`pinchmatch.mesh.load.read_level`),
     named by the node (after the level's own name, where the manifest gives one): the nodes whose name or
     path matches a glob of the spec's ``nodes`` (else of ``only``; every node where neither gives one),
     none that matches one of the spec's ``skip_nodes`` or of ``skip``. A glob of ``nodes`` or ``only``
-    that matches no node is refused, naming the level's nodes."""
+    that matches no node is refused, naming the level's nodes. A node of ``furniture`` ({name: why}:
+    :func:`pinchmatch.mesh.furniture.furniture`) is left out unless a glob of ``nodes`` or ``only`` names it,
+    with one line in ``notes`` saying so."""
     include = spec.nodes or tuple(only)
     exclude = tuple(spec.skip_nodes) + tuple(skip)
 
@@ -391,6 +395,12 @@ def node_specs(spec: ObjectSpec, nodes, *, only: tuple = (), skip: tuple = ()) -
             raise ConfigError(f"{spec.path}: the node glob {g!r} (--nodes, or a manifest's nodes) matches no mesh node "
                               f"of the level; its nodes are {names}")
     kept = [n for n in nodes if (not include or matches(n, include)) and not matches(n, exclude)]
+    left = [n for n in kept if n.name in (furniture or {}) and not (include and matches(n, include))]
+    for n in left:
+        if notes is not None:
+            notes.append(f"{spec.path}: node {n.name} left out of the match, as a table, a counter, a shelf, a wall "
+                         f"or a floor is: {furniture[n.name]}; to match it, name it with --nodes '{n.name}'")
+    kept = [n for n in kept if n not in left]
     if not kept:
         raise ConfigError(f"{spec.path}: --nodes and --skip-nodes leave no mesh node of the level; name at least "
                           "one node to match")
@@ -402,12 +412,14 @@ def is_manifest(path: str | os.PathLike) -> bool:
     return Path(path).suffix.lower() == MANIFEST_SUFFIX
 
 
-def object_specs(paths, *, option: str, split: str | None = None, nodes=(), skip_nodes=()) -> list[ObjectSpec]:
+def object_specs(paths, *, option: str, split: str | None = None, nodes=(), skip_nodes=(),
+                 notes: list | None = None, units: str | None = None, up: str | None = None) -> list[ObjectSpec]:
     """The objects that command-line paths name: mesh files, folders of them (searched as
     :func:`~pinchmatch.mesh.load.mesh_files` does) and manifests, in the order given. A glTF/GLB
     scene whose split is ``"nodes"`` (its manifest entry's, else ``split``) becomes one object per
-    mesh node (those ``nodes`` and ``skip_nodes`` keep, as :func:`node_specs` says); other files are
-    not split.
+    mesh node (those ``nodes`` and ``skip_nodes`` keep, as :func:`node_specs` says; its furniture left out,
+    with a line in ``notes``: :mod:`pinchmatch.mesh.furniture`, the level read in its spec's units and up, else
+    ``units`` and ``up``, the run's); other files are not split.
 
     >>> [spec.display_name for spec in object_specs([props_toml, box_stl], option="--tangible")]
     ['box', 'can', 'box.stl']
@@ -424,8 +436,13 @@ def object_specs(paths, *, option: str, split: str | None = None, nodes=(), skip
             how = spec.split or split or "none"
             level = Path(spec.path).suffix.lower() in MESH_EXTENSIONS and \
                 MESH_EXTENSIONS[Path(spec.path).suffix.lower()] in GLTF_TYPES
-            out.extend(node_specs(spec, read_level(spec.path), only=tuple(nodes), skip=tuple(skip_nodes))
-                       if how == "nodes" and level else [spec])
+            if how == "nodes" and level:
+                out.extend(node_specs(spec, read_level(spec.path), only=tuple(nodes), skip=tuple(skip_nodes),
+                                      furniture=level_furniture(spec.path, units=spec.units or units,
+                                                                up=spec.up or up),
+                                      notes=notes))
+            else:
+                out.append(spec)
     return out
 
 

@@ -101,8 +101,9 @@
       (k === 0 ? middle.clone().sub(q) : contacts[0].clone().sub(q)).normalize()));
   }
 
-  // The scene's objects for the three views.
-  function parts(gltf) {
+  // The scene's objects for the three views; `up`, the virtual object's up in its own file (x, y, z), stands
+  // it upright in its own view whatever the prop's up (the scene's frame is the prop's, turned to glTF's +Y).
+  function parts(gltf, up) {
     const root = gltf.scene;
     const get = (name) => {
       const node = root.getObjectByName(name);
@@ -117,9 +118,15 @@
     const fingers = cones.map((_, k) => root.getObjectByName(`finger_p${k + 1}`)).filter(Boolean);
     const C = new THREE.Matrix4().fromArray(root.userData["pinchmatch:file_mm_to_gltf_m"]).transpose();
     const p = virtual.userData["pinchmatch:virtual_contacts_mm"];
-    const contacts = cones.map((_, k) => new THREE.Vector3(p[3 * k], p[3 * k + 1], p[3 * k + 2]).applyMatrix4(C));
-    const ownVirtual = virtual.clone(); // in its own frame (identity), and opaque there
-    ownVirtual.matrix.identity();
+    const upright = new THREE.Matrix4();
+    if (up) {
+      const seen = new THREE.Vector3(...up).transformDirection(C);
+      upright.makeRotationFromQuaternion(new THREE.Quaternion().setFromUnitVectors(seen, new THREE.Vector3(0, 1, 0)));
+    }
+    const contacts = cones.map((_, k) => new THREE.Vector3(p[3 * k], p[3 * k + 1], p[3 * k + 2])
+      .applyMatrix4(C).applyMatrix4(upright));
+    const ownVirtual = virtual.clone(); // in its own frame, standing on its own up, and opaque there
+    ownVirtual.matrix.copy(upright);
     ownVirtual.matrix.decompose(ownVirtual.position, ownVirtual.quaternion, ownVirtual.scale);
     ownVirtual.material = virtual.material.clone();
     Object.assign(ownVirtual.material, { transparent: false, opacity: 1, depthWrite: true });
@@ -146,6 +153,10 @@
   const turned = (m) => m.up_turn_deg === null || m.up_turn_deg === undefined ? (m.flipped ? "flipped" : "upright")
     : m.up_turn_deg < 1 ? "upright"
     : `turned ${m.up_turn_deg.toFixed(0)}° from upright` + (m.flipped ? " (flipped: beyond 90°)" : "");
+
+  // where the object shown on a standing prop is against the prop's table (within 2 mm it rests)
+  const rests = (gap) => Math.abs(gap) <= 2 ? `resting on the table (${gap.toFixed(1)} mm)`
+    : gap < 0 ? `<b>${(-gap).toFixed(1)} mm into the table</b>` : `<b>${gap.toFixed(1)} mm above the table</b>`;
 
   // the landing tolerance's words (xr_core.js, which the page loads before this)
   const landingNote = (m) => PinchmatchXR.landingNote(m);
@@ -289,6 +300,7 @@
       `pinch width ${m.tangible_width_mm.toFixed(1)} mm on the tangible, ${m.virtual_width_mm.toFixed(1)} mm on the virtual object`,
       `contact offset ${m.contact_offset_mm.toFixed(2)} mm`,
       turned(m),
+      ...(m.rest_gap_mm === null || m.rest_gap_mm === undefined ? [] : [rests(m.rest_gap_mm)]),
       `position ${m.position_mm.map((x) => x.toFixed(1)).join(", ")} mm`,
     ];
     const choices = [`<button data-choice="-1" class="on">best, cost ${fmt(m.cost)}</button>`].concat(
@@ -358,7 +370,7 @@
     document.getElementById("virtual-title").textContent = `virtual pose: ${m.virtual} (its frame)`;
     const gltf = await loadScene(index);
     if (current !== index) return; // another entry was clicked meanwhile
-    const p = parts(gltf);
+    const p = parts(gltf, m.virtual_up);
     virtualNode = p.virtualNode;
     virtualNode.visible = document.getElementById("toggle-virtual").checked;
     shownParts = p;
@@ -393,7 +405,8 @@
   });
 
   // what the headset mode (immersive.js) builds on
-  window.pinchmatchViewer = { DATA, view: views.main, loadScene, cone, fingertipCones, current: () => current, select };
+  window.pinchmatchViewer = { DATA, view: views.main, views, loadScene, cone, fingertipCones, current: () => current,
+    select };
 
   document.getElementById("summary").textContent = DATA.summary;
   listEntries();

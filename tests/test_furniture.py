@@ -1,0 +1,106 @@
+"""What in a level is furniture, not an object to pinch: left out of the match with one line each."""
+
+import json
+
+import numpy as np
+import pytest
+import trimesh
+
+from pinchmatch.mesh.furniture import furniture, principal_spans
+
+from conftest import run_cli
+
+TABLE_TOP_M = 0.76
+
+
+def _table():
+    """A table (metres, y up): a top 1.4 x 0.7 m, 40 mm thick, at 760 mm, on four legs."""
+    parts = [trimesh.creation.box(extents=(1.4, 0.04, 0.7),
+                                  transform=trimesh.transformations.translation_matrix([0, TABLE_TOP_M - 0.02, 0]))]
+    for x in (-0.65, 0.65):
+        for z in (-0.3, 0.3):
+            parts.append(trimesh.creation.box(extents=(0.05, TABLE_TOP_M - 0.04, 0.05),
+                                              transform=trimesh.transformations.translation_matrix(
+                                                  [x, (TABLE_TOP_M - 0.04) / 2, z])))
+    return trimesh.util.concatenate(parts)
+
+
+def _on_table(mesh, x, z, sink_m=0.0):
+    mesh = mesh.copy()
+    mesh.apply_translation([x, TABLE_TOP_M - mesh.bounds[0, 1] - sink_m, z])
+    return mesh
+
+
+def _kitchen(turn_deg=0.0, offset=(0.0, 0.0, 0.0)):
+    """A table, a wall behind it, a broom leaning on nothing, a saucer with a cup on it, a mug and a box standing
+    on the table (one 3 mm into it, as scans do), all turned about the vertical and moved off the origin."""
+    saucer = trimesh.creation.cylinder(radius=0.045, height=0.025, sections=32)
+    saucer.apply_transform(trimesh.transformations.rotation_matrix(-np.pi / 2, [1, 0, 0]))
+    cup = trimesh.creation.cylinder(radius=0.04, height=0.08, sections=32)
+    cup.apply_transform(trimesh.transformations.rotation_matrix(-np.pi / 2, [1, 0, 0]))
+    saucer = _on_table(saucer, 0.3, 0.1)
+    cup.apply_translation([0.3, saucer.bounds[1, 1] - cup.bounds[0, 1], 0.1])
+    broom = trimesh.creation.box(extents=(0.03, 0.03, 1.4))
+    broom.apply_translation([1.2, 0.015, 0.0])  # lying on the floor, along z
+    nodes = {"table": _table(),
+             "wall": trimesh.creation.box(extents=(3.0, 2.0, 0.1),
+                                          transform=trimesh.transformations.translation_matrix([0, 1.0, -0.6])),
+             "saucer": saucer, "cup": cup, "broom": broom,
+             "mug": _on_table(trimesh.creation.cylinder(radius=0.04, height=0.09).apply_transform(
+                 trimesh.transformations.rotation_matrix(-np.pi / 2, [1, 0, 0])), -0.3, 0.0, sink_m=0.003),
+             "box": _on_table(trimesh.creation.box(extents=(0.05, 0.07, 0.03)), 0.0, -0.1)}
+    T = trimesh.transformations.rotation_matrix(np.radians(turn_deg), [0, 1, 0])
+    T[:3, 3] = offset
+    scene = trimesh.Scene()
+    for name, mesh in nodes.items():
+        scene.add_geometry(mesh, node_name=name, geom_name=f"{name}_mesh", transform=T)
+    return scene
+
+
+@pytest.mark.parametrize("turn_deg, offset", [(0.0, (0.0, 0.0, 0.0)), (35.0, (2.5, 0.4, -1.3))])
+def test_tables_and_walls_are_furniture_objects_on_them_are_not(turn_deg, offset):
+    found = furniture(_kitchen(turn_deg, offset), mm_per_unit=1000.0, up=np.array([0.0, 1.0, 0.0]))
+    assert set(found) == {"table", "wall"}, found
+    assert "stand on it" in found["table"] and "mug" in found["table"] and "box" in found["table"]
+    assert "cup" not in found["table"]  # on the saucer, not on the table
+    assert "two directions" in found["wall"]
+
+
+def test_a_level_with_another_up_reads_its_own_up():
+    """The same kitchen turned z-up (as a z-up exporter writes it): the same furniture with up = z."""
+    scene = _kitchen()
+    scene.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, [1, 0, 0]))  # y up -> z up
+    found = furniture(scene, mm_per_unit=1000.0, up=np.array([0.0, 0.0, 1.0]))
+    assert set(found) == {"table", "wall"}, found
+    assert "stand" not in furniture(scene, mm_per_unit=1000.0, up=np.array([0.0, 1.0, 0.0])).get("table", "")
+
+
+def test_principal_spans_do_not_depend_on_the_turn():
+    rng = np.random.default_rng(2)
+    v = rng.uniform(-1, 1, (500, 3)) * [700.0, 20.0, 150.0]
+    R = trimesh.transformations.random_rotation_matrix(rng.random(3))[:3, :3]
+    np.testing.assert_allclose(principal_spans(v @ R.T + [300.0, -40.0, 9.0]), principal_spans(v), rtol=1e-9)
+
+
+def test_a_level_with_its_table_and_wall_left_in_matches_neither_and_names_both(tmp_path, capsys):
+    _kitchen(20.0, (0.5, 0.0, 0.2)).export(tmp_path / "kitchen.glb")
+    prop = trimesh.creation.cylinder(radius=30.0, height=100.0, sections=48)
+    prop.export(tmp_path / "prop.stl")
+    code, out, err = run_cli(capsys, "match", "--tangible", tmp_path / "prop.stl", "--virtual",
+                             tmp_path / "kitchen.glb", "--split", "nodes", "--count", 100, "--no-view",
+                             "--no-figures", "--jobs", 1, "--no-cache", "-o", tmp_path / "out")
+    assert code == 0, err
+    doc = json.loads((tmp_path / "out" / "matches.json").read_text())
+    matched = {m["virtual"] for m in doc["matches"]}
+    assert matched == {"saucer", "cup", "broom", "mug", "box"}, matched
+    said = " ".join((out + err).split())  # the console wraps long lines
+    for name in ("table", "wall"):
+        assert f"node {name} left out" in said and f"--nodes '{name}'" in said, said
+    # named, the table comes back (and is matched or fails on its own merits)
+    code, out, err = run_cli(capsys, "match", "--tangible", tmp_path / "prop.stl", "--virtual",
+                             tmp_path / "kitchen.glb", "--split", "nodes", "--nodes", "table", "--nodes", "mug",
+                             "--count", 100, "--no-view", "--no-figures", "--jobs", 1, "--no-cache", "-o",
+                             tmp_path / "named")
+    doc = json.loads((tmp_path / "named" / "matches.json").read_text())
+    assert {m["virtual"] for m in doc["matches"]} | {f["path"].split("node ")[-1].rstrip(")")
+                                                     for f in doc["failed"]} >= {"table", "mug"}
