@@ -161,3 +161,36 @@ def test_the_summary_names_the_objects_pinched_from_behind():
     assert comfort_note([("cup", 60.0, 170.0), ("mouse", 10.0, 45.0), ("held", 0.0, None)]) is None
     note = comfort_note([("cup", 20.0, 170.0), ("mouse", 10.0, 45.0)])
     assert note.startswith("1 of 2 objects are pinched from behind") and "cup (170 deg" in note
+
+
+def test_a_props_manifest_says_where_the_user_stands(tmp_path, capsys, bottle):
+    """``user_mm`` at a props manifest's top level is the run's user (as --user-at, which overrides it): the
+    approaches are judged from there; a bad one, or two manifests that disagree, are one line each."""
+    folder, prop = bottle
+    _level(folder)
+    behind = [140.0, 1000.0, -900.0]
+    manifest = tmp_path / "props.toml"
+    manifest.write_text(f"user_mm = {behind}\n" + (folder / "props.toml").read_text().replace(
+        'file = "bottle.stl"', f'file = "{folder / "bottle.stl"}"'))
+    out = tmp_path / "out"
+    code, _, err = run_cli(capsys, "match", "--tangible", manifest, "--virtual", folder / "level.glb", "--split",
+                           "nodes", "--count", 200, "--no-view", "--no-figures", "--jobs", 1, "--no-cache", "-o", out)
+    assert code == 0, err
+    doc = json.loads((out / "matches.json").read_text())
+    assert doc["settings"]["user_mm"] == behind
+    for m in doc["matches"]:
+        pose = m["tangible_pose"]
+        elevation, azimuth = _world_angles(np.array([[pose["p1_mm"], pose["p2_mm"]]]), np.array([pose["approach"]]),
+                                           np.array(behind))
+        assert m["approach_azimuth_deg"] == pytest.approx(azimuth[0], abs=0.01)
+        assert azimuth[0] <= 90.0 or elevation[0] >= 35.0
+    bad = tmp_path / "bad.toml"
+    bad.write_text('user_mm = [1, "a", 3]\n' + manifest.read_text().split("\n", 1)[1])
+    code, stdout, err = run_cli(capsys, "match", "--tangible", bad, "--virtual", folder / "level.glb", "-o",
+                                tmp_path / "bad_out")
+    assert code == 2 and "user_mm" in err and "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+    other = tmp_path / "other.toml"
+    other.write_text("user_mm = [0, 0, 900]\n" + manifest.read_text().split("\n", 1)[1].replace('"bottle"', '"b2"'))
+    code, stdout, err = run_cli(capsys, "match", "--tangible", manifest, other, "--virtual", folder / "level.glb",
+                                "-o", tmp_path / "two_out")
+    assert code == 2 and "puts the user elsewhere" in err, err

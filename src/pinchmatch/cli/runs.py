@@ -52,7 +52,13 @@ def match_settings_of(args) -> MatchSettings:
         weights = complete_weights(given, criteria=criteria)
     else:
         weights = parse_weights(getattr(args, "weights", None), criteria=criteria)
-    return record_of(MatchSettings, args, weights=weights)
+    user = {}
+    if getattr(args, "user_mm", None) is None and getattr(args, "tangible", None):
+        from ..mesh.manifest import manifest_user
+
+        if (at := manifest_user(args.tangible)) is not None:  # the props manifest's, where --user-at gives none
+            user = {"user_mm": at}
+    return record_of(MatchSettings, args, weights=weights, **user)
 
 
 def config_of_args(args) -> Config:

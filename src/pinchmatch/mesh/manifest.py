@@ -294,7 +294,10 @@ def read_manifest(path: str | os.PathLike) -> list[ObjectSpec]:
     except RecursionError:
         raise ConfigError(f"{path}: nested too deep to be a manifest; fix the manifest (see docs/manifest.md)") from None
     problems = _Problems(path)
-    _unknown(document, ("defaults", "object"), "top level", problems)
+    _unknown(document, ("defaults", "object", "user_mm"), "top level", problems)
+    if "user_mm" in document and _user(document["user_mm"]) is None:
+        problems.add("top level", "user_mm", "must be where the user stands: three numbers [x, y, z] in mm in the "
+                                             "level's frame (y up), within 100 km of its origin")
     defaults = document.get("defaults", {})
     if not isinstance(defaults, dict):
         problems.add("top level", "defaults", "must be a table: [defaults]")
@@ -406,6 +409,31 @@ def node_specs(spec: ObjectSpec, nodes, *, only: tuple = (), skip: tuple = (), f
                           "one node to match")
     return [replace(spec, split="none", node=n.name, node_path=n.path,
                     name=f"{spec.name}/{n.name}" if spec.name else None) for n in kept]
+
+
+def _user(value) -> tuple | None:
+    """``value`` as a point (x, y, z) in mm, or None where it is not one."""
+    if not isinstance(value, list) or len(value) != 3 or not all(finite_number(c) and abs(c) <= 1e8 for c in value):
+        return None
+    return tuple(float(c) for c in value)
+
+
+def manifest_user(paths) -> tuple | None:
+    """Where the user stands (mm, the level's frame), as the manifests among ``paths`` say with a level-wide
+    ``user_mm`` (each manifest checked as :func:`read_manifest` checks it); None where none says. Two manifests
+    that put the user in two places are refused in one line."""
+    found: dict[tuple, str] = {}
+    for given in paths:
+        if is_manifest(given):
+            read_manifest(given)
+            document = tomllib.loads(Path(given).read_bytes().decode("utf-8"))
+            if "user_mm" in document:
+                found.setdefault(_user(document["user_mm"]), str(given))
+    if len(found) > 1:
+        (a, first), (b, second) = list(found.items())[:2]
+        raise ConfigError(f"{second}: user_mm = {list(b)} puts the user elsewhere than {first} does ({list(a)}); "
+                          "give one place, in one manifest or with --user-at")
+    return next(iter(found), None)
 
 
 def is_manifest(path: str | os.PathLike) -> bool:
