@@ -208,7 +208,8 @@ def test_the_carousel_holds_its_objects_apart_and_the_level_s_own_object_gives_w
 
 def test_a_desktop_previews_the_scene_mode(browser, shelf_out):
     """Without a headset, index.html?mode=scene shows the scene mode's level in the main view: the can in
-    place, the boxes on the carousel's ring (apart), the first task's prompt in the title."""
+    place, the boxes on the carousel's ring (apart), the first task's prompt in the title, naming the prop, and
+    the table the prop stands on under the prop and the ring, the boxes resting on it."""
     from test_view import VIEW_BACKGROUND, canvas_pixels, drawn_fraction
 
     context = browser.new_context(viewport={"width": 1400, "height": 900})
@@ -227,5 +228,18 @@ def test_a_desktop_previews_the_scene_mode(browser, shelf_out):
             assert ((hi_a[[0, 2]] < lo_b[[0, 2]]) | (hi_b[[0, 2]] < lo_a[[0, 2]])).any()
     pg.wait_for_timeout(300)
     assert drawn_fraction(canvas_pixels(pg, "#canvas-main")) > 0.01 and VIEW_BACKGROUND is not None
+    # the table the prop stands on: its top at the prop's lowest point, under the prop and the whole ring; the
+    # boxes brought by the carousel rest on it (each one registered on the prop), and the prompt names the prop
+    (low, high) = np.array(pg.evaluate("pinchmatchXR.preview.table()"))
+    prop = np.array(pg.evaluate("""(() => { const t = pinchmatchViewer.view.scene.getObjectByProperty('name', 'tangible');
+        const b = new PM3.THREE.Box3().setFromObject(t); return [b.min.toArray(), b.max.toArray()]; })()"""))
+    assert high[1] == pytest.approx(prop[0][1], abs=1e-6)
+    for lo, hi in [prop, *boxes]:
+        assert (low[[0, 2]] <= lo[[0, 2]]).all() and (hi[[0, 2]] <= high[[0, 2]]).all()
+    for i in s["queue"]:
+        rest = pg.evaluate(f"pinchmatchViewer.DATA.matches[{i}].rest_gap_mm")
+        lowest = pg.evaluate(f"pinchmatchXR.preview.boxInRoom({i})")[0][1]
+        assert lowest - high[1] == pytest.approx(rest / 1000.0, abs=2e-4) and -0.002 - 1e-6 <= rest / 1000.0 <= 0.01
+    assert "can_prop" in pg.locator("#main-title").inner_text()
     assert errors == [], errors
     context.close()

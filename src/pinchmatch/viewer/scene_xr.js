@@ -18,6 +18,7 @@ window.PinchmatchScene = (function () {
   const CAROUSEL_CENTRE_M = [0.3, 0, 0]; // beside the prop, in the prop's scene frame
   const CAROUSEL_RADIUS_M = 0.12, BUTTON_SIZE_M = 0.04, BUTTON_PRESS_M = 0.02, NEXT_TASK_S = 2;
   const CAROUSEL_GAP_M = 0.02; // between neighbours on the carousel's ring
+  const TABLE_MARGIN_M = 0.15, TABLE_THICKNESS_M = 0.01; // the drawn table: beyond the prop and the ring, its slab
   const rows = (r) => new THREE.Matrix4().set(...r);
   const mm = (p) => new THREE.Vector3(...p).multiplyScalar(0.001);
 
@@ -76,6 +77,26 @@ window.PinchmatchScene = (function () {
       button.position.set(carousel.position.x, 0.02, carousel.position.z + ring.radius + 0.06);
       queue.forEach((i, k) => placeOnCarousel(objects.get(i), k));
       atPropSpot();
+      addTable();
+    }
+
+    // the table the prop stands on, its top at the prop's lowest point, under the prop and the carousel's ring:
+    // what the prop brings is seen resting on it, as the prop rests on the real table
+    function addTable() {
+      const first = objects.get(tasks()[0]);
+      const tangible = first && first.root.getObjectByName("tangible");
+      if (!tangible) return;
+      tangible.geometry.computeBoundingBox();
+      const b = tangible.geometry.boundingBox.clone().applyMatrix4(tangible.matrix);
+      const low = Math.min(b.min.x, carousel.position.x - ring.radius) - TABLE_MARGIN_M;
+      const high = Math.max(b.max.x, carousel.position.x + ring.radius) + TABLE_MARGIN_M;
+      const back = Math.min(b.min.z, carousel.position.z - ring.radius) - TABLE_MARGIN_M;
+      const front = Math.max(b.max.z, button.position.z) + TABLE_MARGIN_M;
+      const top = new THREE.Mesh(new THREE.BoxGeometry(high - low, TABLE_THICKNESS_M, front - back),
+        new THREE.MeshStandardMaterial({ color: 0xc8b69a, transparent: true, opacity: 0.55, depthWrite: false }));
+      top.name = "pinchmatch_table";
+      top.position.set((low + high) / 2, b.min.y - TABLE_THICKNESS_M / 2, (back + front) / 2);
+      api.propFrame.add(top);
     }
 
     // an object's footprint as registered on the prop: {x, z} the middle of its box, r its half diagonal (m)
@@ -183,11 +204,12 @@ window.PinchmatchScene = (function () {
       if (m.redirection.mode === "carousel" && st.on_prop !== tasks()[k]) {
         cones.clear();
         api.say(onPropNote() + `${m.virtual} is on the carousel: press the orange button with a fingertip until ` +
-                "it comes onto the prop.");
+                `it comes onto the prop (${m.tangible}).`);
       } else {
         aim();
         api.say(onPropNote() + `Pinch ${m.virtual} where the green cones show` +
-                (m.redirection.mode === "redirect" ? `: it stays in place, your hand is led to the prop.` : "."));
+                (m.redirection.mode === "redirect" ? `: it stays in place, your hand is led to the prop (${m.tangible}).`
+                  : ` (the prop ${m.tangible}).`));
       }
     }
 
@@ -264,6 +286,8 @@ window.PinchmatchScene = (function () {
       turn: () => turnCarousel(),
       visible: (i) => objects.get(i).virtual.visible,
       atProp: (i) => Boolean(objects.get(i).atProp),
+      table: () => { const t = api.propFrame.getObjectByName("pinchmatch_table"); if (!t) return null;
+        t.updateMatrixWorld(true); const b = new THREE.Box3().setFromObject(t); return [b.min.toArray(), b.max.toArray()]; },
       boxInRoom: (i) => { const b = new THREE.Box3().setFromObject(objects.get(i).virtual); return [b.min.toArray(), b.max.toArray()]; },
       objectInRoom: (i) => { const o = objects.get(i); o.virtual.updateMatrixWorld(true); return o.virtual.matrixWorld.toArray(); },
       registeredInRoom: (i) => { const o = objects.get(i); api.propFrame.updateMatrixWorld(true);
