@@ -151,8 +151,9 @@ def level_glb(level_path, props: list, entries: dict, settings: dict, *, virtual
             if node in extensions:
                 extensions[carousel] = extensions[node]
             owners.append(carousel)
+        joints = grasp_joints(entry, world, k, radius)  # the node's frame: the carousel node's too
         for owner in owners:
-            for joint, place in grasp_joints(entry, world, k, radius).items():
+            for joint, place in joints.items():
                 child = f"{owner}{JOINT_SEPARATOR}{joint}"
                 scene.graph.update(frame_to=child, frame_from=owner, matrix=_matrix(np.eye(3), place))
                 renamed[child] = joint

@@ -112,14 +112,6 @@ def comfortable_poses(tangible, user_mm) -> np.ndarray | None:
     return memo[key]
 
 
-def comfort_lifted(tangible, user_mm) -> bool:
-    """Does ``tangible`` stand on a table with no comfortable pose, so that the rule is lifted for it?"""
-    if tangible.obj.context.support is None or not len(tangible):
-        return False
-    ok = comfortable(*approach_angles(tangible.obj, tangible.pinches.points, tangible.pinches.approach, user_mm))
-    return not ok.any()
-
-
 def comfort_score(tangible, t_pose: int, user_mm=None, fingertip_radius_mm: float = 8.0) -> float:
     """How easily a person makes pose ``t_pose`` of ``tangible``, higher better, for choices that cost the same:
     the approach's alignment with the easiest one (from the user's side, ``EASIEST_ELEVATION_DEG`` up: 1 when
