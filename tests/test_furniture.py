@@ -59,20 +59,28 @@ def _kitchen(turn_deg=0.0, offset=(0.0, 0.0, 0.0)):
 
 @pytest.mark.parametrize("turn_deg, offset", [(0.0, (0.0, 0.0, 0.0)), (35.0, (2.5, 0.4, -1.3))])
 def test_tables_and_walls_are_furniture_objects_on_them_are_not(turn_deg, offset):
-    found = furniture(_kitchen(turn_deg, offset), mm_per_unit=1000.0, up=np.array([0.0, 1.0, 0.0]))
+    survey = furniture(_kitchen(turn_deg, offset), mm_per_unit=1000.0, up=np.array([0.0, 1.0, 0.0]))
+    found = survey.why
     assert set(found) == {"table", "wall"}, found
     assert "stand on it" in found["table"] and "mug" in found["table"] and "box" in found["table"]
     assert "cup" not in found["table"]  # on the saucer, not on the table
     assert "two directions" in found["wall"]
+    # the table's top is the support of what stands on it, sunk or not; the cup stands on the saucer (an object)
+    top_mm = 1000.0 * (TABLE_TOP_M + offset[1])
+    assert set(survey.tops_mm) == {"mug", "box", "saucer"}, survey.tops_mm
+    for name in ("mug", "box", "saucer"):
+        assert abs(survey.tops_mm[name] - top_mm) < 1e-6, (name, survey.tops_mm[name], top_mm)
 
 
 def test_a_level_with_another_up_reads_its_own_up():
     """The same kitchen turned z-up (as a z-up exporter writes it): the same furniture with up = z."""
     scene = _kitchen()
     scene.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, [1, 0, 0]))  # y up -> z up
-    found = furniture(scene, mm_per_unit=1000.0, up=np.array([0.0, 0.0, 1.0]))
-    assert set(found) == {"table", "wall"}, found
-    assert "stand" not in furniture(scene, mm_per_unit=1000.0, up=np.array([0.0, 1.0, 0.0])).get("table", "")
+    survey = furniture(scene, mm_per_unit=1000.0, up=np.array([0.0, 0.0, 1.0]))
+    assert set(survey.why) == {"table", "wall"}, survey.why
+    assert abs(survey.tops_mm["mug"] - 1000.0 * TABLE_TOP_M) < 1e-6
+    sideways = furniture(scene, mm_per_unit=1000.0, up=np.array([0.0, 1.0, 0.0]))
+    assert "stand" not in sideways.why.get("table", "") and not sideways.tops_mm
 
 
 def test_principal_spans_do_not_depend_on_the_turn():
@@ -93,6 +101,14 @@ def test_a_level_with_its_table_and_wall_left_in_matches_neither_and_names_both(
     doc = json.loads((tmp_path / "out" / "matches.json").read_text())
     matched = {m["virtual"] for m in doc["matches"]}
     assert matched == {"saucer", "cup", "broom", "mug", "box"}, matched
+    # what stands on the table stands on its top: the mug sunk 3 mm into it too, the cup on its saucer on its own
+    supports = {o["name"]: o["support"] for o in doc["virtuals"]}
+    top_mm = 1000.0 * TABLE_TOP_M
+    for name in ("mug", "box", "saucer"):
+        assert supports[name]["source"] == "furniture top", supports[name]
+        np.testing.assert_allclose(supports[name]["normal"], [0.0, 1.0, 0.0], atol=1e-6)
+        assert abs(supports[name]["height_mm"] - top_mm) < 1e-3, (name, supports[name])
+    assert supports["cup"]["source"] == "lowest point" and supports["cup"]["height_mm"] > top_mm + 20.0
     said = " ".join((out + err).split())  # the console wraps long lines
     for name in ("table", "wall"):
         assert f"node {name} left out" in said and f"--nodes '{name}'" in said, said

@@ -15,10 +15,17 @@ A node is such *furniture* when
   be as large; an arm's reach (about 1 m, :data:`pinchmatch.config.MAX_REACH_MM`) is the measure. A long
   thin object (a broom, a rod) spans that in one direction only and stays an object.
 
+Where a node stands on furniture, the furniture's top is its support (:mod:`pinchmatch.mesh.support`): the
+height, along the level's up, of the points of the furniture's upward faces nearest its lowest points (their
+median; the highest such top where it stands on two). A scanned mug 3 mm into the table stands on the table's
+top, not on its own lowest point, and one hovering 2 mm over it on the top too.
+
 Everything is measured in the level's world frame (every node's transforms applied), in mm.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass, field
 
 import numpy as np
 import trimesh
@@ -56,9 +63,19 @@ def principal_spans(vertices: np.ndarray) -> np.ndarray:
     return np.sort(spans)[::-1]
 
 
-def furniture(scene: trimesh.Scene, *, mm_per_unit: float, up: np.ndarray) -> dict[str, str]:
-    """{node name: why it is furniture} for the mesh nodes of ``scene`` (a level whose coordinates are in
-    units of ``mm_per_unit`` mm, ``up`` its up direction) that are not objects to pinch (module notes)."""
+@dataclass(frozen=True)
+class Furniture:
+    """What of a level is furniture: ``why`` {node name: why it is furniture}, ``tops_mm`` {name of a node that
+    stands on furniture: the height of the furniture's top under it along the level's up, mm}."""
+
+    why: dict = field(default_factory=dict)
+    tops_mm: dict = field(default_factory=dict)
+
+
+def furniture(scene: trimesh.Scene, *, mm_per_unit: float, up: np.ndarray) -> Furniture:
+    """The furniture among the mesh nodes of ``scene`` (a level whose coordinates are in units of
+    ``mm_per_unit`` mm, ``up`` its up direction): the nodes that are not objects to pinch, and the tops the
+    others stand on (module notes)."""
     up = np.asarray(up, dtype=np.float64)
     nodes = level_nodes(scene)
     meshes = {}
@@ -74,6 +91,7 @@ def furniture(scene: trimesh.Scene, *, mm_per_unit: float, up: np.ndarray) -> di
     bases = {name: _base_points(np.asarray(m.vertices), up) for name, m in meshes.items()}
     bounds = {name: m.bounds for name, m in meshes.items()}
     cos_up = np.cos(np.radians(UP_FACE_DEG))
+    tops: dict[str, float] = {}
     for name, mesh in meshes.items():
         if spans_of[name][1] <= SURFACE_SPAN_MM:
             continue
@@ -82,18 +100,19 @@ def furniture(scene: trimesh.Scene, *, mm_per_unit: float, up: np.ndarray) -> di
         for other, base in bases.items():
             if other == name or not ((base >= low) & (base <= high)).all(axis=1).any():
                 continue
-            _, distance, face = trimesh.proximity.closest_point(mesh, base)
-            looks_up = mesh.face_normals[face] @ up >= cos_up
-            if ((distance <= STANDS_ON_MM) & looks_up).any():
+            closest, distance, face = trimesh.proximity.closest_point(mesh, base)
+            on = (distance <= STANDS_ON_MM) & (mesh.face_normals[face] @ up >= cos_up)
+            if on.any():
                 standing.append(other)
+                tops[other] = max(tops.get(other, -np.inf), float(np.median(closest[on] @ up)))
         if standing:
             shown = ", ".join(standing[:3]) + (f" and {len(standing) - 3} more" if len(standing) > 3 else "")
             out[name] = f"{shown} stand{'s' if len(standing) == 1 else ''} on it" + (
                 f"; {out[name]}" if name in out else "")
-    return out
+    return Furniture(out, {name: top for name, top in tops.items() if name not in out})
 
 
-def level_furniture(path, *, units: str | None, up: str | None) -> dict[str, str]:
+def level_furniture(path, *, units: str | None, up: str | None) -> Furniture:
     """:func:`furniture` of the level file ``path``, read in ``units`` and ``up`` (glTF's metres and +Y where not
     given)."""
     from .frames import UNITS_MM, parse_up

@@ -38,14 +38,14 @@ import math
 import os
 import stat
 import tomllib
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
 
 from ..config import finite_number
 from ..errors import ConfigError, InternalError
 from .described import read_shape, shape_file
 from .frames import UNITS_MM, UP_VECTORS
-from .furniture import level_furniture
+from .furniture import Furniture, level_furniture
 from .load import GLTF_TYPES, MESH_EXTENSIONS, mesh_files, read_level
 from .regions import ContactRegions, Region
 
@@ -87,6 +87,7 @@ class ObjectSpec:
     manifest: str | None = None  # the manifest it was listed in
     pose: tuple | None = None  # ((x, y, z) mm, (qx, qy, qz, qw)): file coordinates (mm) -> the level's world
     support: str | float | None = None  # what it stands on (:mod:`pinchmatch.mesh.support`): "auto", "none", mm
+    rests_on_mm: float | None = None  # a level's node on furniture: the furniture's top under it (mm, along up)
     nodes: tuple = ()  # a level split into nodes: only the nodes whose name or path matches one of these globs
     skip_nodes: tuple = ()  # and none that matches one of these
 
@@ -100,10 +101,13 @@ class ObjectSpec:
         return replace(self, units=self.units or units, up=self.up or up)
 
     def shape_key(self) -> dict:
-        """What shapes the object's candidates (a cache key): not its name or mass."""
-        return {"units": self.units, "up": self.up, "com_mm": self.com_mm, "axis": self.axis,
-                "regions": self.regions.as_dict(), "node": self.node, "support": self.support,
-                "pose": None if self.support in (None, "none") or self.pose is None else self.pose[1]}
+        """What shapes the object's candidates (a cache key): every field but those in ``NOT_SHAPE`` (its
+        name, mass, where it was listed, which file; the file is keyed by its contents), and of the pose its
+        turn, only for an object that stands (where it stands in the level moves nothing in its frame)."""
+        out = {f.name: getattr(self, f.name) for f in fields(self) if f.name not in NOT_SHAPE}
+        out["regions"] = self.regions.as_dict()
+        out["pose"] = None if self.support in (None, "none") or self.pose is None else self.pose[1]
+        return out
 
     def standing(self, default: str | None) -> "ObjectSpec":
         """The spec with ``default`` support (``"auto"`` or ``"none"``) where it says none itself."""
@@ -122,6 +126,10 @@ class _Problems:
     def raise_any(self) -> None:
         if self.lines:
             raise ConfigError("\n".join(self.lines))
+
+
+#: the fields of an :class:`ObjectSpec` that do not shape its candidates
+NOT_SHAPE = frozenset({"path", "name", "mass_g", "split", "node_path", "manifest", "nodes", "skip_nodes"})
 
 
 def _number(value) -> bool:
@@ -377,15 +385,16 @@ def _described(table: dict, where: str, base: dict, manifest: Path, problems: _P
     return ObjectSpec(str(file), regions=regions, manifest=str(manifest), units="mm", up="z", **options)
 
 
-def node_specs(spec: ObjectSpec, nodes, *, only: tuple = (), skip: tuple = (), furniture: dict | None = None,
+def node_specs(spec: ObjectSpec, nodes, *, only: tuple = (), skip: tuple = (), furniture: Furniture | None = None,
                notes: list | None = None) -> list[ObjectSpec]:
     """One spec per mesh node of a level (``nodes`` from :func:`pinchmatch.mesh.load.read_level`),
     named by the node (after the level's own name, where the manifest gives one): the nodes whose name or
     path matches a glob of the spec's ``nodes`` (else of ``only``; every node where neither gives one),
     none that matches one of the spec's ``skip_nodes`` or of ``skip``. A glob of ``nodes`` or ``only``
-    that matches no node is refused, naming the level's nodes. A node of ``furniture`` ({name: why}:
-    :func:`pinchmatch.mesh.furniture.furniture`) is left out unless a glob of ``nodes`` or ``only`` names it,
-    with one line in ``notes`` saying so."""
+    that matches no node is refused, naming the level's nodes. A node of ``furniture``
+    (:func:`pinchmatch.mesh.furniture.furniture`) is left out unless a glob of ``nodes`` or ``only`` names it,
+    with one line in ``notes`` saying so; a node that stands on furniture has its top as ``rests_on_mm``."""
+    furniture = furniture or Furniture()
     include = spec.nodes or tuple(only)
     exclude = tuple(spec.skip_nodes) + tuple(skip)
 
@@ -398,16 +407,16 @@ def node_specs(spec: ObjectSpec, nodes, *, only: tuple = (), skip: tuple = (), f
             raise ConfigError(f"{spec.path}: the node glob {g!r} (--nodes, or a manifest's nodes) matches no mesh node "
                               f"of the level; its nodes are {names}")
     kept = [n for n in nodes if (not include or matches(n, include)) and not matches(n, exclude)]
-    left = [n for n in kept if n.name in (furniture or {}) and not (include and matches(n, include))]
+    left = [n for n in kept if n.name in furniture.why and not (include and matches(n, include))]
     for n in left:
         if notes is not None:
             notes.append(f"{spec.path}: node {n.name} left out of the match, as a table, a counter, a shelf, a wall "
-                         f"or a floor is: {furniture[n.name]}; to match it, name it with --nodes '{n.name}'")
+                         f"or a floor is: {furniture.why[n.name]}; to match it, name it with --nodes '{n.name}'")
     kept = [n for n in kept if n not in left]
     if not kept:
         raise ConfigError(f"{spec.path}: --nodes and --skip-nodes leave no mesh node of the level; name at least "
                           "one node to match")
-    return [replace(spec, split="none", node=n.name, node_path=n.path,
+    return [replace(spec, split="none", node=n.name, node_path=n.path, rests_on_mm=furniture.tops_mm.get(n.name),
                     name=f"{spec.name}/{n.name}" if spec.name else None) for n in kept]
 
 
@@ -482,7 +491,7 @@ def spec_to_dict(spec: ObjectSpec) -> dict:
             "mass_g": spec.mass_g, "regions": spec.regions.as_dict(), "split": spec.split,
             "node": spec.node, "node_path": spec.node_path, "manifest": spec.manifest,
             "pose": None if spec.pose is None else [list(spec.pose[0]), list(spec.pose[1])],
-            "support": spec.support}
+            "support": spec.support, "rests_on_mm": spec.rests_on_mm}
 
 
 def spec_from_dict(d: dict) -> ObjectSpec:
@@ -496,4 +505,4 @@ def spec_from_dict(d: dict) -> ObjectSpec:
                                              tuple(region(r) for r in d["regions"]["only"])),
                       split=d["split"], node=d["node"], node_path=d["node_path"], manifest=d["manifest"],
                       pose=None if d.get("pose") is None else (tuple(d["pose"][0]), tuple(d["pose"][1])),
-                      support=d.get("support"))
+                      support=d.get("support"), rests_on_mm=d.get("rests_on_mm"))

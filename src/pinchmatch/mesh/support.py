@@ -9,7 +9,8 @@ from the table:
 - a prop without one stands on the plane through its lowest point along its own up;
 - ``support_mm`` (a manifest key) puts the plane at that height along the up instead (a prop standing on
   a block, a bottle on a shelf's lip), ``support = "none"`` declares a hand-held prop;
-- a node of a level (``--split nodes``) stands on the level's horizontal plane through its own lowest point.
+- a node of a level (``--split nodes``) stands on the level's horizontal plane through the top of the
+  furniture it stands on (:mod:`pinchmatch.mesh.furniture`), else through its own lowest point.
 
 The hand model (:mod:`pinchmatch.grasp.hand`) treats the half-space below the plane as part of the object:
 a finger's test spheres measure their distance to it as to the surface, the fingertip spheres must stay
@@ -64,6 +65,9 @@ def support_plane(spec, vertices: np.ndarray, up: np.ndarray) -> SupportPlane | 
         normal = np.asarray(up, dtype=np.float64)
         source = "lowest point"
     normal = normal / np.linalg.norm(normal)
+    rests_on = getattr(spec, "rests_on_mm", None)
+    if support == "auto" and rests_on is not None and pose is None:
+        return SupportPlane(normal, float(rests_on), "furniture top")
     if support == "auto":
         return SupportPlane(normal, float(np.min(np.asarray(vertices, dtype=np.float64) @ normal)), source)
     return SupportPlane(normal, float(support), "support_mm")
