@@ -15,6 +15,7 @@ from pinchmatch.runner import executors
 from pinchmatch.cli.commands import example_mesh_path
 from pinchmatch.cli.main import main
 from pinchmatch.export.folder import OutputFolder, read_manifest, recover
+from pinchmatch.export.seal import sealed
 from pinchmatch.mesh.shapes import ellipsoid
 
 
@@ -283,8 +284,8 @@ def test_a_journal_naming_a_path_outside_out_leaves_it_in_place(tmp_path, virtua
     (out / "linked").symlink_to(tmp_path, target_is_directory=True)
     name = name.format(abs=str(victim))
     control = out / ".pinchmatch"
-    (control / "commit.json").write_text(json.dumps({"new": [name], "staged": [], "remove": [name]}))
-    (control / "manifest.json").write_text(json.dumps({"files": [name]}))
+    (control / "commit.json").write_text(sealed("journal", {"new": [name], "staged": [], "remove": [name]}))
+    (control / "manifest.json").write_text(sealed("manifest", {"files": [name]}))
     publish.finish_commit(out)
     assert victim.read_text() == "keep me"
 
@@ -303,13 +304,12 @@ def test_a_journal_or_manifest_naming_files_outside_out_touches_none_of_them(tmp
     (out / "linked").symlink_to(outside, target_is_directory=True)
     names = ["../outside/a.txt", str(victims["b.txt"]), "scenes/../../outside/c.txt", "linked/d.txt"]
     control = out / ".pinchmatch"
-    (control / "commit.json").write_text(json.dumps({"new": [], "staged": names, "remove": names}))
+    (control / "commit.json").write_text(sealed("journal", {"new": [], "staged": names, "remove": names}))
     publish.finish_commit(out)
     assert all(p.read_text() == "keep me" for p in victims.values())
     assert not (control / "commit.json").exists()
     # the manifest of the last result names them too: the next run prunes only what is inside OUT
-    manifest = json.loads((control / "manifest.json").read_text())
-    (control / "manifest.json").write_text(json.dumps({"files": manifest["files"] + names}))
+    (control / "manifest.json").write_text(sealed("manifest", {"files": read_manifest(out) + names}))
     (out / "linked").unlink()  # (a folder linked out of OUT is refused outright; its own test)
     (out / "linked").mkdir()
     assert match(out, [virtuals / "e1.stl"]) == 0
@@ -337,7 +337,7 @@ def test_a_received_folder_with_links_in_its_control_folder_moves_nothing_from_o
         control.rename(real)
         control.symlink_to(real, target_is_directory=True)
         (real / "staging").symlink_to(elsewhere, target_is_directory=True)
-        (real / "commit.json").write_text(json.dumps(journal))
+        (real / "commit.json").write_text(sealed("journal", journal))
     else:
         (control / "staging").mkdir(exist_ok=True)
         if link == "staging":
@@ -348,10 +348,10 @@ def test_a_received_folder_with_links_in_its_control_folder_moves_nothing_from_o
         elif link == "staged-file":
             (control / "staging" / "victim.txt").symlink_to(elsewhere / "victim.txt")
         if link == "journal":
-            (elsewhere / "commit.json").write_text(json.dumps(journal))
+            (elsewhere / "commit.json").write_text(sealed("journal", journal))
             (control / "commit.json").symlink_to(elsewhere / "commit.json")
         else:
-            (control / "commit.json").write_text(json.dumps(journal))
+            (control / "commit.json").write_text(sealed("journal", journal))
     before = sorted(p.name for p in elsewhere.rglob("*"))
     capsys.readouterr()
     for argv in (["view", str(out)], None):
@@ -419,7 +419,7 @@ def test_a_run_whose_process_is_killed_is_taken_back_or_finished_by_the_next(tmp
     (stage / "matches.json").write_text("{}")
     if publishing:
         publisher._publish = lambda: None  # (not called: the journal below is what a killed publication leaves)
-        (out / ".pinchmatch" / "commit.json").write_text(json.dumps(
+        (out / ".pinchmatch" / "commit.json").write_text(sealed("journal",
             {"new": ["matches.json", "props/prop_1.stl", "props/prop_2.stl"], "staged": ["matches.json"],
              "remove": []}))
     fcntl.flock(publisher._lock, fcntl.LOCK_UN)  # the process is gone: its lock with it
@@ -436,14 +436,20 @@ def test_a_run_whose_process_is_killed_is_taken_back_or_finished_by_the_next(tmp
 
 @pytest.mark.parametrize("run", [{"undo": [1, "x", ["a.txt", 5], ["b.txt", ["c"]], [7, None]]}, {"undo": 3},
                                  {"created": "yes", "undo": [["../victim.txt", None]]}, [1, 2]])
-def test_a_received_run_record_of_any_shape_is_taken_back_safely(tmp_path, run):
-    """A run record (``run.json``) that this code did not write: entries of other shapes are skipped, nothing
-    outside OUT is touched, and the folder is recovered without an internal error."""
+def test_a_run_record_of_any_shape_is_taken_back_safely(tmp_path, run):
+    """A run record (``run.json``) of any shape: received (not sealed), it is refused in one line; sealed by
+    this user's runs, entries of other shapes are skipped. Either way nothing outside OUT and no file of the
+    user's in it is touched, without an internal error."""
     out = tmp_path / "out"
     (out / ".pinchmatch").mkdir(parents=True)
     victim = tmp_path / "victim.txt"
     victim.write_text("keep me")
     (out / "a.txt").write_text("mine")
     (out / ".pinchmatch" / "run.json").write_text(json.dumps(run))
-    recover(out)
-    assert victim.read_text() == "keep me"
+    with pytest.raises(publish.OutputError, match="no run of this user's wrote") as refused:
+        recover(out)
+    assert "\n" not in str(refused.value)
+    if isinstance(run, dict):
+        (out / ".pinchmatch" / "run.json").write_text(sealed("run", run))
+        recover(out)
+    assert victim.read_text() == "keep me" and (out / "a.txt").read_text() == "mine"

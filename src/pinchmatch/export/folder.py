@@ -22,9 +22,17 @@ replaced only when it sits at the very path of an output). A lock
 (``flock`` on ``OUT/.pinchmatch/lock``) refuses a second run into the same OUT while one is going.
 
 A result folder may come from someone else (a shared drive, an archive), so nothing under
-``OUT/.pinchmatch`` is trusted: a link there (the control folder itself, its staging folder, its
-lock, journal, manifest or run record) is refused before anything is read or written through it
-(:func:`check_control`), and a journal moves only regular files that lie in the real staging folder.
+``OUT/.pinchmatch`` is trusted:
+
+- a link there (the control folder itself, its staging folder, its lock, journal, manifest or run record)
+  is refused before anything is read or written through it (:func:`check_control`);
+- the manifest, the journal and the run record are sealed (:mod:`pinchmatch.export.seal`): a manifest
+  whose seal does not verify lists nothing to delete (its files are kept as the user's own), and a journal
+  or run record whose seal does not verify is refused in one line, never carried out;
+- even a sealed journal deletes only files its manifest lists, and moves only regular files that lie in
+  the real staging folder; a sealed run record is carried out only on names whose folder lies inside OUT,
+  links followed;
+- the folder a failed run made goes only when nothing but what that run wrote is in it.
 """
 
 from __future__ import annotations
@@ -39,10 +47,15 @@ from pathlib import Path
 
 from ..errors import OutputError
 from ..files import RESULT_CONTROL, remove_temporaries, write_atomic
+from .seal import sealed, unsealed
 
 CONTROL = RESULT_CONTROL
 #: what the control folder holds; none of it may be a link
 CONTROL_ENTRIES = ("staging", "replaced", "lock", "commit.json", "manifest.json", "run.json")
+
+
+class FolderBusy(OutputError):
+    """Another run holds the folder's lock."""
 
 
 def check_control(out: str | os.PathLike) -> bool:
@@ -110,15 +123,18 @@ class OutputFolder:
             os.close(fd)
             self._lock = None
             raise
-        _undo_locked(self.out)  # what a killed run left: its journal finished, or its writes taken back
+        _undo_locked(self.out, last=False)  # what a killed run left: its journal finished, or its writes taken back
         self.stage.mkdir()
         self._save_run()
         return self.stage
 
     def _save_run(self) -> None:
         """Keep what a killed run must take back (``run.json``): the direct writes, and whether OUT is new."""
-        write_atomic(self.control / RUN, json.dumps({"created": self._created, "undo": [
-            [name, None if kept is None else kept.relative_to(self.control).as_posix()] for name, kept in self._undo]}))
+        write_atomic(self.control / RUN, sealed("run", self._run()))
+
+    def _run(self) -> dict:
+        return {"created": self._created, "undo": [
+            [name, None if kept is None else kept.relative_to(self.control).as_posix()] for name, kept in self._undo]}
 
     def direct(self, path: str | os.PathLike, *, new: bool = False) -> None:
         """Record a file written straight into ``out``; ``new``: it was not there before the run, so it
@@ -159,9 +175,7 @@ class OutputFolder:
             if (self.control / "commit.json").exists():
                 pass  # a publication cut short: its journal still needs what is staged (the next reader finishes it)
             elif failed:
-                _take_back(self.out, {"created": self._created, "undo": [
-                    [name, None if kept is None else kept.relative_to(self.control).as_posix()]
-                    for name, kept in self._undo]})
+                _take_back(self.out, self._run(), last=True)
             else:
                 _clean(self.out)
             fcntl.flock(self._lock, fcntl.LOCK_UN)
@@ -175,7 +189,7 @@ class OutputFolder:
         _refuse_links_out(self.out, new + old)  # a link made while the run worked
         journal = {"new": new, "staged": [n for n in new if (self.stage / n).is_file()],
                    "remove": sorted(set(old) - set(new))}
-        write_atomic(self.control / "commit.json", json.dumps(journal))
+        write_atomic(self.control / "commit.json", sealed("journal", journal))
         finish_commit(self.out)
 
 
@@ -183,16 +197,14 @@ class OutputFolder:
 RUN = "run.json"
 
 
-def _take_back(out: Path, run: dict) -> None:
-    """Undo a run that did not publish: its direct writes put back (a file it replaced comes back, one it
-    added goes), what it staged removed, and OUT itself when the run made it."""
+def _take_back(out: Path, run: dict, *, last: bool) -> None:
+    """Undo a run that did not publish (``run``: its sealed record, or the run's own): its direct writes put
+    back (a file it replaced comes back, one it added goes) and what it staged removed; with ``last`` (no run
+    follows into OUT), OUT itself when the run made it and nothing else is in it."""
     control = out / CONTROL
     if (control / "commit.json").exists():  # it was publishing: finished, never taken back
         finish_commit(out)
         _clean(out)
-        return
-    if run.get("created"):
-        shutil.rmtree(out, ignore_errors=True)  # a folder this run made and did not finish
         return
     undo = run.get("undo")
     for entry in reversed(undo if isinstance(undo, list) else []):
@@ -209,6 +221,22 @@ def _take_back(out: Path, run: dict) -> None:
         elif isinstance(kept, str) and _inside(kept) and _regular_in(control, kept):
             os.replace(control / kept, target)  # a file it replaced comes back (not moved yet: still there)
     _clean(out)
+    if last and run.get("created") is True:
+        _remove_if_only_control(out)
+
+
+def _remove_if_only_control(out: Path) -> None:
+    """Remove the folder ``out`` a run made, when all it holds is the control folder's own files: a file the
+    user put there while the run went keeps it."""
+    control = out / CONTROL
+    if any(p.name != CONTROL for p in out.iterdir()) or not control.is_dir() or control.is_symlink():
+        return
+    if any(p.name not in CONTROL_ENTRIES or not (p.is_file() and not p.is_symlink()) for p in control.iterdir()):
+        return
+    for p in control.iterdir():
+        p.unlink()
+    control.rmdir()
+    out.rmdir()
 
 
 def _clean(out: Path) -> None:
@@ -218,20 +246,32 @@ def _clean(out: Path) -> None:
     (control / RUN).unlink(missing_ok=True)
 
 
-def _undo_locked(out: Path) -> bool:
-    """With the folder's lock held: finish a killed run's publication, or take its writes back.
-    Returns whether a publication was finished."""
+def _undo_locked(out: Path, *, last: bool) -> bool:
+    """With the folder's lock held: finish a killed run's publication, or take its writes back (its sealed
+    run record; one not sealed by this user's runs is refused in one line). ``last``: no run follows into
+    OUT. Returns whether a publication was finished."""
     control = Path(out) / CONTROL
     if (control / "commit.json").exists():
         finish_commit(out)
         _clean(Path(out))
         return True
     try:
-        run = json.loads((control / RUN).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+        text = (control / RUN).read_bytes()
+    except FileNotFoundError:
         run = {}
-    _take_back(Path(out), run if isinstance(run, dict) else {})
+    except OSError as exc:
+        raise OutputError(f"{control / RUN}: unreadable ({exc.strerror or exc}); delete it and run again") from None
+    else:
+        run = unsealed("run", text)
+        if run is None:
+            raise OutputError(_not_ours(control / RUN, "run record"))
+    _take_back(Path(out), run, last=last)
     return False
+
+
+def _not_ours(path: Path, what: str) -> str:
+    return (f"{path}: a {what} that no run of this user's wrote (a result folder received from elsewhere?); "
+            f"pinchmatch never carries one out; delete {path} and run again")
 
 
 def undo_killed_run(out: str | os.PathLike) -> bool:
@@ -245,7 +285,7 @@ def undo_killed_run(out: str | os.PathLike) -> bool:
     fd = _open_lock(control)
     try:
         fcntl.flock(fd, fcntl.LOCK_EX)  # the killed run's lock went with its process
-        return _undo_locked(Path(out))
+        return _undo_locked(Path(out), last=True)
     finally:
         os.close(fd)
 
@@ -257,7 +297,7 @@ def recover(out: str | os.PathLike) -> None:
     try:
         with exclusive(out):
             pass
-    except OutputError:
+    except FolderBusy:
         if (Path(out) / CONTROL / "commit.json").exists():
             raise
 
@@ -275,20 +315,22 @@ def exclusive(out: str | os.PathLike):
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
-            raise OutputError(f"{out}: a pinchmatch run is writing this folder; wait for it to end") from None
-        _undo_locked(Path(out))
+            raise FolderBusy(f"{out}: a pinchmatch run is writing this folder; wait for it to end") from None
+        _undo_locked(Path(out), last=False)
         yield
     finally:
         os.close(fd)
 
 
 def read_manifest(out: Path) -> list[str]:
-    """The files of the result in ``out``, as its manifest lists them ([] when there is none)."""
+    """The files of the result in ``out``, as its sealed manifest lists them ([] when there is none, or its
+    seal does not verify: a received folder's files are the user's own)."""
     try:
-        files = json.loads((Path(out) / CONTROL / "manifest.json").read_text(encoding="utf-8"))["files"]
-    except (OSError, ValueError, KeyError, TypeError):
+        manifest = unsealed("manifest", (Path(out) / CONTROL / "manifest.json").read_bytes())
+    except OSError:
         return []
-    return [f for f in files if isinstance(f, str) and _inside(f)]
+    files = manifest.get("files") if manifest is not None else None
+    return [f for f in files if isinstance(f, str) and _inside(f)] if isinstance(files, list) else []
 
 
 def finish_commit(out: str | os.PathLike) -> None:
@@ -299,14 +341,18 @@ def finish_commit(out: str | os.PathLike) -> None:
         return
     check_control(out)
     try:
-        journal = json.loads((control / "commit.json").read_text(encoding="utf-8"))
+        journal = unsealed("journal", (control / "commit.json").read_bytes())
     except FileNotFoundError:
         return
-    except (OSError, ValueError) as exc:
-        raise OutputError(f"{control / 'commit.json'}: unreadable ({exc}); delete {control} and run again") from None
+    except OSError as exc:
+        raise OutputError(f"{control / 'commit.json'}: unreadable ({exc.strerror or exc}); delete {control} and run "
+                          "again") from None
+    if journal is None:
+        raise OutputError(_not_ours(control / "commit.json", "journal"))
     if not (isinstance(journal, dict) and all(isinstance(journal.get(k), list) for k in ("new", "staged", "remove"))
             and all(isinstance(n, str) for k in ("new", "staged", "remove") for n in journal[k])):
         raise OutputError(f"{control / 'commit.json'}: not a journal pinchmatch wrote; delete {control} and run again")
+    listed = set(read_manifest(out))
     try:
         for name in journal["staged"]:
             source, target = control / "staging" / name, out / name
@@ -314,10 +360,10 @@ def finish_commit(out: str | os.PathLike) -> None:
                 target.parent.mkdir(parents=True, exist_ok=True)
                 os.replace(source, target)
         for name in journal["remove"]:
-            if _really_inside(out, name):
+            if name in listed and _really_inside(out, name):
                 (out / name).unlink(missing_ok=True)
                 _prune_empty(out, (out / name).parent)
-        write_atomic(control / "manifest.json", json.dumps({"files": journal["new"]}, indent=1))
+        write_atomic(control / "manifest.json", sealed("manifest", {"files": journal["new"]}, indent=1))
         (control / "commit.json").unlink()
     except OSError as exc:
         raise OutputError(f"{out}: cannot finish writing the result ({exc.strerror or exc}); free some space "

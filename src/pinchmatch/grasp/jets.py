@@ -21,7 +21,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from ..compiled import njit
 
 #: samples whose triangle normal is further than this from the contact normal are not in the patch
 SAME_SIDE_DEG = 80.0

@@ -7,7 +7,7 @@ not load numba.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from ..compiled import njit
 
 
 @njit(cache=True, nogil=True)
