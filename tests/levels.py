@@ -116,3 +116,37 @@ def standing_can(radius_m: float = 0.027, height_m: float = 0.066) -> trimesh.Tr
     can.apply_transform(trimesh.transformations.rotation_matrix(-np.pi / 2, [1, 0, 0]))
     can.apply_translation([0.0, height_m / 2.0, 0.0])
     return can
+
+
+def glb_of(meshes, nodes, *, scenes=None, **document) -> bytes:
+    """A GLB written by hand: ``meshes`` a list of glTF meshes, each a list of its primitives (trimesh meshes,
+    one material each), ``nodes`` the glTF nodes (dicts, as the file holds them), ``scenes`` the scenes
+    (default: one holding every node no other node holds); ``document`` any other top-level fields (cameras,
+    extras, extensionsUsed...)."""
+    blob, views, accessors, gltf_meshes, materials = b"", [], [], [], []
+    for primitives in meshes:
+        out = []
+        for mesh in primitives:
+            v = np.asarray(mesh.vertices, np.float32)
+            f = np.asarray(mesh.faces, np.uint32).ravel()
+            for data, target, kind, count, extra in (
+                    (v, 34962, "VEC3", len(v), {"min": v.min(0).tolist(), "max": v.max(0).tolist()}),
+                    (f, 34963, "SCALAR", len(f), {})):
+                views.append({"buffer": 0, "byteOffset": len(blob), "byteLength": data.nbytes, "target": target})
+                accessors.append({"bufferView": len(views) - 1, "componentType": 5126 if kind == "VEC3" else 5125,
+                                  "count": count, "type": kind, **extra})
+                blob += data.tobytes()
+            materials.append({"name": f"material_{len(materials)}"})
+            out.append({"attributes": {"POSITION": len(accessors) - 2}, "indices": len(accessors) - 1,
+                        "material": len(materials) - 1})
+        gltf_meshes.append({"primitives": out})
+    held = {c for n in nodes for c in n.get("children", [])}
+    doc = {"asset": {"version": "2.0", "generator": "pinchmatch tests"}, "scene": 0,
+           "scenes": scenes if scenes is not None else [{"nodes": [i for i in range(len(nodes)) if i not in held]}],
+           "nodes": nodes, "meshes": gltf_meshes, "materials": materials, "accessors": accessors,
+           "bufferViews": views, "buffers": [{"byteLength": len(blob)}], **document}
+    text = json.dumps(doc).encode()
+    text += b" " * (-len(text) % 4)
+    blob += b"\0" * (-len(blob) % 4)
+    glb = struct.pack("<4sII", b"glTF", 2, 12 + 8 + len(text) + 8 + len(blob))
+    return glb + struct.pack("<I4s", len(text), b"JSON") + text + struct.pack("<I4s", len(blob), b"BIN\0") + blob

@@ -6,12 +6,17 @@ exporters keep from the editor and trimesh makes unique within the scene, so the
 across runs of the same file. Its *path* is the chain of node names from the root, joined by
 ``/``, which an engine can follow to find the node again. An instanced mesh (one mesh under
 several nodes) gives one object per node.
+
+A glTF node whose mesh has several primitives (one per material: a jar's glass and its lid) is one
+object: trimesh reads each primitive into a child node of its own, named after the node with a random
+suffix that changes on every read, so :func:`merged_primitives` joins them back into the node itself, in
+the file's order of primitives.
 """
 
 from __future__ import annotations
 
 import os
-
+import re
 from dataclasses import dataclass
 
 import numpy as np
@@ -25,6 +30,39 @@ class LevelNode:
     name: str
     path: str
     faces: int
+
+
+def merged_primitives(scene: trimesh.Scene) -> trimesh.Scene:
+    """``scene`` (read from a glTF file by trimesh) with each node's primitives joined into the node itself
+    (module notes): the children trimesh made for them (``<node>_<6 hex digits>``, holding a mesh, under a node
+    that holds none) become one mesh of the node, in the order the file lists them. Changed in place."""
+    graph = scene.graph
+    parents = graph.transforms.parents
+    holding = set(graph.nodes_geometry)
+    order = {name: k for k, name in enumerate(scene.geometry)}  # trimesh reads the primitives in the file's order
+    groups: dict[str, list[str]] = {}
+    for node in holding:
+        parent = parents.get(node)
+        if parent is not None and parent not in holding and re.fullmatch(re.escape(str(parent)) + r"_[0-9a-f]{6}",
+                                                                          str(node)):
+            groups.setdefault(parent, []).append(node)
+    for parent in sorted(groups):
+        kids = sorted(groups[parent], key=lambda n: order.get(graph[n][1], len(order)))
+        meshes = []
+        for kid in kids:
+            local, geometry = graph.get(frame_to=kid, frame_from=parent)
+            mesh = scene.geometry.get(geometry)
+            if isinstance(mesh, trimesh.Trimesh):
+                meshes.append(mesh.copy().apply_transform(local))
+        if not meshes:
+            continue
+        name = f"{parent}::primitives"
+        scene.geometry[name] = trimesh.util.concatenate(meshes) if len(meshes) > 1 else meshes[0]
+        matrix, _ = graph.get(frame_to=parent, frame_from=parents[parent])
+        for kid in kids:
+            graph.transforms.remove_node(kid)
+        graph.update(frame_from=parents[parent], frame_to=parent, matrix=matrix, geometry=name)
+    return scene
 
 
 def _path(scene: trimesh.Scene, node: str) -> str:

@@ -24,7 +24,7 @@ from .gltf_apply import applied_glb, needs_applying
 from .gltf_check import PercentDecoding, check_gltf
 from . import topology
 from ..memory import memory_headroom
-from .level import LevelNode, level_nodes, node_mesh, remembered_scene, scene_node_digests
+from .level import LevelNode, level_nodes, merged_primitives, node_mesh, remembered_scene, scene_node_digests
 
 log = logging.getLogger(__name__)
 
@@ -279,7 +279,8 @@ def _load(path: Path, file_type: str, *, split: bool = False, **kwargs):
         if needs_applying(document):  # sparse accessors, default morph weights: applied first
             source, read_as = trimesh.util.wrap_as_stream(applied_glb(path, file_type, document)), "glb"
     try:
-        return trimesh.load(source, file_type=read_as, process=False, **kwargs)
+        loaded = trimesh.load(source, file_type=read_as, process=False, **kwargs)
+        return merged_primitives(loaded) if isinstance(loaded, trimesh.Scene) and file_type in GLTF_TYPES else loaded
     except (IndexError,) as exc:
         what = ("an index (of a node, mesh, accessor or vertex) points past its list" if file_type in GLTF_TYPES
                 else "a face refers to a vertex that does not exist")
