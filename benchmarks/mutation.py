@@ -184,7 +184,7 @@ EQUIVALENT.update({
         "a rotation matrix times a list of three numbers is the same vector",
     ("mesh/support.py", "return np.asarray(points, dtype=np.float64) @ self.normal - self.height_mm",
      "drop .asarray(...)"): "every caller passes a float array of points",
-    ("mesh/support.py", "normal = Rotation.from_quat(np.asarray(pose[1], dtype=np.float64)).as_matrix().T @ LEVEL_UP",
+    ("mesh/support.py", "normal = Rotation.from_quat(np.asarray(pose[1], dtype=np.float64)).as_matrix().T @ level_up(spec)",
      "drop .asarray(...)"): "scipy takes the pose's tuple of four floats as it takes their array",
     ("mesh/support.py", "return SupportPlane(normal, float(np.min(np.asarray(vertices, dtype=np.float64) @ normal)), "
      "source)", "drop float(...)"): "numpy's float64 is a subclass of Python's float: the same height",
@@ -218,8 +218,8 @@ EQUIVALENT.update({
         "target itself",
     ("export/folder.py", "control = Path(out) / CONTROL", "drop Path(...)"):
         "every caller passes a Path (the supervisor's output, the next run's OutputFolder)",
-    ("export/folder.py", "files = json.loads((Path(out) / CONTROL / \"manifest.json\").read_text(encoding=\"utf-8\"))"
-     "[\"files\"]", "drop Path(...)"): "every caller passes a Path",
+    ("export/folder.py", "manifest = unsealed(\"manifest\", (Path(out) / CONTROL / \"manifest.json\").read_bytes())",
+     "drop Path(...)"): "every caller passes a Path",
     ("export/folder.py", "out = Path(out)", "drop Path(...)"): "every caller passes a Path",
 })
 

@@ -28,7 +28,7 @@ from ..grasp.pinches import PinchSettings
 from ..export.folder import OutputFolder, exclusive
 from ..mesh.properties import parse_vector
 from .console import Presenter
-from .runs import (EXIT_SOME_FAILED, check_match_flags, check_placement, given_poses, level_note, match_job, standing, match_settings_of, object_tasks,
+from .runs import (EXIT_SOME_FAILED, check_match_flags, check_placement, given_poses, level_note, match_job, placed_in_level, standing, match_settings_of, object_tasks,
                    out_folder, pinch_settings_of, print_match, table_rows, virtual_level_specs, write_matches)
 from .universal import cmd_design, cmd_select, demo_design
 from ..export.notes import flipped_note
@@ -168,6 +168,7 @@ def _cmd_match(args) -> int:
     tangible_specs = standing(object_specs(args.tangible, option="--tangible"), args, "tangible")
     left_out: list[str] = []
     virtual_specs = standing(virtual_level_specs(args, left_out), args, "virtual")
+    tangible_specs = placed_in_level(tangible_specs, virtual_specs, args.up)
     given_t = given_poses(args.tangible_poses, tangible_specs, "--tangible-poses", settings.grasp)
     given_v = given_poses(args.virtual_poses, virtual_specs, "--virtual-poses", settings.grasp)
     check_match_flags(args)

@@ -218,8 +218,9 @@ def write_matches(args, stage: Path, out: Path, ui, ex, tangible_tasks, virtual_
         with ui.step("cost matrix figure"):
             write_atomic(stage / "figures" / "cost_matrix.png", png_bytes(cost_matrix_figure(sink.overview())))
         written.append(f"{sink.scenes + 1} figures in {out / 'figures'}")
-    if doc is not None and job.config.match.redirect is not None:
-        written += write_levels(stage, out, doc, virtual_tasks, result, run_settings)
+    if job.config.match.redirect is not None:
+        written += write_levels(stage, out, doc if doc is not None else read_lines(sink.result_path), virtual_tasks,
+                                result, run_settings)
     if not args.no_view and doc is not None:
         with ui.step("viewer page"):
             write_page(stage, document=doc)
@@ -227,6 +228,20 @@ def write_matches(args, stage: Path, out: Path, ui, ex, tangible_tasks, virtual_
     elif not args.no_view:
         written.append(f"no viewer page (build it with: pinchmatch view {out})")
     return result, doc, sink, written
+
+
+def read_lines(path: Path) -> dict:
+    """The matches and the virtual objects of a ``matches.jsonl`` just written, as a matches document has them."""
+    import json
+
+    matches, virtuals = [], []
+    with open(path, encoding="utf-8") as lines:
+        for line in lines:
+            record = json.loads(line)
+            if record.get("record") == "match":
+                matches.append(record["match"])
+                virtuals.append(record["object"])
+    return {"matches": matches, "virtuals": virtuals}
 
 
 def write_levels(stage: Path, out: Path, doc: dict, virtual_tasks, result, run_settings: dict) -> list[str]:
@@ -272,3 +287,23 @@ def print_match(ui, sink, result, run_settings) -> None:
                              "files"), title=f"failed: {len(result.failed)} files, left out of the run")
 
 
+
+
+def placed_in_level(tangible_specs: list, virtual_specs: list, up: str | None) -> list:
+    """The props with the up of the level their poses place them in (``level_up``): the up of the levels the
+    virtual objects are nodes of (their manifest entries', else ``up``, else glTF's ``y``); levels of two ups
+    are refused in one line. Unchanged where the level is y-up, or no prop has a pose."""
+    from dataclasses import replace
+
+    from ..mesh.frames import parse_up
+
+    ups = {}
+    for spec in virtual_specs:
+        if spec.node is not None:
+            ups.setdefault(parse_up(spec.up or up or "y")[0], spec.path)
+    if len(ups) > 1:
+        (a, first), (b, second) = list(ups.items())[:2]
+        raise ConfigError(f"{second}: its up is {b} while {first}'s is {a}; a prop's pose places it in one level "
+                          "frame, so match the levels of each up in a run of their own")
+    label = next(iter(ups), "y")
+    return [replace(s, level_up=label) if s.pose is not None and label != "y" else s for s in tangible_specs]

@@ -29,6 +29,7 @@ from .runs import (
     object_tasks,
     out_folder,
     pinch_settings_of,
+    placed_in_level,
     standing,
     table_rows,
     virtual_level_specs,
@@ -86,6 +87,7 @@ def cmd_select(args) -> int:
     out = out_folder(args)
     left_out: list[str] = []
     scene_specs = standing(virtual_level_specs(args, left_out), args, "virtual")
+    shelf_specs = placed_in_level(shelf_specs, scene_specs, args.up)
     check_match_flags(args)
     ui = Presenter(quiet=args.quiet, json_mode=args.json)
     for note in left_out:
@@ -175,6 +177,7 @@ def cmd_design(args) -> int:
     left_out: list[str] = []
     scene_specs = standing(virtual_level_specs(args, left_out), args, "virtual")
     shelf_specs = standing(object_specs(args.tangible, option="--tangible"), args, "tangible") if args.tangible else []
+    shelf_specs = placed_in_level(shelf_specs, scene_specs, args.up)
     if shelf_specs and not 1 <= args.k <= len(shelf_specs):
         raise ConfigError(f"-k {args.k}: the shelf to compare with has {len(shelf_specs)} props; give at most that")
     out = out_folder(args)

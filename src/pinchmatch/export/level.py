@@ -10,7 +10,8 @@ the prop, or bring the object onto the prop (the carousel). This writes the leve
 - below a prop's node, for each object the carousel brings onto it, a node ``carousel_<node>`` holding the
   object's own mesh, whose transform shows it registered on the prop, resting on the table where the prop
   stands (:mod:`pinchmatch.match.rest`): parented to the tracked prop, it is in place;
-- below each matched node (and its carousel node), the grasp in the node's own frame, named as the OpenXR
+- below each redirected node, and below the carousel node of each object the carousel brings (where it is
+  pinched: on the prop, not where the level puts it), the grasp in the node's own frame, named as the OpenXR
   hand joints: ``thumb_tip``, ``index_tip`` (and ``middle_tip`` for a tripod) at the centres of the
   fingertip pads (each contact plus the fingertip radius along its normal), ``pinch_center`` between the
   contacts, and ``wrist`` along the hand's approach, ``WRIST_MM`` from the pinch's centre;
@@ -22,22 +23,24 @@ the prop, or bring the object onto the prop (the carousel). This writes the leve
   carousel node's ``extras.pinchmatch`` say what they are; the scene's gives the schema, the units and the
   settings.
 
-trimesh writes the meshes, the materials and the scene graph; what its exporter has no field for (node
-extras, the extension, the joints' names, which may repeat under several nodes while trimesh's graph needs
-them unique) is set in the binary's JSON chunk afterwards (the chunk re-padded as glTF 2.0 requires).
+The level's own document is kept as its file holds it, and added to, never re-exported: every node (its
+name or none, its TRS or matrix, its extras and extensions), every scene, camera, light, material, texture
+and animation, the document's extras. Its buffers become the GLB's one binary buffer, with the files of a
+.gltf's external buffers and images embedded. A level.glb fed back in loses the nodes and meshes pinchmatch
+added to it last time (those at the end of its lists, marked ``extras.pinchmatch.role``) before the new ones
+are added. A node's extras that are not an object are kept under ``extras.value``.
 """
 
 from __future__ import annotations
 
-import json
-import struct
+from pathlib import Path
 
 import numpy as np
-import trimesh
 
 from ..match.redirect import world_pose
 from ..mesh.frames import UNITS_MM
 from .documents import record_contacts
+from .gltf_document import GltfLevel
 
 SCHEMA_LEVEL = "pinchmatch.level/2"
 #: the name of a prop's node in the level, of its mesh's node, and of a carousel object's node below it
@@ -49,8 +52,6 @@ FINGERTIP_JOINTS = ("thumb_tip", "index_tip", "middle_tip")
 #: how far the wrist is from the pinch's centre along the hand's approach (mm): the length of a hand from the
 #: pads of a thumb-index pinch to the wrist crease, about 60 % of an adult hand's 190 mm (a documented choice)
 WRIST_MM = 110.0
-#: joint nodes are named ``<owner><JOINT_SEPARATOR><joint>`` in trimesh's graph and renamed ``<joint>`` in the file
-JOINT_SEPARATOR = "::pinchmatch-joint::"
 OMI = "OMI_physics_body"
 
 
@@ -116,70 +117,64 @@ def level_glb(level_path, props: list, entries: dict, settings: dict, *, virtual
     ``virtuals`` ({node name: its object entry of matches.json}) gives their masses and centres of mass;
     ``settings``: the run's (the fingertip radius, and the scene's extras)."""
     k = UNITS_MM[units or "m"]
-    scene = trimesh.load(str(level_path), force="scene", process=False)
-    base = scene.graph.base_frame
-    extras, extensions, renamed = {}, {}, {}
+    level = GltfLevel.read(Path(level_path))
     prop_nodes = {}
     for spec, mesh, com_mm, mass_g in props:
         R, p = world_pose(spec)
-        name, mesh_name = PROP_NODE.format(spec.display_name), PROP_MESH_NODE.format(spec.display_name)
-        scene.graph.update(frame_to=name, frame_from=base, matrix=_matrix(R, p / k))
-        own = trimesh.Trimesh(vertices=np.asarray(mesh.vertices) / k, faces=mesh.faces, process=False)
-        scene.add_geometry(own, node_name=mesh_name, geom_name=mesh_name, parent_node_name=name)
-        prop_nodes[spec.display_name] = name
-        extras[name] = {"pinchmatch": {"role": "prop", "name": spec.display_name, "mesh_node": mesh_name}}
-        extensions[name] = _motion(mass_g, np.asarray(com_mm, dtype=np.float64) / k)
+        name = spec.display_name
+        mesh_index = level.add_mesh(np.asarray(mesh.vertices) / k, np.asarray(mesh.faces), PROP_MESH_NODE.format(name))
+        child = level.add_node({"name": PROP_MESH_NODE.format(name), "mesh": mesh_index,
+                                "extras": {"pinchmatch": {"role": "prop_mesh", "name": name}}})
+        node = level.add_node({"name": PROP_NODE.format(name), "children": [child], **_trs(R, p / k),
+                               "extras": {"pinchmatch": {"role": "prop", "name": name,
+                                                         "mesh_node": PROP_MESH_NODE.format(name)}},
+                               "extensions": _motion(mass_g, np.asarray(com_mm, dtype=np.float64) / k)})
+        level.add_root(node)
+        prop_nodes[name] = node
     radius = float(settings.get("fingertip_radius_mm", 8.0))
-    for node, (entry, spec) in entries.items():
-        entry = dict(entry, virtual_node=node)
-        extras[node] = {"pinchmatch": node_extras(entry, spec)}
-        world, geometry = scene.graph[node]
-        virtual = (virtuals or {}).get(node) or {}
-        com = virtual.get("com_mm")
-        inverse = np.linalg.inv(world)
-        if com is not None:
-            extensions[node] = _motion(virtual.get("mass_g"), inverse[:3, :3] @ (np.asarray(com) / k) + inverse[:3, 3])
-        owners = [node]
+    for name, (entry, spec) in entries.items():
+        entry = dict(entry, virtual_node=name)
+        i = level.index[name]
+        world = level.world[i]
+        level.set_extras(i, node_extras(entry, spec))
+        virtual = (virtuals or {}).get(name) or {}
+        com, motion = virtual.get("com_mm"), None
+        regular = abs(np.linalg.det(world[:3, :3])) > 1e-12
+        if com is not None and regular:
+            inverse = np.linalg.inv(world)
+            motion = _motion(virtual.get("mass_g"), inverse[:3, :3] @ (np.asarray(com) / k) + inverse[:3, 3])
+            level.add_extensions(i, motion)
+        owners = [i]  # where the hand goes: the node itself, or the node the carousel brings onto the prop
         if (entry.get("redirection") or {}).get("mode") == "carousel":
             T = np.array(entry["transform_virtual_to_tangible"], dtype=np.float64)
             local = _matrix(T[:3, :3], T[:3, 3] / k) @ world  # the node's mesh, registered, in the prop's frame
-            carousel = CAROUSEL_NODE.format(node)
-            scene.graph.update(frame_to=carousel, frame_from=prop_nodes[entry["tangible"]], matrix=local,
-                               geometry=geometry)
-            extras[carousel] = {"pinchmatch": {"role": "carousel", "node": node, "prop": entry["tangible"],
-                                               "rest_gap_mm": entry.get("rest_gap_mm")}}
-            if node in extensions:
-                extensions[carousel] = extensions[node]
-            owners.append(carousel)
+            carousel = level.add_node({"name": CAROUSEL_NODE.format(name), "mesh": level.nodes[i]["mesh"],
+                                       "matrix": [float(c) for c in local.T.reshape(-1)],
+                                       "extras": {"pinchmatch": {"role": "carousel", "node": name,
+                                                                 "prop": entry["tangible"],
+                                                                 "rest_gap_mm": entry.get("rest_gap_mm")}},
+                                       **({"extensions": motion} if motion else {})})
+            level.nodes[prop_nodes[entry["tangible"]]]["children"].append(carousel)
+            owners = [carousel]  # the object is pinched on the prop, not where the level puts it
+        if not regular:
+            continue  # a node scaled to nothing: no frame to place its joints in
         joints = grasp_joints(entry, world, k, radius)  # the node's frame: the carousel node's too
         for owner in owners:
             for joint, place in joints.items():
-                child = f"{owner}{JOINT_SEPARATOR}{joint}"
-                scene.graph.update(frame_to=child, frame_from=owner, matrix=_matrix(np.eye(3), place))
-                renamed[child] = joint
-    scene.metadata["pinchmatch"] = {"schema": SCHEMA_LEVEL, "units": units or "m", "up": "+y", "settings": settings}
-    return with_nodes_set(scene.export(file_type="glb"), extras, extensions, renamed)
+                child = level.add_node({"name": joint, "translation": [float(c) for c in place],
+                                        "extras": {"pinchmatch": {"role": "joint"}}})
+                level.nodes[owner].setdefault("children", []).append(child)
+    up = next((getattr(spec, "level_up", None) for spec, *_ in props if getattr(spec, "level_up", None)), None)
+    level.set_scene_extras({"schema": SCHEMA_LEVEL, "units": units or "m", "up": _signed(up or "y"),
+                            "settings": settings})
+    return level.glb()
 
 
-def with_nodes_set(glb: bytes, extras: dict, extensions: dict | None = None, renamed: dict | None = None) -> bytes:
-    """GLB bytes with ``extras`` and ``extensions`` ({node name: dict}) set on the nodes of those names, and the
-    nodes of ``renamed`` ({name: new name}) renamed; the extensions are listed as used."""
-    length, = struct.unpack_from("<I", glb, 12)
-    document = json.loads(glb[20:20 + length])
-    extensions, renamed = extensions or {}, renamed or {}
-    for node in document.get("nodes", []):
-        name = node.get("name")
-        if name in extras:
-            node["extras"] = extras[name]
-        if name in extensions:
-            node["extensions"] = {**node.get("extensions", {}), **extensions[name]}
-        if name in renamed:
-            node["name"] = renamed[name]
-    used = sorted({key for value in extensions.values() for key in value})
-    if used:
-        document["extensionsUsed"] = sorted(set(document.get("extensionsUsed", [])) | set(used))
-    chunk = json.dumps(document, separators=(",", ":"), sort_keys=True).encode()
-    chunk += b" " * (-len(chunk) % 4)  # a JSON chunk is padded with spaces to four bytes
-    rest = glb[20 + length:]
-    header = struct.pack("<4sII", b"glTF", 2, 12 + 8 + len(chunk) + len(rest))
-    return header + struct.pack("<I4s", len(chunk), b"JSON") + chunk + rest
+def _signed(label: str) -> str:
+    return label if label.startswith("-") else f"+{label}"
+
+
+def _trs(R: np.ndarray, t: np.ndarray) -> dict:
+    from scipy.spatial.transform import Rotation
+
+    return {"translation": [float(c) for c in t], "rotation": [float(c) for c in Rotation.from_matrix(R).as_quat()]}

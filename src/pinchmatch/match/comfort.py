@@ -33,7 +33,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..config import FAR_SIDE_MIN_ELEVATION_DEG, Redirect
-from ..mesh.support import LEVEL_UP
+from ..mesh.support import level_up
 from .candidates import memo_of
 from .redirect import hand_start, world_pose
 
@@ -65,7 +65,7 @@ def prop_up(tangible_obj) -> np.ndarray:
         return np.asarray(support.normal, dtype=np.float64)
     spec = tangible_obj.spec
     if getattr(spec, "pose", None) is not None:
-        return world_pose(spec)[0].T @ LEVEL_UP
+        return world_pose(spec)[0].T @ level_up(spec)
     return np.asarray(tangible_obj.loaded.up, dtype=np.float64)
 
 

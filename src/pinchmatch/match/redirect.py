@@ -101,14 +101,18 @@ def hand_start(spec, redirect: Redirect, vertices_mm: np.ndarray) -> np.ndarray:
     """Where the hand starts (mm, world): the given point, else a user standing at the prop's table
     (:data:`DEFAULT_HAND_OFFSET_MM` from the middle of the prop's footprint on its support, the plane
     of its lowest point in the world: never from where its file puts its origin). ``vertices_mm`` (n, 3)
-    are the prop's, in its file frame."""
+    are the prop's, in its file frame. In a level of another up (the spec's ``level_up``), the same point as
+    the level turned into glTF's frame puts it (:func:`pinchmatch.mesh.frames.level_turn`)."""
+    from ..mesh.frames import level_turn
+
     if redirect.hand_start_mm is not None:
         return np.asarray(redirect.hand_start_mm, dtype=np.float64)
     R, p = world_pose(spec)
-    world = np.asarray(vertices_mm, dtype=np.float64) @ R.T + p
+    C = level_turn(getattr(spec, "level_up", None) if spec is not None else None)
+    world = (np.asarray(vertices_mm, dtype=np.float64) @ R.T + p) @ C.T  # in glTF's frame: y up
     low, high = world.min(axis=0), world.max(axis=0)
     footprint = np.array([(low[0] + high[0]) / 2.0, low[1], (low[2] + high[2]) / 2.0])
-    return footprint + np.asarray(DEFAULT_HAND_OFFSET_MM)
+    return C.T @ (footprint + np.asarray(DEFAULT_HAND_OFFSET_MM))
 
 
 def reach_gain(start: np.ndarray, physical_mm: np.ndarray, virtual_mm: np.ndarray) -> np.ndarray:

@@ -50,6 +50,21 @@ def parse_up(up: str, *, source: str = "--up") -> tuple[str, np.ndarray]:
     return key, np.array(UP_VECTORS[key])
 
 
+def level_turn(up: str | None):
+    """(3, 3) the rotation that turns a level whose up is ``up`` (a label, None: glTF's ``y``) into glTF's frame
+    (+Y up), by the least turn: a z-up level turns about +X by -90 degrees (its +Z to +Y, its -Y to +Z, as
+    Blender's glTF exporter turns it), so its "front" (glTF's +Z) is its -Y."""
+    import numpy as np
+
+    turns = {"y": ("x", 0.0), "z": ("x", -90.0), "-z": ("x", 90.0), "x": ("z", 90.0), "-x": ("z", -90.0),
+             "-y": ("x", 180.0)}
+    axis, deg = turns[parse_up(up or "y")[0]]
+    c, s = np.cos(np.radians(deg)), np.sin(np.radians(deg))
+    if axis == "x":
+        return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
 def check_units(path: Path, extent_mm: float, units_in: str) -> None:
     """Raise MeshError when an object read in ``units_in`` is ``extent_mm`` across, a size nothing a
     hand pinches has, naming the units that would give it a graspable size."""

@@ -65,6 +65,24 @@ def merged_primitives(scene: trimesh.Scene) -> trimesh.Scene:
     return scene
 
 
+#: the roles of the nodes pinchmatch adds to a level (``level.glb``'s props, their meshes, the carousel's objects)
+ADDED_ROLES = ("prop", "prop_mesh", "carousel")
+
+
+def placed_by_pinchmatch(scene: trimesh.Scene, node: str) -> bool:
+    """Whether ``node`` is, or lies below, a node pinchmatch added to the level (a ``level.glb`` read back:
+    ``extras.pinchmatch.role`` one of ``ADDED_ROLES``): a prop or a carousel copy, not one of the level's objects."""
+    parents, edges = scene.graph.transforms.parents, scene.graph.transforms.edge_data
+    while node in parents:
+        parent = parents[node]
+        extras = (edges.get((parent, node)) or {}).get("metadata")
+        mark = extras.get("pinchmatch") if isinstance(extras, dict) else None
+        if isinstance(mark, dict) and mark.get("role") in ADDED_ROLES:
+            return True
+        node = parent
+    return False
+
+
 def _path(scene: trimesh.Scene, node: str) -> str:
     parents = scene.graph.transforms.parents
     chain = [node]
@@ -74,11 +92,16 @@ def _path(scene: trimesh.Scene, node: str) -> str:
 
 
 def level_nodes(scene: trimesh.Scene) -> list[LevelNode]:
-    """Every node of ``scene`` that carries triangles, in the order of their paths."""
+    """Every node of ``scene`` that carries triangles, in the order of their paths; not a node its transforms
+    scale to nothing in some direction (an object hidden by a zero scale: no solid to pinch is seen), nor one
+    pinchmatch placed there (:func:`placed_by_pinchmatch`)."""
     out = []
     for node in scene.graph.nodes_geometry:
-        _, geometry = scene.graph[node]
+        transform, geometry = scene.graph[node]
         mesh = scene.geometry.get(geometry)
+        singular = np.linalg.svd(np.asarray(transform, dtype=np.float64)[:3, :3], compute_uv=False)
+        if singular[0] == 0.0 or singular[-1] <= 1e-9 * singular[0] or placed_by_pinchmatch(scene, node):
+            continue
         if isinstance(mesh, trimesh.Trimesh) and len(mesh.faces):
             out.append(LevelNode(str(node), _path(scene, node), int(len(mesh.faces))))
     return sorted(out, key=lambda n: (n.path, n.name))

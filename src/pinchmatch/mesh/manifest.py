@@ -88,6 +88,7 @@ class ObjectSpec:
     pose: tuple | None = None  # ((x, y, z) mm, (qx, qy, qz, qw)): file coordinates (mm) -> the level's world
     support: str | float | None = None  # what it stands on (:mod:`pinchmatch.mesh.support`): "auto", "none", mm
     rests_on_mm: float | None = None  # a level's node on furniture: the furniture's top under it (mm, along up)
+    level_up: str | None = None  # a posed prop: the up of the level its pose places it in (None: glTF's "y")
     nodes: tuple = ()  # a level split into nodes: only the nodes whose name or path matches one of these globs
     skip_nodes: tuple = ()  # and none that matches one of these
 
@@ -491,7 +492,7 @@ def spec_to_dict(spec: ObjectSpec) -> dict:
             "mass_g": spec.mass_g, "regions": spec.regions.as_dict(), "split": spec.split,
             "node": spec.node, "node_path": spec.node_path, "manifest": spec.manifest,
             "pose": None if spec.pose is None else [list(spec.pose[0]), list(spec.pose[1])],
-            "support": spec.support, "rests_on_mm": spec.rests_on_mm}
+            "support": spec.support, "rests_on_mm": spec.rests_on_mm, "level_up": spec.level_up}
 
 
 def spec_from_dict(d: dict) -> ObjectSpec:
@@ -505,4 +506,4 @@ def spec_from_dict(d: dict) -> ObjectSpec:
                                              tuple(region(r) for r in d["regions"]["only"])),
                       split=d["split"], node=d["node"], node_path=d["node_path"], manifest=d["manifest"],
                       pose=None if d.get("pose") is None else (tuple(d["pose"][0]), tuple(d["pose"][1])),
-                      support=d.get("support"), rests_on_mm=d.get("rests_on_mm"))
+                      support=d.get("support"), rests_on_mm=d.get("rests_on_mm"), level_up=d.get("level_up"))

@@ -4,8 +4,8 @@ A prop on a table, a can on a level's counter: no fingertip, finger or hand gets
 support is a plane in its own frame (mm), ``normal · x = height_mm``, with ``normal`` pointing up, away
 from the table:
 
-- a prop with a ``pose`` in a level stands on the level's horizontal plane (the level's up, +Y of a
-  glTF level) through its lowest point as posed;
+- a prop with a ``pose`` in a level stands on the level's horizontal plane (the level's up: +Y of a
+  glTF level, or the up ``--up`` or the level's manifest entry gives it) through its lowest point as posed;
 - a prop without one stands on the plane through its lowest point along its own up;
 - ``support_mm`` (a manifest key) puts the plane at that height along the up instead (a prop standing on
   a block, a bottle on a shelf's lip), ``support = "none"`` declares a hand-held prop;
@@ -25,8 +25,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-#: the up direction of a level's world (glTF: +Y), in which a prop's ``pose`` places it
+#: the up direction of a glTF level's world (+Y), in which a prop's ``pose`` places it
 LEVEL_UP = np.array([0.0, 1.0, 0.0])
+
+
+def level_up(spec) -> np.ndarray:
+    """(3,) the up of the level a posed prop's ``pose`` places it in: its spec's ``level_up`` (the level's own,
+    as ``--up`` or the level's manifest entry says), else glTF's +Y."""
+    from .frames import parse_up
+
+    label = getattr(spec, "level_up", None) if spec is not None else None
+    return LEVEL_UP if label is None else np.asarray(parse_up(label)[1], dtype=np.float64)
 #: what a spec's ``support`` may say besides a height in mm
 SUPPORT_WORDS = ("auto", "none")
 
@@ -59,7 +68,7 @@ def support_plane(spec, vertices: np.ndarray, up: np.ndarray) -> SupportPlane | 
     if pose is not None:
         from scipy.spatial.transform import Rotation
 
-        normal = Rotation.from_quat(np.asarray(pose[1], dtype=np.float64)).as_matrix().T @ LEVEL_UP
+        normal = Rotation.from_quat(np.asarray(pose[1], dtype=np.float64)).as_matrix().T @ level_up(spec)
         source = "pose"
     else:
         normal = np.asarray(up, dtype=np.float64)
