@@ -244,6 +244,22 @@ def read_lines(path: Path) -> dict:
     return {"matches": matches, "virtuals": virtuals}
 
 
+def _distinct_stems(paths: list) -> dict:
+    """{path: a name for its level.glb}: the file's stem, with as many of its folders before it (joined by
+    ``-``) as tell levels of one stem apart (``a/kitchen.glb`` and ``b/kitchen.glb``: ``a-kitchen``, ``b-kitchen``)."""
+    import os
+
+    parts = {p: Path(os.path.abspath(p)).with_suffix("").parts for p in paths}
+    out = {}
+    for p, chain in parts.items():
+        twins = [c for q, c in parts.items() if q != p and c[-1] == chain[-1]]
+        depth = 1
+        while any(c[-depth:] == chain[-depth:] for c in twins) and depth < len(chain):
+            depth += 1
+        out[p] = "-".join(chain[-depth:])
+    return out
+
+
 def write_levels(stage: Path, out: Path, doc: dict, virtual_tasks, result, run_settings: dict) -> list[str]:
     """Under ``--placement fixed``: each level the virtual objects come from, with the props at their poses
     and each node's match in its extras (:mod:`pinchmatch.export.level`): ``level.glb``, or
@@ -254,13 +270,14 @@ def write_levels(stage: Path, out: Path, doc: dict, virtual_tasks, result, run_s
     props = {c.name: c.obj for c in result.tangibles}
     objects = {v["name"]: v for v in doc.get("virtuals", [])}
     levels = sorted({spec.path for spec in specs.values()})
+    level_names = _distinct_stems(levels)
     written = []
     for path in levels:
         entries = {specs[m["virtual"]].node: (m, props[m["tangible"]].spec) for m in doc["matches"]
                    if m.get("tangible") is not None and m["virtual"] in specs and specs[m["virtual"]].path == path}
         virtuals = {specs[name].node: entry for name, entry in objects.items()
                     if name in specs and specs[name].path == path}
-        name = "level.glb" if len(levels) == 1 else f"level-{Path(path).stem}.glb"
+        name = "level.glb" if len(levels) == 1 else f"level-{level_names[path]}.glb"
         units = next((s.units for s in specs.values() if s.path == path and s.units), None) or run_settings.get("units")
         data = level_glb(path, [(obj.spec, obj.loaded.mesh, obj.props.com_mm, obj.mass_g) for obj in props.values()],
                          entries, run_settings, virtuals=virtuals, units=units)

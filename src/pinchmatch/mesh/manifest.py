@@ -481,6 +481,37 @@ def object_specs(paths, *, option: str, split: str | None = None, nodes=(), skip
                                       notes=notes))
             else:
                 out.append(spec)
+    return distinct_names(out, option)
+
+
+def distinct_names(specs: list, option: str) -> list:
+    """``specs`` with names that tell them apart: a result names each object, so two files called ``prop.stl``
+    in two folders, or two levels' nodes called ``mug``, are named by as much of their paths as tells them
+    apart (``a/prop.stl``, ``b/prop.stl``; ``kitchen_a.glb/mug``). Two objects a manifest gives the same name
+    are refused in one line: the names are the user's to choose."""
+    groups: dict[str, list[int]] = {}
+    for k, spec in enumerate(specs):
+        groups.setdefault(spec.display_name, []).append(k)
+    out = list(specs)
+    for name, members in groups.items():
+        if len(members) < 2:
+            continue
+        given = [specs[k] for k in members if specs[k].name is not None and specs[k].node is None]
+        if len(given) > 1:
+            raise ConfigError(f"{option}: {len(given)} objects are named {name!r} ({given[0].manifest or given[0].path}, "
+                              f"{given[1].manifest or given[1].path}); give each its own name")
+        parts = [Path(os.path.abspath(specs[k].path)).parts for k in members]
+        for depth in range(1, max(len(p) for p in parts) + 1):
+            labels = ["/".join(p[-depth:]) for p in parts]
+            if len(set(labels)) == len(labels) or depth == max(len(p) for p in parts):
+                break
+        for k, label in zip(members, labels):
+            spec = specs[k]
+            node = spec.node if spec.node is not None else None
+            unique = f"{label}/{node}" if node is not None else label
+            if spec.name is not None and spec.node is not None:  # a manifest's level: its name, then the path
+                unique = f"{label}/{spec.name}"
+            out[k] = replace(spec, name=unique)
     return out
 
 
