@@ -29,7 +29,8 @@ package stays cheap):
   (per-object units, up, centre of mass, axis, mass, regions; a level's nodes);
 - pinches: :class:`PinchSettings`; :func:`sample_pinches`, :func:`check_pinches` -> :class:`Pinches`;
   :func:`patch_geometry` -> :class:`PatchGeometry`; :func:`pinch_features` -> :class:`PinchFeatures`;
-- one object end to end: :func:`analyze_object` (a file) or :func:`analyze_spec` (an
+- one object end to end: :func:`analyze_object` (a file), :func:`analyze_prop` (a prop standing on its table,
+  as the command line reads props) or :func:`analyze_spec` (an
   :class:`ObjectSpec`) -> :class:`ObjectAnalysis`; :func:`find_pinches`;
   :func:`score_pinches` (given poses);
 - matching: :func:`candidate_poses` -> :class:`Candidates`; :class:`MatchSettings`; the run's one
@@ -72,6 +73,7 @@ _API = {
     "sample_pinches": "grasp.sampling",
     "PinchFeatures": "grasp.features", "pinch_features": "grasp.features",
     "ObjectAnalysis": "grasp.analysis", "analyze_object": "grasp.analysis", "analyze_spec": "grasp.analysis",
+    "analyze_prop": "grasp.analysis",
     "find_pinches": "grasp.analysis", "score_pinches": "grasp.analysis",
     "CostModel": "match.cost", "Weights": "match.cost", "complete_weights": "match.cost",
     "Candidates": "match.candidates", "candidate_poses": "match.candidates",
@@ -99,7 +101,7 @@ if TYPE_CHECKING:  # what static tools see; at run time each name is imported on
     from .grasp.pinches import PinchSettings, Pinches, check_pinches
     from .grasp.sampling import sample_pinches
     from .grasp.features import PinchFeatures, pinch_features
-    from .grasp.analysis import ObjectAnalysis, analyze_object, analyze_spec, find_pinches, score_pinches
+    from .grasp.analysis import ObjectAnalysis, analyze_object, analyze_prop, analyze_spec, find_pinches, score_pinches
     from .match.cost import CostModel, Weights, complete_weights
     from .match.candidates import Candidates, candidate_poses
     from .match.register import register_pose, register_poses

@@ -306,8 +306,8 @@ class MatchSettings:
     hand_start_mm: tuple | None = option(None, group="placement", kind="vector", flag="--hand-start",
                                          metavar="X,Y,Z",
                                          help="with --placement fixed: where the hand rests before it reaches, mm in "
-                                              "the level's frame (y up; default: 150 mm above and 300 mm in front "
-                                              "(+Z) of each prop's pose)")
+                                              "the level's frame (default: 150 mm above and 300 mm in front of each "
+                                              "prop's pose: +Z in a y-up level, -Y in a z-up one)")
     redirect_threshold_deg: float = option(REDIRECT_THRESHOLD_DEG, group="placement", kind="float",
                                            help="the redirection angle that costs as much as one just-noticeable "
                                                 "difference")

@@ -134,7 +134,8 @@ def _cmd_features(args) -> int:
             pinches, features = score_tripods(obj, np.array(given), settings=settings)
         else:
             pinches, features = score_pinches(obj, *given, settings=settings)
-    doc = features_document(obj.loaded, obj.props, _settings_dict(args, settings, obj), pinches, features,
+    recorded = {**_settings_dict(args, settings, obj), "grasp": kind}
+    doc = features_document(obj.loaded, obj.props, recorded, pinches, features,
                             given=given, ray_engine=obj.context.ray_engine_name)
     pose = doc["pose"]
     verdict = "feasible" if pose["feasible"] else f"NOT feasible: breaks {', '.join(pose['broken_rules'])}"

@@ -41,7 +41,7 @@ def _main(argv: list[str]) -> int:
     try:
         parser = build_parser()
         check_option_names(parser, argv)
-        args = parser.parse_args(join_vector_values(argv))
+        args = parser.parse_args(join_vector_values(argv, parser))
         command = args.command
         if args.command is None:
             build_parser().print_help()
@@ -98,7 +98,7 @@ def console() -> None:
     try:  # a bad command line is answered here, before any process is started
         parser = build_parser()
         check_option_names(parser, argv)
-        parser.parse_args(join_vector_values(argv))
+        parser.parse_args(join_vector_values(argv, parser))
     except PinchmatchError as exc:
         print(f"pinchmatch: error: {exc.cli_message()}", file=sys.stderr)
         sys.exit(2)

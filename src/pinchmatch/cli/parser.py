@@ -53,13 +53,29 @@ def check_option_names(parser: argparse.ArgumentParser, argv: list[str]) -> None
             raise ConfigError(f"{sub.prog}: unknown option {name}; {hint}see '{sub.prog} --help'")
 
 
-def join_vector_values(argv: list[str]) -> list[str]:
-    """Turn ``--p1 -3,0,1`` into ``--p1=-3,0,1`` so argparse does not read -3,0,1 as an option."""
+def vector_options(parser: argparse.ArgumentParser) -> set[str]:
+    """Every option of ``parser`` and its subcommands whose value is a list of numbers (its metavar has a comma:
+    ``X,Y,Z``, ``LOW,HIGH``) or one number, which may start with a minus sign."""
+    out = set(VECTOR_OPTIONS)
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for sub in action.choices.values():
+                out |= vector_options(sub)
+        elif action.option_strings and action.nargs is None and (
+                "," in str(action.metavar or "") or action.type in (int, float)):
+            out |= {o for o in action.option_strings if o.startswith("--")}
+    return out
+
+
+def join_vector_values(argv: list[str], parser: argparse.ArgumentParser | None = None) -> list[str]:
+    """Turn ``--hand-start -100,150,300`` into ``--hand-start=-100,150,300`` so that argparse does not read a
+    value starting with a minus sign as an option (every option :func:`vector_options` finds in ``parser``)."""
+    options = vector_options(parser) if parser is not None else set(VECTOR_OPTIONS)
     out: list[str] = []
     i = 0
     while i < len(argv):
         token = argv[i]
-        if token in VECTOR_OPTIONS and i + 1 < len(argv) and re.match(r"^-?[\d.]", argv[i + 1]):
+        if token in options and i + 1 < len(argv) and re.match(r"^-?[\d.]", argv[i + 1]):
             out.append(f"{token}={argv[i + 1]}")
             i += 2
             continue

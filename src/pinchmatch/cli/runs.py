@@ -113,6 +113,33 @@ def check_placement(settings: MatchSettings, tangible_specs: list, virtual_specs
                 raise ConfigError(f"{where} {np.round(start, 1).tolist()} mm lies inside the prop "
                                   f"{spec.display_name}; give a --hand-start X,Y,Z outside every prop, where the "
                                   "hand rests before it reaches")
+    _start_outside_objects(starts, virtual_specs, units, "--hand-start" if settings.hand_start_mm is not None
+                           else "the default hand start")
+
+
+def _start_outside_objects(starts: list, virtual_specs: list, units: str | None, where: str) -> None:
+    """Refuse a hand start inside a level's object, in one line: the hand cannot rest there."""
+    import numpy as np
+    import trimesh
+
+    from ..mesh.frames import UNITS_MM
+    from ..mesh.level import node_mesh
+    from ..mesh.load import level_scene
+
+    points = np.unique(np.asarray(starts, dtype=np.float64).reshape(-1, 3), axis=0)
+    for path in sorted({s.path for s in virtual_specs if s.node is not None}):
+        scene = level_scene(Path(path))
+        for spec in (s for s in virtual_specs if s.path == path and s.node is not None):
+            mesh = node_mesh(scene, spec.node)
+            if mesh is None:
+                continue
+            vertices = np.asarray(mesh.vertices) * UNITS_MM[spec.units or units or "m"]
+            low, high = vertices.min(axis=0), vertices.max(axis=0)
+            near = points[((points >= low) & (points <= high)).all(axis=1)]
+            if len(near) and trimesh.Trimesh(vertices, mesh.faces, process=False).contains(near).any():
+                raise ConfigError(f"{where} {np.round(near[0], 1).tolist()} mm lies inside the level's object "
+                                  f"{spec.display_name}; give a --hand-start X,Y,Z outside every object, where the "
+                                  "hand rests before it reaches (mm, the level's frame)")
 
 
 def virtual_level_specs(args, notes: list | None = None) -> list:

@@ -79,13 +79,32 @@ def analyze_object(
     >>> obj.name, obj.mass_g, obj.props.com_mm.round(1).tolist(), obj.loaded.mesh.extents.round(1).tolist()
     ('box.stl', 120.0, [0.0, 0.0, 0.0], [60.0, 40.0, 20.0])
     """
+    spec = _file_spec(path, units=units, up=up, com_mm=com_mm, axis=axis, mass_g=mass_g)
+    return analyze_spec(spec, patch_radius_mm=patch_radius_mm, progress=progress)
+
+
+def _file_spec(path, *, units=None, up=None, com_mm=None, axis=None, mass_g=None) -> ObjectSpec:
     if mass_g is not None and not (isinstance(mass_g, (int, float, np.number)) and 0 < float(mass_g) < 1e9):
         raise ConfigError(f"{path}: mass_g={mass_g!r} must be a mass in grams above 0 (or None, unknown)")
-    spec = ObjectSpec(str(path), units=units, up=up,
-                      com_mm=None if com_mm is None else tuple(np.asarray(com_mm, dtype=np.float64)),
-                      axis=None if axis is None else tuple(np.asarray(axis, dtype=np.float64)),
+    return ObjectSpec(str(path), units=units, up=up, com_mm=None if com_mm is None else tuple(np.ravel(com_mm)),
+                      axis=None if axis is None else tuple(np.ravel(axis)),
                       mass_g=None if mass_g is None else float(mass_g))
-    return analyze_spec(spec, patch_radius_mm=patch_radius_mm, progress=progress)
+
+
+def analyze_prop(prop: str | os.PathLike | ObjectSpec, **options) -> ObjectAnalysis:
+    """A prop as ``pinchmatch match`` reads one: standing on its table (its support, ``"auto"``: the plane
+    through its lowest point, or through its pose's in a level) unless its manifest entry says otherwise
+    (``support = "none"``, held in the hand). ``prop`` is a file (``options`` as :func:`analyze_object`'s) or
+    a spec (``options``: ``patch_radius_mm``, ``progress``). A virtual object of its own file stands nowhere:
+    read it with :func:`analyze_object`, as the command line does.
+
+    >>> prop = analyze_prop(box_stl)
+    >>> prop.context.support.source, prop.context.support.height_mm
+    ('lowest point', -10.0)
+    """
+    reading = {k: options.pop(k) for k in ("patch_radius_mm", "progress") if k in options}
+    spec = prop if isinstance(prop, ObjectSpec) else _file_spec(prop, **options)
+    return analyze_spec(spec.standing("auto"), **reading)
 
 
 def analyze_spec(spec: ObjectSpec, *, patch_radius_mm: float = 8.0, progress=None) -> ObjectAnalysis:
@@ -254,7 +273,7 @@ def _poses_list(path: str):
     raw = read_input(path, "JSON poses file", limit_bytes=MAX_POSES_FILE_BYTES,
                      too_big=f"more than a poses file of {MAX_GIVEN_POSES:,} poses needs; split it or give fewer poses")
     try:
-        data = json.loads(raw.decode("utf-8"))
+        data = json.loads(raw.decode("utf-8-sig"))
     except (ValueError, RecursionError) as exc:  # not JSON, not UTF-8, or an integer of thousands of digits
         raise ConfigError(f"{path}: not valid JSON ({type(exc).__name__}: {str(exc)[:80]}); fix the file") from None
     if isinstance(data, dict) and isinstance(data.get("poses"), list):

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import re
 
 import numpy as np
 
@@ -325,6 +326,10 @@ def _no_pinch_message(source, n_cand, rejected, settings, standing: bool = False
     parts = [f"{rule} {count}" for rule, count in rejected.items() if count]
     worst = max(rejected, key=rejected.get)
     hint = _STANDING_HINTS.get(worst, _RULE_HINTS[worst]) if standing else _RULE_HINTS[worst]
+    node = re.search(r" \(node (.+)\)$", str(source))  # a level's node (:func:`pinchmatch.grasp.analysis`'s source)
+    if standing and node and worst in _STANDING_HINTS:
+        hint = (f"{hint.split(': if it is held')[0]}: if it is not an object to pick up (a table, a shelf, a wall), "
+                f"leave it out with --skip-nodes '{node.group(1)}'")
     return (
         f"{source}: no feasible pinch among {n_cand} candidates (rejected by "
         f"{', '.join(parts) or 'nothing'}); {hint}"

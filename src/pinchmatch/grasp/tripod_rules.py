@@ -223,6 +223,10 @@ def check_tripods(context: SurfaceContext, points: np.ndarray, faces: np.ndarray
     broken = cheap_broken(context, points, normals, settings, settings.friction_cone_deg)
     if with_reach:
         found = reach_rule(context, points, normals, settings, approach)
+        lost = ~(np.linalg.norm(found.approach, axis=1) > 0.5)  # contacts on one point or line: no hand direction
+        if lost.any():
+            found = Reach(found.ok & ~lost, np.where(lost[:, None], np.nan, found.approach),
+                          np.where(lost, np.nan, found.clearance_mm))
     else:
         found = Reach(np.ones(len(points), dtype=bool), np.full((len(points), 3), np.nan), np.full(len(points), np.nan))
     broken[:, TRIPOD_RULES.index("reach")] = ~found.ok

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import NoFeasiblePinchError
+from ..errors import ConfigError, NoFeasiblePinchError
 from ..grasp.analysis import ObjectAnalysis, find_pinches, score_pinches, score_tripods
 from ..grasp.features import PinchFeatures, grasp_features
 from ..grasp.pinches import Pinches, PinchSettings, concat_pinches
@@ -184,3 +184,14 @@ def pair_terms(tangible: Candidates, virtual: Candidates, t_rows: np.ndarray, v_
     terms = separable_terms(t_rows, felt_table(v_rows, ratio), model, scales=scales)
     terms[:, 7] = mass_term(t_rows, delta, model, scales=scales)
     return terms, delta
+
+
+def one_grasp(candidates: list) -> None:
+    """Refuse, in one line, candidates of two grasps (pinches and tripods) in one match: their features and
+    contacts cannot be compared. Each object's candidates are made with one ``PinchSettings.grasp``."""
+    kinds = {}
+    for c in candidates:
+        kinds.setdefault("tripod" if c.pinches.points.shape[1] == 3 else "pinch", c.name)
+    if len(kinds) > 1:
+        raise ConfigError(f"{kinds['tripod']}'s candidates are tripods and {kinds['pinch']}'s are pinches; a match "
+                          "compares one grasp: make every object's candidates with the same PinchSettings(grasp=...)")

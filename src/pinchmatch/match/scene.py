@@ -18,7 +18,7 @@ from scipy.optimize import linear_sum_assignment
 
 from ..errors import ConfigError
 from ..grasp.pinches import PinchSettings
-from .candidates import Candidates, with_count
+from .candidates import Candidates, one_grasp, with_count
 from .comfort import comfort_score
 from .cost import CostModel
 from .felt import FeltTables, felt_cost
@@ -143,6 +143,7 @@ def match_one(tangibles: list[Candidates], virtual: Candidates, config: Config, 
     ('can.obj', 0.0, (2,))
     """
     settings, pinch = config.match, config.pinch
+    one_grasp([*tangibles, virtual])
     search = search or refined_search(tangibles, virtual, model, settings, pinch_settings=pinch)
     tables = FeltTables(settings.landing_mm, pinch)
     steady = steady_search(search, tangibles, virtual, pinch)
@@ -214,6 +215,7 @@ def match_scene(tangibles: list[Candidates], virtuals: list[Candidates], *, conf
         raise ConfigError("no tangible object given; name at least one with --tangible")
     if not virtuals:
         raise ConfigError("no virtual object given; name at least one with --virtual")
+    one_grasp(tangibles + virtuals)
     model = model or cost_model(config.match, tangibles + virtuals)
     m, n = len(virtuals), len(tangibles)
     if config.match.one_to_one:  # the assignment needs every row first

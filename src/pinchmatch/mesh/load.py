@@ -95,9 +95,16 @@ def mesh_files(paths, *, option: str) -> list[Path]:
 
     Raises ConfigError for a readable folder that holds no mesh file.
     """
+    if isinstance(paths, (str, os.PathLike)):  # one path, not its characters
+        paths = [paths]
     out: list[Path] = []
     for given in paths:
+        if not str(given).strip():
+            raise ConfigError(f"{option}: an empty path; give a mesh file, a folder of them or a manifest")
         path = Path(given)
+        if path.exists() and not path.is_dir() and not path.is_file():
+            raise ConfigError(f"{path}: not a regular file (a device, a pipe or a socket); {option} takes mesh files, "
+                              "folders of them or manifests")
         if not path.is_dir():
             out.append(path)
             continue

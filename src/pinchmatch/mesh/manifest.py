@@ -288,7 +288,7 @@ def read_manifest(path: str | os.PathLike) -> list[ObjectSpec]:
         if path.stat().st_size > MAX_MANIFEST_BYTES:
             raise ConfigError(f"{path}: a manifest of more than {MAX_MANIFEST_BYTES // 2**20} MiB; "
                               "split the list into several manifests")
-        document = tomllib.loads(path.read_bytes().decode("utf-8"))
+        document = tomllib.loads(path.read_bytes().decode("utf-8-sig"))
     except FileNotFoundError:
         raise ConfigError(f"{path}: no such manifest; check the path") from None
     except OSError as exc:
@@ -436,7 +436,7 @@ def manifest_user(paths) -> tuple | None:
     for given in paths:
         if is_manifest(given):
             read_manifest(given)
-            document = tomllib.loads(Path(given).read_bytes().decode("utf-8"))
+            document = tomllib.loads(Path(given).read_bytes().decode("utf-8-sig"))
             if "user_mm" in document:
                 found.setdefault(_user(document["user_mm"]), str(given))
     if len(found) > 1:
@@ -464,6 +464,8 @@ def object_specs(paths, *, option: str, split: str | None = None, nodes=(), skip
     """
     if split is not None and split not in SPLITS:
         raise ConfigError(f"--split: unknown split {split!r}; use one of {', '.join(SPLITS)}")
+    if isinstance(paths, (str, os.PathLike)):  # one path, not its characters
+        paths = [paths]
     out: list[ObjectSpec] = []
     for given in paths:
         if is_manifest(given):
@@ -474,6 +476,12 @@ def object_specs(paths, *, option: str, split: str | None = None, nodes=(), skip
             how = spec.split or split or "none"
             level = Path(spec.path).suffix.lower() in MESH_EXTENSIONS and \
                 MESH_EXTENSIONS[Path(spec.path).suffix.lower()] in GLTF_TYPES
+            globs = [g for g in (*nodes, *skip_nodes, *spec.nodes, *spec.skip_nodes)]
+            if globs and how != "nodes" and level:
+                where = f"{spec.manifest}: {Path(spec.path).name}'s nodes" if spec.nodes or spec.skip_nodes else \
+                    "--nodes and --skip-nodes"
+                raise ConfigError(f"{where}: choose nodes of a level split into its nodes, but {spec.path} is not "
+                                  "split; add --split nodes (or split = \"nodes\" in its manifest entry)")
             if how == "nodes" and level:
                 out.extend(node_specs(spec, read_level(spec.path), only=tuple(nodes), skip=tuple(skip_nodes),
                                       furniture=level_furniture(spec.path, units=spec.units or units,

@@ -90,6 +90,14 @@ def parse_vector(text: str, *, option: str) -> np.ndarray:
     return values
 
 
+def _three_finite(value) -> bool:
+    try:
+        array = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        return False
+    return array.shape == (3,) and bool(np.isfinite(array).all())
+
+
 def object_properties(
     mesh: trimesh.Trimesh,
     *,
@@ -133,6 +141,9 @@ def object_properties(
     order = np.argsort(values)[::-1]
     values, vectors = values[order], vectors[:, order]
 
+    for name, value in (("--com", com_mm), ("--axis", axis)):
+        if value is not None and not _three_finite(value):
+            raise ConfigError(f"{name}: {str(value)[:60]} must be three finite numbers X,Y,Z (mm, the file's frame)")
     if axis is not None:
         norm = float(np.linalg.norm(axis))
         if not np.isfinite(norm) or norm < 1e-12:
