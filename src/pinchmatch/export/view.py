@@ -21,6 +21,8 @@ import sys
 from importlib import resources
 from pathlib import Path
 
+import numpy as np
+
 from ..version import __version__
 from ..config import finite_number
 from ..errors import ConfigError
@@ -123,10 +125,60 @@ _CHECKED_FIELDS = ("cost", "p_noticed", "noticeable", "criteria", "landing", "eq
 _ALTERNATIVE_FIELDS = ("tangible", "cost", "flipped", "up_turn_deg", "transform_virtual_to_tangible")
 
 
+#: the arrays of a match the page draws, by their shapes (a tripod's contacts: three points)
+_SHAPES = {"position_mm": (3,), "quaternion_xyzw": (4,), "transform_virtual_to_tangible": (4, 4)}
+_POSE_SHAPES = {"p1_mm": (3,), "p2_mm": (3,), "contacts_mm": (3, 3)}
+_REDIRECTION_SHAPES = {"hand_start_mm": (3,), "physical_target_mm": (3,), "virtual_target_mm": (3,)}
+#: a page over this size (bytes) is more than a browser opens comfortably: the run says so
+PAGE_NOTE_BYTES = 200 * 2**20
+
+
+def _shaped(where: str, value, shape: tuple) -> None:
+    """Refuse, naming ``where``, an array the page draws that is not numbers of ``shape``."""
+    try:
+        ok = np.shape(np.asarray(value, dtype=np.float64)) == shape
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise ConfigError(f"{where}: {str(value)[:40]} is not {' x '.join(map(str, shape))} numbers, so the page "
+                          "cannot draw it; run pinchmatch again to rewrite it")
+
+
+def _drawable(where: str, m: dict, props: dict) -> None:
+    """What the page draws of a match has the shapes it draws: poses, transform, placement, redirection and its
+    prop's pose in the level."""
+    if m.get("tangible") is None:
+        return
+    for field, shape in _SHAPES.items():
+        _shaped(f"{where}.{field}", m.get(field), shape)
+    for side in ("tangible_pose", "virtual_pose"):
+        pose = m.get(side)
+        if not isinstance(pose, dict):
+            raise ConfigError(f"{where}.{side}: not a pose; run pinchmatch again to rewrite it")
+        for field in _pose_fields(pose)[1:]:
+            _shaped(f"{where}.{side}.{field}", pose.get(field), _POSE_SHAPES[field])
+    if "redirection" in m and m["redirection"] is not None:
+        r = m["redirection"]
+        if not isinstance(r, dict) or r.get("mode") not in ("redirect", "carousel") or \
+                not finite_number(r.get("angle_deg")) or not finite_number(r.get("gain")):
+            raise ConfigError(f"{where}.redirection: not a redirection the page can play (its mode, angle_deg and "
+                              "gain); run pinchmatch again to rewrite it")
+        for field, shape in _REDIRECTION_SHAPES.items():
+            _shaped(f"{where}.redirection.{field}", r.get(field), shape)
+        pose = props.get(m["tangible"])
+        if pose is not None:
+            if not isinstance(pose, dict):
+                raise ConfigError(f"{where}: its prop's pose is not a pose; run pinchmatch again to rewrite it")
+            _shaped(f"{where}: its prop's pose.position_mm", pose.get("position_mm"), (3,))
+            _shaped(f"{where}: its prop's pose.quaternion_xyzw", pose.get("quaternion_xyzw"), (4,))
+
+
 def _page_data(out: Path, document: dict) -> dict:
+    props = {t["name"]: t.get("pose") for t in document["tangibles"]}
     for k, m in enumerate(document["matches"]):
         if not isinstance(m, dict):
             raise ConfigError(f"{out / 'matches.json'}: matches[{k}] is not a match; run pinchmatch again to rewrite it")
+        _drawable(f"{out / 'matches.json'}: matches[{k}]", m, props)
         for field in _CHECKED_FIELDS:
             _checked_values(f"{out / 'matches.json'}: matches[{k}].{field}", m.get(field), field)
         for side in ("tangible_pose", "virtual_pose"):
@@ -290,7 +342,12 @@ def write_page(out: Path, *, document: dict | None = None) -> Path:
         document = read_matches(out)
     data = page_data(out, document)
     path = out / "index.html"
-    write_atomic(path, render_page(data, settings=document.get("settings", {})))
+    page = render_page(data, settings=document.get("settings", {}))
+    if len(page) > PAGE_NOTE_BYTES:
+        log.warning("%s is %.1f MB (%d matches, each with its scene): more than a browser opens comfortably; "
+                    "view a part of the result (a run over fewer objects) or open the scenes in scenes/ one by one",
+                    path, len(page) / 2**20, len(data["matches"]))
+    write_atomic(path, page)
     log.info("wrote %s: %d matches", path, len(data["matches"]))
     return path
 
