@@ -20,6 +20,9 @@ from pathlib import Path
 MIN_ADDRESS_SPACE_BYTES = 1 << 30
 #: a control group's files, version 2 then version 1 (what it may hold, what it holds)
 CGROUP_FILES = (("memory.max", "memory.current"), ("memory.limit_in_bytes", "memory.usage_in_bytes"))
+#: where Linux says all this (tests point them at files of their own)
+PROC_MEMINFO, PROC_STATUS, PROC_CGROUP = "/proc/meminfo", "/proc/self/status", "/proc/self/cgroup"
+CGROUP_ROOT = "/sys/fs/cgroup"
 
 
 def _proc_value(path: str, key: str) -> int | None:
@@ -35,11 +38,11 @@ def _proc_value(path: str, key: str) -> int | None:
 
 
 def _meminfo(key: str) -> int | None:
-    return _proc_value("/proc/meminfo", key)
+    return _proc_value(PROC_MEMINFO, key)
 
 
 def _own_status(key: str) -> int | None:
-    return _proc_value("/proc/self/status", key)
+    return _proc_value(PROC_STATUS, key)
 
 
 def address_space_limit() -> int | None:
@@ -51,26 +54,24 @@ def address_space_limit() -> int | None:
     return None if soft == resource.RLIM_INFINITY else int(soft)
 
 
-def _cgroup_folder() -> Path | None:
+def _cgroup_folder() -> tuple[Path, Path] | None:
+    """(this process's control group folder, the hierarchy's root folder), or None."""
     try:
-        lines = Path("/proc/self/cgroup").read_text().splitlines()
+        lines = Path(PROC_CGROUP).read_text().splitlines()
     except OSError:
         return None
     for line in lines:
         parts = line.split(":", 2)
         if len(parts) == 3 and (parts[1] == "" or "memory" in parts[1].split(",")):
-            base = Path("/sys/fs/cgroup") if parts[1] == "" else Path("/sys/fs/cgroup/memory")
+            base = Path(CGROUP_ROOT) if parts[1] == "" else Path(CGROUP_ROOT) / "memory"
             folder = base / parts[2].lstrip("/")
             if folder.is_dir():
-                return folder
+                return folder, base
     return None
 
 
-def cgroup_headroom() -> tuple[int, int] | None:
-    """(limit, free) bytes of this process's control group, or None where it sets no limit."""
-    folder = _cgroup_folder()
-    if folder is None:
-        return None
+def _group_limit(folder: Path) -> tuple[int, int] | None:
+    """(limit, free) bytes of one control group folder, or None where it sets no limit."""
     for limit_name, usage_name in CGROUP_FILES:
         try:
             limit_text = (folder / limit_name).read_text().strip()
@@ -81,6 +82,25 @@ def cgroup_headroom() -> tuple[int, int] | None:
             return None
         return int(limit_text), max(int(limit_text) - usage, 0)
     return None
+
+
+def cgroup_headroom() -> tuple[int, int] | None:
+    """(limit, free) bytes of the tightest control group this process is in: its own or any group above it up
+    to the hierarchy's root (a systemd slice limits every unit below it), the least free; None where none
+    sets a limit."""
+    found = _cgroup_folder()
+    if found is None:
+        return None
+    folder, root = found
+    limits = []
+    while True:
+        limit = _group_limit(folder)
+        if limit is not None:
+            limits.append(limit)
+        if folder == root or root not in folder.parents:
+            break
+        folder = folder.parent
+    return min(limits, key=lambda x: x[1]) if limits else None
 
 
 def memory_headroom() -> tuple[int, str] | None:
