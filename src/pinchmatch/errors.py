@@ -21,6 +21,13 @@ def option(name: str, value) -> str:
     return "{option:%s=%s}" % (name, value)
 
 
+def in_manifest(error: "PinchmatchError", manifest: str) -> "PinchmatchError":
+    """``error`` with the options it names as the keys of an object's manifest entry (``units = "m" in its
+    entry of props.toml``): the object's options come from there, not from the command line."""
+    text = _OPTION.sub(lambda m: f'{m[1]} = "{m[2]}" in its entry of {manifest}', str(error.args[0]))
+    return type(error)(text)
+
+
 class PinchmatchError(Exception):
     """Base class of every error pinchmatch raises on bad input.
 

@@ -86,12 +86,19 @@ class Presenter:
 
         return advance
 
-    def table(self, rows: list, *, title: str | None = None, legend: list | None = None) -> None:
+    def table(self, rows: list, *, title: str | None = None, legend: list | None = None,
+              optional: tuple = ()) -> None:
         """``rows[0]`` is the header; printed to stdout unless quiet or ``--json``, folded to the
         terminal's width (long names wrap instead of being cut), with the ``title`` line above (as wide as
-        the terminal, not the table) and the ``legend`` lines below."""
+        the terminal, not the table) and the ``legend`` lines below. Where the table is wider than the
+        terminal, the ``optional`` columns (header names, the first to go first) are left out until it fits,
+        and a legend line names them."""
         if not self.show_summary:
             return
+        rows, dropped = _narrowed(rows, optional, self.out.width)
+        if dropped:
+            legend = [*(legend or []), f"left out to fit {self.out.width} columns: {', '.join(dropped)} (the "
+                                       "result file has every column)"]
         if title:
             self.out.print(Text(title), soft_wrap=False)
         table = Table(box=box.SIMPLE_HEAD, pad_edge=False, collapse_padding=True)
@@ -120,3 +127,24 @@ class Presenter:
         if self.json_mode:
             sys.stdout.write(text)
             sys.stdout.flush()
+
+
+def _narrowed(rows: list, optional: tuple, width: int) -> tuple[list, list]:
+    """``rows`` without the ``optional`` columns (in that order) it takes to fit ``width`` characters, each
+    column as wide as its widest cell with a space between; and the columns left out."""
+    header = list(rows[0])
+    keep = list(range(len(header)))
+    dropped = []
+
+    def natural() -> int:
+        return sum(max(len(str(r[i])) for r in rows if i < len(r)) for i in keep) + (len(keep) - 1)
+
+    for name in optional:
+        if natural() <= width:
+            break
+        if name in header and header.index(name) in keep:
+            keep.remove(header.index(name))
+            dropped.append(name)
+    if not dropped:
+        return rows, []
+    return [tuple(r[i] for i in keep if i < len(r)) for r in rows], dropped

@@ -10,8 +10,8 @@ from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 
 from ..errors import ConfigError, RunError
-from ..export.documents import matches_legend, scene_stems
-from ..export.notes import comfort_note, equivalent_note, flipped_note, redirection_note, rest_note
+from ..export.documents import OPTIONAL_COLUMNS, matches_legend, scene_stems
+from ..export.notes import comfort_note, equivalent_note, flipped_note, redirection_note, reference_note, rest_note
 from ..export.sink import MatchesSink
 from ..export.view import write_page
 from ..files import check_writable, read_input, write_atomic
@@ -315,7 +315,8 @@ def write_levels(stage: Path, out: Path, doc: dict, virtual_tasks, result, run_s
 
 def print_match(ui, sink, result, run_settings) -> None:
     ui.table(table_rows(sink.objects, "objects"), title="objects")
-    ui.table(table_rows(sink.rows, "matches"), title="matches", legend=matches_legend(run_settings))
+    ui.table(table_rows(sink.rows, "matches"), title="matches", legend=matches_legend(run_settings),
+             optional=OPTIONAL_COLUMNS)
     if note := flipped_note(sink.rows, run_settings):
         ui.note(note)
     if note := redirection_note(sink.redirections):
@@ -325,6 +326,8 @@ def print_match(ui, sink, result, run_settings) -> None:
     if note := rest_note(sink.rests):
         ui.note(note)
     if note := comfort_note(sink.approaches):
+        ui.note(note)
+    if note := reference_note(sink.references):
         ui.note(note)
     if result.failed:
         ui.table(table_rows([("file", "role", "problem")] + [(f.path, f.role, f.error) for f in result.failed],

@@ -472,21 +472,28 @@ def matches_from_lines(lines: Iterable[str]) -> dict:
     }
 
 
-def matches_rows(document: dict) -> list[tuple]:
+def matches_rows(document: dict, placed_fixed: bool | None = None) -> list[tuple]:
     """The rows of the matches table, header first."""
-    rows = [("virtual", "tangible", "cost", "p_noticed", "nominal/expected/worst", "criteria >= 1 JND", "flipped",
-             "offset_mm", "ref_cost")]
+    fixed = placed_fixed if placed_fixed is not None else any(m.get("redirection") for m in document["matches"])
+    rows = [("virtual", "tangible", *(("mode",) if fixed else ()), "cost", "p_noticed", "nominal/expected/worst",
+             "criteria >= 1 JND", "flipped", "offset_mm", "ref_cost")]
     for m in document["matches"]:
         if m.get("tangible") is None:
-            rows.append((m["virtual"], "-", "-", "-", "", m.get("reason") or "", "", "", ""))
+            rows.append((m["virtual"], "-", *(("-",) if fixed else ()), "-", "-", "", m.get("reason") or "", "", "",
+                         ""))
             continue
         loud = [c for c, v in m["criteria"].items() if v["noticeable"]]
         ref, land = m["reference"], m.get("landing")
         felt = "/".join(f"{land[k]:.3g}" for k in ("cost_nominal", "cost_mean", "cost_worst")) if land else ""
-        rows.append((m["virtual"], m["tangible"], f"{m['cost']:.4g}", f"{m['p_noticed']:.2f}", felt,
+        mode = ((m.get("redirection") or {}).get("mode") or "-",) if fixed else ()
+        rows.append((m["virtual"], m["tangible"], *mode, f"{m['cost']:.4g}", f"{m['p_noticed']:.2f}", felt,
                      ",".join(loud) or "none", "F" if m["flipped"] else "", f"{m['contact_offset_mm']:+.2f}",
                      f"{ref['cost']:.4g}" if ref and ref["cost"] is not None else "null"))
     return rows
+
+
+#: the columns of the matches table a narrow terminal leaves out first (matches.json has them all)
+OPTIONAL_COLUMNS = ("offset_mm", "ref_cost", "flipped", "p_noticed", "nominal/expected/worst")
 
 
 def study_document(study, settings: dict) -> dict:
@@ -544,7 +551,8 @@ def matches_legend(settings: dict) -> list[str]:
             "worst landing); p_noticed: the probability that the ranked difference is noticed; "
             "criteria >= 1 JND: those noticeable on their own on target; flipped: F where the placement turns the "
             "virtual object upside down"
-            + (f"; support {support}: props (and a level's nodes) stand on the plane through their lowest point, "
-               "no hand below it" if support == "auto" else ""),
+            + (f"; support {support}: props stand on the plane through their lowest point (posed: the level's), "
+               "a level's nodes on the table under them (else their lowest point), no hand below it"
+               if support == "auto" else ""),
             "offset_mm: each virtual fingertip's offset from the prop's contact along the pinch line; ref_cost: the "
             "paper's reference placement (null: its fingers meet nothing on the virtual object)"]

@@ -57,6 +57,21 @@ def equivalent_note(equivalents: list[tuple]) -> str | None:
 
 
 
+def reference_note(references: list[tuple]) -> str | None:
+    """Why ``ref_cost`` is null, where it is: ``references`` [(virtual, the reason or None)] of the matched."""
+    missing = [(name, why) for name, why in references if why]
+    if not missing:
+        return None
+    reasons: dict[str, list[str]] = {}
+    for name, why in missing:
+        reasons.setdefault(why, []).append(name)
+    why, names = max(reasons.items(), key=lambda item: len(item[1]))
+    which = "every object" if len(missing) == len(references) else f"{len(missing)} of {len(references)} objects"
+    more = f" ({len(reasons) - 1} other reason{'s' if len(reasons) > 2 else ''}: matches.json's reference.reason)" \
+        if len(reasons) > 1 else ""
+    return f"ref_cost is null for {which}: {why}{more}"
+
+
 def redirection_note(redirections: list[dict]) -> str | None:
     """Under ``--placement fixed``: how many matches redirect the hand (and the largest angle), how many
     the carousel serves (None without redirection)."""

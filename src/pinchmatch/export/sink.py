@@ -24,8 +24,10 @@ class MatchesSink:
         self.result_path = self.out / f"matches.{fmt}"
         self.scenes = 0
         self.objects = [("object", "role", "faces", "feasible poses")]
+        self._fixed = False
         self.rows = matches_rows({"matches": []})
         self.redirections: list[dict] = []  # under --placement fixed, each match's
+        self.references: list[tuple] = []  # (virtual, why its reference has no cost, or None)
         self.equivalents: list[tuple] = []  # (virtual, its prop, [the equivalent props' names])
         self.rests: list[tuple] = []  # (virtual, its rest gap in mm) where it is shown on a prop that stands
         self.approaches: list[tuple] = []  # (virtual, elevation, azimuth in deg) where its prop stands
@@ -48,6 +50,8 @@ class MatchesSink:
         entries = [object_entry(t, dump_poses=dump_poses) for t in tangibles]
         self.objects += [(e["name"], "tangible", e["faces"], e["pose_count"]) for e in entries]
         self._header = matches_header(settings, entries)
+        self._fixed = settings.get("placement") == "fixed"
+        self.rows = matches_rows({"matches": []}, placed_fixed=self._fixed)
         if self.fmt == "jsonl":
             self._lines = AtomicFile(self.result_path)
             self._line({"record": "header", **self._header, "schema": SCHEMA_MATCH_LINES})
@@ -63,7 +67,7 @@ class MatchesSink:
             write_atomic(self.out / figure_file(stem), r.figure_png)
             r.match["figure_file"] = figure_file(stem)
         self.objects.append((r.name, "virtual", r.entry["faces"], r.entry["pose_count"]))
-        self.rows += matches_rows({"matches": [r.match]})[1:]
+        self.rows += matches_rows({"matches": [r.match]}, placed_fixed=self._fixed)[1:]
         self._names.append(r.name)
         self._cost_rows.append(r.row)
         self._chosen.append(r.match.get("tangible"))
@@ -73,6 +77,8 @@ class MatchesSink:
             self.rests.append((r.name, r.match["rest_gap_mm"]))
         if r.match.get("approach_elevation_deg") is not None:
             self.approaches.append((r.name, r.match["approach_elevation_deg"], r.match.get("approach_azimuth_deg")))
+        if r.match.get("tangible") is not None:
+            self.references.append((r.name, (r.match.get("reference") or {}).get("reason")))
         if r.match.get("equivalent_tangibles"):
             self.equivalents.append((r.name, r.match["tangible"], [e["tangible"] for e in r.match["equivalent_tangibles"]]))
         if self._lines is not None:

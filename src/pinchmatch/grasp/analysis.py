@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from ..config import finite_number
-from ..errors import ConfigError, ContactError, NoFeasiblePinchError
+from ..errors import ConfigError, ContactError, MeshError, NoFeasiblePinchError, in_manifest
 from ..mesh import topology
 from ..mesh.support import support_plane
 from ..files import read_input
@@ -117,7 +117,12 @@ def analyze_spec(spec: ObjectSpec, *, patch_radius_mm: float = 8.0, progress=Non
     ('can', [54.0, 54.0, 66.0])
     """
     say = progress or (lambda stage: None)
-    loaded = load_mesh(spec.path, units=spec.units, up=spec.up, progress=progress, node=spec.node)
+    try:
+        loaded = load_mesh(spec.path, units=spec.units, up=spec.up, progress=progress, node=spec.node)
+    except MeshError as exc:
+        if spec.manifest and spec.node is None:  # its units and up are its manifest entry's
+            raise in_manifest(exc, spec.manifest) from None
+        raise
     say("mass properties")
     props = object_properties(loaded.mesh, up=loaded.up, watertight=loaded.watertight,
                               com_mm=None if spec.com_mm is None else np.array(spec.com_mm),

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
@@ -62,7 +61,7 @@ def run_match(tangible_tasks: list[ObjectTask], virtual_tasks: list[ObjectTask],
         with step(description, len(tasks)) as advance, \
                 ex.stages(lambda name, stage: advance(f"{name}: {stage}", done=False)):
             for k, (task, r) in enumerate(zip(tasks, ex.map(fn, items, *args))):
-                advance(Path(task.path).name)
+                advance(task.name)
                 if not isinstance(r, Failure):
                     yield k, r
                     continue

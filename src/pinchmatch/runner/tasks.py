@@ -73,6 +73,11 @@ class ObjectTask:
     spec: ObjectSpec | None = None  # a manifest entry or a level node (None: the file, with the job's options)
 
     @property
+    def name(self) -> str:
+        """How progress names the object: as the result does (its manifest name, its node, its file)."""
+        return self.spec.display_name if self.spec is not None else Path(self.path).name
+
+    @property
     def label(self) -> str:
         """How messages name the object: its file, and the scene node for one node of a level."""
         return f"{self.path}#{self.spec.node}" if self.spec is not None and self.spec.node else self.path
@@ -115,7 +120,7 @@ def _candidates(task: ObjectTask, job: Job) -> tuple[Candidates, bool, FeatureCa
     cache = FeatureCache(job.cache_folder) if job.cache_folder is not None else None
     c = cached_candidates(task.spec or task.path, cache=cache, units=job.units, up=job.up, settings=job.settings,
                           given=task.given, source=task.source,
-                          progress=lambda stage: report_stage(Path(task.label).name, stage))
+                          progress=lambda stage: report_stage(task.name, stage))
     return c, bool(cache is not None and cache.hits), cache
 
 
