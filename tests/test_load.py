@@ -203,3 +203,52 @@ def test_parts_inside_a_closed_part_are_left_out_a_book_is_pinched_on_its_cover(
     assert len(poses) == 60 and (widths > 3.0).all()  # never a page's half millimetre
     # across the cover (30 mm, longer where the pinch line leans within the friction cone), or the loose sheet
     assert ((widths > 29.9) & (widths < 36.0)).sum() > 30 and ((widths > 3.9) & (widths < 5.0)).any()
+
+
+@pytest.mark.parametrize("wound", ["outward", "inward"])
+def test_a_book_in_an_open_cover_is_pinched_across_its_cover(tmp_path, wound):
+    """A book as game assets model one: the cover three open sheets (front, spine, back; no thickness) around
+    32 page sheets, the cover's faces pointing out of the book or into it, turned and moved off the origin.
+    The pages are removed (inside the open cover by the generalized winding number), a cover wound inward is
+    turned to face out, and pinches are found across the cover; a lone sheet is left facing as it was."""
+    from scipy.spatial.transform import Rotation
+
+    from pinchmatch import PinchSettings, analyze_object, candidate_poses
+
+    W, H, T = 150.0, 220.0, 30.0
+    corners = [(W / 2, T / 2), (-W / 2, T / 2), (-W / 2, -T / 2), (W / 2, -T / 2)]  # front, spine, back
+    vertices = [[x, y, z] for y in (-H / 2, H / 2) for x, z in corners]
+    faces = [f for k in range(3) for f in ([k, k + 1, 5 + k], [k, 5 + k, 4 + k])]
+    cover = trimesh.Trimesh(vertices, faces, process=False).subdivide().subdivide()  # wound into the book
+    if wound == "outward":
+        cover.invert()
+    pages = []
+    for k in range(32):
+        page = trimesh.creation.box(extents=(140, 210, 0.5))
+        page.apply_translation([0, 0, -12 + k * 0.75])
+        pages.append(page)
+    book = trimesh.util.concatenate([cover, *pages])
+    M = np.eye(4)
+    M[:3, :3] = Rotation.from_euler("xyz", [-25, 40, 110], degrees=True).as_matrix()
+    M[:3, 3] = [-80, 310, 25]
+    book.apply_transform(M)
+    book.export(tmp_path / "book.stl")
+    loaded = load_mesh(tmp_path / "book.stl")
+    assert any("32 part(s) lying inside another" in r for r in loaded.repairs), loaded.repairs
+    assert any("face outward" in r for r in loaded.repairs) == (wound == "inward"), loaded.repairs
+    front = loaded.mesh.triangles_center @ M[:3, 2] - M[:3, 3] @ M[:3, 2] > T / 2 - 1e-6  # the front sheet's faces
+    assert (loaded.mesh.face_normals[front] @ M[:3, 2] > 0.99).all()  # facing out of the book
+    poses = candidate_poses(analyze_object(tmp_path / "book.stl"), settings=PinchSettings(count=40, seed=3))
+    widths = np.linalg.norm(poses.pinches.points[:, 1] - poses.pinches.points[:, 0], axis=1)
+    assert len(poses) == 40 and ((widths > 29.9) & (widths < 36.0)).all(), widths
+    tile = trimesh.creation.cylinder(radius=30.0, height=80.0, sections=48)
+    tile.update_faces((np.abs(tile.face_normals[:, 2]) < 0.5) & (tile.triangles_center[:, 1] > 0))  # half a tube
+    for turned in (False, True):  # a lone sheet, facing either way: its two sides are alike, it stays as it is
+        sheet = tile.copy()
+        if turned:
+            sheet.invert()
+        sheet.apply_transform(M)
+        sheet.export(tmp_path / "sheet.stl")
+        lone = load_mesh(tmp_path / "sheet.stl")
+        assert not any("face outward" in r for r in lone.repairs), lone.repairs
+        np.testing.assert_allclose(lone.mesh.face_normals.mean(axis=0), sheet.face_normals.mean(axis=0), atol=1e-6)

@@ -23,6 +23,7 @@ from .frames import UNITS_MM, check_units, parse_up
 from .gltf_apply import applied_glb, needs_applying
 from .gltf_check import PercentDecoding, check_gltf
 from . import topology
+from .facing import inward_open_parts
 from ..memory import memory_headroom
 from .level import LevelNode, level_nodes, merged_primitives, node_mesh, remembered_scene, scene_node_digests
 
@@ -489,6 +490,15 @@ def _repair(mesh: trimesh.Trimesh, *, indexed: bool, scale: float,
         repairs.append("turned the surface right side out (it was inside-out)")
     elif flipped:
         repairs.append(f"made winding consistent ({flipped} faces flipped)")
+    if not watertight:  # an open part's volume says nothing: rays say which side is outside
+        labels = topology.component_labels(topology.face_adjacency(topology.edges(mesh.faces)), len(mesh.faces))
+        inward = inward_open_parts(mesh, labels)
+        if inward.any():
+            faces = mesh.faces.copy()
+            faces[inward[labels]] = faces[inward[labels]][:, ::-1]
+            mesh.faces = faces
+            repairs.append(f"turned {int(inward.sum())} open part(s) to face outward (rays from their faces "
+                           "met the object on the side they faced)")
     return repairs, bool(watertight and wound and volume > 0)
 
 

@@ -216,9 +216,12 @@ def winding_numbers(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray)
 
 
 def enclosed_parts(vertices: np.ndarray, faces: np.ndarray, labels: np.ndarray) -> np.ndarray:
-    """(parts,) bool: the parts (bodies of ``labels``) that lie wholly inside another part that is closed
-    on its own (pages inside a book's cover, a liner inside a shell): every sampled vertex of theirs has a
-    winding number of at least one half about it. Only parts inside another's bounding box are tested."""
+    """(parts,) bool: the parts (bodies of ``labels``) that lie wholly inside another part (pages inside a
+    book's cover, a liner inside a shell): inside a part closed on its own, every sampled vertex of theirs has
+    a winding number of at least one half about it; inside an open one (a cover of three sheets, open at the
+    page edges), every sampled face centre has a generalized winding number of at least one half (Jacobson et
+    al. 2013's inside test for surfaces with holes: the page corners by the open edges see less of the cover,
+    their faces' centres are inside). Only parts inside another's bounding box are tested."""
     parts = int(labels.max()) + 1 if len(labels) else 0
     out = np.zeros(parts, dtype=bool)
     if parts < 2 or parts > MAX_ENCLOSED_TESTS:
@@ -231,14 +234,17 @@ def enclosed_parts(vertices: np.ndarray, faces: np.ndarray, labels: np.ndarray) 
     np.maximum.at(high, owner, vertices[corners])
     closed: dict[int, bool] = {}
     for p in range(parts):
-        own = np.unique(faces[labels == p])
-        sample = vertices[own[np.linspace(0, len(own) - 1, min(ENCLOSED_SAMPLES, len(own))).astype(int)]]
+        mine = faces[labels == p]
+        own = np.unique(mine)
+        corners = vertices[own[np.linspace(0, len(own) - 1, min(ENCLOSED_SAMPLES, len(own))).astype(int)]]
+        centres = vertices[mine[np.linspace(0, len(mine) - 1, min(ENCLOSED_SAMPLES, len(mine))).astype(int)]].mean(axis=1)
         for q in np.flatnonzero(np.all(low <= low[p], axis=1) & np.all(high >= high[p], axis=1)):
             if q == p or out[q]:
                 continue
             if q not in closed:
                 closed[q] = watertight_and_wound(edges(faces[labels == q]))[0]
-            if closed[q] and (np.abs(winding_numbers(sample, vertices, faces[labels == q])) >= 0.5).all():
+            sample = corners if closed[q] else centres
+            if (np.abs(winding_numbers(sample, vertices, faces[labels == q])) >= 0.5).all():
                 out[p] = True
                 break
     return out
