@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..options import digest
 from .candidates import Candidates, felt_table, mass_ratio, memo_of
 from .cost import separable_terms
 from .felt import landing_moments
@@ -67,15 +68,16 @@ def ranks_by_landings(settings) -> bool:
     return settings.rank != "nominal" and settings.landing_mm > 0
 
 
-def moments_key(radius_mm: float, settings) -> tuple[float, float]:
-    """What an object's moments depend on besides its poses: the landing radius and the patch radius."""
-    return float(radius_mm), float(settings.patch_radius_mm)
+def moments_key(radius_mm: float, settings) -> tuple[float, str]:
+    """What an object's moments depend on besides its poses: the landing radius and every pinch setting (their
+    digest: the patch radius, the hand's sizes; a setting added later is in it without a decision here)."""
+    return float(radius_mm), digest(settings)
 
 
 def keep_moments(candidates: Candidates, key: tuple, moments: tuple[np.ndarray, np.ndarray]) -> None:
     """Keep ``moments`` ((mean, variance), as :func:`moments_of` makes them under ``key``) for ``candidates``:
     a run's workers take a tangible's moments made once, with its poses, instead of each making them."""
-    memo_of(_MOMENTS, candidates)[tuple(float(k) for k in key)] = moments
+    memo_of(_MOMENTS, candidates)[(float(key[0]), str(key[1]))] = moments
 
 
 def expected_terms(tangible_moments: tuple, virtual_moments: tuple, ratio: float, model) -> np.ndarray:
