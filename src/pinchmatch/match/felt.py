@@ -44,7 +44,7 @@ from ..grasp.spread import other_order
 from .candidates import Candidates, memo_of, pair_terms
 from .cost import CRITERIA, WIDTH_JND_FLOOR_MM, WIDTH_JND_FRACTION, CostModel, feature_table
 from .landing import LANDING_AXIS_DEG, MISS_JND, RING_POINTS, disc_offsets
-from .redirect import world_pose
+from .redirect import seen_turn
 from .refine import close_fingers, move_directions
 from .search import criterion_table, p_noticed
 
@@ -388,7 +388,7 @@ def felt_cost(tangible: Candidates, virtual: Candidates, choice, model: CostMode
     t_pair = t_pair[keep]
     hit = v.hit[keep] & t.hit[t_pair]
     weights = v.weights[keep] / v.weights[keep].sum()
-    R_mass = R if choice.redirect_terms is None else world_pose(tangible.obj.spec)[0].T
+    R_mass = seen_turn(tangible.obj, R, choice.redirect_terms is not None)
     terms, _ = pair_terms(tangible, virtual, t.rows[t_pair], v_rows[keep], model, R=R_mass,
                           t_points=t.points[t_pair], v_points=v.points[keep])
     cost = np.asarray(model.pool(terms, choice.redirect_terms, choice.rest_jnd), dtype=np.float64)

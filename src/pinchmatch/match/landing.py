@@ -39,7 +39,7 @@ from ..grasp.features import pinch_features
 from ..grasp.pinches import PinchSettings, Pinches, patches
 from .candidates import Candidates, pair_terms
 from .cost import CRITERIA, CostModel, feature_table
-from .redirect import world_pose
+from .redirect import seen_turn
 from .refine import close_fingers, move_directions
 from .search import criterion_table, p_noticed
 
@@ -164,7 +164,7 @@ def landing(tangible: Candidates, virtual: Candidates, choice, model: CostModel,
     t_rows = feature_table(pinch_features(felt_p, tangible.obj.props))
     v_rows = feature_table(pinch_features(seen, virtual.obj.props))
     # the mass turns with the placement: the registration, or where the level keeps the object
-    R_mass = R if choice.redirect_terms is None else world_pose(tangible.obj.spec)[0].T
+    R_mass = seen_turn(tangible.obj, R, choice.redirect_terms is not None)
     terms, _ = pair_terms(tangible, virtual, t_rows, v_rows, model, R=R_mass, t_points=felt_p.points,
                           v_points=seen.points)
     cost = model.pool(terms, choice.redirect_terms, choice.rest_jnd)  # a redirection is planned for the targets: as the match's

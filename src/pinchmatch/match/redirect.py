@@ -81,6 +81,14 @@ def world_pose(spec) -> tuple[np.ndarray, np.ndarray]:
     return quaternion_matrix(pose[1]), np.asarray(pose[0], dtype=np.float64)
 
 
+def seen_turn(tangible_obj, registration: np.ndarray, redirected: bool) -> np.ndarray:
+    """The turn of the virtual object as seen from the prop, which turns its mass offset and its up: the
+    registration's rotation (``registration``: (..., 3, 3)) when the object is brought onto the prop, the prop's
+    pose inverted when it stays where the level puts it (``redirected``: the registration is then the hand's
+    warp onto the prop, not a placement). The one place this is decided."""
+    return world_pose(tangible_obj.spec)[0].T if redirected else registration
+
+
 def placed_transform(spec) -> np.ndarray:
     """(4, 4) the map of world coordinates (mm) into an object's file frame: where a virtual object
     that stays in the level lies as seen from the prop (the inverse of :func:`world_pose`)."""

@@ -154,7 +154,7 @@ def match_one(tangibles: list[Candidates], virtual: Candidates, config: Config, 
         carousel = refined_search(search.tangibles, search.virtuals[0], search.model, registered, pinch_settings=pinch)
         c_row, c_noticed = ranked_row(carousel, cost_row(carousel, 0), tables,
                                       steady_search(carousel, tangibles, virtual, pinch))
-        stays = np.isfinite(row) & (row <= c_row + settings.carousel_margin_jnd)
+        stays = redirect_stays(row, c_row, settings.carousel_margin_jnd)
         row, noticed = np.where(stays, row, c_row), np.where(stays, noticed, c_noticed)
     allowed = allowed or (list(range(len(tangibles))), None)
     if not details:  # what select and design rank props by: the row
@@ -397,17 +397,25 @@ def _placed(search: Search, allowed: tuple, *, pinch_settings: PinchSettings, in
     return dataclasses.replace(vm, redirection=moved.record(0, mode) | costs)
 
 
+def redirect_stays(redirect_cost, carousel_cost, margin: float):
+    """Whether an object stays in the level, the hand redirected (per element of the costs, or one bool): the
+    one rule of ``--placement fixed``. It stays when a redirected pair exists (a finite cost) costing at most
+    ``margin`` more than the carousel's (infinite where the carousel has no placement)."""
+    r, c = np.asarray(redirect_cost, dtype=np.float64), np.asarray(carousel_cost, dtype=np.float64)
+    return np.isfinite(r) & (r <= c + margin)
+
+
 def _mode(redirected: VirtualMatch, carousel: VirtualMatch, margin: float) -> tuple[str, str]:
-    """``redirect`` or ``carousel`` and why: an object stays in the level, the hand redirected, unless no
-    pair is within the redirection budget or the carousel costs more than ``margin`` less."""
-    if redirected.best is None:
-        return "carousel", "no pose pair is within the redirection budget (angle and reach gain)"
+    """``redirect`` or ``carousel`` (:func:`redirect_stays`) and why."""
+    a = float(redirected.best.cost) if redirected.best is not None else np.inf
+    b = float(carousel.best.cost) if carousel.best is not None else np.inf
+    if not redirect_stays(a, b, margin):
+        if redirected.best is None:
+            return "carousel", "no pose pair is within the redirection budget (angle and reach gain)"
+        return "carousel", f"the carousel costs {b:.3g}, more than {margin:g} below redirecting's {a:.3g}"
     if carousel.best is None:
         return "redirect", "the carousel has no allowed placement"
-    a, b = float(redirected.best.cost), float(carousel.best.cost)
-    if a <= b + margin:
-        return "redirect", f"redirecting costs {a:.3g}, within {margin:g} of the carousel's {b:.3g}"
-    return "carousel", f"the carousel costs {b:.3g}, more than {margin:g} below redirecting's {a:.3g}"
+    return "redirect", f"redirecting costs {a:.3g}, within {margin:g} of the carousel's {b:.3g}"
 
 
 def match_virtual(tangibles: list[Candidates], virtual: Candidates, *, model: CostModel | None = None,

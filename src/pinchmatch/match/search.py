@@ -38,7 +38,7 @@ import numpy as np
 from ..config import MatchSettings  # noqa: F401 (re-exported)
 from .candidates import Candidates, felt_table, mass_ratio, pair_terms
 from .cost import (CRITERIA, CostModel, feature_ranges, pair_cost_blocks, pooled_bound_blocks, total)
-from .redirect import Redirect, pair_budget, placed_transform, redirection, world_pose
+from .redirect import Redirect, pair_budget, placed_transform, redirection, seen_turn
 from .pairs import PairResult, Ranked, Seen, concat_pairs, take_pairs
 from .register import FLIP_COSINE, register_poses
 from .comfort import approach_angles, comfortable_poses
@@ -132,7 +132,7 @@ def evaluate_pairs(
                            tangible_axis=t_props.principal_axis, virtual_axis=v_props.principal_axis)
         # registered, the virtual object turns with the registration; fixed, it stays as the level has it,
         # seen from the prop's frame (the registration is then the hand's warp onto the prop, not a placement)
-        R = X[:, :3, :3] if redirect is None else world_pose(tangible.obj.spec)[0].T
+        R = seen_turn(tangible.obj, X[:, :3, :3], redirect is not None)
         terms, delta = pair_terms(tangible, virtual, t_rows, v_rows, model, R=R, t_points=tp, v_points=vp)
         if redirect is None:
             flipped = (R @ up_v) @ up_t < FLIP_COSINE
