@@ -72,7 +72,6 @@ CORE = {
     "config.py": ["test_config.py", "test_pinches.py", "test_cost.py", "test_redirect.py", "test_match.py"],
     "options.py": ["test_config.py", "test_cache.py", "test_result_cache.py"],
     "match/scene.py": ["test_match.py", "test_redirect.py", "test_landing.py", "test_select.py"],
-    "match/landing.py": ["test_landing.py"],
     "match/reference.py": ["test_match.py", "test_cache.py"],
     "match/felt.py": ["test_landing.py"],
     "mesh/support.py": ["test_pinches.py", "test_redirect.py", "test_manifest.py"],
@@ -213,9 +212,6 @@ EQUIVALENT.update({
      "drop .asarray(...)"): "every part is already a float64 array (a contact, a direction)",
     ("match/scene.py", "big = (np.abs(cost_matrix[finite]).sum() + 1.0) * (min(m, n) + 1)", "drop min(...)"):
         "any factor of at least min(m, n) + 1 makes a forbidden pair cost more than every full assignment",
-    ("match/landing.py", "contact[0], face[0] = p[k], f[k]  # the target itself", "0 -> 1"):
-        "the pattern's first point, a finger closing on its target along the pinch line, meets the surface at the "
-        "target itself",
     ("export/folder.py", "control = Path(out) / CONTROL", "drop Path(...)"):
         "every caller passes a Path (the supervisor's output, the next run's OutputFolder)",
     ("export/folder.py", "manifest = unsealed(\"manifest\", (Path(out) / CONTROL / \"manifest.json\").read_bytes())",

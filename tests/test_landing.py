@@ -11,7 +11,8 @@ from pinchmatch.grasp.analysis import analyze_object
 from pinchmatch.grasp.pinches import PinchSettings
 from pinchmatch.match.candidates import candidate_poses
 from pinchmatch.match.felt import FeltTables, felt_cost
-from pinchmatch.match.landing import disc_offsets, landing, landing_pinches
+from landing_reference import landing, landing_pinches
+from pinchmatch.match.landing import disc_offsets
 from pinchmatch.match.scene import match_scene
 from pinchmatch.match.search import MatchSettings
 from pinchmatch.mesh.shapes import box, cylinder, sphere

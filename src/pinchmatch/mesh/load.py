@@ -23,7 +23,7 @@ from .frames import UNITS_MM, check_units, parse_up
 from .gltf_apply import applied_glb, needs_applying
 from .gltf_check import PercentDecoding, check_gltf
 from . import topology
-from .facing import inward_open_parts
+from .facing import turned_outward
 from ..memory import memory_headroom
 from .level import LevelNode, level_nodes, merged_primitives, node_mesh, remembered_scene, scene_node_digests
 
@@ -96,10 +96,8 @@ def mesh_files(paths, *, option: str) -> list[Path]:
 
     Raises ConfigError for a readable folder that holds no mesh file.
     """
-    if isinstance(paths, (str, os.PathLike)):  # one path, not its characters
-        paths = [paths]
     out: list[Path] = []
-    for given in paths:
+    for given in [paths] if isinstance(paths, (str, os.PathLike)) else paths:  # one path, not its characters
         if not str(given).strip():
             raise ConfigError(f"{option}: an empty path; give a mesh file, a folder of them or a manifest")
         path = Path(given)
@@ -490,15 +488,8 @@ def _repair(mesh: trimesh.Trimesh, *, indexed: bool, scale: float,
         repairs.append("turned the surface right side out (it was inside-out)")
     elif flipped:
         repairs.append(f"made winding consistent ({flipped} faces flipped)")
-    if not watertight:  # an open part's volume says nothing: rays say which side is outside
-        labels = topology.component_labels(topology.face_adjacency(topology.edges(mesh.faces)), len(mesh.faces))
-        inward = inward_open_parts(mesh, labels)
-        if inward.any():
-            faces = mesh.faces.copy()
-            faces[inward[labels]] = faces[inward[labels]][:, ::-1]
-            mesh.faces = faces
-            repairs.append(f"turned {int(inward.sum())} open part(s) to face outward (rays from their faces "
-                           "met the object on the side they faced)")
+    if not watertight and (line := turned_outward(mesh)):  # an open part's volume says nothing: rays do
+        repairs.append(line)
     return repairs, bool(watertight and wound and volume > 0)
 
 
