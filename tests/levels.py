@@ -150,3 +150,18 @@ def glb_of(meshes, nodes, *, scenes=None, **document) -> bytes:
     blob += b"\0" * (-len(blob) % 4)
     glb = struct.pack("<4sII", b"glTF", 2, 12 + 8 + len(text) + 8 + len(blob))
     return glb + struct.pack("<I4s", len(text), b"JSON") + text + struct.pack("<I4s", len(blob), b"BIN\0") + blob
+
+
+def can_prop_manifest(position_mm=(0.0, 900.0, 0.0), quaternion_xyzw=None, name: str = "can_prop") -> str:
+    """A props manifest of one can (54 x 66 mm, its file's +Z up) posed in a y-up level: standing on the level's
+    table at ``position_mm`` unless ``quaternion_xyzw`` turns it otherwise."""
+    q = list(Z_UP_IN_Y_UP if quaternion_xyzw is None else quaternion_xyzw)
+    return (f'[[object]]\nname = "{name}"\nshape = {{ kind = "cylinder", diameter_mm = 54, height_mm = 66 }}\n'
+            f"pose = {{ position_mm = {[float(c) for c in position_mm]}, quaternion_xyzw = {q} }}\n")
+
+
+def can_and_box_level(path, can_name: str = "can", box_at=(0.1, 0.9, 0.0)) -> None:
+    """A level (GLB, metres, y up) of a standing can at (0, 0.9, 0) and a 50 mm box beside it, on y = 0.9."""
+    box = trimesh.creation.box(extents=(0.05, 0.05, 0.05))
+    box.apply_translation([0.0, 0.025, 0.0])
+    tabletop_level(path, [(can_name, standing_can(), (0.0, 0.9, 0.0)), ("box", box, box_at)])

@@ -8,23 +8,16 @@ import pytest
 import trimesh
 
 from conftest import assert_one_line, run_cli
-from levels import standing_can, tabletop_level
+from levels import can_and_box_level, can_prop_manifest
 from pinchmatch.cli.console import _narrowed
 from pinchmatch.mesh.manifest import ObjectSpec
 from pinchmatch.runner.tasks import ObjectTask
 
-PROP = ('[[object]]\nname = "can_prop"\nshape = { kind = "cylinder", diameter_mm = 54, height_mm = 66 }\n'
-        "pose = { position_mm = [0.0, 900.0, 0.0], quaternion_xyzw = [-0.7071068, 0.0, 0.0, 0.7071068] }\n")
-
-
 @pytest.fixture(scope="module")
 def level(tmp_path_factory):
     root = tmp_path_factory.mktemp("level")
-    box = trimesh.creation.box(extents=(0.05, 0.05, 0.05))
-    box.apply_translation([0.0, 0.025, 0.0])
-    tabletop_level(root / "kitchen.glb", [("a_long_named_can_on_the_counter", standing_can(), (0.0, 0.9, 0.0)),
-                                          ("box", box, (0.12, 0.9, 0.05))])
-    (root / "props.toml").write_text(PROP)
+    can_and_box_level(root / "kitchen.glb", "a_long_named_can_on_the_counter", (0.12, 0.9, 0.05))
+    (root / "props.toml").write_text(can_prop_manifest())
     return root
 
 

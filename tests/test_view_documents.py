@@ -8,11 +8,7 @@ import pytest
 import trimesh
 
 from conftest import assert_one_line, run_cli
-from levels import standing_can, tabletop_level
-
-PROP = ('[[object]]\nname = "can_prop"\nshape = { kind = "cylinder", diameter_mm = 54, height_mm = 66 }\n'
-        "pose = { position_mm = [0.0, 900.0, 0.0], quaternion_xyzw = [-0.7071068, 0.0, 0.0, 0.7071068] }\n")
-
+from levels import can_and_box_level, can_prop_manifest
 
 @pytest.fixture(scope="module")
 def results(tmp_path_factory):
@@ -20,10 +16,8 @@ def results(tmp_path_factory):
     from pinchmatch.cli.main import main
 
     root = tmp_path_factory.mktemp("results")
-    box = trimesh.creation.box(extents=(0.05, 0.05, 0.05))
-    box.apply_translation([0.0, 0.025, 0.0])
-    tabletop_level(root / "kitchen.glb", [("can", standing_can(), (0.0, 0.9, 0.0)), ("box", box, (0.1, 0.9, 0.0))])
-    (root / "props.toml").write_text(PROP)
+    can_and_box_level(root / "kitchen.glb")
+    (root / "props.toml").write_text(can_prop_manifest())
     assert main(["match", "--tangible", str(root / "props.toml"), "--virtual", str(root / "kitchen.glb"), "--split",
                  "nodes", "--placement", "fixed", "--count", "80", "--jobs", "1", "-q", "--no-cache", "-o",
                  str(root / "fixed")]) == 0

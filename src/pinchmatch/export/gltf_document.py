@@ -17,7 +17,6 @@ kept and the level's own are matched as written.
 
 from __future__ import annotations
 
-import base64
 import json
 import mimetypes
 import struct
@@ -28,6 +27,7 @@ import numpy as np
 from trimesh.util import unique_name
 
 from ..errors import MeshError
+from ..mesh.gltf_apply import buffer_bytes, uri_bytes
 from ..mesh.gltf_check import gltf_document
 
 #: what pinchmatch marks its own nodes and meshes with, in their extras
@@ -184,19 +184,8 @@ class GltfLevel:
 
 def _one_buffer(path: Path, file_type: str, document: dict) -> tuple[dict, bytearray]:
     """The document with its buffers (and a .gltf's image files) in one binary buffer (module notes)."""
-    chunk = b""
-    if file_type == "glb":
-        data = path.read_bytes()
-        offset = 12
-        while offset + 8 <= len(data):
-            length, kind = struct.unpack("<I4s", data[offset:offset + 8])
-            if kind == b"BIN\0":
-                chunk = data[offset + 8:offset + 8 + length]
-            offset += 8 + length + (-length % 4)
     blob, starts = bytearray(), []
-    for buffer in document.get("buffers") or []:
-        uri = buffer.get("uri")
-        data = chunk if uri is None else _uri_bytes(path, uri)
+    for buffer, data in zip(document.get("buffers") or [], buffer_bytes(path, file_type, document)):
         blob.extend(b"\0" * (-len(blob) % 4))
         starts.append(len(blob))
         blob.extend(data[:buffer.get("byteLength", len(data))])
@@ -207,7 +196,7 @@ def _one_buffer(path: Path, file_type: str, document: dict) -> tuple[dict, bytea
     for image in document.get("images") or []:
         uri = image.get("uri")
         if isinstance(uri, str) and (file_type == "gltf" or uri.startswith("data:")):
-            data = _uri_bytes(path, uri)
+            data = uri_bytes(path, uri)
             mime = uri[5:].split(";")[0] if uri.startswith("data:") else \
                 mimetypes.guess_type(urllib.parse.unquote(uri))[0] or "application/octet-stream"
             blob.extend(b"\0" * (-len(blob) % 4))
@@ -217,9 +206,3 @@ def _one_buffer(path: Path, file_type: str, document: dict) -> tuple[dict, bytea
             image.pop("uri")
             image.update(bufferView=len(views) - 1, mimeType=image.get("mimeType", mime))
     return document, blob
-
-
-def _uri_bytes(path: Path, uri: str) -> bytes:
-    if uri.startswith("data:"):
-        return base64.b64decode(uri.split(",", 1)[1])
-    return (path.parent / urllib.parse.unquote(uri)).read_bytes()

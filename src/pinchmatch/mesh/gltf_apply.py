@@ -35,7 +35,7 @@ def needs_applying(document: dict) -> bool:
         isinstance(m, dict) and any(m.get("weights") or []) for m in meshes)
 
 
-def _buffers(path: Path, file_type: str, document: dict) -> list[bytes]:
+def buffer_bytes(path: Path, file_type: str, document: dict) -> list[bytes]:
     """The bytes of each buffer: a GLB's binary chunk, data URIs, or files beside ``path``."""
     out = []
     chunk = b""
@@ -51,11 +51,16 @@ def _buffers(path: Path, file_type: str, document: dict) -> list[bytes]:
         uri = buffer.get("uri")
         if uri is None:
             out.append(chunk)
-        elif uri.startswith("data:"):
-            out.append(base64.b64decode(uri.split(",", 1)[1]))
         else:
-            out.append((path.parent / urllib.parse.unquote(uri)).read_bytes())
+            out.append(uri_bytes(path, uri))
     return out
+
+
+def uri_bytes(path: Path, uri: str) -> bytes:
+    """The bytes a glTF URI of the file ``path`` names: a data URI's, or a file's beside ``path``."""
+    if uri.startswith("data:"):
+        return base64.b64decode(uri.split(",", 1)[1])
+    return (path.parent / urllib.parse.unquote(uri)).read_bytes()
 
 
 def _view(document: dict, buffers: list[bytes], index: int) -> bytes:
@@ -102,7 +107,7 @@ def dense_accessor(document: dict, buffers: list[bytes], index: int) -> np.ndarr
 def applied_glb(path: Path, file_type: str, document: dict) -> bytes:
     """The document as one GLB with sparse accessors dense and default morph weights applied (module notes)."""
     try:
-        buffers = _buffers(path, file_type, document)
+        buffers = buffer_bytes(path, file_type, document)
         doc = json.loads(json.dumps(document))
         blob = bytearray()
         starts = []
