@@ -11,7 +11,7 @@ from pinchmatch.grasp.pinches import PinchSettings, Pinches, patches
 from pinchmatch.match.candidates import Candidates, pair_terms
 from pinchmatch.match.cost import CRITERIA, CostModel, feature_table
 from pinchmatch.match.landing import LANDING_AXIS_DEG, LANDING_MM, MISS_JND, RING_POINTS, Landing, disc_offsets
-from pinchmatch.match.redirect import seen_turn
+from scipy.spatial.transform import Rotation
 from pinchmatch.match.refine import close_fingers, move_directions
 from pinchmatch.match.search import criterion_table, p_noticed
 
@@ -92,7 +92,11 @@ def landing(tangible: Candidates, virtual: Candidates, choice, model: CostModel,
     t_rows = feature_table(pinch_features(felt_p, tangible.obj.props))
     v_rows = feature_table(pinch_features(seen, virtual.obj.props))
     # the mass turns with the placement: the registration, or where the level keeps the object
-    R_mass = seen_turn(tangible.obj, R, choice.redirect_terms is not None)
+    # the turn the seen mass offset takes, worked out here: the registration's when the object is brought onto
+    # the prop; when it stays in the level, the level's frame seen from the prop's, the inverse of its pose
+    pose = tangible.obj.spec.pose if tangible.obj.spec is not None else None
+    R_mass = R if choice.redirect_terms is None else (
+        np.eye(3) if pose is None else Rotation.from_quat(pose[1]).as_matrix().T)
     terms, _ = pair_terms(tangible, virtual, t_rows, v_rows, model, R=R_mass, t_points=felt_p.points,
                           v_points=seen.points)
     cost = model.pool(terms, choice.redirect_terms, choice.rest_jnd)  # a redirection is planned for the targets: as the match's

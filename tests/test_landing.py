@@ -297,3 +297,38 @@ def test_a_landing_table_is_made_once_per_object_whichever_candidates_ask(tmp_pa
     assert made == [10, 6] and len(later._store(c)) == 4
     np.testing.assert_array_equal(later.table(c, 0).rows, real(c, [0], 5.0, SETTINGS).rows[0])
     assert made == [10, 6, 1]
+
+
+@pytest.mark.parametrize("turn_deg", [(0.0, 0.0), (35.0, -90.0), (-120.0, -90.0)])
+def test_under_fixed_placement_the_felt_cost_turns_the_mass_offset_as_the_level_holds_the_object(tmp_path, turn_deg):
+    """A box of the level (off its centre, so its mass pulls sideways) pinched through the hand's warp onto a
+    prop posed in the level, turned about the level's up (and stood from its file's +Z): the felt cost on
+    target is the match's own, and the exact reference (the mass offset turned by the prop's pose, worked out in
+    the test) agrees with it on target and over the landings."""
+    import trimesh
+    from scipy.spatial.transform import Rotation
+
+    from levels import tabletop_level
+    from pinchmatch.grasp.analysis import analyze_prop, analyze_spec
+    from pinchmatch.mesh.manifest import object_specs
+
+    block = trimesh.creation.box(extents=(0.07, 0.03, 0.04))
+    block.apply_translation([0.02, 0.015, 0.0])  # its mass off the node's origin
+    tabletop_level(tmp_path / "level.glb", [("block", block, (0.35, 0.9, -0.2))])
+    turn = Rotation.from_euler("y", turn_deg[0], degrees=True) * Rotation.from_euler("x", turn_deg[1], degrees=True)
+    (tmp_path / "props.toml").write_text(
+        '[[object]]\nname = "prop"\nshape = { kind = "box", size_mm = [60, 30, 40] }\nmass_g = 180\n'
+        f"pose = {{ position_mm = [300.0, 900.0, -200.0], quaternion_xyzw = {turn.as_quat().tolist()} }}\n")
+    (spec,) = object_specs([tmp_path / "level.glb"], option="--virtual", split="nodes")
+    V = candidate_poses(analyze_spec(spec.standing("auto")), settings=SETTINGS)
+    (prop,) = object_specs([tmp_path / "props.toml"], option="--tangible")
+    T = candidate_poses(analyze_prop(prop), settings=SETTINGS)
+    scene = match_scene([T], [V], settings=MatchSettings(placement="fixed", top_k=1, carousel_margin_jnd=100.0),
+                        pinch_settings=SETTINGS)
+    vm = scene.matches[0]
+    assert vm.best is not None and vm.best.redirect_terms is not None  # stays in the level, the hand warped
+    (T,), V = scene.objects(vm)  # the candidates the search grew
+    pattern = landing(T, V, vm.best, scene.model, settings=SETTINGS)  # its first landing: the target itself
+    assert pattern.cost_nominal == pytest.approx(vm.best.cost_nominal, rel=1e-9, abs=1e-12)
+    assert vm.landing.cost_nominal == pytest.approx(vm.best.cost_nominal, rel=1e-9, abs=1e-12)
+    assert vm.landing.cost_worst == pytest.approx(pattern.cost_worst, rel=0.2)
