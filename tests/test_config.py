@@ -11,6 +11,7 @@ import trimesh
 from scipy.spatial.transform import Rotation
 
 from pinchmatch.cli.parser import build_parser
+from pinchmatch.errors import ConfigError
 from pinchmatch.cli.runs import config_of_args
 from pinchmatch.grasp.pinches import PinchSettings
 from pinchmatch.config import Config
@@ -232,3 +233,35 @@ def test_a_configuration_is_changed_field_by_field_in_either_part():
                          (MatchSettings(), MatchSettings())):  # a part in the wrong place, or both
         with pytest.raises(ConfigError):
             Config(pinch, match)
+
+
+def _numeric_fields(record_type):
+    from pinchmatch.options import field_default, offered
+
+    return [(f, opt.kind, field_default(f)) for f, opt in offered(record_type)
+            if opt.kind in ("float", "int") and isinstance(field_default(f), (int, float))
+            and not isinstance(field_default(f), bool)]
+
+
+@pytest.mark.parametrize("record_type", ["PinchSettings", "MatchSettings"])
+def test_equal_settings_have_equal_digests_and_a_bool_is_not_a_number(record_type):
+    """Every numeric option: its default given as an int or as a float makes equal records with equal digests;
+    True in its place is refused in one line, as any other non-number is."""
+    import dataclasses
+
+    import pinchmatch
+    from pinchmatch import Config
+
+    record = getattr(pinchmatch, record_type)
+    fields = _numeric_fields(record)
+    assert fields
+    for f, kind, default in fields:
+        if kind == "float" and float(default).is_integer():  # (a whole-number option takes whole numbers only)
+            a, b = record(**{f.name: int(default)}), record(**{f.name: float(default)})
+            assert a == b
+            configs = [Config(x) if record_type == "PinchSettings" else Config(match=x) for x in (a, b)]
+            assert configs[0].digest() == configs[1].digest(), f.name
+        with pytest.raises(ConfigError) as refused:
+            record(**{f.name: True})
+        assert "\n" not in str(refused.value), f.name
+    assert dataclasses.fields(record)

@@ -192,7 +192,7 @@ class PinchSettings:
             ("--grasp", 0.0, self.grasp in GRASPS, " or ".join(GRASPS)),
         ]
         for flag, value, ok, want in checks:
-            if not (ok and math.isfinite(float(value))):
+            if isinstance(value, bool) or not (ok and math.isfinite(float(value))):  # True is not a number
                 raise ConfigError(f"{flag}: got {value!r}; it must be {want}")
 
     def as_dict(self) -> dict:
@@ -343,13 +343,13 @@ class MatchSettings:
                               f"nor the paper's ({', '.join(PAPER_CRITERIA)})")
         object.__setattr__(self, "criteria", tuple(self.criteria))
         object.__setattr__(self, "weights", Weights(complete_weights(dict(self.weights), criteria=self.criteria)))
-        if not isinstance(self.top_k, int) or self.top_k < 0:
+        if not isinstance(self.top_k, int) or isinstance(self.top_k, bool) or self.top_k < 0:
             raise ConfigError(f"--top-k: {self.top_k!r} must be a whole number of 0 or more")
         if not _finite(self.distinct_mm) or self.distinct_mm < 0:
             raise ConfigError(f"--distinct-mm: {self.distinct_mm!r} must be a distance of 0 mm or more")
         if self.normalize not in ("jnd", "range"):
             raise ConfigError(f"--normalize: unknown mode {self.normalize!r}; use jnd or range")
-        if not (isinstance(self.landing_mm, (int, float)) and 0.0 <= self.landing_mm <= 20.0):
+        if not (_finite(self.landing_mm) and 0.0 <= self.landing_mm <= 20.0):
             raise ConfigError(f"--landing-mm: {self.landing_mm!r} must be from 0 to 20 mm (how far off its target "
                               "a fingertip may land; the headset allows 5)")
         if not isinstance(self.refine, bool):
@@ -390,7 +390,7 @@ class MatchSettings:
             raise ConfigError(f"--carousel-margin-jnd: {self.carousel_margin_jnd!r} must be from 0 to 100 JND")
         for name in ("redirect_threshold_deg", "max_redirect_deg", "axis_threshold_deg"):
             value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and 0.0 < value <= MAX_THRESHOLD_DEG):
+            if not (_finite(value) and 0.0 < value <= MAX_THRESHOLD_DEG):
                 flag = "--" + name.replace("_deg", "-deg").replace("_", "-")
                 raise ConfigError(f"{flag}: {value!r} must be an angle above 0 and at most {MAX_THRESHOLD_DEG:g} deg")
 

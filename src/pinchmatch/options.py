@@ -115,8 +115,22 @@ def plain(value):
 
 
 def digest(value) -> str:
-    """SHA-256 of a record (or any value :func:`plain` takes), field by field."""
-    return hashlib.sha256(json.dumps(plain(value), sort_keys=True, default=repr).encode()).hexdigest()
+    """SHA-256 of a record (or any value :func:`plain` takes), field by field; numbers by their value (5 and 5.0
+    alike, as the records compare them), a bool as a bool."""
+    return hashlib.sha256(json.dumps(_canonical(plain(value)), sort_keys=True, default=repr).encode()).hexdigest()
+
+
+def _canonical(value):
+    """JSON values with every number as a float: equal records (5 == 5.0) give equal text."""
+    if isinstance(value, bool) or value is None or isinstance(value, str):
+        return value
+    if isinstance(value, (int, float)):
+        return float(value)
+    if isinstance(value, dict):
+        return {k: _canonical(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_canonical(v) for v in value]
+    return value
 
 
 @lru_cache(maxsize=1)

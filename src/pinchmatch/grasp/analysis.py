@@ -84,7 +84,8 @@ def analyze_object(
 
 
 def _file_spec(path, *, units=None, up=None, com_mm=None, axis=None, mass_g=None) -> ObjectSpec:
-    if mass_g is not None and not (isinstance(mass_g, (int, float, np.number)) and 0 < float(mass_g) < 1e9):
+    if mass_g is not None and not (isinstance(mass_g, (int, float, np.number)) and not isinstance(mass_g, bool)
+                                   and 0 < float(mass_g) < 1e9):
         raise ConfigError(f"{path}: mass_g={mass_g!r} must be a mass in grams above 0 (or None, unknown)")
     return ObjectSpec(str(path), units=units, up=up, com_mm=None if com_mm is None else tuple(np.ravel(com_mm)),
                       axis=None if axis is None else tuple(np.ravel(axis)),
