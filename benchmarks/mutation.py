@@ -75,6 +75,19 @@ CORE = {
     "match/reference.py": ["test_match.py", "test_cache.py"],
     "match/felt.py": ["test_landing.py"],
     "mesh/support.py": ["test_pinches.py", "test_redirect.py", "test_manifest.py"],
+    "memory.py": ["test_memory_limits.py"],
+    "mesh/gltf_apply.py": ["test_gltf_sparse.py", "test_gltf_check.py"],
+    "mesh/facing.py": ["test_load.py"],
+    "mesh/furniture.py": ["test_furniture.py"],
+    "mesh/neighbours.py": ["test_neighbours.py"],
+    "mesh/distance_field_kernel.py": ["test_distance_field.py"],
+    "export/seal.py": ["test_received_folders.py"],
+    "export/level.py": ["test_level_glb.py", "test_level_fidelity.py"],
+    "export/gltf_document.py": ["test_level_fidelity.py"],
+    "match/steady.py": ["test_steady.py"],
+    "grasp/tripod_rules.py": ["test_tripods.py"],
+    "grasp/strata.py": ["test_strata.py"],
+    "runner/cache.py": ["test_cache.py", "test_result_cache.py", "test_keys.py"],
 }
 
 #: surviving mutants judged equivalent: (module, source line stripped, description) -> reason
