@@ -86,3 +86,14 @@ def test_a_sparse_accessor_reads_as_its_dense_positions(tmp_path, base_buffer, v
     if base_buffer is not None or changed == 8:  # the box itself, through the whole loader (mm); its triangles
         loaded = load_mesh(path)                   # in the other buffer, read where that buffer starts
         np.testing.assert_allclose(loaded.mesh.bounds, np.array([[-20, -25, -30], [20, 25, 30]], float), atol=1e-4)
+
+
+def test_a_sparse_accessor_past_its_buffer_is_one_line(tmp_path):
+    from pinchmatch.errors import MeshError
+
+    path, _, doc = _document(0, 0, 0, None, 5123, 3, tmp_path)
+    doc["accessors"][0]["sparse"]["values"]["byteOffset"] = 10_000  # past the end of its buffer view
+    path.write_text(json.dumps(doc))
+    with pytest.raises(MeshError) as refused:
+        load_mesh(path)
+    assert "\n" not in str(refused.value) and "sparse" in str(refused.value) and str(path) in str(refused.value)

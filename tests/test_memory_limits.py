@@ -53,3 +53,17 @@ def test_the_address_space_left_is_the_limit_less_what_is_mapped_not_what_is_res
     monkeypatch.setattr(memory, "address_space_limit", lambda: 4 * GIB)
     free, which = memory.memory_headroom()
     assert free == 1 * GIB and "ulimit -v" in which
+
+
+def test_an_address_space_already_overdrawn_leaves_nothing(proc, monkeypatch):
+    monkeypatch.setattr(memory, "address_space_limit", lambda: 2 * GIB)  # VmSize is 3 GiB
+    assert memory.memory_headroom()[0] == 0
+
+
+def test_the_out_of_memory_line_names_the_limits_that_are_set(proc, monkeypatch):
+    _group(proc / "system.slice", 6 * GIB, 5 * GIB)
+    _group(proc / "system.slice" / "app.service", "max", 0)
+    line = memory.out_of_memory_message()
+    assert "control group 6.0 GiB" in line and "machine 32.0 GiB" in line and "ulimit -v" not in line
+    monkeypatch.setattr(memory, "address_space_limit", lambda: 4 * GIB)
+    assert "ulimit -v 4.0 GiB" in memory.out_of_memory_message()

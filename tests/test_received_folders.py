@@ -233,3 +233,16 @@ def test_received_control_folders_never_touch_a_users_file(tmp_path_factory, run
     after = files_of(root)
     assert {k: after.get(k) for k in before} == before
     assert set(after) - set(before) <= {"out/matches.json"}
+
+
+def test_the_key_lives_in_the_users_state_folder(tmp_path, monkeypatch):
+    monkeypatch.delenv("PINCHMATCH_STATE_DIR", raising=False)
+    monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path / "xdg"))
+    assert seal.key_path() == tmp_path / "xdg" / "pinchmatch" / "seal.key"
+    monkeypatch.delenv("XDG_STATE_HOME")
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    assert seal.key_path() == tmp_path / "home" / ".local" / "state" / "pinchmatch" / "seal.key"
+    (tmp_path / "short.key").write_bytes(b"x" * (seal.KEY_BYTES - 1))  # a cut key file is no key
+    assert seal._read_key(tmp_path / "short.key") is None
+    (tmp_path / "long.key").write_bytes(b"x" * (seal.KEY_BYTES + 1))
+    assert seal._read_key(tmp_path / "long.key") is None

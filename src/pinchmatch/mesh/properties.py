@@ -143,7 +143,8 @@ def object_properties(
 
     for name, value in (("--com", com_mm), ("--axis", axis)):
         if value is not None and not _three_finite(value):
-            raise ConfigError(f"{name}: {str(value)[:60]} must be three finite numbers X,Y,Z (mm, the file's frame)")
+            raise ConfigError(f"{name}: {str(value)[:60]} must be three finite numbers X,Y,Z (mm, the file's frame)"
+                              + (", a non-zero vector" if name == "--axis" else ""))
     if axis is not None:
         norm = float(np.linalg.norm(axis))
         if not np.isfinite(norm) or norm < 1e-12:
