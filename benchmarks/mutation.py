@@ -241,6 +241,10 @@ EQUIVALENT.update({
     ("mesh/gltf_apply.py", 'blob.extend(data + b"\\0" * (-len(data) % 4))', "4 -> 5"):
         "the applied document is read by trimesh in memory, which takes arrays at any offset: the padding only "
         "keeps the views 4-byte aligned as the specification asks of files",
+    ("grasp/strata.py", "return int(STRATUM_SHARE * count // max(strata, 1))", "// -> /"):
+        "int() of a positive quotient is its floor: dividing and flooring first gives the same whole number",
+    ("mesh/furniture.py", "tops[other] = max(tops.get(other, -np.inf), float(np.median(closest[on] @ up)))",
+     "drop float(...)"): "numpy's float64 is a Python float: the same number, written to JSON the same way",
     ("mesh/facing.py", "parts = int(labels.max()) + 1 if len(labels) else 0", "0 -> 1"):
         "a mesh with no faces never comes here: the loader refuses it first",
 })

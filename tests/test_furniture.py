@@ -87,7 +87,25 @@ def test_principal_spans_do_not_depend_on_the_turn():
     rng = np.random.default_rng(2)
     v = rng.uniform(-1, 1, (500, 3)) * [700.0, 20.0, 150.0]
     R = trimesh.transformations.random_rotation_matrix(rng.random(3))[:3, :3]
-    np.testing.assert_allclose(principal_spans(v @ R.T + [300.0, -40.0, 9.0]), principal_spans(v), rtol=1e-9)
+    spans = principal_spans(v @ R.T + [300.0, -40.0, 9.0])
+    np.testing.assert_allclose(spans, principal_spans(v), rtol=1e-9)
+    assert spans[0] > 1300.0 and 250.0 < spans[1] < 350.0 and spans[2] < 50.0  # largest first
+
+
+def test_a_side_table_under_400_mm_is_furniture_a_tray_under_300_is_not():
+    """Things standing on a surface make it furniture once it spans more than SURFACE_SPAN_MM (300 mm) in two
+    directions: a 450 x 350 mm side table is, a 280 x 200 mm tray is not."""
+    scene = trimesh.Scene()
+    for name, extents, x in (("side_table", (0.45, 0.02, 0.35), 0.0), ("tray", (0.28, 0.02, 0.20), 1.0)):
+        top = trimesh.creation.box(extents=extents)
+        top.apply_translation([x, 0.5, 0.0])
+        scene.add_geometry(top, node_name=name, geom_name=name)
+        cup = trimesh.creation.cylinder(radius=0.04, height=0.09).apply_transform(
+            trimesh.transformations.rotation_matrix(-np.pi / 2, [1, 0, 0]))
+        cup.apply_translation([x, 0.51 - cup.bounds[0, 1], 0.0])
+        scene.add_geometry(cup, node_name=f"cup_on_{name}", geom_name=f"cup_on_{name}")
+    found = furniture(scene, mm_per_unit=1000.0, up=np.array([0.0, 1.0, 0.0]))
+    assert set(found.why) == {"side_table"}, found.why
 
 
 def test_a_level_with_its_table_and_wall_left_in_matches_neither_and_names_both(tmp_path, capsys):

@@ -97,3 +97,14 @@ def test_a_sparse_accessor_past_its_buffer_is_one_line(tmp_path):
     with pytest.raises(MeshError) as refused:
         load_mesh(path)
     assert "\n" not in str(refused.value) and "sparse" in str(refused.value) and str(path) in str(refused.value)
+
+
+def test_a_sparse_accessor_naming_a_view_that_is_not_there_is_one_line(tmp_path):
+    from pinchmatch.errors import MeshError
+
+    path, _, doc = _document(0, 0, 0, None, 5123, 3, tmp_path)
+    doc["accessors"][0]["sparse"]["indices"]["bufferView"] = len(doc["bufferViews"]) + 5
+    path.write_text(json.dumps(doc))
+    with pytest.raises(MeshError) as refused:
+        load_mesh(path)
+    assert "\n" not in str(refused.value) and str(path) in str(refused.value)

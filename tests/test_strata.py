@@ -88,3 +88,41 @@ def test_each_stratum_stops_at_its_quota_its_tries_or_after_empty_batches():
     assert spent["sparse"] <= quota * strata.TRIES_PER_PINCH + strata.FIRST_BATCH * quota * 2**6
     assert len(taken) == len(rows) and (pool.nearest[rows] == -1).all()  # the checked ones are picked
     assert sum(len(p.points) for p in parts) == int(feasible[rows].sum())
+
+
+def test_a_stratum_stops_the_moment_its_quota_is_met_or_its_candidates_run_out():
+    """One stratum finds exactly its quota in its first batch (it stops there); another has fewer candidates
+    than its first batch, all feasible (it stops once they are spent: no empty batch is ever checked)."""
+    rng = np.random.default_rng(5)
+    count = 300
+    quota = strata.quota_per_stratum(count, 2)
+    exact_w, few_w = _width_at(3 * strata.STRATUM_JND + 1.0), _width_at(7 * strata.STRATUM_JND + 1.0)
+    points = np.concatenate([_pinches(np.full(1000, exact_w), rng), _pinches(np.full(quota // 3, few_w), rng)])
+    kind = np.array(["exact"] * 1000 + ["few"] * (quota // 3))
+    seen = {"exact": 0}
+    calls = []
+
+    def check(p, f):
+        rows = np.array([np.flatnonzero((points == q).all(axis=(1, 2)))[0] for q in p], dtype=np.int64)
+        calls.append(len(rows))
+        ok = np.zeros(len(rows), bool)
+        for i, r in enumerate(rows):
+            if kind[r] == "few" or seen["exact"] < quota:
+                ok[i] = True
+                seen["exact"] += kind[r] == "exact"
+        return SimpleNamespace(points=points[rows[ok]])
+
+    pool = Pool.of(points, np.zeros((len(points), 2), np.int64), np.zeros((0, 2, 3)))
+    parts, taken = strata.stratified_checks(pool, count, check)
+    assert all(n > 0 for n in calls)  # never an empty batch
+    exact_spent = int((kind[np.concatenate([np.flatnonzero((points == q).all(axis=(1, 2))) for q in taken])]
+                       == "exact").sum())
+    assert exact_spent == strata.FIRST_BATCH * quota  # its quota met in the first batch: no second
+    assert (kind == "few").sum() == quota // 3 and len(taken) == exact_spent + quota // 3
+
+
+def test_too_small_a_count_checks_nothing_and_says_so_in_the_grasps_shape():
+    rng = np.random.default_rng(1)
+    pool = Pool.of(_pinches([20.0, 30.0, 40.0], rng), np.zeros((3, 2), np.int64), np.zeros((0, 2, 3)))
+    parts, taken = strata.stratified_checks(pool, 5, lambda p, f: None)  # a quota of 0 per stratum
+    assert parts == [] and taken.shape == (0, 2, 3)
