@@ -418,7 +418,8 @@ def mutated_source(mutant: Mutant, package: Path = PACKAGE) -> str:
 
 def _copy_repository(target: Path) -> None:
     ignore = shutil.ignore_patterns(".git", ".venv", "__pycache__", "*.egg-info", ".pytest_cache", ".hypothesis")
-    for name in ("src", "tests", "docs", "README.md", "pyproject.toml"):  # tests read the docs too
+    for name in ("src", "tests", "docs", "benchmarks", "README.md", "pyproject.toml"):  # tests read the docs and
+        # import the benchmarks' asset readers
         src = ROOT / name
         if src.is_dir():
             shutil.copytree(src, target / name, ignore=ignore)
