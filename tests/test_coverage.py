@@ -178,10 +178,10 @@ def test_a_larger_count_holds_the_sample_of_half_of_it_and_spreads_the_rest_away
     at every level of the chain; the rest comes from a random stream of its own and is spread away from
     the first half: its pinches lie farther from the first half's than as many sampled without it. Every
     pinch kept obeys every rule. Tripods nest the same way."""
-    import pinchmatch.grasp.sampling as sampling
+    import pinchmatch.grasp.rounds as rounds
     from pinchmatch.grasp.tripods import sample_tripods
 
-    monkeypatch.setattr(sampling, "NESTED_ABOVE", 150)
+    monkeypatch.setattr(rounds, "NESTED_ABOVE", 150)
     path, mesh = mug
     obj = analyze_object(path)
     samples = {c: sample_pinches(obj.context, settings=PinchSettings(count=c, seed=5)) for c in (150, 300, 600)}
@@ -203,9 +203,9 @@ def test_on_target_a_larger_nested_count_never_gives_a_worse_answer(tmp_path, mu
     """A rod, turned another way and moved, against the turned mug: with the sampling nested, the exact search
     at twice the count (refinement off, so no local search) sees every pair the smaller count offers, so its
     best cost on target is never above the smaller count's, for every seed."""
-    import pinchmatch.grasp.sampling as sampling
+    import pinchmatch.grasp.rounds as rounds
 
-    monkeypatch.setattr(sampling, "NESTED_ABOVE", 120)
+    monkeypatch.setattr(rounds, "NESTED_ABOVE", 120)
     path, _ = mug
     rod_path, _ = _turned(tmp_path, "rod", cylinder(6.0, 90.0, faces=6000).mesh,
                           Rotation.from_euler("zxz", [-70.0, 41.0, 15.0], degrees=True).as_matrix(),

@@ -83,7 +83,7 @@ def test_pool_keeps_one_order_across_added_candidates():
 
 
 def test_a_round_is_planned_by_the_rounds_own_yield_once_there_is_one():
-    from pinchmatch.grasp.sampling import PROBE_PICKS, SELECT_MARGIN, round_plan
+    from pinchmatch.grasp.rounds import PROBE_PICKS, SELECT_MARGIN, round_plan
 
     # the strata checked 1,000 and found 300 (rare widths, mostly where no hand gets); the probe 256, 200
     want, local = round_plan(1000, 500, 1256, 1, rounds=(200, 256))
@@ -98,6 +98,7 @@ def test_a_round_is_planned_by_the_rounds_own_yield_once_there_is_one():
 def test_a_scanned_mug_checks_about_as_many_picks_as_it_needs(tmp_path, monkeypatch):
     """The YCB mug's width strata find few feasible pinches (most narrow candidates cross its wall), its
     spread finds many: the rounds after them check about what the count needs, not the strata's share."""
+    import dataclasses
     import sys
     from pathlib import Path
 
@@ -110,14 +111,14 @@ def test_a_scanned_mug_checks_about_as_many_picks_as_it_needs(tmp_path, monkeypa
     [path] = ycb_objects(tmp_path, ["025_mug"])
     obj = analyze_object(path, units="mm")
     found = []
-    check = sampling._check_picks
+    check = sampling.PINCH.check
 
     def counting(*args, **kwargs):
         part = check(*args, **kwargs)
         found.append(len(part))
         return part
 
-    monkeypatch.setattr(sampling, "_check_picks", counting)
+    monkeypatch.setattr(sampling, "PINCH", dataclasses.replace(sampling.PINCH, check=counting))
     pinches = sampling.sample_pinches(obj.context, settings=PinchSettings(count=1000, seed=0))
     assert len(pinches) == 1000
     assert sum(found) <= 1.25 * 1000

@@ -16,14 +16,11 @@ import logging
 import numpy as np
 
 from ..config import CLEARANCE_TOLERANCE_MM, PREFILTER_MARGIN_DEG, PinchSettings
-from ..errors import NoFeasiblePinchError
 from ..mesh.surface import SurfaceContext
 from .curvature import tangent_frame
-from .pinches import check_patch_radius, concat_pinches, reach_rule
-from .sampling import (LOCAL_RADIUS_TIPS, cone_directions, local_contacts, nested_sample, pick_round, round_plan,
-                       uniform_contacts)
-from .spread import Pool
-from .strata import stratified_checks
+from .pinches import reach_rule
+from .rounds import GraspKind, nested_sample, sample_rounds
+from .sampling import cone_directions
 from .tripod_rules import MAX_SPACING_MM, TRIPOD_RULES, Tripods, cheap_broken, check_tripods, count_first
 
 log = logging.getLogger(__name__)
@@ -89,9 +86,10 @@ def candidate_tripods(context: SurfaceContext, p0: np.ndarray, f0: np.ndarray, s
     return points[keep], faces[keep]
 
 
-def _check_picks(context, points, faces, settings, rejected) -> Tripods:
+def _check_picks(context, points, faces, settings, rejected, precheck: bool = True) -> Tripods:
     """The feasible ones among picks: reach first with triangle normals (picks no hand gets to are not
-    fitted), then every rule with the normals of fitted patches. The hand's whole search runs: with its
+    fitted), then every rule with the normals of fitted patches. Reach is always searched first
+    (``precheck`` is the pinch's choice): a tripod's full check is three patches' worth. The hand's whole search runs: with its
     quick directions alone a mug samples twice as fast, but loses the tripods on its rim that a plate needs
     (benchmarks/RESULTS.md)."""
     early = reach_rule(context, points, context.face_normals[faces], settings)
@@ -117,51 +115,21 @@ def sample_tripods(context: SurfaceContext, *, settings: PinchSettings = PinchSe
 
 def _sample_tripods(context: SurfaceContext, settings: PinchSettings, source: str, seen: np.ndarray | None = None,
                     stream: tuple = ()) -> Tripods:
-    """One piece of :func:`sample_tripods`, as :func:`pinchmatch.grasp.sampling._sample_pinches` is of pinches."""
-    check_patch_radius(context, settings)
-    rng = np.random.default_rng([settings.seed, 3, *stream])
-    seen = np.zeros((0, 3, 3)) if seen is None else seen
-    count = settings.count
-    rejected = dict.fromkeys(TRIPOD_RULES, 0)
-    drawn = max(OVERSAMPLE * count, 2000)
-    budget = MAX_DRAW_FACTOR * max(count, 50)
-    uniform, local = Pool.empty(3), Pool.empty(3)
-    points, faces = candidate_tripods(context, *uniform_contacts(context, drawn, rng), settings, rng, rejected)
-    uniform.add(points, faces, seen)
-    parts, picked = stratified_checks(uniform, count, lambda p, f: _check_picks(context, p, f, settings, rejected))
-    n_feasible, n_checked = sum(len(p) for p in parts), len(picked)
-    strata_found, strata_checked = n_feasible, n_checked
-    picked = np.concatenate([seen, picked])  # an earlier piece's tripods count as picks for the spread
-    for round_ in range(MAX_ROUNDS):
-        need = count - n_feasible
-        if need <= 0:
-            break
-        # where few picks are feasible (a plate's rim, a bowl's lip), new thumbs near the feasible thumbs
-        want, local_mode = round_plan(need, n_feasible, n_checked, round_,
-                                      (n_feasible - strata_found, n_checked - strata_checked))
-        short = int((uniform.nearest >= 0).sum() + (local.nearest >= 0).sum()) < want
-        if (local_mode or short) and drawn < budget:
-            more = int(min(budget - drawn, OVERSAMPLE * want))
-            drawn += more
-            if n_feasible:
-                seeds = np.concatenate([p.points[:, 0] for p in parts])
-                thumbs = local_contacts(context, seeds, more, LOCAL_RADIUS_TIPS * settings.fingertip_radius_mm, rng)
-            else:
-                thumbs = uniform_contacts(context, more, rng)
-            new_points, new_faces = candidate_tripods(context, *thumbs, settings, rng, rejected)
-            (local if n_feasible else uniform).add(new_points, new_faces, picked)
-        chosen_points, chosen_faces = pick_round(uniform, local, want, local_mode)
-        if not len(chosen_points):
-            break
-        picked = np.concatenate([picked, chosen_points])
-        part = _check_picks(context, chosen_points, chosen_faces, settings, rejected)
-        n_checked += len(chosen_points)
-        n_feasible += len(part)
-        parts.append(part)
-    if n_feasible == 0:
-        counts = ", ".join(f"{rule} {k}" for rule, k in rejected.items() if k) or "nothing"
-        raise NoFeasiblePinchError(f"{source}: no feasible tripod among {drawn} candidates (rejected by {counts}); "
-                                   "the object may be too small or thin for three fingertips: try --grasp pinch")
-    result = concat_pinches(parts, rejected).subset(np.arange(min(count, n_feasible)))
-    log.info("%s: %d feasible tripods from %d candidates", source, len(result), drawn)
-    return result
+    return sample_rounds(TRIPOD, context, settings, source, seen, stream)
+
+
+def _thumbs(points: np.ndarray) -> np.ndarray:
+    """Local draws start at the thumbs of the tripods found (the draw places the fingers about a thumb)."""
+    return points[:, 0]
+
+
+def _refusal(source, drawn, rejected, settings, standing) -> str:
+    counts = ", ".join(f"{rule} {k}" for rule, k in rejected.items() if k) or "nothing"
+    return (f"{source}: no feasible tripod among {drawn} candidates (rejected by {counts}); "
+            "the object may be too small or thin for three fingertips: try --grasp pinch")
+
+
+#: what the rounds (:mod:`rounds`) sample as a tripod; the first contacts drawn are thumbs
+TRIPOD = GraspKind(name="tripod", rules=TRIPOD_RULES, oversample=OVERSAMPLE, max_draw_factor=MAX_DRAW_FACTOR,
+                   max_rounds=MAX_ROUNDS, stream=(3,), draw=candidate_tripods, check=_check_picks,
+                   first_contacts=_thumbs, refusal=_refusal)
