@@ -88,6 +88,9 @@ CORE = {
     "grasp/tripod_rules.py": ["test_tripods.py"],
     "grasp/strata.py": ["test_strata.py"],
     "runner/cache.py": ["test_cache.py", "test_result_cache.py", "test_keys.py"],
+    "match/targeted.py": ["test_targeted.py"],
+    "grasp/tripods.py": ["test_tripods.py"],
+    "grasp/rounds.py": ["test_spread.py", "test_coverage.py", "test_tripods.py"],
 }
 
 #: surviving mutants judged equivalent: (module, source line stripped, description) -> reason

@@ -1,4 +1,5 @@
-"""Coverage of what the fingers can feel: the sampler's width strata and the match's targeted step."""
+"""Coverage of what the fingers can feel: the sampler's width strata and its nested counts (the match's
+targeted step: test_targeted.py)."""
 
 from __future__ import annotations
 
@@ -12,11 +13,8 @@ from pinchmatch.grasp.analysis import analyze_object
 from pinchmatch.grasp.pinches import PinchSettings
 from pinchmatch.grasp.sampling import sample_pinches
 from pinchmatch.grasp.strata import stratum_of, width_jnd
-from pinchmatch.match.candidates import REFINED_INDEX, candidate_poses
-from pinchmatch.match.refine import refined_search
+from pinchmatch.match.candidates import candidate_poses
 from pinchmatch.match.search import MatchSettings, Search, cost_model, cost_row
-import pinchmatch.match.targeted as targeted
-from pinchmatch.match.targeted import feature_keys, pinch_keys, targeted_poses
 from pinchmatch.mesh import vessels
 from pinchmatch.mesh.shapes import cylinder
 from test_pinches import assert_rules_hold
@@ -81,87 +79,6 @@ def test_the_rare_width_is_sampled_and_a_larger_count_keeps_more_of_it(mug):
     finally:
         strata.STRATUM_SHARE = original
     assert found[2400] >= 1.5 * max(int(alone), 1)  # 57 against 28 when written
-
-
-def test_keys_from_features_and_from_contacts_agree_in_either_finger_order(mug):
-    """The targeted step keys its pool from contacts and triangle normals, the poses it looks for from their
-    features: on the same pinches (patch normals given) both give one key, whichever finger is first."""
-    path, _ = mug
-    obj = analyze_object(path)
-    c = candidate_poses(obj, settings=PinchSettings(count=150, seed=1))
-    keys = feature_keys(c)
-    np.testing.assert_allclose(pinch_keys(c.pinches.points, c.pinches.normals, obj.props), keys, atol=1e-9)
-    swapped = pinch_keys(c.pinches.points[:, ::-1], c.pinches.normals[:, ::-1], obj.props)
-    np.testing.assert_allclose(swapped, keys, atol=1e-9)
-    assert np.ptp(keys, axis=0).min() > 0.1  # every key column varies over the mug's poses
-
-
-def test_the_targeted_step_finds_on_the_prop_the_width_its_sample_lacks(tmp_path, mug):
-    """A rod 10 mm thick and 160 mm long (longer than any pinch), turned another way, against the turned mug whose sampled poses have lost every
-    handle pinch: the exact search can only offer the body's. The targeted step finds handle pinches on
-    the mug by the rod's features; each obeys every rule, and the best cost falls below the body's."""
-    path, mesh = mug
-    settings = PinchSettings(count=300, seed=2)
-    full = candidate_poses(analyze_object(path), settings=settings)
-    no_handle = full.subset(np.flatnonzero(np.linalg.norm(full.pinches.points[:, 1] - full.pinches.points[:, 0],
-                                                          axis=1) > 20.0))
-    rod_path, _ = _turned(tmp_path, "rod", cylinder(5.0, 160.0, faces=8000).mesh,
-                          Rotation.from_euler("zxz", [12.0, 97.0, -40.0], degrees=True).as_matrix(),
-                          np.array([33.0, -18.0, -120.0]))
-    rod = candidate_poses(analyze_object(rod_path), settings=settings)
-    match = MatchSettings(refine=True)
-    model = cost_model(match, [no_handle, rod])
-    search = Search([no_handle], [rod], model, match)
-    before = float(cost_row(search, 0)[0])
-    (grown,), grown_rod = targeted_poses(search, settings)
-    added = grown.pinches.subset(np.arange(len(no_handle), len(grown)))
-    assert len(added) > 0 and (grown.index[len(no_handle):] == REFINED_INDEX).all()
-    assert _handle(added.points).sum() >= 3
-    assert_rules_hold(mesh, added, settings)
-    assert len(grown_rod) >= len(rod)
-    after = float(cost_row(search.grown([grown], [grown_rod]), 0)[0])
-    assert after < 0.5 * before
-    # and the match runs it before refinement: the refined answer is at least as good
-    assert float(cost_row(refined_search([no_handle], rod, model, match, pinch_settings=settings), 0)[0]) <= after + 1e-9
-
-
-def test_the_targeted_step_is_deterministic_and_skipped_without_refinement(mug, tmp_path):
-    path, _ = mug
-    settings = PinchSettings(count=200, seed=4)
-    box_path, _ = _turned(tmp_path, "box", trimesh.creation.box((30.0, 45.0, 60.0)).subdivide().subdivide())
-    a = candidate_poses(analyze_object(path), settings=settings)
-    b = candidate_poses(analyze_object(box_path), settings=settings)
-    model = cost_model(MatchSettings(), [a, b])
-    one = targeted_poses(Search([a], [b], model, MatchSettings()), settings)
-    two = targeted_poses(Search([a], [b], model, MatchSettings()), settings)
-    np.testing.assert_array_equal(one[0][0].pinches.points, two[0][0].pinches.points)
-    np.testing.assert_array_equal(one[1].pinches.points, two[1].pinches.points)
-    off = refined_search([a], b, model, MatchSettings(refine=False), pinch_settings=settings)
-    assert len(off.tangibles[0]) == len(a) and len(off.virtuals[0]) == len(b)
-
-
-def test_a_pool_candidate_is_checked_once_and_as_a_fresh_check_would(mug, tmp_path, monkeypatch):
-    """The targeted step asked twice with overlapping keys checks each pool candidate once (a third ask checks
-    nothing), and what it returns is what a process that never checked any gets, bit for bit."""
-    path, _ = mug
-    settings = PinchSettings(count=200, seed=5)
-    box_path, _ = _turned(tmp_path, "box", trimesh.creation.box((30.0, 45.0, 60.0)).subdivide().subdivide())
-    keys = feature_keys(candidate_poses(analyze_object(box_path), settings=settings))
-    checked = []
-    real = targeted.check_pinches
-    monkeypatch.setattr(targeted, "check_pinches", lambda context, p1, p2, **kw: checked.append(len(p1))
-                        or real(context, p1, p2, **kw))
-    warm = candidate_poses(analyze_object(path), settings=settings)
-    targeted.nearest_feasible(warm, keys[:6], settings)
-    first = sum(checked)
-    again = targeted.nearest_feasible(warm, keys[3:12], settings)
-    second = sum(checked) - first
-    assert 0 < second < targeted.NEAREST * len(np.unique(keys[3:12], axis=0))  # the shared candidates are not
-    targeted.nearest_feasible(warm, keys[3:12], settings)                     # checked again
-    assert sum(checked) == first + second
-    fresh = targeted.nearest_feasible(candidate_poses(analyze_object(path), settings=settings), keys[3:12], settings)
-    for field in ("points", "normals", "face_index", "feasible", "broken", "approach", "kappa_max_per_m"):
-        np.testing.assert_array_equal(getattr(again, field), getattr(fresh, field))
 
 
 def _nearest_spread_mm(points, to):
