@@ -18,6 +18,9 @@ weighs the product of its fingers' weights, renormalised over the pairs within t
 
 **Per pose, once** (:class:`LandingTable`, kept per object by :class:`FeltTables`): its 25 landing
 points per finger, their patches (normal, principal curvatures) and the feature rows of all 625 pairs.
+A tripod's index and middle finger land as one (:func:`landing_combos`): the two fingers opposite the
+thumb act as one virtual finger (Arbib, Iberall & Lyons 1985), held side by side by the hand and guided
+together, so they share one offset and a tripod pose has 625 landings too, not 25³.
 **Per pose pair, no new geometry:** the hand lands on the prop at the prop's own landing points; the eye
 sees the corresponding points of the virtual object, the points of its table that the pair's registration
 carries nearest to them (each of the virtual object's ring points, turned by the registration into the
@@ -65,6 +68,16 @@ def ring_weights(radius_mm: float, rings=RING_POINTS, sigma_share: float = SIGMA
     mass = np.diff([1.0 - math.exp(-e * e / (2.0 * sigma_share ** 2)) for e in edges])  # depend on its size
     weights = np.concatenate([[mass[0]]] + [np.full(count, mass[i + 1] / count) for i, count in enumerate(rings)])
     return weights / weights.sum()
+
+
+def landing_combos(n: int, fingers: int) -> np.ndarray:
+    """(F, n²) the landing point of each finger in each landing, the first finger's slowest: a pinch's two
+    fingers on every pair of their ``n`` points; a tripod's thumb on each of its points against its index
+    and middle finger on each of theirs, the two landing as one (the same point of their discs). The two
+    fingers opposite the thumb are held side by side by one hand and guided as one, so their landings
+    share one offset; the thumb opposes them and lands on its own (module notes)."""
+    idx = np.indices((n, n)).reshape(2, -1)
+    return idx if fingers == 2 else np.concatenate([idx, np.repeat(idx[1:], fingers - 2, axis=0)])
 
 
 @dataclass(frozen=True)
@@ -184,7 +197,7 @@ def _tables(candidates: Candidates, landed: _Landed, geom, radius_mm: float, axi
     normal = geom.normal.reshape(fingers, k, n, 3)
     kmax, kmin = geom.kappa_max_per_m.reshape(fingers, k, n), geom.kappa_min_per_m.reshape(fingers, k, n)
     dmax = geom.dir_max.reshape(fingers, k, n, 3)
-    idx = np.indices((n,) * fingers).reshape(fingers, -1)  # (F, n^F): the first finger's point slowest
+    idx = landing_combos(n, fingers)
     combos = idx.shape[1]
     m = k * combos
 
@@ -208,7 +221,7 @@ def _tables(candidates: Candidates, landed: _Landed, geom, radius_mm: float, axi
     within = cos >= math.cos(math.radians(axis_deg)) - 1e-12
     within[:, 0] = True  # the nominal landing is the match itself
     w = ring_weights(radius_mm, rings)
-    weights = np.where(within, np.prod([w[idx[f]] for f in range(fingers)], axis=0)[None], 0.0)
+    weights = np.where(within, (w[idx[0]] * w[idx[1]])[None], 0.0)  # a tripod's two fingers land as one
     angles = np.arctan2(landed.offsets[:, 1], landed.offsets[:, 0])
     ring = np.concatenate([[0]] + [np.full(c, r + 1) for r, c in enumerate(rings)])
     angles = np.where(ring == 0, 0.0, angles)
@@ -379,10 +392,10 @@ def felt_cost(tangible: Candidates, virtual: Candidates, choice, model: CostMode
     R = choice.transform[:3, :3]
     n, fingers = len(v.angles), v.points.shape[-2]
     match = _matched_points(t, v, R)
-    idx = np.indices((n,) * fingers).reshape(fingers, -1)
+    idx = landing_combos(n, fingers)
     # each virtual landing in the prop's finger order, and the prop's points the fingers land on
     order = other_order(fingers) if choice.swapped else list(range(fingers))
-    t_pair = np.ravel_multi_index(tuple(match[idx[order[f]]] for f in range(fingers)), (n,) * fingers)
+    t_pair = np.ravel_multi_index((match[idx[order[0]]], match[idx[order[1]]]), (n, n))
     v_rows = v.rows[:, order]
     keep = np.flatnonzero(v.weights > 0)
     t_pair = t_pair[keep]
