@@ -237,3 +237,41 @@ def test_the_felt_set_on_target_grows_with_the_count(tmp_path, monkeypatch):
         asked.clear()
         match_scene([block], [ball], settings=MatchSettings(refine=False), pinch_settings=PinchSettings(count=count))
         assert max(asked) == want and scene_module.ROW_CHOICES in asked
+
+
+@pytest.mark.parametrize("masses_g", [(None, None), (80.0, 260.0), (300.0, 45.0)])
+def test_every_pooled_pairs_key_is_its_expected_cost_in_the_tangibles_finger_order(tmp_path, masses_g):
+    """The steady search's key of each pooled pair, recomputed here: the virtual pose's landing moments in the
+    tangible's finger order (its two patches exchanged where the pair is swapped), each criterion's
+    contribution of the means' difference plus both variances, the mass columns scaled by m_V / m_T (1, 3.25
+    and 0.15 here), the mass criterion exact on target plus its spread's contribution; pooled by the model.
+    The pool holds swapped and unswapped pairs, and the moments are on the documented pattern (the target
+    and 8 points at the acceptance radius)."""
+    from pinchmatch.grasp.spread import other_order
+    from pinchmatch.match.candidates import felt_table, mass_ratio
+    from pinchmatch.match.cost import separable_terms
+    from pinchmatch.match.search import Search, cost_model
+    from pinchmatch.match.steady import SteadySearch, moments_of
+
+    block = candidate_poses(analyze_object(_exported(tmp_path, "block", box((50.0, 36.0, 30.0), subdivide_mm=3.0).mesh),
+                                           mass_g=masses_g[0]), settings=PinchSettings(count=60, seed=4))
+    rod = candidate_poses(analyze_object(_exported(tmp_path, "rod", cylinder(16.0, 60.0, faces=8000).mesh, turned=True),
+                                         mass_g=masses_g[1]), settings=PinchSettings(count=60, seed=4))
+    settings = MatchSettings()
+    model = cost_model(settings, [block, rod])
+    steady = SteadySearch(Search([block], [rod], model, settings), [block], rod, 5.0, SETTINGS)
+    (_, it, iv, r), key = steady.part(0)
+    assert r.swapped.any() and (~r.swapped).any()
+    mt, mv = moments_of(block, 5.0, SETTINGS), moments_of(rod, 5.0, SETTINGS)
+    np.testing.assert_array_equal(mt[0], landing_moments(block, 5.0, SETTINGS, rings=(8,), patch_spacing_mm=2.5)[0])
+    ratio = mass_ratio(block, rod)
+    assert ratio == pytest.approx(1.0 if masses_g[0] is None else masses_g[1] / masses_g[0])
+    order = [other_order(2) if s else [0, 1] for s in r.swapped]
+    v_mean = np.stack([mv[0][j][o] for j, o in zip(iv, order)])
+    v_var = np.stack([mv[1][j][o] for j, o in zip(iv, order)])
+    t_mean, t_var = mt[0][it], mt[1][it]
+    spread = np.sqrt(np.nan_to_num(t_var) + np.nan_to_num(v_var) * np.where(
+        np.isin(np.arange(9), [7, 8]), ratio * ratio, 1.0))
+    terms = separable_terms(t_mean, felt_table(v_mean, ratio), model) + separable_terms(t_mean, t_mean + spread, model)
+    terms[:, 7] = r.terms[:, 7] + separable_terms(t_mean, t_mean + spread, model)[:, 7]
+    np.testing.assert_allclose(key, model.pool(terms, None, r.rest_jnd), rtol=1e-9, atol=1e-12)
