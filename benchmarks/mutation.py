@@ -119,6 +119,8 @@ EQUIVALENT: dict[tuple[str, str, str], str] = {
      "np.asarray(faces, dtype=np.int64).reshape(-1)", "1 -> 2"): _INFER,
     ("match/search.py", "return int(np.clip(n_tangible * n_virtual // POOL_PAIRS_PER_KEPT, MIN_POOL, MAX_POOL))",
      "// -> /"): "int() truncates the positive quotient as // does",
+    ("grasp/strata.py", "return int(STRATUM_SHARE * count // max(strata, 1))", "// -> /"):
+        "int() truncates the positive quotient as // does",
     ("match/search.py", "below = np.flatnonzero(result.cost < tau)", "< -> <="):
         "the greedy pick keeps only pairs costing less than tau again, so a pooled pair costing exactly tau is "
         "never picked either way",

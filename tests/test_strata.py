@@ -121,6 +121,27 @@ def test_a_stratum_stops_the_moment_its_quota_is_met_or_its_candidates_run_out()
     assert (kind == "few").sum() == quota // 3 and len(taken) == exact_spent + quota // 3
 
 
+@pytest.mark.parametrize("extra", [0, 1])
+def test_a_stratum_whose_candidates_are_spent_exactly_checks_no_more(extra):
+    """A lone stratum of exactly its first batch of candidates (or one more), a third of them feasible: it is
+    checked in one batch (and the one left over in a second), never in an empty one."""
+    rng = np.random.default_rng(9)
+    count = 300
+    quota = strata.quota_per_stratum(count, 1)
+    n = strata.FIRST_BATCH * quota + extra
+    points = _pinches(np.full(n, _width_at(4 * strata.STRATUM_JND + 1.0)), rng)
+    calls = []
+
+    def check(p, f):
+        calls.append(len(p))
+        return SimpleNamespace(points=p[: len(p) // 3])
+
+    pool = Pool.of(points, np.zeros((n, 2), np.int64), np.zeros((0, 2, 3)))
+    parts, taken = strata.stratified_checks(pool, count, check)
+    assert calls == [strata.FIRST_BATCH * quota] + ([1] if extra else [])
+    assert len(taken) == n
+
+
 def test_too_small_a_count_checks_nothing_and_says_so_in_the_grasps_shape():
     rng = np.random.default_rng(1)
     pool = Pool.of(_pinches([20.0, 30.0, 40.0], rng), np.zeros((3, 2), np.int64), np.zeros((0, 2, 3)))
