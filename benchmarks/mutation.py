@@ -119,6 +119,9 @@ EQUIVALENT: dict[tuple[str, str, str], str] = {
      "np.asarray(faces, dtype=np.int64).reshape(-1)", "1 -> 2"): _INFER,
     ("match/search.py", "return int(np.clip(n_tangible * n_virtual // POOL_PAIRS_PER_KEPT, MIN_POOL, MAX_POOL))",
      "// -> /"): "int() truncates the positive quotient as // does",
+    ("grasp/tripods.py", "offset = 0.5 * spacing[:, None] * (np.cos(phi)[:, None] * t1 + np.sin(phi)[:, None] * t2)",
+     "+ -> -"): "phi is uniform over the whole turn: (cos phi, -sin phi) is the direction of -phi, as uniform; "
+                "the fingers' directions are drawn from the same distribution",
     ("grasp/strata.py", "return int(STRATUM_SHARE * count // max(strata, 1))", "// -> /"):
         "int() truncates the positive quotient as // does",
     ("match/search.py", "below = np.flatnonzero(result.cost < tau)", "< -> <="):
@@ -246,6 +249,9 @@ EQUIVALENT.update({
     ("mesh/gltf_apply.py", 'blob.extend(data + b"\\0" * (-len(data) % 4))', "4 -> 5"):
         "the applied document is read by trimesh in memory, which takes arrays at any offset: the padding only "
         "keeps the views 4-byte aligned as the specification asks of files",
+    ("grasp/tripods.py", "offset = 0.5 * spacing[:, None] * (np.cos(phi)[:, None] * t1 + np.sin(phi)[:, None] * t2)",
+     "+ -> -"): "phi is uniform over the whole turn: (cos phi, -sin phi) is the direction of -phi, as uniform; "
+                "the fingers' directions are drawn from the same distribution",
     ("grasp/strata.py", "return int(STRATUM_SHARE * count // max(strata, 1))", "// -> /"):
         "int() of a positive quotient is its floor: dividing and flooring first gives the same whole number",
     ("mesh/furniture.py", "tops[other] = max(tops.get(other, -np.inf), float(np.median(closest[on] @ up)))",

@@ -259,3 +259,55 @@ def test_tripods_on_a_level_stay_above_the_tables_and_reach_the_level_file(tmp_p
         t = np.array(m["tangible_pose"]["contacts_mm"])
         np.testing.assert_allclose(np.reshape(x["physical_contacts_m"], (3, 3)), (t @ R.T + position) / 1000.0,
                                    atol=2e-6)
+
+
+@pytest.mark.parametrize("height_mm, thin", [(1.5, False), (0.6, True)])
+def test_the_plane_of_forces_is_the_contacts_unless_their_triangle_is_under_a_millimetre_high(height_mm, thin):
+    """The fingers 20 mm apart, the thumb ``height_mm`` off their line, turned and moved: the plane's normal is
+    the triangle's where its smallest height is 1 mm or more, else the normal of the plane through the fingers'
+    line along the thumb's normal."""
+    from pinchmatch.grasp.tripod_rules import contact_plane_normals
+
+    R, t = random_rigid(21)
+    points = np.array([[0.0, height_mm, 0.0], [-10.0, 0.0, 0.0], [10.0, 0.0, 0.0]]) @ R.T + t
+    normals = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, -1.0], [0.0, 0.0, -1.0]]) @ R.T
+    got = contact_plane_normals(points[None], normals[None])[0]
+    expected = (np.array([0.0, 1.0, 0.0]) if thin else np.array([0.0, 0.0, 1.0])) @ R.T
+    assert abs(abs(got @ expected) - 1.0) < 1e-9
+
+
+def test_candidate_fingers_are_drawn_from_a_pads_width_apart_to_the_largest_spacing():
+    """Thumbs on one face of a slab 30 mm thick, the fingers on the other: the candidates' finger spacings run
+    from two fingertip radii (less the clearance tolerance) to ``MAX_SPACING_MM``, spread over that range."""
+    from pinchmatch.config import CLEARANCE_TOLERANCE_MM
+    from pinchmatch.grasp.rounds import uniform_contacts
+    from pinchmatch.grasp.tripods import candidate_tripods
+
+    slab = trimesh.creation.box((200.0, 30.0, 200.0))
+    context = SurfaceContext(slab)
+    settings = PinchSettings(friction_cone_deg=5.0)
+    rng = np.random.default_rng(2)
+    thumbs, faces = uniform_contacts(context, 20000, rng)
+    rejected = dict.fromkeys(TRIPOD_RULES, 0)
+    points, _ = candidate_tripods(context, thumbs, faces, settings, rng, rejected)
+    spacing = np.linalg.norm(points[:, 2] - points[:, 1], axis=1)
+    low = 2.0 * (settings.fingertip_radius_mm - CLEARANCE_TOLERANCE_MM)
+    assert len(spacing) > 1000
+    assert spacing.min() < low + 2.0 and spacing.max() <= MAX_SPACING_MM + 3.0
+    assert np.median(spacing) == pytest.approx((low + MAX_SPACING_MM) / 2, abs=4.0)
+
+
+def test_an_object_no_hand_spans_is_refused_with_the_rules_counts(tmp_path):
+    """A ball 300 mm across: no thumb's ray leaves it within the widest grip; the refusal counts the candidates
+    each rule rejected (not "nothing")."""
+    from pinchmatch.errors import NoFeasiblePinchError
+
+    ball = trimesh.creation.icosphere(subdivisions=3, radius=150.0)
+    ball.export(tmp_path / "ball.stl")
+    obj = analyze_object(tmp_path / "ball.stl", units="mm")
+    with pytest.raises(NoFeasiblePinchError) as err:
+        sample_tripods(obj.context, settings=PinchSettings(count=50, seed=0, grasp="tripod"))
+    message = str(err.value)
+    assert "no feasible tripod among" in message and "rejected by nothing" not in message
+    counts = dict(part.rsplit(" ", 1) for part in message.split("rejected by ")[1].split(")")[0].split(", "))
+    assert set(counts) <= set(TRIPOD_RULES) and sum(int(v) for v in counts.values()) > 0

@@ -11,8 +11,6 @@ tripod) choose the ones that get the full check.
 
 from __future__ import annotations
 
-import logging
-
 import numpy as np
 
 from ..config import CLEARANCE_TOLERANCE_MM, PREFILTER_MARGIN_DEG, PinchSettings
@@ -22,8 +20,6 @@ from .pinches import reach_rule
 from .rounds import GraspKind, nested_sample, sample_rounds
 from .sampling import cone_directions
 from .tripod_rules import MAX_SPACING_MM, TRIPOD_RULES, Tripods, cheap_broken, check_tripods, count_first
-
-log = logging.getLogger(__name__)
 
 #: candidates drawn per requested tripod in the first round; all rounds together at most MAX_DRAW_FACTOR
 OVERSAMPLE, MAX_DRAW_FACTOR = 8, 60
