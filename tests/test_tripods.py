@@ -311,3 +311,70 @@ def test_an_object_no_hand_spans_is_refused_with_the_rules_counts(tmp_path):
     assert "no feasible tripod among" in message and "rejected by nothing" not in message
     counts = dict(part.rsplit(" ", 1) for part in message.split("rejected by ")[1].split(")")[0].split(", "))
     assert set(counts) <= set(TRIPOD_RULES) and sum(int(v) for v in counts.values()) > 0
+
+
+def _in_plane_tripod(q, inward, R, t):
+    """Contacts ``q`` (3, 2) mm in a plane, pushed along in-plane ``inward`` (3, 2) directions: (3, 3) points
+    and outward unit normals, turned by R and moved by t."""
+    inward = np.asarray(inward, float) / np.linalg.norm(inward, axis=1, keepdims=True)
+    points = np.column_stack([q, np.zeros(3)]) @ R.T + t
+    return points, np.column_stack([-inward, np.zeros(3)]) @ R.T
+
+
+@pytest.mark.parametrize("order", [[0, 1, 2], [0, 2, 1]])
+def test_forces_meeting_behind_the_thumb_and_parallel_forces_balance_in_either_finger_order(order):
+    """Three tripods in a plane, turned and moved, the fingers in either order, the independent linear
+    programme agreeing: the fingers pushing towards a point 30 mm behind the thumb, which pushes away from
+    it (balanced: the meeting point lies behind contact 0); parallel forces, the thumb's line between the
+    fingers' (a plate's rim: balanced); and the thumb's line outside the fingers' (not balanced)."""
+    R, t = random_rigid(31)
+    q = np.array([[0.0, 0.0], [-10.0, 20.0], [10.0, 20.0]])
+    behind = _in_plane_tripod(q, [[0.0, 1.0], [10.0, -50.0], [-10.0, -50.0]], R, t)
+    parallel = _in_plane_tripod(q, [[0.0, 1.0], [0.0, -1.0], [0.0, -1.0]], R, t)
+    outside = _in_plane_tripod(q + [[25.0, 0.0], [0.0, 0.0], [0.0, 0.0]], [[0.0, 1.0], [0.0, -1.0], [0.0, -1.0]],
+                               R, t)
+    cases = [behind, parallel, outside]
+    points = np.stack([p[order] for p, _ in cases])
+    normals = np.stack([n[order] for _, n in cases])
+    assert balance_broken(points, normals, 10.0).tolist() == [False, False, True]
+    assert [force_closure(p, n, 10.0) for p, n in zip(points, normals)] == [True, True, False]
+
+
+#: tripods of the YCB mug (contacts about their centroid, mm; outward normals) whose forces balance only when
+#: parallel: the thumb on one side, both fingers on the far side, no common meeting point within the cones
+PARALLEL_ONLY = [
+    ([[-20.4, -6.3, 51.5], [26.4, 27.3, -25.5], [-6.0, -21.0, -26.0]],
+     [[-0.124, -0.013, -0.992], [0.081, 0.222, 0.972], [-0.12, 0.185, 0.975]]),
+    ([[51.4, -3.5, -9.9], [-26.5, 11.3, -8.3], [-24.8, -7.8, 18.2]],
+     [[-0.984, 0.097, -0.15], [0.996, -0.089, 0.017], [0.936, 0.352, -0.022]]),
+    ([[11.5, 23.5, -2.2], [-1.5, -51.9, 5.5], [-10.0, 28.4, -3.4]],
+     [[-0.212, -0.977, 0.001], [-0.136, 0.988, 0.076], [0.12, 0.988, 0.099]]),
+]
+
+
+@pytest.mark.parametrize("order", [[0, 1, 2], [0, 2, 1]])
+def test_tripods_whose_forces_balance_only_parallel_pass_in_either_finger_order(order):
+    """Three of the mug's tripods that balance only with parallel forces, turned and moved, the fingers in
+    either order: the balance test passes them, as the independent linear programme does."""
+    R, t = random_rigid(41)
+    for points, normals in PARALLEL_ONLY:
+        p = np.array(points)[order] @ R.T + t
+        n = np.array(normals)[order]
+        n = (n / np.linalg.norm(n, axis=1, keepdims=True)) @ R.T
+        assert not balance_broken(p[None], n[None], 30.0)[0]
+        assert force_closure(p, n, 30.0)
+
+
+def test_the_balance_test_does_not_depend_on_which_finger_is_the_index(scans):
+    """20,000 random contact triples of the mug at a random place: the tripods that pass are the same with the
+    index and middle finger exchanged, and among them are ones whose forces balance only when parallel."""
+    obj = analyze_object(scans["025_mug"], units="mm")
+    rng = np.random.default_rng(8)
+    pick = rng.choice(len(obj.context.sample.points), (20000, 3))
+    R, t = random_rigid(13)
+    contacts = obj.context.sample.points[pick] @ R.T + t
+    normals = obj.context.face_normals[obj.context.sample.face_index[pick]] @ R.T
+    ours = ~balance_broken(contacts, normals, 30.0)
+    swapped = ~balance_broken(contacts[:, [0, 2, 1]], normals[:, [0, 2, 1]], 30.0)
+    np.testing.assert_array_equal(ours, swapped)
+    assert ours.sum() > 300
