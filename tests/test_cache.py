@@ -322,3 +322,28 @@ def test_the_reference_pose_comes_from_the_cache_in_a_warm_run(tmp_path, mesh_fi
     again = cached_candidates(mesh_file, cache=cache, settings=SETTINGS)
     assert cache.load_probes(cache.last_key) == {} and not probes.exists()
     assert match(again, {}).cost == ref_cold.cost
+
+
+def test_given_poses_key_the_cache_by_their_values_in_any_number_type(tmp_path, mesh_file):
+    """The same given contacts as float64, float32 and integers (values each type holds exactly) make one key;
+    other contacts another."""
+    cache = FeatureCache(tmp_path / "cache")
+    spec = ObjectSpec(str(mesh_file))
+    p1 = np.array([[10.0, -4.0, 2.0], [0.0, 6.0, -8.0]])
+    p2 = np.array([[-10.0, -4.0, 2.0], [0.0, -6.0, -8.0]])
+    keys = {cache.key(spec, settings=SETTINGS, given=(p1.astype(t), p2.astype(t))) for t in (np.float64, np.float32,
+                                                                                               np.int32)}
+    assert len(keys) == 1
+    assert cache.key(spec, settings=SETTINGS, given=(p1, p2 + 1.0)) not in keys
+
+
+def test_an_unwritable_cache_is_said_once_with_the_systems_reason(tmp_path, mesh_file, caplog):
+    blocked = tmp_path / "file"
+    blocked.write_text("not a folder")
+    with caplog.at_level(logging.WARNING, logger="pinchmatch.runner.cache"):
+        cached_candidates(mesh_file, cache=FeatureCache(blocked), settings=SETTINGS)
+        cached_candidates(mesh_file, cache=FeatureCache(blocked), settings=SETTINGS)
+    [record] = [r for r in caplog.records if "cannot write the cache" in r.getMessage()]
+    import re
+
+    assert re.fullmatch(r"cannot write the cache in .+ \([^()]+\); going on without it", record.getMessage())

@@ -108,3 +108,41 @@ def test_a_sparse_accessor_naming_a_view_that_is_not_there_is_one_line(tmp_path)
     with pytest.raises(MeshError) as refused:
         load_mesh(path)
     assert "\n" not in str(refused.value) and str(path) in str(refused.value)
+
+
+def test_morph_weights_on_a_mesh_whose_other_primitive_has_no_positions_apply_to_the_one_that_has(tmp_path):
+    """A mesh with a default morph weight of 0.5 and two primitives: one with positions and a target moving them
+    20 mm along x, one with normals only (positions are optional in glTF). The first is moved half way, the
+    second left as it is; nothing is refused."""
+    from pinchmatch.mesh.gltf_apply import applied_glb
+
+    box = trimesh.creation.box(extents=(0.04, 0.05, 0.06))
+    positions = np.asarray(box.vertices, np.float32)
+    shift = np.tile(np.float32([0.02, 0.0, 0.0]), (len(positions), 1))
+    faces = np.asarray(box.faces, "<u4").ravel()
+    blob = positions.tobytes() + shift.tobytes() + faces.tobytes() + positions.tobytes()
+    n, size = len(positions), positions.nbytes
+    views = [{"buffer": 0, "byteOffset": 0, "byteLength": size}, {"buffer": 0, "byteOffset": size, "byteLength": size},
+             {"buffer": 0, "byteOffset": 2 * size, "byteLength": faces.nbytes},
+             {"buffer": 0, "byteOffset": 2 * size + faces.nbytes, "byteLength": size}]
+    vec3 = {"componentType": 5126, "count": n, "type": "VEC3"}
+    accessors = [dict(vec3, bufferView=0, min=positions.min(0).tolist(), max=positions.max(0).tolist()),
+                 dict(vec3, bufferView=1, min=shift.min(0).tolist(), max=shift.max(0).tolist()),
+                 {"bufferView": 2, "componentType": 5125, "count": len(faces), "type": "SCALAR"},
+                 dict(vec3, bufferView=3)]
+    doc = {"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+           "meshes": [{"weights": [0.5], "primitives": [
+               {"attributes": {"POSITION": 0}, "indices": 2, "targets": [{"POSITION": 1}]},
+               {"attributes": {"NORMAL": 3}, "indices": 2}]}],
+           "accessors": accessors, "bufferViews": views, "buffers": [{"uri": "b.bin", "byteLength": len(blob)}]}
+    (tmp_path / "b.bin").write_bytes(blob)
+    path = tmp_path / "morphed.gltf"
+    path.write_text(json.dumps(doc))
+    glb = applied_glb(path, "gltf", doc)
+    (tmp_path / "applied.glb").write_bytes(glb)
+    text_length = struct.unpack_from("<I", glb, 12)[0]
+    applied = json.loads(glb[20:20 + text_length])
+    first, second = applied["meshes"][0]["primitives"]
+    assert "POSITION" not in second["attributes"] and "targets" not in second
+    moved = dense_accessor(applied, buffer_bytes(tmp_path / "applied.glb", "glb", applied), first["attributes"]["POSITION"])
+    np.testing.assert_allclose(moved, positions + 0.5 * shift, atol=1e-7)

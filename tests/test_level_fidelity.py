@@ -267,3 +267,15 @@ def test_a_level_glb_fed_back_in_matches_the_same_objects_and_is_written_once_mo
     before, after = _document(folder / "out" / "level.glb"), _document(tmp_path / "again" / "level.glb")
     assert [n.get("name") for n in after["nodes"]] == [n.get("name") for n in before["nodes"]]
     assert sum(n.get("name") == "pinchmatch_prop_can_prop" for n in after["nodes"]) == 1
+
+
+def test_a_bodys_motion_gives_its_mass_in_kilograms_and_its_centre_to_the_micrometre():
+    """OMI_physics_body's motion: the mass in kg (grams / 1000), the centre of mass in the node's units rounded
+    to 6 decimals (a micrometre in metres); no mass where none is known."""
+    from pinchmatch.export.level import _motion
+
+    com = [0.01234567891, -0.2000004999, 1.5e-7]
+    motion = _motion(387.5, com)["OMI_physics_body"]["motion"]
+    assert motion["type"] == "dynamic" and motion["mass"] == 0.3875
+    assert motion["centerOfMass"] == [0.012346, -0.2, 0.0]
+    assert "mass" not in _motion(None, com)["OMI_physics_body"]["motion"]

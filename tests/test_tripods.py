@@ -378,3 +378,18 @@ def test_the_balance_test_does_not_depend_on_which_finger_is_the_index(scans):
     swapped = ~balance_broken(contacts[:, [0, 2, 1]], normals[:, [0, 2, 1]], 30.0)
     np.testing.assert_array_equal(ours, swapped)
     assert ours.sum() > 300
+
+
+def test_the_fingers_spacing_rule_holds_from_two_pads_less_the_tolerance_to_the_largest():
+    """Fingertip centres 15.3, 15.5, 44.9 and 45.1 mm apart (8 mm pads, 0.3 mm tolerance: 15.4 to 45 mm
+    allowed), turned and moved: the rule breaks the first and the last only."""
+    from pinchmatch.grasp.tripod_rules import spacing_broken
+
+    R, t = random_rigid(51)
+    spacings = np.array([15.3, 15.5, 44.9, 45.1])
+    points = np.zeros((4, 3, 3))
+    points[:, 0] = [0.0, 0.0, -30.0]
+    points[:, 1, 0], points[:, 2, 0] = -spacings / 2, spacings / 2
+    normals = np.tile(np.array([[0.0, 0.0, -1.0], [0.0, 0.0, 1.0], [0.0, 0.0, 1.0]]), (4, 1, 1))
+    broken = spacing_broken(points @ R.T + t, normals @ R.T, PinchSettings(fingertip_radius_mm=8.0))
+    assert broken.tolist() == [True, False, False, True]
