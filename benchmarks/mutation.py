@@ -102,6 +102,9 @@ _GUARD = ("a guard against round-off near a degenerate case (opposite or paralle
 _INFER = "numpy takes any negative size as the one to infer: reshape(-2, k) is reshape(-1, k)"
 _APPLIED = ("applying a document with no sparse accessor and no morph weights rewrites it to the same geometry: "
             "the test only saves the rewriting")
+_GUARD_WIDE = ("the round-off guard is 1e-9 mm per mm of the largest coordinate: which points set it, or its "
+               "constant, moves the bounds by a billionth of a millimetre; they stay true, and the exact distance "
+               "decides any point they leave open (the loop over the points' bounds, the same line, is killed)")
 EQUIVALENT: dict[tuple[str, str, str], str] = {
     ("grasp/curvature.py", "(np.abs(normal[:, 0]) < 0.9)[:, None], np.array([1.0, 0.0, 0.0]), "
      "np.array([0.0, 1.0, 0.0])", "< -> <="): _HELPER,
@@ -122,6 +125,19 @@ EQUIVALENT: dict[tuple[str, str, str], str] = {
     ("grasp/tripods.py", "offset = 0.5 * spacing[:, None] * (np.cos(phi)[:, None] * t1 + np.sin(phi)[:, None] * t2)",
      "+ -> -"): "phi is uniform over the whole turn: (cos phi, -sin phi) is the direction of -phi, as uniform; "
                 "the fingers' directions are drawn from the same distribution",
+    ("export/level.py", 'return {"translation": [float(c) for c in t], "rotation": [float(c) for c in '
+     'Rotation.from_matrix(R).as_quat()]}', "drop float(...)"):
+        "numpy's float64 is a subclass of float: json writes the same numbers",
+    ("mesh/neighbours.py", "CUBE_SHARE = 1.0", "1.0 -> 2.0"):
+        "the cubes' side is a speed setting: each cube's ball query covers every ball of its points at any side, "
+        "and the kernel keeps the samples within the radius exactly",
+    ("mesh/neighbours.py", "candidates = np.fromiter(itertools.chain.from_iterable(lists), dtype=np.int64, "
+     "count=int(lengths.sum()))", "drop int(...)"): "np.fromiter takes numpy's integer as its count",
+    ("mesh/distance_field_kernel.py", "for i in range(points.shape[0]):", "0 -> 1"): _GUARD_WIDE,
+    ("mesh/distance_field_kernel.py", "constant = voxel * math.sqrt(3.0) / 2.0 + guard * (1.0 + largest)",
+     "1.0 -> 2.0"): _GUARD_WIDE,
+    ("mesh/distance_field_kernel.py", "e = np.float64(flat[index])", "drop .float64(...)"):
+        "numba computes e - slack and e + slack in float64 either way: the float32 value is promoted exactly",
     ("grasp/strata.py", "return int(STRATUM_SHARE * count // max(strata, 1))", "// -> /"):
         "int() truncates the positive quotient as // does",
     ("match/search.py", "below = np.flatnonzero(result.cost < tau)", "< -> <="):
@@ -252,6 +268,19 @@ EQUIVALENT.update({
     ("grasp/tripods.py", "offset = 0.5 * spacing[:, None] * (np.cos(phi)[:, None] * t1 + np.sin(phi)[:, None] * t2)",
      "+ -> -"): "phi is uniform over the whole turn: (cos phi, -sin phi) is the direction of -phi, as uniform; "
                 "the fingers' directions are drawn from the same distribution",
+    ("export/level.py", 'return {"translation": [float(c) for c in t], "rotation": [float(c) for c in '
+     'Rotation.from_matrix(R).as_quat()]}', "drop float(...)"):
+        "numpy's float64 is a subclass of float: json writes the same numbers",
+    ("mesh/neighbours.py", "CUBE_SHARE = 1.0", "1.0 -> 2.0"):
+        "the cubes' side is a speed setting: each cube's ball query covers every ball of its points at any side, "
+        "and the kernel keeps the samples within the radius exactly",
+    ("mesh/neighbours.py", "candidates = np.fromiter(itertools.chain.from_iterable(lists), dtype=np.int64, "
+     "count=int(lengths.sum()))", "drop int(...)"): "np.fromiter takes numpy's integer as its count",
+    ("mesh/distance_field_kernel.py", "for i in range(points.shape[0]):", "0 -> 1"): _GUARD_WIDE,
+    ("mesh/distance_field_kernel.py", "constant = voxel * math.sqrt(3.0) / 2.0 + guard * (1.0 + largest)",
+     "1.0 -> 2.0"): _GUARD_WIDE,
+    ("mesh/distance_field_kernel.py", "e = np.float64(flat[index])", "drop .float64(...)"):
+        "numba computes e - slack and e + slack in float64 either way: the float32 value is promoted exactly",
     ("grasp/strata.py", "return int(STRATUM_SHARE * count // max(strata, 1))", "// -> /"):
         "int() of a positive quotient is its floor: dividing and flooring first gives the same whole number",
     ("mesh/furniture.py", "tops[other] = max(tops.get(other, -np.inf), float(np.median(closest[on] @ up)))",

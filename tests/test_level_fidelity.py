@@ -168,6 +168,15 @@ def test_every_node_scene_camera_light_and_extra_of_the_level_is_kept(round_trip
     assert matched == level["objects"], matched
 
 
+def test_the_levels_scene_says_its_units_and_up(round_trip):
+    """The scene the level shows records the units and the signed up axis the objects were placed in: the CAD
+    level's centimetres and +z, the others' metres and +y."""
+    name, folder, level = round_trip
+    written = _document(folder / "out" / "level.glb")
+    record = written["scenes"][written.get("scene", 0)]["extras"]["pinchmatch"]
+    assert (record["units"], record["up"]) == ((level["units"] or "m"), "+" + (level["up"] or "y"))
+
+
 def test_the_validator_reports_no_error(round_trip):
     if NODE is None or not (VALIDATE.parent / "node_modules" / "gltf-validator").is_dir():
         if os.environ.get("CI"):
