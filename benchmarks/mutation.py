@@ -73,7 +73,7 @@ CORE = {
     "options.py": ["test_config.py", "test_cache.py", "test_result_cache.py"],
     "match/scene.py": ["test_match.py", "test_redirect.py", "test_landing.py", "test_select.py"],
     "match/reference.py": ["test_match.py", "test_cache.py"],
-    "match/felt.py": ["test_landing.py"],
+    "match/felt.py": ["test_landing.py", "test_tripod_landing.py"],
     "mesh/support.py": ["test_pinches.py", "test_redirect.py", "test_manifest.py"],
     "memory.py": ["test_memory_limits.py"],
     "mesh/gltf_apply.py": ["test_gltf_sparse.py", "test_gltf_check.py"],
@@ -138,6 +138,8 @@ EQUIVALENT: dict[tuple[str, str, str], str] = {
      "1.0 -> 2.0"): _GUARD_WIDE,
     ("mesh/distance_field_kernel.py", "e = np.float64(flat[index])", "drop .float64(...)"):
         "numba computes e - slack and e + slack in float64 either way: the float32 value is promoted exactly",
+    ("match/felt.py", "key = _pose_key(candidates.pinches, int(pose))", "drop int(...)"):
+        "a numpy integer indexes the contacts as an int does: the key's bytes are the same",
     ("grasp/strata.py", "return int(STRATUM_SHARE * count // max(strata, 1))", "// -> /"):
         "int() truncates the positive quotient as // does",
     ("match/search.py", "below = np.flatnonzero(result.cost < tau)", "< -> <="):
@@ -281,6 +283,8 @@ EQUIVALENT.update({
      "1.0 -> 2.0"): _GUARD_WIDE,
     ("mesh/distance_field_kernel.py", "e = np.float64(flat[index])", "drop .float64(...)"):
         "numba computes e - slack and e + slack in float64 either way: the float32 value is promoted exactly",
+    ("match/felt.py", "key = _pose_key(candidates.pinches, int(pose))", "drop int(...)"):
+        "a numpy integer indexes the contacts as an int does: the key's bytes are the same",
     ("grasp/strata.py", "return int(STRATUM_SHARE * count // max(strata, 1))", "// -> /"):
         "int() of a positive quotient is its floor: dividing and flooring first gives the same whole number",
     ("mesh/furniture.py", "tops[other] = max(tops.get(other, -np.inf), float(np.median(closest[on] @ up)))",
