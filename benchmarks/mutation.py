@@ -74,7 +74,7 @@ CORE = {
     "match/scene.py": ["test_match.py", "test_redirect.py", "test_landing.py", "test_select.py"],
     "match/reference.py": ["test_match.py", "test_cache.py"],
     "match/felt.py": ["test_landing.py", "test_tripod_landing.py"],
-    "mesh/support.py": ["test_pinches.py", "test_redirect.py", "test_manifest.py"],
+    "mesh/support.py": ["test_pinches.py", "test_redirect.py", "test_manifest.py", "test_furniture.py"],
     "memory.py": ["test_memory_limits.py"],
     "mesh/gltf_apply.py": ["test_gltf_sparse.py", "test_gltf_check.py"],
     "mesh/facing.py": ["test_load.py"],
@@ -220,6 +220,8 @@ EQUIVALENT.update({
     ("runner/design.py", "total = s.evaluations or max(1, int((s.budget_s - spent() - final_s) / max(first_s, 1e-3)) "
      "+ 1)", "1 -> 2"): "the total only labels the progress bar; the search stops by time, not by it",
     ("match/search.py", "pick_b = b.cost < a.cost", "< -> <="): _BOUNDARY,
+    ("mesh/support.py", 'return SupportPlane(normal, float(rests_on), "furniture top")', "drop float(...)"):
+        "the furniture survey gives the top's height as a float already (a median of heights)",
     ("mesh/support.py", "LEVEL_UP = np.array([0.0, 1.0, 0.0])", "drop .array(...)"):
         "a rotation matrix times a list of three numbers is the same vector",
     ("mesh/support.py", "return np.asarray(points, dtype=np.float64) @ self.normal - self.height_mm",
