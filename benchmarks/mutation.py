@@ -210,15 +210,15 @@ EQUIVALENT.update({
     ("mesh/level.py", "if np.linalg.det(transform[:3, :3]) < 0:  # a mirroring transform turns the winding inside "
      "out", "< -> <="): "a node whose transform has determinant 0 flattens its mesh to no volume, which the load "
                         "refuses either way",
-    ("runner/design.py", "if needed > s.budget_s and s.evaluations is None:", "> -> >="): _BOUNDARY,
+    ("runner/design.py", "if first_s > s.budget_s and s.evaluations is None:", "> -> >="): _BOUNDARY,
     ("grasp/features.py", "mass_along_mm=np.stack([along, -along], axis=-1),", "drop -1"):
         "np.stack of 1-D arrays: axis 1 is the last axis, as -1 is",
     ("match/redirect.py", "terms = np.stack([(angle / redirect.threshold_deg) ** 2, (turn / redirect.axis_threshold_deg) "
      "** 2], axis=-1)", "drop -1"): "np.stack of 1-D arrays: axis 1 is the last axis, as -1 is",
     ("match/candidates.py", "keep = np.asarray(keep)", "drop .asarray(...)"):
         "numpy indexes with a list of positions as with the array made from it",
-    ("runner/design.py", "total = s.evaluations or max(1, int((s.budget_s - spent() - final_s) / max(first_s, 1e-3)) "
-     "+ 1)", "1 -> 2"): "the total only labels the progress bar; the search stops by time, not by it",
+    ("runner/design.py", "total = s.evaluations or max(1, int(s.budget_s / max(first_s, 1e-3)))", "1 -> 2"):
+        "the total only labels the progress bar; the search stops by time, not by it",
     ("match/search.py", "pick_b = b.cost < a.cost", "< -> <="): _BOUNDARY,
     ("mesh/support.py", 'return SupportPlane(normal, float(rests_on), "furniture top")', "drop float(...)"):
         "the furniture survey gives the top's height as a float already (a median of heights)",

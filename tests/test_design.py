@@ -195,10 +195,11 @@ def test_bad_design_options_end_in_one_line_and_write_nothing(tmp_path, capsys, 
     assert not out.exists()
 
 
-def test_a_budget_too_small_is_refused_after_the_first_candidate_not_after_the_budget(
+def test_a_budget_shorter_than_one_candidate_is_refused_after_it_and_a_longer_one_is_the_searchs_alone(
         tmp_path, capsys, scene, monkeypatch):
-    """Each judged candidate takes 20 s of a fake clock: a 50 s budget cannot hold the first, one more
-    and the final match, and the run says so after judging one, without spending the budget."""
+    """Each judged candidate takes 20 s of a fake clock. A 15 s budget cannot hold one: the run says so after
+    judging it, and writes nothing. A 50 s budget is the search's own: two candidates fit in it (the second
+    ends at 40 s, a third would end at 60 s), and the final match after it is not charged to it."""
     from types import SimpleNamespace
 
     from pinchmatch.runner import design
@@ -207,22 +208,28 @@ def test_a_budget_too_small_is_refused_after_the_first_candidate_not_after_the_b
     judged = []
     real_rows = design.Judge.prop_rows
 
-    def slow_rows(self, stack):
+    def slow_rows(self, stack, bound=float("inf"), order=None):
         if design._key(stack) not in self.rows:
             judged.append(stack)
             offset[0] += 20.0
-        return real_rows(self, stack)
+        return real_rows(self, stack, bound, order)
 
     monkeypatch.setattr(design, "time", SimpleNamespace(perf_counter=lambda: time.perf_counter() + offset[0]))
     monkeypatch.setattr(design.Judge, "prop_rows", slow_rows)
     out = tmp_path / "out"
-    code, _, err = run_cli(capsys, "design", "--virtual", scene, "--count", 100, "--budget-s", 50, "-o", out,
+    code, _, err = run_cli(capsys, "design", "--virtual", scene, "--count", 100, "--budget-s", 15, "-o", out,
                            "--jobs", 1)
     # the fake 20 s and the real judging time, which a loaded machine can stretch past a second
     said = re.search(r"judging one candidate takes (\d+\.\d) s", err)
     assert code == 2 and said and 20.0 <= float(said.group(1)) < 30.0, err
     assert len(judged) == 1
     assert not out.exists()
+    judged.clear()
+    code, _, err = run_cli(capsys, "design", "--virtual", scene, "--count", 100, "--budget-s", 50, "-o", out,
+                           "--jobs", 1)
+    assert code == 0, err
+    assert len(judged) == 2
+    assert json.loads((out / "design.json").read_text())["search"]["evaluations"] == 2
 
 
 def test_a_scene_with_no_usable_object_ends_in_one_line(tmp_path, capsys):
@@ -231,3 +238,57 @@ def test_a_scene_with_no_usable_object_ends_in_one_line(tmp_path, capsys):
     out = tmp_path / "out"
     code, _, err = run_cli(capsys, "design", "--virtual", empty, "-o", out)
     assert code == 2 and "empty.stl" in err and len(err.strip().splitlines()) == 1 and not out.exists()
+
+
+def test_giving_up_hopeless_candidates_keeps_the_search_s_answer(tmp_path, monkeypatch):
+    """Four scene objects (stacks of the family and a ball), twelve candidates: the search that gives up a
+    candidate once its objects' costs pass the best's total finds the same best stack, with the same costs,
+    as the search that judges every object of every candidate; and it does give some up."""
+    from pinchmatch import MatchSettings, PinchSettings, analyze_object, candidate_poses
+    from pinchmatch.runner import design
+
+    shapes = {"tower": stack_mesh(Stack((Part("cylinder", 40, 44), Part("cylinder", 40, 30)))),
+              "post": stack_mesh(Stack((Part("cylinder", 50, 32), Part("cylinder", 30, 44)))),
+              "block": stack_mesh(Stack((Part("box", 30, 26),))),
+              "ball": trimesh.creation.icosphere(subdivisions=3, radius=22.0)}
+    settings = PinchSettings(count=120, seed=0)
+    virtuals = []
+    for name, mesh in shapes.items():
+        mesh.export(tmp_path / f"{name}.stl")
+        virtuals.append(candidate_poses(analyze_object(tmp_path / f"{name}.stl"), settings=settings))
+    options = DesignSettings(evaluations=12, search_count=120)
+    pruned = design.design_props(virtuals, options, match=MatchSettings(refine=False), pinch=settings)
+    full_judge = design.Judge.judge
+    monkeypatch.setattr(design.Judge, "judge", lambda self, stacks, best=None: full_judge(self, stacks))
+    full = design.design_props(virtuals, options, match=MatchSettings(refine=False), pinch=settings)
+    assert pruned.best.stacks == full.best.stacks
+    np.testing.assert_array_equal(pruned.best.cost, full.best.cost)
+    assert pruned.pruned > 0 and full.pruned == 0
+
+
+def test_a_fitted_stack_follows_a_stacks_profile_wherever_it_stands_on_its_base():
+    """A stack of a cylinder, a frustum and a narrower cylinder, turned about its up axis and moved: the fitted
+    stack is as tall, and at every height its width is the original's within 1.5 mm (the profile's bins are
+    2.5 mm tall: a step between parts may fall inside one)."""
+    from pinchmatch.mesh.stack_fit import fitted_stack
+
+    truth = Stack((Part("cylinder", 40.0, 60.0), Part("frustum", 50.0, 60.0, 30.0), Part("cylinder", 30.0, 30.0)))
+    mesh = stack_mesh(truth)
+    mesh.apply_transform(trimesh.transformations.rotation_matrix(0.7, [0, 0, 1]))
+    mesh.apply_translation([120.0, -45.0, 300.0])
+    fitted = fitted_stack(mesh)
+
+    def width_at(stack, z):
+        bottom = 0.0
+        for part in stack.parts:
+            if z <= bottom + part.height_mm:
+                share = (z - bottom) / part.height_mm
+                return part.width_mm + share * ((part.top_width_mm or part.width_mm) - part.width_mm)
+            bottom += part.height_mm
+        return np.nan
+
+    assert fitted.height_mm == pytest.approx(truth.height_mm, abs=0.5) and len(fitted.parts) <= 4
+    heights = np.linspace(1.0, truth.height_mm - 1.0, 200)
+    near_steps = np.isclose(heights[:, None], [40.0, 90.0], atol=3.0).any(axis=1)
+    errors = np.abs([width_at(fitted, z) - width_at(truth, z) for z in heights])
+    assert errors[~near_steps].max() < 1.5, errors.max()

@@ -320,7 +320,9 @@ def build_parser() -> argparse.ArgumentParser:
                         help="every prop printable standing on its base without supports: no part hangs over "
                              "the one below, no downward face flatter than 45 degrees (default: overhangs "
                              "allowed and reported)")
-    design.add_argument("--budget-s", type=float, default=120.0, help="wall time of the whole design (default 120)")
+    design.add_argument("--budget-s", type=float, default=120.0,
+                        help="wall time of the design's search (default 120); the scene's sampling and the final "
+                             "match come on top")
     design.add_argument("--evaluations", type=int, metavar="N",
                         help="judge exactly N candidates, whatever the machine's speed (the budget still bounds it)")
     design.add_argument("--split", choices=("none", "nodes"), default=None,

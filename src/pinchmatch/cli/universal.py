@@ -37,19 +37,6 @@ from .runs import (
 )
 
 
-#: the design's budget keeps this much for writing the results: props, documents, scenes and page
-WRITE_RESERVE_S, WRITE_RESERVE_S_PER_OBJECT = 2.0, 0.3
-#: and this much per object for refining the final match (about 0.9 s of one core per object on the
-#: benchmark's real objects: benchmarks/RESULTS.md)
-REFINE_RESERVE_S_PER_OBJECT = 1.0
-
-
-def reserve_s(matching, objects: int) -> float:
-    """What the design's budget keeps for its final match and the writing, for ``objects`` objects."""
-    per = WRITE_RESERVE_S_PER_OBJECT + (REFINE_RESERVE_S_PER_OBJECT if matching.refine else 0.0)
-    return WRITE_RESERVE_S + per * objects
-
-
 def _jnd_settings(args, why: str):
     """The pinch settings, the match settings and the run's settings record of a command that compares costs
     across sets of props, which needs the scale of the noticeable differences (``why`` says so)."""
@@ -205,12 +192,16 @@ def cmd_design(args) -> int:
             raise ConfigError(failures[0] if len(failures) == 1 else
                               f"none of the {len(failures)} scene files could be used (first: {failures[0]}); "
                               "fix or remove them")
+        job = match_job(args, settings, matching, cache)
+        scene_tasks = object_tasks("virtual", used, [None] * len(used), [None] * len(used))
+        shelf, seeds = None, ()
+        if shelf_specs:  # the shelf's best props first: the search starts from their shapes
+            with executor(args.jobs, args.scheduler) as ex:
+                shelf, seeds = _best_shelf_subset(args, ui, ex, job, shelf_specs, scene_tasks, design.k)
         with ui.step("designing", None) as advance:
-            found = design_props(virtuals, design, match=matching, pinch=settings, started=t0,
-                                 reserve_s=reserve_s(matching, len(virtuals)),
+            found = design_props(virtuals, design, match=matching, pinch=settings, seeds=seeds,
                                  progress=lambda done, total, note: advance(f"{done} judged: {note}", done=False))
         t1 = time.perf_counter()
-        job = match_job(args, settings, matching, cache)
         publisher = OutputFolder(out)
         with publisher as stage:
             props = []
@@ -223,13 +214,9 @@ def cmd_design(args) -> int:
                           for s in standing(object_specs([str(p) for p in props], option="--tangible"), args,
                                             "tangible")]
             prop_tasks = object_tasks("tangible", prop_specs, [None] * len(props), [None] * len(props))
-            scene_tasks = object_tasks("virtual", used, [None] * len(used), [None] * len(used))
             with executor(args.jobs, args.scheduler) as ex:
                 result, doc, _sink, written = write_matches(args, stage, out, ui, ex, prop_tasks, scene_tasks, job,
                                                            run_settings)
-                shelf = None
-                if shelf_specs:
-                    shelf = _best_shelf_subset(args, ui, ex, job, shelf_specs, scene_tasks, design.k)
             document = design_document(run_settings | {"k": design.k, "max_parts": design.max_parts,
                                                        "max_height_mm": design.max_height_mm,
                                                        "max_width_mm": design.max_width_mm, "budget_s": design.budget_s,
@@ -254,8 +241,14 @@ def cmd_design(args) -> int:
     return EXIT_SOME_FAILED if failures or result.failed else 0
 
 
-def _best_shelf_subset(args, ui, ex, job, shelf_specs, scene_tasks, k: int) -> dict:
-    """The best ``k`` props of a shelf for the scene, as ``select`` finds them, for the comparison."""
+def _best_shelf_subset(args, ui, ex, job, shelf_specs, scene_tasks, k: int) -> tuple[dict, tuple]:
+    """The best ``k`` props of a shelf for the scene, as ``select`` finds them, for the comparison; and the
+    stacks fitted to them, standing on their up (:func:`pinchmatch.mesh.stack_fit.fitted_stack`), where the
+    design's search starts."""
+    import trimesh
+
+    from ..mesh.stack_fit import fitted_stack
+
     from ..match.select import select_props
     from ..runner.tasks import served_task
 
@@ -268,9 +261,15 @@ def _best_shelf_subset(args, ui, ex, job, shelf_specs, scene_tasks, k: int) -> d
     cost = np.array([rows[j].row for j in sorted(rows)]).reshape(len(rows), n)
     loud = np.array([rows[j].noticeable for j in sorted(rows)]).reshape(len(rows), n)
     chosen = select_props(cost, loud, min(k, n), "mean")
+    seeds = []
+    for t in chosen.props:
+        loaded = run.tangibles[t].obj.loaded
+        mesh = loaded.mesh.copy()
+        mesh.apply_transform(trimesh.geometry.align_vectors(np.asarray(loaded.up, dtype=np.float64), [0.0, 0.0, 1.0]))
+        seeds.append(fitted_stack(mesh, parts=args.max_parts))
     return {"props": [run.tangibles[t].name for t in chosen.props], "mean_cost": chosen.mean_cost,
             "noticeable_count": int(chosen.noticeable[chosen.assigned >= 0].sum()), "exact": chosen.exact,
-            "objects": {rows[j].name: float(chosen.cost[i]) for i, j in enumerate(sorted(rows))}}
+            "objects": {rows[j].name: float(chosen.cost[i]) for i, j in enumerate(sorted(rows))}}, tuple(seeds)
 
 
 def demo_design(publisher, stage: Path, objects: Path, settings, *, budget_s: float, seed: int, ui) -> dict:
@@ -289,7 +288,6 @@ def demo_design(publisher, stage: Path, objects: Path, settings, *, budget_s: fl
     virtual_paths = sorted(objects.glob("vo*.stl"))
     study_prop = next(objects.glob("tangible_*.stl"))
     matching = MatchSettings()
-    started = time.perf_counter()
     with ui.step("design: the scene's poses", len(virtual_paths)) as advance:
         virtuals = []
         for p in virtual_paths:
@@ -297,8 +295,7 @@ def demo_design(publisher, stage: Path, objects: Path, settings, *, budget_s: fl
             advance(p.name)
     design = DesignSettings(k=1, max_width_mm=settings.max_width_mm, budget_s=budget_s, seed=seed)
     with ui.step("designing", None) as advance:
-        found = design_props(virtuals, design, match=matching, pinch=settings, started=started,
-                             reserve_s=reserve_s(matching, len(virtuals)),
+        found = design_props(virtuals, design, match=matching, pinch=settings,
                              progress=lambda done, total, note: advance(f"{done} judged: {note}", done=False))
     designed_path = publisher.out / "props" / "designed.stl"
     publisher.write_direct(designed_path, stack_mesh(found.best.stacks[0]).export(file_type="stl"))

@@ -48,7 +48,7 @@ def design_document(settings: dict, found, props: list[Path], out: Path, matches
         "mean_cost": json_number(costs.mean(), 6) if len(costs) else None,
         "noticeable_count": sum(bool(m.get("noticeable")) for m in (matches or {}).get("matches", [])),
         "search": {"evaluations": found.evaluations, "seconds": round(found.seconds, 2),
-                   "first_evaluation_s": round(found.first_evaluation_s, 3),
+                   "first_evaluation_s": round(found.first_evaluation_s, 3), "pruned": found.pruned,
                    "history": [{"evaluations": e, "seconds": round(t, 2), "mean_cost": json_number(c, 6)}
                                for e, t, c in found.history]},
         "seconds": round(seconds, 2),

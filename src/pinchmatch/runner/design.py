@@ -17,9 +17,19 @@ kept when it lowers the objective. The scene's objects are sampled once, at the 
 the search the props are sampled at ``search_count`` poses (fewer, for speed); the chosen props are
 then written and matched at the full count, and those are the costs reported.
 
-**The budget** is wall time from the start of the run (``started``): the search stops when one more
-candidate would leave too little for the final match, estimated from the first candidate's time
-scaled to the full count, plus ``reserve_s`` for writing the results.
+**Judging** a candidate costs what does not depend on it once: the scene's poses, features and cost
+model are made before the search, and each candidate is ranked on target over its sampled poses (the
+felt ranking, with its landing tables and steady search made anew for every candidate's poses, and
+refinement are the final match's). With one prop, a candidate's objects are judged hardest first (by
+the best candidate's costs), and a candidate is given up as soon as the costs of the objects judged so
+far add up to more than the best candidate's total: costs are never negative, so it cannot win.
+
+**Where it starts.** The proxy's candidates, and where a shelf is given (``seeds``), the stacks
+fitted to its best props (:mod:`pinchmatch.mesh.stack_fit`), judged first.
+
+**The budget** is the search's wall time: the search stops when one more candidate would not fit in
+it. The scene's sampling before it and the final match after it take what they take (as ``match``'s
+would); a budget shorter than judging one candidate is refused after that one.
 
 **Determinism.** For a seed, the candidates and their order are the same on every machine; the
 budget decides how many are judged (``evaluations`` fixes the number instead, so that the result
@@ -231,29 +241,48 @@ class Judge:
                  stand: bool = True):
         self.virtuals, self.match, self.pinch, self.folder = virtuals, match, pinch, folder
         self.support = "auto" if stand else "none"
-        # candidate props are ranked on their sampled poses (refinement is for the final match)
-        self.config = Config(pinch, replace(match, refine=False))
+        # candidate props are ranked on target over their sampled poses: the felt ranking (its landing tables
+        # and steady search, made anew for every candidate's poses) and refinement are for the final match
+        self.config = Config(pinch, replace(match, refine=False, rank="nominal"))
         self.model = cost_model(match, virtuals)
         self.rows: dict[str, tuple[np.ndarray, np.ndarray]] = {}
         self.evaluations = 0
+        self.pruned = 0  # candidates given up before every object was judged
 
-    def prop_rows(self, stack: Stack) -> tuple[np.ndarray, np.ndarray]:
+    def prop_rows(self, stack: Stack, bound: float = math.inf,
+                  order: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """(m,) each scene object's least cost on ``stack`` and (m,) whether it is noticed. The objects are
+        judged in ``order`` (default: as given) and the judging stops once their costs add up to more than
+        ``bound``: the objects left cost inf (the candidate cannot beat the one that set the bound)."""
         key = _key(stack)
         if key not in self.rows:
             path = self.folder / f"{key}.stl"
             path.write_bytes(stack_mesh(stack).export(file_type="stl"))
+            m = len(self.virtuals)
+            cost, loud = np.full(m, np.inf), np.ones(m, bool)
             try:
                 prop = cached_candidates(ObjectSpec(str(path), support=self.support), cache=None, settings=self.pinch)
             except PinchmatchError:  # a prop with no feasible pinch serves nothing
-                self.rows[key] = (np.full(len(self.virtuals), np.inf), np.ones(len(self.virtuals), bool))
-            else:
-                matches = [match_one([prop], v, self.config, model=self.model, details=False) for v in self.virtuals]
-                self.rows[key] = (np.array([vm.row[0] for vm in matches]), np.array([vm.row_noticed[0] for vm in matches]))
+                prop = None
+            total = 0.0
+            for j in (range(m) if order is None else order) if prop is not None else ():
+                vm = match_one([prop], self.virtuals[j], self.config, model=self.model, details=False)
+                cost[j], loud[j] = vm.row[0], vm.row_noticed[0]
+                total += cost[j]
+                if total > bound:
+                    self.pruned += 1
+                    break
+            self.rows[key] = (cost, loud)
             self.evaluations += 1
         return self.rows[key]
 
-    def judge(self, stacks: tuple) -> Judged:
-        rows = [self.prop_rows(st) for st in stacks]
+    def judge(self, stacks: tuple, best: Judged | None = None) -> Judged:
+        """``stacks`` judged; with one prop and the ``best`` judged so far, given up early (:meth:`prop_rows`)."""
+        if best is not None and len(stacks) == 1 and np.isfinite(best.cost).all():
+            rows = [self.prop_rows(stacks[0], float(best.cost[:, 0].sum()),
+                                   np.argsort(-best.cost[:, 0], kind="stable"))]
+        else:
+            rows = [self.prop_rows(st) for st in stacks]
         return Judged(stacks, np.column_stack([r[0] for r in rows]), np.column_stack([r[1] for r in rows]))
 
 
@@ -264,14 +293,29 @@ class DesignResult:
     evaluations: int
     seconds: float
     first_evaluation_s: float
+    pruned: int = 0  # candidates given up before every object was judged
 
 
 def design_props(virtuals: list[Candidates], s: DesignSettings, *, match: MatchSettings, pinch: PinchSettings,
-                 reserve_s: float = 0.0, started: float | None = None, progress=None) -> DesignResult:
-    """The best set of ``s.k`` stacks found for the scene (see the module notes). ``started``: the
-    ``time.perf_counter()`` the budget counts from (default: now); ``reserve_s``: time kept out of the
-    budget for writing the results, beside the final match's; ``progress(done, total, note)`` is called
-    after each judged candidate.
+                 seeds: tuple = (), progress=None) -> DesignResult:
+    """The best set of ``s.k`` stacks found for the scene (see the module notes).
+
+    Parameters
+    ----------
+    virtuals : list of Candidates
+        The scene's objects, sampled at the run's count.
+    s : DesignSettings
+        The design's options; ``s.budget_s`` is the search's own wall time.
+    match, pinch : MatchSettings, PinchSettings
+        The run's settings (the candidates are sampled at ``s.search_count`` poses).
+    seeds : tuple of Stack
+        Stacks judged before the proxy's (those fitted to a shelf's best props).
+    progress : callable, optional
+        ``progress(done, total, note)``, called after each judged candidate.
+
+    Returns
+    -------
+    DesignResult
 
     >>> from pinchmatch import MatchSettings, PinchSettings, analyze_object, candidate_poses
     >>> settings = PinchSettings(count=100, seed=0)
@@ -284,41 +328,36 @@ def design_props(virtuals: list[Candidates], s: DesignSettings, *, match: MatchS
     rng = np.random.default_rng(s.seed)
     search_pinch = replace(pinch, count=min(pinch.count, s.search_count))
     t0 = time.perf_counter()
-    clock0 = t0 if started is None else started
-
-    def spent() -> float:
-        return time.perf_counter() - clock0
 
     with tempfile.TemporaryDirectory(prefix="pinchmatch-design-") as folder:
         judge = Judge(virtuals, match, search_pinch, Path(folder), stand=s.stand)
-        starts = initial_stacks(virtuals, s)
+        starts = list(dict.fromkeys([_repair(st, s) for st in seeds] + initial_stacks(virtuals, s)))
         judge.judge((starts[0],))
         first_s = time.perf_counter() - t0
-        # the chosen props sampled and searched at the full count, and the results written
-        final_s = reserve_s + s.k * first_s * pinch.count / search_pinch.count
-        needed = spent() + first_s * s.k + final_s
-        if needed > s.budget_s and s.evaluations is None:
-            raise ConfigError(f"--budget-s {s.budget_s:g}: judging one candidate takes {first_s:.1f} s here, and "
-                              f"the design needs at least {needed:.0f} s with the scene's sampling and the final "
-                              "match; give more")
-        total = s.evaluations or max(1, int((s.budget_s - spent() - final_s) / max(first_s, 1e-3)) + 1)
+        if first_s > s.budget_s and s.evaluations is None:
+            raise ConfigError(f"--budget-s {s.budget_s:g}: judging one candidate takes {first_s:.1f} s here, more "
+                              "than the whole search may; give more")
+        total = s.evaluations or max(1, int(s.budget_s / max(first_s, 1e-3)))
 
         def left() -> bool:
             if s.evaluations is not None:
                 return judge.evaluations < s.evaluations
-            per = (time.perf_counter() - t0) / max(judge.evaluations, 1)
-            return spent() + per + final_s < s.budget_s
+            spent = time.perf_counter() - t0
+            return spent + spent / max(judge.evaluations, 1) < s.budget_s
 
         # the proxy's candidates, one prop at a time; for k > 1 the best ones side by side
         singles = []
+        prune = s.k == 1 and s.anneal == 0.0
         for st in starts:
             if not left():
                 break
-            singles.append((judge.judge((st,)).score, len(singles), st))
+            lead = min(singles, key=lambda x: (x[0], x[1]))[3] if singles and prune else None
+            judged = judge.judge((st,), lead)
+            singles.append((judged.score, len(singles), st, judged))
             if progress:
                 progress(judge.evaluations, total, "proxy candidates")
         singles.sort(key=lambda x: (x[0], x[1]))
-        chosen = tuple(st for _, _, st in singles[:s.k]) if singles else (starts[0],)
+        chosen = tuple(st for _, _, st, _ in singles[:s.k]) if singles else (starts[0],)
         while len(chosen) < s.k:
             chosen += (mutate(chosen[-1], rng, s),)
         best = current = judge.judge(chosen)
@@ -327,7 +366,7 @@ def design_props(virtuals: list[Candidates], s: DesignSettings, *, match: MatchS
             which = int(rng.integers(s.k))
             trial = list(current.stacks)
             trial[which] = mutate(trial[which], rng, s)
-            judged = judge.judge(tuple(trial))
+            judged = judge.judge(tuple(trial), best if prune else None)
             if _accept(judged.score[0], current.score[0], s.anneal * (1.0 - judge.evaluations / total), rng):
                 current = judged
             if judged.score < best.score:
@@ -339,4 +378,4 @@ def design_props(virtuals: list[Candidates], s: DesignSettings, *, match: MatchS
             problems = stack_problems(st, max_height_mm=s.max_height_mm, max_width_mm=s.max_width_mm)
             if problems:
                 raise InternalError(f"a designed stack is out of the limits: {'; '.join(problems)}")
-        return DesignResult(best, history, judge.evaluations, time.perf_counter() - t0, first_s)
+        return DesignResult(best, history, judge.evaluations, time.perf_counter() - t0, first_s, judge.pruned)
