@@ -90,7 +90,7 @@ CORE = {
     "runner/cache.py": ["test_cache.py", "test_result_cache.py", "test_keys.py"],
     "match/targeted.py": ["test_targeted.py"],
     "grasp/tripods.py": ["test_tripods.py"],
-    "grasp/rounds.py": ["test_spread.py", "test_coverage.py", "test_tripods.py"],
+    "grasp/rounds.py": ["test_rounds.py", "test_spread.py", "test_coverage.py"],
 }
 
 #: surviving mutants judged equivalent: (module, source line stripped, description) -> reason
@@ -140,6 +140,10 @@ EQUIVALENT: dict[tuple[str, str, str], str] = {
         "numba computes e - slack and e + slack in float64 either way: the float32 value is promoted exactly",
     ("match/felt.py", "key = _pose_key(candidates.pinches, int(pose))", "drop int(...)"):
         "a numpy integer indexes the contacts as an int does: the key's bytes are the same",
+    ("grasp/tripods.py", "phi = rng.random(len(ray)) * 2.0 * np.pi", "2.0 -> 4.0"):
+        "an angle uniform over two turns is uniform over one: its cosine and sine take the same distribution",
+    ("mesh/support.py", 'return SupportPlane(normal, float(support), "support_mm")', "drop float(...)"):
+        "a whole-number height computes as its float does, and the plane's record writes float(...) of it",
     ("grasp/strata.py", "return int(STRATUM_SHARE * count // max(strata, 1))", "// -> /"):
         "int() truncates the positive quotient as // does",
     ("match/search.py", "below = np.flatnonzero(result.cost < tau)", "< -> <="):
@@ -287,6 +291,10 @@ EQUIVALENT.update({
         "numba computes e - slack and e + slack in float64 either way: the float32 value is promoted exactly",
     ("match/felt.py", "key = _pose_key(candidates.pinches, int(pose))", "drop int(...)"):
         "a numpy integer indexes the contacts as an int does: the key's bytes are the same",
+    ("grasp/tripods.py", "phi = rng.random(len(ray)) * 2.0 * np.pi", "2.0 -> 4.0"):
+        "an angle uniform over two turns is uniform over one: its cosine and sine take the same distribution",
+    ("mesh/support.py", 'return SupportPlane(normal, float(support), "support_mm")', "drop float(...)"):
+        "a whole-number height computes as its float does, and the plane's record writes float(...) of it",
     ("grasp/strata.py", "return int(STRATUM_SHARE * count // max(strata, 1))", "// -> /"):
         "int() of a positive quotient is its floor: dividing and flooring first gives the same whole number",
     ("mesh/furniture.py", "tops[other] = max(tops.get(other, -np.inf), float(np.median(closest[on] @ up)))",

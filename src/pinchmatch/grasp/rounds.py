@@ -54,7 +54,8 @@ class GraspKind:
     name : str
         ``"pinch"`` or ``"tripod"``, for the log.
     rules : tuple of str
-        The rules, in the order a rejected candidate is counted under the first it breaks.
+        The rules, in the order a rejected candidate is counted under the first it breaks; ``"reach"`` among
+        them (whether the next round searches reach first depends on how many it rejected).
     oversample : int
         Candidates' first contacts drawn per requested grasp in the first draw.
     max_draw_factor : int
