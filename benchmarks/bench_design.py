@@ -9,7 +9,9 @@ The scene and the shelf are `bench_select.py`'s: twenty objects (robosuite's sev
 pybullet_data's duck, teddy and Lego brick, ten ``random_urdfs`` objects) and fifteen more
 ``random_urdfs`` objects as the shelf. Prints, on the scene: the designed single prop, the best single
 shelf prop and the best two-prop subset of the shelf (exhaustive, from `pinchmatch select`): mean cost,
-noticeable objects, wall time; and whether `design` kept to its budget.
+noticeable objects, wall time; whether the search kept to its budget, how many candidates it judged and
+gave up early, and at which candidate it last improved. `design` is given the shelf (``--tangible``):
+its search starts from stacks fitted to the shelf's best prop.
 """
 
 from __future__ import annotations
@@ -56,8 +58,8 @@ def main() -> None:
     for c in sel["coverage"]:
         rows.append((f"best {c['k']} of the shelf", ", ".join(c["props"]), c["mean_cost"], c["noticeable_count"],
                      f"{select_s:.0f} (select, both K)"))
-    design_s = _run(["design", *common, "--budget-s", str(args.budget_s), "--seed", str(args.seed),
-                     "-o", str(root / "design")])
+    design_s = _run(["design", *common, "--tangible", *map(str, shelf), "--budget-s", str(args.budget_s),
+                     "--seed", str(args.seed), "-o", str(root / "design")])
     doc = json.loads((root / "design" / "design.json").read_text())
     prop = doc["props"][0]
     parts = " / ".join(f"{p['kind']} {p['width_mm']:g}" for p in prop["parts"])
@@ -73,10 +75,14 @@ def main() -> None:
     print(f"{'set':>22} {'mean_cost':>10} {'noticeable':>10} {'seconds':>18}  props")
     for name, props, mean, loud, secs in rows:
         print(f"{name:>22} {mean:>10} {loud:>10} {secs:>18}  {props}")
-    print(f"design: {doc['search']['evaluations']} candidates judged in {doc['search']['seconds']} s; "
-          f"{design_s:.1f} s wall in all, budget {args.budget_s:g} s "
-          f"({'within' if design_s <= args.budget_s else 'OVER'}); overhang {prop['overhang_area_mm2']} mm2, "
-          f"height {prop['height_mm']} mm, widest {prop['widest_mm']} mm")
+    search = doc["search"]
+    last = search["history"][-1]["evaluations"] if search["history"] else 0
+    print(f"design: {search['evaluations']} candidates judged in {search['seconds']} s (budget {args.budget_s:g} s, "
+          f"{'within' if search['seconds'] <= args.budget_s + search['first_evaluation_s'] else 'OVER'}), "
+          f"{search['pruned']} given up early; the last improvement at candidate {last} of {search['evaluations']}; "
+          f"{design_s:.1f} s wall in all (the shelf's match and the final match included); against the shelf's "
+          f"best: {doc['shelf_comparison']['designed_minus_shelf_mean_cost']:+.4f} mean cost; overhang "
+          f"{prop['overhang_area_mm2']} mm2, height {prop['height_mm']} mm, widest {prop['widest_mm']} mm")
     print(f"files: {root}")
     if args.picture:
         picture(root / "design", Path(args.picture))
