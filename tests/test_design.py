@@ -199,7 +199,7 @@ def test_a_budget_shorter_than_one_candidate_is_refused_after_it_and_a_longer_on
         tmp_path, capsys, scene, monkeypatch):
     """Each judged candidate takes 20 s of a fake clock. A 15 s budget cannot hold one: the run says so after
     judging it, and writes nothing. A 50 s budget is the search's own: two candidates fit in it (the second
-    ends at 40 s, a third would end at 60 s), and the final match after it is not charged to it."""
+    ends at 40 s, a third would end at 60 s); the finalists' ranking and the final match come after it."""
     from types import SimpleNamespace
 
     from pinchmatch.runner import design
@@ -228,7 +228,7 @@ def test_a_budget_shorter_than_one_candidate_is_refused_after_it_and_a_longer_on
     code, _, err = run_cli(capsys, "design", "--virtual", scene, "--count", 100, "--budget-s", 50, "-o", out,
                            "--jobs", 1)
     assert code == 0, err
-    assert len(judged) == 2
+    assert len(judged) == 4  # two on target within the budget, then both ranked again as finalists on top
     assert json.loads((out / "design.json").read_text())["search"]["evaluations"] == 2
 
 
@@ -242,8 +242,8 @@ def test_a_scene_with_no_usable_object_ends_in_one_line(tmp_path, capsys):
 
 def test_giving_up_hopeless_candidates_keeps_the_search_s_answer(tmp_path, monkeypatch):
     """Four scene objects (stacks of the family and a ball), twelve candidates: the search that gives up a
-    candidate once its objects' costs pass the best's total finds the same best stack, with the same costs,
-    as the search that judges every object of every candidate; and it does give some up."""
+    candidate once its objects' costs pass the finalists' bound finds the same best stack, with the same
+    costs, as the search that judges every object of every candidate; and it does give some up."""
     from pinchmatch import MatchSettings, PinchSettings, analyze_object, candidate_poses
     from pinchmatch.runner import design
 
@@ -259,7 +259,7 @@ def test_giving_up_hopeless_candidates_keeps_the_search_s_answer(tmp_path, monke
     options = DesignSettings(evaluations=12, search_count=120)
     pruned = design.design_props(virtuals, options, match=MatchSettings(refine=False), pinch=settings)
     full_judge = design.Judge.judge
-    monkeypatch.setattr(design.Judge, "judge", lambda self, stacks, best=None: full_judge(self, stacks))
+    monkeypatch.setattr(design.Judge, "judge", lambda self, stacks, prune=False: full_judge(self, stacks))
     full = design.design_props(virtuals, options, match=MatchSettings(refine=False), pinch=settings)
     assert pruned.best.stacks == full.best.stacks
     np.testing.assert_array_equal(pruned.best.cost, full.best.cost)

@@ -22,14 +22,19 @@ model are made before the search, and each candidate is ranked on target over it
 felt ranking, with its landing tables and steady search made anew for every candidate's poses, and
 refinement are the final match's). With one prop, a candidate's objects are judged hardest first (by
 the best candidate's costs), and a candidate is given up as soon as the costs of the objects judged so
-far add up to more than the best candidate's total: costs are never negative, so it cannot win.
+far add up to more than the total of the ``FINALISTS``-th best: costs are never negative, so it cannot
+be among the finalists.
 
 **Where it starts.** The proxy's candidates, and where a shelf is given (``seeds``), the stacks
 fitted to its best props (:mod:`pinchmatch.mesh.stack_fit`), judged first.
 
-**The budget** is the search's wall time: the search stops when one more candidate would not fit in
-it. The scene's sampling before it and the final match after it take what they take (as ``match``'s
-would); a budget shorter than judging one candidate is refused after that one.
+**The finalists.** The ``FINALISTS`` best sets on target are then ranked as the run ranks (the felt
+cost over where guided fingers land, at the search's count), and the best of them is the design: the
+ranking on target chooses where to look, the run's ranking what to keep.
+
+**The budget** is the search's wall time on target: the search stops when one more candidate would not
+fit in it. The scene's sampling before it, the finalists' ranking and the final match after it take what
+they take (as ``match``'s would); a budget shorter than judging one candidate is refused after that one.
 
 **Determinism.** For a seed, the candidates and their order are the same on every machine; the
 budget decides how many are judged (``evaluations`` fixes the number instead, so that the result
@@ -72,6 +77,8 @@ from .cache import cached_candidates
 SEARCH_COUNT = 300
 #: relative step of a width or height change
 STEP = 0.25
+#: the best sets on target ranked again as the run ranks (the felt cost) after the search
+FINALISTS = 3
 
 
 #: the bounds of design's options: a day's budget, a search of a million candidates, 8 props, 1 m tall
@@ -238,16 +245,17 @@ class Judge:
     """Judges props by the real pipeline, each stack once (written, loaded, sampled, searched)."""
 
     def __init__(self, virtuals: list[Candidates], match: MatchSettings, pinch: PinchSettings, folder: Path, *,
-                 stand: bool = True):
+                 stand: bool = True, ranked: bool = False):
         self.virtuals, self.match, self.pinch, self.folder = virtuals, match, pinch, folder
         self.support = "auto" if stand else "none"
-        # candidate props are ranked on target over their sampled poses: the felt ranking (its landing tables
-        # and steady search, made anew for every candidate's poses) and refinement are for the final match
-        self.config = Config(pinch, replace(match, refine=False, rank="nominal"))
+        # candidate props are ranked on target over their sampled poses (the felt ranking's landing tables and
+        # steady search are made anew for every candidate's poses); ``ranked``: as the run ranks (the finalists)
+        self.config = Config(pinch, replace(match, refine=False, rank=match.rank if ranked else "nominal"))
         self.model = cost_model(match, virtuals)
         self.rows: dict[str, tuple[np.ndarray, np.ndarray]] = {}
         self.evaluations = 0
         self.pruned = 0  # candidates given up before every object was judged
+        self.judged: list[Judged] = []  # every set judged, in order
 
     def prop_rows(self, stack: Stack, bound: float = math.inf,
                   order: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -276,14 +284,19 @@ class Judge:
             self.evaluations += 1
         return self.rows[key]
 
-    def judge(self, stacks: tuple, best: Judged | None = None) -> Judged:
-        """``stacks`` judged; with one prop and the ``best`` judged so far, given up early (:meth:`prop_rows`)."""
-        if best is not None and len(stacks) == 1 and np.isfinite(best.cost).all():
-            rows = [self.prop_rows(stacks[0], float(best.cost[:, 0].sum()),
-                                   np.argsort(-best.cost[:, 0], kind="stable"))]
+    def judge(self, stacks: tuple, prune: bool = False) -> Judged:
+        """``stacks`` judged. With ``prune`` (one prop), given up early (:meth:`prop_rows`) once it cannot be
+        among the ``FINALISTS`` best sets judged so far: its objects judged hardest first (by the best set's
+        costs), the bound the total of the last of those."""
+        whole = sorted((j for j in self.judged if np.isfinite(j.score[0])), key=lambda j: j.score)
+        if prune and len(stacks) == 1 and len(whole) >= FINALISTS:
+            rows = [self.prop_rows(stacks[0], float(whole[FINALISTS - 1].cost[:, 0].sum()),
+                                   np.argsort(-whole[0].cost[:, 0], kind="stable"))]
         else:
             rows = [self.prop_rows(st) for st in stacks]
-        return Judged(stacks, np.column_stack([r[0] for r in rows]), np.column_stack([r[1] for r in rows]))
+        judged = Judged(stacks, np.column_stack([r[0] for r in rows]), np.column_stack([r[1] for r in rows]))
+        self.judged.append(judged)
+        return judged
 
 
 @dataclass
@@ -351,8 +364,7 @@ def design_props(virtuals: list[Candidates], s: DesignSettings, *, match: MatchS
         for st in starts:
             if not left():
                 break
-            lead = min(singles, key=lambda x: (x[0], x[1]))[3] if singles and prune else None
-            judged = judge.judge((st,), lead)
+            judged = judge.judge((st,), prune)
             singles.append((judged.score, len(singles), st, judged))
             if progress:
                 progress(judge.evaluations, total, "proxy candidates")
@@ -366,7 +378,7 @@ def design_props(virtuals: list[Candidates], s: DesignSettings, *, match: MatchS
             which = int(rng.integers(s.k))
             trial = list(current.stacks)
             trial[which] = mutate(trial[which], rng, s)
-            judged = judge.judge(tuple(trial), best if prune else None)
+            judged = judge.judge(tuple(trial), prune)
             if _accept(judged.score[0], current.score[0], s.anneal * (1.0 - judge.evaluations / total), rng):
                 current = judged
             if judged.score < best.score:
@@ -374,6 +386,14 @@ def design_props(virtuals: list[Candidates], s: DesignSettings, *, match: MatchS
                 history.append((judge.evaluations, time.perf_counter() - t0, best.score[0]))
             if progress:
                 progress(judge.evaluations, total, f"mean cost {best.score[0]:.3g}")
+        # the finalists: the best few sets on target, ranked as the run ranks (the felt cost), the best kept
+        seen = sorted({judged.stacks: judged for judged in judge.judged}.values(), key=lambda j: j.score)
+        finalists = [j.stacks for j in seen[:FINALISTS] if np.isfinite(j.score[0])]
+        if len(finalists) > 1 and match.rank != "nominal":
+            ranker = Judge(virtuals, match, search_pinch, Path(folder), stand=s.stand, ranked=True)
+            ranked = [ranker.judge(stacks) for stacks in finalists]
+            best = min(ranked, key=lambda j: j.score)
+            history.append((judge.evaluations, time.perf_counter() - t0, best.score[0]))
         for st in best.stacks:  # the repair keeps every candidate in the limits
             problems = stack_problems(st, max_height_mm=s.max_height_mm, max_width_mm=s.max_width_mm)
             if problems:
