@@ -292,3 +292,23 @@ def test_a_fitted_stack_follows_a_stacks_profile_wherever_it_stands_on_its_base(
     near_steps = np.isclose(heights[:, None], [40.0, 90.0], atol=3.0).any(axis=1)
     errors = np.abs([width_at(fitted, z) - width_at(truth, z) for z in heights])
     assert errors[~near_steps].max() < 1.5, errors.max()
+
+
+def test_an_oblong_section_is_fitted_by_a_box_of_both_widths_and_repaired_within_the_limit():
+    """A box 80 x 40 mm under a cylinder 30 mm across, turned 25 degrees about its up: the fit's lower part is
+    a box of about 80 by 40 mm turned as the section is, the upper a round part; repaired for a 70 mm limit,
+    the box keeps its proportions with its diagonal at the limit."""
+    from pinchmatch.mesh.stack_fit import fitted_stack
+
+    truth = Stack((Part("box", 40.0, 80.0, depth_mm=40.0), Part("cylinder", 40.0, 30.0)))
+    mesh = stack_mesh(truth)
+    mesh.apply_transform(trimesh.transformations.rotation_matrix(np.radians(25.0), [0, 0, 1]))
+    fitted = fitted_stack(mesh)
+    low, high = fitted.parts[0], fitted.parts[-1]
+    assert low.kind == "box" and abs(low.width_mm - 80.0) < 6.0 and abs(low.depth_mm - 40.0) < 4.0
+    assert min(abs(low.turn_deg - 25.0), abs(low.turn_deg - 205.0)) < 3.0
+    assert high.kind in ("cylinder", "frustum") and abs(high.width_mm - 30.0) < 2.0
+    repaired = _repair(fitted, DesignSettings(max_width_mm=70.0))
+    box = repaired.parts[0]
+    assert np.hypot(box.width_mm, box.depth_mm) == pytest.approx(70.0, abs=0.2)
+    assert box.width_mm / box.depth_mm == pytest.approx(low.width_mm / low.depth_mm, rel=0.01)

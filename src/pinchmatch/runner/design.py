@@ -149,8 +149,14 @@ def _repair(stack: Stack, s: DesignSettings) -> Stack:
             top = min(max(p.top_width_mm if p.top_width_mm else 0.6 * width, MIN_PART_WIDTH_MM), 0.9 * width)
             if top < MIN_PART_WIDTH_MM:  # too narrow to bulge: a cylinder
                 p, top = replace(p, kind="cylinder"), None
+        depth = None
+        if p.kind == "box" and p.depth_mm is not None:  # an oblong box: its diagonal within the width limit
+            shrink = min(1.0, s.max_width_mm / math.hypot(p.width_mm, p.depth_mm))
+            width = max(p.width_mm * shrink, MIN_PART_WIDTH_MM)
+            depth = round(max(p.depth_mm * shrink, MIN_PART_WIDTH_MM), 1)
         parts.append(Part(p.kind, round(max(p.height_mm, MIN_PART_HEIGHT_MM), 1), round(width, 1),
-                          None if top is None else round(top, 1), round(p.turn_deg, 1) if p.kind == "box" else 0.0))
+                          None if top is None else round(top, 1), round(p.turn_deg, 1) if p.kind == "box" else 0.0,
+                          depth))
     total = sum(p.height_mm for p in parts)
     if total > s.max_height_mm:
         scale = s.max_height_mm / total
