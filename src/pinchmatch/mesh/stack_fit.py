@@ -35,15 +35,10 @@ FRUSTUM_GAIN = 0.2
 OBLONG_BELOW = 0.8
 
 
-def width_profile(mesh: trimesh.Trimesh, slices: int = SLICES) -> tuple[np.ndarray, float]:
-    """(slices, 3) per bin of height from the mesh's lowest point to its highest along +Z: its width (mm),
-    its widths along the slice's two principal directions across +Z, the wider first (NaN where a bin
-    holds no surface point); and the bins' height (mm). The direction of the wider is ``principal_turns``'."""
-    profile, _, step = _profile(mesh, slices)
-    return profile, step
-
-
-def _profile(mesh: trimesh.Trimesh, slices: int):
+def _profile(mesh: trimesh.Trimesh, slices: int) -> tuple[np.ndarray, np.ndarray, float]:
+    """Per bin of height from the mesh's lowest point to its highest along +Z: (slices, 3) its width (mm) and
+    its widths along the section's two principal directions across +Z, the wider first (NaN where a bin
+    holds no point); (slices,) the wider's direction (degrees about +Z); and the bins' height (mm)."""
     points, _ = trimesh.sample.sample_surface(mesh, SURFACE_POINTS, seed=0)  # area-uniform: a bin gets its share
     z0, z1 = float(points[:, 2].min()), float(points[:, 2].max())
     step = max(z1 - z0, 1e-9) / slices
