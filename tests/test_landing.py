@@ -242,12 +242,16 @@ def test_the_ranked_best_is_the_brute_forces_best_over_every_pair(tmp_path):
     assert best.cost_nominal == pytest.approx(float(r.cost[k]), rel=1e-9)
 
 
-def test_a_landing_table_weighs_exactly_the_pairs_within_the_axis_tolerance(tmp_path):
-    """A slab 12 mm thin, pinched across: landing 5 mm off on either face turns the axis by up to 40 degrees.
-    The pairs weighed are those within 14 degrees, recomputed here from the landing points."""
+@pytest.mark.parametrize("thick_mm", [12.0, 6.0])
+def test_a_landing_table_weighs_exactly_the_pairs_within_the_axis_tolerance(tmp_path, thick_mm):
+    """A slab 12 or 6 mm thin, pinched across: landing 5 mm off on either face turns the axis by up to 40 (or
+    59) degrees; on the thinner one even one finger 2.5 mm off leaves the tolerance. The pairs weighed are
+    those within 14 degrees, recomputed here from the landing points."""
     from pinchmatch.match.felt import landing_table, ring_weights
 
-    block = given(tmp_path, "slab", box((60.0, 12.0, 40.0), subdivide_mm=2.0).mesh, (0.0, -6.0, 0.0), (0.0, 6.0, 0.0))
+    half = thick_mm / 2.0
+    block = given(tmp_path, "slab", box((60.0, thick_mm, 40.0), subdivide_mm=2.0).mesh, (0.0, -half, 0.0),
+                  (0.0, half, 0.0))
     table = landing_table(block, 0, 5.0, SETTINGS)
     assert table.hit.all() and len(table.weights) == 625
     axis = table.points[:, 1] - table.points[:, 0]
@@ -332,3 +336,21 @@ def test_under_fixed_placement_the_felt_cost_turns_the_mass_offset_as_the_level_
     assert pattern.cost_nominal == pytest.approx(vm.best.cost_nominal, rel=1e-9, abs=1e-12)
     assert vm.landing.cost_nominal == pytest.approx(vm.best.cost_nominal, rel=1e-9, abs=1e-12)
     assert vm.landing.cost_worst == pytest.approx(pattern.cost_worst, rel=0.2)
+
+
+def test_the_noticeable_criteria_over_the_landings_are_judged_in_jnd_whatever_the_models_normalisation(tmp_path):
+    """A sphere pinched on a cylinder: the felt cost of one choice under a range-normalised model names the
+    same noticeable criteria, with the same chances of being noticed, as under the JND model: noticing is
+    judged in JNDs, whatever scale the ranking uses."""
+    from pinchmatch.match.search import cost_model
+
+    T = given(tmp_path, "cyl", cylinder(15.0, 60.0, faces=8000).mesh, (-15.0, 0.0, 0.0), (15.0, 0.0, 0.0))
+    V = given(tmp_path, "ball", sphere(18.0, faces=8000).mesh, (-18.0, 0.0, 0.0), (18.0, 0.0, 0.0))
+    _, vm = matched(T, V)
+    choice = vm.best
+    felt = {}
+    for normalize in ("jnd", "range"):
+        model = cost_model(MatchSettings(normalize=normalize), [T, V])
+        felt[normalize] = felt_cost(T, V, choice, model, FeltTables(5.0, SETTINGS))
+    assert felt["jnd"].criteria_noticeable and felt["jnd"].criteria_noticeable == felt["range"].criteria_noticeable
+    assert felt["range"].p_noticed_expected == pytest.approx(felt["jnd"].p_noticed_expected, rel=1e-9)
