@@ -122,30 +122,6 @@ EQUIVALENT: dict[tuple[str, str, str], str] = {
      "np.asarray(faces, dtype=np.int64).reshape(-1)", "1 -> 2"): _INFER,
     ("match/search.py", "return int(np.clip(n_tangible * n_virtual // POOL_PAIRS_PER_KEPT, MIN_POOL, MAX_POOL))",
      "// -> /"): "int() truncates the positive quotient as // does",
-    ("grasp/tripods.py", "offset = 0.5 * spacing[:, None] * (np.cos(phi)[:, None] * t1 + np.sin(phi)[:, None] * t2)",
-     "+ -> -"): "phi is uniform over the whole turn: (cos phi, -sin phi) is the direction of -phi, as uniform; "
-                "the fingers' directions are drawn from the same distribution",
-    ("export/level.py", 'return {"translation": [float(c) for c in t], "rotation": [float(c) for c in '
-     'Rotation.from_matrix(R).as_quat()]}', "drop float(...)"):
-        "numpy's float64 is a subclass of float: json writes the same numbers",
-    ("mesh/neighbours.py", "CUBE_SHARE = 1.0", "1.0 -> 2.0"):
-        "the cubes' side is a speed setting: each cube's ball query covers every ball of its points at any side, "
-        "and the kernel keeps the samples within the radius exactly",
-    ("mesh/neighbours.py", "candidates = np.fromiter(itertools.chain.from_iterable(lists), dtype=np.int64, "
-     "count=int(lengths.sum()))", "drop int(...)"): "np.fromiter takes numpy's integer as its count",
-    ("mesh/distance_field_kernel.py", "for i in range(points.shape[0]):", "0 -> 1"): _GUARD_WIDE,
-    ("mesh/distance_field_kernel.py", "constant = voxel * math.sqrt(3.0) / 2.0 + guard * (1.0 + largest)",
-     "1.0 -> 2.0"): _GUARD_WIDE,
-    ("mesh/distance_field_kernel.py", "e = np.float64(flat[index])", "drop .float64(...)"):
-        "numba computes e - slack and e + slack in float64 either way: the float32 value is promoted exactly",
-    ("match/felt.py", "key = _pose_key(candidates.pinches, int(pose))", "drop int(...)"):
-        "a numpy integer indexes the contacts as an int does: the key's bytes are the same",
-    ("grasp/tripods.py", "phi = rng.random(len(ray)) * 2.0 * np.pi", "2.0 -> 4.0"):
-        "an angle uniform over two turns is uniform over one: its cosine and sine take the same distribution",
-    ("mesh/support.py", 'return SupportPlane(normal, float(support), "support_mm")', "drop float(...)"):
-        "a whole-number height computes as its float does, and the plane's record writes float(...) of it",
-    ("grasp/strata.py", "return int(STRATUM_SHARE * count // max(strata, 1))", "// -> /"):
-        "int() truncates the positive quotient as // does",
     ("match/search.py", "below = np.flatnonzero(result.cost < tau)", "< -> <="):
         "the greedy pick keeps only pairs costing less than tau again, so a pooled pair costing exactly tau is "
         "never picked either way",
