@@ -312,3 +312,20 @@ def test_an_oblong_section_is_fitted_by_a_box_of_both_widths_and_repaired_within
     box = repaired.parts[0]
     assert np.hypot(box.width_mm, box.depth_mm) == pytest.approx(70.0, abs=0.2)
     assert box.width_mm / box.depth_mm == pytest.approx(low.width_mm / low.depth_mm, rel=0.01)
+
+
+def test_the_search_starts_from_its_seeds(tmp_path, scene):
+    """A seed stack is the first candidate judged: with one evaluation it is the design (repaired into the
+    limits), and with more, the best found on target is never worse than it."""
+    from pinchmatch import MatchSettings, PinchSettings, analyze_object, candidate_poses
+    from pinchmatch.runner import design
+
+    settings = PinchSettings(count=100, seed=0)
+    virtuals = [candidate_poses(analyze_object(p), settings=settings) for p in sorted(scene.glob("*.stl"))]
+    seed = Stack((Part("cylinder", 40, 44), Part("cylinder", 40, 30)))
+    one = design.design_props(virtuals, DesignSettings(evaluations=1, search_count=100),
+                              match=MatchSettings(refine=False, rank="nominal"), pinch=settings, seeds=(seed,))
+    assert one.best.stacks == (_repair(seed, DesignSettings()),)
+    more = design.design_props(virtuals, DesignSettings(evaluations=6, search_count=100),
+                               match=MatchSettings(refine=False, rank="nominal"), pinch=settings, seeds=(seed,))
+    assert more.best.score <= one.best.score

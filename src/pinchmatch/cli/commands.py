@@ -335,7 +335,8 @@ def _cmd_demo(args) -> int:
         c = designed["comparison"]
         ui.table([("prop", "mean_cost", "noticeable")] + [(name, f"{v['mean_cost']:.4f}", v["noticeable_count"])
                                                           for name, v in c.items()],
-                 title=f"a prop designed from scratch for the six virtual objects ({designed['evaluations']} judged)")
+                 title=f"a prop designed for the six virtual objects, from the study prop's shape ({designed['evaluations']} "
+                       "judged)")
     ui.note(f"study {t1 - t0:.2f} s; wrote " + ", ".join(written))
     ui.document(to_json(study_doc))
     return 0

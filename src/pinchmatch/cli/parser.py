@@ -238,8 +238,8 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--full", action="store_true",
                       help="candidate virtual poses: every sampled pose as well as the paper's 17")
     demo.add_argument("--design", action="store_true",
-                      help="also design a prop from scratch for the six virtual objects and compare it with the "
-                           "study's prop (OUT/props/designed.stl, OUT/design.json)")
+                      help="also design a prop for the six virtual objects, starting from the study prop's shape, "
+                           "and compare it with the study's prop (OUT/props/designed.stl, OUT/design.json)")
     demo.add_argument("--budget-s", type=float, default=120.0, help="wall time of --design's search (default 120)")
     _add_cost_options(demo)
     _add_sampling_options(demo)

@@ -273,10 +273,14 @@ def _best_shelf_subset(args, ui, ex, job, shelf_specs, scene_tasks, k: int) -> t
 
 
 def demo_design(publisher, stage: Path, objects: Path, settings, *, budget_s: float, seed: int, ui) -> dict:
-    """``pinchmatch demo --design``: a prop designed from scratch for the study's six virtual objects, judged
-    against the study's own prop the same way (both sampled with the demo's settings, every feasible pinch,
-    the exact search against the six objects' sampled poses). Writes OUT/props/designed.stl and
-    OUT/design.json; returns the comparison."""
+    """``pinchmatch demo --design``: a prop designed for the study's six virtual objects, its search starting
+    from the study prop's shape (its fitted stack, as ``design`` starts from a shelf's best), judged against
+    the study's own prop the same way (both sampled with the demo's settings, every feasible pinch, the exact
+    search against the six objects' sampled poses). Writes OUT/props/designed.stl and OUT/design.json;
+    returns the comparison."""
+    import trimesh
+
+    from ..mesh.stack_fit import fitted_stack
     from ..export.design import prop_record
     from ..config import Config
     from ..match.scene import match_one
@@ -296,6 +300,7 @@ def demo_design(publisher, stage: Path, objects: Path, settings, *, budget_s: fl
     design = DesignSettings(k=1, max_width_mm=settings.max_width_mm, budget_s=budget_s, seed=seed)
     with ui.step("designing", None) as advance:
         found = design_props(virtuals, design, match=matching, pinch=settings,
+                             seeds=(fitted_stack(trimesh.load(study_prop, force="mesh")),),
                              progress=lambda done, total, note: advance(f"{done} judged: {note}", done=False))
     designed_path = publisher.out / "props" / "designed.stl"
     publisher.write_direct(designed_path, stack_mesh(found.best.stacks[0]).export(file_type="stl"))
