@@ -107,8 +107,9 @@ def local_contacts(context: SurfaceContext, seeds: np.ndarray, n: int, radius: f
     sample = context.sample
     k = int(min(64, len(sample.points)))
     which = rng.integers(0, len(seeds), size=n)
-    dist, idx = query_tree(context.tree, seeds, k=k, distance_upper_bound=radius,
-                           work=len(seeds) * k // 16)
+    dist, idx = query_tree(
+        context.tree, seeds, k=k, distance_upper_bound=radius, work=len(seeds) * k // 16
+    )
     dist, idx = dist.reshape(len(seeds), k), idx.reshape(len(seeds), k)
     valid = np.isfinite(dist)
     counts = valid.sum(axis=1)  # at least 1: the seed's own nearest sample
@@ -119,8 +120,9 @@ def local_contacts(context: SurfaceContext, seeds: np.ndarray, n: int, radius: f
     return sample.points[chosen], sample.face_index[chosen]
 
 
-def round_plan(need: int, n_feasible: int, n_checked: int, round_: int,
-               rounds: tuple[int, int] = (0, 0)) -> tuple[int, bool]:
+def round_plan(
+    need: int, n_feasible: int, n_checked: int, round_: int, rounds: tuple[int, int] = (0, 0)
+) -> tuple[int, bool]:
     """How many picks a round checks to find ``need`` more grasps, and whether it draws near the feasible ones
     (local mode: few picks were feasible). Both are judged by the feasible share of the rounds' own picks,
     ``rounds`` (found, checked), once there are any, else of all ``n_checked`` so far: the width strata check
@@ -134,7 +136,9 @@ def round_plan(need: int, n_feasible: int, n_checked: int, round_: int,
     return want, checked > 0 and n_feasible > 0 and share < LOCAL_BELOW
 
 
-def pick_round(uniform: Pool, local: Pool, want: int, local_mode: bool) -> tuple[np.ndarray, np.ndarray]:
+def pick_round(
+    uniform: Pool, local: Pool, want: int, local_mode: bool
+) -> tuple[np.ndarray, np.ndarray]:
     """A round's ``want`` picks from both pools in their spread orders, the local pool's first in local mode,
     each pool's spread counting the other's picks: (points, faces)."""
     first, second = (local, uniform) if local_mode else (uniform, local)
@@ -142,11 +146,19 @@ def pick_round(uniform: Pool, local: Pool, want: int, local_mode: bool) -> tuple
     second.saw(first.points[a])
     b = second.pick(want - len(a))
     first.saw(second.points[b])
-    return np.concatenate([first.points[a], second.points[b]]), np.concatenate([first.faces[a], second.faces[b]])
+    return np.concatenate([first.points[a], second.points[b]]), np.concatenate(
+        [first.faces[a], second.faces[b]]
+    )
 
 
-def sample_rounds(kind: GraspKind, context: SurfaceContext, settings: PinchSettings, source: str,
-                  seen: np.ndarray | None = None, stream: tuple = ()):
+def sample_rounds(
+    kind: GraspKind,
+    context: SurfaceContext,
+    settings: PinchSettings,
+    source: str,
+    seen: np.ndarray | None = None,
+    stream: tuple = (),
+):
     """About ``settings.count`` feasible grasps of ``kind`` (module notes), in one piece.
 
     ``seen`` (m, F, 3): grasps of an earlier piece that the spread counts as picked; ``stream`` keys the
@@ -160,9 +172,11 @@ def sample_rounds(kind: GraspKind, context: SurfaceContext, settings: PinchSetti
     """
     check_patch_radius(context, settings)
     if not context.contact_area_mm2.any():
-        raise NoFeasiblePinchError(f"{source}: the object's contact regions leave no surface to touch (every "
-                                   "triangle is in an exclude region or outside the only regions); check "
-                                   "the regions against the file's frame and units")
+        raise NoFeasiblePinchError(
+            f"{source}: the object's contact regions leave no surface to touch (every "
+            "triangle is in an exclude region or outside the only regions); check "
+            "the regions against the file's frame and units"
+        )
     keys = (*kind.stream, *stream)
     rng = np.random.default_rng([settings.seed, *keys] if keys else settings.seed)
     count = settings.count
@@ -170,7 +184,9 @@ def sample_rounds(kind: GraspKind, context: SurfaceContext, settings: PinchSetti
     rejected = dict.fromkeys(kind.rules, 0)
     drawn = max(kind.oversample * count, 2000)
     budget = kind.max_draw_factor * max(count, 50)
-    points, faces = kind.draw(context, *uniform_contacts(context, drawn, rng), settings, rng, rejected)
+    points, faces = kind.draw(
+        context, *uniform_contacts(context, drawn, rng), settings, rng, rejected
+    )
     if len(points) == 0:
         raise NoFeasiblePinchError(kind.refusal(source, drawn, rejected, settings, standing))
     seen = np.zeros((0, points.shape[1], 3)) if seen is None else seen
@@ -183,22 +199,32 @@ def sample_rounds(kind: GraspKind, context: SurfaceContext, settings: PinchSetti
     parts, picked = stratified_checks(uniform, count, check)
     n_feasible, n_checked = sum(len(p) for p in parts), len(picked)
     n_strata, strata_found, strata_checked = len(parts), n_feasible, n_checked
-    picked = np.concatenate([seen, picked])  # an earlier piece's grasps count as picks for the spread
+    picked = np.concatenate(
+        [seen, picked]
+    )  # an earlier piece's grasps count as picks for the spread
     for round_ in range(kind.max_rounds):
         need = count - n_feasible
         if need <= 0:
             break
-        want, local_mode = round_plan(need, n_feasible, n_checked, round_,
-                                      (n_feasible - strata_found, n_checked - strata_checked))
+        want, local_mode = round_plan(
+            need,
+            n_feasible,
+            n_checked,
+            round_,
+            (n_feasible - strata_found, n_checked - strata_checked),
+        )
         short = int((uniform.nearest >= 0).sum() + (local.nearest >= 0).sum()) < want
         if (local_mode or short) and drawn < budget:
             # more candidates: near the feasible contacts found so far, or anywhere while none is
             n_more = int(min(budget - drawn, kind.oversample * want))
             if n_feasible:
                 # the rounds' own finds are spread as the feasible grasps are; the strata's lean to rare widths
-                seeds = np.concatenate([kind.first_contacts(p.points) for p in (parts[n_strata:] or parts)])
-                contacts = local_contacts(context, seeds, n_more, LOCAL_RADIUS_TIPS * settings.fingertip_radius_mm,
-                                          rng)
+                seeds = np.concatenate(
+                    [kind.first_contacts(p.points) for p in (parts[n_strata:] or parts)]
+                )
+                contacts = local_contacts(
+                    context, seeds, n_more, LOCAL_RADIUS_TIPS * settings.fingertip_radius_mm, rng
+                )
             else:
                 contacts = uniform_contacts(context, n_more, rng)
             drawn += n_more
@@ -209,7 +235,9 @@ def sample_rounds(kind: GraspKind, context: SurfaceContext, settings: PinchSetti
             break
         picked = np.concatenate([picked, chosen])
         # the reach pre-check pays where the probe found picks no hand gets to
-        part = check(chosen, chosen_f, round_ == 0 or rejected["reach"] > PRECHECK_ABOVE * n_checked)
+        part = check(
+            chosen, chosen_f, round_ == 0 or rejected["reach"] > PRECHECK_ABOVE * n_checked
+        )
         n_checked += len(chosen)
         parts.append(part)
         n_feasible += len(part)
@@ -231,13 +259,23 @@ def nested_sample(sample, context, settings: PinchSettings, source: str):
     count = settings.count
     if count <= NESTED_ABOVE:
         return sample(context, settings, source)
-    inner = nested_sample(sample, context, dataclasses.replace(settings, count=(count + 1) // 2), source)
+    inner = nested_sample(
+        sample, context, dataclasses.replace(settings, count=(count + 1) // 2), source
+    )
     more = count - len(inner)
     if more <= 0:
         return inner
     try:
-        outer = sample(context, dataclasses.replace(settings, count=more), source, seen=inner.points, stream=(count,))
+        outer = sample(
+            context,
+            dataclasses.replace(settings, count=more),
+            source,
+            seen=inner.points,
+            stream=(count,),
+        )
     except NoFeasiblePinchError:
         return inner
-    rejected = {rule: inner.rejected.get(rule, 0) + outer.rejected.get(rule, 0) for rule in outer.rejected}
+    rejected = {
+        rule: inner.rejected.get(rule, 0) + outer.rejected.get(rule, 0) for rule in outer.rejected
+    }
     return concat_pinches([inner, outer], rejected)

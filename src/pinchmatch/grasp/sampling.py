@@ -77,10 +77,6 @@ def _contacts(points: np.ndarray) -> np.ndarray:
     return points.reshape(-1, 3)
 
 
-def _refusal(source, drawn, rejected, settings, standing) -> str:
-    return _no_pinch_message(source, drawn, rejected, settings, standing)
-
-
 def cheap_candidates(context, n: int, settings: PinchSettings, rng, rejected: dict | None = None):
     """Candidates from ``n`` contacts drawn area-uniformly: (m, 2, 3) points and (m, 2) triangles of
     those that keep the cheap rules (with triangle normals), as the sampler's first round draws them;
@@ -187,4 +183,4 @@ def _no_pinch_message(source, n_cand, rejected, settings, standing: bool = False
 #: what the rounds (:mod:`rounds`) sample as a pinch
 PINCH = GraspKind(name="pinch", rules=RULES, oversample=OVERSAMPLE, max_draw_factor=MAX_DRAW_FACTOR,
                   max_rounds=MAX_ROUNDS, stream=(), draw=_draw, check=_check_picks, first_contacts=_contacts,
-                  refusal=_refusal)
+                  refusal=_no_pinch_message)

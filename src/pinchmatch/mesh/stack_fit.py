@@ -39,18 +39,24 @@ def _profile(mesh: trimesh.Trimesh, slices: int) -> tuple[np.ndarray, np.ndarray
     """Per bin of height from the mesh's lowest point to its highest along +Z: (slices, 3) its width (mm) and
     its widths along the section's two principal directions across +Z, the wider first (NaN where a bin
     holds no point); (slices,) the wider's direction (degrees about +Z); and the bins' height (mm)."""
-    points, _ = trimesh.sample.sample_surface(mesh, SURFACE_POINTS, seed=0)  # area-uniform: a bin gets its share
+    points, _ = trimesh.sample.sample_surface(
+        mesh, SURFACE_POINTS, seed=0
+    )  # area-uniform: a bin gets its share
     z0, z1 = float(points[:, 2].min()), float(points[:, 2].max())
     step = max(z1 - z0, 1e-9) / slices
     which = np.minimum(((points[:, 2] - z0) / step).astype(np.int64), slices - 1)
     profile, turns = np.full((slices, 3), np.nan), np.zeros(slices)
     for k in np.unique(which):  # one slice at a time: at most SLICES small reductions
         xy = points[which == k, :2]
-        centred = xy - (xy.min(axis=0) + xy.max(axis=0)) / 2.0  # the section's box centre: its axis, if round
+        centred = (
+            xy - (xy.min(axis=0) + xy.max(axis=0)) / 2.0
+        )  # the section's box centre: its axis, if round
         radius = np.linalg.norm(centred, axis=1)
         _, vectors = np.linalg.eigh(np.cov(centred.T) if len(centred) > 2 else np.eye(2))
         major, minor = vectors[:, 1], vectors[:, 0]
-        along = [2.0 * float(np.quantile(np.abs(centred @ d), WIDTH_QUANTILE)) for d in (major, minor)]
+        along = [
+            2.0 * float(np.quantile(np.abs(centred @ d), WIDTH_QUANTILE)) for d in (major, minor)
+        ]
         profile[k] = [2.0 * float(np.quantile(radius, WIDTH_QUANTILE)), max(along), min(along)]
         turns[k] = math.degrees(math.atan2(major[1], major[0])) % 180.0
     return profile, turns, step
@@ -68,7 +74,11 @@ def _segment_fit(z: np.ndarray, w: np.ndarray) -> tuple[float, tuple]:
     sloped = float(((w - line) ** 2).sum())
     if sloped < (1.0 - FRUSTUM_GAIN) * flat:
         half = (z[1] - z[0]) / 2.0
-        return sloped, ("frustum", float(intercept + slope * (z[0] - half)), float(intercept + slope * (z[-1] + half)))
+        return sloped, (
+            "frustum",
+            float(intercept + slope * (z[0] - half)),
+            float(intercept + slope * (z[-1] + half)),
+        )
     return flat, ("cylinder", mean, None)
 
 
@@ -79,7 +89,9 @@ def fitted_stack(mesh: trimesh.Trimesh, *, parts: int = 4, slices: int = SLICES)
     profile, turns, step = _profile(mesh, slices)
     filled = np.flatnonzero(np.isfinite(profile[:, 0]))
     # a bin with no point takes its neighbours' widths
-    profile = np.column_stack([np.interp(np.arange(slices), filled, profile[filled, c]) for c in range(3)])
+    profile = np.column_stack(
+        [np.interp(np.arange(slices), filled, profile[filled, c]) for c in range(3)]
+    )
     widths = profile[:, 0]
     z = (np.arange(slices) + 0.5) * step
     shortest = min(max(1, math.ceil(MIN_PART_HEIGHT_MM / step)), slices)
@@ -105,12 +117,27 @@ def fitted_stack(mesh: trimesh.Trimesh, *, parts: int = 4, slices: int = SLICES)
         a, (kind, bottom, top) = how[j][b]
         height = round((b - a) * step, 1)
         major, minor = float(np.median(profile[a:b, 1])), float(np.median(profile[a:b, 2]))
-        if minor < OBLONG_BELOW * major:  # an oblong section (a bottle, a box): a box of both widths
-            chosen.append(Part("box", height, round(max(major, MIN_PART_WIDTH_MM), 1),
-                               turn_deg=round(float(np.median(turns[a:b])), 1),
-                               depth_mm=round(max(minor, MIN_PART_WIDTH_MM), 1)))
+        if (
+            minor < OBLONG_BELOW * major
+        ):  # an oblong section (a bottle, a box): a box of both widths
+            chosen.append(
+                Part(
+                    "box",
+                    height,
+                    round(max(major, MIN_PART_WIDTH_MM), 1),
+                    turn_deg=round(float(np.median(turns[a:b])), 1),
+                    depth_mm=round(max(minor, MIN_PART_WIDTH_MM), 1),
+                )
+            )
         else:
             bottom = round(max(bottom, MIN_PART_WIDTH_MM), 1)
-            chosen.append(Part(kind, height, bottom, None if top is None else round(max(top, MIN_PART_WIDTH_MM), 1)))
+            chosen.append(
+                Part(
+                    kind,
+                    height,
+                    bottom,
+                    None if top is None else round(max(top, MIN_PART_WIDTH_MM), 1),
+                )
+            )
         b, j = a, j - 1
     return Stack(tuple(reversed(chosen)))
