@@ -99,14 +99,14 @@ def landing(tangible: Candidates, virtual: Candidates, choice, model: CostModel,
         np.eye(3) if pose is None else Rotation.from_quat(pose[1]).as_matrix().T)
     terms, _ = pair_terms(tangible, virtual, t_rows, v_rows, model, R=R_mass, t_points=felt_p.points,
                           v_points=seen.points)
-    cost = model.pool(terms, choice.redirect_terms, choice.rest_jnd)  # a redirection is planned for the targets: as the match's
+    cost = model.pool(terms, extra=choice.redirect_terms, rest=choice.rest_jnd)  # a redirection is planned for the targets: as the match's
     jnd = model.as_jnd()
     jnd_all = CostModel(normalize="jnd", criteria=CRITERIA, weights=dict.fromkeys(CRITERIA, 1.0))
     jnd_terms, _ = pair_terms(tangible, virtual, t_rows, v_rows, jnd_all, R=R_mass, t_points=felt_p.points,
                               v_points=seen.points)
     loud = tuple(c for k, c in enumerate(CRITERIA) if c in model.criteria and (jnd_terms[:, k] >= 1.0).any())
     worst = int(np.argmax(cost))
-    p_worst = float(jnd.p_noticed(jnd.pool(jnd_terms[worst], choice.redirect_terms)))
+    p_worst = float(jnd.p_noticed(jnd.pool(jnd_terms[worst], extra=choice.redirect_terms)))
     missed = int((~hit).sum())
     if missed:  # a finger that meets no surface is noticed for certain
         miss = float(model.pool(np.full((1, len(CRITERIA)), MISS_JND ** 2) * (np.arange(len(CRITERIA)) == 0))[0])

@@ -54,6 +54,36 @@ def test_every_public_function_has_an_example(name):
     assert ">>> " in doc, f"{name}: no example in its docstring"
 
 
+def _callables():
+    """Every public function of the API and every public method of its classes, by name."""
+    out = []
+    for name in sorted(pinchmatch._API):
+        value = getattr(pinchmatch, name)
+        if inspect.isfunction(value):
+            out.append((name, value))
+        elif inspect.isclass(value):
+            out += [(f"{name}.{m}", f) for m, f in sorted(vars(value).items())
+                    if inspect.isfunction(f) and not m.startswith("_")]
+    return out
+
+
+@pytest.mark.parametrize("name, function", _callables(), ids=[n for n, _ in _callables()])
+def test_options_of_longer_signatures_are_keyword_only(name, function):
+    """A function of more than two parameters takes its options (those with a default) by name only:
+    ``select_props(cost, loud, 2, "max")`` cannot be read as anything but what it is."""
+    params = [p for p in inspect.signature(function).parameters.values() if p.name not in ("self", "cls")]
+    positional = [p.name for p in params if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)
+                  and p.default is not p.empty]
+    assert len(params) <= 2 or not positional, f"{name}: {positional} should follow a '*'"
+
+
+def test_an_option_given_by_position_is_refused():
+    cost = np.array([[0.2, 1.5], [2.0, 0.3]])
+    with pytest.raises(TypeError):
+        pinchmatch.select_props(cost, cost >= 1.0, 1, "max")
+    assert pinchmatch.select_props(cost, cost >= 1.0, 1, objective="max").props.shape == (1,)
+
+
 @pytest.fixture(scope="module")
 def example_files(tmp_path_factory):
     """The files the examples read: a 60 x 40 x 20 mm box (STL, mm) and a can 54 mm across and 66 mm
@@ -104,7 +134,7 @@ def test_bad_arguments_raise_config_error():
     with pytest.raises(ConfigError, match="k = 3 for a shelf of 2 props"):
         pinchmatch.select_props(cost, loud, 3)
     with pytest.raises(ConfigError, match="objective 'median'"):
-        pinchmatch.select_props(cost, loud, 1, "median")
+        pinchmatch.select_props(cost, loud, 1, objective="median")
     with pytest.raises(ConfigError, match="unknown part 'blob'"):
         Part("blob", 10.0, 10.0)
     with pytest.raises(ConfigError, match="a frustum needs top_width_mm"):

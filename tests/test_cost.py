@@ -329,12 +329,12 @@ def test_a_placement_s_visible_fault_adds_to_the_pooled_cost_in_the_pooling_s_un
     rng = np.random.default_rng(3)
     model = CostModel(pooling=pooling)
     terms, extra, rest = rng.uniform(0, 4, (50, 8)), rng.uniform(0, 2, (50, 2)), rng.uniform(0, 3, 50)
-    pooled = model.pool(terms, extra)
+    pooled = model.pool(terms, extra=extra)
     added = rest if pooling == "quick" else rest ** 2
-    np.testing.assert_allclose(model.pool(terms, extra, rest), pooled + added, rtol=1e-12)
-    assert np.array_equal(model.pool(terms, extra, np.zeros(50)), pooled)
-    assert np.array_equal(model.pool(terms, None, None), model.pool(terms))
-    np.testing.assert_allclose(model.pool(terms[0], None, 1.5), model.pool(terms[0]) + (1.5 if pooling == "quick" else 2.25))
+    np.testing.assert_allclose(model.pool(terms, extra=extra, rest=rest), pooled + added, rtol=1e-12)
+    assert np.array_equal(model.pool(terms, extra=extra, rest=np.zeros(50)), pooled)
+    assert np.array_equal(model.pool(terms, extra=None, rest=None), model.pool(terms))
+    np.testing.assert_allclose(model.pool(terms[0], rest=1.5), model.pool(terms[0]) + (1.5 if pooling == "quick" else 2.25))
 
 
 def test_a_model_keeps_its_rest_rates_in_jnd_form():

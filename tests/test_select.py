@@ -52,7 +52,7 @@ def _random_case(seed, m=9, n=7):
 def test_the_exhaustive_answer_is_the_brute_force_one(objective, seed):
     cost, loud = _random_case(seed)
     for k in range(1, cost.shape[1] + 1):
-        s = select.select_props(cost, loud, k, objective)
+        s = select.select_props(cost, loud, k, objective=objective)
         value, mean, subset = _brute(cost, loud, k, objective)
         assert s.exact and s.value == pytest.approx(value) and s.mean_cost == pytest.approx(mean)
         assert tuple(s.props) == subset  # the first of equals, in lexicographic order
@@ -68,7 +68,7 @@ def test_greedy_and_swaps_near_the_best_with_the_stated_guarantee(objective, see
     cost, loud = _random_case(seed, m=14, n=9)
     monkeypatch.setattr(select, "EXACT_SUBSETS", 0)  # as for a shelf too large to try every subset
     for k in (2, 3, 4):
-        s = select.select_props(cost, loud, k, objective)
+        s = select.select_props(cost, loud, k, objective=objective)
         value, mean, _ = _brute(cost, loud, k, objective)
         assert not s.exact and s.method == "greedy + swaps" and len(s.props) == k
         assert (s.value, s.mean_cost) >= (value - 1e-12, mean - 1e-12) or s.value > value
@@ -88,8 +88,8 @@ def test_a_prop_added_to_the_shelf_never_makes_the_best_worse(objective):
         bigger_cost = np.column_stack([cost, extra_cost[:, :1]])
         bigger_loud = np.column_stack([loud, extra_loud[:, :1]])
         for k in range(1, cost.shape[1] + 1):
-            a = select.select_props(cost, loud, k, objective)
-            b = select.select_props(bigger_cost, bigger_loud, k, objective)
+            a = select.select_props(cost, loud, k, objective=objective)
+            b = select.select_props(bigger_cost, bigger_loud, k, objective=objective)
             assert (b.value, b.mean_cost) <= (a.value, a.mean_cost)
 
 
@@ -99,7 +99,7 @@ def test_the_coverage_curve_never_rises(objective, exact_limit, monkeypatch):
     monkeypatch.setattr(select, "EXACT_SUBSETS", exact_limit)
     for seed in range(5):
         cost, loud = _random_case(seed, m=12, n=8)
-        curve = select.coverage_curve(cost, loud, objective)
+        curve = select.coverage_curve(cost, loud, objective=objective)
         scores = [(s.value, s.mean_cost) for s in curve]
         assert [len(s.props) for s in curve] == list(range(1, 9))
         assert all(b <= a for a, b in zip(scores, scores[1:])), scores
@@ -108,12 +108,12 @@ def test_the_coverage_curve_never_rises(objective, exact_limit, monkeypatch):
 def test_the_best_addition_and_the_props_that_would_help():
     cost = np.array([[1.0, 5.0, 0.2], [1.0, 0.5, 3.0], [2.0, 2.0, 2.0]])
     loud = cost >= 1.0
-    s = select.select_props(cost, loud, 1, "mean")
+    s = select.select_props(cost, loud, 1, objective="mean")
     assert list(s.props) == [0]
     add, with_it = select.best_addition(cost, loud, s, "mean")
     assert add == 2 and with_it.mean_cost == pytest.approx((0.2 + 1.0 + 2.0) / 3)
     assert list(select.helpful_props(cost, s)) == [2, 1, -1]
-    everything = select.select_props(cost, loud, 3, "mean")
+    everything = select.select_props(cost, loud, 3, objective="mean")
     assert select.best_addition(cost, loud, everything, "mean") is None
 
 

@@ -274,4 +274,4 @@ def test_every_pooled_pairs_key_is_its_expected_cost_in_the_tangibles_finger_ord
         np.isin(np.arange(9), [7, 8]), ratio * ratio, 1.0))
     terms = separable_terms(t_mean, felt_table(v_mean, ratio), model) + separable_terms(t_mean, t_mean + spread, model)
     terms[:, 7] = r.terms[:, 7] + separable_terms(t_mean, t_mean + spread, model)[:, 7]
-    np.testing.assert_allclose(key, model.pool(terms, None, r.rest_jnd), rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(key, model.pool(terms, rest=r.rest_jnd), rtol=1e-9, atol=1e-12)

@@ -102,7 +102,7 @@ def cmd_select(args) -> int:
                 raise ConfigError("no object of the scene can be placed on any prop of the shelf (every "
                                   "registration is refused); check --keep-upright and the objects' up directions")
             with ui.step("choosing the props"):
-                curve = coverage_curve(cost, loud, args.objective, max(args.max_k or n, args.k))
+                curve = coverage_curve(cost, loud, objective=args.objective, max_k=max(args.max_k or n, args.k))
                 chosen = curve[args.k - 1]
                 addition = best_addition(cost, loud, chosen, args.objective)
                 helpful = helpful_props(cost, chosen)
@@ -260,7 +260,7 @@ def _best_shelf_subset(args, ui, ex, job, shelf_specs, scene_tasks, k: int) -> t
     n = len(run.tangibles)
     cost = np.array([rows[j].row for j in sorted(rows)]).reshape(len(rows), n)
     loud = np.array([rows[j].noticeable for j in sorted(rows)]).reshape(len(rows), n)
-    chosen = select_props(cost, loud, min(k, n), "mean")
+    chosen = select_props(cost, loud, min(k, n), objective="mean")
     seeds = []
     for t in chosen.props:
         loaded = run.tangibles[t].obj.loaded

@@ -187,7 +187,7 @@ class CostModel:
         """(8,) the weights in the order of :data:`CRITERIA`."""
         return np.array([self.weights[c] for c in CRITERIA])
 
-    def pool(self, terms: np.ndarray, extra: np.ndarray | None = None, rest=None) -> np.ndarray:
+    def pool(self, terms: np.ndarray, *, extra: np.ndarray | None = None, rest=None) -> np.ndarray:
         """The cost of (..., 8) contributions t_c: Σ w t (``sum``) or (Σ w t^(β/2))^(1/β) (``quick``).
 
         ``extra`` (..., m): further contributions in the same units, weight 1 each (the hand's
@@ -494,4 +494,4 @@ def contributions(tangible_row: np.ndarray, virtual_row: np.ndarray, model: Cost
 
 def total(terms: np.ndarray, model: CostModel, extra: np.ndarray | None = None, rest=None) -> np.ndarray:
     """The model's cost of (..., 8) contributions, any ``extra`` ones and a ``rest`` fault (:meth:`CostModel.pool`)."""
-    return model.pool(terms, extra, rest)
+    return model.pool(terms, extra=extra, rest=rest)

@@ -404,7 +404,7 @@ def felt_cost(tangible: Candidates, virtual: Candidates, choice, model: CostMode
     R_mass = seen_turn(tangible.obj, R, choice.redirect_terms is not None)
     terms, _ = pair_terms(tangible, virtual, t.rows[t_pair], v_rows[keep], model, R=R_mass,
                           t_points=t.points[t_pair], v_points=v.points[keep])
-    cost = np.asarray(model.pool(terms, choice.redirect_terms, choice.rest_jnd), dtype=np.float64)
+    cost = np.asarray(model.pool(terms, extra=choice.redirect_terms, rest=choice.rest_jnd), dtype=np.float64)
     cost[0] = nominal  # the nominal landing is the match itself, to the last bit
     miss = float(model.pool(np.full((1, len(CRITERIA)), MISS_JND ** 2) * (np.arange(len(CRITERIA)) == 0))[0])
     cost = np.where(hit, cost, max(miss, float(cost[hit].max()) if hit.any() else miss))
@@ -415,7 +415,7 @@ def felt_cost(tangible: Candidates, virtual: Candidates, choice, model: CostMode
         v_points=v.points[keep])[0]
     loud = tuple(c for k, c in enumerate(CRITERIA)
                  if c in model.criteria and (jnd_terms[hit, k] >= 1.0).any())
-    chance = np.where(hit, jnd.p_noticed(jnd.pool(jnd_terms, choice.redirect_terms)), 1.0)  # a miss is noticed
+    chance = np.where(hit, jnd.p_noticed(jnd.pool(jnd_terms, extra=choice.redirect_terms)), 1.0)  # a miss is noticed
     chance[0] = p_noticed(tangible, virtual, choice, model)
     worst = int(np.argmax(cost))
     return Felt(nominal, float(weights @ cost), float(cost[worst]), float(chance[0]), float(weights @ chance),

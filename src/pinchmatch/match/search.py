@@ -568,7 +568,7 @@ def p_noticed(tangible: Candidates, virtual: Candidates, choice: Choice, model: 
     weights and pooling, in JND (:meth:`pinchmatch.match.cost.CostModel.p_noticed`), with the hand's
     redirection where the placement is fixed."""
     jnd_model = model.as_jnd()
-    return float(jnd_model.p_noticed(jnd_model.pool(jnd_terms(tangible, virtual, choice), choice.redirect_terms)))
+    return float(jnd_model.p_noticed(jnd_model.pool(jnd_terms(tangible, virtual, choice), extra=choice.redirect_terms)))
 
 
 def criterion_table(tangible: Candidates, virtual: Candidates, choice: Choice, model: CostModel) -> dict:

@@ -166,7 +166,7 @@ def _selection(cost, noticeable, servable, props, objective, exact) -> Selection
                      "exhaustive" if exact else "greedy + swaps")
 
 
-def select_props(cost: np.ndarray, noticeable: np.ndarray, k: int, objective: str = "mean") -> Selection:
+def select_props(cost: np.ndarray, noticeable: np.ndarray, k: int, *, objective: str = "mean") -> Selection:
     """The ``k`` props that serve the scene best under ``objective`` (see the module notes).
 
     >>> cost = np.array([[0.2, 1.5, 0.9], [2.0, 0.3, 0.8], [1.1, 1.2, 0.4]])  # 3 objects x 3 props
@@ -188,7 +188,7 @@ def select_props(cost: np.ndarray, noticeable: np.ndarray, k: int, objective: st
     return _selection(cost, noticeable, servable, props, objective, exact)
 
 
-def coverage_curve(cost: np.ndarray, noticeable: np.ndarray, objective: str = "mean",
+def coverage_curve(cost: np.ndarray, noticeable: np.ndarray, *, objective: str = "mean",
                    max_k: int | None = None) -> list[Selection]:
     """The best selection for K = 1 … min(n, max_k); values never increase with K.
 
@@ -199,7 +199,7 @@ def coverage_curve(cost: np.ndarray, noticeable: np.ndarray, objective: str = "m
     n = cost.shape[1]
     out: list[Selection] = []
     for k in range(1, min(n, max_k or n) + 1):
-        s = select_props(cost, noticeable, k, objective)
+        s = select_props(cost, noticeable, k, objective=objective)
         if out and not s.exact:
             # a larger set is never worse: the previous subset, padded greedily, competes
             servable = np.isfinite(cost).any(axis=1)

@@ -124,7 +124,7 @@ class SteadySearch:
         # the mass offset exact on target (it needs the registration), and its spread
         terms[:, 7] += r.terms[:, 7] - separable_terms(mt[0][it], felt_table(v_mean, mass_ratio(T, V)), model)[:, 7]
         extra = r.redirect_terms if settings.redirect is not None else None
-        key = np.where(np.isfinite(r.cost), model.pool(terms, extra, r.rest_jnd), np.inf)
+        key = np.where(np.isfinite(r.cost), model.pool(terms, extra=extra, rest=r.rest_jnd), np.inf)
         ok = np.flatnonzero(np.isfinite(key))
         return (t, it[ok], iv[ok], take_pairs(r, ok)), key[ok]
 
