@@ -13,7 +13,7 @@ from pinchmatch.match.cost import CRITERIA, CostModel, feature_table
 from pinchmatch.match.landing import LANDING_AXIS_DEG, LANDING_MM, MISS_JND, RING_POINTS, Landing, disc_offsets
 from scipy.spatial.transform import Rotation
 from pinchmatch.match.refine import close_fingers, move_directions
-from pinchmatch.match.search import criterion_table, p_noticed
+from pinchmatch.match.noticed import criterion_table, p_noticed
 
 
 def _described(context, points: np.ndarray, faces: np.ndarray, settings: PinchSettings) -> Pinches:

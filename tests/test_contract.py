@@ -214,16 +214,16 @@ def test_every_output_file_gets_ordinary_permissions(tmp_path, capsys):
 
 
 def test_a_mesh_too_large_for_the_free_memory_is_refused_before_reading(tmp_path, capsys, monkeypatch):
-    from pinchmatch.mesh import load
+    from pinchmatch.mesh import file_checks
 
     path = tmp_path / "big.stl"
     _icosphere().export(path)
-    monkeypatch.setattr(load, "memory_headroom", lambda: (20 * path.stat().st_size, "0.0 GiB left of the control "
+    monkeypatch.setattr(file_checks, "memory_headroom", lambda: (20 * path.stat().st_size, "0.0 GiB left of the control "
                                                           "group's 0.1 GiB (container limit)"))  # far too little
     code, _, err = run_cli(capsys, "poses", path, "-o", tmp_path / "o.json")
     assert_bad_input(code, err, "big.stl", "GiB to analyse, more than the 0.0 GiB left of the control group's",
                      "decimate it")
-    monkeypatch.setattr(load, "memory_headroom", lambda: None)  # unknown: not checked
+    monkeypatch.setattr(file_checks, "memory_headroom", lambda: None)  # unknown: not checked
     assert run_cli(capsys, "poses", path, "--count", 10, "-q", "-o", tmp_path / "o.json")[0] == 0
 
 

@@ -13,7 +13,7 @@ from scipy.spatial.transform import Rotation
 
 from levels import glb_of, standing_can
 from pinchmatch.cli.main import main
-from pinchmatch.mesh.manifest import NOT_SHAPE, ObjectSpec
+from pinchmatch.mesh.object_spec import NOT_SHAPE, ObjectSpec
 
 #: the fields that do not shape an object's candidates, and why (a new field must be added here or to the key)
 EXCLUDED = {"path": "the file is keyed by its bytes", "name": "a label", "mass_g": "enters the cost, not the poses",

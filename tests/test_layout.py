@@ -48,6 +48,17 @@ def test_modules_hold_one_concept_each(path):
     assert len(path.read_text().splitlines()) <= 600
 
 
+#: the longest line a module of the package may hold, in characters (code, comments, docstrings)
+MAX_LINE = 100
+
+
+@pytest.mark.parametrize("path", MODULES, ids=lambda p: str(p.relative_to(PACKAGE)))
+def test_lines_are_at_most_100_characters(path):
+    long = [f"{path.name}:{k}: {len(line)} characters" for k, line in
+            enumerate(path.read_text(encoding="utf-8").splitlines(), 1) if len(line) > MAX_LINE]
+    assert not long, "lines over 100 characters; break them:\n" + "\n".join(long)
+
+
 def test_the_public_api_resolves_to_its_defining_modules():
     for name in pinchmatch.__all__:
         value = getattr(pinchmatch, name)

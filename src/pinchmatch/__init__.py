@@ -27,10 +27,11 @@ package stays cheap):
   :class:`ObjectProperties`; :class:`SurfaceContext`;
 - manifests and levels: :func:`read_manifest` and :func:`object_specs` -> :class:`ObjectSpec` s
   (per-object units, up, centre of mass, axis, mass, regions; a level's nodes);
-- pinches: :class:`PinchSettings`; :func:`sample_pinches`, :func:`check_pinches` -> :class:`Pinches`;
-  :func:`patch_geometry` -> :class:`PatchGeometry`; :func:`pinch_features` -> :class:`PinchFeatures`;
-- one object end to end: :func:`analyze_object` (a file), :func:`analyze_prop` (a prop standing on its table,
-  as the command line reads props) or :func:`analyze_spec` (an
+- pinches: :class:`PinchSettings`; :func:`sample_pinches`, :func:`check_pinches` ->
+  :class:`Pinches`; :func:`patch_geometry` -> :class:`PatchGeometry`; :func:`pinch_features` ->
+  :class:`PinchFeatures`;
+- one object end to end: :func:`analyze_object` (a file), :func:`analyze_prop` (a prop standing on
+  its table, as the command line reads props) or :func:`analyze_spec` (an
   :class:`ObjectSpec`) -> :class:`ObjectAnalysis`; :func:`find_pinches`;
   :func:`score_pinches` (given poses);
 - matching: :func:`candidate_poses` -> :class:`Candidates`; :class:`MatchSettings`; the run's one
@@ -45,9 +46,9 @@ package stays cheap):
   :func:`complete_weights`), :func:`cost_model` (a run's);
 - a shelf of props: :func:`select_props` -> :class:`Selection`, :func:`coverage_curve`;
   :func:`design_props` (:class:`DesignSettings`) -> :class:`DesignResult`;
-- weights from people's ratings: :func:`read_ratings` -> :class:`Ratings` (:func:`fittable_criteria`: the
-  criteria a table can determine), :func:`calibrate` -> :class:`Calibration`, :func:`read_weights_file`
-  (what ``calibrate`` wrote);
+- weights from people's ratings: :func:`read_ratings` -> :class:`Ratings`
+  (:func:`fittable_criteria`: the criteria a table can determine), :func:`calibrate` ->
+  :class:`Calibration`, :func:`read_weights_file` (what ``calibrate`` wrote);
 - errors: :class:`PinchmatchError` and its kinds :class:`ConfigError` (a bad argument, option or
   options file), :class:`MeshError`, :class:`ContactError`, :class:`NoFeasiblePinchError`,
   :class:`OutputError`; a broken invariant of pinchmatch's own (a bug) raises
@@ -61,19 +62,19 @@ from .version import __version__
 
 #: public name -> the module that defines it
 _API = {
-    "ConfigError": "errors", "ContactError": "errors", "InternalError": "errors", "MeshError": "errors",
-    "NoFeasiblePinchError": "errors", "OutputError": "errors", "PinchmatchError": "errors",
-    "LoadedMesh": "mesh.load", "load_mesh": "mesh.load",
+    "ConfigError": "errors", "ContactError": "errors", "InternalError": "errors",
+    "MeshError": "errors", "NoFeasiblePinchError": "errors", "OutputError": "errors",
+    "PinchmatchError": "errors", "LoadedMesh": "mesh.load", "load_mesh": "mesh.load",
     "ObjectProperties": "mesh.properties", "object_properties": "mesh.properties",
     "SurfaceContext": "mesh.surface",
-    "ObjectSpec": "mesh.manifest", "object_specs": "mesh.manifest", "read_manifest": "mesh.manifest",
-    "rotations_between": "mesh.frames",
+    "ObjectSpec": "mesh.manifest", "object_specs": "mesh.manifest",
+    "read_manifest": "mesh.manifest", "rotations_between": "mesh.frames",
     "PatchGeometry": "grasp.curvature", "patch_geometry": "grasp.curvature",
     "PinchSettings": "grasp.pinches", "Pinches": "grasp.pinches", "check_pinches": "grasp.pinches",
     "sample_pinches": "grasp.sampling",
     "PinchFeatures": "grasp.features", "pinch_features": "grasp.features",
-    "ObjectAnalysis": "grasp.analysis", "analyze_object": "grasp.analysis", "analyze_spec": "grasp.analysis",
-    "analyze_prop": "grasp.analysis",
+    "ObjectAnalysis": "grasp.analysis", "analyze_object": "grasp.analysis",
+    "analyze_spec": "grasp.analysis", "analyze_prop": "grasp.analysis",
     "find_pinches": "grasp.analysis", "score_pinches": "grasp.analysis",
     "CostModel": "match.cost", "Weights": "match.cost", "complete_weights": "match.cost",
     "Candidates": "match.candidates", "candidate_poses": "match.candidates",
@@ -81,16 +82,19 @@ _API = {
     "Choice": "match.search", "MatchSettings": "match.search", "PairResult": "match.search",
     "cost_model": "match.search", "evaluate_pairs": "match.search",
     "SceneMatch": "match.scene", "VirtualMatch": "match.scene", "match_scene": "match.scene",
-    "match_virtual": "match.scene", "match_one": "match.scene", "Config": "config", "Pose": "match.search",
-    "Selection": "match.select", "coverage_curve": "match.select", "select_props": "match.select",
-    "Calibration": "match.calibrate", "Ratings": "match.calibrate", "calibrate": "match.calibrate",
-    "read_ratings": "match.calibrate", "read_weights_file": "match.calibrate", "fittable_criteria": "match.calibrate",
-    "DesignResult": "runner.design", "DesignSettings": "runner.design", "design_props": "runner.design",
+    "match_virtual": "match.scene", "match_one": "match.scene", "Config": "config",
+    "Pose": "match.search", "Selection": "match.select", "coverage_curve": "match.select",
+    "select_props": "match.select", "Calibration": "match.calibrate", "Ratings": "match.calibrate",
+    "calibrate": "match.calibrate", "read_ratings": "match.calibrate",
+    "read_weights_file": "match.calibrate", "fittable_criteria": "match.calibrate",
+    "DesignResult": "runner.design", "DesignSettings": "runner.design",
+    "design_props": "runner.design",
 }
 
 if TYPE_CHECKING:  # what static tools see; at run time each name is imported on first use
     from .errors import (
-        ConfigError, ContactError, InternalError, MeshError, NoFeasiblePinchError, OutputError, PinchmatchError,
+        ConfigError, ContactError, InternalError, MeshError, NoFeasiblePinchError, OutputError,
+        PinchmatchError,
     )
     from .mesh.load import LoadedMesh, load_mesh
     from .mesh.properties import ObjectProperties, object_properties
@@ -101,7 +105,8 @@ if TYPE_CHECKING:  # what static tools see; at run time each name is imported on
     from .grasp.pinches import PinchSettings, Pinches, check_pinches
     from .grasp.sampling import sample_pinches
     from .grasp.features import PinchFeatures, pinch_features
-    from .grasp.analysis import ObjectAnalysis, analyze_object, analyze_prop, analyze_spec, find_pinches, score_pinches
+    from .grasp.analysis import (ObjectAnalysis, analyze_object, analyze_prop, analyze_spec,
+                                 find_pinches, score_pinches)
     from .match.cost import CostModel, Weights, complete_weights
     from .match.candidates import Candidates, candidate_poses
     from .match.register import register_pose, register_poses
@@ -109,7 +114,8 @@ if TYPE_CHECKING:  # what static tools see; at run time each name is imported on
     from .config import Config
     from .match.scene import SceneMatch, VirtualMatch, match_one, match_scene, match_virtual
     from .match.select import Selection, coverage_curve, select_props
-    from .match.calibrate import Calibration, Ratings, calibrate, fittable_criteria, read_ratings, read_weights_file
+    from .match.calibrate import (Calibration, Ratings, calibrate, fittable_criteria, read_ratings,
+                                  read_weights_file)
     from .runner.design import DesignResult, DesignSettings, design_props
 
 __all__ = sorted(_API) + ["__version__"]

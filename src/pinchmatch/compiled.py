@@ -1,12 +1,13 @@
 """numba's ``njit``, with a place to keep the compiled kernels wherever pinchmatch is installed.
 
-The kernels (:mod:`pinchmatch.mesh.topology_kernel`, ``neighbours_kernel``, ``distance_field_kernel``,
-:mod:`pinchmatch.grasp.jets`, ``spread_kernel``) are compiled on first use and kept on disk
-(``cache=True``). numba keeps them beside the source, or else in the user's cache folder; where neither
-can be written (a package installed read-only for a user with no writable home) numba refuses to compile
-a cached kernel at all. So, unless ``NUMBA_CACHE_DIR`` says where, a package folder that cannot be written
-sends the kernels to ``$XDG_CACHE_HOME/pinchmatch/numba`` (``~/.cache/...``), else to a folder of this
-user's in the system's temporary folder. Set before numba is first imported, so workers inherit it.
+The kernels (:mod:`pinchmatch.mesh.topology_kernel`, ``neighbours_kernel``,
+``distance_field_kernel``, :mod:`pinchmatch.grasp.jets`, ``spread_kernel``) are compiled on first
+use and kept on disk (``cache=True``). numba keeps them beside the source, or else in the user's
+cache folder; where neither can be written (a package installed read-only for a user with no
+writable home) numba refuses to compile a cached kernel at all. So, unless ``NUMBA_CACHE_DIR`` says
+where, a package folder that cannot be written sends the kernels to
+``$XDG_CACHE_HOME/pinchmatch/numba`` (``~/.cache/...``), else to a folder of this user's in the
+system's temporary folder. Set before numba is first imported, so workers inherit it.
 """
 
 from __future__ import annotations
@@ -32,7 +33,8 @@ def kernel_cache_dir() -> str | None:
     if all(os.access(p, os.W_OK | os.X_OK) for p in (package / "mesh", package / "grasp")):
         return None
     base = Path(os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache"))
-    for folder in (base / "pinchmatch" / "numba", Path(tempfile.gettempdir()) / f"pinchmatch-numba-{os.getuid()}"):
+    for folder in (base / "pinchmatch" / "numba",
+                   Path(tempfile.gettempdir()) / f"pinchmatch-numba-{os.getuid()}"):
         if _writable(folder):
             return str(folder)
     return None

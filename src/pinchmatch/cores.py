@@ -53,5 +53,6 @@ def query_workers(points: int) -> int:
 
 
 def query_tree(tree, points, *, work: int, **options):
-    """``tree.query(points, **options)`` (a scipy KD-tree) on :func:`query_workers` ``(work)`` threads."""
+    """``tree.query(points, **options)`` (a scipy KD-tree) on :func:`query_workers` ``(work)``
+    threads."""
     return tree.query(points, workers=query_workers(work), **options)

@@ -5,8 +5,9 @@ the new one, never half of one, and an error leaves the old one. Every file gets
 permissions (0666 less the umask). A file that cannot be written (no permission, a read-only or
 full file system) is an :class:`errors.OutputError` naming it: one line for the command line.
 
-Small input files that are not meshes (poses, ratings, weights) are read whole by :func:`read_input`,
-which turns every way of failing into one :class:`errors.ConfigError` line naming the file.
+Small input files that are not meshes (poses, ratings, weights) are read whole by
+:func:`read_input`, which turns every way of failing into one :class:`errors.ConfigError` line
+naming the file.
 """
 
 from __future__ import annotations
@@ -24,7 +25,8 @@ RESULT_CONTROL = ".pinchmatch"
 
 
 def holds_result(folder: str | os.PathLike) -> bool:
-    """Whether ``folder`` holds a result pinchmatch published (its files are outputs, never inputs)."""
+    """Whether ``folder`` holds a result pinchmatch published (its files are outputs, never
+    inputs)."""
     return (Path(folder) / RESULT_CONTROL / "manifest.json").is_file()
 
 
@@ -42,13 +44,16 @@ class AtomicFile:
         self.path = Path(path)
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
-            fd, self._tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", suffix=".tmp", dir=self.path.parent)
+            fd, self._tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", suffix=".tmp",
+                                             dir=self.path.parent)
         except OSError as exc:
             raise self._error(exc) from None
-        self.file = os.fdopen(fd, "wb") if binary else os.fdopen(fd, "w", encoding="utf-8", newline="")
+        self.file = os.fdopen(fd, "wb") if binary else os.fdopen(fd, "w", encoding="utf-8",
+                                                                 newline="")
 
     def _error(self, exc: OSError) -> OutputError:
-        return OutputError(f"{self.path}: cannot write it ({exc.strerror or exc}); free some space, or choose "
+        return OutputError(f"{self.path}: cannot write it ({exc.strerror or exc}); free some "
+                           "space, or choose "
                            "a writable place for the output")
 
     def write(self, data) -> None:
@@ -70,7 +75,8 @@ class AtomicFile:
             raise self._error(exc) from None
 
     def abort(self) -> None:
-        """Drop the temporary file; on a full disk, closing it fails again, and it goes all the same."""
+        """Drop the temporary file; on a full disk, closing it fails again, and it goes all the
+        same."""
         try:
             self.file.close()
         except OSError:
@@ -82,12 +88,13 @@ class AtomicFile:
 
 
 def read_input(path: str | os.PathLike, what: str, *, limit_bytes: int, too_big: str = "") -> bytes:
-    """The bytes of a small input file (``what``: "poses file", "ratings table"...), or a ConfigError
-    naming the file: missing, a folder, not a regular file, unreadable, or larger than ``limit_bytes``
-    (``too_big`` adds what to do then)."""
+    """The bytes of a small input file (``what``: "poses file", "ratings table"...), or a
+    ConfigError naming the file: missing, a folder, not a regular file, unreadable, or larger than
+    ``limit_bytes`` (``too_big`` adds what to do then)."""
     path = os.fspath(path)
     try:
-        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)  # a named pipe opens at once instead of waiting
+        # a named pipe opens at once instead of waiting
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
         with open(fd, "rb") as fh:
             if not stat.S_ISREG(os.fstat(fh.fileno()).st_mode):
                 raise ConfigError(f"{path}: not a regular file (a device or a pipe); give a {what}")
@@ -97,7 +104,8 @@ def read_input(path: str | os.PathLike, what: str, *, limit_bytes: int, too_big:
     except IsADirectoryError:
         raise ConfigError(f"{path}: is a folder; give a {what}") from None
     except OSError as exc:
-        raise ConfigError(f"{path}: cannot be read ({exc.strerror or exc}); check its permissions") from None
+        raise ConfigError(f"{path}: cannot be read ({exc.strerror or exc}); check its "
+                          "permissions") from None
     if len(raw) > limit_bytes:
         raise ConfigError(f"{path}: larger than {limit_bytes // 2**20} MiB, too big for a {what}"
                           + (f"; {too_big}" if too_big else ""))
@@ -130,15 +138,17 @@ def check_writable(path: str | os.PathLike, *, folder: bool) -> None:
         while not target.exists() and target != target.parent:
             target = target.parent
         if not target.is_dir():
-            raise OutputError(f"{path}: {target} is a file, so the output cannot go there; choose another -o")
+            raise OutputError(f"{path}: {target} is a file, so the output cannot go there; choose "
+                              "another -o")
     if not os.access(target, os.W_OK | os.X_OK):
-        raise OutputError(f"{path}: cannot write in {target} (no permission, or a read-only file system); "
+        raise OutputError(f"{path}: cannot write in {target} (no permission, or a read-only file "
+                          "system); "
                           "choose another -o")
 
 
 def remove_temporaries(path: str | os.PathLike) -> None:
-    """Remove the temporary files that a killed write of ``path`` left beside it (:class:`AtomicFile`'s
-    ``.NAME.XXXXXXXX.tmp``); nothing else is touched."""
+    """Remove the temporary files that a killed write of ``path`` left beside it
+    (:class:`AtomicFile`'s ``.NAME.XXXXXXXX.tmp``); nothing else is touched."""
     path = Path(path)
     pattern = re.compile(rf"^\.{re.escape(path.name)}\.[A-Za-z0-9_]{{8}}\.tmp$")
     try:

@@ -1,11 +1,12 @@
-"""How much memory a run may still take, and what limits it: the machine, the process's address space, its
-control group.
+"""How much memory a run may still take, and what limits it: the machine, the process's address
+space, its control group.
 
 Three limits bound a process on Linux, and any one can end a run: what the machine has free
-(``MemAvailable``), the address space a shell's ``ulimit -v`` allows (``RLIMIT_AS``, counted in virtual
-memory, of which numpy, numba and the ray engine reserve more than they touch), and the memory of its
-control group (a container's or a systemd unit's ``memory.max``). :func:`memory_headroom` gives the
-least of them and names it, so that a refusal or a run out of memory says which limit to raise.
+(``MemAvailable``), the address space a shell's ``ulimit -v`` allows (``RLIMIT_AS``, counted in
+virtual memory, of which numpy, numba and the ray engine reserve more than they touch), and the
+memory of its control group (a container's or a systemd unit's ``memory.max``).
+:func:`memory_headroom` gives the least of them and names it, so that a refusal or a run out of
+memory says which limit to raise.
 
 Imports nothing heavy: the command line uses it before it loads the pipeline.
 """
@@ -15,18 +16,21 @@ from __future__ import annotations
 import resource
 from pathlib import Path
 
-#: the address space below which no run starts: the interpreter, numpy, numba's compiled kernels, the ray
-#: engine and the worker threads take about 0.8 GiB of it before any mesh (measured on x86_64 Linux)
+#: the address space below which no run starts: the interpreter, numpy, numba's compiled kernels,
+#: the ray engine and the worker threads take about 0.8 GiB of it before any mesh (measured on
+#: x86_64 Linux)
 MIN_ADDRESS_SPACE_BYTES = 1 << 30
 #: a control group's files, version 2 then version 1 (what it may hold, what it holds)
-CGROUP_FILES = (("memory.max", "memory.current"), ("memory.limit_in_bytes", "memory.usage_in_bytes"))
+CGROUP_FILES = (("memory.max", "memory.current"),
+                ("memory.limit_in_bytes", "memory.usage_in_bytes"))
 #: where Linux says all this (tests point them at files of their own)
 PROC_MEMINFO, PROC_STATUS, PROC_CGROUP = "/proc/meminfo", "/proc/self/status", "/proc/self/cgroup"
 CGROUP_ROOT = "/sys/fs/cgroup"
 
 
 def _proc_value(path: str, key: str) -> int | None:
-    """A ``key: N kB`` line of a /proc file, in bytes (None where the file or the line is missing)."""
+    """A ``key: N kB`` line of a /proc file, in bytes (None where the file or the line is
+    missing)."""
     try:
         with open(path) as fh:
             for line in fh:
@@ -85,9 +89,9 @@ def _group_limit(folder: Path) -> tuple[int, int] | None:
 
 
 def cgroup_headroom() -> tuple[int, int] | None:
-    """(limit, free) bytes of the tightest control group this process is in: its own or any group above it up
-    to the hierarchy's root (a systemd slice limits every unit below it), the least free; None where none
-    sets a limit."""
+    """(limit, free) bytes of the tightest control group this process is in: its own or any group
+    above it up to the hierarchy's root (a systemd slice limits every unit below it), the least
+    free; None where none sets a limit."""
     found = _cgroup_folder()
     if found is None:
         return None
@@ -104,8 +108,9 @@ def cgroup_headroom() -> tuple[int, int] | None:
 
 
 def memory_headroom() -> tuple[int, str] | None:
-    """(bytes, which limit) of the least memory this process may still take: the machine's free memory,
-    the address space left under ``ulimit -v``, or its control group's; None where none is known."""
+    """(bytes, which limit) of the least memory this process may still take: the machine's free
+    memory, the address space left under ``ulimit -v``, or its control group's; None where none is
+    known."""
     limits = []
     free = _meminfo("MemAvailable")
     if free is not None:
@@ -113,11 +118,14 @@ def memory_headroom() -> tuple[int, str] | None:
     space = address_space_limit()
     if space is not None:
         used = _own_status("VmSize") or 0
-        limits.append((max(space - used, 0), f"{gib(max(space - used, 0))} of address space left under "
+        limits.append((max(space - used, 0),
+                       f"{gib(max(space - used, 0))} of address space left under "
                                              f"'ulimit -v' ({gib(space)})"))
     group = cgroup_headroom()
     if group is not None:
-        limits.append((group[1], f"{gib(group[1])} left of the control group's {gib(group[0])} (container limit)"))
+        limits.append((group[1],
+                       f"{gib(group[1])} left of the control group's {gib(group[0])} (container "
+                       "limit)"))
     return min(limits) if limits else None
 
 
@@ -129,7 +137,8 @@ def address_space_problem() -> str | None:
     """Why no run can start under this process's ``ulimit -v`` (None where it is large enough)."""
     space = address_space_limit()
     if space is not None and space < MIN_ADDRESS_SPACE_BYTES:
-        return (f"'ulimit -v' allows {gib(space)} of address space, less than the {gib(MIN_ADDRESS_SPACE_BYTES)} "
+        return (f"'ulimit -v' allows {gib(space)} of address space, less than the "
+                f"{gib(MIN_ADDRESS_SPACE_BYTES)} "
                 "pinchmatch needs before it reads any mesh; raise it (ulimit -v unlimited)")
     return None
 
@@ -143,5 +152,6 @@ def out_of_memory_message() -> str:
     total = _meminfo("MemTotal")
     if total is not None:
         limits.append(f"machine {gib(total)}")
-    return (f"ran out of memory (limits: {', '.join(limits) or 'unknown'}); give the run more memory, run fewer "
+    return (f"ran out of memory (limits: {', '.join(limits) or 'unknown'}); give the run more "
+            "memory, run fewer "
             "jobs at once (--jobs 1), or decimate the largest meshes (to about a million faces)")

@@ -1,14 +1,16 @@
-"""Settings records whose fields describe themselves: how the command line offers each one, and a digest.
+"""Settings records whose fields describe themselves: how the command line offers each one, and a
+digest.
 
 A settings record (:class:`pinchmatch.config.PinchSettings`,
 :class:`pinchmatch.config.MatchSettings`, and :class:`pinchmatch.config.Config` holding both)
 is a frozen dataclass. Each field made with :func:`option` carries an :class:`Option`: its help, the
 group of commands that offer it, how its value is written on the command line. The command line's
 options, their defaults and their help are generated from those fields
-(:func:`pinchmatch.cli.parser.add_record_options`), so the library and the command line cannot drift.
+(:func:`pinchmatch.cli.parser.add_record_options`), so the library and the command line cannot
+drift.
 
-:func:`digest` hashes a record's fields, and :func:`code_digest` the package's source: every cache key is
-made of these two and of the inputs' bytes, with no hand-kept list of what a key depends on.
+:func:`digest` hashes a record's fields, and :func:`code_digest` the package's source: every cache
+key is made of these two and of the inputs' bytes, with no hand-kept list of what a key depends on.
 """
 
 from __future__ import annotations
@@ -34,8 +36,8 @@ class Option:
     - ``help``: what it does, its bounds and units (the default is added from the field);
     - ``group``: the commands that offer it (:data:`pinchmatch.cli.parser.GROUPS`);
     - ``kind``: ``float``, ``int``, ``flag`` (present or not), ``choice`` (one of ``choices``: a
-      sequence of words, or a mapping from each word to the field's value), ``onoff`` (a bool written
-      ``on``/``off``), ``vector`` (``X,Y,Z``, default None), ``weights`` (``NAME=W,...``);
+      sequence of words, or a mapping from each word to the field's value), ``onoff`` (a bool
+      written ``on``/``off``), ``vector`` (``X,Y,Z``, default None), ``weights`` (``NAME=W,...``);
     - ``flag``: the option's name, default ``--`` and the field's name with ``-`` for ``_``;
     - ``metavar``: how its value is shown in the help.
     """
@@ -76,8 +78,9 @@ class Option:
         return str(value)
 
 
-def option(default=dataclasses.MISSING, *, help: str, group: str, kind: str, choices=None, flag: str | None = None,
-           metavar: str | None = None, default_factory=dataclasses.MISSING):
+def option(default=dataclasses.MISSING, *, help: str, group: str, kind: str, choices=None,
+           flag: str | None = None, metavar: str | None = None,
+           default_factory=dataclasses.MISSING):
     """A dataclass field the command line offers (see :class:`Option`)."""
     meta = {"option": Option(help, group, kind, choices, flag, metavar)}
     if default_factory is not dataclasses.MISSING:
@@ -87,7 +90,8 @@ def option(default=dataclasses.MISSING, *, help: str, group: str, kind: str, cho
 
 def offered(record_type) -> list[tuple[dataclasses.Field, Option]]:
     """The fields of a settings record type that the command line offers, in order."""
-    return [(f, f.metadata["option"]) for f in dataclasses.fields(record_type) if "option" in f.metadata]
+    return [(f, f.metadata["option"]) for f in dataclasses.fields(record_type)
+            if "option" in f.metadata]
 
 
 def flag_of(field: dataclasses.Field, opt: Option) -> str:
@@ -110,14 +114,16 @@ def plain(value):
         if value.ndim == 0:
             return value.item()
         data = value.tobytes(order="C")
-        return {"dtype": str(value.dtype), "shape": list(value.shape), "sha256": hashlib.sha256(data).hexdigest()}
+        return {"dtype": str(value.dtype), "shape": list(value.shape),
+                "sha256": hashlib.sha256(data).hexdigest()}
     return value
 
 
 def digest(value) -> str:
-    """SHA-256 of a record (or any value :func:`plain` takes), field by field; numbers by their value (5 and 5.0
-    alike, as the records compare them), a bool as a bool."""
-    return hashlib.sha256(json.dumps(_canonical(plain(value)), sort_keys=True, default=repr).encode()).hexdigest()
+    """SHA-256 of a record (or any value :func:`plain` takes), field by field; numbers by their
+    value (5 and 5.0 alike, as the records compare them), a bool as a bool."""
+    return hashlib.sha256(json.dumps(_canonical(plain(value)), sort_keys=True,
+                                     default=repr).encode()).hexdigest()
 
 
 def _canonical(value):
@@ -141,7 +147,8 @@ def code_digest() -> str:
 
 
 def package_digest(root) -> str:
-    """SHA-256 of the ``.py``, ``.js``, ``.html`` and ``.css`` files under ``root``, by relative path and bytes."""
+    """SHA-256 of the ``.py``, ``.js``, ``.html`` and ``.css`` files under ``root``, by relative
+    path and bytes."""
     h = hashlib.sha256()
     stack, files = [root], []
     while stack:

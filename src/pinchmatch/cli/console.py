@@ -14,11 +14,13 @@ from contextlib import contextmanager
 
 from rich import box
 from rich.console import Console
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+from rich.progress import (BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn,
+                           TimeElapsedColumn)
 from rich.table import Table
 from rich.text import Text
 
-#: width for tables written to a file or a pipe, where no terminal says how wide it is (``COLUMNS`` does)
+#: width for tables written to a file or a pipe, where no terminal says how wide it is (``COLUMNS``
+#: does)
 PIPE_WIDTH = 200
 
 
@@ -41,7 +43,8 @@ class Presenter:
         self.out = Console(file=sys.stdout, highlight=False,
                            width=None if sys.stdout.isatty() else _pipe_width())
         self.show_progress = not quiet and self.err.is_terminal
-        self.show_lines = not quiet and not self.err.is_terminal  # a pipe or a log: plain lines, now and then
+        # a pipe or a log: plain lines, now and then
+        self.show_lines = not quiet and not self.err.is_terminal
         self.show_summary = not quiet and not json_mode
 
     @contextmanager
@@ -52,10 +55,11 @@ class Presenter:
         ``done=False`` it only shows ``note``, the item now being worked on.
         """
         if not self.show_progress:
-            yield self._lines(description, total) if self.show_lines else (lambda note=None, *, done=True: None)
+            yield self._lines(description, total) if self.show_lines else (lambda note=None, *,
+                                                                           done=True: None)
             return
-        columns = [SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-                   TimeElapsedColumn()] if total is not None else [
+        columns = [SpinnerColumn(), TextColumn("{task.description}"), BarColumn(),
+                   MofNCompleteColumn(), TimeElapsedColumn()] if total is not None else [
                    SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn()]
         with Progress(*columns, console=self.err, transient=True) as progress:
             task = progress.add_task(description, total=total)
@@ -67,9 +71,9 @@ class Presenter:
             yield advance
 
     def _lines(self, description: str, total: int | None):
-        """Where stderr is no terminal: ``advance`` as for :meth:`step`, printing one plain line (the step, the
-        count done, the item, the seconds) once ``PROGRESS_LINE_S`` have passed since the step began or since
-        the last line; a short run prints none."""
+        """Where stderr is no terminal: ``advance`` as for :meth:`step`, printing one plain line
+        (the step, the count done, the item, the seconds) once ``PROGRESS_LINE_S`` have passed since
+        the step began or since the last line; a short run prints none."""
         start = last = time.monotonic()
         done_count = 0
 
@@ -89,15 +93,16 @@ class Presenter:
     def table(self, rows: list, *, title: str | None = None, legend: list | None = None,
               optional: tuple = ()) -> None:
         """``rows[0]`` is the header; printed to stdout unless quiet or ``--json``, folded to the
-        terminal's width (long names wrap instead of being cut), with the ``title`` line above (as wide as
-        the terminal, not the table) and the ``legend`` lines below. Where the table is wider than the
-        terminal, the ``optional`` columns (header names, the first to go first) are left out until it fits,
-        and a legend line names them."""
+        terminal's width (long names wrap instead of being cut), with the ``title`` line above (as
+        wide as the terminal, not the table) and the ``legend`` lines below. Where the table is
+        wider than the terminal, the ``optional`` columns (header names, the first to go first) are
+        left out until it fits, and a legend line names them."""
         if not self.show_summary:
             return
         rows, dropped = _narrowed(rows, optional, self.out.width)
         if dropped:
-            legend = [*(legend or []), f"left out to fit {self.out.width} columns: {', '.join(dropped)} (the "
+            legend = [*(legend or []),
+                      f"left out to fit {self.out.width} columns: {', '.join(dropped)} (the "
                                        "result file has every column)"]
         if title:
             self.out.print(Text(title), soft_wrap=False)
@@ -116,11 +121,13 @@ class Presenter:
 
     def warn(self, message: str) -> None:
         """A warning line on stderr; shown even with ``--quiet``."""
-        self.err.print(f"pinchmatch: warning: {message}", soft_wrap=True, markup=False, highlight=False)
+        self.err.print(f"pinchmatch: warning: {message}", soft_wrap=True, markup=False,
+                       highlight=False)
 
     def error(self, message: str) -> None:
         """An error line on stderr; shown even with ``--quiet``."""
-        self.err.print(f"pinchmatch: error: {message}", soft_wrap=True, markup=False, highlight=False)
+        self.err.print(f"pinchmatch: error: {message}", soft_wrap=True, markup=False,
+                       highlight=False)
 
     def document(self, text: str) -> None:
         """The result document on stdout, with ``--json``."""
@@ -130,8 +137,9 @@ class Presenter:
 
 
 def _narrowed(rows: list, optional: tuple, width: int) -> tuple[list, list]:
-    """``rows`` without the ``optional`` columns (in that order) it takes to fit ``width`` characters, each
-    column as wide as its widest cell with a space between; and the columns left out."""
+    """``rows`` without the ``optional`` columns (in that order) it takes to fit ``width``
+    characters, each column as wide as its widest cell with a space between; and the columns left
+    out."""
     header = list(rows[0])
     keep = list(range(len(header)))
     dropped = []

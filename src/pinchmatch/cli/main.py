@@ -8,9 +8,9 @@ output folder as it was), 1 unexpected error (a traceback only with ``--verbose`
 Only the parser is imported up front: ``--help``, ``--version`` and a bad option answer without
 loading the pipeline (:mod:`pinchmatch.cli.commands` and everything below it).
 
-:func:`main` runs a command in this process (as the tests and other Python code call it); the console
-script, :func:`console`, runs it in a child process that it ends at once on Ctrl-C or SIGTERM
-(:mod:`pinchmatch.cli.supervise`), so that no signal is ever raised inside the numeric work.
+:func:`main` runs a command in this process (as the tests and other Python code call it); the
+console script, :func:`console`, runs it in a child process that it ends at once on Ctrl-C or
+SIGTERM (:mod:`pinchmatch.cli.supervise`), so that no signal is ever raised inside the numeric work.
 """
 
 from __future__ import annotations
@@ -35,7 +35,8 @@ def main(argv: list[str] | None = None) -> int:
 
 def _main(argv: list[str]) -> int:
     verbose = "-v" in argv or "--verbose" in argv
-    logging.basicConfig(level=logging.INFO if verbose else logging.WARNING, format="%(name)s: %(message)s")
+    logging.basicConfig(level=logging.INFO if verbose else logging.WARNING,
+                        format="%(name)s: %(message)s")
     route_warnings(verbose=verbose)
     command = None
     try:
@@ -50,7 +51,8 @@ def _main(argv: list[str]) -> int:
             print(f"pinchmatch: error: {problem}", file=sys.stderr)
             return 2
         if _wants_local_workers(args):
-            start_worker_server()  # it loads the pipeline for the workers while this process does the same
+            # it loads the pipeline for the workers while this process does the same
+            start_worker_server()
         from .commands import COMMANDS  # the pipeline: loaded for a command, not for --help
 
         return COMMANDS[args.command](args)
@@ -63,12 +65,14 @@ def _main(argv: list[str]) -> int:
     except MemoryError:  # no input is wrong, and no traceback says more than the limit met
         print(f"pinchmatch: error: {out_of_memory_message()}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:  # Ctrl-C where main runs in the terminal's process (not under the console script)
+    except KeyboardInterrupt:
+        # Ctrl-C where main runs in the terminal's process (not under the console script)
         return _interrupted(signal.SIGINT, command)
     except Exception as exc:  # an internal error: say so, traceback on request
         if verbose:
             raise
-        print(f"pinchmatch: internal error: {type(exc).__name__}: {exc}; rerun with --verbose and report it",
+        print(f"pinchmatch: internal error: {type(exc).__name__}: {exc}; rerun with --verbose and "
+              "report it",
               file=sys.stderr)
         return 1
 
@@ -81,7 +85,8 @@ def _interrupted(signum: int, command: str | None) -> int:
 
 
 def _wants_local_workers(args) -> bool:
-    """The command will run local worker processes (``match`` or ``select`` with more than one job, no cluster)."""
+    """The command will run local worker processes (``match`` or ``select`` with more than one job,
+    no cluster)."""
     if args.command not in ("match", "select") or getattr(args, "scheduler", None):
         return False
     jobs = default_jobs() if args.jobs is None else args.jobs
@@ -94,7 +99,8 @@ def console() -> None:
     if not argv or any(a in ("-h", "--help", "--version") for a in argv):
         sys.exit(main(argv))  # answered by the parser alone: nothing to end
     if "--serve" in argv:
-        sys.exit(main(argv))  # a server that Ctrl-C stops, as it should: in this process, no numeric work
+        # a server that Ctrl-C stops, as it should: in this process, no numeric work
+        sys.exit(main(argv))
     try:  # a bad command line is answered here, before any process is started
         parser = build_parser()
         check_option_names(parser, argv)

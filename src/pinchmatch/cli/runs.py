@@ -11,7 +11,8 @@ from pathlib import Path
 
 from ..errors import ConfigError, RunError
 from ..export.documents import OPTIONAL_COLUMNS, matches_legend, scene_stems
-from ..export.notes import comfort_note, equivalent_note, flipped_note, redirection_note, reference_note, rest_note
+from ..export.notes import (comfort_note, equivalent_note, flipped_note, redirection_note,
+                            reference_note, rest_note)
 from ..export.sink import MatchesSink
 from ..export.view import write_page
 from ..files import check_writable, read_input, write_atomic
@@ -29,25 +30,33 @@ EXIT_SOME_FAILED = 3
 
 
 def pinch_settings_of(args, **extra) -> PinchSettings:
-    """The pinch rules' settings from the command's options (sampling options where it offers them)."""
+    """The pinch rules' settings from the command's options (sampling options where it offers
+    them)."""
     return record_of(PinchSettings, args, **extra)
 
 
 def match_settings_of(args) -> MatchSettings:
-    """The match settings from the command's options; the weights from --weights or --weights-file."""
-    criteria = MatchSettings.__dataclass_fields__["criteria"].metadata["option"].value(args.criteria)
+    """The match settings from the command's options; the weights from --weights or
+    --weights-file."""
+    field = MatchSettings.__dataclass_fields__["criteria"]
+    criteria = field.metadata["option"].value(args.criteria)
     if getattr(args, "weights_file", None):
         if getattr(args, "weights", None):
             raise ConfigError("--weights and --weights-file: give one of them")
         from ..match.calibrate import read_weights_file
 
-        given, pooling, fitted_for = read_weights_file(read_input(args.weights_file, "weights file (JSON)",
-                                                                  limit_bytes=2**20), args.weights_file)
+        given, pooling, fitted_for = read_weights_file(read_input(args.weights_file,
+                                                                  "weights file (JSON)",
+                                                                  limit_bytes=2**20),
+                                                                  args.weights_file)
         if pooling is not None and pooling != args.pooling:
-            raise ConfigError(f"{args.weights_file}: its weights were fitted for --pooling {pooling}; run with "
-                              f"--pooling {pooling}, or calibrate again with --pooling {args.pooling}")
+            raise ConfigError(f"{args.weights_file}: its weights were fitted for --pooling "
+                              f"{pooling}; run with "
+                              f"--pooling {pooling}, or calibrate again with --pooling "
+                              f"{args.pooling}")
         if fitted_for is not None and fitted_for != args.criteria:
-            raise ConfigError(f"{args.weights_file}: its weights are for --criteria {fitted_for}; run with "
+            raise ConfigError(f"{args.weights_file}: its weights are for --criteria {fitted_for}; "
+                              "run with "
                               f"--criteria {fitted_for}")
         weights = complete_weights(given, criteria=criteria)
     else:
@@ -56,7 +65,8 @@ def match_settings_of(args) -> MatchSettings:
     if getattr(args, "user_mm", None) is None and getattr(args, "tangible", None):
         from ..mesh.manifest import manifest_user
 
-        if (at := manifest_user(args.tangible)) is not None:  # the props manifest's, where --user-at gives none
+        if (at := manifest_user(args.tangible)) is not None:
+            # the props manifest's, where --user-at gives none
             user = {"user_mm": at}
     return record_of(MatchSettings, args, weights=weights, **user)
 
@@ -68,24 +78,29 @@ def config_of_args(args) -> Config:
 
 def check_placement(settings: MatchSettings, tangible_specs: list, virtual_specs: list, ui, *,
                     units: str | None = None, up: str | None = None) -> None:
-    """What ``--placement`` needs of the objects, checked before any work: under ``fixed`` every virtual
-    object placed by a level and the hand's start outside every prop (read in the run's ``units`` and
-    ``up`` where its spec gives none); under ``registered`` the options of the redirection are not used (a note
-    says so), while a prop's pose still says where it stands: on which table, and on which side of it the user
-    is (:mod:`pinchmatch.match.comfort`)."""
+    """What ``--placement`` needs of the objects, checked before any work: under ``fixed`` every
+    virtual object placed by a level and the hand's start outside every prop (read in the run's
+    ``units`` and ``up`` where its spec gives none); under ``registered`` the options of the
+    redirection are not used (a note says so), while a prop's pose still says where it stands: on
+    which table, and on which side of it the user is (:mod:`pinchmatch.match.comfort`)."""
     if settings.redirect is None:
         unused = [flag for flag, given in (("--hand-start", settings.hand_start_mm is not None),
-                                           ("--gain-range", tuple(settings.gain_range) != GAIN_RANGE),
-                                           ("--carousel-margin-jnd", settings.carousel_margin_jnd != CAROUSEL_MARGIN_JND))
+                                           ("--gain-range",
+                                            tuple(settings.gain_range) != GAIN_RANGE),
+                                           ("--carousel-margin-jnd",
+                                            settings.carousel_margin_jnd != CAROUSEL_MARGIN_JND))
                   if given]
         if unused:
-            ui.note(f"{', '.join(unused)} {'is' if len(unused) == 1 else 'are'} used with --placement fixed only; "
+            ui.note(f"{', '.join(unused)} {'is' if len(unused) == 1 else 'are'} used with "
+                    "--placement fixed only; "
                     "ignored under --placement registered")
         return
     loose = [s for s in virtual_specs if s.node is None]
     if loose:
-        raise ConfigError(f"{loose[0].path}: --placement fixed keeps each virtual object where a level puts it, and "
-                          "this file is not a level's node; give a glTF/GLB level with --split nodes, or use "
+        raise ConfigError(f"{loose[0].path}: --placement fixed keeps each virtual object where a "
+                          "level puts it, and "
+                          "this file is not a level's node; give a glTF/GLB level with --split "
+                          "nodes, or use "
                           "--placement registered")
     import numpy as np
 
@@ -96,28 +111,37 @@ def check_placement(settings: MatchSettings, tangible_specs: list, virtual_specs
     for spec in tangible_specs:
         read = spec.with_defaults(units=units, up=up)
         meshes.append(load_mesh(read.path, units=read.units, up=read.up).mesh)
-    starts = [hand_start(spec, settings.redirect, mesh.vertices) for spec, mesh in zip(tangible_specs, meshes)]
+    starts = [hand_start(spec, settings.redirect, mesh.vertices)
+              for spec, mesh in zip(tangible_specs, meshes)]
     for spec, mesh, start in zip(tangible_specs, meshes, starts):
         R, p = world_pose(spec)
         far = float(np.linalg.norm(mesh.vertices @ R.T + p - start, axis=1).min())
         if far > MAX_REACH_MM:
-            where = "--hand-start" if settings.hand_start_mm is not None else "the default hand start"
-            raise ConfigError(f"{where} {np.round(start, 1).tolist()} mm is {far:.0f} mm from the prop "
-                              f"{spec.display_name}, beyond an arm's reach ({MAX_REACH_MM:g} mm); give a --hand-start "
-                              "X,Y,Z where the user's hand rests, within reach of the props (mm, the level's frame)")
+            where = ("--hand-start" if settings.hand_start_mm is not None
+                     else "the default hand start")
+            raise ConfigError(f"{where} {np.round(start, 1).tolist()} mm is {far:.0f} mm from the "
+                              "prop "
+                              f"{spec.display_name}, beyond an arm's reach ({MAX_REACH_MM:g} mm); "
+                              "give a --hand-start "
+                              "X,Y,Z where the user's hand rests, within reach of the props (mm, "
+                              "the level's frame)")
     for spec, mesh in zip(tangible_specs, meshes):
         R, p = world_pose(spec)
         for start in starts:
             if mesh.contains(((start - p) @ R)[None])[0]:
-                where = "--hand-start" if settings.hand_start_mm is not None else "the default hand start"
+                where = ("--hand-start" if settings.hand_start_mm is not None
+                         else "the default hand start")
                 raise ConfigError(f"{where} {np.round(start, 1).tolist()} mm lies inside the prop "
-                                  f"{spec.display_name}; give a --hand-start X,Y,Z outside every prop, where the "
+                                  f"{spec.display_name}; give a --hand-start X,Y,Z outside every "
+                                  "prop, where the "
                                   "hand rests before it reaches")
-    _start_outside_objects(starts, virtual_specs, units, "--hand-start" if settings.hand_start_mm is not None
+    _start_outside_objects(starts, virtual_specs, units,
+                           "--hand-start" if settings.hand_start_mm is not None
                            else "the default hand start")
 
 
-def _start_outside_objects(starts: list, virtual_specs: list, units: str | None, where: str) -> None:
+def _start_outside_objects(starts: list, virtual_specs: list, units: str | None,
+                           where: str) -> None:
     """Refuse a hand start inside a level's object, in one line: the hand cannot rest there."""
     import numpy as np
     import trimesh
@@ -136,15 +160,18 @@ def _start_outside_objects(starts: list, virtual_specs: list, units: str | None,
             vertices = np.asarray(mesh.vertices) * UNITS_MM[spec.units or units or "m"]
             low, high = vertices.min(axis=0), vertices.max(axis=0)
             near = points[((points >= low) & (points <= high)).all(axis=1)]
-            if len(near) and trimesh.Trimesh(vertices, mesh.faces, process=False).contains(near).any():
-                raise ConfigError(f"{where} {np.round(near[0], 1).tolist()} mm lies inside the level's object "
-                                  f"{spec.display_name}; give a --hand-start X,Y,Z outside every object, where the "
+            if len(near) and trimesh.Trimesh(vertices, mesh.faces,
+                                             process=False).contains(near).any():
+                raise ConfigError(f"{where} {np.round(near[0], 1).tolist()} mm lies inside the "
+                                  "level's object "
+                                  f"{spec.display_name}; give a --hand-start X,Y,Z outside every "
+                                  "object, where the "
                                   "hand rests before it reaches (mm, the level's frame)")
 
 
 def virtual_level_specs(args, notes: list | None = None) -> list:
-    """The virtual objects the command line names (``--virtual``), a level split as ``--split``, ``--nodes``
-    and ``--skip-nodes`` say, its furniture left out (a line each in ``notes``)."""
+    """The virtual objects the command line names (``--virtual``), a level split as ``--split``,
+    ``--nodes`` and ``--skip-nodes`` say, its furniture left out (a line each in ``notes``)."""
     from ..mesh.manifest import object_specs
 
     return object_specs(args.virtual, option="--virtual", split=args.split, nodes=args.nodes or (),
@@ -152,29 +179,33 @@ def virtual_level_specs(args, notes: list | None = None) -> list:
 
 
 def level_note(specs: list) -> str | None:
-    """Before the run: how many objects each split level makes (a level of thousands of nodes is a long run)."""
+    """Before the run: how many objects each split level makes (a level of thousands of nodes is a
+    long run)."""
     counts: dict[str, int] = {}
     for spec in specs:
         if spec.node is not None:
             counts[spec.path] = counts.get(spec.path, 0) + 1
     if not counts:
         return None
-    return "; ".join(f"{path}: {n} node{'s' if n != 1 else ''}, one object each" for path, n in counts.items())
+    return "; ".join(f"{path}: {n} node{'s' if n != 1 else ''}, one object each"
+                     for path, n in counts.items())
 
 
 def standing(specs: list, args, role: str) -> list:
-    """The specs with the run's ``--support`` where their manifest says nothing: every prop stands, and
-    every node of a level; a virtual object of its own file does not (it is not anywhere)."""
-    return [spec.standing(args.support) if role == "tangible" or spec.node else spec for spec in specs]
+    """The specs with the run's ``--support`` where their manifest says nothing: every prop stands,
+    and every node of a level; a virtual object of its own file does not (it is not anywhere)."""
+    return ([spec.standing(args.support) if role == "tangible" or spec.node else spec
+             for spec in specs])
 
 
 def given_poses(files, paths, option, grasp: str = "pinch") -> list:
-    """Per object, the given poses or None; ``files`` must be one per object. Pinches are (p1_mm, p2_mm);
-    tripods (``grasp``) a tuple of their (n, 3, 3) contacts."""
+    """Per object, the given poses or None; ``files`` must be one per object. Pinches are (p1_mm,
+    p2_mm); tripods (``grasp``) a tuple of their (n, 3, 3) contacts."""
     if not files:
         return [None] * len(paths)
     if len(files) != len(paths):
-        raise ConfigError(f"{option}: got {len(files)} files for {len(paths)} objects; give one per object, in order")
+        raise ConfigError(f"{option}: got {len(files)} files for {len(paths)} objects; give one "
+                          "per object, in order")
     if grasp == "tripod":
         return [(load_tripods_file(f),) for f in files]
     return [load_poses_file(f) for f in files]
@@ -194,7 +225,8 @@ def table_rows(rows: list, what: str) -> list:
     """The header and at most TABLE_ROWS rows, the rest counted in a last row."""
     if len(rows) <= TABLE_ROWS + 1:
         return rows
-    return rows[:TABLE_ROWS + 1] + [(f"... {len(rows) - 1 - TABLE_ROWS} more {what}",) + ("",) * (len(rows[0]) - 1)]
+    return rows[:TABLE_ROWS + 1] + [(f"... {len(rows) - 1 - TABLE_ROWS} more {what}",) + ("",)
+                                    * (len(rows[0]) - 1)]
 
 
 def match_job(args, settings: PinchSettings, match_settings: MatchSettings, cache) -> Job:
@@ -212,7 +244,8 @@ def check_match_flags(args) -> None:
     if args.cache and args.no_cache:
         raise ConfigError("--cache and --no-cache: give one of them")
     if args.json and getattr(args, "format", "json") == "jsonl":
-        raise ConfigError("--json and --format jsonl: give one of them; --json prints the matches.json document")
+        raise ConfigError("--json and --format jsonl: give one of them; --json prints the "
+                          "matches.json document")
     if args.figures and args.no_figures:
         raise ConfigError("--figures and --no-figures: give one of them")
 
@@ -229,11 +262,13 @@ def write_matches(args, stage: Path, out: Path, ui, ex, tangible_tasks, virtual_
     sink = MatchesSink(stage, fmt, stems)
     with sink:
         try:
-            result = run_match(tangible_tasks, virtual_tasks, job, ex, on_failure=on_failure, on_result=sink.add,
-                               step=ui.step, plan=plan,
-                               header=lambda tangibles: sink.start(run_settings, tangibles, job.dump_poses))
+            result = run_match(tangible_tasks, virtual_tasks, job, ex, on_failure=on_failure,
+                               on_result=sink.add, step=ui.step, plan=plan,
+                               header=lambda tangibles: sink.start(run_settings, tangibles,
+                                                                   job.dump_poses))
         except BrokenProcessPool:
-            raise RunError("a worker process died (out of memory?); run again with fewer --jobs") from None
+            raise RunError("a worker process died (out of memory?); run again with fewer "
+                           "--jobs") from None
         doc = sink.finish(result)
     written = [str(out / sink.result_path.name), f"{sink.scenes} glTF scenes in {out / 'scenes'}"]
     if args.figures:
@@ -243,11 +278,13 @@ def write_matches(args, stage: Path, out: Path, ui, ex, tangible_tasks, virtual_
         )
 
         with ui.step("cost matrix figure"):
-            write_atomic(stage / "figures" / "cost_matrix.png", png_bytes(cost_matrix_figure(sink.overview())))
+            write_atomic(stage / "figures" / "cost_matrix.png",
+                         png_bytes(cost_matrix_figure(sink.overview())))
         written.append(f"{sink.scenes + 1} figures in {out / 'figures'}")
     if job.config.match.redirect is not None:
-        written += write_levels(stage, out, doc if doc is not None else read_lines(sink.result_path), virtual_tasks,
-                                result, run_settings)
+        written += write_levels(stage, out,
+                                doc if doc is not None else read_lines(sink.result_path),
+                                virtual_tasks, result, run_settings)
     if not args.no_view and doc is not None:
         with ui.step("viewer page"):
             write_page(stage, document=doc)
@@ -258,7 +295,8 @@ def write_matches(args, stage: Path, out: Path, ui, ex, tangible_tasks, virtual_
 
 
 def read_lines(path: Path) -> dict:
-    """The matches and the virtual objects of a ``matches.jsonl`` just written, as a matches document has them."""
+    """The matches and the virtual objects of a ``matches.jsonl`` just written, as a matches
+    document has them."""
     import json
 
     matches, virtuals = [], []
@@ -272,8 +310,9 @@ def read_lines(path: Path) -> dict:
 
 
 def _distinct_stems(paths: list) -> dict:
-    """{path: a name for its level.glb}: the file's stem, with as many of its folders before it (joined by
-    ``-``) as tell levels of one stem apart (``a/kitchen.glb`` and ``b/kitchen.glb``: ``a-kitchen``, ``b-kitchen``)."""
+    """{path: a name for its level.glb}: the file's stem, with as many of its folders before it
+    (joined by ``-``) as tell levels of one stem apart (``a/kitchen.glb`` and ``b/kitchen.glb``:
+    ``a-kitchen``, ``b-kitchen``)."""
     import os
 
     parts = {p: Path(os.path.abspath(p)).with_suffix("").parts for p in paths}
@@ -287,13 +326,15 @@ def _distinct_stems(paths: list) -> dict:
     return out
 
 
-def write_levels(stage: Path, out: Path, doc: dict, virtual_tasks, result, run_settings: dict) -> list[str]:
-    """Under ``--placement fixed``: each level the virtual objects come from, with the props at their poses
-    and each node's match in its extras (:mod:`pinchmatch.export.level`): ``level.glb``, or
-    ``level-<file stem>.glb`` for each of several levels."""
+def write_levels(stage: Path, out: Path, doc: dict, virtual_tasks, result,
+                 run_settings: dict) -> list[str]:
+    """Under ``--placement fixed``: each level the virtual objects come from, with the props at
+    their poses and each node's match in its extras (:mod:`pinchmatch.export.level`): ``level.glb``,
+    or ``level-<file stem>.glb`` for each of several levels."""
     from ..export.level import level_glb
 
-    specs = {t.spec.display_name: t.spec for t in virtual_tasks if t.spec is not None and t.spec.node is not None}
+    specs = {t.spec.display_name: t.spec for t in virtual_tasks if t.spec is not None
+             and t.spec.node is not None}
     props = {c.name: c.obj for c in result.tangibles}
     objects = {v["name"]: v for v in doc.get("virtuals", [])}
     levels = sorted({spec.path for spec in specs.values()})
@@ -301,13 +342,17 @@ def write_levels(stage: Path, out: Path, doc: dict, virtual_tasks, result, run_s
     written = []
     for path in levels:
         entries = {specs[m["virtual"]].node: (m, props[m["tangible"]].spec) for m in doc["matches"]
-                   if m.get("tangible") is not None and m["virtual"] in specs and specs[m["virtual"]].path == path}
+                   if m.get("tangible") is not None and m["virtual"] in specs
+                   and specs[m["virtual"]].path == path}
         virtuals = {specs[name].node: entry for name, entry in objects.items()
                     if name in specs and specs[name].path == path}
         name = "level.glb" if len(levels) == 1 else f"level-{level_names[path]}.glb"
-        units = next((s.units for s in specs.values() if s.path == path and s.units), None) or run_settings.get("units")
-        data = level_glb(path, [(obj.spec, obj.loaded.mesh, obj.props.com_mm, obj.mass_g) for obj in props.values()],
-                         entries, run_settings, virtuals=virtuals, units=units)
+        units = next((s.units for s in specs.values() if s.path == path and s.units),
+                     None) or run_settings.get("units")
+        data = level_glb(path,
+                         [(obj.spec, obj.loaded.mesh, obj.props.com_mm, obj.mass_g)
+                          for obj in props.values()], entries, run_settings, virtuals=virtuals,
+                          units=units)
         write_atomic(stage / name, data)
         written.append(str(out / name))
     return written
@@ -330,16 +375,19 @@ def print_match(ui, sink, result, run_settings) -> None:
     if note := reference_note(sink.references):
         ui.note(note)
     if result.failed:
-        ui.table(table_rows([("file", "role", "problem")] + [(f.path, f.role, f.error) for f in result.failed],
-                             "files"), title=f"failed: {len(result.failed)} files, left out of the run")
+        ui.table(table_rows([("file", "role", "problem")]
+                            + [(f.path, f.role, f.error) for f in result.failed],
+                             "files"),
+                             title=f"failed: {len(result.failed)} files, left out of the run")
 
 
 
 
 def placed_in_level(tangible_specs: list, virtual_specs: list, up: str | None) -> list:
-    """The props with the up of the level their poses place them in (``level_up``): the up of the levels the
-    virtual objects are nodes of (their manifest entries', else ``up``, else glTF's ``y``); levels of two ups
-    are refused in one line. Unchanged where the level is y-up, or no prop has a pose."""
+    """The props with the up of the level their poses place them in (``level_up``): the up of the
+    levels the virtual objects are nodes of (their manifest entries', else ``up``, else glTF's
+    ``y``); levels of two ups are refused in one line. Unchanged where the level is y-up, or no prop
+    has a pose."""
     from dataclasses import replace
 
     from ..mesh.frames import parse_up
@@ -350,7 +398,9 @@ def placed_in_level(tangible_specs: list, virtual_specs: list, up: str | None) -
             ups.setdefault(parse_up(spec.up or up or "y")[0], spec.path)
     if len(ups) > 1:
         (a, first), (b, second) = list(ups.items())[:2]
-        raise ConfigError(f"{second}: its up is {b} while {first}'s is {a}; a prop's pose places it in one level "
+        raise ConfigError(f"{second}: its up is {b} while {first}'s is {a}; a prop's pose places "
+                          "it in one level "
                           "frame, so match the levels of each up in a run of their own")
     label = next(iter(ups), "y")
-    return [replace(s, level_up=label) if s.pose is not None and label != "y" else s for s in tangible_specs]
+    return [replace(s, level_up=label) if s.pose is not None and label != "y" else s
+            for s in tangible_specs]

@@ -1,12 +1,15 @@
-"""The command line's process: it runs the command in a child process and ends it at once on a signal.
+"""The command line's process: it runs the command in a child process and ends it at once on a
+signal.
 
 ``pinchmatch`` (the console script, ``python -m pinchmatch``) forks before it loads anything of the
-pipeline. The child runs the command (:func:`pinchmatch.cli.main.main`) in a process group of its own,
-with its local workers, fork server and resource tracker; it handles no signal itself. On SIGINT or
-SIGTERM the parent kills that whole group (SIGKILL), puts the output back as a killed run leaves it
-(:func:`pinchmatch.export.folder.undo_killed_run`: a publication under way is finished from its
-journal, anything else staged or written into OUT is taken back), says one line and exits with 130 or
-143. A signal's exception is never raised inside the numeric work, so nothing the geometry does needs
+pipeline. The child runs the command (:func:`pinchmatch.cli.main.main`) in a process group of its
+own, with its local workers, fork server and resource tracker; it handles no signal itself. On
+SIGINT or SIGTERM the parent kills that whole group (SIGKILL), puts the output back as a killed run
+leaves it (:func:`pinchmatch.export.folder.undo_killed_run`: a publication under way is finished
+from its journal, anything else staged or written into OUT is taken back), says one line and exits
+with 130 or
+143. A signal's exception is never raised inside the numeric work, so nothing the geometry does
+     needs
 to know about signals: the kernels, KD-tree queries and imports run to their end or die with their
 process.
 
@@ -32,8 +35,8 @@ PR_SET_PDEATHSIG = 1
 
 
 def supervise(argv: list[str], run) -> int:
-    """``run(argv)`` (the command line's :func:`~pinchmatch.cli.main.main`) in a child process; return its
-    exit code, or 130/143 after a signal."""
+    """``run(argv)`` (the command line's :func:`~pinchmatch.cli.main.main`) in a child process;
+    return its exit code, or 130/143 after a signal."""
     received: list[int] = []
     child = [0]
 
@@ -65,7 +68,8 @@ def supervise(argv: list[str], run) -> int:
                 os._exit(code)
         child[0] = pid
         try:
-            os.setpgid(pid, pid)  # at once, so that a signal before the child's own call finds its group
+            # at once, so that a signal before the child's own call finds its group
+            os.setpgid(pid, pid)
         except (PermissionError, ProcessLookupError):
             pass  # the child set it, or is gone already
         if received:  # a signal between the handlers and the fork
@@ -81,7 +85,8 @@ def supervise(argv: list[str], run) -> int:
         if -code in SIGNAL_EXIT:
             return _ended_by(-code, argv, published)
         _undo(argv, published)
-        print(f"pinchmatch: internal error: the run's process was killed ({signal.Signals(-code).name}; out of "
+        print("pinchmatch: internal error: the run's process was killed "
+              f"({signal.Signals(-code).name}; out of "
               "memory?); run again with fewer --jobs or a smaller --count", file=sys.stderr)
         return 1
     return code
@@ -113,7 +118,8 @@ def _ended_by(signum: int, argv: list[str], published: bytes | None) -> int:
 
 
 def _published(argv: list[str]) -> bytes | None:
-    """The manifest of the result in the command's output folder (None: none, or not a folder command)."""
+    """The manifest of the result in the command's output folder (None: none, or not a folder
+    command)."""
     command, output = _command_and_output(argv)
     if command not in FOLDER_COMMANDS or output is None:
         return None
@@ -164,7 +170,8 @@ def _command_and_output(argv: list[str]) -> tuple[str | None, Path | None]:
 
     try:
         args = build_parser().parse_args(join_vector_values(list(argv)))
-    except BaseException:  # noqa: BLE001 - a bad command line: the child said so, or the signal came first
+    # a bad command line: the child said so, or the signal came first
+    except BaseException:  # noqa: BLE001
         return None, None
     command = getattr(args, "command", None)
     if command == "view":

@@ -22,7 +22,7 @@ from ..version import __version__
 from ..grasp.features import PinchFeatures, TripodFeatures
 from ..mesh.load import LoadedMesh
 from ..match.candidates import mass_ratio
-from ..match.search import contact_offset_mm, criterion_table, p_noticed
+from ..match.noticed import contact_offset_mm, criterion_table, p_noticed
 from ..grasp.pinches import Pinches
 from ..grasp.spread import other_order
 from ..grasp.tripod_rules import FINGERS, Tripods
@@ -70,7 +70,8 @@ def object_section(loaded: LoadedMesh, props: ObjectProperties, *, ray_engine: s
 
 
 def pose_records(pinches: Pinches, features: PinchFeatures) -> list[dict]:
-    """One JSON record per pinch: contacts, normals and the seven features (per tripod: :func:`tripod_records`)."""
+    """One JSON record per pinch: contacts, normals and the seven features (per tripod:
+    :func:`tripod_records`)."""
     if isinstance(pinches, Tripods):
         return tripod_records(pinches, features)
     records = []
@@ -112,8 +113,8 @@ def _patch_records(grasps: Pinches, features: PinchFeatures, i: int) -> list[dic
 
 
 def tripod_records(tripods: Tripods, features: TripodFeatures) -> list[dict]:
-    """One JSON record per tripod: ``contacts_mm`` and ``normals`` (thumb, index, middle), the grasp's
-    features and a patch per contact (docs/output-format.md)."""
+    """One JSON record per tripod: ``contacts_mm`` and ``normals`` (thumb, index, middle), the
+    grasp's features and a patch per contact (docs/output-format.md)."""
     return [{
         "index": i,
         "fingers": list(FINGERS),
@@ -134,8 +135,8 @@ def tripod_records(tripods: Tripods, features: TripodFeatures) -> list[dict]:
 
 
 def record_contacts(pose: dict) -> list:
-    """The contacts of a pose record (mm, its file's frame): a tripod's ``contacts_mm``, a pinch's ``p1_mm`` and
-    ``p2_mm``."""
+    """The contacts of a pose record (mm, its file's frame): a tripod's ``contacts_mm``, a pinch's
+    ``p1_mm`` and ``p2_mm``."""
     return pose["contacts_mm"] if "contacts_mm" in pose else [pose["p1_mm"], pose["p2_mm"]]
 
 
@@ -152,7 +153,8 @@ def poses_document(loaded, props, settings: dict, pinches, features, *, ray_engi
     }
 
 
-def features_document(loaded, props, settings: dict, pinches, features, *, given, ray_engine: str) -> dict:
+def features_document(loaded, props, settings: dict, pinches, features, *, given,
+                      ray_engine: str) -> dict:
     record = pose_records(pinches, features)[0]
     for k, point in enumerate(given, start=1):
         record[f"given_p{k}_mm"] = json_vector(point)
@@ -175,7 +177,8 @@ CSV_COLUMNS = (
     + [
         f"patch{k}_{name}"
         for k in (1, 2)
-        for name in ("normal_angle_deg", "curvature_axis_angle_deg", "kappa_max_per_m", "kappa_min_per_m")
+        for name in ("normal_angle_deg", "curvature_axis_angle_deg", "kappa_max_per_m",
+                     "kappa_min_per_m")
     ]
 )
 
@@ -187,7 +190,8 @@ TRIPOD_CSV_COLUMNS = (
     + ["aperture_mm", "spacing_mm", "com_distance_mm", "tilt_deg", "lever_arm_mm"]
     + [f"approach_{c}" for c in "xyz"] + ["approach_clearance_mm"]
     + [f"{f}_{name}" for f in FINGERS
-       for name in ("normal_angle_deg", "curvature_axis_angle_deg", "kappa_max_per_m", "kappa_min_per_m")]
+       for name in ("normal_angle_deg", "curvature_axis_angle_deg", "kappa_max_per_m",
+                    "kappa_min_per_m")]
 )
 
 
@@ -201,7 +205,8 @@ def poses_csv(document: dict) -> str:
         row = [pose["index"], int(pose["feasible"])]
         if tripods:
             row += sum(pose["contacts_mm"], []) + sum(pose["normals"], [])
-            row += [pose[k] for k in ("aperture_mm", "spacing_mm", "com_distance_mm", "tilt_deg", "lever_arm_mm")]
+            row += [pose[k] for k in ("aperture_mm", "spacing_mm", "com_distance_mm", "tilt_deg",
+                                      "lever_arm_mm")]
         else:
             row += pose["p1_mm"] + pose["p2_mm"] + pose["n1"] + pose["n2"]
             row += [pose["width_mm"], pose["com_distance_mm"], pose["tilt_deg"]]
@@ -226,7 +231,8 @@ SCHEMA_MATCH_LINES = "pinchmatch.matches.jsonl/1"
 
 #: how transforms are to be read, stated in every matches document
 FRAME_NOTE = (
-    "transform_virtual_to_tangible maps points of the virtual object, in its file's frame scaled to mm, "
+    "transform_virtual_to_tangible maps points of the virtual object, in its file's frame scaled "
+    "to mm, "
     "into the tangible's file frame in mm: x_t = R x_v + t; row-major 4x4, right-handed, det +1. "
     "position_mm is t; quaternion_xyzw is R as a unit quaternion [x, y, z, w]."
 )
@@ -269,13 +275,15 @@ def _choice_record(scene, vm, choice, *, full: bool) -> dict:
     tangibles, V = scene.objects(vm)
     T = tangibles[choice.tangible]
     up_t = T.obj.loaded.up
-    chance = choice.p_noticed if choice.p_noticed is not None else p_noticed(T, V, choice, scene.model)
+    chance = choice.p_noticed if choice.p_noticed is not None else p_noticed(T, V, choice,
+                                                                             scene.model)
     record = {
         "tangible": T.name,
         "cost": json_number(choice.cost, 6),
         "p_noticed": json_number(chance, 4),
         "noticeable": bool(chance >= NOTICED_LEVEL),
-        "tangible_pose": _candidate_record(T, choice.t_pose) if full else _contacts(T, choice.t_pose),
+        "tangible_pose": _candidate_record(T, choice.t_pose) if full
+        else _contacts(T, choice.t_pose),
         "virtual_pose": (_candidate_record(V, choice.v_pose, swapped=choice.swapped) if full
                          else _contacts(V, choice.v_pose, swapped=choice.swapped)),
         **_rigid(choice.transform),
@@ -298,7 +306,8 @@ def up_turn_deg(transform: np.ndarray, up_virtual: np.ndarray, up_tangible: np.n
     """How far the placement turns the virtual object from upright: the angle (deg) between its up
     direction, registered, and the tangible's up. ``flipped`` is this beyond 90°."""
     seen = np.asarray(transform)[:3, :3] @ np.asarray(up_virtual, dtype=np.float64)
-    return float(np.degrees(np.arccos(np.clip(seen @ np.asarray(up_tangible, dtype=np.float64), -1.0, 1.0))))
+    return float(np.degrees(np.arccos(np.clip(seen @ np.asarray(up_tangible, dtype=np.float64),
+                                              -1.0, 1.0))))
 
 
 def _contacts(candidates, i: int, *, swapped: bool = False) -> dict:
@@ -307,16 +316,19 @@ def _contacts(candidates, i: int, *, swapped: bool = False) -> dict:
         p, n = p[other_order(len(p))], n[other_order(len(p))]
     if len(p) > 2:
         return {**_index(candidates, i), "contacts_mm": [json_vector(c) for c in p],
-                "normals": [json_vector(c, 6) for c in n], "approach": json_vector(candidates.pinches.approach[i], 6),
+                "normals": [json_vector(c, 6) for c in n],
+                "approach": json_vector(candidates.pinches.approach[i], 6),
                 "aperture_mm": json_number(float(np.linalg.norm(p[1:].mean(axis=0) - p[0]))),
                 "finger_order_swapped": bool(swapped)}
     return {**_index(candidates, i), "p1_mm": json_vector(p[0]), "p2_mm": json_vector(p[1]),
             "n1": json_vector(n[0], 6), "n2": json_vector(n[1], 6),
-            "approach": json_vector(candidates.pinches.approach[i], 6), "finger_order_swapped": bool(swapped)}
+            "approach": json_vector(candidates.pinches.approach[i], 6),
+            "finger_order_swapped": bool(swapped)}
 
 
 def _landing_record(landing) -> dict | None:
-    """A match's landing tolerance (:class:`pinchmatch.match.landing.Landing`), costs to 6 digits."""
+    """A match's landing tolerance (:class:`pinchmatch.match.landing.Landing`), costs to 6
+    digits."""
     if landing is None:
         return None
     record = landing.as_dict()
@@ -333,7 +345,8 @@ def _reference_record(ref, model) -> dict:
         return {"cost": None, "reason": ref.reason}
     record = pose_records(ref.pinches, ref.features)[0]
     return {"cost": json_number(ref.cost, 6), "reason": None, "flipped": ref.flipped,
-            "transform_virtual_to_tangible": [json_vector(row, 6) for row in np.eye(4)], "virtual_pose": record}
+            "transform_virtual_to_tangible": [json_vector(row, 6) for row in np.eye(4)],
+            "virtual_pose": record}
 
 
 def object_entry(candidates, *, dump_poses: bool = False) -> dict:
@@ -375,13 +388,14 @@ def match_entry(scene, vm) -> dict:
     if vm.redirection is not None:
         entry["redirection"] = vm.redirection
     # keys in a stable, readable order
-    order = ["virtual", "tangible", "cost", "p_noticed", "noticeable", "reason", "criteria", "tangible_pose",
-             "virtual_pose"]
+    order = ["virtual", "tangible", "cost", "p_noticed", "noticeable", "reason", "criteria",
+             "tangible_pose", "virtual_pose"]
     return {k: entry[k] for k in order} | {k: v for k, v in entry.items() if k not in order}
 
 
 def matches_header(settings: dict, tangibles: list[dict]) -> dict:
-    """What a matches document says before any virtual object: schema, settings, the grasp, frames, tangibles."""
+    """What a matches document says before any virtual object: schema, settings, the grasp, frames,
+    tangibles."""
     return {"schema": SCHEMA_MATCHES, "version": __version__, "settings": settings,
             "grasp": settings.get("grasp", "pinch"),
             "frames": FRAME_NOTE, "tangibles": tangibles}
@@ -404,15 +418,16 @@ def scene_stems(virtual_names: list[str]) -> list[str]:
     characters) as ``_``; a stem already taken (case-insensitively: macOS and Windows fold case)
     gets ``_2``, ``_3``, ... until it is free, in the order of the names. ``a.obj``, ``a.stl``,
     ``a_2.stl`` give ``a``, ``a_2``, ``a_2_2``. ``matches.json`` records the file of each object's
-    scene and figure, so readers never derive them again. A stem is at most ``MAX_STEM_BYTES`` bytes of
-    UTF-8, cut on a character boundary: file systems take 255 bytes a name, and the name of an object or a
-    level's node may be longer (80 CJK characters are 240 bytes).
+    scene and figure, so readers never derive them again. A stem is at most ``MAX_STEM_BYTES`` bytes
+    of UTF-8, cut on a character boundary: file systems take 255 bytes a name, and the name of an
+    object or a level's node may be longer (80 CJK characters are 240 bytes).
     """
     taken: set[str] = set()
     out = []
     for name in virtual_names:
         base = re.sub(r'[<>:"/\\|?*\x00-\x1f]', "_", Path(name).stem).strip(" .") or "object"
-        base = base.encode("utf-8")[:MAX_STEM_BYTES].decode("utf-8", errors="ignore").strip(" .") or "object"
+        base = base.encode("utf-8")[:MAX_STEM_BYTES].decode("utf-8",
+                                                            errors="ignore").strip(" .") or "object"
         stem, k = base, 1
         while stem.lower() in taken:
             k += 1
@@ -434,34 +449,40 @@ def figure_file(stem: str) -> str:
 
 def matches_document(scene, settings: dict, *, failed: list | None = None, dump_poses: bool = False,
                      figures: bool = True) -> dict:
-    """The ``pinchmatch match`` result (schema ``pinchmatch.matches/1``, docs/output-format.md); each
-    match names its scene's and criteria figure's files (``figures``: whether figures are written)."""
+    """The ``pinchmatch match`` result (schema ``pinchmatch.matches/1``, docs/output-format.md);
+    each match names its scene's and criteria figure's files (``figures``: whether figures are
+    written)."""
     stems = scene_stems([v.name for v in scene.virtuals])
     matches = [match_entry(scene, vm) for vm in scene.matches]
     for stem, m in zip(stems, matches):
         if m.get("tangible") is not None:
-            m.update(scene_file=scene_file(stem), figure_file=figure_file(stem) if figures else None)
-    return matches_header(settings, [object_entry(c, dump_poses=dump_poses) for c in scene.tangibles]) | {
+            m.update(scene_file=scene_file(stem), figure_file=figure_file(stem) if figures
+                     else None)
+    return matches_header(settings,
+                          [object_entry(c, dump_poses=dump_poses) for c in scene.tangibles]) | {
         "virtuals": [object_entry(c, dump_poses=dump_poses) for c in scene.virtuals],
         "matches": matches,
         "failed": list(failed or []),
-        "cost_matrix": cost_matrix_section([v.name for v in scene.virtuals], [t.name for t in scene.tangibles],
-                                           scene.cost_matrix),
+        "cost_matrix": cost_matrix_section([v.name for v in scene.virtuals],
+                                           [t.name for t in scene.tangibles], scene.cost_matrix),
     }
 
 
 def matches_from_lines(lines: Iterable[str]) -> dict:
-    """The ``matches.json`` document that a ``matches.jsonl`` stream holds (see ``SCHEMA_MATCH_LINES``).
+    """The ``matches.json`` document that a ``matches.jsonl`` stream holds (see
+    ``SCHEMA_MATCH_LINES``).
 
     Raises ValueError when the lines are not a whole stream."""
     records = [json.loads(line) for line in lines if line.strip()]
-    if not records or records[0].get("record") != "header" or records[0].get("schema") != SCHEMA_MATCH_LINES:
+    if (not records or records[0].get("record") != "header"
+        or records[0].get("schema") != SCHEMA_MATCH_LINES):
         raise ValueError(f"the first line is not a {SCHEMA_MATCH_LINES} header")
     if records[-1].get("record") != "end":
         raise ValueError("the end line is missing: the stream was cut short")
     header = {k: v for k, v in records[0].items() if k != "record"} | {"schema": SCHEMA_MATCHES}
     matches = [r for r in records if r.get("record") == "match"]
-    failed = [{k: v for k, v in r.items() if k != "record"} for r in records if r.get("record") == "failed"]
+    failed = [{k: v for k, v in r.items() if k != "record"} for r in records if r.get("record")
+              == "failed"]
     return header | {
         "virtuals": [r["object"] for r in matches],
         "matches": [r["match"] for r in matches],
@@ -474,20 +495,23 @@ def matches_from_lines(lines: Iterable[str]) -> dict:
 
 def matches_rows(document: dict, placed_fixed: bool | None = None) -> list[tuple]:
     """The rows of the matches table, header first."""
-    fixed = placed_fixed if placed_fixed is not None else any(m.get("redirection") for m in document["matches"])
-    rows = [("virtual", "tangible", *(("mode",) if fixed else ()), "cost", "p_noticed", "nominal/expected/worst",
-             "criteria >= 1 JND", "flipped", "offset_mm", "ref_cost")]
+    fixed = placed_fixed if placed_fixed is not None else any(m.get("redirection")
+                                                              for m in document["matches"])
+    rows = [("virtual", "tangible", *(("mode",) if fixed else ()), "cost", "p_noticed",
+             "nominal/expected/worst", "criteria >= 1 JND", "flipped", "offset_mm", "ref_cost")]
     for m in document["matches"]:
         if m.get("tangible") is None:
-            rows.append((m["virtual"], "-", *(("-",) if fixed else ()), "-", "-", "", m.get("reason") or "", "", "",
-                         ""))
+            rows.append((m["virtual"], "-", *(("-",) if fixed else ()), "-", "-", "",
+                         m.get("reason") or "", "", "", ""))
             continue
         loud = [c for c, v in m["criteria"].items() if v["noticeable"]]
         ref, land = m["reference"], m.get("landing")
-        felt = "/".join(f"{land[k]:.3g}" for k in ("cost_nominal", "cost_mean", "cost_worst")) if land else ""
+        felt = "/".join(f"{land[k]:.3g}"
+                        for k in ("cost_nominal", "cost_mean", "cost_worst")) if land else ""
         mode = ((m.get("redirection") or {}).get("mode") or "-",) if fixed else ()
-        rows.append((m["virtual"], m["tangible"], *mode, f"{m['cost']:.4g}", f"{m['p_noticed']:.2f}", felt,
-                     ",".join(loud) or "none", "F" if m["flipped"] else "", f"{m['contact_offset_mm']:+.2f}",
+        rows.append((m["virtual"], m["tangible"], *mode, f"{m['cost']:.4g}",
+                     f"{m['p_noticed']:.2f}", felt, ",".join(loud) or "none",
+                     "F" if m["flipped"] else "", f"{m['contact_offset_mm']:+.2f}",
                      f"{ref['cost']:.4g}" if ref and ref["cost"] is not None else "null"))
     return rows
 
@@ -497,7 +521,8 @@ OPTIONAL_COLUMNS = ("offset_mm", "ref_cost", "flipped", "p_noticed", "nominal/ex
 
 
 def study_document(study, settings: dict) -> dict:
-    return {"schema": SCHEMA_STUDY, "version": __version__, "settings": settings, "rows": study.rows}
+    return {"schema": SCHEMA_STUDY, "version": __version__, "settings": settings,
+            "rows": study.rows}
 
 
 def study_rows(rows: list) -> list[tuple]:
@@ -508,12 +533,14 @@ def study_rows(rows: list) -> list[tuple]:
     def cell(p):
         if p["height_mm"] is None:
             return "none", "null"
-        where = f"{short.get(p['part'], p['part'])} {p['height_mm']:.0f}" + ("F" if p["flipped"] else "")
+        where = f"{short.get(p['part'], p['part'])} {p['height_mm']:.0f}" + ("F" if p["flipped"]
+                                                                             else "")
         return where, "null" if p["cost"] is None else f"{p['cost']:.3g}"
 
     out = [("part", "VO", "ours", "cost", "paper", "cost", "ref", "cost")]
     for r in rows:
-        out.append((r["tangible_part"], str(r["virtual"]), *cell(r["ours"]), *cell(r["paper"]), *cell(r["ref"])))
+        out.append((r["tangible_part"], str(r["virtual"]), *cell(r["ours"]), *cell(r["paper"]),
+                    *cell(r["ref"])))
     return out
 
 
@@ -523,11 +550,12 @@ def study_legend(rows: list) -> list[str]:
     for r in rows:
         orders.setdefault(r["virtual"], "/".join(r["virtual_order"]))
     return [
-        "VO: the virtual objects, their parts bottom to top: " + ", ".join(f"{k} {v}" for k, v in orders.items()),
-        "ours, paper, ref: where each placement puts the pinch on the virtual object: its part (cyl: cylinder) and "
-        "height in mm; F: turned upside down",
-        f"cost: pinchmatch's cost of that placement, {cost_unit({'normalize': 'jnd'})}; the paper's own cost of "
-        "each is in study.json",
+        "VO: the virtual objects, their parts bottom to top: "
+        + ", ".join(f"{k} {v}" for k, v in orders.items()),
+        "ours, paper, ref: where each placement puts the pinch on the virtual object: its part "
+        "(cyl: cylinder) and height in mm; F: turned upside down",
+        f"cost: pinchmatch's cost of that placement, {cost_unit({'normalize': 'jnd'})}; the "
+        "paper's own cost of each is in study.json",
     ]
 
 
@@ -535,7 +563,8 @@ def cost_unit(settings: dict) -> str:
     """What a cost is, in a run's normalisation and pooling."""
     if settings.get("normalize", "jnd") == "range":
         scale = "(difference / range of the run)"
-        return (f"sum of weight x {scale}^2, the paper's scaling" if settings.get("pooling") == "sum" else
+        return (f"sum of weight x {scale}^2, the paper's scaling" if settings.get("pooling")
+                == "sum" else
                 f"probability summation of weight x {scale}^3.5, in range units")
     if settings.get("pooling") == "sum":
         return "sum of weight x (difference / JND)^2 (1: just noticeable)"
@@ -546,13 +575,17 @@ def matches_legend(settings: dict) -> list[str]:
     """What the matches table's columns mean, in the run's normalisation."""
     rank = settings.get("rank", "nominal")
     support = settings.get("support")
-    return [f"cost: {cost_unit(settings)}, ranked by the {rank} cost (nominal: the fingers on their targets; "
-            f"expected: over where guided fingers land, within {settings.get('landing_mm', 5):g} mm; worst: the "
-            "worst landing); p_noticed: the probability that the ranked difference is noticed; "
-            "criteria >= 1 JND: those noticeable on their own on target; flipped: F where the placement turns the "
-            "virtual object upside down"
-            + (f"; support {support}: props stand on the plane through their lowest point (posed: the level's), "
+    landing_mm = settings.get("landing_mm", 5)
+    return [f"cost: {cost_unit(settings)}, ranked by the {rank} cost (nominal: the fingers on "
+            f"their targets; expected: over where guided fingers land, within {landing_mm:g} mm; "
+            "worst: the worst landing); p_noticed: the probability that the ranked difference is "
+            "noticed; "
+            "criteria >= 1 JND: those noticeable on their own on target; flipped: F where the "
+            "placement turns the virtual object upside down"
+            + (f"; support {support}: props stand on the plane through their lowest point (posed: "
+               "the level's), "
                "a level's nodes on the table under them (else their lowest point), no hand below it"
                if support == "auto" else ""),
-            "offset_mm: each virtual fingertip's offset from the prop's contact along the pinch line; ref_cost: the "
-            "paper's reference placement (null: its fingers meet nothing on the virtual object)"]
+            "offset_mm: each virtual fingertip's offset from the prop's contact along the pinch "
+            "line; ref_cost: the paper's reference placement (null: its fingers meet nothing on "
+            "the virtual object)"]

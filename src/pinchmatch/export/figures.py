@@ -6,7 +6,8 @@
   side view with the chosen poses coloured by the tangible part they stand in for, flips marked F.
 
 matplotlib's object API with the Agg canvas: no pyplot, no display, no global state. Each figure
-has a fixed size in pixels (``FIGURE_DPI`` times the size in inches) so pages and tests can rely on it.
+has a fixed size in pixels (``FIGURE_DPI`` times the size in inches) so pages and tests can rely on
+it.
 """
 
 from __future__ import annotations
@@ -43,11 +44,14 @@ def png_bytes(fig: Figure) -> bytes:
 
 
 def cost_matrix_figure(document: dict) -> Figure:
-    """Heatmap of ``cost_matrix`` in a matches document; the chosen tangible of each row is outlined."""
+    """Heatmap of ``cost_matrix`` in a matches document; the chosen tangible of each row is
+    outlined."""
     cm = document["cost_matrix"]
     names_v, names_t = cm["rows_virtual"], cm["columns_tangible"]
-    values = np.array([[np.nan if x is None else x for x in row] for row in cm["values"]], dtype=float)
-    chosen = {m["virtual"]: m["tangible"] for m in document["matches"] if m.get("tangible") is not None}
+    values = np.array([[np.nan if x is None else x for x in row] for row in cm["values"]],
+                      dtype=float)
+    chosen = {m["virtual"]: m["tangible"] for m in document["matches"]
+              if m.get("tangible") is not None}
 
     width_in = min(4.0 + 1.3 * len(names_t), 16.0)
     height_in = min(1.8 + 0.42 * len(names_v), 30.0)
@@ -63,11 +67,13 @@ def cost_matrix_figure(document: dict) -> Figure:
             x = values[i, j]
             text = "none" if not np.isfinite(x) else f"{x:.3g}"
             dark = np.isfinite(x) and np.log(max(x, vmin)) > 0.5 * (np.log(vmin) + np.log(vmax))
-            ax.text(j, i, text, ha="center", va="center", fontsize=8, color="white" if dark else "black")
+            ax.text(j, i, text, ha="center", va="center", fontsize=8,
+                    color="white" if dark else "black")
         if chosen.get(names_v[i]) in names_t:
             j = names_t.index(chosen[names_v[i]])
             ax.add_patch(_outline(j, i))
-    ax.set_xticks(range(len(names_t)), [Path(n).stem for n in names_t], rotation=30, ha="right", fontsize=8)
+    ax.set_xticks(range(len(names_t)), [Path(n).stem for n in names_t], rotation=30, ha="right",
+                  fontsize=8)
     ax.set_yticks(range(len(names_v)), [Path(n).stem for n in names_v], fontsize=8)
     ax.set_xlabel("tangible")
     ax.set_ylabel("virtual object")
@@ -81,7 +87,8 @@ def coverage_figure(document: dict) -> Figure:
     curve = document["coverage"]
     objective = document["settings"]["objective"]
     k = np.array([c["k"] for c in curve])
-    mean = np.array([np.nan if c["mean_cost"] is None else c["mean_cost"] for c in curve], dtype=float)
+    mean = np.array([np.nan if c["mean_cost"] is None else c["mean_cost"] for c in curve],
+                    dtype=float)
     loud = np.array([c["noticeable_count"] for c in curve], dtype=float)
     exact = np.array([c["exact"] for c in curve], dtype=bool)
     fig = Figure(figsize=(6.4, 3.8), layout="constrained")
@@ -90,7 +97,8 @@ def coverage_figure(document: dict) -> Figure:
     ax.plot(k[exact], mean[exact], "o", color="#1f77b4", label="best subset (exhaustive)")
     ax.plot(k[~exact], mean[~exact], "o", mfc="white", color="#1f77b4", label="greedy + swaps")
     if objective == "max":
-        worst = np.array([np.nan if c["worst_cost"] is None else c["worst_cost"] for c in curve], dtype=float)
+        worst = np.array([np.nan if c["worst_cost"] is None else c["worst_cost"] for c in curve],
+                         dtype=float)
         ax.plot(k, worst, "s--", color="#d62728", label="worst object's cost")
     ax.axvline(document["selection"]["k"], color="0.6", lw=1, ls=":")
     ax.set_xlabel("props on the table (K)")
@@ -108,9 +116,10 @@ def coverage_figure(document: dict) -> Figure:
 
 
 def cost_color_range(values: np.ndarray) -> tuple[float, float]:
-    """(vmin, vmax) of the cost matrix's log colour scale: the data's least positive and greatest cost,
-    so that the colours spread over the costs there are (a cost of 0 takes the lightest colour; one
-    cost alone gets a factor of 2 either side). COST_FLOOR only where no cost is positive."""
+    """(vmin, vmax) of the cost matrix's log colour scale: the data's least positive and greatest
+    cost, so that the colours spread over the costs there are (a cost of 0 takes the lightest
+    colour; one cost alone gets a factor of 2 either side). COST_FLOOR only where no cost is
+    positive."""
     finite = values[np.isfinite(values)]
     positive = finite[finite > 0]
     if not positive.size:
@@ -137,7 +146,8 @@ def _label_x(end: float, top: float) -> float:
 
 
 def criteria_figure(match: dict) -> Figure:
-    """Bars of each criterion's difference in JND for one match of a matches document, line at 1 JND."""
+    """Bars of each criterion's difference in JND for one match of a matches document, line at 1
+    JND."""
     names = list(match["criteria"])
     jnd = np.array([match["criteria"][c]["jnd"] for c in names])
     fig = Figure(figsize=(6.4, 3.6), layout="constrained")
@@ -154,7 +164,8 @@ def criteria_figure(match: dict) -> Figure:
     ax.set_ylim(len(names) - 0.5, -1.3)
     ax.set_xlabel("difference between the tangible and the virtual pose (JND)")
     flip = ", flipped" if match.get("flipped") else ""
-    noticed = f", noticed {100 * match['p_noticed']:.0f} %" if match.get("p_noticed") is not None else ""
+    noticed = (f", noticed {100 * match['p_noticed']:.0f} %" if match.get("p_noticed") is not None
+               else "")
     ax.set_title(f"{Path(match['virtual']).stem} on {Path(match['tangible']).stem}: "
                  f"cost {match['cost']:.3g}{noticed}{flip}", fontsize=10)
     return fig
@@ -170,24 +181,26 @@ def _silhouette(ax, mesh) -> None:
 
 
 def _pose(ax, contacts, color, *, dz=0.0, flipped=False, label_dx=0.0) -> None:
-    """A grasp in the side view: a line from the first contact to the middle of the others (a pinch's two
-    contacts; a tripod's thumb and its fingers' middle), a dot on every contact."""
+    """A grasp in the side view: a line from the first contact to the middle of the others (a
+    pinch's two contacts; a tripod's thumb and its fingers' middle), a dot on every contact."""
     p = np.asarray(contacts, dtype=np.float64)
     line = np.array([p[0], p[1:].mean(axis=0)])
     x, z = line[:, 0], line[:, 2] + dz
     ax.plot(x, z, color=color, linewidth=2.2, solid_capstyle="round")
     ax.plot(p[:, 0], p[:, 2] + dz, "o", color=color, markersize=4.5)
     if flipped:
-        ax.text(max(x) + 3 + label_dx, z[1], "F", color=color, fontsize=10, fontweight="bold", va="center")
+        ax.text(max(x) + 3 + label_dx, z[1], "F", color=color, fontsize=10, fontweight="bold",
+                va="center")
 
 
-def study_figure(tangible_mesh, tangible_points_mm: np.ndarray, virtual_meshes: list, rows: list) -> Figure:
+def study_figure(tangible_mesh, tangible_points_mm: np.ndarray, virtual_meshes: list,
+                 rows: list) -> Figure:
     """The study in the layout of the paper's Table 2.
 
-    Columns: the tangible and the six virtual objects, side view (section y = 0, mm). Rows: the poses
-    chosen by pinchmatch (default criteria, JND) and by the paper's algorithm (seven criteria, range
-    scaling). Each of the three tangible poses has the colour of its part; on a virtual object the
-    pose chosen for it has the same colour, F when the virtual object is turned upside down.
+    Columns: the tangible and the six virtual objects, side view (section y = 0, mm). Rows: the
+    poses chosen by pinchmatch (default criteria, JND) and by the paper's algorithm (seven criteria,
+    range scaling). Each of the three tangible poses has the colour of its part; on a virtual object
+    the pose chosen for it has the same colour, F when the virtual object is turned upside down.
     """
     parts = list(dict.fromkeys(r["tangible_part"] for r in rows))
     fig = Figure(figsize=(14.0, 6.4), layout="constrained")
@@ -207,11 +220,13 @@ def study_figure(tangible_mesh, tangible_points_mm: np.ndarray, virtual_meshes: 
             heights = np.array([r[key]["height_mm"] for r in chosen])
             for k, r in enumerate(chosen):
                 pose = r[key]
-                # a pose chosen for several tangible parts is drawn once per part, 2 mm apart, F labels side by side
+                # a pose chosen for several tangible parts is drawn once per part, 2 mm apart, F
+                # labels side by side
                 same = np.flatnonzero(np.abs(heights - heights[k]) < 1.0)
                 rank = int(np.searchsorted(same, k))
                 _pose(ax, pose["contacts_mm"], PART_COLORS.get(r["tangible_part"], "black"),
-                      dz=(rank - (len(same) - 1) / 2) * 2.5, flipped=pose["flipped"], label_dx=rank * 7.0)
+                      dz=(rank - (len(same) - 1) / 2) * 2.5, flipped=pose["flipped"],
+                      label_dx=rank * 7.0)
             ax.set_title(f"VO{j}\n{titles.get(j, '')}" if row == 0 else "", fontsize=9)
     for ax in axes.ravel():
         ax.set_aspect("equal")
@@ -219,19 +234,22 @@ def study_figure(tangible_mesh, tangible_points_mm: np.ndarray, virtual_meshes: 
         ax.tick_params(labelsize=7)
         ax.set_xticks([])
     handles = [axes[0, 0].plot([], [], color=c, linewidth=2.2)[0] for c in PART_COLORS.values()]
-    fig.legend(handles, [f"tangible pose on the {p}" for p in PART_COLORS], loc="outside lower center",
-               ncol=3, fontsize=9, frameon=False)
-    fig.suptitle("User study, rebuilt: where each tangible pose lands on each virtual object (F: flipped)",
+    fig.legend(handles, [f"tangible pose on the {p}" for p in PART_COLORS],
+               loc="outside lower center", ncol=3, fontsize=9, frameon=False)
+    fig.suptitle("User study, rebuilt: where each tangible pose lands on each virtual object (F: "
+                 "flipped)",
                  fontsize=11)
     return fig
 
 
 def figure_count(document: dict, *, study=None, criteria: bool = True) -> int:
     """How many files ``write_figures`` writes."""
-    return 1 + criteria * sum(m.get("tangible") is not None for m in document["matches"]) + (study is not None)
+    return 1 + criteria * sum(m.get("tangible") is not None
+                              for m in document["matches"]) + (study is not None)
 
 
-def write_figures(out: Path, document: dict, *, study=None, progress=None, criteria: bool = True) -> list[Path]:
+def write_figures(out: Path, document: dict, *, study=None, progress=None,
+                  criteria: bool = True) -> list[Path]:
     """Write the figures of a matches document (and of the demo's study) into ``OUT/figures``:
     the cost matrix, each match's criteria figure (unless ``criteria`` is False: a run's sink
     wrote them) and the study's.
@@ -248,10 +266,12 @@ def write_figures(out: Path, document: dict, *, study=None, progress=None, crite
             progress(path)
 
     save(cost_matrix_figure(document), folder / "cost_matrix.png")
-    stems = scene_stems([m["virtual"] for m in document["matches"]])  # documents that name no figure file
+    # documents that name no figure file
+    stems = scene_stems([m["virtual"] for m in document["matches"]])
     for stem, match in zip(stems, document["matches"]):
         if criteria and match.get("tangible") is not None:
-            save(criteria_figure(match), folder.parent / (match.get("figure_file") or figure_file(stem)))
+            save(criteria_figure(match),
+                 folder.parent / (match.get("figure_file") or figure_file(stem)))
     if study is not None:
         save(study_figure(study.tangible.obj.loaded.mesh, study.tangible.pinches.points,
                           [v.obj.loaded.mesh for v in study.virtuals], study.rows),

@@ -1,18 +1,21 @@
-"""A level's glTF document, kept as its file holds it and added to: what ``level.glb`` is written from.
+"""A level's glTF document, kept as its file holds it and added to: what ``level.glb`` is written
+from.
 
-Re-exporting a level through a mesh library loses what it has no field for (cameras, lights, the nodes' and
-the document's extras, extra scenes, unnamed nodes' lack of a name, a node's TRS as written), so
-:class:`GltfLevel` keeps the document and only appends: meshes (their arrays in the one binary buffer),
-nodes, roots of the default scene, extras and extensions. Its buffers become one binary buffer, 4-byte
-aligned, each buffer view moved by its buffer's start; the files of a .gltf's external buffers and images
-are embedded (an image as a buffer view with its MIME type). Data URIs are decoded into the buffer too.
+Re-exporting a level through a mesh library loses what it has no field for (cameras, lights, the
+nodes' and the document's extras, extra scenes, unnamed nodes' lack of a name, a node's TRS as
+written), so :class:`GltfLevel` keeps the document and only appends: meshes (their arrays in the one
+binary buffer), nodes, roots of the default scene, extras and extensions. Its buffers become one
+binary buffer, 4-byte aligned, each buffer view moved by its buffer's start; the files of a .gltf's
+external buffers and images are embedded (an image as a buffer view with its MIME type). Data URIs
+are decoded into the buffer too.
 
-A level's nodes are named as the matching names them (:mod:`pinchmatch.mesh.level`, which reads through
-trimesh): a node's ``name``, else its index, made unique in the order of the nodes as trimesh makes them.
+A level's nodes are named as the matching names them (:mod:`pinchmatch.mesh.level`, which reads
+through trimesh): a node's ``name``, else its index, made unique in the order of the nodes as
+trimesh makes them.
 
-Nodes and meshes that pinchmatch added to a level before (``extras.pinchmatch.role``: a level.glb fed back
-in) are dropped first, when they are at the end of their lists, as pinchmatch writes them; else they are
-kept and the level's own are matched as written.
+Nodes and meshes that pinchmatch added to a level before (``extras.pinchmatch.role``: a level.glb
+fed back in) are dropped first, when they are at the end of their lists, as pinchmatch writes them;
+else they are kept and the level's own are matched as written.
 """
 
 from __future__ import annotations
@@ -35,7 +38,8 @@ ROLES = ("prop", "prop_mesh", "carousel", "joint")
 
 
 def _local(node: dict) -> np.ndarray:
-    """A node's matrix (column vectors) from its ``matrix``, else its translation, rotation and scale."""
+    """A node's matrix (column vectors) from its ``matrix``, else its translation, rotation and
+    scale."""
     from scipy.spatial.transform import Rotation
 
     if "matrix" in node:
@@ -84,7 +88,8 @@ class GltfLevel:
         try:
             return cls(*_one_buffer(path, file_type, document))
         except (KeyError, IndexError, TypeError, ValueError, OSError) as exc:
-            raise MeshError(f"{path}: its buffers cannot be read for level.glb ({type(exc).__name__}: "
+            raise MeshError(f"{path}: its buffers cannot be read for level.glb "
+                            f"({type(exc).__name__}: "
                             f"{str(exc)[:60]}); the file is corrupt, re-export it") from None
 
     def _scene(self) -> dict:
@@ -132,11 +137,12 @@ class GltfLevel:
         v = np.ascontiguousarray(vertices, dtype="<f4")
         f = np.ascontiguousarray(faces, dtype="<u4").reshape(-1)
         accessors = self.document.setdefault("accessors", [])
-        accessors.append({"bufferView": self._view(v.tobytes(), 34962), "componentType": 5126, "count": len(v),
-                          "type": "VEC3", "min": v.min(axis=0).astype(float).tolist(),
+        accessors.append({"bufferView": self._view(v.tobytes(), 34962), "componentType": 5126,
+                          "count": len(v), "type": "VEC3",
+                          "min": v.min(axis=0).astype(float).tolist(),
                           "max": v.max(axis=0).astype(float).tolist()})
-        accessors.append({"bufferView": self._view(f.tobytes(), 34963), "componentType": 5125, "count": len(f),
-                          "type": "SCALAR"})
+        accessors.append({"bufferView": self._view(f.tobytes(), 34963), "componentType": 5125,
+                          "count": len(f), "type": "SCALAR"})
         meshes = self.document.setdefault("meshes", [])
         meshes.append({"name": name, "primitives": [{"attributes": {"POSITION": len(accessors) - 2},
                                                      "indices": len(accessors) - 1}],
@@ -151,10 +157,12 @@ class GltfLevel:
         self._scene().setdefault("nodes", []).append(index)
 
     def set_extras(self, index: int, value: dict) -> None:
-        """``extras.pinchmatch`` of a node, beside its own extras (kept under ``value`` if not an object)."""
+        """``extras.pinchmatch`` of a node, beside its own extras (kept under ``value`` if not an
+        object)."""
         node = self.nodes[index]
         extras = node.get("extras", {})
-        node["extras"] = {**(extras if isinstance(extras, dict) else {"value": extras}), "pinchmatch": value}
+        node["extras"] = {**(extras if isinstance(extras, dict) else {"value": extras}),
+                          "pinchmatch": value}
 
     def add_extensions(self, index: int, extensions: dict) -> None:
         node = self.nodes[index]
@@ -163,13 +171,15 @@ class GltfLevel:
     def set_scene_extras(self, value: dict) -> None:
         scene = self._scene()
         extras = scene.get("extras", {})
-        scene["extras"] = {**(extras if isinstance(extras, dict) else {"value": extras}), "pinchmatch": value}
+        scene["extras"] = {**(extras if isinstance(extras, dict) else {"value": extras}),
+                           "pinchmatch": value}
 
     def glb(self) -> bytes:
         """The document as GLB bytes; every extension its nodes use listed as used."""
         used = {key for node in self.nodes for key in (node.get("extensions") or {})}
         if used:
-            self.document["extensionsUsed"] = sorted(set(self.document.get("extensionsUsed", [])) | used)
+            self.document["extensionsUsed"] = sorted(set(self.document.get("extensionsUsed", []))
+                                                     | used)
         self.document["buffers"] = [{"byteLength": len(self.blob)}] if self.blob else []
         if not self.blob:
             self.document.pop("buffers")
@@ -183,7 +193,8 @@ class GltfLevel:
 
 
 def _one_buffer(path: Path, file_type: str, document: dict) -> tuple[dict, bytearray]:
-    """The document with its buffers (and a .gltf's image files) in one binary buffer (module notes)."""
+    """The document with its buffers (and a .gltf's image files) in one binary buffer (module
+    notes)."""
     blob, starts = bytearray(), []
     for buffer, data in zip(document.get("buffers") or [], buffer_bytes(path, file_type, document)):
         blob.extend(b"\0" * (-len(blob) % 4))

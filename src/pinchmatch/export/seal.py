@@ -1,22 +1,22 @@
 """Seals on the records an output folder's control folder keeps: pinchmatch acts only on its own.
 
-A run keeps three records in ``OUT/.pinchmatch`` (:mod:`pinchmatch.export.folder`): the manifest of the
-result's files, the journal of a publication under way and the record of what a run must take back if it
-is killed. Each of them makes the next run move or delete files, so a record that came with a folder from
-elsewhere (a shared drive, an archive, a colleague's killed run, a hand-made file) must never be acted on:
-its names could be any file of the user's.
+A run keeps three records in ``OUT/.pinchmatch`` (:mod:`pinchmatch.export.folder`): the manifest of
+the result's files, the journal of a publication under way and the record of what a run must take
+back if it is killed. Each of them makes the next run move or delete files, so a record that came
+with a folder from elsewhere (a shared drive, an archive, a colleague's killed run, a hand-made
+file) must never be acted on: its names could be any file of the user's.
 
-So every record is **sealed**: written with an HMAC-SHA256 of its canonical JSON under a key that only
-this user's runs know, and read back only when the seal verifies. The key is 32 random bytes in
+So every record is **sealed**: written with an HMAC-SHA256 of its canonical JSON under a key that
+only this user's runs know, and read back only when the seal verifies. The key is 32 random bytes in
 ``$PINCHMATCH_STATE_DIR/seal.key``, else ``$XDG_STATE_HOME/pinchmatch/seal.key``, else
-``~/.local/state/pinchmatch/seal.key`` (made on first use, readable by the user alone). Where no such file
-can be made (no writable home), the key is drawn once per process; the command line draws it before it
-forks, so the process that takes back a killed run knows it, but a later run does not: it then treats
-that run's records as received ones.
+``~/.local/state/pinchmatch/seal.key`` (made on first use, readable by the user alone). Where no
+such file can be made (no writable home), the key is drawn once per process; the command line draws
+it before it forks, so the process that takes back a killed run knows it, but a later run does not:
+it then treats that run's records as received ones.
 
-A record's seal binds its contents and its kind (``manifest``, ``journal``, ``run``), so a journal's text
-is not read as a run record; it does not bind the folder, so a result folder moved or copied by its own
-user stays its own.
+A record's seal binds its contents and its kind (``manifest``, ``journal``, ``run``), so a journal's
+text is not read as a run record; it does not bind the folder, so a result folder moved or copied by
+its own user stays its own.
 """
 
 from __future__ import annotations
@@ -40,12 +40,14 @@ def key_path() -> Path:
     """Where this user's key is kept (module notes)."""
     if os.environ.get("PINCHMATCH_STATE_DIR"):
         return Path(os.environ["PINCHMATCH_STATE_DIR"]) / "seal.key"
-    state = os.environ.get("XDG_STATE_HOME") or os.path.join(os.path.expanduser("~"), ".local", "state")
+    state = os.environ.get("XDG_STATE_HOME") or os.path.join(os.path.expanduser("~"), ".local",
+                                                             "state")
     return Path(state) / "pinchmatch" / "seal.key"
 
 
 def key() -> bytes:
-    """This user's key: read from :func:`key_path`, made there on first use, else drawn for this process."""
+    """This user's key: read from :func:`key_path`, made there on first use, else drawn for this
+    process."""
     if _KEY:
         return _KEY[0]
     path = key_path()
@@ -80,7 +82,8 @@ def _read_key(path: Path) -> bytes | None:
 
 
 def _digest(kind: str, record: dict) -> str:
-    text = json.dumps({"kind": kind, "record": record}, sort_keys=True, separators=(",", ":"), allow_nan=False)
+    text = json.dumps({"kind": kind, "record": record}, sort_keys=True, separators=(",", ":"),
+                      allow_nan=False)
     return hmac.new(key(), text.encode("utf-8"), hashlib.sha256).hexdigest()
 
 
@@ -90,7 +93,8 @@ def sealed(kind: str, record: dict, *, indent: int | None = None) -> str:
 
 
 def unsealed(kind: str, text: str | bytes) -> dict | None:
-    """The record of ``text`` when it is a JSON object whose seal, of ``kind``, verifies; else None."""
+    """The record of ``text`` when it is a JSON object whose seal, of ``kind``, verifies; else
+    None."""
     try:
         record = json.loads(text)
     except (ValueError, UnicodeDecodeError, RecursionError):

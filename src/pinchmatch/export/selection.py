@@ -21,21 +21,24 @@ def _value(objective: str, value: float):
 def _summary(selection, names: list[str], objective: str) -> dict:
     served = selection.assigned >= 0
     return {"k": int(len(selection.props)), "props": [names[t] for t in selection.props],
-            "value": _value(objective, selection.value), "mean_cost": json_number(selection.mean_cost, 6),
+            "value": _value(objective, selection.value),
+            "mean_cost": json_number(selection.mean_cost, 6),
             "noticeable_count": int(selection.noticeable[served].sum()),
-            "worst_cost": json_number(float(selection.cost[served].max()) if served.any() else float("inf"), 6),
-            "exact": bool(selection.exact), "method": selection.method}
+            "worst_cost": json_number(float(selection.cost[served].max()) if served.any()
+                                      else float("inf"), 6), "exact": bool(selection.exact),
+                                      "method": selection.method}
 
 
 def selection_document(settings: dict, shelf: list[dict], scene: list[str], cost: np.ndarray,
-                       noticeable: np.ndarray, selection, curve: list, addition, helpful: np.ndarray,
-                       exact_limit: int) -> dict:
+                       noticeable: np.ndarray, selection, curve: list, addition,
+                       helpful: np.ndarray, exact_limit: int) -> dict:
     """The selection document.
 
     shelf: per prop, ``{"name", "path"}``; scene: the virtual objects' names; cost, noticeable:
-    the served matrix (objects x props); selection: the chosen :class:`~pinchmatch.match.select.Selection`;
-    curve: the best selection for K = 1, 2, …; addition: :func:`~pinchmatch.match.select.best_addition`'s
-    answer; helpful: :func:`~pinchmatch.match.select.helpful_props`'s.
+    the served matrix (objects x props); selection: the chosen
+    :class:`~pinchmatch.match.select.Selection`; curve: the best selection for K = 1, 2, …;
+    addition: :func:`~pinchmatch.match.select.best_addition`'s answer; helpful:
+    :func:`~pinchmatch.match.select.helpful_props`'s.
     """
     names = [p["name"] for p in shelf]
     objective = settings["objective"]
@@ -60,8 +63,10 @@ def selection_document(settings: dict, shelf: list[dict], scene: list[str], cost
         "objects": objects,
         "badly_served": badly,
         "suggestion": None if addition is None else {
-            "add": names[addition[0]], **{k: v for k, v in _summary(addition[1], names, objective).items()
-                                          if k in ("value", "mean_cost", "noticeable_count", "worst_cost")}},
+            "add": names[addition[0]],
+            **{k: v for k, v in _summary(addition[1], names, objective).items()
+                                          if k in ("value", "mean_cost", "noticeable_count",
+                                                   "worst_cost")}},
         "coverage": [_summary(s, names, objective) for s in curve],
         "unservable": [name for j, name in enumerate(scene) if not np.isfinite(cost[j]).any()],
         "served_matrix": cost_matrix_section(scene, names, cost) | {
@@ -75,17 +80,20 @@ def coverage_rows(document: dict) -> list[tuple]:
     mean = objective == "mean"  # its value is the mean cost: one column, not two
     rows = [("K",) + (() if mean else (objective,)) + ("mean_cost", "noticeable", "exact", "props")]
     for c in document["coverage"]:
-        rows.append((c["k"],) + (() if mean else (c["value"],)) + (c["mean_cost"], c["noticeable_count"],
+        rows.append((c["k"],) + (() if mean else (c["value"],))
+                    + (c["mean_cost"], c["noticeable_count"],
                                                                    "yes" if c["exact"] else "no",
                      ", ".join(c["props"])))
     return rows
 
 
 def selection_rows(document: dict) -> list[tuple]:
-    """The printed per-object table: object, prop, cost, noticeable, the prop that would help most."""
+    """The printed per-object table: object, prop, cost, noticeable, the prop that would help
+    most."""
     rows = [("virtual", "tangible", "cost", "noticeable", "best addition", "cost with it")]
     for o in document["objects"]:
         rows.append((o["virtual"], o["tangible"] or "-", "-" if o["cost"] is None else o["cost"],
                      "-" if o["noticeable"] is None else ("yes" if o["noticeable"] else "no"),
-                     o["best_addition"] or "-", "-" if o["cost_with_addition"] is None else o["cost_with_addition"]))
+                     o["best_addition"] or "-", "-" if o["cost_with_addition"] is None
+                     else o["cost_with_addition"]))
     return rows

@@ -1,4 +1,5 @@
-"""Writing a run's results as they come: scenes, figures, and ``matches.json`` or ``matches.jsonl``."""
+"""Writing a run's results as they come: scenes, figures, and ``matches.json`` or
+``matches.jsonl``."""
 
 from __future__ import annotations
 
@@ -7,8 +8,8 @@ from pathlib import Path
 
 from ..files import AtomicFile, write_atomic
 from ..match.candidates import Candidates
-from .documents import (SCHEMA_MATCH_LINES, cost_matrix_section, figure_file, json_number, matches_header,
-                        matches_rows, object_entry, scene_file, to_json)
+from .documents import (SCHEMA_MATCH_LINES, cost_matrix_section, figure_file, json_number,
+                        matches_header, matches_rows, object_entry, scene_file, to_json)
 
 
 class MatchesSink:
@@ -29,10 +30,13 @@ class MatchesSink:
         self.redirections: list[dict] = []  # under --placement fixed, each match's
         self.references: list[tuple] = []  # (virtual, why its reference has no cost, or None)
         self.equivalents: list[tuple] = []  # (virtual, its prop, [the equivalent props' names])
-        self.rests: list[tuple] = []  # (virtual, its rest gap in mm) where it is shown on a prop that stands
-        self.approaches: list[tuple] = []  # (virtual, elevation, azimuth in deg) where its prop stands
+        # (virtual, its rest gap in mm) where it is shown on a prop that stands
+        self.rests: list[tuple] = []
+        # (virtual, elevation, azimuth in deg) where its prop stands
+        self.approaches: list[tuple] = []
         self._header = None
-        self._virtuals, self._matches, self._names, self._cost_rows, self._chosen = [], [], [], [], []
+        self._virtuals, self._matches, self._names, self._cost_rows, self._chosen = ([], [], [], [],
+                                                                                     [])
         self._lines = None  # the AtomicFile of matches.jsonl while it is being written
 
     def __enter__(self):
@@ -57,7 +61,8 @@ class MatchesSink:
             self._line({"record": "header", **self._header, "schema": SCHEMA_MATCH_LINES})
 
     def add(self, k: int, r) -> None:
-        """Write virtual object ``k``'s result ``r`` (a :class:`pinchmatch.runner.tasks.VirtualResult`)."""
+        """Write virtual object ``k``'s result ``r`` (a
+        :class:`pinchmatch.runner.tasks.VirtualResult`)."""
         stem = self.stems[k]
         if r.scene_glb is not None:
             write_atomic(self.out / scene_file(stem), r.scene_glb)
@@ -76,36 +81,44 @@ class MatchesSink:
         if r.match.get("rest_gap_mm") is not None:
             self.rests.append((r.name, r.match["rest_gap_mm"]))
         if r.match.get("approach_elevation_deg") is not None:
-            self.approaches.append((r.name, r.match["approach_elevation_deg"], r.match.get("approach_azimuth_deg")))
+            self.approaches.append((r.name, r.match["approach_elevation_deg"],
+                                    r.match.get("approach_azimuth_deg")))
         if r.match.get("tangible") is not None:
             self.references.append((r.name, (r.match.get("reference") or {}).get("reason")))
         if r.match.get("equivalent_tangibles"):
-            self.equivalents.append((r.name, r.match["tangible"], [e["tangible"] for e in r.match["equivalent_tangibles"]]))
+            self.equivalents.append((r.name, r.match["tangible"],
+                                     [e["tangible"] for e in r.match["equivalent_tangibles"]]))
         if self._lines is not None:
-            self._line({"record": "match", "object": r.entry, "cost_row": [json_number(x, 6) for x in r.row],
-                        "match": r.match})
+            self._line({"record": "match", "object": r.entry,
+                        "cost_row": [json_number(x, 6) for x in r.row], "match": r.match})
         else:
             self._virtuals.append(r.entry)
             self._matches.append(r.match)
 
     def overview(self) -> dict:
-        """The cost matrix and the chosen tangibles, as :func:`pinchmatch.export.figures.cost_matrix_figure` reads them."""
-        return {"cost_matrix": cost_matrix_section(self._names, [t["name"] for t in self._header["tangibles"]],
+        """The cost matrix and the chosen tangibles, as
+        :func:`pinchmatch.export.figures.cost_matrix_figure` reads them."""
+        return {"cost_matrix": cost_matrix_section(self._names,
+                                                   [t["name"] for t in self._header["tangibles"]],
                                                    self._cost_rows),
-                "matches": [{"virtual": n, "tangible": t} for n, t in zip(self._names, self._chosen)]}
+                "matches": [{"virtual": n, "tangible": t}
+                            for n, t in zip(self._names, self._chosen)]}
 
     def finish(self, result) -> dict | None:
-        """Close the result file (``result``: the run's :class:`pinchmatch.runner.matching.RunResult`); return the matches document (None for jsonl, never held whole)."""
+        """Close the result file (``result``: the run's
+        :class:`pinchmatch.runner.matching.RunResult`); return the matches document (None for jsonl,
+        never held whole)."""
         failed = [f.as_dict() for f in result.failed]
         if self._lines is None:
-            doc = self._header | {"virtuals": self._virtuals, "matches": self._matches, "failed": failed,
-                                  "cost_matrix": self.overview()["cost_matrix"]}
+            doc = self._header | {"virtuals": self._virtuals, "matches": self._matches,
+                                  "failed": failed, "cost_matrix": self.overview()["cost_matrix"]}
             write_atomic(self.result_path, to_json(doc))
             return doc
         for f in failed:
             self._line({"record": "failed", **f})
         self._line({"record": "end", "virtual_count": len(self._names),
-                    "matched_count": sum(t is not None for t in self._chosen), "failed_count": len(failed)})
+                    "matched_count": sum(t is not None for t in self._chosen),
+                    "failed_count": len(failed)})
         self._lines.commit()
         self._lines = None
         return None

@@ -10,7 +10,8 @@ numpy's ``default_rng(seed)``, one per repetition), and any of the three placeme
 A plan holds ``pairs`` (each pose pair shown: the virtual object, where the fingers go on the prop,
 the rigid transform that places the virtual object, its cost and its difference per criterion in
 JND) and ``trials`` in the order to run them. The page writes one CSV row per trial (docs/study.md);
-the CSV's ``<criterion>_jnd`` columns come from the pair, so ``pinchmatch calibrate`` reads it as is.
+the CSV's ``<criterion>_jnd`` columns come from the pair, so ``pinchmatch calibrate`` reads it as
+is.
 """
 
 from __future__ import annotations
@@ -31,11 +32,13 @@ METHOD_REPETITIONS = 3
 def study_plan(rows: list, virtual_names: list[str], *, seed: int, sources: tuple = METHOD_SOURCES,
                repetitions: int = METHOD_REPETITIONS) -> dict:
     """The plan of a study's rows (``run_study``'s): every row x source a pair, each block of pairs
-    shuffled with ``seed``, ``repetitions`` blocks. ``virtual_names``: the name of virtual object ``k``
-    (1-based in a row's ``virtual``) as the matches document names it, so the page finds its scene."""
+    shuffled with ``seed``, ``repetitions`` blocks. ``virtual_names``: the name of virtual object
+    ``k`` (1-based in a row's ``virtual``) as the matches document names it, so the page finds its
+    scene."""
     unknown = [s for s in sources if s not in SOURCES]
     if unknown or not sources:
-        raise ConfigError(f"study sources {', '.join(unknown) or 'none'}: choose from {', '.join(SOURCES)}")
+        raise ConfigError(f"study sources {', '.join(unknown) or 'none'}: choose from "
+                          f"{', '.join(SOURCES)}")
     if repetitions < 1:
         raise ConfigError(f"study repetitions {repetitions}: give 1 or more")
     pairs = []
@@ -51,8 +54,9 @@ def study_plan(rows: list, virtual_names: list[str], *, seed: int, sources: tupl
                 "tangible_part": row["tangible_part"],
                 "tangible_contacts_mm": row["tangible_contacts_mm"],
                 "virtual_contacts_mm": pose["contacts_mm"],
-                **({"tangible_p1_mm": row["tangible_p1_mm"], "tangible_p2_mm": row["tangible_p2_mm"],
-                    "virtual_p1_mm": pose["p1_mm"], "virtual_p2_mm": pose["p2_mm"]} if "p1_mm" in pose else {}),
+                **({"tangible_p1_mm": row["tangible_p1_mm"],
+                    "tangible_p2_mm": row["tangible_p2_mm"], "virtual_p1_mm": pose["p1_mm"],
+                    "virtual_p2_mm": pose["p2_mm"]} if "p1_mm" in pose else {}),
                 "finger_order_swapped": pose["finger_order_swapped"],
                 "transform_virtual_to_tangible": pose["transform_virtual_to_tangible"],
                 "flipped": pose["flipped"],
@@ -64,9 +68,11 @@ def study_plan(rows: list, virtual_names: list[str], *, seed: int, sources: tupl
     for repetition in range(1, repetitions + 1):
         for k in rng.permutation(len(pairs)):
             pair = pairs[int(k)]
-            trials.append({"trial": len(trials) + 1, "pair": pair["pair"], "virtual": pair["virtual"],
-                           "pose_source": pair["pose_source"], "repetition": repetition})
+            trials.append({"trial": len(trials) + 1, "pair": pair["pair"],
+                           "virtual": pair["virtual"], "pose_source": pair["pose_source"],
+                           "repetition": repetition})
     return {"schema": SCHEMA_PLAN, "version": __version__, "seed": seed, "sources": list(sources),
-            "repetitions": repetitions, "question": "How much does the tangible object correspond to the "
+            "repetitions": repetitions,
+            "question": "How much does the tangible object correspond to the "
             "virtual one?", "scale": {"min": 1, "max": 7, "labels": ["not at all", "perfectly"]},
             "pairs": pairs, "trials": trials}

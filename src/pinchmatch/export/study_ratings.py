@@ -7,8 +7,8 @@ stacking order it stands for, the part pinched, ``pose_source`` and the mean and
 
 :func:`static_ratings_table` joins them with a run of the rebuilt study (``pinchmatch demo``): per
 rated placement, the study's object name, the cost under the run's model and each criterion's
-difference in JND, the columns :func:`pinchmatch.match.calibrate.read_ratings` reads. The differences
-are the run's, not the paper's: they follow this version's features and criteria.
+difference in JND, the columns :func:`pinchmatch.match.calibrate.read_ratings` reads. The
+differences are the run's, not the paper's: they follow this version's features and criteria.
 """
 
 from __future__ import annotations
@@ -20,20 +20,22 @@ from importlib import resources
 from ..match.cost import CRITERIA
 
 #: the table's columns: the placement, its rating, its cost and differences
-COLUMNS = (["pair", "object", "paper_vo", "virtual_order", "tangible_part", "pose_source", "rating", "rating_sd",
-            "cost", "cost_paper", "cost_expected"] + [f"{c}_jnd" for c in CRITERIA])
+COLUMNS = (["pair", "object", "paper_vo", "virtual_order", "tangible_part", "pose_source", "rating",
+            "rating_sd", "cost", "cost_paper", "cost_expected"] + [f"{c}_jnd" for c in CRITERIA])
 
 
 def static_ratings() -> list[dict]:
     """The shipped ratings, one dict per rated placement (values as text)."""
-    text = resources.files("pinchmatch").joinpath("data", "ratings_static.csv").read_text(encoding="utf-8")
+    text = resources.files("pinchmatch").joinpath("data",
+                                                  "ratings_static.csv").read_text(encoding="utf-8")
     return list(csv.DictReader(io.StringIO(text)))
 
 
 def static_ratings_rows(study_rows: list, virtual_names: list[str]) -> list[dict]:
     """The ratings joined with the study's rows (``runner.study``): one dict per rated placement.
 
-    ``virtual_names``: the study's virtual objects' names, in the study's order (``virtual`` - 1)."""
+    ``virtual_names``: the study's virtual objects' names, in the study's order (``virtual`` -
+    1)."""
     by_key = {("/".join(r["virtual_order"]), r["tangible_part"]): r for r in study_rows}
     out = []
     for rated in static_ratings():
@@ -41,8 +43,11 @@ def static_ratings_rows(study_rows: list, virtual_names: list[str]) -> list[dict
         entry = row[rated["pose_source"]]
         jnd = entry.get("criteria_jnd") or {}
         name = virtual_names[row["virtual"] - 1]
-        out.append({"pair": f"{rated['tangible_part']}/{name}/{rated['pose_source']}", "object": name,
-                    **{k: rated[k] for k in ("paper_vo", "virtual_order", "tangible_part", "pose_source", "rating",
+        out.append({"pair": f"{rated['tangible_part']}/{name}/{rated['pose_source']}",
+                    "object": name,
+                    **{k: rated[k]
+                       for k in ("paper_vo", "virtual_order", "tangible_part", "pose_source",
+                                 "rating",
                                              "rating_sd")},
                     "cost": entry["cost"], "cost_paper": entry["cost_paper"],
                     "cost_expected": entry.get("cost_expected"),

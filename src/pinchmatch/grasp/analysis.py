@@ -76,7 +76,8 @@ def analyze_object(
     both objects have one); ``progress``, if given, is called with each stage's name as it starts.
 
     >>> obj = analyze_object(box_stl, mass_g=120)
-    >>> obj.name, obj.mass_g, obj.props.com_mm.round(1).tolist(), obj.loaded.mesh.extents.round(1).tolist()
+    >>> extents = obj.loaded.mesh.extents
+    >>> obj.name, obj.mass_g, obj.props.com_mm.round(1).tolist(), extents.round(1).tolist()
     ('box.stl', 120.0, [0.0, 0.0, 0.0], [60.0, 40.0, 20.0])
     """
     spec = _file_spec(path, units=units, up=up, com_mm=com_mm, axis=axis, mass_g=mass_g)
@@ -84,20 +85,24 @@ def analyze_object(
 
 
 def _file_spec(path, *, units=None, up=None, com_mm=None, axis=None, mass_g=None) -> ObjectSpec:
-    if mass_g is not None and not (isinstance(mass_g, (int, float, np.number)) and not isinstance(mass_g, bool)
+    if mass_g is not None and not (isinstance(mass_g, (int, float, np.number))
+                                   and not isinstance(mass_g, bool)
                                    and 0 < float(mass_g) < 1e9):
-        raise ConfigError(f"{path}: mass_g={mass_g!r} must be a mass in grams above 0 (or None, unknown)")
-    return ObjectSpec(str(path), units=units, up=up, com_mm=None if com_mm is None else tuple(np.ravel(com_mm)),
+        raise ConfigError(f"{path}: mass_g={mass_g!r} must be a mass in grams above 0 (or None, "
+                          "unknown)")
+    return ObjectSpec(str(path), units=units, up=up, com_mm=None if com_mm is None
+                      else tuple(np.ravel(com_mm)),
                       axis=None if axis is None else tuple(np.ravel(axis)),
                       mass_g=None if mass_g is None else float(mass_g))
 
 
 def analyze_prop(prop: str | os.PathLike | ObjectSpec, **options) -> ObjectAnalysis:
-    """A prop as ``pinchmatch match`` reads one: standing on its table (its support, ``"auto"``: the plane
-    through its lowest point, or through its pose's in a level) unless its manifest entry says otherwise
-    (``support = "none"``, held in the hand). ``prop`` is a file (``options`` as :func:`analyze_object`'s) or
-    a spec (``options``: ``patch_radius_mm``, ``progress``). A virtual object of its own file stands nowhere:
-    read it with :func:`analyze_object`, as the command line does.
+    """A prop as ``pinchmatch match`` reads one: standing on its table (its support, ``"auto"``: the
+    plane through its lowest point, or through its pose's in a level) unless its manifest entry says
+    otherwise (``support = "none"``, held in the hand). ``prop`` is a file (``options`` as
+    :func:`analyze_object`'s) or a spec (``options``: ``patch_radius_mm``, ``progress``). A virtual
+    object of its own file stands nowhere: read it with :func:`analyze_object`, as the command line
+    does.
 
     >>> prop = analyze_prop(box_stl)
     >>> prop.context.support.source, prop.context.support.height_mm
@@ -108,7 +113,8 @@ def analyze_prop(prop: str | os.PathLike | ObjectSpec, **options) -> ObjectAnaly
     return analyze_spec(spec.standing("auto"), **reading)
 
 
-def analyze_spec(spec: ObjectSpec, *, patch_radius_mm: float = 8.0, progress=None) -> ObjectAnalysis:
+def analyze_spec(spec: ObjectSpec, *, patch_radius_mm: float = 8.0,
+                 progress=None) -> ObjectAnalysis:
     """:func:`analyze_object` for an object described by a spec (a manifest entry, a level node):
     its units, up, centre of mass, axis, node and contact regions.
 
@@ -119,7 +125,8 @@ def analyze_spec(spec: ObjectSpec, *, patch_radius_mm: float = 8.0, progress=Non
     """
     say = progress or (lambda stage: None)
     try:
-        loaded = load_mesh(spec.path, units=spec.units, up=spec.up, progress=progress, node=spec.node)
+        loaded = load_mesh(spec.path, units=spec.units, up=spec.up, progress=progress,
+                           node=spec.node)
     except MeshError as exc:
         if spec.manifest and spec.node is None:  # its units and up are its manifest entry's
             raise in_manifest(exc, spec.manifest) from None
@@ -135,16 +142,18 @@ def analyze_spec(spec: ObjectSpec, *, patch_radius_mm: float = 8.0, progress=Non
 
 
 def source_of(obj: ObjectAnalysis) -> str:
-    """How a message names the object: its file, with its node in a level; for a prop a manifest describes
-    by its shape, the manifest and the object (its solid's file is pinchmatch's own)."""
+    """How a message names the object: its file, with its node in a level; for a prop a manifest
+    describes by its shape, the manifest and the object (its solid's file is pinchmatch's own)."""
     spec = obj.spec
-    if spec is not None and spec.manifest and Path(obj.loaded.path).parent.name.startswith(SHAPES_FOLDER):
+    if (spec is not None and spec.manifest
+        and Path(obj.loaded.path).parent.name.startswith(SHAPES_FOLDER)):
         return f"{spec.manifest}: object {spec.display_name} (its shape)"
     node = spec.node if spec is not None else None
     return f"{obj.loaded.path} (node {node})" if node else str(obj.loaded.path)
 
 
-def find_pinches(obj: ObjectAnalysis, *, settings: PinchSettings = PinchSettings()) -> tuple[Pinches, PinchFeatures]:
+def find_pinches(obj: ObjectAnalysis, *,
+                 settings: PinchSettings = PinchSettings()) -> tuple[Pinches, PinchFeatures]:
     """Feasible pinches spread over ``obj`` and their features.
 
     >>> obj = analyze_object(box_stl)
@@ -167,26 +176,31 @@ CONVEX_SHARE = 0.97
 
 
 def too_wide(mesh, settings: PinchSettings, source: str, node: str | None = None) -> None:
-    """Refuse a convex object wider than the largest pinch in every direction (its oriented bounding box's
-    least extent, trimesh's): no hand could pinch it, and sampling it would only say so slowly. An object
-    that is not convex (a pot with handles, a bowl's rim) may have thin parts: sampling decides.
+    """Refuse a convex object wider than the largest pinch in every direction (its oriented bounding
+    box's least extent, trimesh's): no hand could pinch it, and sampling it would only say so
+    slowly. An object that is not convex (a pot with handles, a bowl's rim) may have thin parts:
+    sampling decides.
 
-    The box is asked last: trimesh finds it by trying every face of the hull, which takes longer than the
-    hull itself on a large scan (1.4 s on a 100k-face torus), and it only matters for a closed convex object.
-    And the hull of a few thousand of the vertices, inside the whole hull, shows most objects that are not
-    convex at once (its volume is at most the whole hull's)."""
-    watertight, _ = topology.watertight_and_wound(topology.edges(mesh.faces))  # trimesh's is_watertight, faster
+    The box is asked last: trimesh finds it by trying every face of the hull, which takes longer
+    than the hull itself on a large scan (1.4 s on a 100k-face torus), and it only matters for a
+    closed convex object. And the hull of a few thousand of the vertices, inside the whole hull,
+    shows most objects that are not convex at once (its volume is at most the whole hull's)."""
+    # trimesh's is_watertight, faster
+    watertight, _ = topology.watertight_and_wound(topology.edges(mesh.faces))
     if not watertight:
         return
     volume = abs(mesh.volume)
-    if volume < CONVEX_SHARE * _inner_hull_volume(mesh.vertices) or volume < CONVEX_SHARE * mesh.convex_hull.volume:
+    if (volume < CONVEX_SHARE * _inner_hull_volume(mesh.vertices) or volume < CONVEX_SHARE
+        * mesh.convex_hull.volume):
         return
     extents = np.sort(np.asarray(mesh.bounding_box_oriented.primitive.extents, dtype=np.float64))
     if extents[0] > settings.max_width_mm:
         leave = f"--skip-nodes '{node}'" if node else "leave it out"
         raise NoFeasiblePinchError(
-            f"{source}: no feasible pinch: {' x '.join(f'{e:.0f}' for e in extents)} mm, wider than the largest pinch "
-            f"(--max-width-mm {settings.max_width_mm:g}) in every direction: no hand can pinch it; {leave}")
+            f"{source}: no feasible pinch: {' x '.join(f'{e:.0f}' for e in extents)} mm, wider "
+            "than the largest pinch "
+            f"(--max-width-mm {settings.max_width_mm:g}) in every direction: no hand can pinch it; "
+            f"{leave}")
 
 
 #: vertices of the inner hull of :func:`too_wide`: a hull of this many points takes milliseconds
@@ -194,12 +208,14 @@ INNER_HULL_POINTS = 4096
 
 
 def _inner_hull_volume(vertices: np.ndarray) -> float:
-    """The volume of the hull of every k-th vertex (about ``INNER_HULL_POINTS`` of them) and of the extreme
-    vertex along each axis both ways: a lower bound on the convex hull's volume (0 where it is flat)."""
+    """The volume of the hull of every k-th vertex (about ``INNER_HULL_POINTS`` of them) and of the
+    extreme vertex along each axis both ways: a lower bound on the convex hull's volume (0 where it
+    is flat)."""
     from scipy.spatial import ConvexHull, QhullError
 
     step = max(1, len(vertices) // INNER_HULL_POINTS)
-    chosen = np.r_[np.arange(0, len(vertices), step), vertices.argmin(axis=0), vertices.argmax(axis=0)]
+    chosen = np.r_[np.arange(0, len(vertices),
+                             step), vertices.argmin(axis=0), vertices.argmax(axis=0)]
     try:
         return float(ConvexHull(vertices[chosen]).volume)
     except (QhullError, ValueError):  # flat or too few points: no bound
@@ -225,8 +241,9 @@ def score_pinches(
         A contact is farther than ``settings.snap_tolerance_mm`` from the surface.
 
     >>> obj = analyze_object(box_stl)  # 20 mm tall: a pinch from the top face to the bottom one
-    >>> pinches, features = score_pinches(obj, np.array([[0.0, 0.0, 10.0]]), np.array([[0.0, 0.0, -10.0]]))
-    >>> pinches.feasible.tolist(), features.width_mm.tolist(), features.com_distance_mm.round(6).tolist()
+    >>> top, bottom = np.array([[0.0, 0.0, 10.0]]), np.array([[0.0, 0.0, -10.0]])
+    >>> pinches, f = score_pinches(obj, top, bottom)
+    >>> pinches.feasible.tolist(), f.width_mm.tolist(), f.com_distance_mm.round(6).tolist()
     ([True], [20.0], [0.0])
     """
     p1_mm = np.asarray(p1_mm, dtype=np.float64).reshape(-1, 3)
@@ -240,16 +257,18 @@ def score_pinches(
         label = f"p{k + 1}" if len(p1_mm) == 1 else f"pose {i} p{k + 1}"
         raise ContactError(
             f"{source or obj.loaded.path}: {label} ({', '.join(f'{c:g}' for c in point)}) mm is "
-            f"{distance[i, k]:.2f} mm from the surface (tolerance {settings.snap_tolerance_mm:g} mm); "
+            f"{distance[i, k]:.2f} mm from the surface (tolerance {settings.snap_tolerance_mm:g} "
+            "mm); "
             "give a point on the surface, in the file's frame and in mm (check --units)"
         )
     return pinches, pinch_features(pinches, obj.props)
 
 
-def score_tripods(obj: ObjectAnalysis, points_mm: np.ndarray, *, settings: PinchSettings = PinchSettings(),
+def score_tripods(obj: ObjectAnalysis, points_mm: np.ndarray, *,
+                  settings: PinchSettings = PinchSettings(),
                   source: str | None = None) -> tuple[Tripods, TripodFeatures]:
-    """Snap user-given tripods (n, 3, 3): thumb, index, middle) to the surface, check them and compute their
-    features, as :func:`score_pinches` does for pinches.
+    """Snap user-given tripods (n, 3, 3): thumb, index, middle) to the surface, check them and
+    compute their features, as :func:`score_pinches` does for pinches.
 
     Raises
     ------
@@ -265,31 +284,38 @@ def score_tripods(obj: ObjectAnalysis, points_mm: np.ndarray, *, settings: Pinch
         i, k = far[0]
         label = FINGERS[k] if n == 1 else f"pose {i} {FINGERS[k]}"
         raise ContactError(
-            f"{source or obj.loaded.path}: the {label} contact ({', '.join(f'{c:g}' for c in points[i, k])}) mm is "
-            f"{distance[i, k]:.2f} mm from the surface (tolerance {settings.snap_tolerance_mm:g} mm); "
+            f"{source or obj.loaded.path}: the {label} contact "
+            f"({', '.join(f'{c:g}' for c in points[i, k])}) mm is "
+            f"{distance[i, k]:.2f} mm from the surface (tolerance {settings.snap_tolerance_mm:g} "
+            "mm); "
             "give a point on the surface, in the file's frame and in mm (check --units)")
-    tripods = check_tripods(obj.context, closest.reshape(n, 3, 3), face.reshape(n, 3), settings=settings)
+    tripods = check_tripods(obj.context, closest.reshape(n, 3, 3), face.reshape(n, 3),
+                            settings=settings)
     tripods = dataclasses.replace(tripods, snap_distance_mm=distance)
     return tripods, tripod_features(tripods, obj.props)
 
 
 def _poses_list(path: str):
-    """The JSON of a poses file, its ``poses`` list where it is a poses document; ConfigError where it cannot be
-    read or is no JSON."""
+    """The JSON of a poses file, its ``poses`` list where it is a poses document; ConfigError where
+    it cannot be read or is no JSON."""
     raw = read_input(path, "JSON poses file", limit_bytes=MAX_POSES_FILE_BYTES,
-                     too_big=f"more than a poses file of {MAX_GIVEN_POSES:,} poses needs; split it or give fewer poses")
+                     too_big=f"more than a poses file of {MAX_GIVEN_POSES:,} poses needs; split it "
+                             "or give fewer poses")
     try:
         data = json.loads(raw.decode("utf-8-sig"))
-    except (ValueError, RecursionError) as exc:  # not JSON, not UTF-8, or an integer of thousands of digits
-        raise ConfigError(f"{path}: not valid JSON ({type(exc).__name__}: {str(exc)[:80]}); fix the file") from None
+    except (ValueError, RecursionError) as exc:
+        # not JSON, not UTF-8, or an integer of thousands of digits
+        raise ConfigError(f"{path}: not valid JSON ({type(exc).__name__}: {str(exc)[:80]}); fix "
+                          "the file") from None
     if isinstance(data, dict) and isinstance(data.get("poses"), list):
         data = data["poses"]
     return data
 
 
 def load_tripods_file(path: str | os.PathLike) -> np.ndarray:
-    """Read user-given tripods: a JSON list of ``{"contacts_mm": [[x, y, z], [x, y, z], [x, y, z]]}`` (thumb,
-    index, middle), or a ``pinchmatch poses --grasp tripod`` document; (n, 3, 3) float64.
+    """Read user-given tripods: a JSON list of ``{"contacts_mm": [[x, y, z], [x, y, z], [x, y,
+    z]]}`` (thumb, index, middle), or a ``pinchmatch poses --grasp tripod`` document; (n, 3, 3)
+    float64.
 
     Raises
     ------
@@ -300,7 +326,8 @@ def load_tripods_file(path: str | os.PathLike) -> np.ndarray:
     data = _poses_list(path)
     if not isinstance(data, list) or not data or len(data) > MAX_GIVEN_POSES:
         raise ConfigError(f'{path}: expected a JSON list of 1 to {MAX_GIVEN_POSES:,} tripods, each '
-                          '{"contacts_mm": [[x, y, z], [x, y, z], [x, y, z]]} (thumb, index, middle)')
+                          '{"contacts_mm": [[x, y, z], [x, y, z], [x, y, z]]} (thumb, index, '
+                          'middle)')
     out = []
     for i, entry in enumerate(data):
         try:
@@ -308,8 +335,10 @@ def load_tripods_file(path: str | os.PathLike) -> np.ndarray:
         except (KeyError, TypeError, ValueError):
             contacts = np.zeros(0)
         if contacts.shape != (3, 3) or not (np.abs(contacts) < MAX_COORDINATE_MM).all():
-            raise ConfigError(f'{path}: tripod {i} needs "contacts_mm", three points of three finite numbers each '
-                              f"(mm, below {MAX_COORDINATE_MM:g} in size; thumb, index, middle); fix that entry")
+            raise ConfigError(f'{path}: tripod {i} needs "contacts_mm", three points of three '
+                              'finite numbers each '
+                              f"(mm, below {MAX_COORDINATE_MM:g} in size; thumb, index, middle); "
+                              "fix that entry")
         out.append(contacts)
     return np.array(out)
 
@@ -342,7 +371,8 @@ def load_poses_file(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
             f'{path}: expected a non-empty JSON list of {{"p1_mm": [x, y, z], "p2_mm": [x, y, z]}}'
         )
     if len(data) > MAX_GIVEN_POSES:
-        raise ConfigError(f"{path}: {len(data):,} poses, more than the {MAX_GIVEN_POSES:,} a file may give; "
+        raise ConfigError(f"{path}: {len(data):,} poses, more than the {MAX_GIVEN_POSES:,} a file "
+                          "may give; "
                           "split it")
     p1, p2 = [], []
     for i, entry in enumerate(data):
@@ -353,7 +383,8 @@ def load_poses_file(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
         if a.shape != (3,) or b.shape != (3,) or not (np.abs(a) < MAX_COORDINATE_MM).all() \
                 or not (np.abs(b) < MAX_COORDINATE_MM).all():
             raise ConfigError(
-                f"{path}: pose {i} needs \"p1_mm\" and \"p2_mm\", each three finite numbers (mm, below "
+                f"{path}: pose {i} needs \"p1_mm\" and \"p2_mm\", each three finite numbers (mm, "
+                "below "
                 f"{MAX_COORDINATE_MM:g} in size); fix that entry"
             )
         p1.append(a)

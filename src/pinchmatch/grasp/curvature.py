@@ -114,7 +114,8 @@ def patch_geometry(
 
     >>> from pinchmatch import analyze_object
     >>> obj = analyze_object(box_stl)  # 60 x 40 x 20 mm, centred on the origin
-    >>> geom = patch_geometry(obj.context, np.array([[0.0, 0.0, 10.0]]), np.array([[0.0, 0.0, 1.0]]))
+    >>> up = np.array([[0.0, 0.0, 1.0]])
+    >>> geom = patch_geometry(obj.context, up * 10.0, up)
     >>> geom.normal.round(3).tolist(), geom.kappa_max_per_m.round(2).tolist()  # the flat top face
     ([[0.0, 0.0, 1.0]], [0.0])
     """
@@ -130,15 +131,17 @@ def patch_geometry(
                              np.zeros(0, np.int64), empty, np.zeros(0, bool))
 
     # the samples within the radius (the nearest MAX_PATCH_SAMPLES where there are more), by index
-    idx, counts = neighbours_within(context.tree, context.sample.points, points_mm, radius, MAX_PATCH_SAMPLES)
-    out = (np.empty((n, 3)), np.empty((n, 3)), np.empty(n), np.empty(n), np.empty((n, 3)), np.empty((n, 3)),
-           np.empty(n, np.int64), np.empty(n))
+    idx, counts = neighbours_within(context.tree, context.sample.points, points_mm, radius,
+                                    MAX_PATCH_SAMPLES)
+    out = (np.empty((n, 3)), np.empty((n, 3)), np.empty(n), np.empty(n), np.empty((n, 3)),
+           np.empty((n, 3)), np.empty(n, np.int64), np.empty(n))
 
 
     from .jets import fit_patches  # numba: imported when a patch is first fitted
 
     def run(start):
-        fit_patches(context.sample, points_mm, normal, idx, counts, radius, start, min(start + CHUNK, n), out)
+        fit_patches(context.sample, points_mm, normal, idx, counts, radius, start,
+                    min(start + CHUNK, n), out)
 
     starts = range(0, n, CHUNK)
     workers = min(len(starts), thread_budget())

@@ -68,8 +68,8 @@ def _acute_deg(cosine: np.ndarray) -> np.ndarray:
 
 
 def _axis_angles(grasps: Pinches, a: np.ndarray) -> np.ndarray:
-    """(n, F) ρ per contact: the angle between its κmax direction and the axis ``a`` projected on its tangent
-    plane, 0-90; NaN where undefined (module notes)."""
+    """(n, F) ρ per contact: the angle between its κmax direction and the axis ``a`` projected on
+    its tangent plane, 0-90; NaN where undefined (module notes)."""
     normals = grasps.normals
     a_t = a[None, None, :] - (normals @ a)[..., None] * normals
     a_t_norm = np.linalg.norm(a_t, axis=-1)
@@ -84,8 +84,9 @@ def pinch_features(pinches: Pinches, props: ObjectProperties) -> PinchFeatures:
     """The seven features of every pinch, from its contacts and patches.
 
     >>> from pinchmatch import PinchSettings, analyze_object, sample_pinches
-    >>> obj = analyze_object(box_stl)  # 60 x 40 x 20 mm: every pinch spans 20, 40 or 60 mm or a diagonal
-    >>> features = pinch_features(sample_pinches(obj.context, settings=PinchSettings(count=50, seed=0)), obj.props)
+    >>> obj = analyze_object(box_stl)  # 60 x 40 x 20 mm: a pinch spans 20, 40, 60 mm or a diagonal
+    >>> pinches = sample_pinches(obj.context, settings=PinchSettings(count=50, seed=0))
+    >>> features = pinch_features(pinches, obj.props)
     >>> bool(features.width_mm.min() >= 20.0 - 1e-6), bool(features.width_mm.max() <= 100.0)
     (True, True)
     """
@@ -123,15 +124,17 @@ def pinch_features(pinches: Pinches, props: ObjectProperties) -> PinchFeatures:
 class TripodFeatures(PinchFeatures):
     """Features of n tripods (thumb, index, middle), the per-contact arrays (n, 3).
 
-    ``width_mm`` is the aperture: from the thumb's contact to the middle of the two fingers'. ``com_distance_mm``
-    is measured from the contacts' centroid g along the principal axis; ``tilt_deg`` is the angle between the
-    plane of the contacts and the plane orthogonal to the axis (0-90); ``normal_angle_deg`` is, per contact,
-    the angle between its normal and the line to the other side (the thumb's to the fingers' middle, each
-    finger's to the thumb), 0-90. ``spacing_mm`` (n,) is the distance between the two fingers' contacts, and
-    ``lever_arm_mm`` (n,) the centre of mass's distance from g: the lever of the torque the weight pulls with
-    about the fingertips, its largest over the orientations the object is held in. ``mass_along_mm`` (n, 3)
-    holds the lever arm for each contact and ``mass_perp_mm`` (n,) is 0: the only part of the offset that no
-    turn of the object changes, so that the search's separable bound holds whatever the registration.
+    ``width_mm`` is the aperture: from the thumb's contact to the middle of the two fingers'.
+    ``com_distance_mm`` is measured from the contacts' centroid g along the principal axis;
+    ``tilt_deg`` is the angle between the plane of the contacts and the plane orthogonal to the axis
+    (0-90); ``normal_angle_deg`` is, per contact, the angle between its normal and the line to the
+    other side (the thumb's to the fingers' middle, each finger's to the thumb), 0-90.
+    ``spacing_mm`` (n,) is the distance between the two fingers' contacts, and ``lever_arm_mm`` (n,)
+    the centre of mass's distance from g: the lever of the torque the weight pulls with about the
+    fingertips, its largest over the orientations the object is held in. ``mass_along_mm`` (n, 3)
+    holds the lever arm for each contact and ``mass_perp_mm`` (n,) is 0: the only part of the offset
+    that no turn of the object changes, so that the search's separable bound holds whatever the
+    registration.
     """
 
     spacing_mm: np.ndarray = None
@@ -140,12 +143,13 @@ class TripodFeatures(PinchFeatures):
 
 def tripod_shape(points: np.ndarray, normals: np.ndarray, props: ObjectProperties) -> dict:
     """The features of tripods that need no patch curvature, from contacts and normals (n, 3, 3):
-    ``width_mm`` (the aperture), ``com_distance_mm``, ``tilt_deg``, ``normal_angle_deg`` (n, 3), ``spacing_mm``
-    and ``lever_arm_mm`` (:class:`TripodFeatures`)."""
+    ``width_mm`` (the aperture), ``com_distance_mm``, ``tilt_deg``, ``normal_angle_deg`` (n, 3),
+    ``spacing_mm`` and ``lever_arm_mm`` (:class:`TripodFeatures`)."""
     a = props.principal_axis / np.linalg.norm(props.principal_axis)
     middle = points[:, 1:].mean(axis=1)
     centroid = points.mean(axis=1)
-    towards = np.stack([middle - points[:, 0], points[:, 0] - points[:, 1], points[:, 0] - points[:, 2]], axis=1)
+    towards = np.stack([middle - points[:, 0], points[:, 0] - points[:, 1],
+                        points[:, 0] - points[:, 2]], axis=1)
     towards /= np.maximum(np.linalg.norm(towards, axis=2, keepdims=True), 1e-300)
     return {"width_mm": np.linalg.norm(middle - points[:, 0], axis=1),
             "com_distance_mm": np.abs((centroid - props.com_mm) @ a),
@@ -172,4 +176,5 @@ def tripod_features(tripods: Tripods, props: ObjectProperties) -> TripodFeatures
 
 def grasp_features(grasps: Pinches, props: ObjectProperties) -> PinchFeatures:
     """The features of pinches or of tripods, as their kind has them."""
-    return tripod_features(grasps, props) if isinstance(grasps, Tripods) else pinch_features(grasps, props)
+    return tripod_features(grasps, props) if isinstance(grasps, Tripods) else pinch_features(grasps,
+                                                                                             props)

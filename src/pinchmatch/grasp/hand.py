@@ -24,12 +24,12 @@ A direction h **clears** when no surface sample lies within ``r_f - tol`` of
 either finger's axis (``tol``: the pad's compliance, as for the fingertip).
 
 **The support.** An object that stands on something (:mod:`pinchmatch.mesh.support`: a prop on its
-table, a level's object on its counter) has the half-space below its support plane as part of what the
-fingers must clear: a test sphere's distance to the object is the smaller of its distance to the nearest
-sample and its height above the plane (0 below it), so no finger capsule dips below the table by more
-than the pad's tolerance; and no finger's axis h_i may point below the plane's horizontal (h_i · up
-≥ 0), so the hand behind the fingers, which runs on along them, never comes from under the table.
-The pinch is **reachable** when some h clears and the hand behind the
+table, a level's object on its counter) has the half-space below its support plane as part of what
+the fingers must clear: a test sphere's distance to the object is the smaller of its distance to the
+nearest sample and its height above the plane (0 below it), so no finger capsule dips below the
+table by more than the pad's tolerance; and no finger's axis h_i may point below the plane's
+horizontal (h_i · up ≥ 0), so the hand behind the fingers, which runs on along them, never comes
+from under the table. The pinch is **reachable** when some h clears and the hand behind the
 fingers gets out: from each finger's end, the line on along h_i meets no
 surface. The proximal phalanx and the palm are far wider than a finger, so
 where the finger's own line runs into the object (a finger lying flat on the
@@ -113,14 +113,16 @@ CELL_ALPHA_DEG = 20.0
 CLEARANCE_CAP_MM = 1.0
 #: at most this many open cells per pinch and refinement level, the most promising kept
 MAX_CELLS_PER_PINCH = 32
-#: how far the fingertips beside the thumb's opposite (index and middle of a tripod) may lie apart along the
-#: approach: the middle finger is about 8 mm longer than the index (hand anthropometry, e.g. Greiner 1991),
-#: and flexing one finger a little more than the other makes up about as much again; a documented choice
+#: how far the fingertips beside the thumb's opposite (index and middle of a tripod) may lie apart
+#: along the approach: the middle finger is about 8 mm longer than the index (hand anthropometry,
+#: e.g. Greiner 1991), and flexing one finger a little more than the other makes up about as much
+#: again; a documented choice
 FINGER_STAGGER_MM = 20.0
-#: how far each finger leans from the hand's approach, away from the other finger (deg): the pads of a pinch meet
-#: with the fingers in a V, not side by side; a documented choice (docs/method.md)
+#: how far each finger leans from the hand's approach, away from the other finger (deg): the pads of
+#: a pinch meet with the fingers in a V, not side by side; a documented choice (docs/method.md)
 FINGER_SPLAY_DEG = 15.0
-#: how far below the support's horizontal a hand's approach may point (a hand sliding along the table)
+#: how far below the support's horizontal a hand's approach may point (a hand sliding along the
+#: table)
 SUPPORT_LEVEL_TOLERANCE = 1e-9
 
 
@@ -153,9 +155,11 @@ class Hand:
 
 def hand_of(settings) -> Hand:
     """The hand of a run's :class:`pinchmatch.config.PinchSettings`."""
-    return Hand(fingertip_radius_mm=settings.fingertip_radius_mm, finger_radius_mm=settings.finger_radius_mm,
-                finger_length_mm=settings.finger_length_mm, approach_tilt_deg=settings.approach_tilt_deg,
-                tolerance_mm=PAD_TOLERANCE_MM, finger_splay_deg=settings.finger_splay_deg)
+    return Hand(fingertip_radius_mm=settings.fingertip_radius_mm,
+                finger_radius_mm=settings.finger_radius_mm,
+                finger_length_mm=settings.finger_length_mm,
+                approach_tilt_deg=settings.approach_tilt_deg, tolerance_mm=PAD_TOLERANCE_MM,
+                finger_splay_deg=settings.finger_splay_deg)
 
 
 @dataclass(frozen=True)
@@ -200,7 +204,8 @@ def approach_frame(context, points: np.ndarray, axis: np.ndarray | None = None):
 def _directions(u, e1, e2, theta, alpha):
     """h(θ, α) for rows of frames and matching (m,) angles in radians."""
     ca = np.cos(alpha)[:, None]
-    return ca * (np.cos(theta)[:, None] * e1 + np.sin(theta)[:, None] * e2) + np.sin(alpha)[:, None] * u
+    return ca * (np.cos(theta)[:, None] * e1 + np.sin(theta)[:, None]
+                 * e2) + np.sin(alpha)[:, None] * u
 
 
 def _splay_signs(fingers: int) -> np.ndarray:
@@ -210,8 +215,9 @@ def _splay_signs(fingers: int) -> np.ndarray:
 
 
 def _finger_directions(u, h, splay, fingers):
-    """(m, F, 3) each finger's direction for hand approaches h (m, 3) and pinch lines u (m, 3): h leaned
-    by ``splay`` (radians) in the plane of h and u, away from the other finger; h itself for 0."""
+    """(m, F, 3) each finger's direction for hand approaches h (m, 3) and pinch lines u (m, 3): h
+    leaned by ``splay`` (radians) in the plane of h and u, away from the other finger; h itself for
+    0."""
     if splay == 0.0:
         return np.repeat(h[:, None, :], fingers, axis=1)
     along = np.clip(np.einsum("md,md->m", h, u), -1.0, 1.0)
@@ -229,8 +235,8 @@ def finger_directions(points: np.ndarray, approach: np.ndarray, hand: Hand) -> n
 
 
 def _staggered(tips, h, limit):
-    """(m,) bool: the fingers opposite the thumb (tips 1…F-1) lie further apart along h than ``limit``
-    (never for a pinch's single finger)."""
+    """(m,) bool: the fingers opposite the thumb (tips 1…F-1) lie further apart along h than
+    ``limit`` (never for a pinch's single finger)."""
     if tips.shape[1] < 3:
         return np.zeros(len(h), dtype=bool)
     along = np.einsum("mfd,md->mf", tips[:, 1:], h)
@@ -238,16 +244,17 @@ def _staggered(tips, h, limit):
 
 
 def _hand_free(context, tips, h, length):
-    """(m,) bool: beyond each finger's end, the line on along its direction h (m, F, 3) meets no surface
-    (the hand gets out), the segment from the thumb's end to each other finger's meets none (the web of
-    the hand joins them there: a sheet pinched far in from its edge passes between splayed fingers, never
-    through the hand), and no finger points below the support's horizontal (no hand comes from under the
-    table)."""
+    """(m,) bool: beyond each finger's end, the line on along its direction h (m, F, 3) meets no
+    surface (the hand gets out), the segment from the thumb's end to each other finger's meets none
+    (the web of the hand joins them there: a sheet pinched far in from its edge passes between
+    splayed fingers, never through the hand), and no finger points below the support's horizontal
+    (no hand comes from under the table)."""
     fingers = tips.shape[1]
     ends = tips + length * h
     face = context.rays.intersects_first(ends.reshape(-1, 3), h.reshape(-1, 3))
     free = (np.asarray(face) < 0).reshape(-1, fingers).all(axis=1)
-    # the hand joins the fingers' ends: nothing of the object lies between the thumb's end and another's
+    # the hand joins the fingers' ends: nothing of the object lies between the thumb's end and
+    # another's
     web = (ends[:, 1:] - ends[:, :1]).reshape(-1, 3)
     span = np.linalg.norm(web, axis=1)
     apart = span > 1e-9
@@ -261,9 +268,9 @@ def _hand_free(context, tips, h, length):
 
 
 def _hand_gate(context, tips, h, length, possible=None):
-    """The gate of :func:`~pinchmatch.grasp.finger_spheres.axis_distances` for fingertips ``tips`` and
-    finger directions ``h`` (m, F, 3): of the rows it is asked about, those ``possible`` (m,) bool
-    (default: all) whose hand gets out (:func:`_hand_free`)."""
+    """The gate of :func:`~pinchmatch.grasp.finger_spheres.axis_distances` for fingertips ``tips``
+    and finger directions ``h`` (m, F, 3): of the rows it is asked about, those ``possible`` (m,)
+    bool (default: all) whose hand gets out (:func:`_hand_free`)."""
     def gate(sub):
         passed = np.ones(len(sub), dtype=bool) if possible is None else possible[sub].copy()
         if passed.any():
@@ -311,7 +318,8 @@ def reach(context, points: np.ndarray, normals: np.ndarray, hand: Hand,
             _quick(context, hand, try_rows, given[try_rows], geometry, sin_tilt, found)
             pending = pending[~ok[pending]]
 
-    # 1. quick: six directions perpendicular to the pinch line (three at a time); where none clears, six tangent
+    # 1. quick: six directions perpendicular to the pinch line (three at a time); where none clears,
+    # six tangent
     #    to both contact surfaces (perpendicular to the squeeze axis of the normals: the fingers
     #    slide along a sheet or a wall pinched obliquely); where none clears, the object's three
     #    principal axes both ways (a hand leaning onto a ring's or a cup's axis). The one with the
@@ -335,7 +343,8 @@ def reach(context, points: np.ndarray, normals: np.ndarray, hand: Hand,
             lean = np.radians(LEAN_SHARE * hand.approach_tilt_deg)
             m = 2 * k
             h = _directions(np.repeat(u[pending], m, axis=0), np.repeat(e1[pending], m, axis=0),
-                            np.repeat(e2[pending], m, axis=0), np.tile(np.repeat(theta, 2), len(pending)),
+                            np.repeat(e2[pending], m, axis=0),
+                            np.tile(np.repeat(theta, 2), len(pending)),
                             np.tile(np.tile([lean, -lean], k), len(pending)))
         else:
             angles = theta
@@ -345,12 +354,14 @@ def reach(context, points: np.ndarray, normals: np.ndarray, hand: Hand,
                 axis = np.where(norm > 1e-9, axis / np.maximum(norm, 1e-300), u[pending])
                 _, f1, f2 = approach_frame(context, points[pending], axis=axis)
             else:
-                # the six perpendicular directions in two halves: 0, 120, 240 degrees, then the others
+                # the six perpendicular directions in two halves: 0, 120, 240 degrees, then the
+                # others
                 angles = theta[0::2] if group == "perpendicular" else theta[1::2]
                 axis, f1, f2 = u[pending], e1[pending], e2[pending]
             m = len(angles)
-            h = _directions(np.repeat(axis, m, axis=0), np.repeat(f1, m, axis=0), np.repeat(f2, m, axis=0),
-                            np.tile(angles, len(pending)), np.zeros(m * len(pending)))
+            h = _directions(np.repeat(axis, m, axis=0), np.repeat(f1, m, axis=0),
+                            np.repeat(f2, m, axis=0), np.tile(angles, len(pending)),
+                            np.zeros(m * len(pending)))
         _quick(context, hand, pending, h, geometry, sin_tilt, found)
         pending = pending[~ok[pending]]
 
@@ -373,11 +384,14 @@ def _quick(context, hand, pending, h, geometry, sin_tilt, found):
     rows = np.repeat(pending, k)
     in_band = np.abs(np.einsum("ij,ij->i", h, u[rows])) <= sin_tilt
     hf = _finger_directions(u[rows], h, math.radians(hand.finger_splay_deg), tips.shape[1])
-    # a direction out of the band, or whose hand is stuck, fails whatever its fingers meet: not queried
+    # a direction out of the band, or whose hand is stuck, fails whatever its fingers meet: not
+    # queried
     possible = in_band & ~_staggered(tips[rows], h, hand.finger_stagger_mm)
     d, refused = axis_distances(context, tips[rows], hf, offsets, cap, rho,
-                                gate=_hand_gate(context, tips[rows], hf, hand.finger_length_mm, possible))
-    clears = possible & ~refused & (d >= rho).all(axis=(1, 2))  # each asked the gate: its hand gets out
+                                gate=_hand_gate(context, tips[rows], hf, hand.finger_length_mm,
+                                                possible))
+    # each asked the gate: its hand gets out
+    clears = possible & ~refused & (d >= rho).all(axis=(1, 2))
     clears = clears.reshape(-1, k)
     margin = (d.min(axis=(1, 2)) - hand.finger_radius_mm).reshape(-1, k)
     pick = np.argmax(np.where(clears, margin, -np.inf), axis=1)
@@ -402,11 +416,13 @@ def band_cells(hand: Hand):
 
 
 def _far_chord(alpha, ht, ha):
-    """The chord from the direction at the centre of a θ-α cell (θ half width ``ht``, α centre ``alpha``
-    and half width ``ha``, radians) to the cell's farthest corner: on the sphere of directions, the
-    farthest point of a θ-α rectangle from its centre is a corner."""
-    cos_far = np.minimum(np.sin(alpha) * np.sin(alpha + ha) + np.cos(alpha) * np.cos(alpha + ha) * np.cos(ht),
-                         np.sin(alpha) * np.sin(alpha - ha) + np.cos(alpha) * np.cos(alpha - ha) * np.cos(ht))
+    """The chord from the direction at the centre of a θ-α cell (θ half width ``ht``, α centre
+    ``alpha`` and half width ``ha``, radians) to the cell's farthest corner: on the sphere of
+    directions, the farthest point of a θ-α rectangle from its centre is a corner."""
+    cos_far = np.minimum(np.sin(alpha) * np.sin(alpha + ha) + np.cos(alpha) * np.cos(alpha + ha)
+                         * np.cos(ht),
+                         np.sin(alpha) * np.sin(alpha - ha) + np.cos(alpha) * np.cos(alpha - ha)
+                         * np.cos(ht))
     return np.sqrt(np.maximum(2.0 - 2.0 * cos_far, 0.0))  # chord length of a unit vector
 
 
@@ -435,15 +451,18 @@ def _search_band(context, tips, u, e1, e2, pending, hand, offsets, rho, cap):
                        for f in range(fingers)], axis=1)
         delta_f = _far_chord(finger_alpha, ht, ha)
         live = np.ones(len(rows), dtype=bool)
-        if fingers > 2:  # the cells whose every direction staggers the fingers beyond the limit are dropped
+        if fingers > 2:
+            # the cells whose every direction staggers the fingers beyond the limit are dropped
             apart = tips[rows, 2] - tips[rows, 1]
             least = np.abs(np.einsum("md,md->m", apart, h)) - np.linalg.norm(apart, axis=1) * delta
             live = least <= hand.finger_stagger_mm
         idx = np.flatnonzero(live)
-        # the sphere that bounded the parent is queried first: most cells that can be dropped are dropped by it
-        # a cell whose centre's hand is stuck is dropped whatever its fingers meet: its spheres are not queried
-        d, stuck = axis_distances(context, tips[rows[idx]], hf[idx], offsets, cap, rho, delta_f[idx],
-                                  first=hint[idx], gate=_hand_gate(context, tips[rows[idx]], hf[idx], length))
+        # the sphere that bounded the parent is queried first: most cells that can be dropped are
+        # dropped by it a cell whose centre's hand is stuck is dropped whatever its fingers meet:
+        # its spheres are not queried
+        d, stuck = axis_distances(context, tips[rows[idx]], hf[idx], offsets, cap, rho,
+                                  delta_f[idx], first=hint[idx],
+                                  gate=_hand_gate(context, tips[rows[idx]], hf[idx], length))
         d = d.reshape(len(idx), fingers * len(offsets))
         margin = d.min(axis=1) - hand.finger_radius_mm
         fits = (d >= rho).all(axis=1) & ~_staggered(tips[rows[idx]], h[idx], hand.finger_stagger_mm)
@@ -465,7 +484,8 @@ def _search_band(context, tips, u, e1, e2, pending, hand, offsets, rho, cap):
         slack = d + flat_offsets[None, :] * np.repeat(delta_f[idx], len(offsets), axis=1)
         bound = slack.min(axis=1)
         # a finger that fits where the hand behind it does not get out is not refined: the
-        # hand's line is tested at cell centres only, and neither is a cell whose centre's hand is stuck
+        # hand's line is tested at cell centres only, and neither is a cell whose centre's hand is
+        # stuck
         keep = ~decided[rows[idx]] & ~fits & ~stuck & (bound >= rho)
         cand = np.flatnonzero(keep)
         if len(cand):

@@ -76,7 +76,8 @@ def quartic_gram() -> np.ndarray:
     quartic = [k for k, (i, j) in enumerate(EXPONENTS) if i + j == 4]
     for k in quartic:
         for l in quartic:
-            G[k, l] = _disc_moment(EXPONENTS[k][0] + EXPONENTS[l][0], EXPONENTS[k][1] + EXPONENTS[l][1])
+            G[k, l] = _disc_moment(EXPONENTS[k][0] + EXPONENTS[l][0],
+                                   EXPONENTS[k][1] + EXPONENTS[l][1])
     return G
 
 
@@ -312,7 +313,8 @@ def _fit_patches(s_points, s_normals, s_chord6, s_weight, s_is_vertex, points, n
         if norm > 1e-12:
             normal = np.array([mx / norm, my / norm, mz / norm])
         for j in range(cnt):
-            valid[j] = nrm[j, 0] * normal[0] + nrm[j, 1] * normal[1] + nrm[j, 2] * normal[2] > _COS_SIDE
+            valid[j] = (nrm[j, 0] * normal[0] + nrm[j, 1] * normal[1] + nrm[j, 2] * normal[2]
+                        > _COS_SIDE)
             for a in range(3):
                 fitted[j, a] = nbr[j, a]
             weight[j] = base[j] if valid[j] else 0.0
@@ -326,7 +328,8 @@ def _fit_patches(s_points, s_normals, s_chord6, s_weight, s_is_vertex, points, n
             t1, t2, coef, rms = _fit(fitted, cnt, origin, normal, weight, radius, quadric_only,
                                      u, v, h, w, residual)
             fu, fv = coef[1] / radius, coef[2] / radius
-            fuu, fuv, fvv = 2.0 * coef[3] / radius**2, coef[4] / radius**2, 2.0 * coef[5] / radius**2
+            fuu, fuv, fvv = (2.0 * coef[3] / radius**2, coef[4] / radius**2,
+                             2.0 * coef[5] / radius**2)
             n_out, k_max, k_min, d_max, d_min = _shape(t1, t2, normal, fu, fv, fuu, fuv, fvv)
             contact = origin + coef[0] * normal
             if it == 0:

@@ -46,8 +46,8 @@ import numpy as np
 
 from .curvature import PatchGeometry, patch_geometry
 from ..errors import ConfigError
-from ..config import (CLEARANCE_TOLERANCE_MM, FINGERTIP_RADIUS_RANGE_MM, MAX_COUNT, MAX_WIDTH_MM,  # noqa: F401
-                      PREFILTER_MARGIN_DEG, PinchSettings)
+from ..config import (CLEARANCE_TOLERANCE_MM, FINGERTIP_RADIUS_RANGE_MM, MAX_COUNT,  # noqa: F401
+                      MAX_WIDTH_MM, PREFILTER_MARGIN_DEG, PinchSettings)
 from .hand import Reach, hand_of, reach
 from ..mesh.surface import SurfaceContext
 
@@ -97,7 +97,8 @@ class Pinches:
         return [rule for rule, bad in zip(self.rules, self.broken[i]) if bad]
 
     def subset(self, keep: np.ndarray) -> "Pinches":
-        return type(self)(**{f: getattr(self, f)[keep] for f in ARRAY_FIELDS}, rejected=dict(self.rejected))
+        return type(self)(**{f: getattr(self, f)[keep] for f in ARRAY_FIELDS},
+                          rejected=dict(self.rejected))
 
 
 #: the per-pinch arrays of :class:`Pinches`, in declaration order
@@ -116,8 +117,9 @@ def _line(points):
 
 
 def closing_directions(points: np.ndarray) -> np.ndarray:
-    """(..., F, 3) unit directions the fingertips close along onto grasps' contacts (..., F, 3): the first (p1,
-    the thumb) towards the others' middle, each other towards the first (a pinch's: along its line, both ways)."""
+    """(..., F, 3) unit directions the fingertips close along onto grasps' contacts (..., F, 3): the
+    first (p1, the thumb) towards the others' middle, each other towards the first (a pinch's: along
+    its line, both ways)."""
     toward = np.concatenate([points[..., 1:, :].mean(axis=-2, keepdims=True) - points[..., :1, :],
                              points[..., :1, :] - points[..., 1:, :]], axis=-2)
     return toward / np.maximum(np.linalg.norm(toward, axis=-1, keepdims=True), 1e-300)
@@ -152,8 +154,9 @@ def clearance_broken(context: SurfaceContext, points: np.ndarray, normals: np.nd
     return ~clear.reshape(len(points), points.shape[1]).all(axis=1)
 
 
-def reach_rule(context: SurfaceContext, points: np.ndarray, normals: np.ndarray, settings: PinchSettings,
-               approach: np.ndarray | None = None, thorough: bool = True) -> Reach:
+def reach_rule(context: SurfaceContext, points: np.ndarray, normals: np.ndarray,
+               settings: PinchSettings, approach: np.ndarray | None = None,
+               thorough: bool = True) -> Reach:
     return reach(context, points, normals, hand_of(settings), approach=approach, thorough=thorough)
 
 
@@ -167,8 +170,8 @@ def cheap_broken(context, points, normals, settings, cone_deg):
     return broken
 
 
-def rule_table(context, points, normals, valid_patch, settings, surface_ok=None, approach=None, thorough=True,
-               with_reach=True):
+def rule_table(context, points, normals, valid_patch, settings, surface_ok=None, approach=None,
+               thorough=True, with_reach=True):
     """Which rules each pinch breaks, (n, len(RULES)) bool, and its reach (``thorough``: see
     :func:`pinchmatch.grasp.hand.reach`; without ``with_reach``, reach is not checked: see
     :func:`check_reach`)."""
@@ -178,7 +181,8 @@ def rule_table(context, points, normals, valid_patch, settings, surface_ok=None,
     if with_reach:
         found = reach_rule(context, points, normals, settings, approach, thorough)
     else:
-        found = Reach(np.ones(len(points), dtype=bool), np.full((len(points), 3), np.nan), np.full(len(points), np.nan))
+        found = Reach(np.ones(len(points), dtype=bool), np.full((len(points), 3), np.nan),
+                      np.full(len(points), np.nan))
     broken[:, RULES.index("reach")] = ~found.ok
     broken[:, RULES.index("patch")] = ~valid_patch.reshape(-1, 2).all(axis=1)
     return broken, found
@@ -188,14 +192,17 @@ def check_patch_radius(context: SurfaceContext, settings: PinchSettings) -> None
     """The patch radius is one setting: the surface context was sampled for it (about 120 samples
     per patch) and the fits use it. Raise ConfigError when an object was analysed for another."""
     if not np.isclose(context.patch_radius_mm, settings.patch_radius_mm, rtol=1e-9, atol=0.0):
-        raise ConfigError(f"--patch-radius-mm: the object was analysed for {context.patch_radius_mm:g} mm patches "
-                          f"but the pinch settings ask for {settings.patch_radius_mm:g} mm; analyse it with "
+        raise ConfigError("--patch-radius-mm: the object was analysed for "
+                          f"{context.patch_radius_mm:g} mm patches "
+                          f"but the pinch settings ask for {settings.patch_radius_mm:g} mm; "
+                          "analyse it with "
                           "patch_radius_mm equal to PinchSettings.patch_radius_mm")
 
 
 def patches(context, points, face_normals, settings) -> PatchGeometry:
     return patch_geometry(
-        context, points.reshape(-1, 3), face_normals.reshape(-1, 3), patch_radius_mm=settings.patch_radius_mm
+        context, points.reshape(-1, 3), face_normals.reshape(-1, 3),
+        patch_radius_mm=settings.patch_radius_mm
     )
 
 
@@ -270,33 +277,37 @@ def check_pinches(
     if faces is None:
         closest, distance, face = context.closest_points(raw)
     else:
-        closest, distance, face = raw, np.zeros(len(raw)), np.asarray(faces, dtype=np.int64).reshape(-1)
+        closest, distance, face = raw, np.zeros(len(raw)), np.asarray(faces,
+                                                                      dtype=np.int64).reshape(-1)
     surface_ok = (distance <= settings.snap_tolerance_mm).reshape(n, 2).all(axis=1)
     geom = patches(context, closest, context.face_normals[face], settings)
     points = closest.reshape(n, 2, 3)
     normals = geom.normal.reshape(n, 2, 3)
-    broken, found = rule_table(context, points, normals, geom.valid, settings, surface_ok, approach, thorough,
-                               with_reach)
+    broken, found = rule_table(context, points, normals, geom.valid, settings, surface_ok, approach,
+                               thorough, with_reach)
     return assemble(points, face, geom, broken, found, {}, distance)
 
 
-def check_reach(context: SurfaceContext, pinches: Pinches, *, settings: PinchSettings = PinchSettings(),
-                approach: np.ndarray | None = None, thorough: bool = True, rows: np.ndarray | None = None) -> Pinches:
+def check_reach(context: SurfaceContext, pinches: Pinches, *,
+                settings: PinchSettings = PinchSettings(), approach: np.ndarray | None = None,
+                thorough: bool = True, rows: np.ndarray | None = None) -> Pinches:
     """``pinches`` (checked without reach: :func:`check_pinches`) with the reach rule checked too:
     ``feasible``, ``broken``, ``approach`` and ``approach_clearance_mm`` as :func:`check_pinches`
-    would have given them in one go. With ``rows``, only those pinches are checked (``approach``, where
-    given, one per row); the others keep what they have."""
+    would have given them in one go. With ``rows``, only those pinches are checked (``approach``,
+    where given, one per row); the others keep what they have."""
     rows = np.arange(len(pinches)) if rows is None else np.asarray(rows, dtype=np.int64)
-    found = reach_rule(context, pinches.points[rows], pinches.normals[rows], settings, approach, thorough)
+    found = reach_rule(context, pinches.points[rows], pinches.normals[rows], settings, approach,
+                       thorough)
     broken = pinches.broken.copy()
     broken[rows, pinches.rules.index("reach")] = ~found.ok
     out_approach, clearance = pinches.approach.copy(), pinches.approach_clearance_mm.copy()
     out_approach[rows], clearance[rows] = found.approach, found.clearance_mm
-    return dataclasses.replace(pinches, broken=broken, feasible=~broken.any(axis=1), approach=out_approach,
-                               approach_clearance_mm=clearance)
+    return dataclasses.replace(pinches, broken=broken, feasible=~broken.any(axis=1),
+                               approach=out_approach, approach_clearance_mm=clearance)
 
 
 def concat_pinches(parts: list[Pinches], rejected: dict | None = None) -> Pinches:
     """The pinches of ``parts`` in order; ``rejected`` from the last part unless given."""
     arrays = {f: np.concatenate([getattr(p, f) for p in parts]) for f in ARRAY_FIELDS}
-    return type(parts[-1])(**arrays, rejected=dict(parts[-1].rejected if rejected is None else rejected))
+    return type(parts[-1])(**arrays,
+                           rejected=dict(parts[-1].rejected if rejected is None else rejected))

@@ -1,15 +1,16 @@
 """The sampler's rounds: one loop that finds about ``count`` feasible grasps of any kind, spread.
 
 Pinches (:mod:`sampling`) and tripods (:mod:`tripods`) are sampled by the same loop; a
-:class:`GraspKind` passes in what differs between them: how candidates are drawn from first contacts,
-which rules check a pick, and the refusal when none passes.
+:class:`GraspKind` passes in what differs between them: how candidates are drawn from first
+contacts, which rules check a pick, and the refusal when none passes.
 
 1. Contacts are drawn area-uniformly (seeded) and made candidates; the cheap rules prune them.
-2. Every width stratum is checked first (:mod:`strata`), so a rare width is represented at any count.
+2. Every width stratum is checked first (:mod:`strata`), so a rare width is represented at any
+   count.
 3. In rounds, the next picks in a farthest-point order (:mod:`spread`) get the full check. Where the
-   picks so far show that few places are graspable (a bowl's rim, a mug's handle), new candidates are
-   drawn near the contacts of the grasps the rounds found (the strata's while the rounds found none),
-   and taken first; the spread order keeps its distances to every earlier pick.
+   picks so far show that few places are graspable (a bowl's rim, a mug's handle), new candidates
+   are drawn near the contacts of the grasps the rounds found (the strata's while the rounds found
+   none), and taken first; the spread order keeps its distances to every earlier pick.
 4. A count above ``NESTED_ABOVE`` is sampled nested (:func:`nested_sample`).
 """
 
@@ -54,8 +55,9 @@ class GraspKind:
     name : str
         ``"pinch"`` or ``"tripod"``, for the log.
     rules : tuple of str
-        The rules, in the order a rejected candidate is counted under the first it breaks; ``"reach"`` among
-        them (whether the next round searches reach first depends on how many it rejected).
+        The rules, in the order a rejected candidate is counted under the first it breaks;
+        ``"reach"`` among them (whether the next round searches reach first depends on how many it
+        rejected).
     oversample : int
         Candidates' first contacts drawn per requested grasp in the first draw.
     max_draw_factor : int
@@ -65,16 +67,17 @@ class GraspKind:
     stream : tuple of int
         Keys the random stream after the seed (none: the seed's own stream).
     draw : callable
-        ``draw(context, contacts (n, 3), faces (n,), settings, rng, rejected)``: the candidates that keep
-        the cheap rules, ``(m, F, 3)`` points and ``(m, F)`` triangles; ``rejected`` counts the others.
+        ``draw(context, contacts (n, 3), faces (n,), settings, rng, rejected)``: the candidates that
+        keep the cheap rules, ``(m, F, 3)`` points and ``(m, F)`` triangles; ``rejected`` counts the
+        others.
     check : callable
-        ``check(context, points, faces, settings, rejected, precheck)``: the feasible grasps among picks
-        (every rule; with ``precheck`` the reach search may run first with triangle normals).
+        ``check(context, points, faces, settings, rejected, precheck)``: the feasible grasps among
+        picks (every rule; with ``precheck`` the reach search may run first with triangle normals).
     first_contacts : callable
         ``first_contacts(points (m, F, 3))``: the contacts near which local draws start, ``(k, 3)``.
     refusal : callable
-        ``refusal(source, drawn, rejected, settings, standing)``: the one-line message when no candidate
-        passes.
+        ``refusal(source, drawn, rejected, settings, standing)``: the one-line message when no
+        candidate passes.
     """
 
     name: str
@@ -90,7 +93,8 @@ class GraspKind:
 
 
 def uniform_contacts(context: SurfaceContext, n: int, rng) -> tuple[np.ndarray, np.ndarray]:
-    """``n`` contacts drawn area-uniformly over the contact regions: (n, 3) points and (n,) triangles."""
+    """``n`` contacts drawn area-uniformly over the contact regions: (n, 3) points and (n,)
+    triangles."""
     area = context.contact_area_mm2  # 0 on triangles the object's regions rule out
     faces = rng.choice(len(area), size=n, p=area / area.sum())
     r = rng.random((n, 2))
@@ -102,8 +106,8 @@ def uniform_contacts(context: SurfaceContext, n: int, rng) -> tuple[np.ndarray, 
 
 
 def local_contacts(context: SurfaceContext, seeds: np.ndarray, n: int, radius: float, rng):
-    """``n`` contacts near ``seeds`` (contacts of feasible grasps): random dense-sample points within
-    ``radius``: (m, 3) points and (m,) triangles, m <= n."""
+    """``n`` contacts near ``seeds`` (contacts of feasible grasps): random dense-sample points
+    within ``radius``: (m, 3) points and (m,) triangles, m <= n."""
     sample = context.sample
     k = int(min(64, len(sample.points)))
     which = rng.integers(0, len(seeds), size=n)
@@ -123,12 +127,12 @@ def local_contacts(context: SurfaceContext, seeds: np.ndarray, n: int, radius: f
 def round_plan(
     need: int, n_feasible: int, n_checked: int, round_: int, rounds: tuple[int, int] = (0, 0)
 ) -> tuple[int, bool]:
-    """How many picks a round checks to find ``need`` more grasps, and whether it draws near the feasible ones
-    (local mode: few picks were feasible). Both are judged by the feasible share of the rounds' own picks,
-    ``rounds`` (found, checked), once there are any, else of all ``n_checked`` so far: the width strata check
-    the rare widths hard, where the hand reaches few, and their share would have the spread's rounds check
-    far more than they need (and draw locally where the object is graspable all over). The first round
-    probes at most ``PROBE_PICKS``."""
+    """How many picks a round checks to find ``need`` more grasps, and whether it draws near the
+    feasible ones (local mode: few picks were feasible). Both are judged by the feasible share of
+    the rounds' own picks, ``rounds`` (found, checked), once there are any, else of all
+    ``n_checked`` so far: the width strata check the rare widths hard, where the hand reaches few,
+    and their share would have the spread's rounds check far more than they need (and draw locally
+    where the object is graspable all over). The first round probes at most ``PROBE_PICKS``."""
     found, checked = rounds if rounds[1] else (n_feasible, n_checked)
     share = found / checked if checked else 1.0
     want = int(np.ceil(SELECT_MARGIN * need / max(share, 0.05)))
@@ -139,8 +143,8 @@ def round_plan(
 def pick_round(
     uniform: Pool, local: Pool, want: int, local_mode: bool
 ) -> tuple[np.ndarray, np.ndarray]:
-    """A round's ``want`` picks from both pools in their spread orders, the local pool's first in local mode,
-    each pool's spread counting the other's picks: (points, faces)."""
+    """A round's ``want`` picks from both pools in their spread orders, the local pool's first in
+    local mode, each pool's spread counting the other's picks: (points, faces)."""
     first, second = (local, uniform) if local_mode else (uniform, local)
     a = first.pick(want)
     second.saw(first.points[a])
@@ -161,9 +165,9 @@ def sample_rounds(
 ):
     """About ``settings.count`` feasible grasps of ``kind`` (module notes), in one piece.
 
-    ``seen`` (m, F, 3): grasps of an earlier piece that the spread counts as picked; ``stream`` keys the
-    random stream after ``kind.stream``. The strata's grasps come first, then the rounds' in spread order,
-    so the first ``count`` are evenly spread.
+    ``seen`` (m, F, 3): grasps of an earlier piece that the spread counts as picked; ``stream`` keys
+    the random stream after ``kind.stream``. The strata's grasps come first, then the rounds' in
+    spread order, so the first ``count`` are evenly spread.
 
     Raises
     ------
@@ -218,7 +222,8 @@ def sample_rounds(
             # more candidates: near the feasible contacts found so far, or anywhere while none is
             n_more = int(min(budget - drawn, kind.oversample * want))
             if n_feasible:
-                # the rounds' own finds are spread as the feasible grasps are; the strata's lean to rare widths
+                # the rounds' own finds are spread as the feasible grasps are; the strata's lean to
+                # rare widths
                 seeds = np.concatenate(
                     [kind.first_contacts(p.points) for p in (parts[n_strata:] or parts)]
                 )
@@ -249,13 +254,14 @@ def sample_rounds(
 
 
 def nested_sample(sample, context, settings: PinchSettings, source: str):
-    """``sample(context, settings, source, seen, stream)`` made nested: a count up to ``NESTED_ABOVE`` is
-    sampled in one piece; a larger count is the nested sample of half the count (rounded up), then as many
-    more as it lacks, drawn from a random stream of their own (``stream``: the count) and spread away from
-    the first part's (``seen``: its grasps' points count as picks of the spread order). So a count's
-    sample starts with the sample of half of it, and of a quarter, down to ``NESTED_ABOVE``: four times
-    the default count holds the default's sample, and the exact search over it sees every pose the smaller
-    one offers. Where the rest finds nothing feasible, the first part is the sample."""
+    """``sample(context, settings, source, seen, stream)`` made nested: a count up to
+    ``NESTED_ABOVE`` is sampled in one piece; a larger count is the nested sample of half the count
+    (rounded up), then as many more as it lacks, drawn from a random stream of their own
+    (``stream``: the count) and spread away from the first part's (``seen``: its grasps' points
+    count as picks of the spread order). So a count's sample starts with the sample of half of it,
+    and of a quarter, down to ``NESTED_ABOVE``: four times the default count holds the default's
+    sample, and the exact search over it sees every pose the smaller one offers. Where the rest
+    finds nothing feasible, the first part is the sample."""
     count = settings.count
     if count <= NESTED_ABOVE:
         return sample(context, settings, source)

@@ -8,8 +8,8 @@ in a spread order get the reach search, fitted patches and the full check
 with patch normals.
 
 The rounds themselves, the width strata before them and the local draws where few places are
-graspable, are the loop every grasp shares (:mod:`rounds`); this module gives it a pinch's draw, check
-and refusal (:data:`PINCH`).
+graspable, are the loop every grasp shares (:mod:`rounds`); this module gives it a pinch's draw,
+check and refusal (:data:`PINCH`).
 """
 
 from __future__ import annotations
@@ -20,8 +20,8 @@ import re
 import numpy as np
 
 from .curvature import tangent_frame
-from .pinches import (PREFILTER_MARGIN_DEG, RULES, PinchSettings, Pinches, assemble, cheap_broken, patches, reach_rule,
-                      rule_table)
+from .pinches import (PREFILTER_MARGIN_DEG, RULES, PinchSettings, Pinches, assemble, cheap_broken,
+                      patches, reach_rule, rule_table)
 from .rounds import GraspKind, nested_sample, sample_rounds, uniform_contacts
 from ..mesh.surface import SurfaceContext
 
@@ -44,21 +44,25 @@ def cone_directions(normals: np.ndarray, half_angle_deg: float, rng) -> np.ndarr
     sin_t = np.sqrt(1.0 - cos_t**2)
     phi = rng.random(n) * 2.0 * np.pi
     t1, t2 = tangent_frame(normals)
-    return -(cos_t[:, None] * normals + sin_t[:, None] * (np.cos(phi)[:, None] * t1 + np.sin(phi)[:, None] * t2))
+    return -(cos_t[:, None] * normals + sin_t[:, None]
+             * (np.cos(phi)[:, None] * t1 + np.sin(phi)[:, None] * t2))
 
 
 def _draw(context, p1, face1, settings, rng, rejected):
-    """Candidates from contacts p1: exits along directions in the friction cone, cheap rules applied."""
+    """Candidates from contacts p1: exits along directions in the friction cone, cheap rules
+    applied."""
     n1 = context.face_normals[face1]
     d = cone_directions(n1, settings.friction_cone_deg, rng)
-    ray, face2, dist = context.exits(p1, d, max_distance=settings.max_width_mm * (1 + 1e-6), max_hits=MAX_EXITS)
+    ray, face2, dist = context.exits(p1, d, max_distance=settings.max_width_mm * (1 + 1e-6),
+                                     max_hits=MAX_EXITS)
     n_rays = len(p1)
     # a ray with no exit within the largest width offers no second contact
     rejected["width"] += int(n_rays - len(np.unique(ray)))
     points = np.stack([p1[ray], p1[ray] + dist[:, None] * d[ray]], axis=1)
     faces = np.stack([face1[ray], face2], axis=1)
     normals = context.face_normals[faces]
-    broken = cheap_broken(context, points, normals, settings, settings.friction_cone_deg + PREFILTER_MARGIN_DEG)
+    broken = cheap_broken(context, points, normals, settings,
+                          settings.friction_cone_deg + PREFILTER_MARGIN_DEG)
     _count_first(broken, rejected)
     keep = ~broken.any(axis=1)
     return points[keep], faces[keep]
@@ -79,10 +83,11 @@ def _contacts(points: np.ndarray) -> np.ndarray:
 
 def cheap_candidates(context, n: int, settings: PinchSettings, rng, rejected: dict | None = None):
     """Candidates from ``n`` contacts drawn area-uniformly: (m, 2, 3) points and (m, 2) triangles of
-    those that keep the cheap rules (with triangle normals), as the sampler's first round draws them;
-    ``rejected`` counts the others per rule."""
+    those that keep the cheap rules (with triangle normals), as the sampler's first round draws
+    them; ``rejected`` counts the others per rule."""
     p1, f1 = uniform_contacts(context, n, rng)
-    return _draw(context, p1, f1, settings, rng, dict.fromkeys(RULES, 0) if rejected is None else rejected)
+    return _draw(context, p1, f1, settings, rng, dict.fromkeys(RULES, 0) if rejected is None
+                 else rejected)
 
 
 def sample_pinches(
@@ -106,8 +111,8 @@ def sample_pinches(
     distances to every earlier pick, takes them in turn. All rounds together
     draw at most ``MAX_DRAW_FACTOR`` candidates per requested pinch.
 
-    A count above ``NESTED_ABOVE`` is sampled nested (:func:`nested_sample`): its first pinches are the
-    sample of half the count, so a larger count's sample holds a smaller one's.
+    A count above ``NESTED_ABOVE`` is sampled nested (:func:`nested_sample`): its first pinches are
+    the sample of half the count, so a larger count's sample holds a smaller one's.
 
     Raises
     ------
@@ -146,11 +151,14 @@ def _check_picks(context, points, faces, settings, rejected, precheck: bool = Tr
 
 
 _RULE_HINTS = {
-    "region": "few contacts fall where the object's regions allow: check exclude and only in its manifest",
-    "width": "the object may be too wide or thin for the width limits: check --min-width-mm/--max-width-mm and --units",
+    "region": "few contacts fall where the object's regions allow: check exclude and only in its "
+              "manifest",
+    "width": "the object may be too wide or thin for the width limits: check "
+             "--min-width-mm/--max-width-mm and --units",
     "antipodal": "no opposite surfaces face each other: try a wider --friction-cone-deg",
     "clearance": "a fingertip does not fit: try a smaller --fingertip-radius-mm",
-    "reach": "no approach lets both fingers get to the contacts: try a shorter --finger-length-mm, a thinner "
+    "reach": "no approach lets both fingers get to the contacts: try a shorter --finger-length-mm, "
+             "a thinner "
              "--finger-radius-mm, or a larger --approach-tilt-deg or --finger-splay-deg",
     "patch": "too little surface around the contacts: try a smaller --patch-radius-mm",
     "surface": "the points are far from the surface",
@@ -159,9 +167,12 @@ _RULE_HINTS = {
 
 #: where an object stands on a support, what its hint says when the fingers cannot get to it
 _STANDING_HINTS = {
-    "clearance": "it stands too low on its table for a fingertip to get beside it (thinner than two fingertips): "
-                 "if it is held in the hand, give support = \"none\" in its manifest or --support none",
-    "reach": "no approach from above its table lets both fingers get to the contacts: if it is held in the hand, "
+    "clearance": "it stands too low on its table for a fingertip to get beside it (thinner than "
+                 "two fingertips): "
+                 "if it is held in the hand, give support = \"none\" in its manifest or --support "
+                 "none",
+    "reach": "no approach from above its table lets both fingers get to the contacts: if it is "
+             "held in the hand, "
              "give support = \"none\" in its manifest or --support none",
 }
 
@@ -170,9 +181,11 @@ def _no_pinch_message(source, n_cand, rejected, settings, standing: bool = False
     parts = [f"{rule} {count}" for rule, count in rejected.items() if count]
     worst = max(rejected, key=rejected.get)
     hint = _STANDING_HINTS.get(worst, _RULE_HINTS[worst]) if standing else _RULE_HINTS[worst]
-    node = re.search(r" \(node (.+)\)$", str(source))  # a level's node (:func:`pinchmatch.grasp.analysis`'s source)
+    # a level's node (:func:`pinchmatch.grasp.analysis`'s source)
+    node = re.search(r" \(node (.+)\)$", str(source))
     if standing and node and worst in _STANDING_HINTS:
-        hint = (f"{hint.split(': if it is held')[0]}: if it is not an object to pick up (a table, a shelf, a wall), "
+        hint = (f"{hint.split(': if it is held')[0]}: if it is not an object to pick up (a table, "
+                "a shelf, a wall), "
                 f"leave it out with --skip-nodes '{node.group(1)}'")
     return (
         f"{source}: no feasible pinch among {n_cand} candidates (rejected by "
@@ -182,5 +195,5 @@ def _no_pinch_message(source, n_cand, rejected, settings, standing: bool = False
 
 #: what the rounds (:mod:`rounds`) sample as a pinch
 PINCH = GraspKind(name="pinch", rules=RULES, oversample=OVERSAMPLE, max_draw_factor=MAX_DRAW_FACTOR,
-                  max_rounds=MAX_ROUNDS, stream=(), draw=_draw, check=_check_picks, first_contacts=_contacts,
-                  refusal=_no_pinch_message)
+                  max_rounds=MAX_ROUNDS, stream=(), draw=_draw, check=_check_picks,
+                  first_contacts=_contacts, refusal=_no_pinch_message)

@@ -23,8 +23,9 @@ BLOCK = 64
 
 
 def other_order(fingers: int) -> list[int]:
-    """The contacts of a grasp of ``fingers`` contacts in its other finger order, the same grasp: a pinch
-    held the other way round (p2, p1); a tripod with index and middle swapped (the thumb stays)."""
+    """The contacts of a grasp of ``fingers`` contacts in its other finger order, the same grasp: a
+    pinch held the other way round (p2, p1); a tripod with index and middle swapped (the thumb
+    stays)."""
     return [1, 0] if fingers == 2 else [0] + list(range(fingers - 1, 0, -1))
 
 
@@ -35,8 +36,8 @@ def _pair_vectors(points: np.ndarray):
 
 
 def spread_order(points: np.ndarray, count: int, nearest: np.ndarray | None = None):
-    """Farthest-point order of pinches, treating (p1, p2) and (p2, p1) as the same (or of tripods, their
-    two fingers in either order: :func:`other_order`).
+    """Farthest-point order of pinches, treating (p1, p2) and (p2, p1) as the same (or of tripods,
+    their two fingers in either order: :func:`other_order`).
 
     points : (n, F, 3). Each next pick is the pinch farthest from all picked
     so far, so any prefix covers the graspable regions evenly, without clumps.
@@ -69,7 +70,8 @@ def spread_order(points: np.ndarray, count: int, nearest: np.ndarray | None = No
     # the spread distance is a metric (both finger orders are the same pinch), so a block
     # whose centre is farther from a new pick than its radius plus the square root of its
     # largest nearest distance holds no pinch that the pick comes nearer to
-    to_centre = np.minimum(np.linalg.norm(ap - centre[member], axis=1), np.linalg.norm(bp - centre[member], axis=1))
+    to_centre = np.minimum(np.linalg.norm(ap - centre[member], axis=1),
+                           np.linalg.norm(bp - centre[member], axis=1))
     radius = np.maximum.reduceat(to_centre, starts[:-1])
     slack = 1e-9 * float(sq.max()) + 1e-12  # the rounding of |x|² + |q|² - 2 x·q
     from .spread_kernel import farthest  # numba: imported when pinches are first spread
@@ -82,8 +84,9 @@ def spread_order(points: np.ndarray, count: int, nearest: np.ndarray | None = No
 
 
 def _nearest_to(points: np.ndarray, picked: np.ndarray) -> np.ndarray:
-    """Squared spread distance from each pinch to the nearest of ``picked`` (inf when none): a KD-tree over
-    the picks in one finger order, queried with each pinch in both (the nearer order counts)."""
+    """Squared spread distance from each pinch to the nearest of ``picked`` (inf when none): a
+    KD-tree over the picks in one finger order, queried with each pinch in both (the nearer order
+    counts)."""
     out = np.full(len(points), np.inf)
     if len(picked) == 0 or len(points) == 0:
         return out
@@ -104,7 +107,8 @@ class Pool:
 
     @classmethod
     def of(cls, points, faces, picked_points) -> "Pool":
-        """Candidates whose spread counts ``picked_points`` (grasps picked before, (m, F, 3)) as picks."""
+        """Candidates whose spread counts ``picked_points`` (grasps picked before, (m, F, 3)) as
+        picks."""
         return cls(points, faces, _nearest_to(points, picked_points))
 
     @classmethod
@@ -123,8 +127,8 @@ class Pool:
         return order
 
     def take(self, indices):
-        """Count the candidates at ``indices`` as picked (checked elsewhere), and their points for the
-        spread of the rest."""
+        """Count the candidates at ``indices`` as picked (checked elsewhere), and their points for
+        the spread of the rest."""
         indices = np.asarray(indices, dtype=np.int64)
         self.nearest[indices] = -1.0
         self.saw(self.points[indices])
@@ -132,4 +136,5 @@ class Pool:
     def saw(self, picked_points):
         """Picks made from another pool count for this one's spread too."""
         live = self.nearest >= 0
-        self.nearest[live] = np.minimum(self.nearest[live], _nearest_to(self.points[live], picked_points))
+        self.nearest[live] = np.minimum(self.nearest[live],
+                                        _nearest_to(self.points[live], picked_points))

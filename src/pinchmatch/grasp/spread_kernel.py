@@ -23,8 +23,8 @@ def _block_max(nearest, perm, lo, hi):
 
 @njit(cache=True, nogil=True)
 def farthest(a, b, sq, nearest, current, chosen, perm, starts, centre, radius, slack):
-    """The farthest-point loop over grasps (rows of ``a``, the same grasps in the other finger order in ``b``) in
-    block order: ``len(chosen)`` picks from ``current``
+    """The farthest-point loop over grasps (rows of ``a``, the same grasps in the other finger order
+    in ``b``) in block order: ``len(chosen)`` picks from ``current``
     on, updating ``nearest``; blocks that the pick cannot come nearer to are skipped."""
     blocks = len(starts) - 1
     dims = a.shape[1]

@@ -37,23 +37,25 @@ STRATUM_SHARE = 0.1
 TRIES_PER_PINCH = 24
 #: the first batch of a stratum is its quota times this; each later batch doubles
 FIRST_BATCH = 2
-#: a stratum in which this many batches found no feasible pinch is given up (the hand reaches none of
-#: its places: the inside of a wall, the middle of a plate)
+#: a stratum in which this many batches found no feasible pinch is given up (the hand reaches none
+#: of its places: the inside of a wall, the middle of a plate)
 EMPTY_BATCHES = 2
 
 
 def width_jnd(width_mm) -> np.ndarray:
-    """Widths counted in just-noticeable differences from 0: the integral of dw / JND(w), with JND(w) =
-    max(WIDTH_JND_FRACTION·w, WIDTH_JND_FLOOR_MM) (linear up to the floor's width, logarithmic above)."""
+    """Widths counted in just-noticeable differences from 0: the integral of dw / JND(w), with
+    JND(w) = max(WIDTH_JND_FRACTION·w, WIDTH_JND_FLOOR_MM) (linear up to the floor's width,
+    logarithmic above)."""
     w = np.asarray(width_mm, dtype=np.float64)
     knee = WIDTH_JND_FLOOR_MM / WIDTH_JND_FRACTION
     return np.where(w <= knee, w / WIDTH_JND_FLOOR_MM,
-                    knee / WIDTH_JND_FLOOR_MM + np.log(np.maximum(w, knee) / knee) / WIDTH_JND_FRACTION)
+                    knee / WIDTH_JND_FLOOR_MM + np.log(np.maximum(w, knee) / knee)
+                    / WIDTH_JND_FRACTION)
 
 
 def grip_width_mm(points: np.ndarray) -> np.ndarray:
-    """(n,) the width of each grasp (n, F, 3): from the thumb (contact 0) to the middle of the others (a
-    pinch's width, a tripod's aperture)."""
+    """(n,) the width of each grasp (n, F, 3): from the thumb (contact 0) to the middle of the
+    others (a pinch's width, a tripod's aperture)."""
     return np.linalg.norm(points[:, 1:].mean(axis=1) - points[:, 0], axis=1)
 
 
@@ -63,15 +65,17 @@ def stratum_of(points: np.ndarray) -> np.ndarray:
 
 
 def quota_per_stratum(count: int, strata: int) -> int:
-    """Feasible pinches wanted per stratum: the stratified share of ``count`` over ``strata`` (0 when the
-    share leaves less than one per stratum: a count that small is spread over contacts alone)."""
+    """Feasible pinches wanted per stratum: the stratified share of ``count`` over ``strata`` (0
+    when the share leaves less than one per stratum: a count that small is spread over contacts
+    alone)."""
     return int(STRATUM_SHARE * count // max(strata, 1))
 
 
 def stratified_checks(pool: Pool, count: int, check) -> list:
-    """Check candidates of ``pool`` stratum by stratum (see the module); ``check(points, faces)`` returns
-    the feasible pinches among them. The checked candidates are taken from the pool (its spread counts
-    them as picked). Returns the feasible parts, in the order checked, and the checked pinches' points."""
+    """Check candidates of ``pool`` stratum by stratum (see the module); ``check(points, faces)``
+    returns the feasible pinches among them. The checked candidates are taken from the pool (its
+    spread counts them as picked). Returns the feasible parts, in the order checked, and the checked
+    pinches' points."""
     strata = stratum_of(pool.points)
     labels, inverse = np.unique(strata, return_inverse=True)
     quota = quota_per_stratum(count, len(labels))
@@ -90,7 +94,8 @@ def stratified_checks(pool: Pool, count: int, check) -> list:
     sizes = np.array([len(o) for o in orders])
     parts, taken = [], []
     for round_ in range(64):
-        live = np.flatnonzero((found < quota) & (spent < sizes) & ((found > 0) | (round_ < EMPTY_BATCHES)))
+        live = np.flatnonzero((found < quota) & (spent < sizes)
+                              & ((found > 0) | (round_ < EMPTY_BATCHES)))
         if not len(live):
             break
         picks = np.concatenate([orders[k][spent[k]:spent[k] + batch[k]] for k in live])

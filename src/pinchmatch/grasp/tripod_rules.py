@@ -14,7 +14,8 @@ feasible when every rule of :data:`TRIPOD_RULES` holds:
 ``spacing``
     the fingertip centres c1 and c2 lie from 2r - 2·tol apart (two pads side by side, each as soft
     as the clearance allows) to ``MAX_SPACING_MM``: index and middle spread by about 25° at the
-    fingertips of an 80 mm finger, 16 mm pads (hand anthropometry, Greiner 1991; a documented choice).
+    fingertips of an 80 mm finger, 16 mm pads (hand anthropometry, Greiner 1991; a documented
+    choice).
 ``balance``
     the grasp can balance a small disturbance: it is force closure. The test (Li, Liu and Cai 2003,
     after Ponce and Faverjon's planar test of 1995): three frictional point contacts hold an object
@@ -45,7 +46,8 @@ import numpy as np
 from ..config import CLEARANCE_TOLERANCE_MM, PinchSettings
 from ..mesh.surface import SurfaceContext
 from .hand import Reach
-from .pinches import Pinches, assemble, check_patch_radius, clearance_broken, patches, reach_rule, region_broken
+from .pinches import (Pinches, assemble, check_patch_radius, clearance_broken, patches, reach_rule,
+                      region_broken)
 from .strata import grip_width_mm
 
 TRIPOD_RULES = ("region", "aperture", "spacing", "balance", "clearance", "reach", "patch")
@@ -64,29 +66,33 @@ MIN_HEIGHT_MM = 1.0
 
 
 class Tripods(Pinches):
-    """n tripod grasps on one mesh: the arrays of :class:`pinchmatch.grasp.pinches.Pinches`, with three
-    contacts each (thumb, index, middle) and ``broken``'s columns in :data:`TRIPOD_RULES` order."""
+    """n tripod grasps on one mesh: the arrays of :class:`pinchmatch.grasp.pinches.Pinches`, with
+    three contacts each (thumb, index, middle) and ``broken``'s columns in :data:`TRIPOD_RULES`
+    order."""
 
     rules = TRIPOD_RULES
 
 
 def _plane_frames(points: np.ndarray, normals: np.ndarray):
-    """Each tripod's plane of forces: in-plane axes (n, 2, 3) and the contacts in them (n, 3, 2), origin p0.
+    """Each tripod's plane of forces: in-plane axes (n, 2, 3) and the contacts in them (n, 3, 2),
+    origin p0.
 
     The contacts' plane; where the triangle's smallest height is below ``MIN_HEIGHT_MM`` (the thumb
     on a thin wall between the two fingers), the plane through the fingers' line along the thumb's
-    normal, into which the thumb is projected (it lies within ``MIN_HEIGHT_MM`` of it). ``flat``: the
-    fingers' line runs along the thumb's normal too, and no plane is left."""
+    normal, into which the thumb is projected (it lies within ``MIN_HEIGHT_MM`` of it). ``flat``:
+    the fingers' line runs along the thumb's normal too, and no plane is left."""
     edges = points[:, [1, 2, 0]] - points  # side i runs from contact i to the next
     normal = np.cross(edges[:, 0], -edges[:, 2])
     twice_area = np.linalg.norm(normal, axis=1)
-    thin = twice_area < MIN_HEIGHT_MM * np.maximum(np.linalg.norm(edges, axis=2).max(axis=1), 1e-300)
+    thin = twice_area < MIN_HEIGHT_MM * np.maximum(np.linalg.norm(edges, axis=2).max(axis=1),
+                                                   1e-300)
     across = np.cross(edges[:, 1], normals[:, 0])
     size = np.linalg.norm(across, axis=1)
     flat = thin & (size < 0.1 * np.linalg.norm(edges[:, 1], axis=1))
     normal = np.where(thin[:, None], across / np.maximum(size, 1e-300)[:, None],
                       normal / np.maximum(twice_area, 1e-300)[:, None])
-    ex = edges[:, 1] / np.maximum(np.linalg.norm(edges[:, 1], axis=1, keepdims=True), 1e-300)  # index to middle
+    # index to middle
+    ex = edges[:, 1] / np.maximum(np.linalg.norm(edges[:, 1], axis=1, keepdims=True), 1e-300)
     axes = np.stack([ex, np.cross(normal, ex)], axis=1)
     return axes, np.einsum("nkd,njd->nkj", points - points[:, :1], axes), flat
 
@@ -98,19 +104,21 @@ def contact_plane_normals(points: np.ndarray, normals: np.ndarray) -> np.ndarray
 
 
 def _in_plane_cones(axes, normals, cone_deg):
-    """Per contact, the friction cone's cut with the contact plane: the unit in-plane direction of the
-    inward normal (n, 3, 2), and the half-angle's cosine about it (n, 3); -inf where the cone misses the
-    plane (the normal lies more than the cone's angle out of it)."""
+    """Per contact, the friction cone's cut with the contact plane: the unit in-plane direction of
+    the inward normal (n, 3, 2), and the half-angle's cosine about it (n, 3); -inf where the cone
+    misses the plane (the normal lies more than the cone's angle out of it)."""
     inward = -np.einsum("nkd,njd->nkj", normals, axes)  # (n, 3, 2)
     size = np.linalg.norm(inward, axis=2)
     cos_cone = np.cos(np.radians(max(cone_deg - BALANCE_MARGIN_DEG, 0.0)))
-    cut = np.where(size > cos_cone, cos_cone / np.maximum(size, 1e-300), np.inf)  # cos β, β the in-plane half-angle
+    # cos β, β the in-plane half-angle
+    cut = np.where(size > cos_cone, cos_cone / np.maximum(size, 1e-300), np.inf)
     return inward / np.maximum(size, 1e-300)[..., None], cut
 
 
 def _some_point_inside(G: np.ndarray, C: np.ndarray) -> np.ndarray:
-    """(n,) bool: the half-planes G x >= C (n, m, 2), (n, m) have a common point. Their intersection lies
-    in a pointed cone, so where it is not empty some two of their lines meet at a point inside all."""
+    """(n,) bool: the half-planes G x >= C (n, m, 2), (n, m) have a common point. Their intersection
+    lies in a pointed cone, so where it is not empty some two of their lines meet at a point inside
+    all."""
     i, j = np.triu_indices(G.shape[1], k=1)
     det = G[:, i, 0] * G[:, j, 1] - G[:, i, 1] * G[:, j, 0]
     regular = np.abs(det) > 1e-12
@@ -123,14 +131,16 @@ def _some_point_inside(G: np.ndarray, C: np.ndarray) -> np.ndarray:
 
 
 def balance_broken(points: np.ndarray, normals: np.ndarray, cone_deg: float) -> np.ndarray:
-    """(n,) bool: the tripods (n, 3, 3) whose forces cannot balance as the balance rule asks (module notes).
+    """(n,) bool: the tripods (n, 3, 3) whose forces cannot balance as the balance rule asks (module
+    notes).
 
-    Three forces in balance lie in the contacts' plane and meet at one point x, or are parallel. In the
-    plane each contact's forces form a wedge about its inward normal's in-plane part. With λ the
-    barycentric coordinates of x: forces meeting inside the triangle (every λ_k >= ``BALANCE_INSIDE``)
-    each point from their contact to x; meeting behind contact j (the others' λ_k <= -``BALANCE_INSIDE``),
-    contact j's points away from x. Each case is a set of half-planes with a common point or none.
-    Parallel forces are tested over ``PARALLEL_DIRECTIONS`` directions."""
+    Three forces in balance lie in the contacts' plane and meet at one point x, or are parallel. In
+    the plane each contact's forces form a wedge about its inward normal's in-plane part. With λ the
+    barycentric coordinates of x: forces meeting inside the triangle (every λ_k >=
+    ``BALANCE_INSIDE``) each point from their contact to x; meeting behind contact j (the others'
+    λ_k <= -``BALANCE_INSIDE``), contact j's points away from x. Each case is a set of half-planes
+    with a common point or none. Parallel forces are tested over ``PARALLEL_DIRECTIONS``
+    directions."""
     n = len(points)
     if n == 0:
         return np.zeros(0, dtype=bool)
@@ -145,7 +155,8 @@ def balance_broken(points: np.ndarray, normals: np.ndarray, cone_deg: float) -> 
                             sin_b[..., None] * a + cos_b[..., None] * perp], axis=1)  # (n, 6, 2)
     apex = np.concatenate([q, q], axis=1)
     # λ_k >= 0 as N_k·x >= N_k·q_(k+1), N_k across the side opposite contact k, towards it
-    N = np.stack([q[:, [1, 2, 0], 1] - q[:, [2, 0, 1], 1], q[:, [2, 0, 1], 0] - q[:, [1, 2, 0], 0]], axis=-1)
+    N = np.stack([q[:, [1, 2, 0], 1] - q[:, [2, 0, 1], 1], q[:, [2, 0, 1], 0] - q[:, [1, 2, 0], 0]],
+                 axis=-1)
     height = np.einsum("nkj,nkj->nk", N, q - q[:, [1, 2, 0]])
     N *= np.where(height < 0, -1.0, 1.0)[..., None]
     on_side = np.einsum("nkj,nkj->nk", N, q[:, [1, 2, 0]])
@@ -164,12 +175,16 @@ def balance_broken(points: np.ndarray, normals: np.ndarray, cone_deg: float) -> 
             parts_C.append(-on_side[:, others] + shrink[:, others])
         ok |= _some_point_inside(np.concatenate(parts_G, axis=1), np.concatenate(parts_C, axis=1))
     ok &= ~misses
-    # parallel forces (their meeting point at infinity): the fingers' along v, the thumb's against it,
-    # the thumb's line strictly between the fingers' (a plate's rim held thumb inside, fingers outside)
+    # parallel forces (their meeting point at infinity): the fingers' along v, the thumb's against
+    # it, the thumb's line strictly between the fingers' (a plate's rim held thumb inside, fingers
+    # outside)
     theta = np.arange(PARALLEL_DIRECTIONS) * (2.0 * np.pi / PARALLEL_DIRECTIONS)
     v = np.stack([np.cos(theta), np.sin(theta)], axis=-1)  # (K, 2)
-    along = np.einsum("kj,nfj->nkf", v, a)  # cosine of v against each contact's in-plane inward direction
-    cones = (-along[..., 0] >= cut[:, None, 0]) & (along[..., 1] >= cut[:, None, 1]) & (along[..., 2] >= cut[:, None, 2])
+    # cosine of v against each contact's in-plane inward direction
+    along = np.einsum("kj,nfj->nkf", v, a)
+    cones = (-along[..., 0] >= cut[:, None, 0]) & (along[..., 1]
+                                                   >= cut[:, None, 1]) & (along[..., 2]
+                                                                          >= cut[:, None, 2])
     side = np.einsum("kj,nfj->nkf", np.stack([-v[:, 1], v[:, 0]], axis=-1), q)  # across the forces
     lo, hi = np.minimum(side[..., 1], side[..., 2]), np.maximum(side[..., 1], side[..., 2])
     margin = BALANCE_INSIDE * (hi - lo)
@@ -190,13 +205,14 @@ def spacing_mm(points: np.ndarray, normals: np.ndarray, radius_mm: float) -> np.
 
 def spacing_broken(points: np.ndarray, normals: np.ndarray, settings: PinchSettings) -> np.ndarray:
     s = spacing_mm(points, normals, settings.fingertip_radius_mm)
-    return (s < 2.0 * (settings.fingertip_radius_mm - CLEARANCE_TOLERANCE_MM)) | (s > MAX_SPACING_MM)
+    return (s < 2.0 * (settings.fingertip_radius_mm
+                       - CLEARANCE_TOLERANCE_MM)) | (s > MAX_SPACING_MM)
 
 
 def cheap_broken(context, points, normals, settings, cone_deg, *, every: bool = True) -> np.ndarray:
-    """(n, len(TRIPOD_RULES)) bool of the rules that need no patches and no approach search. Without ``every``,
-    balance, the dearest, is tested only where the others hold (a sampler's candidates: one broken rule is
-    enough to drop them)."""
+    """(n, len(TRIPOD_RULES)) bool of the rules that need no patches and no approach search. Without
+    ``every``, balance, the dearest, is tested only where the others hold (a sampler's candidates:
+    one broken rule is enough to drop them)."""
     broken = np.zeros((len(points), len(TRIPOD_RULES)), dtype=bool)
     broken[:, 0] = region_broken(context, points)
     broken[:, 1] = aperture_broken(points, settings)
@@ -210,11 +226,12 @@ def cheap_broken(context, points, normals, settings, cone_deg, *, every: bool = 
 def check_tripods(context: SurfaceContext, points: np.ndarray, faces: np.ndarray, *,
                   settings: PinchSettings = PinchSettings(), approach: np.ndarray | None = None,
                   rejected: dict | None = None, with_reach: bool = True) -> Tripods:
-    """Every rule for n tripods whose contacts (n, 3, 3) lie on the triangles ``faces`` (n, 3), with the
-    normals of fitted patches; ``approach`` (n, 3) a hand direction to try first. All n are returned,
-    in order, with ``feasible`` and ``broken`` set; ``rejected`` counts the infeasible ones under the
-    first rule each breaks. Without ``with_reach``, reach is left unchecked (as
-    :func:`pinchmatch.grasp.pinches.check_pinches` leaves it, for :func:`~pinchmatch.grasp.pinches.check_reach`)."""
+    """Every rule for n tripods whose contacts (n, 3, 3) lie on the triangles ``faces`` (n, 3), with
+    the normals of fitted patches; ``approach`` (n, 3) a hand direction to try first. All n are
+    returned, in order, with ``feasible`` and ``broken`` set; ``rejected`` counts the infeasible
+    ones under the first rule each breaks. Without ``with_reach``, reach is left unchecked (as
+    :func:`pinchmatch.grasp.pinches.check_pinches` leaves it, for
+    :func:`~pinchmatch.grasp.pinches.check_reach`)."""
     check_patch_radius(context, settings)
     points = np.asarray(points, dtype=np.float64).reshape(-1, 3, 3)
     faces = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
@@ -223,12 +240,14 @@ def check_tripods(context: SurfaceContext, points: np.ndarray, faces: np.ndarray
     broken = cheap_broken(context, points, normals, settings, settings.friction_cone_deg)
     if with_reach:
         found = reach_rule(context, points, normals, settings, approach)
-        lost = ~(np.linalg.norm(found.approach, axis=1) > 0.5)  # contacts on one point or line: no hand direction
+        # contacts on one point or line: no hand direction
+        lost = ~(np.linalg.norm(found.approach, axis=1) > 0.5)
         if lost.any():
             found = Reach(found.ok & ~lost, np.where(lost[:, None], np.nan, found.approach),
                           np.where(lost, np.nan, found.clearance_mm))
     else:
-        found = Reach(np.ones(len(points), dtype=bool), np.full((len(points), 3), np.nan), np.full(len(points), np.nan))
+        found = Reach(np.ones(len(points), dtype=bool), np.full((len(points), 3), np.nan),
+                      np.full(len(points), np.nan))
     broken[:, TRIPOD_RULES.index("reach")] = ~found.ok
     broken[:, TRIPOD_RULES.index("patch")] = ~geom.valid.reshape(-1, 3).all(axis=1)
     if rejected is not None:

@@ -1,4 +1,5 @@
-"""Sampling feasible tripod grasps (thumb against index and middle finger; the rules: :mod:`tripod_rules`).
+"""Sampling feasible tripod grasps (thumb against index and middle finger; the rules:
+:mod:`tripod_rules`).
 
 Sampling (:func:`sample_tripods`) follows the pinch sampler's: thumb contacts drawn
 area-uniformly, a direction within the thumb's friction cone, and where it leaves the solid within
@@ -19,9 +20,11 @@ from .curvature import tangent_frame
 from .pinches import reach_rule
 from .rounds import GraspKind, nested_sample, sample_rounds
 from .sampling import cone_directions
-from .tripod_rules import MAX_SPACING_MM, TRIPOD_RULES, Tripods, cheap_broken, check_tripods, count_first
+from .tripod_rules import (MAX_SPACING_MM, TRIPOD_RULES, Tripods, cheap_broken, check_tripods,
+                           count_first)
 
-#: candidates drawn per requested tripod in the first round; all rounds together at most MAX_DRAW_FACTOR
+#: candidates drawn per requested tripod in the first round; all rounds together at most
+#: MAX_DRAW_FACTOR
 OVERSAMPLE, MAX_DRAW_FACTOR = 8, 60
 #: a ray from the thumb is followed through at most this many surfaces
 MAX_EXITS = 8
@@ -30,7 +33,8 @@ MAX_ROUNDS = 10
 
 
 def _nearest_exit(ray, face, dist, rays: int, target: np.ndarray):
-    """Per ray, the exit nearest ``target`` (rays,) along it: (face, distance), face -1 where none."""
+    """Per ray, the exit nearest ``target`` (rays,) along it: (face, distance), face -1 where
+    none."""
     out_face, out_dist = np.full(rays, -1), np.full(rays, np.nan)
     if len(ray):
         order = np.lexsort((np.abs(dist - target[ray]), ray))
@@ -39,10 +43,10 @@ def _nearest_exit(ray, face, dist, rays: int, target: np.ndarray):
     return out_face, out_dist
 
 
-def candidate_tripods(context: SurfaceContext, p0: np.ndarray, f0: np.ndarray, settings: PinchSettings, rng,
-                      rejected: dict):
-    """Tripods from thumb contacts ``p0`` on triangles ``f0`` (module notes): (m, 3, 3) points and (m, 3)
-    triangles of those that keep the cheap rules (triangle normals, a wider cone)."""
+def candidate_tripods(context: SurfaceContext, p0: np.ndarray, f0: np.ndarray,
+                      settings: PinchSettings, rng, rejected: dict):
+    """Tripods from thumb contacts ``p0`` on triangles ``f0`` (module notes): (m, 3, 3) points and
+    (m, 3) triangles of those that keep the cheap rules (triangle normals, a wider cone)."""
     n = len(p0)
     reach_mm = settings.max_width_mm * (1 + 1e-6)
     d = cone_directions(context.face_normals[f0], settings.friction_cone_deg, rng)
@@ -55,8 +59,8 @@ def candidate_tripods(context: SurfaceContext, p0: np.ndarray, f0: np.ndarray, s
     ray, face, dist = ray[first], face[first], dist[first]
     thumb, thumb_face = p0[ray], f0[ray]
     middle = thumb + dist[:, None] * d[ray]
-    # the fingers about the middle: a spacing of contacts from a pad's width to the largest, across a
-    # random tangent direction of the far side
+    # the fingers about the middle: a spacing of contacts from a pad's width to the largest, across
+    # a random tangent direction of the far side
     r = settings.fingertip_radius_mm
     spacing = rng.uniform(2.0 * (r - CLEARANCE_TOLERANCE_MM), MAX_SPACING_MM, len(ray))
     phi = rng.random(len(ray)) * 2.0 * np.pi
@@ -69,7 +73,8 @@ def candidate_tripods(context: SurfaceContext, p0: np.ndarray, f0: np.ndarray, s
         hits = context.exits(thumb, aim, max_distance=reach_mm, max_hits=MAX_EXITS)
         f, t = _nearest_exit(*hits, len(thumb), length)
         contact_faces.append(f)
-        contacts.append(thumb + np.nan_to_num(t)[:, None] * aim / np.maximum(length, 1e-300)[:, None])
+        contacts.append(thumb + np.nan_to_num(t)[:, None] * aim
+                        / np.maximum(length, 1e-300)[:, None])
     faces = np.stack(contact_faces, axis=1)
     points = np.stack(contacts, axis=1)
     found = (faces >= 0).all(axis=1)
@@ -83,11 +88,11 @@ def candidate_tripods(context: SurfaceContext, p0: np.ndarray, f0: np.ndarray, s
 
 
 def _check_picks(context, points, faces, settings, rejected, precheck: bool = True) -> Tripods:
-    """The feasible ones among picks: reach first with triangle normals (picks no hand gets to are not
-    fitted), then every rule with the normals of fitted patches. Reach is always searched first
-    (``precheck`` is the pinch's choice): a tripod's full check is three patches' worth. The hand's whole search runs: with its
-    quick directions alone a mug samples twice as fast, but loses the tripods on its rim that a plate needs
-    (benchmarks/RESULTS.md)."""
+    """The feasible ones among picks: reach first with triangle normals (picks no hand gets to are
+    not fitted), then every rule with the normals of fitted patches. Reach is always searched first
+    (``precheck`` is the pinch's choice): a tripod's full check is three patches' worth. The hand's
+    whole search runs: with its quick directions alone a mug samples twice as fast, but loses the
+    tripods on its rim that a plate needs (benchmarks/RESULTS.md)."""
     early = reach_rule(context, points, context.face_normals[faces], settings)
     rejected["reach"] += int((~early.ok).sum())
     part = check_tripods(context, points[early.ok], faces[early.ok], settings=settings,
@@ -109,13 +114,14 @@ def sample_tripods(context: SurfaceContext, *, settings: PinchSettings = PinchSe
     return nested_sample(_sample_tripods, context, settings, source)
 
 
-def _sample_tripods(context: SurfaceContext, settings: PinchSettings, source: str, seen: np.ndarray | None = None,
-                    stream: tuple = ()) -> Tripods:
+def _sample_tripods(context: SurfaceContext, settings: PinchSettings, source: str,
+                    seen: np.ndarray | None = None, stream: tuple = ()) -> Tripods:
     return sample_rounds(TRIPOD, context, settings, source, seen, stream)
 
 
 def _thumbs(points: np.ndarray) -> np.ndarray:
-    """Local draws start at the thumbs of the tripods found (the draw places the fingers about a thumb)."""
+    """Local draws start at the thumbs of the tripods found (the draw places the fingers about a
+    thumb)."""
     return points[:, 0]
 
 
@@ -126,6 +132,7 @@ def _refusal(source, drawn, rejected, settings, standing) -> str:
 
 
 #: what the rounds (:mod:`rounds`) sample as a tripod; the first contacts drawn are thumbs
-TRIPOD = GraspKind(name="tripod", rules=TRIPOD_RULES, oversample=OVERSAMPLE, max_draw_factor=MAX_DRAW_FACTOR,
-                   max_rounds=MAX_ROUNDS, stream=(3,), draw=candidate_tripods, check=_check_picks,
-                   first_contacts=_thumbs, refusal=_refusal)
+TRIPOD = GraspKind(name="tripod", rules=TRIPOD_RULES, oversample=OVERSAMPLE,
+                   max_draw_factor=MAX_DRAW_FACTOR, max_rounds=MAX_ROUNDS, stream=(3,),
+                   draw=candidate_tripods, check=_check_picks, first_contacts=_thumbs,
+                   refusal=_refusal)

@@ -9,26 +9,27 @@ better, the study's 7-point scale), calibrate fits the model the cost itself use
 
     P = 1 - 2^(-Σ_c w_c x_c^β)          (β = 3.5 for ``quick`` pooling, 2 for ``sum``)
 
-and a rating that falls with it, ``rating = a - b·P`` (``a``: the rating of a perfect match, ``b``: how
-much a surely noticed difference costs on the scale). The weights are absolute: w_c = 1 keeps the
-literature's JND of criterion c, w_c = 2^β would halve it; a criterion not fitted (no column, or left
-out of ``criteria``) keeps its default, 1 for the default criteria and 0 for ``com``. The fit is nonlinear least squares (scipy's
-``least_squares``, analytic Jacobian, w ≥ 0 and b ≥ 0) started from several points.
+and a rating that falls with it, ``rating = a - b·P`` (``a``: the rating of a perfect match, ``b``:
+how much a surely noticed difference costs on the scale). The weights are absolute: w_c = 1 keeps
+the literature's JND of criterion c, w_c = 2^β would halve it; a criterion not fitted (no column, or
+left out of ``criteria``) keeps its default, 1 for the default criteria and 0 for ``com``. The fit
+is nonlinear least squares (scipy's ``least_squares``, analytic Jacobian, w ≥ 0 and b ≥ 0) started
+from several points.
 
 **Held-out agreement.** Rows that rate the same placement are kept together: the folds of the
 cross-validation split whole groups, a group joining the rows of one ``pair`` (else ``object`` and
-``pose_source``) and the rows whose differences are identical (one placement reached from two pairs is
-one placement; nothing in the table tells them apart). ``hold_out="object"`` instead leaves one virtual
-object (``object`` column) out at a time. Each row's held-out prediction comes from the weights fitted
-without its group; the report is Spearman's rank correlation between the held-out predicted drop
-(b·P) and the rating (negative: costlier pairs are rated lower; -1 is perfect), beside the same
-correlation for the default weights (all 1, whose ranking needs no fit).
+``pose_source``) and the rows whose differences are identical (one placement reached from two pairs
+is one placement; nothing in the table tells them apart). ``hold_out="object"`` instead leaves one
+virtual object (``object`` column) out at a time. Each row's held-out prediction comes from the
+weights fitted without its group; the report is Spearman's rank correlation between the held-out
+predicted drop (b·P) and the rating (negative: costlier pairs are rated lower; -1 is perfect),
+beside the same correlation for the default weights (all 1, whose ranking needs no fit).
 
 **Kept defaults.** When the fitted weights rank the held-out rows worse than the defaults do, the
 default weights are written (the fitted ones reported beside them) unless ``force``.
 
-**Which criteria.** ``calibrate`` fits ``r.criteria``; :func:`fittable_criteria` gives those of a table
-whose weights it can determine (what the command line fits when no criteria are named).
+**Which criteria.** ``calibrate`` fits ``r.criteria``; :func:`fittable_criteria` gives those of a
+table whose weights it can determine (what the command line fits when no criteria are named).
 
 **Refused** (:class:`~pinchmatch.errors.ConfigError`): fewer rows than criteria + 3, fewer than 3
 groups, ratings that never change, a criterion whose column never changes, reaches
@@ -58,8 +59,8 @@ from .cost import CRITERIA, DEFAULT_CRITERIA, PAPER_CRITERIA, CostModel, complet
 FOLDS = 5
 #: a column whose spread is below this (JND^β) does not change
 CONSTANT_TOLERANCE = 1e-9
-#: a criterion whose differences stay below this (JND) everywhere in the table is never near noticeable
-#: there: its weight would be a guess (and a huge one fits as well as any)
+#: a criterion whose differences stay below this (JND) everywhere in the table is never near
+#: noticeable there: its weight would be a guess (and a huge one fits as well as any)
 SMALLEST_FITTED_JND = 0.1
 #: the bounds of a table's numbers: a rating scale's points, and differences in JND
 MAX_RATING, MAX_JND = 1e6, 1e4
@@ -73,8 +74,8 @@ HOLD_OUTS = ("placement", "object")
 BOOTSTRAP = 100
 #: the interval: these quantiles of the resampled weights (a 90 % interval)
 INTERVAL = (0.05, 0.95)
-#: a weight whose interval's ends differ by more than this factor is not determined by the table: it keeps
-#: its default (within a factor of 2 either side of the estimate, a weight says something)
+#: a weight whose interval's ends differ by more than this factor is not determined by the table: it
+#: keeps its default (within a factor of 2 either side of the estimate, a weight says something)
 DETERMINED_RATIO = 4.0
 
 
@@ -85,8 +86,8 @@ def exponent_of(pooling: str) -> float:
 
 @dataclass(frozen=True)
 class Ratings:
-    """A ratings table: per row the rating, the difference per criterion (JND), the group of rows that
-    rate one placement, and the virtual object rated (-1 where the table names none)."""
+    """A ratings table: per row the rating, the difference per criterion (JND), the group of rows
+    that rate one placement, and the virtual object rated (-1 where the table names none)."""
 
     criteria: tuple
     jnd: np.ndarray  # (n, len(criteria))
@@ -98,7 +99,8 @@ class Ratings:
 
 @dataclass(frozen=True)
 class Calibration:
-    weights: dict  # every criterion of CRITERIA: the fitted ones, and the defaults for the others (1 for the
+    # every criterion of CRITERIA: the fitted ones, and the defaults for the others (1 for the
+    weights: dict
     # default criteria: the literature's JND, about which the table says nothing; 0 for com)
     fitted_weights: dict  # what the fit found, kept or not
     kept: str  # "fitted" or "defaults"
@@ -111,22 +113,25 @@ class Calibration:
     hold_out: str
     rows: int
     pairs: int
-    intervals: dict = None  # {criterion: (low, high)}: each fitted weight's 90 % bootstrap interval
-    undetermined: tuple = ()  # the fitted weights whose interval is too wide: kept at their defaults
+    # {criterion: (low, high)}: each fitted weight's 90 % bootstrap interval
+    intervals: dict = None
+    # the fitted weights whose interval is too wide: kept at their defaults
+    undetermined: tuple = ()
 
     @property
     def criteria(self) -> str:
-        """The criteria set the weights are for: ``paper`` when they weigh ``com`` (the paper's seven,
-        ``mass`` not in use), else ``default``."""
+        """The criteria set the weights are for: ``paper`` when they weigh ``com`` (the paper's
+        seven, ``mass`` not in use), else ``default``."""
         return "paper" if self.weights.get("com", 0.0) > 0 else "default"
 
     def as_dict(self, source: str) -> dict:
         in_use = PAPER_CRITERIA if self.criteria == "paper" else DEFAULT_CRITERIA
         return {"schema": "pinchmatch.weights/1", "source": source, "pooling": self.pooling,
                 "exponent": exponent_of(self.pooling), "criteria": self.criteria,
-                "weights": {c: round(w, 6) if c in in_use else 0.0 for c, w in self.weights.items()},
-                "fit": {"rows": self.rows, "placements": self.pairs, "folds": self.folds, "hold_out": self.hold_out,
-                        "intercept_rating": round(self.intercept, 6),
+                "weights": {c: round(w, 6) if c in in_use else 0.0
+                            for c, w in self.weights.items()},
+                "fit": {"rows": self.rows, "placements": self.pairs, "folds": self.folds,
+                        "hold_out": self.hold_out, "intercept_rating": round(self.intercept, 6),
                         "rating_drop_when_noticed": round(self.drop, 6),
                         "held_out_spearman_fitted": round(self.held_out_spearman, 4),
                         "held_out_spearman_default": round(self.default_spearman, 4),
@@ -141,11 +146,13 @@ def read_ratings(text: str, source: str, *, criteria: tuple | None = None) -> Ra
     """Parse a ratings CSV: a ``rating`` column and one ``<criterion>_jnd`` column per criterion
     (only ``criteria`` if given); optional ``pair`` or ``object`` + ``pose_source`` group the rows.
 
-    >>> r = read_ratings("pair,width_jnd,kmax_jnd,rating\\n1,0.2,0.1,6\\n2,1.5,0.3,3\\n", "ratings.csv")
+    >>> table = "pair,width_jnd,kmax_jnd,rating\\n1,0.2,0.1,6\\n2,1.5,0.3,3\\n"
+    >>> r = read_ratings(table, "ratings.csv")
     >>> r.criteria, r.rating.tolist(), r.jnd.tolist()
     (('width', 'kmax'), [6.0, 3.0], [[0.2, 0.1], [1.5, 0.3]])
     """
-    text = text.replace("\r\n", "\n").replace("\r", "\n")  # CR-only line endings: old spreadsheet exports
+    # CR-only line endings: old spreadsheet exports
+    text = text.replace("\r\n", "\n").replace("\r", "\n")
     delimiter, decimal_comma = _dialect(text)
     try:
         reader = csv.reader(io.StringIO(text), strict=True, delimiter=delimiter)
@@ -157,23 +164,29 @@ def read_ratings(text: str, source: str, *, criteria: tuple | None = None) -> Ra
     except csv.Error as exc:
         raise ConfigError(f"{source}: not a CSV table ({exc}); check its quotes") from None
     if len(table) < 2:
-        raise ConfigError(f"{source}: no rated rows; give a CSV with a header and one row per rated trial")
+        raise ConfigError(f"{source}: no rated rows; give a CSV with a header and one row per "
+                          "rated trial")
     names = [n.strip() for n in table[0]]
     twice = sorted({n for n in names if names.count(n) > 1})
     if twice:
-        raise ConfigError(f"{source}: the column {', '.join(map(repr, twice))} appears twice; give each column once")
+        raise ConfigError(f"{source}: the column {', '.join(map(repr, twice))} appears twice; give "
+                          "each column once")
     unknown = [n for n in names if n.endswith("_jnd") and n[:-4] not in CRITERIA]
     if unknown:
-        raise ConfigError(f"{source}: unknown column {', '.join(map(repr, unknown))}; the criteria are "
+        raise ConfigError(f"{source}: unknown column {', '.join(map(repr, unknown))}; the criteria "
+                          "are "
                           f"{', '.join(CRITERIA)}")
     for line, row in zip(lines[1:], table[1:]):
         if len(row) != len(names):
-            raise ConfigError(f"{source}: line {line} has {len(row)} cells and the header {len(names)}; fix that row")
+            raise ConfigError(f"{source}: line {line} has {len(row)} cells and the header "
+                              f"{len(names)}; fix that row")
     rows = [dict(zip(names, row)) for row in table[1:]]
     header = set(names)
     if "rating" not in header:
-        raise ConfigError(f"{source}: no 'rating' column (the header reads {', '.join(map(repr, names[:6]))}); the "
-                          "table needs rating and <criterion>_jnd columns, separated by commas, semicolons or tabs "
+        raise ConfigError(f"{source}: no 'rating' column (the header reads "
+                          f"{', '.join(map(repr, names[:6]))}); the "
+                          "table needs rating and <criterion>_jnd columns, separated by commas, "
+                          "semicolons or tabs "
                           "(docs/study.md)")
     present = tuple(c for c in CRITERIA if f"{c}_jnd" in header)
     if criteria is not None:
@@ -186,7 +199,8 @@ def read_ratings(text: str, source: str, *, criteria: tuple | None = None) -> Ra
         raise ConfigError(f"{source}: no <criterion>_jnd column (one of "
                           f"{', '.join(c + '_jnd' for c in CRITERIA)})")
     rated_lines = [line for line, r in zip(lines[1:], rows) if (r.get("rating") or "").strip()]
-    rated = [r for r in rows if (r.get("rating") or "").strip()]  # an unrated trial (skipped) is left out
+    # an unrated trial (skipped) is left out
+    rated = [r for r in rows if (r.get("rating") or "").strip()]
     values = np.empty((len(rated), len(present) + 1))
     for i, r in enumerate(rated):
         for k, name in enumerate(("rating",) + tuple(f"{c}_jnd" for c in present)):
@@ -194,12 +208,15 @@ def read_ratings(text: str, source: str, *, criteria: tuple | None = None) -> Ra
             try:
                 values[i, k] = float(cell)
             except (TypeError, ValueError):
-                raise ConfigError(f"{source}: line {rated_lines[i]}: {name} = {r[name]!r} is not a number") from None
+                raise ConfigError(f"{source}: line {rated_lines[i]}: {name} = {r[name]!r} is not a "
+                                  "number") from None
     if not np.isfinite(values).all() or (values[:, 1:] < 0).any():
-        raise ConfigError(f"{source}: a rating or a difference is not finite, or a difference is negative; "
+        raise ConfigError(f"{source}: a rating or a difference is not finite, or a difference is "
+                          "negative; "
                           "the <criterion>_jnd columns are sizes in JND (0 or more)")
     if (np.abs(values[:, 0]) > MAX_RATING).any() or (values[:, 1:] > MAX_JND).any():
-        raise ConfigError(f"{source}: a rating beyond ±{MAX_RATING:g} or a difference over {MAX_JND:g} JND; "
+        raise ConfigError(f"{source}: a rating beyond ±{MAX_RATING:g} or a difference over "
+                          f"{MAX_JND:g} JND; "
                           "ratings are points of a scale and differences sizes in JND")
     if "pair" in header:
         keys = [r["pair"] for r in rated]
@@ -210,13 +227,16 @@ def read_ratings(text: str, source: str, *, criteria: tuple | None = None) -> Ra
     objects = None
     if "object" in header:
         names: dict = {}
-        objects = np.array([names.setdefault(r["object"], len(names)) for r in rated], dtype=np.int64)
-    return Ratings(present, values[:, 1:], values[:, 0], placement_groups(keys, values[:, 1:]), source, objects)
+        objects = np.array([names.setdefault(r["object"], len(names)) for r in rated],
+                           dtype=np.int64)
+    return Ratings(present, values[:, 1:], values[:, 0], placement_groups(keys, values[:, 1:]),
+                   source, objects)
 
 
 def _dialect(text: str) -> tuple[str, bool]:
-    """The header's delimiter, as spreadsheets write CSV: commas, semicolons (where the decimal mark is a
-    comma: the numbers are then read with either mark) or tabs; and whether decimal commas are read."""
+    """The header's delimiter, as spreadsheets write CSV: commas, semicolons (where the decimal mark
+    is a comma: the numbers are then read with either mark) or tabs; and whether decimal commas are
+    read."""
     header = text.split("\n", 1)[0]
     counts = {d: header.count(d) for d in (",", ";", "\t")}
     delimiter = max(counts, key=lambda d: (counts[d], d == ","))
@@ -226,8 +246,8 @@ def _dialect(text: str) -> tuple[str, bool]:
 
 
 def placement_groups(keys: list, jnd: np.ndarray) -> np.ndarray:
-    """(n,) group of each row: rows of one key, and rows whose differences are identical (to 1e-6 JND),
-    are one group (connected components: two keys sharing a placement are one group)."""
+    """(n,) group of each row: rows of one key, and rows whose differences are identical (to 1e-6
+    JND), are one group (connected components: two keys sharing a placement are one group)."""
     n = len(keys)
     if not n:
         return np.zeros(0, dtype=np.int64)
@@ -235,11 +255,13 @@ def placement_groups(keys: list, jnd: np.ndarray) -> np.ndarray:
     by_key = np.array([index.setdefault(k, len(index)) for k in keys], dtype=np.int64)
     _, by_values = np.unique(np.round(jnd, 6), axis=0, return_inverse=True)
     by_values = by_values.reshape(-1)
-    # nodes: the rows, then the keys, then the distinct difference vectors; a row joins its key and vector
+    # nodes: the rows, then the keys, then the distinct difference vectors; a row joins its key and
+    # vector
     key_node, value_node = n + by_key, n + len(index) + by_values
     size = n + len(index) + int(by_values.max()) + 1
     rows = np.arange(n)
-    graph = coo_matrix((np.ones(2 * n), (np.concatenate([rows, rows]), np.concatenate([key_node, value_node]))),
+    graph = coo_matrix((np.ones(2 * n),
+                        (np.concatenate([rows, rows]), np.concatenate([key_node, value_node]))),
                        shape=(size, size))
     _, label = connected_components(graph, directed=False)
     first: dict = {}
@@ -248,15 +270,18 @@ def placement_groups(keys: list, jnd: np.ndarray) -> np.ndarray:
 
 #: why a criterion's weight cannot be determined, said of one criterion and of several
 PLURAL = {"never changes": "never change",
-          f"never differs by {SMALLEST_FITTED_JND} JND or more": f"never differ by {SMALLEST_FITTED_JND} JND or more",
+          f"never differs by {SMALLEST_FITTED_JND} JND or more": "never differ by "
+                                                                 f"{SMALLEST_FITTED_JND} JND or "
+                                                                 "more",
           f"differs by {SMALLEST_FITTED_JND} JND or more in one placement only":
           f"differ by {SMALLEST_FITTED_JND} JND or more in one placement only"}
 
 
 def undetermined(r: Ratings, beta: float) -> dict[str, str]:
-    """{criterion: why} for the criteria of ``r`` whose weight the table cannot determine: a column that
-    never changes, or whose differences reach :data:`SMALLEST_FITTED_JND` in fewer than two placements
-    (one placement's rating fixes any weight, and leaving it out of the fit leaves nothing to fix it)."""
+    """{criterion: why} for the criteria of ``r`` whose weight the table cannot determine: a column
+    that never changes, or whose differences reach :data:`SMALLEST_FITTED_JND` in fewer than two
+    placements (one placement's rating fixes any weight, and leaving it out of the fit leaves
+    nothing to fix it)."""
     x = r.jnd ** beta
     out = {}
     for k, c in enumerate(r.criteria):
@@ -270,15 +295,16 @@ def undetermined(r: Ratings, beta: float) -> dict[str, str]:
 
 
 def fittable_criteria(r: Ratings, *, pooling: str = "quick") -> tuple[tuple, dict]:
-    """What ``calibrate`` fits when no criteria are named: the table's columns among the default cost's
-    criteria whose weights it can determine, and {criterion left out: why} for the table's others (they
-    keep their defaults). ``com`` is fitted only when named: fitted beside ``mass`` it would take part of
-    the lever arm that the default cost charges to ``mass`` alone.
+    """What ``calibrate`` fits when no criteria are named: the table's columns among the default
+    cost's criteria whose weights it can determine, and {criterion left out: why} for the table's
+    others (they keep their defaults). ``com`` is fitted only when named: fitted beside ``mass`` it
+    would take part of the lever arm that the default cost charges to ``mass`` alone.
 
     >>> r = read_ratings("pair,width_jnd,tilt_jnd,com_jnd,kmax_jnd,rating\\n1,0.2,0,0.3,0.1,6\\n"
     ...                  "2,1.5,0,0.1,0.3,3\\n3,0.7,0,0.2,2.0,2\\n", "ratings.csv")
     >>> fittable_criteria(r)
-    (('width', 'kmax'), {'com': 'is not a default criterion (name it with --criteria)', 'tilt': 'never changes'})
+    (('width', 'kmax'), {'com': 'is not a default criterion (name it with --criteria)',
+                         'tilt': 'never changes'})
     """
     why = undetermined(r, exponent_of(pooling))
     for c in r.criteria:
@@ -290,20 +316,26 @@ def fittable_criteria(r: Ratings, *, pooling: str = "quick") -> tuple[tuple, dic
 def _check(r: Ratings, beta: float) -> None:
     n, m = r.jnd.shape
     if n < m + 3:
-        raise ConfigError(f"{r.source}: {n} rated rows cannot fix {m} weights and the rating scale; "
+        raise ConfigError(f"{r.source}: {n} rated rows cannot fix {m} weights and the rating "
+                          "scale; "
                           f"rate at least {m + 3} trials, or fit fewer criteria with --criteria")
     if r.pair.max() + 1 < 3:
-        raise ConfigError(f"{r.source}: {r.pair.max() + 1} distinct placements; rate at least 3 to fit and "
+        raise ConfigError(f"{r.source}: {r.pair.max() + 1} distinct placements; rate at least 3 to "
+                          "fit and "
                           "check the weights")
     if np.ptp(r.rating) == 0:
-        raise ConfigError(f"{r.source}: every rating is {r.rating[0]:g}, so they say nothing about the "
+        raise ConfigError(f"{r.source}: every rating is {r.rating[0]:g}, so they say nothing about "
+                          "the "
                           "criteria; rate pairs that differ")
     unknown = undetermined(r, beta)
     if unknown:
-        named = {reason: [c for c in unknown if unknown[c] == reason] for reason in unknown.values()}
-        why = "; ".join(f"{', '.join(cs)} {reason if len(cs) == 1 else PLURAL[reason]}" for reason, cs in named.items())
+        named = {reason: [c for c in unknown if unknown[c] == reason]
+                 for reason in unknown.values()}
+        why = "; ".join(f"{', '.join(cs)} {reason if len(cs) == 1 else PLURAL[reason]}"
+                        for reason, cs in named.items())
         if len(unknown) == len(r.criteria):
-            raise ConfigError(f"{r.source}: {why} in the table, so no weight can be determined; rate placements "
+            raise ConfigError(f"{r.source}: {why} in the table, so no weight can be determined; "
+                              "rate placements "
                               "that differ in them")
         its = "its weight" if len(unknown) == 1 else "their weights"
         raise ConfigError(f"{r.source}: {why} in the table, so {its} cannot be determined; leave "
@@ -315,8 +347,10 @@ def _check(r: Ratings, beta: float) -> None:
     if np.linalg.matrix_rank(scaled, tol=1e-8) < m:
         _, _, vt = np.linalg.svd(scaled, full_matrices=False)
         tied = [c for c, v in zip(r.criteria, vt[-1]) if abs(v) > 0.1]
-        raise ConfigError(f"{r.source}: the differences in {', '.join(tied)} move together in every row, so their "
-                          "weights cannot be told apart; rate pairs where they differ, or leave one out with --criteria")
+        raise ConfigError(f"{r.source}: the differences in {', '.join(tied)} move together in "
+                          "every row, so their "
+                          "weights cannot be told apart; rate pairs where they differ, or leave "
+                          "one out with --criteria")
 
 
 def noticed(x_beta: np.ndarray, w: np.ndarray) -> np.ndarray:
@@ -350,8 +384,8 @@ def _fit(x_beta: np.ndarray, rating: np.ndarray) -> tuple[np.ndarray, float, flo
     best = None
     for start in STARTS:
         theta0 = np.r_[rating.max(), max(np.ptp(rating), 1e-3), np.full(m, start)]
-        found = least_squares(residual, theta0, jac=jacobian, bounds=(lower, np.inf), xtol=1e-15, ftol=1e-15,
-                              gtol=1e-15, max_nfev=2000)
+        found = least_squares(residual, theta0, jac=jacobian, bounds=(lower, np.inf), xtol=1e-15,
+                              ftol=1e-15, gtol=1e-15, max_nfev=2000)
         if best is None or found.cost < best.cost - 1e-15:
             best = found
     theta = best.x
@@ -368,11 +402,13 @@ def _folds(r: Ratings, hold_out: str, seed: int) -> tuple[np.ndarray, int]:
     """(n,) fold of each row, and the number of folds."""
     if hold_out == "object":
         if r.obj is None:
-            raise ConfigError(f"{r.source}: no 'object' column, so no virtual object can be held out; "
+            raise ConfigError(f"{r.source}: no 'object' column, so no virtual object can be held "
+                              "out; "
                               "use --hold-out placement")
         groups = int(r.obj.max()) + 1
         if groups < 3:
-            raise ConfigError(f"{r.source}: {groups} virtual objects; hold out by object needs at least 3")
+            raise ConfigError(f"{r.source}: {groups} virtual objects; hold out by object needs at "
+                              "least 3")
         return r.obj, groups
     pairs = int(r.pair.max() + 1)
     folds = min(FOLDS, pairs)
@@ -385,11 +421,13 @@ def calibrate(r: Ratings, *, pooling: str = "quick", seed: int = 0, hold_out: st
 
     >>> rng = np.random.default_rng(0)
     >>> jnd = rng.uniform(0.0, 2.0, size=(24, 2))  # 24 rated pairs: width and kmax differences
-    >>> noticed = 1 - 2.0 ** -(jnd ** 3.5 @ [1.0, 0.5])  # people who weigh kmax half as much as width
-    >>> rows = ["pair,width_jnd,kmax_jnd,rating"] + [f"{k},{w:.4f},{c:.4f},{6.5 - 4 * p:.4f}"
-    ...                                              for k, ((w, c), p) in enumerate(zip(jnd, noticed))]
+    >>> noticed = 1 - 2.0 ** -(jnd ** 3.5 @ [1.0, 0.5])  # who weigh kmax half as much as width
+    >>> rows = ["pair,width_jnd,kmax_jnd,rating"] + [
+    ...     f"{k},{w:.4f},{c:.4f},{6.5 - 4 * p:.4f}"
+    ...     for k, ((w, c), p) in enumerate(zip(jnd, noticed))]
     >>> fit = calibrate(read_ratings("\\n".join(rows), "ratings.csv"))
-    >>> round(fit.weights["width"], 2), round(fit.weights["kmax"], 2), round(fit.intercept, 2), round(fit.drop, 2)
+    >>> w = fit.weights
+    >>> round(w["width"], 2), round(w["kmax"], 2), round(fit.intercept, 2), round(fit.drop, 2)
     (1.0, 0.5, 6.5, 4.0)
     """
     if hold_out not in HOLD_OUTS:
@@ -397,7 +435,8 @@ def calibrate(r: Ratings, *, pooling: str = "quick", seed: int = 0, hold_out: st
     if not isinstance(seed, int) or seed < 0:
         raise ConfigError(f"--seed: {seed!r} must be a whole number of 0 or more")
     if "com" in r.criteria and "mass" in r.criteria:
-        raise ConfigError("--criteria: com and mass both charge the lever arm, and no criteria set weighs both; fit "
+        raise ConfigError("--criteria: com and mass both charge the lever arm, and no criteria set "
+                          "weighs both; fit "
                           "com (for --criteria paper) or mass (the default), not both")
     beta = exponent_of(pooling)
     _check(r, beta)
@@ -406,12 +445,13 @@ def calibrate(r: Ratings, *, pooling: str = "quick", seed: int = 0, hold_out: st
     defaults = complete_weights({})
     w, intercept, drop = _fit(x, r.rating)
     fold, folds = _folds(r, hold_out, seed)
-    common = dict(pooling=pooling, intercept=intercept, drop=drop, default_spearman=default_rho, folds=folds,
-                  hold_out=hold_out, rows=len(r.rating), pairs=int(r.pair.max() + 1))
+    common = dict(pooling=pooling, intercept=intercept, drop=drop, default_spearman=default_rho,
+                  folds=folds, hold_out=hold_out, rows=len(r.rating), pairs=int(r.pair.max() + 1))
     # the optimiser stops a hair above its bounds: a weight or a drop this small is none
     if not (w > ZERO_FIT).any() or drop <= ZERO_FIT * max(1.0, float(np.ptp(r.rating))):
         if default_rho < 0 and not force:  # the defaults rank the table: keep them, as below
-            return Calibration(weights=defaults, fitted_weights=defaults | dict(zip(r.criteria, map(float, w))),
+            return Calibration(weights=defaults,
+                               fitted_weights=defaults | dict(zip(r.criteria, map(float, w))),
                                kept="defaults", held_out_spearman=0.0, **common)
         raise ConfigError(_unpredictive(r, default_rho, "no weight above 0 fits them"))
     held_out = np.empty(len(r.rating))
@@ -423,20 +463,23 @@ def calibrate(r: Ratings, *, pooling: str = "quick", seed: int = 0, hold_out: st
         held_out[test] = bf * noticed(x[test], wf)
     held = _spearman(held_out, r.rating)
     if not held < 0 and not (default_rho < 0 and not force):
-        raise ConfigError(_unpredictive(r, default_rho, f"held out, the fitted cost does not fall with the rating "
+        raise ConfigError(_unpredictive(r, default_rho,
+                                        f"held out, the fitted cost does not fall with the rating "
                                                         f"(rank correlation {held:+.2f})"))
     intervals = _intervals(x, r, seed)
     loose = tuple(c for c, (lo, hi) in intervals.items() if not hi <= DETERMINED_RATIO * lo)
     fitted = defaults | {c: float(v) for c, v in zip(r.criteria, w)}
     kept = "fitted" if force or (held < 0 and held <= default_rho) else "defaults"
-    weights = (fitted | {c: defaults[c] for c in loose if not force}) if kept == "fitted" else defaults
-    return Calibration(weights=weights, fitted_weights=fitted, kept=kept, held_out_spearman=held, intervals=intervals,
-                       undetermined=loose if kept == "fitted" and not force else (), **common)
+    weights = (fitted | {c: defaults[c] for c in loose
+                         if not force}) if kept == "fitted" else defaults
+    return Calibration(weights=weights, fitted_weights=fitted, kept=kept, held_out_spearman=held,
+                       intervals=intervals, undetermined=loose if kept == "fitted" and not force
+                       else (), **common)
 
 
 def _intervals(x: np.ndarray, r: Ratings, seed: int) -> dict:
-    """{criterion: (low, high)}: the ``INTERVAL`` quantiles of each weight refitted to ``BOOTSTRAP`` resamples
-    of the placements (with replacement, each placement's rows together), seeded."""
+    """{criterion: (low, high)}: the ``INTERVAL`` quantiles of each weight refitted to ``BOOTSTRAP``
+    resamples of the placements (with replacement, each placement's rows together), seeded."""
     rng = np.random.default_rng([seed, 1])
     pairs = int(r.pair.max() + 1)
     members = [np.flatnonzero(r.pair == k) for k in range(pairs)]
@@ -450,18 +493,21 @@ def _intervals(x: np.ndarray, r: Ratings, seed: int) -> dict:
 
 def _unpredictive(r: Ratings, default_rho: float, why: str) -> str:
     if default_rho > 0.3:
-        return (f"{r.source}: the ratings rise as the differences grow (rank correlation {default_rho:+.2f}); "
+        return (f"{r.source}: the ratings rise as the differences grow (rank correlation "
+                f"{default_rho:+.2f}); "
                 "check the rating scale (higher: the prop corresponds better)")
-    return (f"{r.source}: these criteria do not predict the ratings ({why}); rate more placements that "
+    return (f"{r.source}: these criteria do not predict the ratings ({why}); rate more placements "
+            "that "
             "differ in them, or fit other criteria with --criteria")
 
 
 def read_weights_file(text: str, source: str) -> tuple[dict, str | None, str | None]:
-    """The weights of a ``weights.json`` that ``calibrate`` wrote (or any ``{"weights": {...}}``), the
-    pooling they were fitted for and the criteria set they are for (``default`` or ``paper``; None
-    where the file does not say).
+    """The weights of a ``weights.json`` that ``calibrate`` wrote (or any ``{"weights": {...}}``),
+    the pooling they were fitted for and the criteria set they are for (``default`` or ``paper``;
+    None where the file does not say).
 
-    >>> read_weights_file('{"weights": {"width": 2, "kmax": 0.5}, "pooling": "quick"}', "weights.json")
+    >>> text = '{"weights": {"width": 2, "kmax": 0.5}, "pooling": "quick"}'
+    >>> read_weights_file(text, "weights.json")
     ({'width': 2.0, 'kmax': 0.5}, 'quick', None)
     """
     import json
@@ -470,33 +516,40 @@ def read_weights_file(text: str, source: str) -> tuple[dict, str | None, str | N
         keys = [k for k, _ in pairs]
         twice = sorted({k for k in keys if keys.count(k) > 1})
         if twice:
-            raise ConfigError(f"{source}: {', '.join(map(repr, twice))} given twice; give each key once")
+            raise ConfigError(f"{source}: {', '.join(map(repr, twice))} given twice; give each key "
+                              "once")
         return dict(pairs)
 
     try:
         doc = json.loads(text, object_pairs_hook=unique)
     except json.JSONDecodeError as exc:
-        raise ConfigError(f"{source}: not JSON ({exc.msg}, line {exc.lineno}); give the weights.json that "
+        raise ConfigError(f"{source}: not JSON ({exc.msg}, line {exc.lineno}); give the "
+                          "weights.json that "
                           "'pinchmatch calibrate' writes") from None
     except UnicodeDecodeError as exc:
         raise ConfigError(f"{source}: not UTF-8 text (byte {exc.start}); save it as UTF-8 JSON, as "
                           "'pinchmatch calibrate' writes it") from None
     except ValueError as exc:  # an integer of thousands of digits
-        raise ConfigError(f"{source}: a value no weight can be ({str(exc)[:60]}); give the weights.json that "
+        raise ConfigError(f"{source}: a value no weight can be ({str(exc)[:60]}); give the "
+                          "weights.json that "
                           "'pinchmatch calibrate' writes") from None
     except RecursionError:
-        raise ConfigError(f"{source}: nested too deep to be a weights file; give the weights.json that "
+        raise ConfigError(f"{source}: nested too deep to be a weights file; give the weights.json "
+                          "that "
                           "'pinchmatch calibrate' writes") from None
     weights = doc.get("weights") if isinstance(doc, dict) else None
     if not isinstance(weights, dict) or not all(finite_number(v) for v in weights.values()):
-        raise ConfigError(f"{source}: needs a 'weights' object of criterion: number; give the weights.json "
+        raise ConfigError(f"{source}: needs a 'weights' object of criterion: number; give the "
+                          "weights.json "
                           "that 'pinchmatch calibrate' writes")
     pooling = doc.get("pooling")
     if pooling is not None and pooling not in ("quick", "sum"):
-        raise ConfigError(f"{source}: pooling {pooling!r} is neither quick nor sum; give the weights.json that "
+        raise ConfigError(f"{source}: pooling {pooling!r} is neither quick nor sum; give the "
+                          "weights.json that "
                           "'pinchmatch calibrate' writes")
     criteria = doc.get("criteria")
     if criteria is not None and criteria not in ("default", "paper"):
-        raise ConfigError(f"{source}: criteria {criteria!r} is neither default nor paper; give the weights.json "
+        raise ConfigError(f"{source}: criteria {criteria!r} is neither default nor paper; give the "
+                          "weights.json "
                           "that 'pinchmatch calibrate' writes")
     return {str(k): float(v) for k, v in weights.items()}, pooling, criteria

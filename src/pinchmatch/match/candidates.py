@@ -49,7 +49,8 @@ class Candidates:
 
 def features_subset(features: PinchFeatures, keep: np.ndarray) -> PinchFeatures:
     """The features of the pinches at positions ``keep``."""
-    return type(features)(**{f.name: getattr(features, f.name)[keep] for f in dataclasses.fields(features)})
+    return type(features)(**{f.name: getattr(features, f.name)[keep]
+                             for f in dataclasses.fields(features)})
 
 
 def candidate_poses(
@@ -81,27 +82,31 @@ def candidate_poses(
         pinches, features = score_pinches(obj, *given, settings=settings, source=source)
     keep = np.flatnonzero(pinches.feasible)
     if not len(keep):
-        reasons = "; ".join(f"pose {i} breaks {', '.join(pinches.broken_rules(i))}" for i in range(min(3, len(pinches))))
+        reasons = "; ".join(f"pose {i} breaks {', '.join(pinches.broken_rules(i))}"
+                            for i in range(min(3, len(pinches))))
         raise NoFeasiblePinchError(
-            f"{source or obj.loaded.path}: none of the {len(pinches)} given poses is feasible on {obj.name} "
+            f"{source or obj.loaded.path}: none of the {len(pinches)} given poses is feasible on "
+            f"{obj.name} "
             f"({reasons}); give poses that a fingertip can hold, or loosen --friction-cone-deg"
         )
     pinches, features = pinches.subset(keep), features_subset(features, keep)
     return Candidates(obj, pinches, features, feature_table(features), keep, given is not None)
 
 
-#: poses found after the sampling (refined, targeted) have no place in the sampled list: their ``index``
+#: poses found after the sampling (refined, targeted) have no place in the sampled list: their
+#: ``index``
 REFINED_INDEX = -1
 
 
 def extend(base: Candidates, pinches: Pinches) -> Candidates:
-    """``base`` with feasible ``pinches`` added (features computed, index ``REFINED_INDEX``): how refinement and the
-    targeted step grow an object's candidates."""
+    """``base`` with feasible ``pinches`` added (features computed, index ``REFINED_INDEX``): how
+    refinement and the targeted step grow an object's candidates."""
     features = grasp_features(pinches, base.obj.props)
     extra = Candidates(base.obj, pinches, features, feature_table(features),
                        np.full(len(pinches), REFINED_INDEX, dtype=base.index.dtype), base.given)
     return Candidates(base.obj, concat_pinches([base.pinches, pinches], base.pinches.rejected),
-                      concat_features([base.features, extra.features]), np.concatenate([base.table, extra.table]),
+                      concat_features([base.features, extra.features]),
+                      np.concatenate([base.table, extra.table]),
                       np.concatenate([base.index, extra.index]), base.given)
 
 
@@ -117,20 +122,23 @@ def merge_candidates(first: Candidates, second: Candidates) -> Candidates:
     offset = int(first.index.max()) + 1 if len(first.index) else 0
     return Candidates(first.obj, concat_pinches([first.pinches, second.pinches]), features,
                       np.concatenate([first.table, second.table]),
-                      np.concatenate([first.index, second.index + offset]), first.given and second.given)
+                      np.concatenate([first.index, second.index + offset]),
+                      first.given and second.given)
 
 
 def with_count(base: int, count: int, most: int) -> int:
-    """``base`` at a sampling count up to the default (:class:`PinchSettings`' ``count``), in proportion above
-    it (rounded up), at most ``most``: how many of a search's best pairs a step takes, so that a denser sample,
-    which holds more pairs near each good one, looks as far into its order as a smaller one did."""
+    """``base`` at a sampling count up to the default (:class:`PinchSettings`' ``count``), in
+    proportion above it (rounded up), at most ``most``: how many of a search's best pairs a step
+    takes, so that a denser sample, which holds more pairs near each good one, looks as far into its
+    order as a smaller one did."""
     default = PinchSettings().count
     return int(min(max(base, -(-base * int(count) // default)), max(most, base)))
 
 
 def memo_of(store: dict, owner) -> dict:
-    """The memo that ``store`` keeps for ``owner`` (by identity) while ``owner`` lives: a process makes what
-    depends on one object alone (its landings, its feature pool) once however many matches ask."""
+    """The memo that ``store`` keeps for ``owner`` (by identity) while ``owner`` lives: a process
+    makes what depends on one object alone (its landings, its feature pool) once however many
+    matches ask."""
     entry = store.get(id(owner))
     if entry is None or entry[0]() is not owner:
         entry = (weakref.ref(owner), {})
@@ -163,18 +171,19 @@ def felt_table(table: np.ndarray, ratio: float) -> np.ndarray:
     return out
 
 
-def pair_terms(tangible: Candidates, virtual: Candidates, t_rows: np.ndarray, v_rows: np.ndarray, model, *,
-               R: np.ndarray | None = None, t_points: np.ndarray | None = None, v_points: np.ndarray | None = None,
+def pair_terms(tangible: Candidates, virtual: Candidates, t_rows: np.ndarray, v_rows: np.ndarray,
+               model, *, R: np.ndarray | None = None, t_points: np.ndarray | None = None,
+               v_points: np.ndarray | None = None,
                delta: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """How k pose pairs score: (k, 8) each criterion's contribution, and (k, 3) the mass offset.
 
     The one scoring of a pose pair, used by the search, the landings, the reference and the
-    reports. ``t_rows``/``v_rows`` are the pairs' feature-table rows (the virtual ones as seen, in the
-    tangible's finger order). The mass offset ``delta`` is the centre of mass's offset from the pinch
-    midpoint as seen (turned into the tangible's frame, scaled by :func:`mass_ratio`) minus as felt, mm
-    in the tangible's frame; unless given, it is computed from ``t_points``/``v_points`` (k, 2, 3), the
-    contacts in each object's frame, and ``R`` (k, 3, 3) or (3, 3), which turns the virtual object's
-    frame into the tangible's."""
+    reports. ``t_rows``/``v_rows`` are the pairs' feature-table rows (the virtual ones as seen, in
+    the tangible's finger order). The mass offset ``delta`` is the centre of mass's offset from the
+    pinch midpoint as seen (turned into the tangible's frame, scaled by :func:`mass_ratio`) minus as
+    felt, mm in the tangible's frame; unless given, it is computed from ``t_points``/``v_points``
+    (k, 2, 3), the contacts in each object's frame, and ``R`` (k, 3, 3) or (3, 3), which turns the
+    virtual object's frame into the tangible's."""
     ratio = mass_ratio(tangible, virtual)
     if delta is None:
         seen = virtual.obj.props.com_mm - v_points.mean(axis=-2)
@@ -187,11 +196,14 @@ def pair_terms(tangible: Candidates, virtual: Candidates, t_rows: np.ndarray, v_
 
 
 def one_grasp(candidates: list) -> None:
-    """Refuse, in one line, candidates of two grasps (pinches and tripods) in one match: their features and
-    contacts cannot be compared. Each object's candidates are made with one ``PinchSettings.grasp``."""
+    """Refuse, in one line, candidates of two grasps (pinches and tripods) in one match: their
+    features and contacts cannot be compared. Each object's candidates are made with one
+    ``PinchSettings.grasp``."""
     kinds = {}
     for c in candidates:
         kinds.setdefault("tripod" if c.pinches.points.shape[1] == 3 else "pinch", c.name)
     if len(kinds) > 1:
-        raise ConfigError(f"{kinds['tripod']}'s candidates are tripods and {kinds['pinch']}'s are pinches; a match "
-                          "compares one grasp: make every object's candidates with the same PinchSettings(grasp=...)")
+        raise ConfigError(f"{kinds['tripod']}'s candidates are tripods and {kinds['pinch']}'s are "
+                          "pinches; a match "
+                          "compares one grasp: make every object's candidates with the same "
+                          "PinchSettings(grasp=...)")

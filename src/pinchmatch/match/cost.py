@@ -46,7 +46,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ConfigError
-from ..config import CRITERIA, DEFAULT_CRITERIA, MAX_WEIGHT, PAPER_CRITERIA, POOLINGS, Weights, complete_weights  # noqa: F401 (re-exported)
+from ..config import (CRITERIA, DEFAULT_CRITERIA, MAX_WEIGHT, PAPER_CRITERIA,  # noqa: F401
+                      POOLINGS, Weights, complete_weights)
 from ..config import WIDTH_JND_FLOOR_MM, WIDTH_JND_FRACTION  # noqa: F401 (re-exported)
 from ..config import REST_FLOAT_MM_PER_JND, REST_SINK_MM_PER_JND
 from ..grasp.features import PinchFeatures
@@ -60,21 +61,23 @@ QUICK_EXPONENT = 3.5
 #: detection level (a 75 %-correct two-alternative threshold, corrected for guessing)
 DETECTION_AT_ONE_JND = 0.5
 
-#: orientations: 43.8 % of the reference angle, floor: 20° (edge orientation on the fingerpad, Bensmaia)
+#: orientations: 43.8 % of the reference angle, floor: 20° (edge orientation on the fingerpad,
+#: Bensmaia)
 ANGLE_JND_FRACTION, ANGLE_JND_FLOOR_DEG = 0.438, 20.0
 #: curvature: 66.66 % of the reference, floor: 2 /m (2 cm stimuli, Gordon & Morison)
 CURVATURE_JND_FRACTION, CURVATURE_JND_FLOOR_PER_M = 0.6666, 2.0
 #: distance from the centre of mass: no published threshold; proprioceptive accuracy, about 20 mm
 COM_JND_MM = 20.0
 #: mass offset: the torque of a weight held in a pinch scales with the lever arm; static weight in a
-#: pinch is discriminated at a Weber fraction of 22-44 % (van Beek et al. 2021): 22 % of the tangible's
-#: offset, floor 20 mm (proprioceptive accuracy, as for d)
+#: pinch is discriminated at a Weber fraction of 22-44 % (van Beek et al. 2021): 22 % of the
+#: tangible's offset, floor 20 mm (proprioceptive accuracy, as for d)
 MASS_JND_FRACTION, MASS_JND_FLOOR_MM = 0.22, 20.0
 #: a tripod's lever arm: the torque it pulls with is discriminated at 12.7 % (Jandura and Srinivasan
 #: 1994, 60 mN·m); the same floor
 TORQUE_JND_FRACTION = 0.127
 
-#: ``range`` normalisation: a feature whose range is below this (in its unit) is constant over the run
+#: ``range`` normalisation: a feature whose range is below this (in its unit) is constant over the
+#: run
 RANGE_TOLERANCE = 1e-6
 
 #: columns of a feature table, per patch; the last two belong to ``mass``
@@ -87,20 +90,22 @@ N_COLUMNS = len(COLUMNS)
 
 
 def feature_table(features: PinchFeatures) -> np.ndarray:
-    """(n, F, 9) float64: per pose and patch (F = 2 for a pinch, 3 for a tripod), the columns of COLUMNS
-    (NaN = undefined ρ).
+    """(n, F, 9) float64: per pose and patch (F = 2 for a pinch, 3 for a tripod), the columns of
+    COLUMNS (NaN = undefined ρ).
 
-    A tripod's ``width`` column holds its two widths: the aperture in the thumb's row and the fingers'
-    spacing in theirs, so that its width criterion pools both in width JNDs (a third the aperture's, two
-    thirds the spacing's: two fingertips feel the spacing, a documented choice)."""
+    A tripod's ``width`` column holds its two widths: the aperture in the thumb's row and the
+    fingers' spacing in theirs, so that its width criterion pools both in width JNDs (a third the
+    aperture's, two thirds the spacing's: two fingertips feel the spacing, a documented choice)."""
     n, fingers = features.normal_angle_deg.shape
-    pose = np.stack([features.width_mm, features.com_distance_mm, features.tilt_deg], axis=-1)  # (n, 3)
+    # (n, 3)
+    pose = np.stack([features.width_mm, features.com_distance_mm, features.tilt_deg], axis=-1)
     pose = np.repeat(pose[:, None, :], fingers, axis=1)
     if fingers == 3:
         pose[:, 1:, 0] = features.spacing_mm[:, None]
     patch = np.stack([features.normal_angle_deg, features.curvature_axis_angle_deg,
                       features.kappa_max_per_m, features.kappa_min_per_m, features.mass_along_mm,
-                      np.broadcast_to(features.mass_perp_mm[:, None], (n, fingers))], axis=-1)  # (n, F, 6)
+                      # (n, F, 6)
+                      np.broadcast_to(features.mass_perp_mm[:, None], (n, fingers))], axis=-1)
     return np.concatenate([pose, patch], axis=-1)
 
 
@@ -117,7 +122,8 @@ def parse_weights(text: str | None, *, criteria: tuple = DEFAULT_CRITERIA) -> di
         try:
             w = float(value) if sep else float("nan")
         except ValueError:
-            raise ConfigError(f"--weights: {item.strip()!r} needs a weight of 0 or more, as {name}=1") from None
+            raise ConfigError(f"--weights: {item.strip()!r} needs a weight of 0 or more, as "
+                              f"{name}=1") from None
         given[name] = w
     return complete_weights(given, criteria=criteria)
 
@@ -128,7 +134,8 @@ def parse_criteria(text: str | None) -> tuple:
         return DEFAULT_CRITERIA
     if text == "paper":
         return PAPER_CRITERIA
-    raise ConfigError(f"--criteria: unknown set {text!r}; use default (the paper's seven with mass for com) or paper")
+    raise ConfigError(f"--criteria: unknown set {text!r}; use default (the paper's seven with mass "
+                      "for com) or paper")
 
 
 @dataclass(frozen=True)
@@ -141,7 +148,8 @@ class CostModel:
     ranges : (9,) float64, per column, for ``"range"`` (see :func:`feature_ranges`)
     criteria : the criteria in use (reported); the others have weight 0
     pooling : ``"quick"`` or ``"sum"`` (module notes)
-    rest_mm_per_jnd : (sink, hover), the mm of visible gap between a placed object and its prop's support
+    rest_mm_per_jnd : (sink, hover), the mm of visible gap between a placed object and its prop's
+    support
         that cost one JND (:mod:`pinchmatch.match.rest`)
 
     >>> model = CostModel({"width": 2.0})
@@ -164,7 +172,8 @@ class CostModel:
         if self.normalize == "range" and self.ranges is None:
             raise ConfigError("range normalisation needs the feature ranges of the run")
         if self.pooling not in POOLINGS:
-            raise ConfigError(f"--pooling: unknown pooling {self.pooling!r}; use quick (probability summation, "
+            raise ConfigError(f"--pooling: unknown pooling {self.pooling!r}; use quick "
+                              "(probability summation, "
                               "the default) or sum (the paper's sum of squares)")
         object.__setattr__(self, "criteria", tuple(self.criteria))
         full = complete_weights(dict(self.weights), criteria=self.criteria)
@@ -180,20 +189,24 @@ class CostModel:
         return QUICK_EXPONENT if self.pooling == "quick" else 2.0
 
     def as_jnd(self) -> "CostModel":
-        """The same criteria, weights and pooling, in just-noticeable differences (for ``p_noticed``)."""
-        return CostModel(self.weights, "jnd", None, self.criteria, self.pooling, self.rest_mm_per_jnd)
+        """The same criteria, weights and pooling, in just-noticeable differences (for
+        ``p_noticed``)."""
+        return CostModel(self.weights, "jnd", None, self.criteria, self.pooling,
+                         self.rest_mm_per_jnd)
 
     def weight_vector(self) -> np.ndarray:
         """(8,) the weights in the order of :data:`CRITERIA`."""
         return np.array([self.weights[c] for c in CRITERIA])
 
     def pool(self, terms: np.ndarray, *, extra: np.ndarray | None = None, rest=None) -> np.ndarray:
-        """The cost of (..., 8) contributions t_c: Σ w t (``sum``) or (Σ w t^(β/2))^(1/β) (``quick``).
+        """The cost of (..., 8) contributions t_c: Σ w t (``sum``) or (Σ w t^(β/2))^(1/β)
+        (``quick``).
 
         ``extra`` (..., m): further contributions in the same units, weight 1 each (the hand's
-        redirection: :mod:`pinchmatch.match.redirect`). ``rest`` (...) or a number: a visible fault of the
-        placement in JND-equivalents x (:mod:`pinchmatch.match.rest`), added to the pooled cost: x under
-        ``quick`` (the cost is in JND), x² under ``sum`` (the cost is in contributions)."""
+        redirection: :mod:`pinchmatch.match.redirect`). ``rest`` (...) or a number: a visible fault
+        of the placement in JND-equivalents x (:mod:`pinchmatch.match.rest`), added to the pooled
+        cost: x under ``quick`` (the cost is in JND), x² under ``sum`` (the cost is in
+        contributions)."""
         cost = self._pooled(terms, extra)
         if rest is None:
             return cost
@@ -205,18 +218,22 @@ class CostModel:
         w = self.weight_vector()
         if extra is not None:
             extra = np.maximum(np.asarray(extra, dtype=np.float64), 0.0)
-            terms = np.concatenate([terms, np.broadcast_to(extra, terms.shape[:-1] + extra.shape[-1:])], axis=-1)
+            terms = np.concatenate([terms,
+                                    np.broadcast_to(extra, terms.shape[:-1] + extra.shape[-1:])],
+                                    axis=-1)
             w = np.concatenate([w, np.ones(extra.shape[-1])])
         if self.pooling == "sum":
             return terms @ w
         beta = self.exponent
-        scale = np.sqrt(terms.max(axis=-1, keepdims=True))  # pooled relative to the largest: no overflow
+        # pooled relative to the largest: no overflow
+        scale = np.sqrt(terms.max(axis=-1, keepdims=True))
         safe = np.where(scale > 0, scale, 1.0)
         return scale[..., 0] * (((np.sqrt(terms) / safe) ** beta) @ w) ** (1.0 / beta)
 
     def bound_from_separable(self, separable, extra_weight: float = 0.0) -> np.ndarray:
         """A lower bound of the cost from S = Σ w t, the sum that the blockwise pass computes (with
-        ``extra_weight``, the weight of further contributions the sum holds: the redirection's angle).
+        ``extra_weight``, the weight of further contributions the sum holds: the redirection's
+        angle).
 
         ``sum``: S itself. ``quick``: with W = Σ w, the power means give Σ w x^β ≥ W (S / W)^(β/2)
         for β ≥ 2 (Jensen), so D ≥ W^(1/β - 1/2) √S; increasing in S, so the pairs of least S are
@@ -228,9 +245,9 @@ class CostModel:
         return total_weight ** (1.0 / self.exponent - 0.5) * np.sqrt(separable)
 
     def p_noticed(self, jnd_cost) -> np.ndarray:
-        """The probability that a difference of pooled cost ``jnd_cost`` (in JND, under this pooling) is
-        noticed: 1 - (1 - p₁)^(D^β) for ``quick`` (p₁ = :data:`DETECTION_AT_ONE_JND`), and the same with
-        β = 2 for ``sum`` (whose cost is already D²)."""
+        """The probability that a difference of pooled cost ``jnd_cost`` (in JND, under this
+        pooling) is noticed: 1 - (1 - p₁)^(D^β) for ``quick`` (p₁ = :data:`DETECTION_AT_ONE_JND`),
+        and the same with β = 2 for ``sum`` (whose cost is already D²)."""
         d = np.asarray(jnd_cost, dtype=np.float64)
         power = d if self.pooling == "sum" else np.power(d, self.exponent)
         return -np.expm1(power * np.log1p(-DETECTION_AT_ONE_JND))
@@ -248,8 +265,11 @@ class CostModel:
         s[..., 1] = COM_JND_MM
         s[..., 2:5] = np.maximum(ANGLE_JND_FRACTION * t[..., 2:5], ANGLE_JND_FLOOR_DEG)
         s[..., 5:7] = np.maximum(CURVATURE_JND_FRACTION * t[..., 5:7], CURVATURE_JND_FLOOR_PER_M)
-        fraction = TORQUE_JND_FRACTION if table.ndim >= 2 and table.shape[-2] == 3 else MASS_JND_FRACTION  # a tripod's
-        s[..., 7:9] = np.maximum(fraction * np.hypot(t[..., 7], t[..., 8]), MASS_JND_FLOOR_MM)[..., None]
+        # a tripod's
+        fraction = (TORQUE_JND_FRACTION if table.ndim >= 2 and table.shape[-2] == 3
+                    else MASS_JND_FRACTION)
+        s[..., 7:9] = np.maximum(fraction * np.hypot(t[..., 7], t[..., 8]),
+                                 MASS_JND_FLOOR_MM)[..., None]
         return s
 
     def column_weights(self, fingers: int = 2) -> np.ndarray:
@@ -268,30 +288,33 @@ def feature_ranges(*tables: np.ndarray) -> np.ndarray:
 
 
 def feature_bounds(table: np.ndarray) -> np.ndarray:
-    """(2, 10) least and greatest of each column of one table, and of the offset length (NaN ignored).
+    """(2, 10) least and greatest of each column of one table, and of the offset length (NaN
+    ignored).
 
     What :func:`ranges_from_bounds` needs, so that ranges can be gathered object by object."""
     stacked = table.reshape(-1, N_COLUMNS)
     offset = np.hypot(stacked[:, 7], stacked[:, 8])
     values = np.column_stack([stacked, offset])
-    return np.stack([np.fmin.reduce(values, axis=0, initial=np.inf), np.fmax.reduce(values, axis=0, initial=-np.inf)])
+    return np.stack([np.fmin.reduce(values, axis=0, initial=np.inf),
+                     np.fmax.reduce(values, axis=0, initial=-np.inf)])
 
 
 def ranges_from_bounds(bounds: list[np.ndarray]) -> np.ndarray:
     """(9,) :func:`feature_ranges` from the bounds of each table."""
     b = np.stack(bounds)
     span = np.fmax.reduce(b[:, 1], axis=0) - np.fmin.reduce(b[:, 0], axis=0)
-    ranges = np.where(np.isfinite(span[:N_COLUMNS]), span[:N_COLUMNS], np.nan)  # NaN: a column never defined
+    # NaN: a column never defined
+    ranges = np.where(np.isfinite(span[:N_COLUMNS]), span[:N_COLUMNS], np.nan)
     ranges[7:9] = span[N_COLUMNS]
     return ranges
 
 
 def distinct_entries(fingers: int) -> tuple[np.ndarray, np.ndarray]:
-    """The entries of a flattened (F, 9) table row that the blockwise passes compare, and how many of the
-    row's entries each stands for. Every contact's row repeats the pose columns (width, com distance,
-    tilt) and the lever arm; they count once, weighed by their repeats: a pinch's 18 entries make 14, a
-    tripod's 27 make 17 (its two fingers' spacing once, its mass offset across the grasp always 0, left
-    out). The same sums, in fewer products."""
+    """The entries of a flattened (F, 9) table row that the blockwise passes compare, and how many
+    of the row's entries each stands for. Every contact's row repeats the pose columns (width, com
+    distance, tilt) and the lever arm; they count once, weighed by their repeats: a pinch's 18
+    entries make 14, a tripod's 27 make 17 (its two fingers' spacing once, its mass offset across
+    the grasp always 0, left out). The same sums, in fewer products."""
     repeated = [0, 1, 2, 8] if fingers == 2 else [1, 2, 7, 8]
     keep, repeats = [], []
     for row in range(fingers):
@@ -303,13 +326,15 @@ def distinct_entries(fingers: int) -> tuple[np.ndarray, np.ndarray]:
             if fingers > 2 and column == 8:  # a tripod's offset across its line: 0 in every row
                 continue
             keep.append(row * N_COLUMNS + column)
-            repeats.append(fingers if column in repeated else 2 if fingers > 2 and column == 0 and row == 1 else 1)
+            repeats.append(fingers if column in repeated else 2 if fingers > 2 and column == 0
+                           and row == 1 else 1)
     return np.array(keep), np.array(repeats, dtype=np.float64)
 
 
 def _factors(virtual: np.ndarray, spread: np.ndarray | None = None) -> list[np.ndarray]:
-    """Virtual factors for both finger orders over the :func:`distinct_entries` of a row: (nv, 3 x E) =
-    [(v² + σ²) m, v m, m], m = defined, σ² the ``spread`` (a variance per entry, 0 without one)."""
+    """Virtual factors for both finger orders over the :func:`distinct_entries` of a row: (nv, 3 x
+    E) = [(v² + σ²) m, v m, m], m = defined, σ² the ``spread`` (a variance per entry, 0 without
+    one)."""
     nv = len(virtual)
     out = []
     spread = np.zeros_like(virtual) if spread is None else spread
@@ -319,15 +344,18 @@ def _factors(virtual: np.ndarray, spread: np.ndarray | None = None) -> list[np.n
         v, var = v.reshape(nv, -1)[:, keep], var.reshape(nv, -1)[:, keep]
         ok = (~np.isnan(v)).astype(np.float64)
         vv = np.nan_to_num(v)
-        out.append(np.ascontiguousarray(np.concatenate([(vv * vv + np.nan_to_num(var)) * ok, vv * ok, ok], axis=1).T))
+        out.append(np.ascontiguousarray(np.concatenate([(vv * vv + np.nan_to_num(var)) * ok,
+                                                        vv * ok, ok], axis=1).T))
     return out
 
 
-def _tangible_factors(t: np.ndarray, model: CostModel, w: np.ndarray, spread: np.ndarray | None = None) -> np.ndarray:
-    """Tangible factors of a block of rows (k, F, 9) over the :func:`distinct_entries` of a row, their
-    weights ``w`` (E,) (repeats included): (k, 3 x E) [a, -2 a t, a (t² + σ²)] with a = weight / s² (0
-    where ρ is undefined), so that Σ a ((v - t)² + σ_v² + σ_t²) m_v = [a, -2 a t, a (t² + σ_t²)] ·
-    [(v² + σ_v²) m_v, v m_v, m_v] (:func:`_factors`); σ² the ``spread`` of each entry (0 without one)."""
+def _tangible_factors(t: np.ndarray, model: CostModel, w: np.ndarray,
+                      spread: np.ndarray | None = None) -> np.ndarray:
+    """Tangible factors of a block of rows (k, F, 9) over the :func:`distinct_entries` of a row,
+    their weights ``w`` (E,) (repeats included): (k, 3 x E) [a, -2 a t, a (t² + σ²)] with a = weight
+    / s² (0 where ρ is undefined), so that Σ a ((v - t)² + σ_v² + σ_t²) m_v = [a, -2 a t, a (t² +
+    σ_t²)] · [(v² + σ_v²) m_v, v m_v, m_v] (:func:`_factors`); σ² the ``spread`` of each entry (0
+    without one)."""
     keep, _ = distinct_entries(t.shape[1])
     s = model.scales(t).reshape(len(t), -1)[:, keep]
     var = 0.0 if spread is None else np.nan_to_num(spread.reshape(len(t), -1)[:, keep])
@@ -343,13 +371,15 @@ def entry_weights(model: CostModel, fingers: int) -> np.ndarray:
     return model.column_weights(fingers).reshape(-1)[keep] * repeats
 
 
-def pair_cost_blocks(tangible: np.ndarray, virtual: np.ndarray, model: CostModel, *, block_rows: int = 2048,
-                     with_swapped: bool = True, spreads: tuple | None = None, extra=None):
-    """Yield ``(start, cost, swapped)`` for blocks of tangible rows: the separable cost of every pair.
+def pair_cost_blocks(tangible: np.ndarray, virtual: np.ndarray, model: CostModel, *,
+                     block_rows: int = 2048, with_swapped: bool = True,
+                     spreads: tuple | None = None, extra=None):
+    """Yield ``(start, cost, swapped)`` for blocks of tangible rows: the separable cost of every
+    pair.
 
     ``extra(start, stop)``, where given, returns for those tangible rows against every virtual row a
-    further contribution (weight 1) added to the sum, and which pairs are allowed; the others cost inf
-    (the redirection's budget: :func:`pinchmatch.match.redirect.pair_budget`).
+    further contribution (weight 1) added to the sum, and which pairs are allowed; the others cost
+    inf (the redirection's budget: :func:`pinchmatch.match.redirect.pair_budget`).
 
     With ``spreads`` (the tangible's and the virtual table's variance per entry, each shaped as its
     table) each entry's squared difference gains both variances: the expected separable cost of two
@@ -368,7 +398,8 @@ def pair_cost_blocks(tangible: np.ndarray, virtual: np.ndarray, model: CostModel
     buffers = np.empty((2, rows, nv))  # allocated once: no page faults per block
     for start in range(0, len(tangible), rows):
         t = tangible[start:start + rows]
-        left = _tangible_factors(t, model, w, None if t_spread is None else t_spread[start:start + rows])
+        left = _tangible_factors(t, model, w,
+                                 None if t_spread is None else t_spread[start:start + rows])
         c0, c1 = buffers[0, :len(t)], buffers[1, :len(t)]
         np.matmul(left, v_orders[0], out=c0)
         np.matmul(left, v_orders[1], out=c1)
@@ -382,8 +413,8 @@ def pair_cost_blocks(tangible: np.ndarray, virtual: np.ndarray, model: CostModel
         yield start, c0, swapped
 
 
-def pooled_bound_blocks(tangible: np.ndarray, virtual: np.ndarray, model: CostModel, *, block_rows: int = 512,
-                        extra=None):
+def pooled_bound_blocks(tangible: np.ndarray, virtual: np.ndarray, model: CostModel, *,
+                        block_rows: int = 512, extra=None):
     """Yield ``(start, bound)`` for blocks of tangible rows: per pair, the model's pooling of its
     separable contributions (``mass`` at its lower bound), in the better finger order.
 
@@ -398,7 +429,8 @@ def pooled_bound_blocks(tangible: np.ndarray, virtual: np.ndarray, model: CostMo
     nv, fingers = len(virtual), virtual.shape[1]
     w = entry_weights(model, fingers)
     keep, _ = distinct_entries(fingers)
-    criterion = np.tile(COLUMN_CRITERION, fingers)[keep]  # each distinct entry of a row of F patches
+    # each distinct entry of a row of F patches
+    criterion = np.tile(COLUMN_CRITERION, fingers)[keep]
     weights = model.weight_vector()
     used = [c for c in range(len(CRITERIA)) if weights[c] > 0]
     width = len(keep)
@@ -417,7 +449,8 @@ def pooled_bound_blocks(tangible: np.ndarray, virtual: np.ndarray, model: CostMo
                 part = left[:, columns[c]] @ order[columns[c]]  # weight x contribution
                 np.maximum(part, 0.0, out=part)  # round-off
                 part /= weights[c]
-                with np.errstate(divide="ignore"):  # x^half as exp(half·log x), faster than a power: 0 stays 0
+                with np.errstate(divide="ignore"):
+                    # x^half as exp(half·log x), faster than a power: 0 stays 0
                     np.log(part, out=part)
                 part *= half
                 np.exp(part, out=part)
@@ -431,7 +464,8 @@ def pooled_bound_blocks(tangible: np.ndarray, virtual: np.ndarray, model: CostMo
         yield start, best if model.pooling == "sum" else best ** (1.0 / model.exponent)
 
 
-def pair_costs(tangible: np.ndarray, virtual: np.ndarray, model: CostModel, *, block_rows: int = 2048):
+def pair_costs(tangible: np.ndarray, virtual: np.ndarray, model: CostModel, *,
+               block_rows: int = 2048):
     """Separable cost of every (tangible pose, virtual pose) pair, with the better finger order.
 
     Parameters
@@ -453,15 +487,16 @@ def pair_costs(tangible: np.ndarray, virtual: np.ndarray, model: CostModel, *, b
     return cost, swapped
 
 
-#: (9, 8) each column's criterion, as a matrix: a row of per-column values times it sums them per criterion
+#: (9, 8) each column's criterion, as a matrix: a row of per-column values times it sums them per
+#: criterion
 _COLUMNS_TO_CRITERIA = np.eye(len(CRITERIA))[COLUMN_CRITERION]
 
 
 def separable_terms(tangible_rows: np.ndarray, virtual_rows: np.ndarray, model: CostModel, *,
                     scales: np.ndarray | None = None) -> np.ndarray:
     """(k, 8) each criterion's contribution for k aligned pairs (virtual rows already in finger
-    order); the ``mass`` entry is its lower bound. ``scales``: the tangible rows' :meth:`CostModel.scales`,
-    where the caller has them."""
+    order); the ``mass`` entry is its lower bound. ``scales``: the tangible rows'
+    :meth:`CostModel.scales`, where the caller has them."""
     s = model.scales(tangible_rows) if scales is None else scales
     z = ((virtual_rows - tangible_rows) / s) ** 2
     z = np.where(np.isnan(z), 0.0, z)  # undefined ρ contributes nothing
@@ -477,8 +512,8 @@ def mass_term(tangible_rows: np.ndarray, delta_mm: np.ndarray, model: CostModel,
     return np.einsum("kd,kd->k", delta_mm, delta_mm) / s**2
 
 
-def contributions(tangible_row: np.ndarray, virtual_row: np.ndarray, model: CostModel, *, swapped: bool,
-                  mass_delta_mm: np.ndarray | None = None) -> dict:
+def contributions(tangible_row: np.ndarray, virtual_row: np.ndarray, model: CostModel, *,
+                  swapped: bool, mass_delta_mm: np.ndarray | None = None) -> dict:
     """Each criterion's contribution for one pair: mean over its entries of (difference / scale)².
 
     tangible_row, virtual_row : (2, 9). ``mass_delta_mm`` (3,), the offset mismatch after
@@ -492,6 +527,8 @@ def contributions(tangible_row: np.ndarray, virtual_row: np.ndarray, model: Cost
     return dict(zip(CRITERIA, terms.tolist()))
 
 
-def total(terms: np.ndarray, model: CostModel, extra: np.ndarray | None = None, rest=None) -> np.ndarray:
-    """The model's cost of (..., 8) contributions, any ``extra`` ones and a ``rest`` fault (:meth:`CostModel.pool`)."""
+def total(terms: np.ndarray, model: CostModel, extra: np.ndarray | None = None,
+          rest=None) -> np.ndarray:
+    """The model's cost of (..., 8) contributions, any ``extra`` ones and a ``rest`` fault
+    (:meth:`CostModel.pool`)."""
     return model.pool(terms, extra=extra, rest=rest)

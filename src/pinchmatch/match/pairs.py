@@ -1,18 +1,18 @@
 """Pose pairs as the exact search keeps them (:mod:`pinchmatch.match.search`).
 
 - :class:`PairResult`: the exact evaluation of pose pairs (registered, every term).
-- :class:`Ranked`: the pairs one blockwise pass kept, smallest sum first, and the least sum of any pair it
-  left out. A pool of any size up to the pass's is its first pairs, so a pool that grows needs no new
-  pass while its selection (separable sum or pooled bound) stays the same. A search's candidates that
-  grow (refinement) add the new pairs' own passes to it (:meth:`Ranked.merged`), and the grown pool is
-  its first pairs.
-- :class:`Seen`: every pair evaluated for a pool, kept or not, so that a pool that grows evaluates only
-  pairs it has not seen.
+- :class:`Ranked`: the pairs one blockwise pass kept, smallest sum first, and the least sum of any
+  pair it left out. A pool of any size up to the pass's is its first pairs, so a pool that grows
+  needs no new pass while its selection (separable sum or pooled bound) stays the same. A search's
+  candidates that grow (refinement) add the new pairs' own passes to it (:meth:`Ranked.merged`), and
+  the grown pool is its first pairs.
+- :class:`Seen`: every pair evaluated for a pool, kept or not, so that a pool that grows evaluates
+  only pairs it has not seen.
 
-None of them changes what a search finds: a pool of a given size holds the pairs of least value and a
-bound below every pair it leaves out, whether it came from a pass of its own size or from a larger one's
-list (which of equal values at its edge it takes may differ; the search is exact either way), and a
-pair's evaluation does not depend on which others it was evaluated with.
+None of them changes what a search finds: a pool of a given size holds the pairs of least value and
+a bound below every pair it leaves out, whether it came from a pass of its own size or from a larger
+one's list (which of equal values at its edge it takes may differ; the search is exact either way),
+and a pair's evaluation does not depend on which others it was evaluated with.
 """
 
 from __future__ import annotations
@@ -32,9 +32,9 @@ class PairResult:
     (k, 3) seen minus felt centre-of-mass offset in the tangible's frame, allowed (k,) bool
     (False: flipped under ``keep_upright``, or redirected beyond the budget; cost is then inf),
     redirect_terms (k, 2) the redirection's contributions (zero unless the placement is fixed),
-    rest_gap_mm (k,) the placed object's lowest point over the prop's support (NaN where it is not shown
-    on a support: :mod:`pinchmatch.match.rest`), rest_jnd (k,) what the gap adds to the cost, in
-    JND-equivalents (0 where nothing is charged).
+    rest_gap_mm (k,) the placed object's lowest point over the prop's support (NaN where it is not
+    shown on a support: :mod:`pinchmatch.match.rest`), rest_jnd (k,) what the gap adds to the cost,
+    in JND-equivalents (0 where nothing is charged).
     """
 
     cost: np.ndarray
@@ -67,9 +67,9 @@ def _ordered(it: np.ndarray, iv: np.ndarray, value: np.ndarray) -> tuple:
 
 @dataclass(frozen=True)
 class Ranked:
-    """Pairs (``it``, ``iv``) with their ``value`` (separable sum, or pooled bound where ``tight``), smallest
-    first (equal values in the order the pass gave them); every pair not listed has a value of at least
-    ``rest`` (inf: every pair is listed), and every listed one less."""
+    """Pairs (``it``, ``iv``) with their ``value`` (separable sum, or pooled bound where ``tight``),
+    smallest first (equal values in the order the pass gave them); every pair not listed has a value
+    of at least ``rest`` (inf: every pair is listed), and every listed one less."""
 
     it: np.ndarray
     iv: np.ndarray
@@ -78,9 +78,11 @@ class Ranked:
     tight: bool
 
     @classmethod
-    def of(cls, it: np.ndarray, iv: np.ndarray, value: np.ndarray, rest: float, tight: bool) -> "Ranked":
+    def of(cls, it: np.ndarray, iv: np.ndarray, value: np.ndarray, rest: float,
+           tight: bool) -> "Ranked":
         """A pass's pairs (any order) and the least value it left out."""
-        return cls(*_ordered(np.asarray(it), np.asarray(iv), np.asarray(value)), float(rest), bool(tight))
+        return cls(*_ordered(np.asarray(it), np.asarray(iv), np.asarray(value)), float(rest),
+                   bool(tight))
 
     def serves(self, size: int, tight: bool) -> bool:
         """Does this list hold the pool of ``size`` under this selection, and the value after it?"""
@@ -93,8 +95,9 @@ class Ranked:
         return self.it, self.iv, self.rest
 
     def merged(self, parts: list) -> "Ranked":
-        """This list and the lists ``parts`` [(it, iv, value, rest)] of pairs it does not hold, under the
-        same selection (indices in one numbering): complete below the least of their ``rest``."""
+        """This list and the lists ``parts`` [(it, iv, value, rest)] of pairs it does not hold,
+        under the same selection (indices in one numbering): complete below the least of their
+        ``rest``."""
         rest = min([self.rest] + [float(p[3]) for p in parts])
         it = np.concatenate([self.it] + [p[0] for p in parts])
         iv = np.concatenate([self.iv] + [p[1] for p in parts])
@@ -105,7 +108,8 @@ class Ranked:
 
 @dataclass(frozen=True)
 class Seen:
-    """Pairs evaluated for a pool, kept or not, in (tangible pose, virtual pose) order, and their results."""
+    """Pairs evaluated for a pool, kept or not, in (tangible pose, virtual pose) order, and their
+    results."""
 
     it: np.ndarray
     iv: np.ndarray
@@ -118,7 +122,8 @@ class Seen:
         return cls(it[order], iv[order], take_pairs(result, order))
 
     def find(self, it: np.ndarray, iv: np.ndarray, nv: int) -> np.ndarray:
-        """(k,) where each pair lies in this list, -1 where it was not evaluated (``nv``: the virtual poses)."""
+        """(k,) where each pair lies in this list, -1 where it was not evaluated (``nv``: the
+        virtual poses)."""
         mine, asked = self.it * nv + self.iv, it * nv + iv
         if not len(mine):
             return np.full(len(asked), -1)

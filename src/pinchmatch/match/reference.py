@@ -22,7 +22,8 @@ from .register import FLIP_COSINE
 MAX_LINE_HITS = 16
 
 
-def line_contacts(obj: ObjectAnalysis, point: np.ndarray, direction: np.ndarray) -> np.ndarray | None:
+def line_contacts(obj: ObjectAnalysis, point: np.ndarray,
+                  direction: np.ndarray) -> np.ndarray | None:
     """(2, 3) where two fingers closing along a line meet the surface of ``obj``, or None.
 
     The line passes through ``point`` along ``direction``; the first finger comes from the
@@ -32,7 +33,8 @@ def line_contacts(obj: ObjectAnalysis, point: np.ndarray, direction: np.ndarray)
     return None if hits is None else hits[0]
 
 
-def _line_hits(obj: ObjectAnalysis, point: np.ndarray, direction: np.ndarray, near: np.ndarray | None = None):
+def _line_hits(obj: ObjectAnalysis, point: np.ndarray, direction: np.ndarray,
+               near: np.ndarray | None = None):
     """:func:`line_contacts` and the (2,) triangles hit, or None.
 
     Without ``near``, each finger comes from far outside and stops at the first surface. With
@@ -41,7 +43,8 @@ def _line_hits(obj: ObjectAnalysis, point: np.ndarray, direction: np.ndarray, ne
     u = np.asarray(direction, dtype=np.float64)
     u = u / np.linalg.norm(u)
     bounds = obj.props.bounds_mm
-    reach = np.linalg.norm(bounds[1] - bounds[0]) + np.linalg.norm(point - bounds.mean(axis=0)) + 1.0
+    reach = (np.linalg.norm(bounds[1] - bounds[0]) + np.linalg.norm(point - bounds.mean(axis=0))
+             + 1.0)
     if near is None:
         origins = np.array([point - reach * u, point + reach * u])
         face, dist = obj.context.first_hit(origins, np.array([u, -u]))
@@ -49,10 +52,11 @@ def _line_hits(obj: ObjectAnalysis, point: np.ndarray, direction: np.ndarray, ne
             return None
         points = origins + dist[:, None] * np.array([u, -u])
     else:
-        # the surfaces facing the first finger (normal against u) are where a ray along -u leaves the
-        # solid, and those facing the second where a ray along +u does
+        # the surfaces facing the first finger (normal against u) are where a ray along -u leaves
+        # the solid, and those facing the second where a ray along +u does
         origins = np.array([point + reach * u, point - reach * u])
-        ray, face_all, dist_all = obj.context.exits(origins, np.array([-u, u]), max_distance=2.0 * reach,
+        ray, face_all, dist_all = obj.context.exits(origins, np.array([-u, u]),
+                                                    max_distance=2.0 * reach,
                                                     max_hits=MAX_LINE_HITS)
         points, face = np.zeros((2, 3)), np.zeros(2, dtype=np.int64)
         for k, sign in ((0, -1.0), (1, 1.0)):
@@ -107,24 +111,28 @@ class Reference:
 
 
 def reference_pose(tangible: Candidates, t_pose: int, virtual: Candidates, model: CostModel, *,
-                   settings: PinchSettings = PinchSettings(), memo: dict | None = None) -> Reference:
+                   settings: PinchSettings = PinchSettings(),
+                   memo: dict | None = None) -> Reference:
     """Where the tangible pose's pinch line meets the virtual surface, and its cost.
 
     Each finger closes along the tangible's pinch line from its own side, from where it holds the
     tangible; its contact is the virtual surface facing it nearest to that place (a finger inside a
-    cup meets the cup's inner wall, not the outer wall across the cup). The placement is the identity (both files' frames), the
-    finger order p1 on p1. The cost is ``None`` with a reason when a finger meets nothing.
-    Use :func:`reference_cost` for the same pose under another model; ``memo``: as for
-    :func:`line_pinch`.
+    cup meets the cup's inner wall, not the outer wall across the cup). The placement is the
+    identity (both files' frames), the finger order p1 on p1. The cost is ``None`` with a reason
+    when a finger meets nothing. Use :func:`reference_cost` for the same pose under another model;
+    ``memo``: as for :func:`line_pinch`.
     """
     p = tangible.pinches.points[t_pose]
     if len(p) != 2:
-        return Reference(None, None, None, None, "the paper's reference places a pinch: a tripod has none")
+        return Reference(None, None, None, None,
+                         "the paper's reference places a pinch: a tripod has none")
     pinches = line_pinch(virtual, p.mean(axis=0), p[1] - p[0], settings=settings, near=p, memo=memo)
     if pinches is None:
         node = getattr(virtual.obj.spec, "node", None) if virtual.obj.spec is not None else None
-        return Reference(None, None, None, None, "the tangible's pinch line misses the virtual object" + (
-            " (a level's node lies where the level puts it, not at its file's origin, where the paper's reference "
+        return Reference(None, None, None, None,
+                         "the tangible's pinch line misses the virtual object" + (
+            " (a level's node lies where the level puts it, not at its file's origin, where the "
+            "paper's reference "
             "sets it on the prop)" if node is not None else ""))
     features = pinch_features(pinches, virtual.obj.props)
     flipped = bool(virtual.obj.loaded.up @ tangible.obj.loaded.up < FLIP_COSINE)
@@ -143,6 +151,7 @@ def reference_cost(tangible: Candidates, t_pose: int, virtual: Candidates, ref: 
 
 def _reference_terms(tangible, t_pose, virtual, pinches, features, model) -> np.ndarray:
     """(8,) contributions of the reference pose, placed by the identity, p1 on p1."""
-    terms, _ = pair_terms(tangible, virtual, tangible.table[t_pose][None], feature_table(features), model,
-                          R=np.eye(3), t_points=tangible.pinches.points[t_pose][None], v_points=pinches.points[:1])
+    terms, _ = pair_terms(tangible, virtual, tangible.table[t_pose][None], feature_table(features),
+                          model, R=np.eye(3), t_points=tangible.pinches.points[t_pose][None],
+                          v_points=pinches.points[:1])
     return terms[0]

@@ -5,8 +5,9 @@ poses; a sample is a sample, so another seed finds other pairs. First the target
 (:mod:`pinchmatch.match.targeted`) adds the poses each side needs, looked for by their features, and
 the search runs over the union. Refinement then takes the ``SEEDS`` best distinct pairs on the best
 tangible and the ``OTHER_SEEDS`` best on every other tangible that could serve the virtual object
-(its least cost so far within ``CONTENDER_RATIO`` of the best tangible's), both in proportion to the count
-above the default (:func:`seed_counts`), and improves each by a pattern search over the four degrees of freedom of each pinch:
+(its least cost so far within ``CONTENDER_RATIO`` of the best tangible's), both in proportion to the
+count above the default (:func:`seed_counts`), and improves each by a pattern search over the four
+degrees of freedom of each pinch:
 
 - the contacts move by ``step`` along the object's axis (projected off the pinch line) and
   across it, both ways: each alone, both together (the pinch slides) and both opposite (the
@@ -43,12 +44,14 @@ from ..grasp.curvature import tangent_frame
 from ..grasp.pinches import PinchSettings, Pinches, check_pinches, check_reach, closing_directions
 from ..grasp.spread import other_order
 from ..grasp.tripod_rules import Tripods, check_tripods
-from .candidates import REFINED_INDEX, Candidates, extend, felt_table, mass_ratio, with_count  # noqa: F401 (re-exported)
+from .candidates import (REFINED_INDEX, Candidates, extend, felt_table, mass_ratio,  # noqa: F401
+                         with_count)
 from .cost import CostModel, separable_terms
 from .search import Search, cost_row, evaluate_pairs
 from .targeted import targeted_poses
 
-#: distinct best pairs refined per tangible, at the default count (in proportion above it: :func:`seed_counts`)
+#: distinct best pairs refined per tangible, at the default count (in proportion above it:
+#: :func:`seed_counts`)
 SEEDS = 2
 #: on the other contending tangibles, this many
 OTHER_SEEDS = 1
@@ -78,8 +81,8 @@ class _Grown:
 
 
 def move_directions(points: np.ndarray, axis: np.ndarray) -> np.ndarray:
-    """(k, 2, 3) unit directions perpendicular to each pinch line (a tripod's: from the thumb to the middle
-    of its fingers): along the object's ``axis``
+    """(k, 2, 3) unit directions perpendicular to each pinch line (a tripod's: from the thumb to the
+    middle of its fingers): along the object's ``axis``
     projected off the line, and across it (the line x that). Where the axis lies along the line,
     any perpendicular pair."""
     u = points[:, 1:].mean(axis=1) - points[:, 0]
@@ -95,17 +98,20 @@ def move_directions(points: np.ndarray, axis: np.ndarray) -> np.ndarray:
 #: the moves of a pose, per contact (p1, p2): which direction (0: e1, 1: e2) and how far in steps.
 #: Each contact alone, both together (the pinch slides) and both opposite (the pinch turns),
 #: along e1 and e2, both ways: 16 moves
-MOVES = np.array([(d, sign * a, sign * b) for a, b in ((1, 0), (0, 1), (1, 1), (1, -1)) for d in (0, 1)
+MOVES = np.array([(d, sign * a, sign * b) for a, b in ((1, 0), (0, 1), (1, 1), (1, -1))
+                  for d in (0, 1)
                   for sign in (1, -1)], dtype=np.int64)
-#: a tripod's (thumb, index, middle): each contact alone, all together (the tripod slides), the thumb
-#: against the fingers (it turns about the fingers' middle) and the fingers against each other (they
-#: turn about the aperture line), along e1 and e2, both ways: 24 moves
+#: a tripod's (thumb, index, middle): each contact alone, all together (the tripod slides), the
+#: thumb against the fingers (it turns about the fingers' middle) and the fingers against each other
+#: (they turn about the aperture line), along e1 and e2, both ways: 24 moves
 TRIPOD_MOVES = np.array([(d, sign * a, sign * b, sign * c)
-                         for a, b, c in ((1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 1, 1), (1, -1, -1), (0, 1, -1))
+                         for a, b, c in ((1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 1, 1), (1, -1, -1),
+                                         (0, 1, -1))
                          for d in (0, 1) for sign in (1, -1)], dtype=np.int64)
 
 
-def moved_poses(c: Candidates, poses: np.ndarray, steps: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def moved_poses(c: Candidates, poses: np.ndarray,
+                steps: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The moves of each pose (``MOVES``): (m, 2, 3) contacts, (m, 2) triangles and (m,) which
     pose each came from, for the moves whose moved contacts a closing finger meets.
 
@@ -128,7 +134,8 @@ def moved_poses(c: Candidates, poses: np.ndarray, steps: np.ndarray) -> tuple[np
     ok = np.ones(len(which), dtype=bool)
     for contact in range(fingers):
         rows = np.flatnonzero(move[:, 1 + contact] != 0)
-        point, face = close_fingers(c.obj.context, new[rows, contact], toward[rows, contact], back[rows])
+        point, face = close_fingers(c.obj.context, new[rows, contact], toward[rows, contact],
+                                    back[rows])
         met = face >= 0
         ok[rows[~met]] = False
         new[rows[met], contact] = point[met]
@@ -136,7 +143,8 @@ def moved_poses(c: Candidates, poses: np.ndarray, steps: np.ndarray) -> tuple[np
     return new[ok], faces[ok], which[ok]
 
 
-def close_fingers(context, points: np.ndarray, toward: np.ndarray, back_mm) -> tuple[np.ndarray, np.ndarray]:
+def close_fingers(context, points: np.ndarray, toward: np.ndarray,
+                  back_mm) -> tuple[np.ndarray, np.ndarray]:
     """Where fingers closing along ``toward`` from ``back_mm`` (a number, or one per point) behind
     ``points`` first meet a surface facing them, within twice that: (n, 3) contacts and (n,)
     triangles, -1 where they meet none."""
@@ -144,7 +152,8 @@ def close_fingers(context, points: np.ndarray, toward: np.ndarray, back_mm) -> t
     origin = points - back[:, None] * toward
     face, dist = context.first_hit(origin, toward)
     met = (face >= 0) & (dist <= 2.0 * back)
-    met[met] = np.einsum("ij,ij->i", context.face_normals[face[met]], toward[met]) < 0  # met from outside
+    # met from outside
+    met[met] = np.einsum("ij,ij->i", context.face_normals[face[met]], toward[met]) < 0
     contact = origin + np.where(np.isfinite(dist), dist, 0.0)[:, None] * toward
     return contact, np.where(met, face, -1)
 
@@ -154,8 +163,9 @@ class _Moves:
     """One object's moves in a round, every rule but ``reach`` checked.
 
     Move k has the index ``base + k`` in the round's extended candidates (the grown list, then the
-    moves); ``which`` says which of the round's poses it came from, ``approach`` is that pose's (tried
-    first when reach is checked), and ``reached`` is 1 once reach holds, -1 once it does not, 0 before.
+    moves); ``which`` says which of the round's poses it came from, ``approach`` is that pose's
+    (tried first when reach is checked), and ``reached`` is 1 once reach holds, -1 once it does not,
+    0 before.
     """
 
     pinches: Pinches | None
@@ -167,8 +177,10 @@ class _Moves:
         self.reached = np.zeros(len(self.which), dtype=np.int8)
 
 
-def propose(grown: "_Grown", poses: list[int], steps: list[float], settings: PinchSettings, *, fixed: bool) -> _Moves:
-    """The moves of ``poses`` (their ``steps``) on ``grown``'s object that keep every rule but reach."""
+def propose(grown: "_Grown", poses: list[int], steps: list[float], settings: PinchSettings, *,
+            fixed: bool) -> _Moves:
+    """The moves of ``poses`` (their ``steps``) on ``grown``'s object that keep every rule but
+    reach."""
     base = len(grown.current)
     if fixed or not poses:
         return _Moves(None, np.zeros(0, dtype=np.int64), np.zeros((0, 3)), base)
@@ -180,8 +192,8 @@ def propose(grown: "_Grown", poses: list[int], steps: list[float], settings: Pin
     if isinstance(c.pinches, Tripods):
         checked = check_tripods(c.obj.context, points, faces, settings=settings, with_reach=False)
     else:
-        checked = check_pinches(c.obj.context, points[:, 0], points[:, 1], settings=settings, faces=faces,
-                                with_reach=False)
+        checked = check_pinches(c.obj.context, points[:, 0], points[:, 1], settings=settings,
+                                faces=faces, with_reach=False)
     keep = np.flatnonzero(checked.feasible)
     return _Moves(checked.subset(keep), which[keep], c.pinches.approach[poses][which[keep]], base)
 
@@ -193,8 +205,8 @@ def _confirm(context, moves: _Moves, rows: np.ndarray, settings: PinchSettings) 
     rows = rows[moves.reached[rows] == 0]
     if not len(rows):
         return
-    moves.pinches = check_reach(context, moves.pinches, settings=settings, approach=moves.approach[rows],
-                                thorough=False, rows=rows)
+    moves.pinches = check_reach(context, moves.pinches, settings=settings,
+                                approach=moves.approach[rows], thorough=False, rows=rows)
     moves.reached[rows] = np.where(moves.pinches.feasible[rows], 1, -1)
 
 
@@ -213,9 +225,9 @@ class _Pair:
 WAVE = 2
 
 
-def refine(tangibles: list[Candidates], virtual: Candidates, seeds: list[tuple[int, int, int, float]],
-           model: CostModel, *, keep_upright: bool, settings: PinchSettings,
-           redirect=None, user_mm=None) -> tuple[list, Candidates]:
+def refine(tangibles: list[Candidates], virtual: Candidates,
+           seeds: list[tuple[int, int, int, float]], model: CostModel, *, keep_upright: bool,
+           settings: PinchSettings, redirect=None, user_mm=None) -> tuple[list, Candidates]:
     """Pattern search from ``seeds`` (tangible, tangible pose, virtual pose, cost); returns every
     tangible's candidates and the virtual object's, with the feasible poses the search visited
     (``redirect``, ``user_mm``: the hand's redirection and where the user stands, as
@@ -233,13 +245,17 @@ def refine(tangibles: list[Candidates], virtual: Candidates, seeds: list[tuple[i
         if not live:
             break
         t_moves = {t: propose(grown_t[t], [p.t_pose for p in live if p.tangible == t],
-                              [p.step for p in live if p.tangible == t], settings, fixed=tangibles[t].given)
+                              [p.step for p in live if p.tangible == t], settings,
+                              fixed=tangibles[t].given)
                    for t in sorted({p.tangible for p in live})}
-        v_moves = propose(grown_v, [p.v_pose for p in live], [p.step for p in live], settings, fixed=virtual.given)
+        v_moves = propose(grown_v, [p.v_pose for p in live], [p.step for p in live], settings,
+                          fixed=virtual.given)
         V = grown_v.current if v_moves.pinches is None else extend(grown_v.current, v_moves.pinches)
-        options = {}  # live pair -> its improving (tangible pose, virtual pose, cost), cheapest first
+        # live pair -> its improving (tangible pose, virtual pose, cost), cheapest first
+        options = {}
         for t, moves in t_moves.items():
-            T = grown_t[t].current if moves.pinches is None else extend(grown_t[t].current, moves.pinches)
+            T = grown_t[t].current if moves.pinches is None else extend(grown_t[t].current,
+                                                                        moves.pinches)
             mine = [(i, p) for i, p in enumerate(live) if p.tangible == t]
             its, ivs, owner = [], [], []
             for k, (i, p) in enumerate(mine):
@@ -249,15 +265,17 @@ def refine(tangibles: list[Candidates], virtual: Candidates, seeds: list[tuple[i
                 ivs.append(np.tile(vs, len(ts)))
                 owner.append(np.full(len(ts) * len(vs), k))
             it, iv, owner = np.concatenate(its), np.concatenate(ivs), np.concatenate(owner)
-            # exactly evaluated only where the separable bound leaves room for an improvement: a pair
-            # left out costs at least its bound, so it could not have been taken
+            # exactly evaluated only where the separable bound leaves room for an improvement: a
+            # pair left out costs at least its bound, so it could not have been taken
             needed = np.array([p.cost for _, p in mine])[owner] * (1.0 - IMPROVEMENT)
-            bound = model.bound_from_separable(separable_sums(T, V, it, iv, model)) * (1.0 - 1e-9)  # round-off
+            # round-off
+            bound = model.bound_from_separable(separable_sums(T, V, it, iv, model)) * (1.0 - 1e-9)
             ask = np.flatnonzero(bound < needed)
             cost = np.full(len(it), np.inf)
             if len(ask):
-                cost[ask] = evaluate_pairs(T, V, it[ask], iv[ask], model=model, keep_upright=keep_upright,
-                                           redirect=redirect, user_mm=user_mm).cost
+                cost[ask] = evaluate_pairs(T, V, it[ask], iv[ask], model=model,
+                                           keep_upright=keep_upright, redirect=redirect,
+                                           user_mm=user_mm).cost
             for k, (i, p) in enumerate(mine):
                 rows = np.flatnonzero((owner == k) & (cost < p.cost * (1.0 - IMPROVEMENT)))
                 rows = rows[np.argsort(cost[rows], kind="stable")]
@@ -268,7 +286,8 @@ def refine(tangibles: list[Candidates], virtual: Candidates, seeds: list[tuple[i
         for i, p in enumerate(live):
             if i in taken:
                 it, iv, cost = taken[i]
-                p.t_pose, p.v_pose, p.cost = int(t_index[p.tangible][it]), int(v_index[iv]), float(cost)
+                p.t_pose, p.v_pose, p.cost = (int(t_index[p.tangible][it]), int(v_index[iv]),
+                                              float(cost))
             else:
                 p.step /= 2.0
     return [g.current for g in grown_t], grown_v.current
@@ -276,7 +295,8 @@ def refine(tangibles: list[Candidates], virtual: Candidates, seeds: list[tuple[i
 
 def _take_reachable(live, options, t_moves, v_moves, grown_t, grown_v, settings) -> dict:
     """Per live pair, its cheapest option whose moved poses reach holds for: {pair: (t, v, cost)},
-    in the round's extended indices. Reach is checked in waves, ``WAVE`` options per pair at a time."""
+    in the round's extended indices. Reach is checked in waves, ``WAVE`` options per pair at a
+    time."""
     first = {i: 0 for i, (it, _, _) in options.items() if len(it)}
     taken = {}
 
@@ -330,30 +350,34 @@ def _keep_reached(grown: _Grown, moves: _Moves) -> np.ndarray:
     return index
 
 
-def separable_sums(T: Candidates, V: Candidates, it: np.ndarray, iv: np.ndarray, model: CostModel) -> np.ndarray:
+def separable_sums(T: Candidates, V: Candidates, it: np.ndarray, iv: np.ndarray,
+                   model: CostModel) -> np.ndarray:
     """(k,) S = Σ w·t of each pair in its better finger order, with the ``mass`` term's lower bound:
-    what the blockwise pass computes (:func:`pinchmatch.match.cost.pair_cost_blocks`), for given pairs."""
+    what the blockwise pass computes (:func:`pinchmatch.match.cost.pair_cost_blocks`), for given
+    pairs."""
     t_rows = T.table[it]
     v_rows = felt_table(V.table[iv], mass_ratio(T, V))
     w = model.weight_vector()
     other = other_order(v_rows.shape[1])
-    return np.minimum(separable_terms(t_rows, v_rows, model) @ w, separable_terms(t_rows, v_rows[:, other], model) @ w)
+    return np.minimum(separable_terms(t_rows, v_rows, model) @ w,
+                      separable_terms(t_rows, v_rows[:, other], model) @ w)
 
 
 def seed_counts(count: int) -> tuple[int, int]:
-    """How many distinct best pairs refinement starts from on the best tangible and on each other contender at a
-    sampling count of ``count`` poses per object: ``SEEDS`` and ``OTHER_SEEDS`` up to the default count, in
-    proportion above it. A denser sample holds more pairs near each good one on target, so the few best of a
-    smaller sample (whose poses a nested larger sample holds) lie further down its order: starting from as
-    many in proportion, refinement still climbs the basins the smaller sample's starts did."""
+    """How many distinct best pairs refinement starts from on the best tangible and on each other
+    contender at a sampling count of ``count`` poses per object: ``SEEDS`` and ``OTHER_SEEDS`` up to
+    the default count, in proportion above it. A denser sample holds more pairs near each good one
+    on target, so the few best of a smaller sample (whose poses a nested larger sample holds) lie
+    further down its order: starting from as many in proportion, refinement still climbs the basins
+    the smaller sample's starts did."""
     return with_count(SEEDS, count, MAX_SEEDS), with_count(OTHER_SEEDS, count, MAX_SEEDS // 2)
 
 
 def refined_search(tangibles: list[Candidates], virtual: Candidates, model: CostModel, settings, *,
                    pinch_settings: PinchSettings) -> Search:
     """The exact search of one virtual object against every tangible, over the sampled poses and,
-    unless ``settings.refine`` is off, the poses the targeted step (:mod:`pinchmatch.match.targeted`)
-    and then refinement found (see the module's notes).
+    unless ``settings.refine`` is off, the poses the targeted step
+    (:mod:`pinchmatch.match.targeted`) and then refinement found (see the module's notes).
 
     Which tangibles are refined depends on the costs before refinement alone, not on which tangibles
     the object may use in the end (``--one-to-one``), so a cost row and a result agree."""
@@ -373,6 +397,7 @@ def refined_search(tangibles: list[Candidates], virtual: Candidates, model: Cost
     seeds = [(int(t), c.t_pose, c.v_pose, c.cost)
              for t in np.flatnonzero(finite & (row <= CONTENDER_RATIO * best))
              for c in search.choices(0, [int(t)], on_best if row[t] == best else on_other)]
-    grown_t, grown_v = refine(search.tangibles, search.virtuals[0], seeds, model, keep_upright=settings.keep_upright,
-                              settings=pinch_settings, redirect=settings.redirect, user_mm=settings.user_mm)
+    grown_t, grown_v = refine(search.tangibles, search.virtuals[0], seeds, model,
+                              keep_upright=settings.keep_upright, settings=pinch_settings,
+                              redirect=settings.redirect, user_mm=settings.user_mm)
     return search.grown(grown_t, [grown_v])

@@ -25,8 +25,8 @@ MASS_TIE_WEIGHT = 0.1
 AXIS_TIE_WEIGHT = 0.05
 #: a normal this close to the pinch line does not take part in choosing the roll
 NORMAL_ALONG_LINE_DEG = 5.0
-#: a contact's normal counts in the fit of three contacts as a point this far out along it (mm): about a
-#: fingertip's radius, so that the pads' facing matters as much as where they are
+#: a contact's normal counts in the fit of three contacts as a point this far out along it (mm):
+#: about a fingertip's radius, so that the pads' facing matters as much as where they are
 NORMAL_LEVER_MM = 8.0
 #: a registration that turns the virtual object's up direction more than 90° (cosine below this)
 #: is ``flipped``
@@ -36,11 +36,13 @@ FLIP_COSINE = -1e-6
 def _about(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
     """(k, 3, 3) rotations by angle (k,) about unit axes (k, 3)."""
     K = cross_matrices(axis)
-    return np.eye(3) + np.sin(angle)[:, None, None] * K + (1.0 - np.cos(angle))[:, None, None] * (K @ K)
+    return (np.eye(3) + np.sin(angle)[:, None, None] * K + (1.0 - np.cos(angle))[:, None, None]
+            * (K @ K))
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Rowwise a x b of (k, 3) arrays: ``np.cross``'s arithmetic, without its general-axis set-up."""
+    """Rowwise a x b of (k, 3) arrays: ``np.cross``'s arithmetic, without its general-axis
+    set-up."""
     return np.stack([a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1], a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
                      a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]], axis=1)
 
@@ -69,7 +71,8 @@ def register_poses(
     >>> virtual = np.array([[[0.0, -10.0, 5.0], [0.0, 10.0, 5.0]]])  # one across Y, 5 mm up
     >>> T = register_poses(tangible, np.sign(tangible), virtual, np.sign(virtual) * [1, 1, 0],
     ...                    tangible_com=np.zeros((1, 3)), virtual_com=np.zeros((1, 3)),
-    ...                    tangible_axis=np.array([[0.0, 0.0, 1.0]]), virtual_axis=np.array([[0.0, 0.0, 1.0]]))
+    ...                    tangible_axis=np.array([[0.0, 0.0, 1.0]]),
+    ...                    virtual_axis=np.array([[0.0, 0.0, 1.0]]))
     >>> (virtual[0] @ T[0, :3, :3].T + T[0, :3, 3]).round(6) + 0.0  # the virtual contacts, placed
     array([[-10.,   0.,   0.],
            [ 10.,   0.,   0.]])
@@ -95,9 +98,11 @@ def register_poses(
         p = perp(x)
         return p * (np.linalg.norm(p, axis=1) > np.sin(np.radians(NORMAL_ALONG_LINE_DEG)))[:, None]
 
-    pairs = [(across(moved(virtual_normals[:, j])), across(tangible_normals[:, j]), 1.0) for j in range(2)]
+    pairs = [(across(moved(virtual_normals[:, j])), across(tangible_normals[:, j]), 1.0)
+             for j in range(2)]
     dm_v, dm_t = moved(vc - vm), tc - tm
-    has_mass = (np.linalg.norm(perp(dm_v), axis=1) > 1e-9) & (np.linalg.norm(perp(dm_t), axis=1) > 1e-9)
+    has_mass = (np.linalg.norm(perp(dm_v), axis=1) > 1e-9) & (np.linalg.norm(perp(dm_t), axis=1)
+                                                              > 1e-9)
     pairs.append((_unit(dm_v), _unit(dm_t), MASS_TIE_WEIGHT * has_mass))
     pairs.append((moved(va), ta, AXIS_TIE_WEIGHT))
     sin_sum, cos_sum = 0.0, 0.0
@@ -114,18 +119,20 @@ def register_poses(
     return T
 
 
-def register_contacts(tangible_points: np.ndarray, tangible_normals: np.ndarray, virtual_points: np.ndarray,
-                      virtual_normals: np.ndarray) -> np.ndarray:
-    """(k, 4, 4) rigid transforms (mm, det +1) taking k virtual grasps of three or more contacts (k, F, 3),
-    the virtual ones in finger order, onto k tangible ones: the least-squares fit (Kabsch 1976; Umeyama
-    1991) of the contacts about their centroids, and of the patch normals, each counted as a point
-    ``NORMAL_LEVER_MM`` out along it. The centroids coincide; three contacts fix every turn, so the
-    centres of mass and axes need no part.
+def register_contacts(tangible_points: np.ndarray, tangible_normals: np.ndarray,
+                      virtual_points: np.ndarray, virtual_normals: np.ndarray) -> np.ndarray:
+    """(k, 4, 4) rigid transforms (mm, det +1) taking k virtual grasps of three or more contacts (k,
+    F, 3), the virtual ones in finger order, onto k tangible ones: the least-squares fit (Kabsch
+    1976; Umeyama 1991) of the contacts about their centroids, and of the patch normals, each
+    counted as a point ``NORMAL_LEVER_MM`` out along it. The centroids coincide; three contacts fix
+    every turn, so the centres of mass and axes need no part.
 
-    >>> tangible = np.array([[[0.0, 0.0, 0.0], [30.0, -10.0, 0.0], [30.0, 10.0, 0.0]]])  # a tripod in z = 0
-    >>> virtual = tangible @ np.array([[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]) + 5.0  # turned, moved
+    >>> # a tripod in z = 0, and a copy turned a quarter about z and moved
+    >>> tangible = np.array([[[0.0, 0.0, 0.0], [30.0, -10.0, 0.0], [30.0, 10.0, 0.0]]])
+    >>> quarter = np.array([[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    >>> virtual = tangible @ quarter + 5.0
     >>> normals = np.array([[[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 0.0, 0.0]]])
-    >>> T = register_contacts(tangible, normals, virtual, normals @ [[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    >>> T = register_contacts(tangible, normals, virtual, normals @ quarter)
     >>> np.allclose(virtual[0] @ T[0, :3, :3].T + T[0, :3, 3], tangible[0])
     True
     """
@@ -135,7 +142,8 @@ def register_contacts(tangible_points: np.ndarray, tangible_normals: np.ndarray,
     U, _, Vt = np.linalg.svd(np.einsum("kni,knj->kij", x, y))
     D = np.zeros((len(x), 3, 3))
     D[:, 0, 0] = D[:, 1, 1] = 1.0
-    D[:, 2, 2] = np.linalg.det(np.einsum("kij,kjl->kil", U, Vt))  # ±1: -1 turns a reflection into a rotation
+    # ±1: -1 turns a reflection into a rotation
+    D[:, 2, 2] = np.linalg.det(np.einsum("kij,kjl->kil", U, Vt))
     R = np.einsum("kji,kjl,kml->kim", Vt, D, U)  # V D Uᵀ
     T = np.zeros((len(x), 4, 4))
     T[:, :3, :3] = R
@@ -164,8 +172,9 @@ def register_pose(
     >>> tangible = np.array([[-10.0, 0.0, 0.0], [10.0, 0.0, 0.0]])
     >>> virtual = np.array([[0.0, -10.0, 5.0], [0.0, 10.0, 5.0]])
     >>> z = np.array([0.0, 0.0, 1.0])
-    >>> T = register_pose(tangible, np.sign(tangible), virtual, np.sign(virtual) * [1, 1, 0], swapped=True,
-    ...                   tangible_com=np.zeros(3), virtual_com=np.zeros(3), tangible_axis=z, virtual_axis=z)
+    >>> T = register_pose(tangible, np.sign(tangible), virtual, np.sign(virtual) * [1, 1, 0],
+    ...                   swapped=True, tangible_com=np.zeros(3), virtual_com=np.zeros(3),
+    ...                   tangible_axis=z, virtual_axis=z)
     >>> (virtual @ T[:3, :3].T + T[:3, 3]).round(6) + 0.0  # swapped: p1 meets the tangible's p2
     array([[ 10.,   0.,   0.],
            [-10.,   0.,   0.]])
@@ -175,5 +184,6 @@ def register_pose(
     return register_poses(
         np.asarray(tangible_points, float)[None], np.asarray(tangible_normals, float)[None],
         np.asarray(vp, float)[None], np.asarray(vn, float)[None],
-        tangible_com=tangible_com, virtual_com=virtual_com, tangible_axis=tangible_axis, virtual_axis=virtual_axis,
+        tangible_com=tangible_com, virtual_com=virtual_com, tangible_axis=tangible_axis,
+        virtual_axis=virtual_axis,
     )[0]

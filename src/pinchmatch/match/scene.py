@@ -28,24 +28,27 @@ from .refine import refined_search
 from .redirect import redirection
 from ..config import Config, config_of
 from ..grasp.spread import other_order
-from .search import Choice, MatchSettings, Search, cost_model, cost_row, p_noticed, pinch_distance
+from .noticed import p_noticed
+from .search import Choice, MatchSettings, Search, cost_model, cost_row, pinch_distance
 from .steady import STEADY_CHOICES, SteadySearch, ranks_by_landings
 
 
-#: unless ``--rank nominal``, this many distinct best choices on target (or top_k + 1, if more) and the
-#: steady search's ``STEADY_CHOICES`` are ranked by their cost over the landings. The pair that feels best is
-#: often far down the order on target (a scanned marker's on a mustard bottle: between the 97th and the
-#: 128th), and a felt pair costs little beside the search, so the set is wide
+#: unless ``--rank nominal``, this many distinct best choices on target (or top_k + 1, if more) and
+#: the steady search's ``STEADY_CHOICES`` are ranked by their cost over the landings. The pair that
+#: feels best is often far down the order on target (a scanned marker's on a mustard bottle: between
+#: the 97th and the 128th), and a felt pair costs little beside the search, so the set is wide
 RANKED_CHOICES = 128
-#: above the default count, the set on target grows in proportion, up to this many: a denser sample holds more
-#: knife edges, distinct but each barely better on target, that push the pairs that feel best out of a set of
-#: fixed size (the YCB scissors on the mustard bottle: 2.76 JND at four times the count with 128, 2.31 with 512,
+#: above the default count, the set on target grows in proportion, up to this many: a denser sample
+#: holds more knife edges, distinct but each barely better on target, that push the pairs that feel
+#: best out of a set of fixed size (the YCB scissors on the mustard bottle: 2.76 JND at four times
+#: the count with 128, 2.31 with 512,
 #: 2.40 at the default count)
 MAX_RANKED_CHOICES = 1024
-#: and per tangible, for its row of the cost matrix (what select and design rank props by), this many of each
+#: and per tangible, for its row of the cost matrix (what select and design rank props by), this
+#: many of each
 ROW_CHOICES = 3
-#: another prop is equivalent to the best when its ranked cost is within this much of the best's, in JND,
-#: or within this share of it, whichever is larger
+#: another prop is equivalent to the best when its ranked cost is within this much of the best's, in
+#: JND, or within this share of it, whichever is larger
 EQUIVALENT_JND, EQUIVALENT_SHARE = 0.1, 0.05
 
 
@@ -68,10 +71,12 @@ class VirtualMatch:
       (:meth:`pinchmatch.match.redirect.Redirection.record`: ``mode`` ``redirect``, or ``carousel``
       when no pair is within the redirection budget and the object is brought onto the prop,
       registered), else ``None``;
-    - ``row``: ``(n,) float64``, its least exact cost on each tangible (inf where none is allowed), and
-      ``row_noticed``: ``(n,) bool``, whether that least-cost choice is noticed at least half of the time;
+    - ``row``: ``(n,) float64``, its least exact cost on each tangible (inf where none is allowed),
+      and ``row_noticed``: ``(n,) bool``, whether that least-cost choice is noticed at least half of
+      the time;
     - ``equivalent``: ``[(tangible index, cost)]``, the other tangibles whose row cost is within
-      ``EQUIVALENT_JND`` or ``EQUIVALENT_SHARE`` of the best's (:func:`equivalent_tangibles`), by cost.
+      ``EQUIVALENT_JND`` or ``EQUIVALENT_SHARE`` of the best's (:func:`equivalent_tangibles`), by
+      cost.
     """
 
     virtual: int
@@ -97,8 +102,8 @@ class SceneMatch:
       as sampled (a match's own, refined, are on its :class:`VirtualMatch`: :meth:`objects`);
     - ``settings``: the :class:`MatchSettings` used; ``model``: the run's
       :class:`pinchmatch.match.cost.CostModel` (its scales, weights and criteria);
-    - ``cost_matrix``: ``(m, n) float64``, dimensionless: the least exact cost of each virtual object
-      on each tangible, inf where no registration is allowed;
+    - ``cost_matrix``: ``(m, n) float64``, dimensionless: the least exact cost of each virtual
+      object on each tangible, inf where no registration is allowed;
     - ``matches``: ``m`` :class:`VirtualMatch` es, in the order of ``virtuals``.
     """
 
@@ -117,22 +122,24 @@ class SceneMatch:
 
 
 def match_one(tangibles: list[Candidates], virtual: Candidates, config: Config, *, model: CostModel,
-              allowed: tuple[list[int], str | None] | None = None, index: int = 0, probes: dict | None = None,
-              details: bool = True, search: Search | None = None) -> VirtualMatch:
+              allowed: tuple[list[int], str | None] | None = None, index: int = 0,
+              probes: dict | None = None, details: bool = True,
+              search: Search | None = None) -> VirtualMatch:
     """One virtual object matched against the tangibles under one configuration: the one match.
 
-    Every command and the library come here: :func:`match_scene` for each virtual object, the command
-    line's tasks (local, Dask), ``demo``, ``select`` and ``design``. It searches (refined unless
-    ``config.match.refine`` is off), picks the best choice and its alternatives among the ``allowed``
-    tangibles (:func:`allowed_tangibles`' entry; default every one), lands it, finds the paper's
-    reference and, under ``placement="fixed"``, redirects the hand or hands the object to the carousel.
+    Every command and the library come here: :func:`match_scene` for each virtual object, the
+    command line's tasks (local, Dask), ``demo``, ``select`` and ``design``. It searches (refined
+    unless ``config.match.refine`` is off), picks the best choice and its alternatives among the
+    ``allowed`` tangibles (:func:`allowed_tangibles`' entry; default every one), lands it, finds the
+    paper's reference and, under ``placement="fixed"``, redirects the hand or hands the object to
+    the carousel.
 
-    ``model`` is the run's cost model (:func:`cost_model` over every object, so that runs in parts give
-    the same bits); ``index`` the object's place in the scene; ``probes`` the memo of the reference's
-    lines on this object (:func:`pinchmatch.match.reference.line_pinch`; read and added to); ``search``
-    its search when the caller already made it (a one-to-one scene's cost rows). With ``details`` off
-    only the best choice, its alternatives and the cost row are made (no landing, reference or
-    redirection): what ``select`` and ``design`` rank props by.
+    ``model`` is the run's cost model (:func:`cost_model` over every object, so that runs in parts
+    give the same bits); ``index`` the object's place in the scene; ``probes`` the memo of the
+    reference's lines on this object (:func:`pinchmatch.match.reference.line_pinch`; read and added
+    to); ``search`` its search when the caller already made it (a one-to-one scene's cost rows).
+    With ``details`` off only the best choice, its alternatives and the cost row are made (no
+    landing, reference or redirection): what ``select`` and ``design`` rank props by.
 
     >>> from pinchmatch import Config, PinchSettings, analyze_object, candidate_poses, cost_model
     >>> config = Config(PinchSettings(count=200, seed=0))
@@ -149,9 +156,11 @@ def match_one(tangibles: list[Candidates], virtual: Candidates, config: Config, 
     steady = steady_search(search, tangibles, virtual, pinch)
     row, noticed = ranked_row(search, cost_row(search, 0), tables, steady)
     carousel = None
-    if settings.redirect is not None:  # each prop serves by redirection or by the carousel, as _mode decides
+    if settings.redirect is not None:
+        # each prop serves by redirection or by the carousel, as _mode decides
         registered = dataclasses.replace(settings, placement="registered")
-        carousel = refined_search(search.tangibles, search.virtuals[0], search.model, registered, pinch_settings=pinch)
+        carousel = refined_search(search.tangibles, search.virtuals[0], search.model, registered,
+                                  pinch_settings=pinch)
         c_row, c_noticed = ranked_row(carousel, cost_row(carousel, 0), tables,
                                       steady_search(carousel, tangibles, virtual, pinch))
         stays = redirect_stays(row, c_row, settings.carousel_margin_jnd)
@@ -161,18 +170,20 @@ def match_one(tangibles: list[Candidates], virtual: Candidates, config: Config, 
         picks = _ranked(search, steady, allowed[0], 1, tables) if allowed[0] else []
         picks = [dataclasses.replace(p, virtual=index) for p, _ in picks]
         row, noticed = _with_picks(row, noticed, picks)
-        return VirtualMatch(index, picks[0] if picks else None, [], None if picks else allowed[1], None,
-                            virtual.name, list(search.tangibles), search.virtuals[0], row=row, row_noticed=noticed)
+        return VirtualMatch(index, picks[0] if picks else None, [], None if picks else allowed[1],
+                            None, virtual.name, list(search.tangibles), search.virtuals[0], row=row,
+                            row_noticed=noticed)
     vm = _placed(search, allowed, pinch_settings=pinch, index=index, probes=probes, tables=tables,
                  sampled=(tangibles, virtual), steady=steady, carousel=carousel)
     row, noticed = _with_picks(row, noticed, [vm.best, *vm.alternatives] if vm.best else [])
-    return dataclasses.replace(vm, row=row, row_noticed=noticed, equivalent=equivalent_tangibles(vm.best, row))
+    return dataclasses.replace(vm, row=row, row_noticed=noticed,
+                               equivalent=equivalent_tangibles(vm.best, row))
 
 
 def _with_picks(row: np.ndarray, noticed: np.ndarray, picks: list) -> tuple[np.ndarray, np.ndarray]:
-    """The ranked row lowered to the match's own ranked choices where one is cheaper on its tangible (the
-    row ranks a few pairs per tangible, the match many), so that the row, the equivalents and the match
-    agree."""
+    """The ranked row lowered to the match's own ranked choices where one is cheaper on its tangible
+    (the row ranks a few pairs per tangible, the match many), so that the row, the equivalents and
+    the match agree."""
     row, noticed = row.copy(), noticed.copy()
     for p in picks:
         if p.cost < row[p.tangible]:
@@ -181,9 +192,10 @@ def _with_picks(row: np.ndarray, noticed: np.ndarray, picks: list) -> tuple[np.n
 
 
 def equivalent_tangibles(best: Choice | None, row: np.ndarray) -> list:
-    """[(tangible index, cost)] of the tangibles other than the best choice's whose ranked cost in ``row`` is
-    within ``EQUIVALENT_JND`` or ``EQUIVALENT_SHARE`` of the best's (whichever is larger), cheapest first,
-    ties in the order the tangibles were given (the best itself is chosen the same way: :func:`_ranked`)."""
+    """[(tangible index, cost)] of the tangibles other than the best choice's whose ranked cost in
+    ``row`` is within ``EQUIVALENT_JND`` or ``EQUIVALENT_SHARE`` of the best's (whichever is
+    larger), cheapest first, ties in the order the tangibles were given (the best itself is chosen
+    the same way: :func:`_ranked`)."""
     if best is None:
         return []
     limit = best.cost + max(EQUIVALENT_JND, EQUIVALENT_SHARE * best.cost)
@@ -191,13 +203,15 @@ def equivalent_tangibles(best: Choice | None, row: np.ndarray) -> list:
     return [(int(t), float(row[t])) for t in sorted(near, key=lambda t: (row[t], t))]
 
 
-def match_scene(tangibles: list[Candidates], virtuals: list[Candidates], *, config: Config | None = None,
-                settings: MatchSettings | None = None, model: CostModel | None = None,
-                pinch_settings: PinchSettings | None = None) -> SceneMatch:
+def match_scene(tangibles: list[Candidates], virtuals: list[Candidates], *,
+                config: Config | None = None, settings: MatchSettings | None = None,
+                model: CostModel | None = None, pinch_settings: PinchSettings
+                | None = None) -> SceneMatch:
     """For every virtual object, the best tangible, pose pair and registration, with alternatives.
 
-    ``config`` (default :class:`Config`'s), or its parts ``settings`` and ``pinch_settings``; ``model``
-    defaults to :func:`cost_model` over all candidates. Each object is matched by :func:`match_one`.
+    ``config`` (default :class:`Config`'s), or its parts ``settings`` and ``pinch_settings``;
+    ``model`` defaults to :func:`cost_model` over all candidates. Each object is matched by
+    :func:`match_one`.
 
     >>> from pinchmatch import MatchSettings, PinchSettings, analyze_object, candidate_poses
     >>> settings = PinchSettings(count=200, seed=0)
@@ -205,7 +219,8 @@ def match_scene(tangibles: list[Candidates], virtuals: list[Candidates], *, conf
     >>> can = candidate_poses(analyze_object(can_obj, units="m"), settings=settings)
     >>> scene = match_scene([box, can], [can], settings=MatchSettings(top_k=1))
     >>> best = scene.matches[0].best
-    >>> best.tangible_name, round(best.cost, 6), scene.cost_matrix.shape  # the can is best served by itself
+    >>> # the can is best served by itself
+    >>> best.tangible_name, round(best.cost, 6), scene.cost_matrix.shape
     ('can.obj', 0.0, (1, 2))
     >>> best.tangible_pose.p1_mm.shape  # each choice carries its pinches
     (3,)
@@ -219,17 +234,21 @@ def match_scene(tangibles: list[Candidates], virtuals: list[Candidates], *, conf
     model = model or cost_model(config.match, tangibles + virtuals)
     m, n = len(virtuals), len(tangibles)
     if config.match.one_to_one:  # the assignment needs every row first
-        searches = [refined_search(tangibles, v, model, config.match, pinch_settings=config.pinch) for v in virtuals]
-        plan = allowed_tangibles(np.array([cost_row(s, 0) for s in searches]).reshape(m, n), config.match)
+        searches = [refined_search(tangibles, v, model, config.match, pinch_settings=config.pinch)
+                    for v in virtuals]
+        plan = allowed_tangibles(np.array([cost_row(s, 0) for s in searches]).reshape(m, n),
+                                 config.match)
     else:
         searches, plan = [None] * m, [None] * m
-    matches = [match_one(tangibles, v, config, model=model, allowed=plan[j], index=j, search=searches[j])
+    matches = [match_one(tangibles, v, config, model=model, allowed=plan[j], index=j,
+                         search=searches[j])
                for j, v in enumerate(virtuals)]
     cost_matrix = np.array([vm.row for vm in matches]).reshape(m, n)
     return SceneMatch(tangibles, virtuals, config.match, model, cost_matrix, matches, config)
 
 
-def allowed_tangibles(cost_matrix: np.ndarray, settings: MatchSettings) -> list[tuple[list[int], str | None]]:
+def allowed_tangibles(cost_matrix: np.ndarray,
+                      settings: MatchSettings) -> list[tuple[list[int], str | None]]:
     """Per virtual object, the tangibles it may use and, when none, why: all of them, or the one
     ``--one-to-one`` assigns."""
     m, n = cost_matrix.shape
@@ -244,8 +263,8 @@ def allowed_tangibles(cost_matrix: np.ndarray, settings: MatchSettings) -> list[
 
 def steady_search(search: Search, tangibles: list[Candidates], virtual: Candidates,
                   pinch_settings: PinchSettings) -> SteadySearch | None:
-    """The steady search beside ``search`` (over the sampled ``tangibles`` and ``virtual``), or None where
-    the match ranks on target (``--rank nominal``, or a landing radius of 0)."""
+    """The steady search beside ``search`` (over the sampled ``tangibles`` and ``virtual``), or None
+    where the match ranks on target (``--rank nominal``, or a landing radius of 0)."""
     settings = search.settings
     if not ranks_by_landings(settings):
         return None
@@ -253,7 +272,8 @@ def steady_search(search: Search, tangibles: list[Candidates], virtual: Candidat
 
 
 def _felt(search: Search, picks: list, tables: FeltTables) -> list[Choice]:
-    """The picks with their ranked cost and its chance of being noticed (``--rank``), the landing kept."""
+    """The picks with their ranked cost and its chance of being noticed (``--rank``), the landing
+    kept."""
     rank, out = search.settings.rank, []
     if tables.radius_mm > 0:  # the landing tables of every pick at once
         for t in sorted({p.tangible for p in picks}):
@@ -262,32 +282,41 @@ def _felt(search: Search, picks: list, tables: FeltTables) -> list[Choice]:
     for p in picks:
         key = (id(search), p.tangible, p.t_pose, p.v_pose, p.swapped)
         if key not in tables.felt:
-            tables.felt[key] = felt_cost(search.tangibles[p.tangible], search.virtuals[0], p, search.model, tables)
+            tables.felt[key] = felt_cost(search.tangibles[p.tangible], search.virtuals[0], p,
+                                         search.model, tables)
         felt = tables.felt[key]
-        out.append((dataclasses.replace(p, cost=felt.ranked(rank), p_noticed=felt.ranked_p_noticed(rank)), felt))
+        out.append((dataclasses.replace(p, cost=felt.ranked(rank),
+                                        p_noticed=felt.ranked_p_noticed(rank)), felt))
     return out
 
 
 def ranked_choices(count: int) -> int:
-    """How many distinct best pairs on target the match feels at a sampling count of ``count`` poses per object:
-    ``RANKED_CHOICES`` up to the default count, in proportion above it, at most ``MAX_RANKED_CHOICES``."""
+    """How many distinct best pairs on target the match feels at a sampling count of ``count`` poses
+    per object: ``RANKED_CHOICES`` up to the default count, in proportion above it, at most
+    ``MAX_RANKED_CHOICES``."""
     return with_count(RANKED_CHOICES, count, MAX_RANKED_CHOICES)
 
 
 def _ranked(search: Search, steady: SteadySearch | None, allowed: list[int], count: int,
-            tables: FeltTables, *, nominal: int | None = None, by_steady: int = STEADY_CHOICES) -> list:
-    """Up to ``count`` distinct best (choice, felt) of virtual object 0 among the ``allowed`` tangibles.
+            tables: FeltTables, *, nominal: int | None = None,
+            by_steady: int = STEADY_CHOICES) -> list:
+    """Up to ``count`` distinct best (choice, felt) of virtual object 0 among the ``allowed``
+    tangibles.
 
-    Ranked on target (``steady`` None): the search's ``count`` best, exact. Else the ``nominal`` best
-    distinct on target (default :func:`ranked_choices` of the run's count) and the steady search's
-    ``by_steady`` best distinct, each felt exactly (:mod:`pinchmatch.match.felt`), by ``--rank``'s cost; ties by the cost on target, then tangible and
-    poses; none a near duplicate of a better one."""
+    Ranked on target (``steady`` None): the search's ``count`` best, exact. Else the ``nominal``
+    best distinct on target (default :func:`ranked_choices` of the run's count) and the steady
+    search's ``by_steady`` best distinct, each felt exactly (:mod:`pinchmatch.match.felt`), by
+    ``--rank``'s cost; ties by the cost on target, then tangible and poses; none a near duplicate of
+    a better one."""
     if steady is None:
-        return comfort_first(search, _felt(search, search.choices(0, allowed, count), tables), tables.settings)
+        return comfort_first(search, _felt(search, search.choices(0, allowed, count), tables),
+                             tables.settings)
     nominal = ranked_choices(steady.pinch_settings.count) if nominal is None else nominal
-    picks = search.choices(0, allowed, max(count, nominal)) + steady.choices(allowed, max(count, by_steady))
+    picks = search.choices(0, allowed, max(count, nominal)) + steady.choices(allowed,
+                                                                             max(count, by_steady))
     felt = sorted(_felt(search, picks, tables),
-                  key=lambda pf: (pf[0].cost, pf[0].cost_nominal, pf[0].tangible, pf[0].t_pose, pf[0].v_pose))
+                  key=lambda pf: (pf[0].cost, pf[0].cost_nominal, pf[0].tangible, pf[0].t_pose,
+                                  pf[0].v_pose))
     felt = comfort_first(search, felt, tables.settings)
     out: list = []
     for choice, f in felt:
@@ -299,23 +328,26 @@ def _ranked(search: Search, steady: SteadySearch | None, allowed: list[int], cou
 
 
 def comfort_first(search: Search, felt: list, pinch: PinchSettings) -> list:
-    """``felt`` [(choice, felt)], ranked by cost, with the choices that cost the same as the best (within
-    ``EQUIVALENT_JND`` or ``EQUIVALENT_SHARE`` of it, as :func:`equivalent_tangibles` judges props) put in
-    the order of their :func:`~pinchmatch.match.comfort.comfort_score`, most comfortable first (ties by
-    cost): among choices a person cannot tell apart by feel, the one reached most easily."""
+    """``felt`` [(choice, felt)], ranked by cost, with the choices that cost the same as the best
+    (within ``EQUIVALENT_JND`` or ``EQUIVALENT_SHARE`` of it, as :func:`equivalent_tangibles` judges
+    props) put in the order of their :func:`~pinchmatch.match.comfort.comfort_score`, most
+    comfortable first (ties by cost): among choices a person cannot tell apart by feel, the one
+    reached most easily."""
     if len(felt) < 2:
         return felt
     best = felt[0][0].cost
     limit = best + max(EQUIVALENT_JND, EQUIVALENT_SHARE * best)
     band = [pf for pf in felt if pf[0].cost <= limit]
-    scores = [comfort_score(search.tangibles[c.tangible], c.t_pose, search.settings.user_mm, pinch.fingertip_radius_mm)
+    scores = [comfort_score(search.tangibles[c.tangible], c.t_pose, search.settings.user_mm,
+                            pinch.fingertip_radius_mm)
               for c, _ in band]
     order = sorted(range(len(band)), key=lambda k: (-round(scores[k], 9), k))
     return [band[k] for k in order] + felt[len(band):]
 
 
 def _near(a: Choice, b: Choice, distinct_mm: float) -> bool:
-    """Is ``a`` a near duplicate of ``b`` (the same tangible, both grasps within ``distinct_mm``)?"""
+    """Is ``a`` a near duplicate of ``b`` (the same tangible, both grasps within
+    ``distinct_mm``)?"""
     return a.tangible == b.tangible and all(
         float(pinch_distance(x.contacts_mm[None], y.contacts_mm)[0]) < distinct_mm
         for x, y in ((a.tangible_pose, b.tangible_pose), (a.virtual_pose, b.virtual_pose)))
@@ -340,39 +372,42 @@ def _match(search: Search, allowed: list[int], reason: str | None, *, pinch_sett
     landed = None
     if felt:
         f = felt[0][1]
-        landed = Landing(settings.landing_mm, LANDING_AXIS_DEG, f.nominal, f.expected, f.worst, f.p_noticed_worst,
-                         f.criteria_noticeable, f.landings, f.missed)
+        landed = Landing(settings.landing_mm, LANDING_AXIS_DEG, f.nominal, f.expected, f.worst,
+                         f.p_noticed_worst, f.criteria_noticeable, f.landings, f.missed)
     return VirtualMatch(index, best, picks[1:], None if best else reason, ref, virtual.name,
                         list(search.tangibles), virtual, landed)
 
 
 def ranked_row(search: Search, row: np.ndarray, tables: FeltTables,
                steady: SteadySearch | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """(n,) the ranked cost of virtual object 0 on each tangible and (n,) whether that choice is noticed
-    at least half of the time; inf and True where no registration is allowed. Ranked on target (``steady``
-    None) the row is the search's least cost; else the best of :func:`_ranked` over ``ROW_CHOICES`` of each
-    kind."""
+    """(n,) the ranked cost of virtual object 0 on each tangible and (n,) whether that choice is
+    noticed at least half of the time; inf and True where no registration is allowed. Ranked on
+    target (``steady`` None) the row is the search's least cost; else the best of :func:`_ranked`
+    over ``ROW_CHOICES`` of each kind."""
     cost, loud = np.full(len(row), np.inf), np.ones(len(row), dtype=bool)
     for t in np.flatnonzero(np.isfinite(row)):
         if steady is None:  # on target: no landing needed
             best = search.choices(0, [int(t)], 1)[0]
-            cost[t], loud[t] = row[t], p_noticed(search.tangibles[t], search.virtuals[0], best, search.model) >= 0.5
+            cost[t], loud[t] = row[t], p_noticed(search.tangibles[t], search.virtuals[0], best,
+                                                 search.model) >= 0.5
             continue
-        best = _ranked(search, steady, [int(t)], 1, tables, nominal=ROW_CHOICES, by_steady=ROW_CHOICES)[0][0]
+        best = _ranked(search, steady, [int(t)], 1, tables, nominal=ROW_CHOICES,
+                       by_steady=ROW_CHOICES)[0][0]
         cost[t], loud[t] = best.cost, best.p_noticed >= 0.5
     return cost, loud
 
 
 def _placed(search: Search, allowed: tuple, *, pinch_settings: PinchSettings, index: int = 0,
-            probes: dict | None = None, tables: FeltTables | None = None, sampled: tuple | None = None,
-            steady: SteadySearch | None = None, carousel: Search | None = None) -> VirtualMatch:
-    """The virtual object's match; under ``placement="fixed"`` with its redirection, or the carousel's
-    (registered) match where no pair is within the redirection budget, or where the carousel costs more
-    than ``carousel_margin_jnd`` less than the best redirected pair (both ranked as the match ranks). The
-    redirection's record gives both costs and the reason."""
+            probes: dict | None = None, tables: FeltTables | None = None,
+            sampled: tuple | None = None, steady: SteadySearch | None = None,
+            carousel: Search | None = None) -> VirtualMatch:
+    """The virtual object's match; under ``placement="fixed"`` with its redirection, or the
+    carousel's (registered) match where no pair is within the redirection budget, or where the
+    carousel costs more than ``carousel_margin_jnd`` less than the best redirected pair (both ranked
+    as the match ranks). The redirection's record gives both costs and the reason."""
     tables = tables or FeltTables(search.settings.landing_mm, pinch_settings)
-    vm = _match(search, *allowed, pinch_settings=pinch_settings, index=index, probes=probes, tables=tables,
-                steady=steady)
+    vm = _match(search, *allowed, pinch_settings=pinch_settings, index=index, probes=probes,
+                tables=tables, steady=steady)
     settings = search.settings
     if settings.redirect is None or not allowed[0]:
         return vm
@@ -380,11 +415,13 @@ def _placed(search: Search, allowed: tuple, *, pinch_settings: PinchSettings, in
         registered = dataclasses.replace(settings, placement="registered")
         carousel = refined_search(search.tangibles, search.virtuals[0], search.model, registered,
                                   pinch_settings=pinch_settings)
-    served = _match(carousel, *allowed, pinch_settings=pinch_settings, index=index, probes=probes, tables=tables,
-                    steady=steady_search(carousel, *sampled, pinch_settings) if sampled else None)
+    served = _match(carousel, *allowed, pinch_settings=pinch_settings, index=index, probes=probes,
+                    tables=tables, steady=steady_search(carousel, *sampled, pinch_settings)
+                    if sampled else None)
     mode, why = _mode(vm, served, settings.carousel_margin_jnd)
     costs = {"redirect_cost": None if vm.best is None else round(float(vm.best.cost), 6),
-             "carousel_cost": None if served.best is None else round(float(served.best.cost), 6), "reason": why}
+             "carousel_cost": None if served.best is None else round(float(served.best.cost), 6),
+             "reason": why}
     if mode == "carousel":
         vm = served
     if vm.best is None:
@@ -393,14 +430,16 @@ def _placed(search: Search, allowed: tuple, *, pinch_settings: PinchSettings, in
     tangible = vm.tangibles[best.tangible]
     v_points = vm.candidates.pinches.points[best.v_pose]
     moved = redirection(tangible.obj, tangible.pinches.points[best.t_pose][None],
-                        (v_points[other_order(len(v_points))] if best.swapped else v_points)[None], settings.redirect)
+                        (v_points[other_order(len(v_points))] if best.swapped else v_points)[None],
+                        settings.redirect)
     return dataclasses.replace(vm, redirection=moved.record(0, mode) | costs)
 
 
 def redirect_stays(redirect_cost, carousel_cost, margin: float):
-    """Whether an object stays in the level, the hand redirected (per element of the costs, or one bool): the
-    one rule of ``--placement fixed``. It stays when a redirected pair exists (a finite cost) costing at most
-    ``margin`` more than the carousel's (infinite where the carousel has no placement)."""
+    """Whether an object stays in the level, the hand redirected (per element of the costs, or one
+    bool): the one rule of ``--placement fixed``. It stays when a redirected pair exists (a finite
+    cost) costing at most ``margin`` more than the carousel's (infinite where the carousel has no
+    placement)."""
     r, c = np.asarray(redirect_cost, dtype=np.float64), np.asarray(carousel_cost, dtype=np.float64)
     return np.isfinite(r) & (r <= c + margin)
 
@@ -411,18 +450,22 @@ def _mode(redirected: VirtualMatch, carousel: VirtualMatch, margin: float) -> tu
     b = float(carousel.best.cost) if carousel.best is not None else np.inf
     if not redirect_stays(a, b, margin):
         if redirected.best is None:
-            return "carousel", "no pose pair is within the redirection budget (angle and reach gain)"
-        return "carousel", f"the carousel costs {b:.3g}, more than {margin:g} below redirecting's {a:.3g}"
+            return ("carousel",
+                    "no pose pair is within the redirection budget (angle and reach gain)")
+        return ("carousel",
+                f"the carousel costs {b:.3g}, more than {margin:g} below redirecting's {a:.3g}")
     if carousel.best is None:
         return "redirect", "the carousel has no allowed placement"
     return "redirect", f"redirecting costs {a:.3g}, within {margin:g} of the carousel's {b:.3g}"
 
 
-def match_virtual(tangibles: list[Candidates], virtual: Candidates, *, model: CostModel | None = None,
-                  config: Config | None = None, settings: MatchSettings | None = None,
-                  allowed: tuple[list[int], str | None] | None = None, pinch_settings: PinchSettings | None = None,
+def match_virtual(tangibles: list[Candidates], virtual: Candidates, *,
+                  model: CostModel | None = None, config: Config | None = None,
+                  settings: MatchSettings | None = None, allowed: tuple[list[int], str | None]
+                  | None = None, pinch_settings: PinchSettings | None = None,
                   probes: dict | None = None) -> SceneMatch:
-    """One virtual object's row of :func:`match_scene`, bit for bit, as a one-row scene (:func:`match_one`).
+    """One virtual object's row of :func:`match_scene`, bit for bit, as a one-row scene
+    (:func:`match_one`).
 
     ``model`` must be the run's to match the scene's row (built over every object; default: over
     these objects only); ``config`` (or ``settings`` and ``pinch_settings``) default as in
@@ -434,7 +477,7 @@ def match_virtual(tangibles: list[Candidates], virtual: Candidates, *, model: Co
     >>> box = candidate_poses(analyze_object(box_stl), settings=settings)
     >>> can = candidate_poses(analyze_object(can_obj, units="m"), settings=settings)
     >>> scene = match_scene([box, can], [can])
-    >>> one = match_virtual([box, can], can, model=scene.model)  # the scene's row, searched on its own
+    >>> one = match_virtual([box, can], can, model=scene.model)  # the scene's row, on its own
     >>> one.matches[0].best.cost == scene.matches[0].best.cost
     True
     """
@@ -455,7 +498,8 @@ def assign_one_to_one(cost_matrix: np.ndarray) -> np.ndarray:
     out = np.full(m, -1, dtype=np.int64)
     if not finite.any():
         return out
-    # serve as many as possible first, then least cost: a forbidden pair costs more than any full set
+    # serve as many as possible first, then least cost: a forbidden pair costs more than any full
+    # set
     big = (np.abs(cost_matrix[finite]).sum() + 1.0) * (min(m, n) + 1)
     rows, cols = linear_sum_assignment(np.where(finite, cost_matrix, big))
     for r, c in zip(rows, cols):

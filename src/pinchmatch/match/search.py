@@ -1,7 +1,8 @@
 """Step #3: the exact search for a virtual object's best tangibles and pinch pairs, registered.
 
-The search is exact over the poses it is given (sampled, and refined: :mod:`pinchmatch.match.refine`;
-:mod:`pinchmatch.match.scene` runs it for a whole scene). For each (virtual object, tangible) pair of objects:
+The search is exact over the poses it is given (sampled, and refined:
+:mod:`pinchmatch.match.refine`; :mod:`pinchmatch.match.scene` runs it for a whole scene). For each
+(virtual object, tangible) pair of objects:
 
 1. The separable part of the cost (the paper's seven criteria and the lower
    bound of ``mass``) is computed for every pose pair, blockwise with BLAS
@@ -37,7 +38,7 @@ import numpy as np
 
 from ..config import MatchSettings  # noqa: F401 (re-exported)
 from .candidates import Candidates, felt_table, mass_ratio, pair_terms
-from .cost import (CRITERIA, CostModel, feature_ranges, pair_cost_blocks, pooled_bound_blocks, total)
+from .cost import CostModel, feature_ranges, pair_cost_blocks, pooled_bound_blocks, total
 from .redirect import Redirect, pair_budget, placed_transform, redirection, seen_turn
 from .pairs import PairResult, Ranked, Seen, concat_pairs, take_pairs
 from .register import FLIP_COSINE, register_poses
@@ -54,11 +55,11 @@ TIGHT_AFTER = 2
 TIGHT_ROUND_OFF = 1e-9
 #: pooled pairs are evaluated this many at a time (memory: about 2 kB per pair while evaluated)
 EVALUATE_CHUNK = 65_536
-#: a blockwise pass keeps this many times its pool's size, in order, where the pool's next growth selects
-#: by the same sum (separable, or the pooled bound): growths within them need no new pass
+#: a blockwise pass keeps this many times its pool's size, in order, where the pool's next growth
+#: selects by the same sum (separable, or the pooled bound): growths within them need no new pass
 RESERVE = 4
-#: pairs a pool remembers having evaluated, kept or not (about 250 bytes each), so that a growth evaluates
-#: only pairs it has not seen
+#: pairs a pool remembers having evaluated, kept or not (about 250 bytes each), so that a growth
+#: evaluates only pairs it has not seen
 SEEN_PAIRS = 32_768
 
 
@@ -70,9 +71,11 @@ def initial_pool(n_tangible: int, n_virtual: int) -> int:
     result does not depend on it (see the module's notes)."""
     return int(np.clip(n_tangible * n_virtual // POOL_PAIRS_PER_KEPT, MIN_POOL, MAX_POOL))
 
-def cost_model(settings: MatchSettings, candidates: list[Candidates], *, ranges: np.ndarray | None = None) -> CostModel:
+def cost_model(settings: MatchSettings, candidates: list[Candidates], *,
+               ranges: np.ndarray | None = None) -> CostModel:
     """The run's cost model; ``range`` takes each feature's range over every candidate of the run
-    (or ``ranges``, when they were gathered elsewhere, see :func:`pinchmatch.match.cost.ranges_from_bounds`).
+    (or ``ranges``, when they were gathered elsewhere, see
+    :func:`pinchmatch.match.cost.ranges_from_bounds`).
 
     >>> model = cost_model(MatchSettings(weights={"width": 2.0}), [])
     >>> model.pooling, model.normalize, model.weights["width"], model.weights["com"]
@@ -80,8 +83,9 @@ def cost_model(settings: MatchSettings, candidates: list[Candidates], *, ranges:
     """
     if settings.normalize == "range" and ranges is None:
         ranges = feature_ranges(*[c.table for c in candidates])
-    return CostModel(dict(settings.weights), settings.normalize, ranges if settings.normalize == "range" else None,
-                     tuple(settings.criteria), settings.pooling,
+    return CostModel(dict(settings.weights), settings.normalize,
+                     ranges if settings.normalize == "range" else None, tuple(settings.criteria),
+                     settings.pooling,
                      (settings.rest_sink_mm_per_jnd, settings.rest_float_mm_per_jnd))
 
 
@@ -97,19 +101,20 @@ def evaluate_pairs(
     redirect: Redirect | None = None,
     user_mm=None,
 ) -> PairResult:
-    """Register k pose pairs (tangible pose ``it[i]``, virtual pose ``iv[i]``) and give their exact cost,
-    in the better finger order, or in the order ``swapped`` when it is given.
+    """Register k pose pairs (tangible pose ``it[i]``, virtual pose ``iv[i]``) and give their exact
+    cost, in the better finger order, or in the order ``swapped`` when it is given.
 
     ``model`` defaults to :func:`cost_model` of the default settings over the two objects;
     ``keep_upright`` (default off) charges a placement that turns the virtual object upside down
     an infinite cost. With ``redirect`` the virtual object stays where it is and the hand is
     redirected (:mod:`pinchmatch.match.redirect`): the redirection joins the cost, a pair beyond the
-    budget is not allowed, and none is flipped. A tangible that stands on a table allows only the poses
-    reached comfortably from where the user stands (``user_mm``, the level's frame; default: where the hand
-    starts), unless it has none (:mod:`pinchmatch.match.comfort`).
+    budget is not allowed, and none is flipped. A tangible that stands on a table allows only the
+    poses reached comfortably from where the user stands (``user_mm``, the level's frame; default:
+    where the hand starts), unless it has none (:mod:`pinchmatch.match.comfort`).
 
     >>> from pinchmatch import PinchSettings, analyze_object, candidate_poses
-    >>> can = candidate_poses(analyze_object(can_obj, units="m"), settings=PinchSettings(count=50, seed=0))
+    >>> settings = PinchSettings(count=50, seed=0)
+    >>> can = candidate_poses(analyze_object(can_obj, units="m"), settings=settings)
     >>> result = evaluate_pairs(can, can, np.array([0, 1]), np.array([0, 0]))
     >>> float(result.cost[0]), bool(result.cost[1] > 0)  # a pose on itself costs nothing
     (0.0, True)
@@ -129,25 +134,32 @@ def evaluate_pairs(
             other = other_order(vp.shape[1])
             vp, vn, v_rows = vp[:, other], vn[:, other], v_rows[:, other]
         X = register_poses(tp, tn, vp, vn, tangible_com=t_props.com_mm, virtual_com=v_props.com_mm,
-                           tangible_axis=t_props.principal_axis, virtual_axis=v_props.principal_axis)
-        # registered, the virtual object turns with the registration; fixed, it stays as the level has it,
-        # seen from the prop's frame (the registration is then the hand's warp onto the prop, not a placement)
+                           tangible_axis=t_props.principal_axis,
+                           virtual_axis=v_props.principal_axis)
+        # registered, the virtual object turns with the registration; fixed, it stays as the level
+        # has it, seen from the prop's frame (the registration is then the hand's warp onto the
+        # prop, not a placement)
         R = seen_turn(tangible.obj, X[:, :3, :3], redirect is not None)
-        terms, delta = pair_terms(tangible, virtual, t_rows, v_rows, model, R=R, t_points=tp, v_points=vp)
+        terms, delta = pair_terms(tangible, virtual, t_rows, v_rows, model, R=R, t_points=tp,
+                                  v_points=vp)
         if redirect is None:
             flipped = (R @ up_v) @ up_t < FLIP_COSINE
             allowed = ~flipped if keep_upright else np.ones(len(it), dtype=bool)
             moved_terms = np.zeros((len(it), 2))
-        else:  # the virtual object stays where it is; flipped when the prop stands otherwise than the level's up
+        else:
+            # the virtual object stays where it is; flipped when the prop stands otherwise than the
+            # level's up
             moved = redirection(tangible.obj, tp, vp, redirect)
             flipped = np.full(len(it), bool((R @ up_v) @ up_t < FLIP_COSINE))
             allowed, moved_terms = moved.allowed, moved.terms
         if reachable is not None:
             allowed = allowed & reachable[it]
         gap, rest = rested(tangible.obj, virtual.obj, X, model, redirect)
-        cost = np.where(allowed, total(terms, model, moved_terms if redirect is not None else None, rest), np.inf)
-        results.append(PairResult(cost, terms, np.full(len(it), order), X, flipped, delta, allowed, moved_terms,
-                                  gap, rest))
+        cost = np.where(allowed,
+                        total(terms, model, moved_terms if redirect is not None else None, rest),
+                        np.inf)
+        results.append(PairResult(cost, terms, np.full(len(it), order), X, flipped, delta, allowed,
+                                  moved_terms, gap, rest))
     if len(results) == 1:
         return results[0]
     a, b = results
@@ -160,8 +172,9 @@ def evaluate_pairs(
 
 
 def _only_rows(rows: np.ndarray, n_virtual: int, budget=None):
-    """A blockwise pass's ``extra`` that leaves out the tangible poses not in ``rows`` (bool) against each of
-    ``n_virtual`` virtual poses, besides what ``budget`` (another such function, or None) adds and leaves out."""
+    """A blockwise pass's ``extra`` that leaves out the tangible poses not in ``rows`` (bool)
+    against each of ``n_virtual`` virtual poses, besides what ``budget`` (another such function, or
+    None) adds and leaves out."""
     def block(start: int, stop: int):
         term, ok = budget(start, stop) if budget is not None else (0.0, True)
         return term, np.broadcast_to(ok & rows[start:stop, None], (stop - start, n_virtual))
@@ -169,27 +182,29 @@ def _only_rows(rows: np.ndarray, n_virtual: int, budget=None):
     return block
 
 
-def pool_pairs(tangible: Candidates, virtual: Candidates, model: CostModel, size: int, block_rows: int,
-               tight: bool = False, moments: tuple | None = None, redirect: Redirect | None = None, *,
-               raw: bool = False, user_mm=None):
+def pool_pairs(tangible: Candidates, virtual: Candidates, model: CostModel, size: int,
+               block_rows: int, tight: bool = False, moments: tuple | None = None,
+               redirect: Redirect | None = None, *, raw: bool = False, user_mm=None):
     """The ``size`` pose pairs with the smallest separable sum (``tight``: the smallest pooled
-    bound, :func:`pinchmatch.match.cost.pooled_bound_blocks`), and tau, a cost no pair left out is below.
-    With ``moments`` ((mean, variance) of the tangible's rows, the same of the virtual's), the sum is the
-    expected one of :mod:`pinchmatch.match.steady` over the first ``len(mean)`` poses of each. With
-    ``redirect`` (the virtual object stays in the level) the sum gains a lower bound of the redirection
-    angle's contribution and the pairs beyond the budget are left out (:func:`pinchmatch.match.redirect.pair_budget`).
+    bound, :func:`pinchmatch.match.cost.pooled_bound_blocks`), and tau, a cost no pair left out is
+    below. With ``moments`` ((mean, variance) of the tangible's rows, the same of the virtual's),
+    the sum is the expected one of :mod:`pinchmatch.match.steady` over the first ``len(mean)`` poses
+    of each. With ``redirect`` (the virtual object stays in the level) the sum gains a lower bound
+    of the redirection angle's contribution and the pairs beyond the budget are left out
+    (:func:`pinchmatch.match.redirect.pair_budget`).
 
-    The tangible's poses that the user cannot reach comfortably (``user_mm``: :func:`evaluate_pairs`) are left
-    out too.
+    The tangible's poses that the user cannot reach comfortably (``user_mm``:
+    :func:`evaluate_pairs`) are left out too.
 
-    Returns (it, iv, separable sum or bound, tau); tau is inf when no pair was left out. ``raw``: tau is
-    the least sum (or bound) of a pair left out, not a cost.
+    Returns (it, iv, separable sum or bound, tau); tau is inf when no pair was left out. ``raw``:
+    tau is the least sum (or bound) of a pair left out, not a cost.
     """
     ratio = mass_ratio(tangible, virtual)
     t_table, v_table, spreads = tangible.table, virtual.table, None
     if moments is not None:
         (t_table, t_var), (v_table, v_var) = moments
-        spreads = (t_var, felt_table(felt_table(v_var, ratio), ratio))  # a variance scales by the ratio squared
+        # a variance scales by the ratio squared
+        spreads = (t_var, felt_table(felt_table(v_var, ratio), ratio))
     nv = len(v_table)
     kept_val = np.zeros(0)
     kept_idx = np.zeros(0, dtype=np.int64)
@@ -203,10 +218,11 @@ def pool_pairs(tangible: Candidates, virtual: Candidates, model: CostModel, size
     if reachable is not None:
         budget = _only_rows(reachable[:len(t_table)], nv, budget)
     if tight:
-        blocks = ((start, bound, None) for start, bound in pooled_bound_blocks(t_table, felt, model, extra=budget))
+        blocks = ((start, bound, None)
+                  for start, bound in pooled_bound_blocks(t_table, felt, model, extra=budget))
     else:
-        blocks = pair_cost_blocks(t_table, felt, model, block_rows=block_rows, with_swapped=False, spreads=spreads,
-                                  extra=budget)
+        blocks = pair_cost_blocks(t_table, felt, model, block_rows=block_rows, with_swapped=False,
+                                  spreads=spreads, extra=budget)
     for start, block, _ in blocks:
         flat = block.ravel()
         if not np.isfinite(tau) and flat.size > 4 * size:
@@ -225,21 +241,22 @@ def pool_pairs(tangible: Candidates, virtual: Candidates, model: CostModel, size
             keep = part[:size]
             vals, idx = vals[keep], idx[keep]
         kept_val, kept_idx = vals, idx
-    return kept_idx // nv, kept_idx % nv, kept_val, tau if raw else _bound(model, tau, tight, redirect)
+    return kept_idx // nv, kept_idx % nv, kept_val, tau if raw else _bound(model, tau, tight,
+                                                                           redirect)
 
 
 def _bound(model: CostModel, value: float, tight: bool, redirect: Redirect | None) -> float:
-    """The least cost of a pair whose separable sum (``tight``: pooled bound) is at least ``value``: its
-    bound (tight: the value, less a margin for the round-off of its matrix products)."""
+    """The least cost of a pair whose separable sum (``tight``: pooled bound) is at least ``value``:
+    its bound (tight: the value, less a margin for the round-off of its matrix products)."""
     return value * (1.0 - TIGHT_ROUND_OFF) if tight else \
         float(model.bound_from_separable(value, extra_weight=0.0 if redirect is None else 1.0))
 
 
 @dataclass
 class _PairPool:
-    """Exactly evaluated pose pairs of one (virtual, tangible) object pair, all costing less than tau: the
-    first ``size`` of the list ``ranked`` (a pass's, with the passes of pairs added since merged in), grown
-    from ``first``; and the pairs evaluated for it (None past ``SEEN_PAIRS``)."""
+    """Exactly evaluated pose pairs of one (virtual, tangible) object pair, all costing less than
+    tau: the first ``size`` of the list ``ranked`` (a pass's, with the passes of pairs added since
+    merged in), grown from ``first``; and the pairs evaluated for it (None past ``SEEN_PAIRS``)."""
 
     tangible: int
     it: np.ndarray
@@ -253,8 +270,9 @@ class _PairPool:
 
 
 def pinch_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Order-free distance between grasps a (k, F, 3) and b (F, 3): the largest contact displacement, in the
-    nearer of the two finger orders (:func:`pinchmatch.grasp.spread.other_order`)."""
+    """Order-free distance between grasps a (k, F, 3) and b (F, 3): the largest contact
+    displacement, in the nearer of the two finger orders
+    (:func:`pinchmatch.grasp.spread.other_order`)."""
     direct = np.linalg.norm(a - b, axis=2).max(axis=1)
     crossed = np.linalg.norm(a - b[other_order(len(b))], axis=2).max(axis=1)
     return np.minimum(direct, crossed)
@@ -264,9 +282,9 @@ def pinch_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 class Pose:
     """One grasp of a choice, in its object's frame (mm), as matches.json names it: the contacts
     ``contacts_mm`` (F, 3) (a pinch's p1 and p2; a tripod's thumb, index and middle), their outward
-    ``normals`` (F, 3), and the hand's ``approach`` (3,) unit direction from the fingertips towards the
-    palm (NaN for a pose given without one). A virtual pose is in the tangible's finger order: its
-    first contact meets the tangible's first, and so on."""
+    ``normals`` (F, 3), and the hand's ``approach`` (3,) unit direction from the fingertips towards
+    the palm (NaN for a pose given without one). A virtual pose is in the tangible's finger order:
+    its first contact meets the tangible's first, and so on."""
 
     contacts_mm: np.ndarray
     normals: np.ndarray
@@ -308,11 +326,11 @@ class Choice:
       entries of (difference / scale)², in the run's normalisation; with ``jnd``, 1 is just
       noticeable), in the order of :data:`pinchmatch.match.cost.CRITERIA`, computed for every
       criterion (those not in use weigh 0);
-    - ``cost``: ``float``, dimensionless, the cost the match ranks by (``--rank``: the expected cost over the
-      landings by default, :mod:`pinchmatch.match.felt`); ``cost_nominal`` the cost with the fingers on
-      their targets: the terms pooled by the model (:meth:`CostModel.pool`), in JND under the default
-      ``quick`` pooling, Σ weight x term under ``sum`` (the search's, exact); ``p_noticed`` the chance
-      that the ranked difference is noticed (None as the search finds it);
+    - ``cost``: ``float``, dimensionless, the cost the match ranks by (``--rank``: the expected cost
+      over the landings by default, :mod:`pinchmatch.match.felt`); ``cost_nominal`` the cost with
+      the fingers on their targets: the terms pooled by the model (:meth:`CostModel.pool`), in JND
+      under the default ``quick`` pooling, Σ weight x term under ``sum`` (the search's, exact);
+      ``p_noticed`` the chance that the ranked difference is noticed (None as the search finds it);
     - ``swapped``: ``bool``, the virtual pose's p1 lies on the tangible's p2;
     - ``transform``: ``(4, 4) float64``, the rigid transform taking the virtual object's frame (mm)
       to the tangible's, so that the fingertips meet (under ``placement="fixed"``, the hand's warp);
@@ -325,17 +343,18 @@ class Choice:
     - ``mass_delta_mm``: ``(3,) float64``, the centre-of-mass offset from the pinch midpoint as seen
       (virtual, registered, its mass relative to the tangible's) minus as felt (tangible), in the
       tangible's frame, mm;
-    - ``tangible_name``, ``virtual_name``: ``str``, the objects' names (a manifest's ``name``, a level
-      node's, else the file's);
+    - ``tangible_name``, ``virtual_name``: ``str``, the objects' names (a manifest's ``name``, a
+      level node's, else the file's);
     - ``redirect_terms``: ``(2,) float64``, the hand redirection's contributions to ``cost`` under
       ``placement="fixed"`` (:mod:`pinchmatch.match.redirect`), else ``None``;
-    - ``rest_gap_mm``: the placed virtual object's lowest point over the prop's support, mm (negative:
-      sunk into it), or None where it is not shown on a support (:mod:`pinchmatch.match.rest`);
-      ``rest_jnd`` what the gap adds to ``cost`` (JND-equivalents; 0 where nothing is charged);
-    - ``approach_elevation_deg``, ``approach_azimuth_deg``: the hand's approach to the tangible pinch seen from
-      where the user stands (:mod:`pinchmatch.match.comfort`): above the table's horizontal, and away from
-      the direction to the user (0: straight from the user); None where the prop is held in the hand or the
-      pose has no approach.
+    - ``rest_gap_mm``: the placed virtual object's lowest point over the prop's support, mm
+      (negative: sunk into it), or None where it is not shown on a support
+      (:mod:`pinchmatch.match.rest`); ``rest_jnd`` what the gap adds to ``cost`` (JND-equivalents; 0
+      where nothing is charged);
+    - ``approach_elevation_deg``, ``approach_azimuth_deg``: the hand's approach to the tangible
+      pinch seen from where the user stands (:mod:`pinchmatch.match.comfort`): above the table's
+      horizontal, and away from the direction to the user (0: straight from the user); None where
+      the prop is held in the hand or the pose has no approach.
     """
 
     virtual: int
@@ -367,11 +386,13 @@ class Choice:
 
 
 class Search:
-    """The exact search of a scene: per (virtual, tangible) a pool of the cheapest pose pairs, exactly
-    evaluated, grown on demand until it provably holds the best pairs (see the module's notes)."""
+    """The exact search of a scene: per (virtual, tangible) a pool of the cheapest pose pairs,
+    exactly evaluated, grown on demand until it provably holds the best pairs (see the module's
+    notes)."""
 
     def __init__(self, tangibles, virtuals, model, settings):
-        self.tangibles, self.virtuals, self.model, self.settings = tangibles, virtuals, model, settings
+        self.tangibles, self.virtuals, self.model, self.settings = (tangibles, virtuals, model,
+                                                                    settings)
         self.pools: dict[tuple[int, int], _PairPool] = {}
 
     def pool(self, j: int, t: int, size: int | None = None) -> _PairPool:
@@ -392,39 +413,46 @@ class Search:
         self.pools[(j, t)] = pool
         return pool
 
-    def _pass(self, T: Candidates, V: Candidates, size: int, first: int, rows: tuple | None = None) -> tuple:
-        """:func:`pool_pairs` for a pool of ``size`` grown from ``first`` (the least value left out, raw),
-        keeping ``RESERVE`` times as many where the pool's next growth selects as this one does; over the
-        pairs of the poses ``rows`` (t_rows, v_rows) only, where given (indices of T's and V's)."""
+    def _pass(self, T: Candidates, V: Candidates, size: int, first: int,
+              rows: tuple | None = None) -> tuple:
+        """:func:`pool_pairs` for a pool of ``size`` grown from ``first`` (the least value left out,
+        raw), keeping ``RESERVE`` times as many where the pool's next growth selects as this one
+        does; over the pairs of the poses ``rows`` (t_rows, v_rows) only, where given (indices of
+        T's and V's)."""
         tight = self._tight(size, first)
         limit = size * RESERVE if self._tight(size * 4, first) == tight else size
         if rows is None:
             return pool_pairs(T, V, self.model, limit, self.settings.block_rows, tight,
-                              redirect=self.settings.redirect, raw=True, user_mm=self.settings.user_mm)
+                              redirect=self.settings.redirect, raw=True,
+                              user_mm=self.settings.user_mm)
         t_rows, v_rows = rows
         it, iv, value, rest = pool_pairs(T.subset(t_rows), V.subset(v_rows), self.model, limit,
-                                         self.settings.block_rows, tight, redirect=self.settings.redirect, raw=True,
+                                         self.settings.block_rows, tight,
+                                         redirect=self.settings.redirect, raw=True,
                                          user_mm=self.settings.user_mm)
         return t_rows[it], v_rows[iv], value, rest
 
     def _tight(self, size: int, first: int) -> bool:
-        """Pool by the pooled bound once a pool has grown ``TIGHT_AFTER`` times past its ``first`` size
-        under ``quick`` pooling: the separable sum's bound was too loose to close it."""
+        """Pool by the pooled bound once a pool has grown ``TIGHT_AFTER`` times past its ``first``
+        size under ``quick`` pooling: the separable sum's bound was too loose to close it."""
         return self.model.pooling == "quick" and size >= first * 4**TIGHT_AFTER
 
     def _below(self, T: Candidates, V: Candidates, it: np.ndarray, iv: np.ndarray, tau: float,
                seen: Seen | None = None):
-        """The pairs (it, iv) whose exact cost is below ``tau``, in the order given, their evaluation, and the
-        pairs evaluated so far: ``seen``'s, whose evaluation is taken from it, and those evaluated here (None
-        once more than ``SEEN_PAIRS``). Evaluated ``EVALUATE_CHUNK`` pairs at a time, so that a pool of
-        millions (a prop whose poses all look alike) never holds them all at once."""
+        """The pairs (it, iv) whose exact cost is below ``tau``, in the order given, their
+        evaluation, and the pairs evaluated so far: ``seen``'s, whose evaluation is taken from it,
+        and those evaluated here (None once more than ``SEEN_PAIRS``). Evaluated ``EVALUATE_CHUNK``
+        pairs at a time, so that a pool of millions (a prop whose poses all look alike) never holds
+        them all at once."""
         at = seen.find(it, iv, len(V)) if seen is not None else np.full(len(it), -1)
         new = np.flatnonzero(at < 0)
         remember = (0 if seen is None else len(seen.it)) + len(new) <= SEEN_PAIRS
         keep, parts, evaluated = [], [], []
-        for start in range(0, max(len(new), 1), EVALUATE_CHUNK):  # once at least: an empty result has its fields
+        for start in range(0, max(len(new), 1), EVALUATE_CHUNK):
+            # once at least: an empty result has its fields
             rows = new[start:start + EVALUATE_CHUNK]
-            result = evaluate_pairs(T, V, it[rows], iv[rows], model=self.model, keep_upright=self.settings.keep_upright,
+            result = evaluate_pairs(T, V, it[rows], iv[rows], model=self.model,
+                                    keep_upright=self.settings.keep_upright,
                                     redirect=self.settings.redirect, user_mm=self.settings.user_mm)
             if remember:
                 evaluated.append(result)
@@ -443,28 +471,32 @@ class Search:
         if not remember:
             return it[keep], iv[keep], result, None
         evaluated = concat_pairs(evaluated)
-        return it[keep], iv[keep], result, (seen.plus(it[new], iv[new], evaluated) if seen is not None else
+        return it[keep], iv[keep], result, (seen.plus(it[new], iv[new], evaluated)
+                                            if seen is not None else
                                            Seen.of(it[new], iv[new], evaluated))
 
     def grown(self, tangibles: list, virtuals: list) -> "Search":
         """The search over the same objects with poses appended to their candidates (each list
-        starts with this search's): pools known here carry over. Each pool's list takes the new pairs'
-        own blockwise passes (:meth:`pool`'s), and the grown pool of the same size is that list's first
-        pairs: only those not evaluated before are evaluated."""
+        starts with this search's): pools known here carry over. Each pool's list takes the new
+        pairs' own blockwise passes (:meth:`pool`'s), and the grown pool of the same size is that
+        list's first pairs: only those not evaluated before are evaluated."""
         out = Search(tangibles, virtuals, self.model, self.settings)
         for (j, t), old in self.pools.items():
             T, V = tangibles[t], virtuals[j]
             n_t, n_v = len(self.tangibles[t]), len(self.virtuals[j])
             tight = self._tight(old.size, old.first)
             if old.ranked is not None and old.ranked.tight == tight:
-                new = ((np.arange(n_t, len(T)), np.arange(len(V))), (np.arange(n_t), np.arange(n_v, len(V))))
-                ranked = old.ranked.merged([out._pass(T, V, old.size, old.first, rows) for rows in new
+                new = ((np.arange(n_t, len(T)), np.arange(len(V))),
+                       (np.arange(n_t), np.arange(n_v, len(V))))
+                ranked = old.ranked.merged([out._pass(T, V, old.size, old.first, rows)
+                                            for rows in new
                                             if len(rows[0]) and len(rows[1])])
             else:
                 ranked = Ranked.of(*out._pass(T, V, old.size, old.first), tight)
             it, iv, rest = ranked.first(old.size)
             tau = _bound(self.model, rest, tight, self.settings.redirect)
-            it, iv, result, seen = out._below(T, V, it, iv, tau, old.seen or Seen.of(old.it, old.iv, old.result))
+            it, iv, result, seen = out._below(T, V, it, iv, tau,
+                                              old.seen or Seen.of(old.it, old.iv, old.result))
             out.pools[(j, t)] = _PairPool(t, it, iv, result, tau, old.size, old.first, ranked, seen)
         return out
 
@@ -488,26 +520,33 @@ class Search:
             self.pool(j, smallest.tangible, smallest.size * 4)
 
     def _greedy(self, j, pools, tau, count) -> list[Choice]:
-        entries = [(p, np.flatnonzero(np.isfinite(p.result.cost) & (p.result.cost < tau))) for p in pools]
-        return self.distinct_choices(j, [(p.tangible, p.it[ok], p.iv[ok], take_pairs(p.result, ok)) for p, ok in entries],
-                                     [p.result.cost[ok] for p, ok in entries], count)
+        entries = [(p, np.flatnonzero(np.isfinite(p.result.cost) & (p.result.cost < tau)))
+                   for p in pools]
+        return self.distinct_choices(j,
+                                     [(p.tangible, p.it[ok], p.iv[ok], take_pairs(p.result, ok))
+                                      for p, ok in entries],
+                                      [p.result.cost[ok] for p, ok in entries], count)
 
     def distinct_choices(self, j: int, parts: list, keys: list, count: int) -> list[Choice]:
-        """Up to ``count`` choices of virtual j picked greedily by ``keys`` (one array per part, lower first;
-        ties by tangible and poses) among ``parts`` [(tangible, it, iv, PairResult)], none a near duplicate
-        of an earlier pick (module notes)."""
+        """Up to ``count`` choices of virtual j picked greedily by ``keys`` (one array per part,
+        lower first; ties by tangible and poses) among ``parts`` [(tangible, it, iv, PairResult)],
+        none a near duplicate of an earlier pick (module notes)."""
         V = self.virtuals[j]
         key = np.concatenate(keys) if keys else np.zeros(0)
-        owner = np.concatenate([np.full(len(it), t) for t, it, _, _ in parts]) if parts else np.zeros(0, np.int64)
-        local = np.concatenate([np.arange(len(it)) for _, it, _, _ in parts]) if parts else np.zeros(0, np.int64)
+        owner = np.concatenate([np.full(len(it), t)
+                                for t, it, _, _ in parts]) if parts else np.zeros(0, np.int64)
+        local = np.concatenate([np.arange(len(it))
+                                for _, it, _, _ in parts]) if parts else np.zeros(0, np.int64)
         it = np.concatenate([it for _, it, _, _ in parts]) if parts else np.zeros(0, np.int64)
         iv = np.concatenate([iv for _, _, iv, _ in parts]) if parts else np.zeros(0, np.int64)
         if not len(key):
             return []
-        t_pinch = np.concatenate([self.tangibles[t].pinches.points[p_it] for t, p_it, _, _ in parts])
+        t_pinch = np.concatenate([self.tangibles[t].pinches.points[p_it]
+                                  for t, p_it, _, _ in parts])
         v_pinch = V.pinches.points[iv]
         by_owner = {t: k for k, (t, _, _, _) in enumerate(parts)}
-        order = np.lexsort((iv, it, owner, key))  # by key; ties by tangible and poses, whatever the pools
+        # by key; ties by tangible and poses, whatever the pools
+        order = np.lexsort((iv, it, owner, key))
         alive = np.ones(len(key), dtype=bool)
         picks: list[Choice] = []
         for i in order:
@@ -517,25 +556,32 @@ class Search:
                 continue
             _, _, _, r = parts[by_owner[owner[i]]]
             picks.append(self.choice(j, int(owner[i]), int(it[i]), int(iv[i]), r, int(local[i])))
-            near = np.flatnonzero(alive & (owner == owner[i]))  # the rest are out already, or on other tangibles
+            # the rest are out already, or on other tangibles
+            near = np.flatnonzero(alive & (owner == owner[i]))
             near = near[pinch_distance(t_pinch[near], t_pinch[i]) < self.settings.distinct_mm]
-            alive[near[pinch_distance(v_pinch[near], v_pinch[i]) < self.settings.distinct_mm]] = False
+            alive[near[pinch_distance(v_pinch[near],
+                                      v_pinch[i]) < self.settings.distinct_mm]] = False
         return picks
 
     def choice(self, j: int, t: int, it: int, iv: int, r: PairResult, k: int) -> Choice:
-        """The :class:`Choice` of virtual j's pose ``iv`` on tangible t's pose ``it``, evaluated as ``r[k]``."""
+        """The :class:`Choice` of virtual j's pose ``iv`` on tangible t's pose ``it``, evaluated as
+        ``r[k]``."""
         T, V, fixed = self.tangibles[t], self.virtuals[j], self.settings.redirect is not None
-        return Choice(j, t, it, iv, float(r.cost[k]), r.terms[k], bool(r.swapped[k]), r.transform[k], bool(r.flipped[k]),
-                      r.mass_delta_mm[k], T.name, V.name, r.redirect_terms[k] if fixed else None,
-                      placed_transform(T.obj.spec) if fixed else r.transform[k],
+        return Choice(j, t, it, iv, float(r.cost[k]), r.terms[k], bool(r.swapped[k]),
+                      r.transform[k], bool(r.flipped[k]), r.mass_delta_mm[k], T.name, V.name,
+                      r.redirect_terms[k] if fixed else None, placed_transform(T.obj.spec) if fixed
+                      else r.transform[k],
                       Pose.of(T, it), Pose.of(V, iv, bool(r.swapped[k])),
                       rest_gap_mm=None if np.isnan(r.rest_gap_mm[k]) else float(r.rest_gap_mm[k]),
-                      rest_jnd=float(r.rest_jnd[k]), **_approach_fields(T, it, self.settings.user_mm))
+                      rest_jnd=float(r.rest_jnd[k]),
+                      **_approach_fields(T, it, self.settings.user_mm))
 
 
 def _approach_fields(tangible: Candidates, pose: int, user_mm) -> dict:
-    """A choice's ``approach_elevation_deg`` and ``approach_azimuth_deg`` on tangible pose ``pose``."""
-    if tangible.obj.context.support is None or not np.isfinite(tangible.pinches.approach[pose]).all():
+    """A choice's ``approach_elevation_deg`` and ``approach_azimuth_deg`` on tangible pose
+    ``pose``."""
+    if (tangible.obj.context.support is None
+        or not np.isfinite(tangible.pinches.approach[pose]).all()):
         return {}
     elevation, azimuth = approach_angles(tangible.obj, tangible.pinches.points[pose:pose + 1],
                                          tangible.pinches.approach[pose:pose + 1], user_mm)
@@ -545,42 +591,5 @@ def _approach_fields(tangible: Candidates, pose: int, user_mm) -> dict:
 
 def cost_row(search: "Search", j: int) -> np.ndarray:
     """(n,) exact least cost of virtual j on each tangible (inf where none is allowed)."""
-    return np.array([search.best_cost(j, t) for t in range(len(search.tangibles))], dtype=np.float64)
-
-
-def contact_offset_mm(tangible: Candidates, virtual: Candidates, choice: Choice) -> float:
-    """(w_V - w_T) / 2: each virtual fingertip's offset from the tangible contact along the pinch line."""
-    return float(virtual.features.width_mm[choice.v_pose] - tangible.features.width_mm[choice.t_pose]) / 2.0
-
-
-def jnd_terms(tangible: Candidates, virtual: Candidates, choice: Choice) -> np.ndarray:
-    """(8,) each criterion's contribution for a choice in just-noticeable differences (JND²)."""
-    v_row = virtual.table[choice.v_pose][None]
-    jnd_model = CostModel(normalize="jnd", criteria=CRITERIA, weights=dict.fromkeys(CRITERIA, 1.0))
-    if choice.swapped:
-        v_row = v_row[:, other_order(v_row.shape[1])]
-    return pair_terms(tangible, virtual, tangible.table[choice.t_pose][None], v_row,
-                      jnd_model, delta=choice.mass_delta_mm[None])[0][0]
-
-
-def p_noticed(tangible: Candidates, virtual: Candidates, choice: Choice, model: CostModel) -> float:
-    """The probability that the choice's remaining difference is noticed: the model's criteria,
-    weights and pooling, in JND (:meth:`pinchmatch.match.cost.CostModel.p_noticed`), with the hand's
-    redirection where the placement is fixed."""
-    jnd_model = model.as_jnd()
-    return float(jnd_model.p_noticed(jnd_model.pool(jnd_terms(tangible, virtual, choice), extra=choice.redirect_terms)))
-
-
-def criterion_table(tangible: Candidates, virtual: Candidates, choice: Choice, model: CostModel) -> dict:
-    """Per criterion in use: weight, contribution (in the run's normalisation), the difference in
-    just-noticeable differences (root mean square over the criterion's entries) and ``noticeable``
-    (that criterion alone at 1 JND or more)."""
-    jnd = jnd_terms(tangible, virtual, choice)
-    out = {}
-    for k, c in enumerate(CRITERIA):
-        if c not in model.criteria:
-            continue
-        size = float(np.sqrt(jnd[k]))
-        out[c] = {"weight": model.weights[c], "contribution": float(choice.terms[k]), "jnd": size,
-                  "noticeable": bool(size >= 1.0)}
-    return out
+    return np.array([search.best_cost(j, t) for t in range(len(search.tangibles))],
+                    dtype=np.float64)

@@ -3,8 +3,8 @@
 Input: the scene's served matrix over the whole shelf, ``cost`` (m virtual objects x n props, the
 exact least cost of each object on each prop, inf where no registration is allowed) and
 ``noticeable`` (the same shape, bool: that best placement leaves some criterion at 1 JND or more),
-both from the one match of ``match`` (:func:`pinchmatch.match.scene.match_one`: its ranked row and whether each
-prop's best choice is noticed). With a subset S chosen, each object
+both from the one match of ``match`` (:func:`pinchmatch.match.scene.match_one`: its ranked row and
+whether each prop's best choice is noticed). With a subset S chosen, each object
 uses its best prop in S: the cheapest (ties to the earlier prop), and under ``noticeable`` the
 cheapest of those on which nothing is noticeable, when there is one. The **objective** of S is then
 
@@ -89,10 +89,12 @@ def _pick(c: np.ndarray, q: np.ndarray, objective: str) -> np.ndarray:
         return np.argmin(c, axis=-1)
     finite = np.isfinite(c)
     span = float(np.abs(c[finite]).max()) + 1.0 if finite.any() else 1.0
-    return np.argmin(np.where(finite, c + span * q, np.inf), axis=-1)  # a quiet prop before any loud one
+    # a quiet prop before any loud one
+    return np.argmin(np.where(finite, c + span * q, np.inf), axis=-1)
 
 
-def _scores(cost: np.ndarray, noticeable: np.ndarray, subsets: np.ndarray, objective: str) -> np.ndarray:
+def _scores(cost: np.ndarray, noticeable: np.ndarray, subsets: np.ndarray,
+            objective: str) -> np.ndarray:
     """(s, 2) (objective, mean) of each subset (rows of prop indices): lower is better, compared
     lexicographically. cost and noticeable hold only servable objects."""
     c = cost[:, subsets]  # (m, s, K)
@@ -121,11 +123,13 @@ def _exhaustive(cost, noticeable, k: int, objective: str) -> np.ndarray:
     best, best_score = None, (np.inf, np.inf)
     combos = itertools.combinations(range(n), k)  # lexicographic: the first of equals is kept
     while True:
-        block = np.array(list(itertools.islice(combos, BLOCK_SUBSETS)), dtype=np.int64).reshape(-1, k)
+        block = np.array(list(itertools.islice(combos, BLOCK_SUBSETS)), dtype=np.int64).reshape(-1,
+                                                                                                k)
         if not len(block):
             break
         scores = _scores(cost, noticeable, block, objective)
-        i = int(np.lexsort((scores[:, 1], scores[:, 0]))[0])  # stable: the first of equals in the block
+        # stable: the first of equals in the block
+        i = int(np.lexsort((scores[:, 1], scores[:, 0]))[0])
         if best is None or _better(scores[i], best_score):
             best, best_score = block[i], tuple(scores[i])
     return best
@@ -136,7 +140,8 @@ def _greedy_and_swaps(cost, noticeable, k: int, objective: str, start=()) -> np.
     chosen = list(start)
     while len(chosen) < k:
         rest = np.array([t for t in range(n) if t not in chosen], dtype=np.int64)
-        trial = np.column_stack([np.tile(chosen, (len(rest), 1)), rest]) if chosen else rest[:, None]
+        trial = np.column_stack([np.tile(chosen, (len(rest), 1)),
+                                 rest]) if chosen else rest[:, None]
         scores = _scores(cost, noticeable, trial, objective)
         chosen.append(int(rest[np.lexsort((rest, scores[:, 1], scores[:, 0]))[0]]))
     score = _scores(cost, noticeable, np.array([chosen]), objective)[0]
@@ -160,13 +165,15 @@ def _selection(cost, noticeable, servable, props, objective, exact) -> Selection
     pick = _pick(c, noticeable[:, props], objective)
     assigned = np.where(servable & np.isfinite(c[np.arange(len(c)), pick]), props[pick], -1)
     own = np.where(assigned >= 0, c[np.arange(len(c)), pick], np.inf)
-    loud = np.where(assigned >= 0, noticeable[np.arange(len(c)), np.where(assigned >= 0, assigned, 0)], False)
+    loud = np.where(assigned >= 0,
+                    noticeable[np.arange(len(c)), np.where(assigned >= 0, assigned, 0)], False)
     score = _scores(cost[servable], noticeable[servable], props[None], objective)[0]
     return Selection(props, float(score[0]), float(score[1]), assigned, own, loud, exact,
                      "exhaustive" if exact else "greedy + swaps")
 
 
-def select_props(cost: np.ndarray, noticeable: np.ndarray, k: int, *, objective: str = "mean") -> Selection:
+def select_props(cost: np.ndarray, noticeable: np.ndarray, k: int, *,
+                 objective: str = "mean") -> Selection:
     """The ``k`` props that serve the scene best under ``objective`` (see the module notes).
 
     >>> cost = np.array([[0.2, 1.5, 0.9], [2.0, 0.3, 0.8], [1.1, 1.2, 0.4]])  # 3 objects x 3 props
@@ -203,7 +210,8 @@ def coverage_curve(cost: np.ndarray, noticeable: np.ndarray, *, objective: str =
         if out and not s.exact:
             # a larger set is never worse: the previous subset, padded greedily, competes
             servable = np.isfinite(cost).any(axis=1)
-            padded = _greedy_and_swaps(cost[servable], noticeable[servable], k, objective, start=out[-1].props)
+            padded = _greedy_and_swaps(cost[servable], noticeable[servable], k, objective,
+                                       start=out[-1].props)
             alt = _selection(cost, noticeable, servable, padded, objective, False)
             if _better((alt.value, alt.mean_cost), (s.value, s.mean_cost)):
                 s = alt
@@ -211,7 +219,8 @@ def coverage_curve(cost: np.ndarray, noticeable: np.ndarray, *, objective: str =
     return out
 
 
-def best_addition(cost: np.ndarray, noticeable: np.ndarray, selection: Selection, objective: str = "mean"):
+def best_addition(cost: np.ndarray, noticeable: np.ndarray, selection: Selection,
+                  objective: str = "mean"):
     """The shelf prop not chosen whose addition improves the objective most, and the selection with
     it; None when every prop is chosen or none improves it."""
     n = cost.shape[1]

@@ -18,9 +18,9 @@ mm and the axis is +Z whatever the manifest's ``[defaults]`` say::
 
 The parts are the ones ``pinchmatch design`` builds its props from (:mod:`pinchmatch.mesh.stacks`),
 so a described prop and a designed one are the same solids: ``sphere`` (alone), ``cylinder``,
-``box`` (``size_mm`` across X, across Y, tall; ``turn_deg`` about Z), ``frustum`` (``top_diameter_mm``
-0 makes a cone) and ``barrel`` (the middle of an ellipsoid: ``diameter_mm`` at mid-height,
-``end_diameter_mm`` at both cut faces).
+``box`` (``size_mm`` across X, across Y, tall; ``turn_deg`` about Z), ``frustum``
+(``top_diameter_mm`` 0 makes a cone) and ``barrel`` (the middle of an ellipsoid: ``diameter_mm`` at
+mid-height, ``end_diameter_mm`` at both cut faces).
 
 The solid is written once as a binary STL named by the digest of its parts and of the code that
 builds it, in this user's private folder of the system's temporary directory (``SHAPES_FOLDER``
@@ -46,8 +46,8 @@ from .stacks import Part, Stack, stack_mesh
 SHAPES_FOLDER = "pinchmatch-shapes"
 #: a described prop is held in one hand: every size at most this (mm)
 MAX_SIZE_MM = 1000.0
-#: the least size of a part (mm): smaller than a millimetre, no fingertip feels it and the solid's union
-#: falls below the mesh tolerances
+#: the least size of a part (mm): smaller than a millimetre, no fingertip feels it and the solid's
+#: union falls below the mesh tolerances
 MIN_SIZE_MM = 1.0
 #: parts in one described stack at most
 MAX_DESCRIBED_PARTS = 8
@@ -84,28 +84,32 @@ def _part(table, at: str, problems: list[str]) -> Part | None:
     if kind == "box":
         size = table["size_mm"]
         if not (isinstance(size, list) and len(size) == 3 and all(_size(v) for v in size)):
-            problems.append(f"{at}: size_mm must be [across X, across Y, tall], each from {MIN_SIZE_MM:g} to "
+            problems.append(f"{at}: size_mm must be [across X, across Y, tall], each from "
+                            f"{MIN_SIZE_MM:g} to "
                             f"{MAX_SIZE_MM:g} mm (sizes are in mm)")
             return None
         turn = table.get("turn_deg", 0.0)
         if not finite_number(turn):
             problems.append(f"{at}: turn_deg must be a number of degrees")
             return None
-        return Part("box", float(size[2]), float(size[0]), turn_deg=float(turn), depth_mm=float(size[1]))
+        return Part("box", float(size[2]), float(size[0]), turn_deg=float(turn),
+                    depth_mm=float(size[1]))
     sizes = {k: table[k] for k in required}
     top = sizes.pop("top_diameter_mm", sizes.pop("end_diameter_mm", None))
     bad = [k for k, v in sizes.items() if not _size(v)]
     if top is not None and not (_size(top) or (kind == "frustum" and top == 0)):
         bad.append("top_diameter_mm" if kind == "frustum" else "end_diameter_mm")
     if bad:
-        problems.append(f"{at}: {', '.join(bad)} must be from {MIN_SIZE_MM:g} to {MAX_SIZE_MM:g} mm (sizes are in mm)"
+        problems.append(f"{at}: {', '.join(bad)} must be from {MIN_SIZE_MM:g} to {MAX_SIZE_MM:g} "
+                        "mm (sizes are in mm)"
                         + (" (a cone's top_diameter_mm may be 0)" if kind == "frustum" else ""))
         return None
     d = float(sizes["diameter_mm"])
     if kind == "sphere":
         return Part("barrel", d, d, 0.0)
     if kind == "barrel" and top >= d:
-        problems.append(f"{at}: a barrel's end_diameter_mm must be below its diameter_mm (its middle)")
+        problems.append(f"{at}: a barrel's end_diameter_mm must be below its diameter_mm (its "
+                        "middle)")
         return None
     return Part(kind, float(sizes["height_mm"]), d, None if top is None else float(top))
 
@@ -121,16 +125,18 @@ def read_shape(value, where: str) -> tuple[Stack | None, list[str]]:
              for k, t in enumerate(tables)]
     is_sphere = [isinstance(t, dict) and t.get("kind") == "sphere" for t in tables]
     if len(tables) > 1 and any(is_sphere):
-        problems.append(f"{where}: shape: a sphere stands alone (it touches a part above or below at one point)")
+        problems.append(f"{where}: shape: a sphere stands alone (it touches a part above or below "
+                        "at one point)")
     if problems:
         return None, problems
     return Stack(tuple(parts)), []
 
 
 def _private_folder() -> Path:
-    """This user's folder of described solids: ``pinchmatch-shapes-<uid>`` in the temporary directory, made
-    0700 and used only while it is a real folder this user owns that no one else may write; otherwise a
-    fresh private folder of this process (shared temporary directories let anyone plant a file)."""
+    """This user's folder of described solids: ``pinchmatch-shapes-<uid>`` in the temporary
+    directory, made 0700 and used only while it is a real folder this user owns that no one else may
+    write; otherwise a fresh private folder of this process (shared temporary directories let anyone
+    plant a file)."""
     folder = Path(tempfile.gettempdir()) / f"{SHAPES_FOLDER}-{os.getuid()}"
     try:
         folder.mkdir(mode=0o700, exist_ok=True)
@@ -143,7 +149,8 @@ def _private_folder() -> Path:
 
 
 def _whole_stl(path: Path) -> bool:
-    """A regular file holding a whole binary STL: 84 bytes of header and count, 50 bytes a triangle."""
+    """A regular file holding a whole binary STL: 84 bytes of header and count, 50 bytes a
+    triangle."""
     try:
         info = os.lstat(path)
         if not stat.S_ISREG(info.st_mode) or info.st_size < 84:
@@ -156,8 +163,8 @@ def _whole_stl(path: Path) -> bool:
 
 
 def shape_file(stack: Stack) -> Path:
-    """The stack's solid as a binary STL in mm, +Z up, named by its parts and the code that builds it
-    (written once per user; a damaged file is written again)."""
+    """The stack's solid as a binary STL in mm, +Z up, named by its parts and the code that builds
+    it (written once per user; a damaged file is written again)."""
     text = json.dumps([p.as_dict() for p in stack.parts], sort_keys=True) + code_digest()
     digest = hashlib.sha256(text.encode()).hexdigest()[:24]
     folder = _private_folder()

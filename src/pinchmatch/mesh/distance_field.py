@@ -24,9 +24,9 @@ A point outside the grid is farther than the margin from every sample. Both boun
 to floating point, which a relative guard covers), so a caller that only needs to know "at least
 the cap" or "below a threshold" gets the same decisions as from the exact query.
 
-The bounds of a batch of points are one compiled pass (:mod:`pinchmatch.mesh.distance_field_kernel`):
-the reach search asks for millions per run, and numpy's passes over (n, 3) temporaries took 2.5-4
-times as long.
+The bounds of a batch of points are one compiled pass
+(:mod:`pinchmatch.mesh.distance_field_kernel`): the reach search asks for millions per run, and
+numpy's passes over (n, 3) temporaries took 2.5-4 times as long.
 
 **Size.** ``v`` is the larger of ``min_voxel_mm`` and the side that keeps the grid within
 ``max_voxels``: a 100 mm mug at 1.5 mm is 120k voxels; a 2 m table at the cap is coarser, and its
@@ -40,7 +40,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-#: the finest voxel side (mm): the transform's cost grows with the voxel count, its use falls off slowly
+#: the finest voxel side (mm): the transform's cost grows with the voxel count, its use falls off
+#: slowly
 MIN_VOXEL_MM = 1.5
 #: at most this many voxels (bounds time and memory on very large objects)
 MAX_VOXELS = 2_000_000
@@ -81,16 +82,18 @@ class DistanceField:
         cells = np.minimum(np.floor((points - origin) / voxel).astype(np.int64), shape - 1)
         empty[tuple(cells.T)] = False
         distance = ndimage.distance_transform_edt(empty, sampling=voxel).astype(np.float32)
-        return cls(origin_mm=origin, voxel_mm=float(voxel), distance_mm=distance, margin_mm=float(margin_mm))
+        return cls(origin_mm=origin, voxel_mm=float(voxel), distance_mm=distance,
+                   margin_mm=float(margin_mm))
 
     def bounds(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(lower, upper), each (n,): the distance from each point to the nearest sample lies between
-        them (``upper`` is inf outside the grid, ``lower`` the margin there)."""
-        from .distance_field_kernel import field_bounds  # numba: imported when bounds are first asked
+        """(lower, upper), each (n,): the distance from each point to the nearest sample lies
+        between them (``upper`` is inf outside the grid, ``lower`` the margin there)."""
+        # numba: imported when bounds are first asked
+        from .distance_field_kernel import field_bounds
 
         points = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
         lower, upper = np.empty(len(points)), np.empty(len(points))
-        field_bounds(points, np.asarray(self.origin_mm, dtype=np.float64), 1.0 / self.voxel_mm, float(self.voxel_mm),
-                     np.ascontiguousarray(self.distance_mm, dtype=np.float32), GUARD, float(self.margin_mm),
-                     lower, upper)
+        field_bounds(points, np.asarray(self.origin_mm, dtype=np.float64), 1.0 / self.voxel_mm,
+                     float(self.voxel_mm), np.ascontiguousarray(self.distance_mm, dtype=np.float32),
+                     GUARD, float(self.margin_mm), lower, upper)
         return lower, upper

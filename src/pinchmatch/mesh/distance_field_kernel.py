@@ -1,10 +1,10 @@
-"""The compiled loop of :meth:`pinchmatch.mesh.distance_field.DistanceField.bounds` (numba, cached on disk
-next to this file).
+"""The compiled loop of :meth:`pinchmatch.mesh.distance_field.DistanceField.bounds` (numba, cached
+on disk next to this file).
 
-The reach search asks the field for the bounds of a few million test centres per thousand pinches. In
-numpy the bounds take a dozen passes over (n, 3) temporaries; one pass per point reads its voxel and
-writes both bounds, 2.5-4 times as fast. The arithmetic is the module's; its last bits may differ
-(by a few 1e-15 mm), which the field's rounding guard covers.
+The reach search asks the field for the bounds of a few million test centres per thousand pinches.
+In numpy the bounds take a dozen passes over (n, 3) temporaries; one pass per point reads its voxel
+and writes both bounds, 2.5-4 times as fast. The arithmetic is the module's; its last bits may
+differ (by a few 1e-15 mm), which the field's rounding guard covers.
 
 Imported when a field is first asked for bounds, so that starting pinchmatch does not load numba.
 """
@@ -19,14 +19,16 @@ from ..compiled import njit
 
 @njit(cache=True, nogil=True)
 def field_bounds(points, origin, inverse_voxel, voxel, distance, guard, margin, lower, upper):
-    """For each row of ``points`` (n, 3): its voxel of the grid ``distance`` (a, b, c) float32, whose lowest
-    corner is ``origin`` and side ``voxel`` (``inverse_voxel`` its inverse); ``lower[i]`` and ``upper[i]``
-    bound the distance to the nearest sample: e ∓ (|x - g| + v·√3/2 + guard·(1 + max |x|) + 2.4e-7·e), the
-    voxel's value e and centre g, max |x| over the finite coordinates of ``points``; the margin and inf
-    outside the grid (and for a point that is not finite)."""
+    """For each row of ``points`` (n, 3): its voxel of the grid ``distance`` (a, b, c) float32,
+    whose lowest corner is ``origin`` and side ``voxel`` (``inverse_voxel`` its inverse);
+    ``lower[i]`` and ``upper[i]`` bound the distance to the nearest sample: e ∓ (|x - g| + v·√3/2 +
+    guard·(1 + max |x|) + 2.4e-7·e), the voxel's value e and centre g, max |x| over the finite
+    coordinates of ``points``; the margin and inf outside the grid (and for a point that is not
+    finite)."""
     shape = distance.shape
     flat = distance.ravel()
-    largest = 0.0  # over the finite coordinates: a point that is not one is outside, and spoils no other's guard
+    # over the finite coordinates: a point that is not one is outside, and spoils no other's guard
+    largest = 0.0
     for i in range(points.shape[0]):
         for axis in range(3):
             if abs(points[i, axis]) < np.inf:

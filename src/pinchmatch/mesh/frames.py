@@ -51,13 +51,13 @@ def parse_up(up: str, *, source: str = "--up") -> tuple[str, np.ndarray]:
 
 
 def level_turn(up: str | None):
-    """(3, 3) the rotation that turns a level whose up is ``up`` (a label, None: glTF's ``y``) into glTF's frame
-    (+Y up), by the least turn: a z-up level turns about +X by -90 degrees (its +Z to +Y, its -Y to +Z, as
-    Blender's glTF exporter turns it), so its "front" (glTF's +Z) is its -Y."""
+    """(3, 3) the rotation that turns a level whose up is ``up`` (a label, None: glTF's ``y``) into
+    glTF's frame (+Y up), by the least turn: a z-up level turns about +X by -90 degrees (its +Z to
+    +Y, its -Y to +Z, as Blender's glTF exporter turns it), so its "front" (glTF's +Z) is its -Y."""
     import numpy as np
 
-    turns = {"y": ("x", 0.0), "z": ("x", -90.0), "-z": ("x", 90.0), "x": ("z", 90.0), "-x": ("z", -90.0),
-             "-y": ("x", 180.0)}
+    turns = {"y": ("x", 0.0), "z": ("x", -90.0), "-z": ("x", 90.0), "x": ("z", 90.0),
+             "-x": ("z", -90.0), "-y": ("x", 180.0)}
     axis, deg = turns[parse_up(up or "y")[0]]
     c, s = np.cos(np.radians(deg)), np.sin(np.radians(deg))
     if axis == "x":
@@ -80,16 +80,20 @@ def check_units(path: Path, extent_mm: float, units_in: str) -> None:
 
 
 def units_hint(raw: float, units_in: str) -> str:
-    """The units that make an object ``raw`` file units across a size a hand holds, both where two do."""
+    """The units that make an object ``raw`` file units across a size a hand holds, both where two
+    do."""
     size = {u: raw * s for u, s in UNITS_MM.items() if u != units_in}
     lo, hi = GRASPABLE_SIZE_MM
-    fits = sorted((u for u, mm in size.items() if lo <= mm <= hi), key=lambda u: abs(math.log(size[u] / 100.0)))
+    fits = sorted((u for u, mm in size.items() if lo <= mm <= hi),
+                  key=lambda u: abs(math.log(size[u] / 100.0)))
     if not fits:
-        plausible = [u for u, mm in size.items() if PLAUSIBLE_SIZE_MM[0] <= mm <= PLAUSIBLE_SIZE_MM[1]]
+        plausible = [u for u, mm in size.items() if PLAUSIBLE_SIZE_MM[0] <= mm
+                     <= PLAUSIBLE_SIZE_MM[1]]
         fits = sorted(plausible, key=lambda u: abs(math.log(size[u] / 100.0)))[:1]
     if not fits:
         return "scale the mesh to real size"
-    return "read it with " + " or ".join(f"{option('units', u)} ({size[u]:.3g} mm across)" for u in fits[:2])
+    return "read it with " + " or ".join(f"{option('units', u)} ({size[u]:.3g} mm across)"
+                                         for u in fits[:2])
 
 
 def cross_matrices(v: np.ndarray) -> np.ndarray:

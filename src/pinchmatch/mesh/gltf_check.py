@@ -3,12 +3,13 @@
 trimesh builds a level's scene graph from the document's ``nodes`` without checking that they form a
 forest: a cycle of children makes it (and any walk up the hierarchy) loop for ever, and its world
 transforms cost more than linear time in the depth (a chain 1,000 nodes deep takes minutes). So the
-document is read first, and refused in one line when a node names a child that does not exist, when a
-node has two parents or the children form a cycle, or when the level is larger than
-:data:`MAX_NODES` nodes or deeper than :data:`MAX_DEPTH` (real levels are a few dozen deep). The walk is
-iterative and linear in the number of nodes. External buffers and images (of a ``.gltf`` or a ``.glb``)
-are looked for as the specification says, their URIs percent-decoded, and only beside the file. A
-document the checks cannot read (over 64 MiB, not UTF-8, not JSON) is refused, never handed on.
+document is read first, and refused in one line when a node names a child that does not exist, when
+a node has two parents or the children form a cycle, or when the level is larger than
+:data:`MAX_NODES` nodes or deeper than :data:`MAX_DEPTH` (real levels are a few dozen deep). The
+walk is iterative and linear in the number of nodes. External buffers and images (of a ``.gltf`` or
+a ``.glb``) are looked for as the specification says, their URIs percent-decoded, and only beside
+the file. A document the checks cannot read (over 64 MiB, not UTF-8, not JSON) is refused, never
+handed on.
 """
 
 from __future__ import annotations
@@ -31,11 +32,12 @@ MAX_JSON_BYTES = 64 * 2**20
 
 
 def gltf_document(path: Path, file_type: str) -> dict:
-    """The JSON document of a .gltf, or of a .glb's first chunk. What cannot be read as one (too large, not
-    UTF-8, not JSON, a GLB without its JSON chunk) is refused in one line: a document the checks cannot
-    read is never handed to the reader unchecked."""
+    """The JSON document of a .gltf, or of a .glb's first chunk. What cannot be read as one (too
+    large, not UTF-8, not JSON, a GLB without its JSON chunk) is refused in one line: a document the
+    checks cannot read is never handed to the reader unchecked."""
     def refuse(problem: str):
-        return MeshError(f"{path}: {problem}; it is not a glTF document pinchmatch can check: re-export it from the "
+        return MeshError(f"{path}: {problem}; it is not a glTF document pinchmatch can check: "
+                         "re-export it from the "
                          "editor (glTF 2.0)")
 
     try:
@@ -70,9 +72,11 @@ def gltf_document(path: Path, file_type: str) -> dict:
     return document
 
 
-def external_files(path: Path, document: dict, kinds=("buffers", "images")) -> list[tuple[str, Path]]:
-    """(uri, file) of every external buffer and image (``kinds``) the document names, URIs percent-decoded as
-    the specification says and taken beside the file (a GLB's external buffers the same as a .gltf's)."""
+def external_files(path: Path, document: dict,
+                   kinds=("buffers", "images")) -> list[tuple[str, Path]]:
+    """(uri, file) of every external buffer and image (``kinds``) the document names, URIs
+    percent-decoded as the specification says and taken beside the file (a GLB's external buffers
+    the same as a .gltf's)."""
     out = []
     for kind in kinds:
         entries = document.get(kind, [])
@@ -90,19 +94,24 @@ def check_hierarchy(path: Path, document: dict) -> None:
         raise MeshError(f"{path}: 'nodes' is not a list; the file is corrupt, re-export it")
     n = len(nodes)
     if n > MAX_NODES:
-        raise MeshError(f"{path}: the level holds {n} nodes, more than {MAX_NODES}; split it into smaller levels")
+        raise MeshError(f"{path}: the level holds {n} nodes, more than {MAX_NODES}; split it into "
+                        "smaller levels")
     parent = [-1] * n
     children: list[list[int]] = []
     for i, node in enumerate(nodes):
         kids = node.get("children", []) if isinstance(node, dict) else []
-        if not isinstance(kids, list) or not all(isinstance(k, int) and not isinstance(k, bool) for k in kids):
-            raise MeshError(f"{path}: node {i}'s children are not a list of node indices; re-export the level")
+        if not isinstance(kids, list) or not all(isinstance(k, int) and not isinstance(k, bool)
+                                                 for k in kids):
+            raise MeshError(f"{path}: node {i}'s children are not a list of node indices; "
+                            "re-export the level")
         for k in kids:
             if not 0 <= k < n:
-                raise MeshError(f"{path}: node {i} names child node {k}, and the level has nodes 0 to {n - 1}; "
+                raise MeshError(f"{path}: node {i} names child node {k}, and the level has nodes 0 "
+                                f"to {n - 1}; "
                                 "the file is corrupt, re-export it")
             if parent[k] != -1 or k == i:
-                raise MeshError(f"{path}: node {k} is a child of two nodes ({parent[k] if k != i else i} and {i}) or "
+                raise MeshError(f"{path}: node {k} is a child of two nodes "
+                                f"({parent[k] if k != i else i} and {i}) or "
                                 "of itself, so the nodes do not form a tree; re-export the level")
             parent[k] = i
         children.append(kids)
@@ -115,14 +124,16 @@ def check_hierarchy(path: Path, document: dict) -> None:
         i = stack.pop()
         reached += 1
         if depth[i] > MAX_DEPTH:
-            raise MeshError(f"{path}: the level's nodes nest more than {MAX_DEPTH} deep (node {i}); flatten the "
+            raise MeshError(f"{path}: the level's nodes nest more than {MAX_DEPTH} deep (node "
+                            f"{i}); flatten the "
                             "hierarchy when exporting it")
         for k in children[i]:
             depth[k] = depth[i] + 1
             stack.append(k)
     if reached < n:
         loop = next(i for i in range(n) if depth[i] == 0)
-        raise MeshError(f"{path}: the nodes' children form a cycle (through node {loop}), so the level is not a "
+        raise MeshError(f"{path}: the nodes' children form a cycle (through node {loop}), so the "
+                        "level is not a "
                         "tree; re-export it")
 
 
@@ -130,28 +141,33 @@ def check_unique_names(path: Path, document: dict) -> None:
     """Refuse a level to be split whose mesh nodes share a name: each becomes an object named by its
     node, and trimesh would make up ``name_1`` for the second, a name the file does not have."""
     nodes = document.get("nodes", [])
-    names = [n.get("name") for n in nodes if isinstance(n, dict) and "mesh" in n] if isinstance(nodes, list) else []
+    names = [n.get("name") for n in nodes if isinstance(n, dict)
+             and "mesh" in n] if isinstance(nodes, list) else []
     seen, twice = set(), []
     for name in names:
         if isinstance(name, str) and name in seen and name not in twice:
             twice.append(name)
         seen.add(name)
     if twice:
-        raise MeshError(f"{path}: several mesh nodes are named {', '.join(map(repr, twice[:3]))}; each node becomes an "
-                        "object named by its node, so give them distinct names in the editor and export again")
+        raise MeshError(f"{path}: several mesh nodes are named {', '.join(map(repr, twice[:3]))}; "
+                        "each node becomes an "
+                        "object named by its node, so give them distinct names in the editor and "
+                        "export again")
 
 
 def check_buffers(path: Path, document: dict) -> None:
-    """Refuse an external buffer or image that lies outside the file's folder, and name a buffer the file
-    needs and lacks (the reader would only say 'not found'); for a .gltf and a .glb alike."""
+    """Refuse an external buffer or image that lies outside the file's folder, and name a buffer the
+    file needs and lacks (the reader would only say 'not found'); for a .gltf and a .glb alike."""
     folder = path.parent.resolve()
     for uri, file in external_files(path, document):
         if not file.resolve().is_relative_to(folder):
-            raise MeshError(f"{path}: its file {uri!r} lies outside the file's folder ({folder}); a glTF names its "
+            raise MeshError(f"{path}: its file {uri!r} lies outside the file's folder ({folder}); "
+                            "a glTF names its "
                             "files beside it: copy the file there, or export a .glb that holds it")
     for uri, file in external_files(path, document, kinds=("buffers",)):
         if not file.is_file():
-            raise MeshError(f"{path}: its buffer file {uri!r} is missing (looked for {file}); copy it next to "
+            raise MeshError(f"{path}: its buffer file {uri!r} is missing (looked for {file}); copy "
+                            "it next to "
                             "the file, or export a .glb, which holds its buffers")
 
 
@@ -170,17 +186,20 @@ UNSUPPORTED = {
 
 def check_features(path: Path, document: dict) -> None:
     """Refuse, naming it, what the reader would not apply and so read as other geometry: a required
-    extension it does not know or cannot apply (Draco, meshopt, quantization), GPU instancing on a node,
-    per-node morph weights, and skinned nodes (whose transform the specification says to ignore). Sparse
-    accessors and meshes' default morph weights are applied (:mod:`gltf_apply`)."""
+    extension it does not know or cannot apply (Draco, meshopt, quantization), GPU instancing on a
+    node, per-node morph weights, and skinned nodes (whose transform the specification says to
+    ignore). Sparse accessors and meshes' default morph weights are applied (:mod:`gltf_apply`)."""
     def refuse(what: str):
-        raise MeshError(f"{path}: uses {what}, which pinchmatch does not apply (the geometry would be read wrong); "
-                        "export it again without it (apply modifiers, skins and morphs; no compression)")
+        raise MeshError(f"{path}: uses {what}, which pinchmatch does not apply (the geometry would "
+                        "be read wrong); "
+                        "export it again without it (apply modifiers, skins and morphs; no "
+                        "compression)")
 
     required = document.get("extensionsRequired", [])
     for name in required if isinstance(required, list) else []:
         if isinstance(name, str) and not name.startswith(HARMLESS_EXTENSIONS):
-            refuse(f"the required extension {name}" + (f" ({UNSUPPORTED[name]})" if name in UNSUPPORTED else ""))
+            refuse(f"the required extension {name}"
+                   + (f" ({UNSUPPORTED[name]})" if name in UNSUPPORTED else ""))
     nodes = document.get("nodes", [])
     for k, node in enumerate(nodes if isinstance(nodes, list) else []):
         if isinstance(node, dict) and "EXT_mesh_gpu_instancing" in (node.get("extensions") or {}):
@@ -188,11 +207,13 @@ def check_features(path: Path, document: dict) -> None:
         if isinstance(node, dict) and "skin" in node and "mesh" in node:
             refuse(f"a skinned mesh on node {node.get('name', k)!r}")
         if isinstance(node, dict) and node.get("weights"):
-            refuse(f"morph weights of its own on node {node.get('name', k)!r} (a mesh's default weights are applied)")
+            refuse(f"morph weights of its own on node {node.get('name', k)!r} (a mesh's default "
+                   "weights are applied)")
     for kind in ("accessors", "meshes"):  # what gltf_apply reads
         entries = document.get(kind, [])
         if not isinstance(entries, list) or not all(isinstance(e, dict) for e in entries):
-            raise MeshError(f"{path}: its {kind} are not a list of objects; the file is corrupt, re-export it")
+            raise MeshError(f"{path}: its {kind} are not a list of objects; the file is corrupt, "
+                            "re-export it")
 
 
 def check_gltf(path: Path, file_type: str, *, split: bool = False) -> dict:
@@ -208,8 +229,8 @@ def check_gltf(path: Path, file_type: str, *, split: bool = False) -> dict:
 
 
 class PercentDecoding(trimesh.resolvers.FilePathResolver):
-    """trimesh's resolver of a .gltf's files, with the URIs percent-decoded as the specification says
-    (``a%20b.bin`` is the file ``a b.bin``)."""
+    """trimesh's resolver of a .gltf's files, with the URIs percent-decoded as the specification
+    says (``a%20b.bin`` is the file ``a b.bin``)."""
 
     def get(self, name: str):
         return super().get(urllib.parse.unquote(name))

@@ -8,9 +8,9 @@ across runs of the same file. Its *path* is the chain of node names from the roo
 several nodes) gives one object per node.
 
 A glTF node whose mesh has several primitives (one per material: a jar's glass and its lid) is one
-object: trimesh reads each primitive into a child node of its own, named after the node with a random
-suffix that changes on every read, so :func:`merged_primitives` joins them back into the node itself, in
-the file's order of primitives.
+object: trimesh reads each primitive into a child node of its own, named after the node with a
+random suffix that changes on every read, so :func:`merged_primitives` joins them back into the node
+itself, in the file's order of primitives.
 """
 
 from __future__ import annotations
@@ -33,17 +33,20 @@ class LevelNode:
 
 
 def merged_primitives(scene: trimesh.Scene) -> trimesh.Scene:
-    """``scene`` (read from a glTF file by trimesh) with each node's primitives joined into the node itself
-    (module notes): the children trimesh made for them (``<node>_<6 hex digits>``, holding a mesh, under a node
-    that holds none) become one mesh of the node, in the order the file lists them. Changed in place."""
+    """``scene`` (read from a glTF file by trimesh) with each node's primitives joined into the node
+    itself (module notes): the children trimesh made for them (``<node>_<6 hex digits>``, holding a
+    mesh, under a node that holds none) become one mesh of the node, in the order the file lists
+    them. Changed in place."""
     graph = scene.graph
     parents = graph.transforms.parents
     holding = set(graph.nodes_geometry)
-    order = {name: k for k, name in enumerate(scene.geometry)}  # trimesh reads the primitives in the file's order
+    # trimesh reads the primitives in the file's order
+    order = {name: k for k, name in enumerate(scene.geometry)}
     groups: dict[str, list[str]] = {}
     for node in holding:
         parent = parents.get(node)
-        if parent is not None and parent not in holding and re.fullmatch(re.escape(str(parent)) + r"_[0-9a-f]{6}",
+        if parent is not None and parent not in holding and re.fullmatch(re.escape(str(parent))
+                                                                         + r"_[0-9a-f]{6}",
                                                                           str(node)):
             groups.setdefault(parent, []).append(node)
     for parent in sorted(groups):
@@ -65,13 +68,15 @@ def merged_primitives(scene: trimesh.Scene) -> trimesh.Scene:
     return scene
 
 
-#: the roles of the nodes pinchmatch adds to a level (``level.glb``'s props, their meshes, the carousel's objects)
+#: the roles of the nodes pinchmatch adds to a level (``level.glb``'s props, their meshes, the
+#: carousel's objects)
 ADDED_ROLES = ("prop", "prop_mesh", "carousel")
 
 
 def placed_by_pinchmatch(scene: trimesh.Scene, node: str) -> bool:
-    """Whether ``node`` is, or lies below, a node pinchmatch added to the level (a ``level.glb`` read back:
-    ``extras.pinchmatch.role`` one of ``ADDED_ROLES``): a prop or a carousel copy, not one of the level's objects."""
+    """Whether ``node`` is, or lies below, a node pinchmatch added to the level (a ``level.glb``
+    read back: ``extras.pinchmatch.role`` one of ``ADDED_ROLES``): a prop or a carousel copy, not
+    one of the level's objects."""
     parents, edges = scene.graph.transforms.parents, scene.graph.transforms.edge_data
     while node in parents:
         parent = parents[node]
@@ -92,30 +97,31 @@ def _path(scene: trimesh.Scene, node: str) -> str:
 
 
 def level_nodes(scene: trimesh.Scene) -> list[LevelNode]:
-    """Every node of ``scene`` that carries triangles, in the order of their paths; not a node its transforms
-    scale to nothing in some direction (an object hidden by a zero scale: no solid to pinch is seen), nor one
-    pinchmatch placed there (:func:`placed_by_pinchmatch`)."""
+    """Every node of ``scene`` that carries triangles, in the order of their paths; not a node its
+    transforms scale to nothing in some direction (an object hidden by a zero scale: no solid to
+    pinch is seen), nor one pinchmatch placed there (:func:`placed_by_pinchmatch`)."""
     out = []
     for node in scene.graph.nodes_geometry:
         transform, geometry = scene.graph[node]
         mesh = scene.geometry.get(geometry)
         singular = np.linalg.svd(np.asarray(transform, dtype=np.float64)[:3, :3], compute_uv=False)
-        if singular[0] == 0.0 or singular[-1] <= 1e-9 * singular[0] or placed_by_pinchmatch(scene, node):
+        if singular[0] == 0.0 or singular[-1] <= 1e-9 * singular[0] or placed_by_pinchmatch(scene,
+                                                                                            node):
             continue
         if isinstance(mesh, trimesh.Trimesh) and len(mesh.faces):
             out.append(LevelNode(str(node), _path(scene, node), int(len(mesh.faces))))
     return sorted(out, key=lambda n: (n.path, n.name))
 
 
-#: the level read last, by its file's identity and state: a level of many nodes is read once per process,
-#: not once per node (each node's object reads only its own triangles out of it)
+#: the level read last, by its file's identity and state: a level of many nodes is read once per
+#: process, not once per node (each node's object reads only its own triangles out of it)
 _LAST_LEVEL: dict = {}
 
 
 def remembered_scene(path, read, *, split: bool) -> trimesh.Scene:
-    """The scene of the level file ``path``, read by ``read()`` unless it is the level read last (with the same
-    ``split`` checks) and the file has not changed since (same inode, size and modification time). Nothing is
-    kept but that one level."""
+    """The scene of the level file ``path``, read by ``read()`` unless it is the level read last
+    (with the same ``split`` checks) and the file has not changed since (same inode, size and
+    modification time). Nothing is kept but that one level."""
     info = os.stat(path)
     key = (os.path.realpath(path), info.st_ino, info.st_size, info.st_mtime_ns, split)
     if key not in _LAST_LEVEL:
@@ -126,7 +132,8 @@ def remembered_scene(path, read, *, split: bool) -> trimesh.Scene:
 
 
 def node_mesh(scene: trimesh.Scene, node: str) -> trimesh.Trimesh | None:
-    """The triangles of ``node`` in world coordinates, or None when the scene has no such mesh node."""
+    """The triangles of ``node`` in world coordinates, or None when the scene has no such mesh
+    node."""
     if node not in scene.graph.nodes_geometry:
         return None
     transform, geometry = scene.graph[node]
@@ -141,8 +148,8 @@ def node_mesh(scene: trimesh.Scene, node: str) -> trimesh.Trimesh | None:
 
 
 def scene_node_digests(scene: trimesh.Scene) -> dict[str, str]:
-    """{node: SHA-256 of its triangles in world coordinates} for every mesh node of ``scene``: what a node is,
-    whatever else the level holds or where in the file it sits (a cache key per node)."""
+    """{node: SHA-256 of its triangles in world coordinates} for every mesh node of ``scene``: what
+    a node is, whatever else the level holds or where in the file it sits (a cache key per node)."""
     import hashlib
 
     out = {}

@@ -24,8 +24,10 @@ from .gltf_apply import applied_glb, needs_applying
 from .gltf_check import PercentDecoding, check_gltf
 from . import topology
 from .facing import turned_outward
-from ..memory import memory_headroom
-from .level import LevelNode, level_nodes, merged_primitives, node_mesh, remembered_scene, scene_node_digests
+from .file_checks import (check_binary_stl, check_memory, check_ply_counts, check_precision,
+                          check_readable)
+from .level import (LevelNode, level_nodes, merged_primitives, node_mesh, remembered_scene,
+                    scene_node_digests)
 
 log = logging.getLogger(__name__)
 
@@ -97,21 +99,26 @@ def mesh_files(paths, *, option: str) -> list[Path]:
     Raises ConfigError for a readable folder that holds no mesh file.
     """
     out: list[Path] = []
-    for given in [paths] if isinstance(paths, (str, os.PathLike)) else paths:  # one path, not its characters
+    for given in [paths] if isinstance(paths, (str, os.PathLike)) else paths:
+        # one path, not its characters
         if not str(given).strip():
-            raise ConfigError(f"{option}: an empty path; give a mesh file, a folder of them or a manifest")
+            raise ConfigError(f"{option}: an empty path; give a mesh file, a folder of them or a "
+                              "manifest")
         path = Path(given)
         if path.exists() and not path.is_dir() and not path.is_file():
-            raise ConfigError(f"{path}: not a regular file (a device, a pipe or a socket); {option} takes mesh files, "
+            raise ConfigError(f"{path}: not a regular file (a device, a pipe or a socket); "
+                              f"{option} takes mesh files, "
                               "folders of them or manifests")
         if not path.is_dir():
             out.append(path)
             continue
         found, unreadable = _walk_meshes(path)
         if not found and not unreadable:
-            what = "holds a pinchmatch result, whose meshes are outputs, not inputs" if holds_result(path) else \
-                f"has no mesh file in it ({', '.join(MESH_EXTENSIONS)}, searched recursively)"
-            raise ConfigError(f"{path}: {option} names a folder that {what}; point it at your meshes")
+            what = ("holds a pinchmatch result, whose meshes are outputs, not inputs"
+                    if holds_result(path) else
+                    f"has no mesh file in it ({', '.join(MESH_EXTENSIONS)}, searched recursively)")
+            raise ConfigError(f"{path}: {option} names a folder that {what}; point it at your "
+                              "meshes")
         out.extend(sorted(found + unreadable))
     return out
 
@@ -150,145 +157,23 @@ def _file_type(path: Path) -> str:
     return MESH_EXTENSIONS[ext]
 
 
-def _check_binary_stl(path: Path, size: int) -> None:
-    """Explain a truncated binary STL precisely (trimesh would read it as empty)."""
-    with open(path, "rb") as fh:
-        head = fh.read(84)
-    if len(head) < 84 or head[:5].lower() == b"solid":
-        return
-    (count,) = struct.unpack("<I", head[80:84])
-    expected = 84 + 50 * count
-    if size < expected and expected > 10 * size:
-        raise MeshError(
-            f"{path}: not a valid STL: its header claims {count} triangles in a {size}-byte file; "
-            "the file is corrupt or not an STL, re-export it"
-        )
-    if size < expected:
-        raise MeshError(
-            f"{path}: truncated binary STL: its header promises {count} triangles "
-            f"({expected} bytes) but the file has {size} bytes; re-export or re-download it"
-        )
-
-
-#: peak memory of loading and analysing a mesh, per byte of its file (measured: a 5.2 M-face binary
-#: STL of 260 MB peaked at 4.7 GB; text formats hold fewer faces per byte)
-PEAK_BYTES_PER_FILE_BYTE = {"stl": 20.0, "ply": 20.0, "glb": 20.0, "gltf": 12.0, "obj": 12.0, "off": 12.0}
-
-
-def _check_memory(path: Path, size: int, file_type: str) -> None:
-    """Refuse, before reading it, a mesh whose analysis would need more memory than this process may still
-    take (the machine's, ``ulimit -v``'s or its control group's: :func:`pinchmatch.memory.memory_headroom`)."""
-    need = size * PEAK_BYTES_PER_FILE_BYTE.get(file_type, 20.0)
-    headroom = memory_headroom()
-    if headroom is not None and need > 0.9 * headroom[0]:
-        raise MeshError(f"{path}: a {size / 2**20:.0f} MiB mesh needs about {need / 2**30:.1f} GiB to analyse, more "
-                        f"than the {headroom[1]}; decimate it (to about a million faces) or give the run more "
-                        "memory")
-
-
-_PLY_SIZES = {"char": 1, "uchar": 1, "int8": 1, "uint8": 1, "short": 2, "ushort": 2, "int16": 2, "uint16": 2,
-              "int": 4, "uint": 4, "int32": 4, "uint32": 4, "float": 4, "float32": 4, "double": 8, "float64": 8}
-
-
-def _check_ply_counts(path: Path, size: int) -> None:
-    """Refuse a PLY whose header counts fewer elements than the file holds (a reader would take
-    the first ones and silently drop the rest). Binary files are checked when every face is a
-    triangle and the elements are vertices then faces (what exporters write)."""
-    with open(path, "rb") as fh:
-        head = fh.read(65536)
-    end = head.find(b"end_header")
-    if not head.startswith(b"ply") or end < 0:
-        return  # the reader will say what is wrong
-    body = head.index(b"\n", end) + 1 if b"\n" in head[end:] else len(head)
-    lines = head[:end].decode("ascii", "replace").splitlines()
-    fmt = next((line.split()[1] for line in lines if line.startswith("format ")), "")
-    elements: list[tuple[str, int, list[list[str]]]] = []
-    for line in lines:
-        words = line.split()
-        if words[:1] == ["element"] and len(words) == 3 and words[2].isdigit():
-            elements.append((words[1], int(words[2]), []))
-        elif words[:1] == ["property"] and elements:
-            elements[-1][2].append(words[1:])
-    claimed = {name: count for name, count, _ in elements}
-    if fmt == "ascii":
-        with open(path, "rb") as fh:
-            fh.seek(body)
-            held = sum(1 for line in fh if line.strip())
-        if held > sum(claimed.values()):
-            raise MeshError(f"{path}: its header counts {claimed.get('vertex', 0)} vertices and {claimed.get('face', 0)} "
-                            f"faces, but the file holds {held} data lines; the header is wrong, re-export it")
-        return
-    if fmt not in ("binary_little_endian", "binary_big_endian") or [e[0] for e in elements] != ["vertex", "face"]:
-        return
-    vertex_props, face_props = elements[0][2], elements[1][2]
-    if any(p[0] == "list" or p[0] not in _PLY_SIZES for p in vertex_props) or len(face_props) != 1 \
-            or face_props[0][0] != "list" or face_props[0][1] not in _PLY_SIZES or face_props[0][2] not in _PLY_SIZES:
-        return
-    count_size, index_size = _PLY_SIZES[face_props[0][1]], _PLY_SIZES[face_props[0][2]]
-    start = body + claimed["vertex"] * sum(_PLY_SIZES[p[0]] for p in vertex_props)
-    record = count_size + 3 * index_size
-    expected = start + claimed["face"] * record
-    if size <= expected or count_size != 1:
-        return
-    counts = np.memmap(path, dtype=np.uint8, mode="r", offset=start, shape=(claimed["face"] * record,))[::record]
-    if (counts == 3).all():
-        raise MeshError(f"{path}: its header counts {claimed['face']} faces, but {size - expected} more bytes follow "
-                        "them; the header is wrong, re-export it")
-
-
-#: formats whose coordinates are 32-bit floats (binary STL and glTF always, binary PLY as written)
-FLOAT32_TYPES = ("stl", "glb", "gltf", "ply")
-
-
-#: the typical edge length is the median of at most about this many faces' first edges, evenly spread
-PRECISION_SAMPLE_FACES = 100_000
-
-
-def _check_precision(path: Path, file_type: str, mesh: trimesh.Trimesh) -> None:
-    """Refuse coordinates so far from the origin that 32-bit floats cannot resolve the mesh's edges
-    to 1 % (an object placed kilometres away in its scene's units)."""
-    if file_type not in FLOAT32_TYPES or len(mesh.faces) == 0:
-        return
-    vertices = np.asarray(mesh.vertices)
-    faces = np.asarray(mesh.faces)[::max(1, len(mesh.faces) // PRECISION_SAMPLE_FACES)]  # a typical edge
-    edges = np.linalg.norm(vertices[faces[:, 1]] - vertices[faces[:, 0]], axis=1)
-    typical = float(np.median(edges[edges > 0])) if (edges > 0).any() else 0.0
-    far = float(np.abs(vertices).max())
-    if typical > 0 and far * 2.0**-23 > 0.01 * typical:
-        raise MeshError(f"{path}: coordinates reach {far:.3g} while its edges are about {typical:.3g} long: 32-bit "
-                        "floats cannot hold that detail so far out; move the object near the origin and re-export")
-
-
-def _check_readable(path: Path) -> None:
-    """Raise MeshError unless ``path`` is a regular file this process can read."""
-    if not path.exists():
-        raise MeshError(f"{path}: no such file; check the path")
-    if path.is_dir():
-        if not os.access(path, os.R_OK | os.X_OK):
-            raise MeshError(f"{path}: a folder that cannot be read (permission denied), so its meshes are "
-                            "left out; check its permissions")
-        raise MeshError(f"{path}: is a folder, not a mesh file; give a mesh file inside it")
-    try:
-        with open(path, "rb") as fh:
-            fh.read(1)
-    except OSError as exc:
-        raise MeshError(f"{path}: cannot be read ({exc.strerror or exc}); check its permissions") from None
-    if not path.is_file():
-        raise MeshError(f"{path}: not a regular file (a device or a pipe); give a mesh file")
-
-
 def _load(path: Path, file_type: str, *, split: bool = False, **kwargs):
     source, read_as = str(path), file_type
-    if file_type in GLTF_TYPES:  # a .glb may name external buffers too: found beside it, as a .gltf's
+    if file_type in GLTF_TYPES:
+        # a .glb may name external buffers too: found beside it, as a .gltf's
         document = check_gltf(path, file_type, split=split)
         kwargs.setdefault("resolver", PercentDecoding(str(path)))
         if needs_applying(document):  # sparse accessors, default morph weights: applied first
-            source, read_as = trimesh.util.wrap_as_stream(applied_glb(path, file_type, document)), "glb"
+            source, read_as = trimesh.util.wrap_as_stream(applied_glb(path, file_type,
+                                                                      document)), "glb"
     try:
         loaded = trimesh.load(source, file_type=read_as, process=False, **kwargs)
-        return merged_primitives(loaded) if isinstance(loaded, trimesh.Scene) and file_type in GLTF_TYPES else loaded
+        if isinstance(loaded, trimesh.Scene) and file_type in GLTF_TYPES:
+            return merged_primitives(loaded)
+        return loaded
     except (IndexError,) as exc:
-        what = ("an index (of a node, mesh, accessor or vertex) points past its list" if file_type in GLTF_TYPES
+        what = ("an index (of a node, mesh, accessor or vertex) points past its list"
+                if file_type in GLTF_TYPES
                 else "a face refers to a vertex that does not exist")
         raise MeshError(f"{path}: {what} ({exc}); the file is corrupt, re-export it") from None
     except Exception as exc:  # trimesh raises many types on malformed input
@@ -307,12 +192,13 @@ def node_digests(path: str | os.PathLike) -> dict[str, str]:
 
 def level_scene(path: Path) -> trimesh.Scene:
     """A glTF/GLB file read as a scene of nodes, for splitting; MeshError for any other file."""
-    _check_readable(path)
+    check_readable(path)
     file_type = _file_type(path)
     if file_type not in GLTF_TYPES:
         raise MeshError(f"{path}: only a glTF or GLB scene can be split into its nodes; "
                         "leave out split = \"nodes\" for this file")
-    return remembered_scene(path, lambda: _load(path, file_type, split=True, force="scene"), split=True)
+    return remembered_scene(path, lambda: _load(path, file_type, split=True, force="scene"),
+                            split=True)
 
 
 def read_level(path: str | os.PathLike) -> list[LevelNode]:
@@ -321,23 +207,28 @@ def read_level(path: str | os.PathLike) -> list[LevelNode]:
     path = Path(path)
     nodes = level_nodes(level_scene(path))
     if not nodes:
-        raise MeshError(f"{path}: the scene has no node holding triangles; re-export the level with its meshes")
+        raise MeshError(f"{path}: the scene has no node holding triangles; re-export the level "
+                        "with its meshes")
     return nodes
 
 
 def _read(path: Path, file_type: str, node: str | None = None) -> trimesh.Trimesh:
     if node is not None:
-        mesh = node_mesh(remembered_scene(path, lambda: _load(path, file_type, force="scene"), split=False), node)
+        mesh = node_mesh(remembered_scene(path, lambda: _load(path, file_type, force="scene"),
+                                          split=False), node)
         if mesh is None:
             raise MeshError(f"{path}: the scene has no mesh node named {node!r}; "
-                            "check the name against the file (pinchmatch names level nodes as the file does)")
+                            "check the name against the file (pinchmatch names level nodes as the "
+                            "file does)")
         return mesh
     binary = _binary_stl_triangles(path) if file_type == "stl" else None
     if binary is not None:
-        return trimesh.Trimesh(vertices=binary, faces=np.arange(len(binary)).reshape(-1, 3), process=False)
+        return trimesh.Trimesh(vertices=binary, faces=np.arange(len(binary)).reshape(-1, 3),
+                               process=False)
     loaded = _load(path, file_type)
     if isinstance(loaded, trimesh.Scene):
-        meshes = [g for g in loaded.dump() if isinstance(g, trimesh.Trimesh)] if loaded.geometry else []
+        meshes = [g for g in loaded.dump()
+                  if isinstance(g, trimesh.Trimesh)] if loaded.geometry else []
         meshes = [m for m in meshes if len(m.faces)]
         if not meshes:
             kinds = sorted({type(g).__name__ for g in loaded.geometry.values()})
@@ -363,7 +254,8 @@ _STL_RECORD = np.dtype([("normal", "<f4", (3,)), ("corners", "<f4", (3, 3)), ("a
 
 def _binary_stl_triangles(path: Path) -> np.ndarray | None:
     """(3t, 3) float64 corners of a binary STL's triangles, read straight into an array, or None
-    when the file is not a binary STL with triangles (ASCII, or none: trimesh reads and explains it).
+    when the file is not a binary STL with triangles (ASCII, or none: trimesh reads and explains
+    it).
 
     A file is binary when its size is the header's 84 bytes plus 50 per triangle it counts, as
     trimesh decides (some binary files begin with "solid" too). The corners are what trimesh reads,
@@ -456,11 +348,13 @@ def _repair(mesh: trimesh.Trimesh, *, indexed: bool, scale: float,
                 f"{SLIVER_AREA_FRACTION:.1%} of the surface"
             )
         inside = topology.enclosed_parts(mesh.vertices, mesh.faces, labels)
-        if inside.any():  # a hand touches the outer shell only: pages in a cover, a liner in a shell
+        if inside.any():
+            # a hand touches the outer shell only: pages in a cover, a liner in a shell
             mesh.update_faces(~inside[labels])
             e = topology.edges(mesh.faces)
             labels = topology.component_labels(topology.face_adjacency(e), len(mesh.faces))
-            repairs.append(f"removed {int(inside.sum())} part(s) lying inside another (only the outer shell is touched)")
+            repairs.append(f"removed {int(inside.sum())} part(s) lying inside another (only the "
+                           "outer shell is touched)")
     mesh.remove_unreferenced_vertices()
 
     say("repairing: orientation")
@@ -482,13 +376,16 @@ def _repair(mesh: trimesh.Trimesh, *, indexed: bool, scale: float,
             faces[flip] = faces[flip][:, ::-1]
             mesh.faces = faces
             volumes[flip] = -volumes[flip]
-        wound, volume = True, float(volumes.sum())  # whole consistent bodies turned: still consistent
-        flipped = int(flip.sum())  # a face of three distinct corners, reversed, is another orientation
+        # whole consistent bodies turned: still consistent
+        wound, volume = True, float(volumes.sum())
+        # a face of three distinct corners, reversed, is another orientation
+        flipped = int(flip.sum())
     if consistent_before and volume_before < 0 and flipped:
         repairs.append("turned the surface right side out (it was inside-out)")
     elif flipped:
         repairs.append(f"made winding consistent ({flipped} faces flipped)")
-    if not watertight and (line := turned_outward(mesh)):  # an open part's volume says nothing: rays do
+    if not watertight and (line := turned_outward(mesh)):
+        # an open part's volume says nothing: rays do
         repairs.append(line)
     return repairs, bool(watertight and wound and volume > 0)
 
@@ -536,23 +433,24 @@ def load_mesh(
         raise ConfigError(f"--units: unknown unit {units!r}; use one of {', '.join(UNITS_MM)}")
     if up is not None:
         parse_up(up)
-    _check_readable(path)
+    check_readable(path)
     file_type = _file_type(path)
     size = path.stat().st_size
     if size == 0:
         raise MeshError(f"{path}: file is empty (0 bytes); re-export the mesh")
-    _check_memory(path, size, file_type)
+    check_memory(path, size, file_type)
     if file_type == "stl":
-        _check_binary_stl(path, size)
+        check_binary_stl(path, size)
     elif file_type == "ply":
-        _check_ply_counts(path, size)
+        check_ply_counts(path, size)
 
     say = progress or (lambda stage: None)
     say(f"reading {size / 2**20:.0f} MiB" if size >= 2**20 else "reading")
     mesh = _read(path, file_type, node)
-    shown = Path(f"{path}#{node}") if node else path  # what the messages name: the file, and its node
+    # what the messages name: the file, and its node
+    shown = Path(f"{path}#{node}") if node else path
     _validate_arrays(shown, mesh)
-    _check_precision(shown, file_type, mesh)
+    check_precision(shown, file_type, mesh)
 
     is_gltf = file_type in GLTF_TYPES
     units_in = units or ("m" if is_gltf else "mm")
@@ -581,7 +479,8 @@ def load_mesh(
     warnings: list[str] = []
     if not watertight:
         warnings.append(
-            f"{shown.name}: surface is not closed; centre of mass is that of the surface, and pinches "
+            f"{shown.name}: surface is not closed; centre of mass is that of the surface, and "
+            "pinches "
             "come only from where the ray along the pinch line leaves through a surface"
         )
     for line in repairs:

@@ -38,7 +38,7 @@ import math
 import os
 import stat
 import tomllib
-from dataclasses import dataclass, fields, replace
+from dataclasses import replace
 from pathlib import Path
 
 from ..config import finite_number
@@ -47,72 +47,24 @@ from .described import read_shape, shape_file
 from .frames import UNITS_MM, UP_VECTORS
 from .furniture import Furniture, level_furniture
 from .load import GLTF_TYPES, MESH_EXTENSIONS, mesh_files, read_level
+from .object_spec import ObjectSpec, spec_from_dict, spec_to_dict  # noqa: F401 (re-exported)
 from .regions import ContactRegions, Region
 
 MANIFEST_SUFFIX = ".toml"
 #: a centre of mass farther than this from the file's origin (mm, 1 km) is not an object's
 MAX_COORDINATE_MM = 1e6
 #: the keys of an object; ``[defaults]`` takes all but ``file`` and ``name``
-OBJECT_KEYS = ("file", "shape", "name", "units", "up", "com_mm", "axis", "mass_g", "split", "exclude", "only", "pose",
-               "support", "support_mm", "nodes", "skip_nodes")
+OBJECT_KEYS = ("file", "shape", "name", "units", "up", "com_mm", "axis", "mass_g", "split",
+               "exclude", "only", "pose", "support", "support_mm", "nodes", "skip_nodes")
 DEFAULT_KEYS = tuple(k for k in OBJECT_KEYS if k not in ("file", "shape", "name", "pose"))
-#: a pose's quaternion may be this far from length 1 (then it is normalised); farther, it is no rotation
+#: a pose's quaternion may be this far from length 1 (then it is normalised); farther, it is no
+#: rotation
 QUATERNION_TOLERANCE = 1e-3
 SPLITS = ("none", "nodes")
 #: a manifest is a hand-written list: at most this big
 MAX_MANIFEST_BYTES = 4 * 2**20
 #: the heaviest object a pinch lifts (g), with margin
 MAX_MASS_G = 20_000.0
-
-
-@dataclass(frozen=True)
-class ObjectSpec:
-    """How to read and describe one object: its file and what the manifest or command line says.
-
-    ``None`` means "not given": the loader's default (units, up), the computed value (centre of
-    mass, axis), unknown (mass), the file's or node's name (name).
-    """
-
-    path: str
-    name: str | None = None
-    units: str | None = None
-    up: str | None = None
-    com_mm: tuple | None = None
-    axis: tuple | None = None
-    mass_g: float | None = None
-    regions: ContactRegions = ContactRegions()
-    split: str | None = None  # "nodes": one object per mesh node of a glTF/GLB scene
-    node: str | None = None  # one mesh node of a level
-    node_path: str | None = None
-    manifest: str | None = None  # the manifest it was listed in
-    pose: tuple | None = None  # ((x, y, z) mm, (qx, qy, qz, qw)): file coordinates (mm) -> the level's world
-    support: str | float | None = None  # what it stands on (:mod:`pinchmatch.mesh.support`): "auto", "none", mm
-    rests_on_mm: float | None = None  # a level's node on furniture: the furniture's top under it (mm, along up)
-    level_up: str | None = None  # a posed prop: the up of the level its pose places it in (None: glTF's "y")
-    nodes: tuple = ()  # a level split into nodes: only the nodes whose name or path matches one of these globs
-    skip_nodes: tuple = ()  # and none that matches one of these
-
-    @property
-    def display_name(self) -> str:
-        """Its name: the given one, else the scene node's, else the file's."""
-        return self.name or self.node or Path(self.path).name
-
-    def with_defaults(self, *, units: str | None, up: str | None) -> "ObjectSpec":
-        """The spec with the command line's units and up where it gives none."""
-        return replace(self, units=self.units or units, up=self.up or up)
-
-    def shape_key(self) -> dict:
-        """What shapes the object's candidates (a cache key): every field but those in ``NOT_SHAPE`` (its
-        name, mass, where it was listed, which file; the file is keyed by its contents), and of the pose its
-        turn, only for an object that stands (where it stands in the level moves nothing in its frame)."""
-        out = {f.name: getattr(self, f.name) for f in fields(self) if f.name not in NOT_SHAPE}
-        out["regions"] = self.regions.as_dict()
-        out["pose"] = None if self.support in (None, "none") or self.pose is None else self.pose[1]
-        return out
-
-    def standing(self, default: str | None) -> "ObjectSpec":
-        """The spec with ``default`` support (``"auto"`` or ``"none"``) where it says none itself."""
-        return self if self.support is not None or default is None else replace(self, support=default)
 
 
 class _Problems:
@@ -129,10 +81,6 @@ class _Problems:
             raise ConfigError("\n".join(self.lines))
 
 
-#: the fields of an :class:`ObjectSpec` that do not shape its candidates
-NOT_SHAPE = frozenset({"path", "name", "mass_g", "split", "node_path", "manifest", "nodes", "skip_nodes"})
-
-
 def _number(value) -> bool:
     return finite_number(value)
 
@@ -145,7 +93,8 @@ def _vector(value) -> tuple | None:
 
 def _regions(entries, where: str, key: str, problems: _Problems) -> tuple:
     if not isinstance(entries, list):
-        problems.add(where, key, "must be a list of regions, e.g. [{ center_mm = [0, 0, 10], radius_mm = 5 }]")
+        problems.add(where, key,
+                     "must be a list of regions, e.g. [{ center_mm = [0, 0, 10], radius_mm = 5 }]")
         return ()
     out = []
     for k, item in enumerate(entries):
@@ -154,17 +103,22 @@ def _regions(entries, where: str, key: str, problems: _Problems) -> tuple:
         if keys == {"center_mm", "radius_mm"}:
             centre, radius = _vector(item["center_mm"]), item["radius_mm"]
             if centre is None or not _number(radius) or radius <= 0:
-                problems.add(where, at, "a sphere needs center_mm = [x, y, z] and radius_mm > 0, in mm")
+                problems.add(where, at,
+                             "a sphere needs center_mm = [x, y, z] and radius_mm > 0, in mm")
             else:
                 out.append(Region.sphere(centre, radius))
         elif keys == {"min_mm", "max_mm"}:
             lo, hi = _vector(item["min_mm"]), _vector(item["max_mm"])
             if lo is None or hi is None or not all(a < b for a, b in zip(lo, hi)):
-                problems.add(where, at, "a box needs min_mm = [x, y, z] below max_mm = [x, y, z] on every axis, in mm")
+                problems.add(where, at,
+                             "a box needs min_mm = [x, y, z] below max_mm = [x, y, z] on every "
+                             "axis, in mm")
             else:
                 out.append(Region.box(lo, hi))
         else:
-            problems.add(where, at, "a region is a sphere { center_mm, radius_mm } or a box { min_mm, max_mm }")
+            problems.add(where, at,
+                         "a region is a sphere { center_mm, radius_mm } or a box { min_mm, max_mm "
+                         "}")
     return tuple(out)
 
 
@@ -188,23 +142,30 @@ def _options(table: dict, where: str, problems: _Problems) -> dict:
         if table["units"] in UNITS_MM:
             out["units"] = table["units"]
         else:
-            problems.add(where, "units", f"unknown unit {table['units']!r}; use one of {', '.join(UNITS_MM)}")
+            problems.add(where, "units",
+                         f"unknown unit {table['units']!r}; use one of {', '.join(UNITS_MM)}")
     if "up" in table:
         up = str(table["up"]).strip().lower() if isinstance(table["up"], str) else None
         if up in UP_VECTORS:
             out["up"] = up
         else:
-            problems.add(where, "up", f"unknown up direction {table['up']!r}; use one of {', '.join(UP_VECTORS)}")
+            problems.add(where, "up",
+                         f"unknown up direction {table['up']!r}; use one of "
+                         f"{', '.join(UP_VECTORS)}")
     for key in ("com_mm", "axis"):
         if key in table:
             v = _vector(table[key])
             if v is not None and key == "com_mm" and max(abs(c) for c in v) > MAX_COORDINATE_MM:
-                problems.add(where, key, f"must be three numbers [x, y, z] within {MAX_COORDINATE_MM:g} mm of the "
+                problems.add(where, key,
+                             f"must be three numbers [x, y, z] within {MAX_COORDINATE_MM:g} mm of "
+                             "the "
                                          "file's origin")
                 continue
             if v is None or (key == "axis" and not any(v)):
-                problems.add(where, key, "must be three numbers [x, y, z]" + (", not all zero" if key == "axis" else
-                                                                             ", in mm in the file's frame"))
+                problems.add(where, key, "must be three numbers [x, y, z]"
+                             + (", not all zero" if key == "axis" else
+                                                                             ", in mm in the "
+                                                                             "file's frame"))
             else:
                 out[key] = v
     if "mass_g" in table:
@@ -212,36 +173,43 @@ def _options(table: dict, where: str, problems: _Problems) -> dict:
         if _number(m) and 0 < m <= MAX_MASS_G:
             out["mass_g"] = float(m)
         else:
-            problems.add(where, "mass_g", f"must be a number of grams above 0 and at most {MAX_MASS_G:g}")
+            problems.add(where, "mass_g",
+                         f"must be a number of grams above 0 and at most {MAX_MASS_G:g}")
     if "split" in table:
         if table["split"] in SPLITS:
             out["split"] = table["split"]
         else:
-            problems.add(where, "split", f"unknown split {table['split']!r}; use one of {', '.join(SPLITS)}")
+            problems.add(where, "split",
+                         f"unknown split {table['split']!r}; use one of {', '.join(SPLITS)}")
     for key in ("exclude", "only"):
         if key in table:
             out[key] = _regions(table[key], where, key, problems)
     for key in ("nodes", "skip_nodes"):
         if key in table:
             globs = [table[key]] if isinstance(table[key], str) else table[key]
-            if isinstance(globs, list) and globs and all(isinstance(g, str) and g.strip() for g in globs):
+            if isinstance(globs, list) and globs and all(isinstance(g, str) and g.strip()
+                                                         for g in globs):
                 out[key] = tuple(globs)
             else:
-                problems.add(where, key, "must be a glob of node names or paths, or a list of them, as "
+                problems.add(where, key,
+                             "must be a glob of node names or paths, or a list of them, as "
                                          f'{key} = ["counter*", "Kitchen/Wall_?"]')
     if "pose" in table:
         pose = _pose(table["pose"], where, problems)
         if pose is not None:
             out["pose"] = pose
     if "support" in table and "support_mm" in table:
-        problems.add(where, "support", "give support = \"none\" (held in the hand) or support_mm (the height of "
+        problems.add(where, "support",
+                     "give support = \"none\" (held in the hand) or support_mm (the height of "
                                        "what it stands on), not both")
     elif "support" in table:
         if table["support"] in ("none", "auto"):
             out["support"] = table["support"]
         else:
-            problems.add(where, "support", "must be \"none\" (a prop held in the hand) or \"auto\" (standing on "
-                                           "the plane through its lowest point); give a height as support_mm")
+            problems.add(where, "support",
+                         "must be \"none\" (a prop held in the hand) or \"auto\" (standing on "
+                                           "the plane through its lowest point); give a height as "
+                                           "support_mm")
     elif "support_mm" in table:
         height = table["support_mm"]
         if _number(height) and abs(height) <= MAX_COORDINATE_MM:
@@ -253,14 +221,19 @@ def _options(table: dict, where: str, problems: _Problems) -> dict:
 
 
 def _pose(value, where: str, problems: _Problems) -> tuple | None:
-    """A prop's pose in the room: ((x, y, z) mm, unit quaternion (x, y, z, w)), or None with its problem."""
+    """A prop's pose in the room: ((x, y, z) mm, unit quaternion (x, y, z, w)), or None with its
+    problem."""
     example = "e.g. pose = { position_mm = [0, 0, 0], quaternion_xyzw = [0, 0, 0, 1] }"
-    if not isinstance(value, dict) or "position_mm" not in value or set(value) - {"position_mm", "quaternion_xyzw"}:
-        problems.add(where, "pose", f"must be a table of position_mm and, optionally, quaternion_xyzw; {example}")
+    if (not isinstance(value, dict) or "position_mm" not in value
+            or set(value) - {"position_mm", "quaternion_xyzw"}):
+        problems.add(where, "pose",
+                     f"must be a table of position_mm and, optionally, quaternion_xyzw; {example}")
         return None
     position = _vector(value["position_mm"])
     if position is None or max(abs(c) for c in position) > MAX_COORDINATE_MM:
-        problems.add(where, "pose", f"position_mm must be three numbers [x, y, z] in mm within {MAX_COORDINATE_MM:g} "
+        problems.add(where, "pose",
+                     "position_mm must be three numbers [x, y, z] in mm within "
+                     f"{MAX_COORDINATE_MM:g} "
                                     "mm of the level's origin")
         return None
     q = value.get("quaternion_xyzw", [0.0, 0.0, 0.0, 1.0])
@@ -269,8 +242,11 @@ def _pose(value, where: str, problems: _Problems) -> tuple | None:
         return None
     length = math.sqrt(sum(c * c for c in q))
     if abs(length - 1.0) > QUATERNION_TOLERANCE:
-        problems.add(where, "pose", f"quaternion_xyzw {q} has length {length:.4g}, so it is not a rotation (a rigid "
-                                    "pose turns by a unit quaternion); give one of length 1, [0, 0, 0, 1] for none")
+        problems.add(where, "pose",
+                     f"quaternion_xyzw {q} has length {length:.4g}, so it is not a rotation (a "
+                     "rigid "
+                                    "pose turns by a unit quaternion); give one of length 1, [0, "
+                                    "0, 0, 1] for none")
         return None
     return position, tuple(float(c) / length for c in q)
 
@@ -284,7 +260,8 @@ def read_manifest(path: str | os.PathLike) -> list[ObjectSpec]:
     path = Path(path)
     try:
         if not stat.S_ISREG(path.stat().st_mode):
-            raise ConfigError(f"{path}: not a regular file (a folder, a device or a pipe); give a manifest file")
+            raise ConfigError(f"{path}: not a regular file (a folder, a device or a pipe); give a "
+                              "manifest file")
         if path.stat().st_size > MAX_MANIFEST_BYTES:
             raise ConfigError(f"{path}: a manifest of more than {MAX_MANIFEST_BYTES // 2**20} MiB; "
                               "split the list into several manifests")
@@ -292,20 +269,26 @@ def read_manifest(path: str | os.PathLike) -> list[ObjectSpec]:
     except FileNotFoundError:
         raise ConfigError(f"{path}: no such manifest; check the path") from None
     except OSError as exc:
-        raise ConfigError(f"{path}: the manifest cannot be read ({exc.strerror or exc}); check its permissions") from None
+        raise ConfigError(f"{path}: the manifest cannot be read ({exc.strerror or exc}); check its "
+                          "permissions") from None
     except UnicodeDecodeError:
-        raise ConfigError(f"{path}: the manifest is not UTF-8 text; save it as UTF-8 TOML") from None
+        raise ConfigError(f"{path}: the manifest is not UTF-8 text; save it as UTF-8 "
+                          "TOML") from None
     except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{path}: not valid TOML ({exc}); fix the manifest (see docs/manifest.md)") from None
+        raise ConfigError(f"{path}: not valid TOML ({exc}); fix the manifest (see "
+                          "docs/manifest.md)") from None
     except ValueError as exc:  # an integer of thousands of digits
-        raise ConfigError(f"{path}: a value the manifest cannot hold ({str(exc)[:60]}); fix the manifest "
+        raise ConfigError(f"{path}: a value the manifest cannot hold ({str(exc)[:60]}); fix the "
+                          "manifest "
                           "(see docs/manifest.md)") from None
     except RecursionError:
-        raise ConfigError(f"{path}: nested too deep to be a manifest; fix the manifest (see docs/manifest.md)") from None
+        raise ConfigError(f"{path}: nested too deep to be a manifest; fix the manifest (see "
+                          "docs/manifest.md)") from None
     problems = _Problems(path)
     _unknown(document, ("defaults", "object", "user_mm"), "top level", problems)
     if "user_mm" in document and _user(document["user_mm"]) is None:
-        problems.add("top level", "user_mm", "must be where the user stands: three numbers [x, y, z] in mm in the "
+        problems.add("top level", "user_mm",
+                     "must be where the user stands: three numbers [x, y, z] in mm in the "
                                              "level's frame (y up), within 100 km of its origin")
     defaults = document.get("defaults", {})
     if not isinstance(defaults, dict):
@@ -315,7 +298,8 @@ def read_manifest(path: str | os.PathLike) -> list[ObjectSpec]:
     base = _options(defaults, "[defaults]", problems)
     objects = document.get("object", [])
     if not isinstance(objects, list) or not objects:
-        problems.add("top level", "object", "the manifest lists no object; add [[object]] tables with file = \"...\"")
+        problems.add("top level", "object",
+                     "the manifest lists no object; add [[object]] tables with file = \"...\"")
         objects = []
     specs = []
     for k, table in enumerate(objects):
@@ -333,24 +317,33 @@ def read_manifest(path: str | os.PathLike) -> list[ObjectSpec]:
                 specs.append(spec)
             continue
         if given is None or given == "":
-            problems.add(where, "file", "missing; give the mesh file, relative to the manifest's folder, or the "
-                                        "prop's sizes as shape = { kind = \"cylinder\", diameter_mm = 54, "
+            problems.add(where, "file",
+                         "missing; give the mesh file, relative to the manifest's folder, or the "
+                                        "prop's sizes as shape = { kind = \"cylinder\", "
+                                        "diameter_mm = 54, "
                                         "height_mm = 66 }")
             continue
         if not isinstance(given, str):
-            problems.add(where, "file", f"{given!r} is not a path; give the mesh file as text in quotes, relative "
+            problems.add(where, "file",
+                         f"{given!r} is not a path; give the mesh file as text in quotes, relative "
                                         "to the manifest's folder")
             continue
         file = path.parent / given
         options = base | _options(table, where, problems)
         if file.is_dir():
-            problems.add(where, "file", f"{file}: a folder, not a mesh file; give the mesh file's path (relative to "
+            problems.add(where, "file",
+                         f"{file}: a folder, not a mesh file; give the mesh file's path (relative "
+                         "to "
                                         "the manifest's folder)")
         elif not file.is_file():
-            problems.add(where, "file", f"{file}: no such file; check the path (relative to the manifest's folder)")
+            problems.add(where, "file",
+                         f"{file}: no such file; check the path (relative to the manifest's "
+                         "folder)")
         elif file.suffix.lower() not in MESH_EXTENSIONS:
-            problems.add(where, "file", f"{file}: not a mesh file; use one of {', '.join(MESH_EXTENSIONS)}")
-        elif options.get("split") == "nodes" and MESH_EXTENSIONS[file.suffix.lower()] not in GLTF_TYPES:
+            problems.add(where, "file",
+                         f"{file}: not a mesh file; use one of {', '.join(MESH_EXTENSIONS)}")
+        elif (options.get("split") == "nodes"
+              and MESH_EXTENSIONS[file.suffix.lower()] not in GLTF_TYPES):
             problems.add(where, "split", "only a glTF or GLB scene can be split into its nodes")
         regions = ContactRegions(options.pop("exclude", ()), options.pop("only", ()))
         specs.append(ObjectSpec(str(file), regions=regions, manifest=str(path), **options))
@@ -358,11 +351,13 @@ def read_manifest(path: str | os.PathLike) -> list[ObjectSpec]:
     return specs
 
 
-def _described(table: dict, where: str, base: dict, manifest: Path, problems: _Problems) -> ObjectSpec | None:
+def _described(table: dict, where: str, base: dict, manifest: Path,
+               problems: _Problems) -> ObjectSpec | None:
     """The spec of an object known by its sizes (:mod:`pinchmatch.mesh.described`): mm, +Z up."""
     clash = [k for k in ("file", "units", "up", "split") if k in table]
     if clash:
-        problems.add(where, "shape", f"a shape has no file: its sizes are in mm and its axis is +Z; drop "
+        problems.add(where, "shape",
+                     f"a shape has no file: its sizes are in mm and its axis is +Z; drop "
                                      f"{', '.join(clash)}")
     if not isinstance(table.get("name"), str):
         problems.add(where, "name", "a shape needs a name (it has no file to be named after)")
@@ -383,18 +378,20 @@ def _described(table: dict, where: str, base: dict, manifest: Path, problems: _P
                                      f"({exc.strerror or exc}); free some space or set TMPDIR")
         return None
     regions = ContactRegions(options.pop("exclude", ()), options.pop("only", ()))
-    return ObjectSpec(str(file), regions=regions, manifest=str(manifest), units="mm", up="z", **options)
+    return ObjectSpec(str(file), regions=regions, manifest=str(manifest), units="mm", up="z",
+                      **options)
 
 
-def node_specs(spec: ObjectSpec, nodes, *, only: tuple = (), skip: tuple = (), furniture: Furniture | None = None,
-               notes: list | None = None) -> list[ObjectSpec]:
+def node_specs(spec: ObjectSpec, nodes, *, only: tuple = (), skip: tuple = (),
+               furniture: Furniture | None = None, notes: list | None = None) -> list[ObjectSpec]:
     """One spec per mesh node of a level (``nodes`` from :func:`pinchmatch.mesh.load.read_level`),
-    named by the node (after the level's own name, where the manifest gives one): the nodes whose name or
-    path matches a glob of the spec's ``nodes`` (else of ``only``; every node where neither gives one),
-    none that matches one of the spec's ``skip_nodes`` or of ``skip``. A glob of ``nodes`` or ``only``
-    that matches no node is refused, naming the level's nodes. A node of ``furniture``
-    (:func:`pinchmatch.mesh.furniture.furniture`) is left out unless a glob of ``nodes`` or ``only`` names it,
-    with one line in ``notes`` saying so; a node that stands on furniture has its top as ``rests_on_mm``."""
+    named by the node (after the level's own name, where the manifest gives one): the nodes whose
+    name or path matches a glob of the spec's ``nodes`` (else of ``only``; every node where neither
+    gives one), none that matches one of the spec's ``skip_nodes`` or of ``skip``. A glob of
+    ``nodes`` or ``only`` that matches no node is refused, naming the level's nodes. A node of
+    ``furniture`` (:func:`pinchmatch.mesh.furniture.furniture`) is left out unless a glob of
+    ``nodes`` or ``only`` names it, with one line in ``notes`` saying so; a node that stands on
+    furniture has its top as ``rests_on_mm``."""
     furniture = furniture or Furniture()
     include = spec.nodes or tuple(only)
     exclude = tuple(spec.skip_nodes) + tuple(skip)
@@ -405,33 +402,39 @@ def node_specs(spec: ObjectSpec, nodes, *, only: tuple = (), skip: tuple = (), f
     for g in include:
         if not any(matches(n, (g,)) for n in nodes):
             names = ", ".join(n.name for n in nodes[:12]) + (", ..." if len(nodes) > 12 else "")
-            raise ConfigError(f"{spec.path}: the node glob {g!r} (--nodes, or a manifest's nodes) matches no mesh node "
+            raise ConfigError(f"{spec.path}: the node glob {g!r} (--nodes, or a manifest's nodes) "
+                              "matches no mesh node "
                               f"of the level; its nodes are {names}")
     kept = [n for n in nodes if (not include or matches(n, include)) and not matches(n, exclude)]
     left = [n for n in kept if n.name in furniture.why and not (include and matches(n, include))]
     for n in left:
         if notes is not None:
-            notes.append(f"{spec.path}: node {n.name} left out of the match, as a table, a counter, a shelf, a wall "
-                         f"or a floor is: {furniture.why[n.name]}; to match it, name it with --nodes '{n.name}'")
+            notes.append(f"{spec.path}: node {n.name} left out of the match, as a table, a "
+                         "counter, a shelf, a wall "
+                         f"or a floor is: {furniture.why[n.name]}; to match it, name it with "
+                         f"--nodes '{n.name}'")
     kept = [n for n in kept if n not in left]
     if not kept:
-        raise ConfigError(f"{spec.path}: --nodes and --skip-nodes leave no mesh node of the level; name at least "
+        raise ConfigError(f"{spec.path}: --nodes and --skip-nodes leave no mesh node of the level; "
+                          "name at least "
                           "one node to match")
-    return [replace(spec, split="none", node=n.name, node_path=n.path, rests_on_mm=furniture.tops_mm.get(n.name),
+    return [replace(spec, split="none", node=n.name, node_path=n.path,
+                    rests_on_mm=furniture.tops_mm.get(n.name),
                     name=f"{spec.name}/{n.name}" if spec.name else None) for n in kept]
 
 
 def _user(value) -> tuple | None:
     """``value`` as a point (x, y, z) in mm, or None where it is not one."""
-    if not isinstance(value, list) or len(value) != 3 or not all(finite_number(c) and abs(c) <= 1e8 for c in value):
+    if not isinstance(value, list) or len(value) != 3 or not all(finite_number(c) and abs(c) <= 1e8
+                                                                 for c in value):
         return None
     return tuple(float(c) for c in value)
 
 
 def manifest_user(paths) -> tuple | None:
-    """Where the user stands (mm, the level's frame), as the manifests among ``paths`` say with a level-wide
-    ``user_mm`` (each manifest checked as :func:`read_manifest` checks it); None where none says. Two manifests
-    that put the user in two places are refused in one line."""
+    """Where the user stands (mm, the level's frame), as the manifests among ``paths`` say with a
+    level-wide ``user_mm`` (each manifest checked as :func:`read_manifest` checks it); None where
+    none says. Two manifests that put the user in two places are refused in one line."""
     found: dict[tuple, str] = {}
     for given in paths:
         if is_manifest(given):
@@ -441,7 +444,8 @@ def manifest_user(paths) -> tuple | None:
                 found.setdefault(_user(document["user_mm"]), str(given))
     if len(found) > 1:
         (a, first), (b, second) = list(found.items())[:2]
-        raise ConfigError(f"{second}: user_mm = {list(b)} puts the user elsewhere than {first} does ({list(a)}); "
+        raise ConfigError(f"{second}: user_mm = {list(b)} puts the user elsewhere than {first} "
+                          f"does ({list(a)}); "
                           "give one place, in one manifest or with --user-at")
     return next(iter(found), None)
 
@@ -451,13 +455,14 @@ def is_manifest(path: str | os.PathLike) -> bool:
 
 
 def object_specs(paths, *, option: str, split: str | None = None, nodes=(), skip_nodes=(),
-                 notes: list | None = None, units: str | None = None, up: str | None = None) -> list[ObjectSpec]:
+                 notes: list | None = None, units: str | None = None,
+                 up: str | None = None) -> list[ObjectSpec]:
     """The objects that command-line paths name: mesh files, folders of them (searched as
     :func:`~pinchmatch.mesh.load.mesh_files` does) and manifests, in the order given. A glTF/GLB
     scene whose split is ``"nodes"`` (its manifest entry's, else ``split``) becomes one object per
-    mesh node (those ``nodes`` and ``skip_nodes`` keep, as :func:`node_specs` says; its furniture left out,
-    with a line in ``notes``: :mod:`pinchmatch.mesh.furniture`, the level read in its spec's units and up, else
-    ``units`` and ``up``, the run's); other files are not split.
+    mesh node (those ``nodes`` and ``skip_nodes`` keep, as :func:`node_specs` says; its furniture
+    left out, with a line in ``notes``: :mod:`pinchmatch.mesh.furniture`, the level read in its
+    spec's units and up, else ``units`` and ``up``, the run's); other files are not split.
 
     >>> [spec.display_name for spec in object_specs([props_toml, box_stl], option="--tangible")]
     ['box', 'can', 'box.stl']
@@ -478,13 +483,17 @@ def object_specs(paths, *, option: str, split: str | None = None, nodes=(), skip
                 MESH_EXTENSIONS[Path(spec.path).suffix.lower()] in GLTF_TYPES
             globs = [g for g in (*nodes, *skip_nodes, *spec.nodes, *spec.skip_nodes)]
             if globs and how != "nodes" and level:
-                where = f"{spec.manifest}: {Path(spec.path).name}'s nodes" if spec.nodes or spec.skip_nodes else \
-                    "--nodes and --skip-nodes"
-                raise ConfigError(f"{where}: choose nodes of a level split into its nodes, but {spec.path} is not "
-                                  "split; add --split nodes (or split = \"nodes\" in its manifest entry)")
+                where = (f"{spec.manifest}: {Path(spec.path).name}'s nodes"
+                         if spec.nodes or spec.skip_nodes else "--nodes and --skip-nodes")
+                raise ConfigError(f"{where}: choose nodes of a level split into its nodes, but "
+                                  f"{spec.path} is not "
+                                  "split; add --split nodes (or split = \"nodes\" in its manifest "
+                                  "entry)")
             if how == "nodes" and level:
-                out.extend(node_specs(spec, read_level(spec.path), only=tuple(nodes), skip=tuple(skip_nodes),
-                                      furniture=level_furniture(spec.path, units=spec.units or units,
+                out.extend(node_specs(spec, read_level(spec.path), only=tuple(nodes),
+                                      skip=tuple(skip_nodes),
+                                      furniture=level_furniture(spec.path,
+                                                                units=spec.units or units,
                                                                 up=spec.up or up),
                                       notes=notes))
             else:
@@ -493,10 +502,10 @@ def object_specs(paths, *, option: str, split: str | None = None, nodes=(), skip
 
 
 def distinct_names(specs: list, option: str) -> list:
-    """``specs`` with names that tell them apart: a result names each object, so two files called ``prop.stl``
-    in two folders, or two levels' nodes called ``mug``, are named by as much of their paths as tells them
-    apart (``a/prop.stl``, ``b/prop.stl``; ``kitchen_a.glb/mug``). Two objects a manifest gives the same name
-    are refused in one line: the names are the user's to choose."""
+    """``specs`` with names that tell them apart: a result names each object, so two files called
+    ``prop.stl`` in two folders, or two levels' nodes called ``mug``, are named by as much of their
+    paths as tells them apart (``a/prop.stl``, ``b/prop.stl``; ``kitchen_a.glb/mug``). Two objects a
+    manifest gives the same name are refused in one line: the names are the user's to choose."""
     groups: dict[str, list[int]] = {}
     for k, spec in enumerate(specs):
         groups.setdefault(spec.display_name, []).append(k)
@@ -506,7 +515,8 @@ def distinct_names(specs: list, option: str) -> list:
             continue
         given = [specs[k] for k in members if specs[k].name is not None and specs[k].node is None]
         if len(given) > 1:
-            raise ConfigError(f"{option}: {len(given)} objects are named {name!r} ({given[0].manifest or given[0].path}, "
+            raise ConfigError(f"{option}: {len(given)} objects are named {name!r} "
+                              f"({given[0].manifest or given[0].path}, "
                               f"{given[1].manifest or given[1].path}); give each its own name")
         parts = [Path(os.path.abspath(specs[k].path)).parts for k in members]
         for depth in range(1, max(len(p) for p in parts) + 1):
@@ -517,32 +527,8 @@ def distinct_names(specs: list, option: str) -> list:
             spec = specs[k]
             node = spec.node if spec.node is not None else None
             unique = f"{label}/{node}" if node is not None else label
-            if spec.name is not None and spec.node is not None:  # a manifest's level: its name, then the path
+            if spec.name is not None and spec.node is not None:
+                # a manifest's level: its name, then the path
                 unique = f"{label}/{spec.name}"
             out[k] = replace(spec, name=unique)
     return out
-
-
-def spec_to_dict(spec: ObjectSpec) -> dict:
-    """A spec as plain JSON values (:func:`spec_from_dict` makes it again)."""
-    return {"path": spec.path, "name": spec.name, "units": spec.units, "up": spec.up,
-            "com_mm": None if spec.com_mm is None else [float(c) for c in spec.com_mm],
-            "axis": None if spec.axis is None else [float(c) for c in spec.axis],
-            "mass_g": spec.mass_g, "regions": spec.regions.as_dict(), "split": spec.split,
-            "node": spec.node, "node_path": spec.node_path, "manifest": spec.manifest,
-            "pose": None if spec.pose is None else [list(spec.pose[0]), list(spec.pose[1])],
-            "support": spec.support, "rests_on_mm": spec.rests_on_mm, "level_up": spec.level_up}
-
-
-def spec_from_dict(d: dict) -> ObjectSpec:
-    def region(r: dict) -> Region:
-        return Region.sphere(r["center_mm"], r["radius_mm"]) if "center_mm" in r else Region.box(r["min_mm"], r["max_mm"])
-
-    return ObjectSpec(d["path"], name=d["name"], units=d["units"], up=d["up"],
-                      com_mm=None if d["com_mm"] is None else tuple(d["com_mm"]),
-                      axis=None if d["axis"] is None else tuple(d["axis"]), mass_g=d["mass_g"],
-                      regions=ContactRegions(tuple(region(r) for r in d["regions"]["exclude"]),
-                                             tuple(region(r) for r in d["regions"]["only"])),
-                      split=d["split"], node=d["node"], node_path=d["node_path"], manifest=d["manifest"],
-                      pose=None if d.get("pose") is None else (tuple(d["pose"][0]), tuple(d["pose"][1])),
-                      support=d.get("support"), rests_on_mm=d.get("rests_on_mm"), level_up=d.get("level_up"))

@@ -86,7 +86,8 @@ def parse_vector(text: str, *, option: str) -> np.ndarray:
     if values.shape != (3,) or not np.isfinite(values).all():
         raise ConfigError(f"{option}: expected three finite numbers X,Y,Z, got {text!r}")
     if np.abs(values).max() >= 1e6:
-        raise ConfigError(f"{option}: {text!r} is more than a kilometre from the origin; give mm in the file's frame")
+        raise ConfigError(f"{option}: {text!r} is more than a kilometre from the origin; give mm "
+                          "in the file's frame")
     return values
 
 
@@ -143,7 +144,8 @@ def object_properties(
 
     for name, value in (("--com", com_mm), ("--axis", axis)):
         if value is not None and not _three_finite(value):
-            raise ConfigError(f"{name}: {str(value)[:60]} must be three finite numbers X,Y,Z (mm, the file's frame)"
+            raise ConfigError(f"{name}: {str(value)[:60]} must be three finite numbers X,Y,Z (mm, "
+                              "the file's frame)"
                               + (", a non-zero vector" if name == "--axis" else ""))
     if axis is not None:
         norm = float(np.linalg.norm(axis))

@@ -16,7 +16,8 @@ import numpy as np
 
 @dataclass(frozen=True)
 class Region:
-    """A sphere (``center_mm``, ``radius_mm``) or an axis-aligned box (``min_mm``, ``max_mm``), mm."""
+    """A sphere (``center_mm``, ``radius_mm``) or an axis-aligned box (``min_mm``, ``max_mm``),
+    mm."""
 
     kind: str  # "sphere" or "box"
     a: tuple  # sphere: centre; box: least corner
@@ -88,4 +89,5 @@ class ContactRegions:
         return ok
 
     def as_dict(self) -> dict:
-        return {"exclude": [r.as_dict() for r in self.exclude], "only": [r.as_dict() for r in self.only]}
+        return {"exclude": [r.as_dict() for r in self.exclude],
+                "only": [r.as_dict() for r in self.only]}

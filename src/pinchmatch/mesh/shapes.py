@@ -81,7 +81,8 @@ def _uniform_sphere_points(n, rng):
 
 
 # --------------------------------------------------------------------- sphere
-def sphere(radius_mm: float = 20.0, *, triangulation: str = "regular", faces: int = 20000, seed=0) -> Shape:
+def sphere(radius_mm: float = 20.0, *, triangulation: str = "regular", faces: int = 20000,
+           seed=0) -> Shape:
     rng = np.random.default_rng(seed)
     if triangulation == "regular":
         level = int(np.clip(np.round(np.log(faces / 20) / np.log(4)), 1, 8))
@@ -109,7 +110,8 @@ def cylinder(radius_mm: float = 20.0, height_mm: float = 80.0, *, triangulation:
     rng = np.random.default_rng(seed)
     h2 = height_mm / 2.0
     if triangulation == "cad":
-        mesh = trimesh.creation.cylinder(radius=radius_mm, height=height_mm, sections=max(16, faces // 4))
+        mesh = trimesh.creation.cylinder(radius=radius_mm, height=height_mm,
+                                         sections=max(16, faces // 4))
     elif triangulation == "regular":
         # square-ish quad grid on the side (split into triangles), fans on the caps
         sections = max(16, int(np.sqrt(faces * np.pi * radius_mm / height_mm)))
@@ -122,9 +124,11 @@ def cylinder(radius_mm: float = 20.0, height_mm: float = 80.0, *, triangulation:
         n_side = int(total * side_area / (side_area + 2 * cap_area))
         n_cap = (total - n_side) // 2
         theta = rng.uniform(0, 2 * np.pi, n_side)
-        side = np.column_stack([radius_mm * np.cos(theta), radius_mm * np.sin(theta), rng.uniform(-h2, h2, n_side)])
+        side = np.column_stack([radius_mm * np.cos(theta), radius_mm * np.sin(theta),
+                                rng.uniform(-h2, h2, n_side)])
         rim_t = np.linspace(0, 2 * np.pi, max(32, int(np.sqrt(total) * 2)), endpoint=False)
-        rims = [np.column_stack([radius_mm * np.cos(rim_t), radius_mm * np.sin(rim_t), np.full(len(rim_t), z)]) for z in (-h2, h2)]
+        rims = [np.column_stack([radius_mm * np.cos(rim_t), radius_mm * np.sin(rim_t),
+                                 np.full(len(rim_t), z)]) for z in (-h2, h2)]
         caps = []
         for z in (-h2, h2):
             rr = radius_mm * np.sqrt(rng.uniform(0, 0.97, n_cap))
@@ -150,8 +154,8 @@ def cylinder(radius_mm: float = 20.0, height_mm: float = 80.0, *, triangulation:
 def _cylinder_grid(radius, height, sections, rings):
     t = 2 * np.pi * np.arange(sections) / sections
     z = np.linspace(-height / 2, height / 2, rings + 1)
-    side = np.column_stack([np.tile(radius * np.cos(t), rings + 1), np.tile(radius * np.sin(t), rings + 1),
-                            np.repeat(z, sections)])
+    side = np.column_stack([np.tile(radius * np.cos(t), rings + 1),
+                            np.tile(radius * np.sin(t), rings + 1), np.repeat(z, sections)])
     verts = np.vstack([side, [[0, 0, -height / 2], [0, 0, height / 2]]])
     i, j = np.meshgrid(np.arange(sections), np.arange(rings), indexing="ij")
     a = (j * sections + i).ravel()
@@ -163,7 +167,8 @@ def _cylinder_grid(radius, height, sections, rings):
     tris = np.vstack([
         np.column_stack([a, b, c]), np.column_stack([a, c, d]),
         np.column_stack([np.full(sections, bottom), (ring + 1) % sections, ring]),
-        np.column_stack([np.full(sections, top), rings * sections + ring, rings * sections + (ring + 1) % sections]),
+        np.column_stack([np.full(sections, top), rings * sections + ring,
+                         rings * sections + (ring + 1) % sections]),
     ])
     mesh = trimesh.Trimesh(verts, tris, process=True)
     trimesh.repair.fix_normals(mesh)
@@ -193,7 +198,8 @@ def torus(major_mm: float = 30.0, minor_mm: float = 12.0, *, triangulation: str 
         n = faces // 2
         u = rng.random(4 * n)
         v = rng.random(4 * n)
-        accept = rng.random(4 * n) < (major_mm + minor_mm * np.cos(2 * np.pi * v)) / (major_mm + minor_mm)
+        accept = rng.random(4 * n) < (major_mm + minor_mm
+                                      * np.cos(2 * np.pi * v)) / (major_mm + minor_mm)
         uv = np.column_stack([u[accept], v[accept]])[:n]
         tri = _periodic_delaunay(uv)
     else:
@@ -221,7 +227,8 @@ def torus(major_mm: float = 30.0, minor_mm: float = 12.0, *, triangulation: str 
 
 
 # ------------------------------------------------------------------ ellipsoid
-def ellipsoid(axes_mm=(40.0, 25.0, 18.0), *, triangulation: str = "regular", faces: int = 20000, seed=0) -> Shape:
+def ellipsoid(axes_mm=(40.0, 25.0, 18.0), *, triangulation: str = "regular", faces: int = 20000,
+              seed=0) -> Shape:
     rng = np.random.default_rng(seed)
     axes = np.asarray(axes_mm, float)
     if triangulation == "regular":
@@ -251,7 +258,8 @@ def ellipsoid(axes_mm=(40.0, 25.0, 18.0), *, triangulation: str = "regular", fac
         g = np.linalg.norm(grad, axis=1)
         normal = grad / g[:, None]
         hess = np.diag(2.0 / axes**2)
-        t1 = _unit(np.cross(normal, np.where(np.abs(normal[:, :1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]])))
+        t1 = _unit(np.cross(normal,
+                            np.where(np.abs(normal[:, :1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]])))
         t2 = np.cross(normal, t1)
         T = np.stack([t1, t2], axis=-1)  # (n, 3, 2)
         S = np.einsum("nai,ab,nbj->nij", T, hess, T) / g[:, None, None]
@@ -311,6 +319,7 @@ def stacked_prop(order=("cylinder", "cube", "cone"), *, sections: int = 96) -> t
 
 def _frustum(r_bottom, r_top, height, sections):
     t = np.linspace(0, 2 * np.pi, sections, endpoint=False)
-    bottom = np.column_stack([r_bottom * np.cos(t), r_bottom * np.sin(t), np.full(sections, -height / 2)])
+    bottom = np.column_stack([r_bottom * np.cos(t), r_bottom * np.sin(t),
+                              np.full(sections, -height / 2)])
     top = np.column_stack([r_top * np.cos(t), r_top * np.sin(t), np.full(sections, height / 2)])
     return _hull_mesh(np.vstack([bottom, top]))

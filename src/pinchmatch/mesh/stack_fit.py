@@ -1,17 +1,18 @@
-"""A stack of the design family (:mod:`stacks`) fitted to a standing mesh: where ``design`` starts from a shelf.
+"""A stack of the design family (:mod:`stacks`) fitted to a standing mesh: where ``design`` starts
+from a shelf.
 
-A shelf's props are meshes of any shape; the design searches coaxial stacks of cylinders, boxes, frusta
-and barrels. To start the search from a shelf's best props, each is fitted by a stack: its width profile
-along its up axis (+Z, as it stands), then the split of that profile into at most ``parts`` parts, each a
-cylinder (a constant width) or a frustum (a width changing linearly), that follows the profile best in
-least squares (a dynamic programme over the split points). A part whose sections are oblong (their
-narrower principal width under ``OBLONG_BELOW`` of the wider: a bottle's, a box's) is a box of both
-widths, turned as they are.
+A shelf's props are meshes of any shape; the design searches coaxial stacks of cylinders, boxes,
+frusta and barrels. To start the search from a shelf's best props, each is fitted by a stack: its
+width profile along its up axis (+Z, as it stands), then the split of that profile into at most
+``parts`` parts, each a cylinder (a constant width) or a frustum (a width changing linearly), that
+follows the profile best in least squares (a dynamic programme over the split points). A part whose
+sections are oblong (their narrower principal width under ``OBLONG_BELOW`` of the wider: a bottle's,
+a box's) is a box of both widths, turned as they are.
 
 The width at a height is twice the 98th percentile of the distances of the surface's points at that
-height (drawn area-uniformly, seeded) from the centre of their bounding box: a round prop's diameter, a square one's width between its sides and
-corners. A fitted stack is the shelf prop's silhouette in the family's terms, not the prop: the design
-judges it as it judges every candidate.
+height (drawn area-uniformly, seeded) from the centre of their bounding box: a round prop's
+diameter, a square one's width between its sides and corners. A fitted stack is the shelf prop's
+silhouette in the family's terms, not the prop: the design judges it as it judges every candidate.
 """
 
 from __future__ import annotations
@@ -31,14 +32,16 @@ SURFACE_POINTS = 40_000
 WIDTH_QUANTILE = 0.98
 #: a frustum is taken over a cylinder only where it lowers the squared error by more than this share
 FRUSTUM_GAIN = 0.2
-#: a part whose section's narrower principal width is below this share of its wider is fitted by a box
+#: a part whose section's narrower principal width is below this share of its wider is fitted by a
+#: box
 OBLONG_BELOW = 0.8
 
 
 def _profile(mesh: trimesh.Trimesh, slices: int) -> tuple[np.ndarray, np.ndarray, float]:
-    """Per bin of height from the mesh's lowest point to its highest along +Z: (slices, 3) its width (mm) and
-    its widths along the section's two principal directions across +Z, the wider first (NaN where a bin
-    holds no point); (slices,) the wider's direction (degrees about +Z); and the bins' height (mm)."""
+    """Per bin of height from the mesh's lowest point to its highest along +Z: (slices, 3) its width
+    (mm) and its widths along the section's two principal directions across +Z, the wider first (NaN
+    where a bin holds no point); (slices,) the wider's direction (degrees about +Z); and the bins'
+    height (mm)."""
     points, _ = trimesh.sample.sample_surface(
         mesh, SURFACE_POINTS, seed=0
     )  # area-uniform: a bin gets its share
@@ -63,8 +66,8 @@ def _profile(mesh: trimesh.Trimesh, slices: int) -> tuple[np.ndarray, np.ndarray
 
 
 def _segment_fit(z: np.ndarray, w: np.ndarray) -> tuple[float, tuple]:
-    """The squared error and the part (kind, bottom width, top width) that best follows widths ``w`` at
-    heights ``z`` (bin centres, from the segment's bottom)."""
+    """The squared error and the part (kind, bottom width, top width) that best follows widths ``w``
+    at heights ``z`` (bin centres, from the segment's bottom)."""
     mean = float(w.mean())
     flat = float(((w - mean) ** 2).sum())
     if len(w) < 3:
@@ -83,9 +86,9 @@ def _segment_fit(z: np.ndarray, w: np.ndarray) -> tuple[float, tuple]:
 
 
 def fitted_stack(mesh: trimesh.Trimesh, *, parts: int = 4, slices: int = SLICES) -> Stack:
-    """The stack of at most ``parts`` cylinders and frusta whose widths follow ``mesh``'s width profile along
-    +Z best in least squares (module notes), each part at least ``MIN_PART_HEIGHT_MM`` tall and
-    ``MIN_PART_WIDTH_MM`` wide."""
+    """The stack of at most ``parts`` cylinders and frusta whose widths follow ``mesh``'s width
+    profile along +Z best in least squares (module notes), each part at least ``MIN_PART_HEIGHT_MM``
+    tall and ``MIN_PART_WIDTH_MM`` wide."""
     profile, turns, step = _profile(mesh, slices)
     filled = np.flatnonzero(np.isfinite(profile[:, 0]))
     # a bin with no point takes its neighbours' widths
@@ -96,7 +99,8 @@ def fitted_stack(mesh: trimesh.Trimesh, *, parts: int = 4, slices: int = SLICES)
     z = (np.arange(slices) + 0.5) * step
     shortest = min(max(1, math.ceil(MIN_PART_HEIGHT_MM / step)), slices)
     parts = max(1, min(parts, slices // shortest))
-    # best[j][b]: least error of j + 1 parts over bins [0, b); how[j][b]: (start, part) of the last part
+    # best[j][b]: least error of j + 1 parts over bins [0, b); how[j][b]: (start, part) of the last
+    # part
     best = np.full((parts, slices + 1), np.inf)
     how: list[dict] = [dict() for _ in range(parts)]
     fits = {}

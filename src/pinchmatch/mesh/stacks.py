@@ -1,4 +1,5 @@
-"""The family of printable props that ``pinchmatch design`` searches: coaxial stacks of simple parts.
+"""The family of printable props that ``pinchmatch design`` searches: coaxial stacks of simple
+parts.
 
 A stack is up to ``MAX_PARTS`` parts, bottom to top along +Z, each centred on the Z axis and resting
 on the one below; the first stands on z = 0 with a flat face. A part is one of
@@ -6,9 +7,10 @@ on the one below; the first stands on z = 0 with a flat face. A part is one of
 - ``cylinder``: diameter ``width_mm``;
 - ``box``: a square prism of side ``width_mm`` (``depth_mm`` along Y makes it oblong), turned
   ``turn_deg`` about Z;
-- ``frustum``: a cone frustum from diameter ``width_mm`` at its bottom to ``top_width_mm`` at its top;
-- ``barrel``: the middle zone of an ellipsoid of revolution (a sphere's when the numbers make it one):
-  diameter ``width_mm`` at mid-height and ``top_width_mm`` at both cut faces;
+- ``frustum``: a cone frustum from diameter ``width_mm`` at its bottom to ``top_width_mm`` at its
+  top;
+- ``barrel``: the middle zone of an ellipsoid of revolution (a sphere's when the numbers make it
+  one): diameter ``width_mm`` at mid-height and ``top_width_mm`` at both cut faces;
 
 each ``height_mm`` tall. This is the method's own study prop (a cylinder, a cube and a frustum) made
 general: every part offers its own widths, wall orientations and curvatures, one above the other, so
@@ -70,7 +72,8 @@ class Part:
         return max(self.width_mm, self.top_width_mm or 0.0)
 
     def radius_at(self, where: str) -> float:
-        """Radius (mm) of the part's round outline at its ``bottom`` or ``top`` face (a box's inscribed)."""
+        """Radius (mm) of the part's round outline at its ``bottom`` or ``top`` face (a box's
+        inscribed)."""
         if self.kind == "box":
             return min(self.width_mm, self.depth_mm or self.width_mm) / 2.0
         if self.kind == "cylinder":
@@ -101,7 +104,8 @@ class Stack:
         for p in self.parts:
             parts.append(p.as_dict() | {"bottom_z_mm": round(z, 3)})
             z += p.height_mm
-        return {"parts": parts, "height_mm": round(self.height_mm, 3), "widest_mm": round(self.widest_mm, 3)}
+        return {"parts": parts, "height_mm": round(self.height_mm, 3),
+                "widest_mm": round(self.widest_mm, 3)}
 
 
 def stack_problems(stack: Stack, *, max_height_mm: float, max_width_mm: float) -> list[str]:
@@ -116,7 +120,8 @@ def stack_problems(stack: Stack, *, max_height_mm: float, max_width_mm: float) -
         if p.widest_mm > max_width_mm + 1e-9:
             out.append(f"part {k + 1} is {p.widest_mm:.1f} mm wide (at most {max_width_mm:g})")
         if min(widths) < MIN_PART_WIDTH_MM - 1e-9 or p.height_mm < MIN_PART_HEIGHT_MM - 1e-9:
-            out.append(f"part {k + 1} is under {MIN_PART_WIDTH_MM:g} mm wide or {MIN_PART_HEIGHT_MM:g} mm tall")
+            out.append(f"part {k + 1} is under {MIN_PART_WIDTH_MM:g} mm wide or "
+                       f"{MIN_PART_HEIGHT_MM:g} mm tall")
         if p.kind == "barrel" and p.top_width_mm >= p.width_mm:
             out.append(f"part {k + 1}: a barrel's cut faces are narrower than its middle")
     return out
@@ -128,8 +133,8 @@ FIT_MARGIN = math.cos(math.pi / SECTIONS) * 0.999
 
 def _top_reach(part: Part, rel_turn_deg: float, box_above: bool) -> float:
     """How far from the axis the part above may reach and stand on ``part``'s top face: its radius
-    (a box's inscribed half-side; for a box above a box, turned ``rel_turn_deg``, the half-side that its
-    corners may span, measured along the upper box's own axes)."""
+    (a box's inscribed half-side; for a box above a box, turned ``rel_turn_deg``, the half-side that
+    its corners may span, measured along the upper box's own axes)."""
     if part.kind == "box":
         half = part.width_mm / 2.0
         if box_above:
@@ -142,22 +147,24 @@ def _top_reach(part: Part, rel_turn_deg: float, box_above: bool) -> float:
 def supported(stack: Stack) -> Stack:
     """The stack changed as little as needed to print standing on its base without supports: every
     part's bottom footprint inside the top face below it (a box's corners included), a frustum that
-    widens upward at most 45° from vertical, and a barrel's lower half no flatter than 45° at its cut
-    (a² - e² <= e·h/2, a and e its middle and cut radii, h its height: the surface is flattest at the
-    cut). Widths only shrink, so the limits still hold; a box that cannot stand on what is below
-    becomes a cylinder of the largest width that can, and a part that would be narrower than
+    widens upward at most 45° from vertical, and a barrel's lower half no flatter than 45° at its
+    cut (a² - e² <= e·h/2, a and e its middle and cut radii, h its height: the surface is flattest
+    at the cut). Widths only shrink, so the limits still hold; a box that cannot stand on what is
+    below becomes a cylinder of the largest width that can, and a part that would be narrower than
     ``MIN_PART_WIDTH_MM`` ends the stack below it."""
     parts = []
     for k, p in enumerate(stack.parts):
         if k > 0:
             below = parts[-1]
-            rel = (p.turn_deg - below.turn_deg) if (p.kind == "box" and below.kind == "box") else 0.0
+            rel = (p.turn_deg - below.turn_deg) if (p.kind == "box" and below.kind
+                                                    == "box") else 0.0
             reach = _top_reach(below, rel, p.kind == "box") * FIT_MARGIN
             if p.kind == "box":
                 allowed = 2.0 * reach if below.kind == "box" else math.sqrt(2.0) * reach
                 if allowed < MIN_PART_WIDTH_MM:  # corners would hang over: a cylinder instead
                     round_reach = _top_reach(below, 0.0, False) * FIT_MARGIN
-                    p = Part("cylinder", p.height_mm, math.floor(min(p.width_mm, 2.0 * round_reach) * 10) / 10)
+                    p = Part("cylinder", p.height_mm,
+                             math.floor(min(p.width_mm, 2.0 * round_reach) * 10) / 10)
                 else:
                     p = replace(p, width_mm=min(p.width_mm, math.floor(allowed * 10) / 10))
             elif p.kind == "barrel":
@@ -168,7 +175,8 @@ def supported(stack: Stack) -> Stack:
             p = replace(p, top_width_mm=math.floor((p.width_mm + 2.0 * p.height_mm) * 10) / 10)
         if p.kind == "barrel":
             a, e, h = p.width_mm / 2.0, p.top_width_mm / 2.0, p.height_mm
-            if a * a - e * e > e * h / 2.0:  # too flat at the cut: the middle narrows to what the cut carries
+            if a * a - e * e > e * h / 2.0:
+                # too flat at the cut: the middle narrows to what the cut carries
                 a = math.sqrt(e * e + e * h / 2.0) * 0.999
                 p = replace(p, width_mm=math.floor(2.0 * a * 10) / 10)
             if p.top_width_mm >= p.width_mm:  # no bulge left: a cylinder
@@ -200,8 +208,10 @@ def _profile(part: Part, z0: float) -> np.ndarray:
 def part_mesh(part: Part, z0: float) -> trimesh.Trimesh:
     """One part as a closed surface, its bottom at ``z0``."""
     if part.kind == "box":
-        mesh = trimesh.creation.box(extents=(part.width_mm, part.depth_mm or part.width_mm, part.height_mm))
-        mesh.apply_transform(trimesh.transformations.rotation_matrix(math.radians(part.turn_deg), [0, 0, 1]))
+        mesh = trimesh.creation.box(extents=(part.width_mm, part.depth_mm or part.width_mm,
+                                             part.height_mm))
+        mesh.apply_transform(trimesh.transformations.rotation_matrix(math.radians(part.turn_deg),
+                                                                     [0, 0, 1]))
         mesh.apply_translation((0.0, 0.0, z0 + part.height_mm / 2.0))
         return mesh
     return trimesh.creation.revolve(_profile(part, z0), sections=SECTIONS)

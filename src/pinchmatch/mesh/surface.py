@@ -34,10 +34,11 @@ SAMPLES_PER_PATCH = 120
 MAX_SAMPLES = 400_000
 #: fixed seed of the dense sample: features of a pinch never depend on --seed
 SAMPLE_SEED = 20190323
-#: points per leaf of the sample's KD-tree: the hand's distance queries, most of its queries, run a fifth
-#: faster with 32 than with scipy's 16 (the answers are the same)
+#: points per leaf of the sample's KD-tree: the hand's distance queries, most of its queries, run a
+#: fifth faster with 32 than with scipy's 16 (the answers are the same)
 TREE_LEAF_SIZE = 32
-#: the distance field decides "farther than this" without a grid cell (mm): beyond any finger's radius
+#: the distance field decides "farther than this" without a grid cell (mm): beyond any finger's
+#: radius
 FIELD_MARGIN_MM = 20.0
 
 
@@ -52,7 +53,8 @@ def _embree_installed() -> bool:
             _EMBREE = True
         except ImportError:
             _EMBREE = False
-            log.warning("embreex is not installed; rays use trimesh's numpy engine, about 10x slower "
+            log.warning("embreex is not installed; rays use trimesh's numpy engine, about 10x "
+                        "slower "
                         "(pip install embreex)")
     return _EMBREE
 
@@ -141,14 +143,16 @@ def sample_surface(
     flip = r1 + r2 > 1.0
     r1[flip], r2[flip] = 1.0 - r1[flip], 1.0 - r2[flip]
     tri = mesh.triangles[face_index]
-    points = tri[:, 0] + r1[:, None] * (tri[:, 1] - tri[:, 0]) + r2[:, None] * (tri[:, 2] - tri[:, 0])
+    points = (tri[:, 0] + r1[:, None] * (tri[:, 1] - tri[:, 0]) + r2[:, None]
+              * (tri[:, 2] - tri[:, 0]))
     bary = np.column_stack([1.0 - r1 - r2, r1, r2])
     chord = np.zeros((len(points), 6))
     for i, j in ((0, 1), (1, 2), (2, 0)):
         e = tri[:, i] - tri[:, j]
         w = bary[:, i] * bary[:, j]
         chord += w[:, None] * np.column_stack(
-            [e[:, 0] ** 2, e[:, 1] ** 2, e[:, 2] ** 2, e[:, 0] * e[:, 1], e[:, 0] * e[:, 2], e[:, 1] * e[:, 2]]
+            [e[:, 0] ** 2, e[:, 1] ** 2, e[:, 2] ** 2, e[:, 0] * e[:, 1], e[:, 0] * e[:, 2],
+             e[:, 1] * e[:, 2]]
         )
     # vertices: exact points, each weighted by a third of its triangles' area; on a
     # mesh finer than the sample, a random subset of them at the sample's density
@@ -160,7 +164,8 @@ def sample_surface(
     vertex_area = vertex_area / keep_prob
     vertex_face = np.zeros(len(mesh.vertices), dtype=np.int64)  # any one triangle of each vertex
     vertex_face[mesh.faces.ravel()] = np.repeat(np.arange(len(mesh.faces)), 3)
-    longest = np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=-1).max(axis=1) if len(tri) else np.zeros(0)
+    longest = np.linalg.norm(tri - np.roll(tri, 1, axis=1),
+                             axis=-1).max(axis=1) if len(tri) else np.zeros(0)
     chord[longest > max_chord_edge_mm] = 0.0
     return SurfaceSample(
         points=np.vstack([points, mesh.vertices[used]]),
@@ -185,8 +190,8 @@ class SurfaceContext:
     regions : ContactRegions, optional
         Where contacts may not, or must, lie (:mod:`pinchmatch.mesh.regions`); default: anywhere.
     support : SupportPlane, optional
-        The plane the object stands on (:mod:`pinchmatch.mesh.support`), below which no hand reaches;
-        default: none (held in the hand).
+        The plane the object stands on (:mod:`pinchmatch.mesh.support`), below which no hand
+        reaches; default: none (held in the hand).
     """
 
     def __init__(self, mesh: trimesh.Trimesh, *, patch_radius_mm: float = 8.0,
@@ -201,7 +206,8 @@ class SurfaceContext:
 
     @functools.cached_property
     def contact_area_mm2(self) -> np.ndarray:
-        """(f,) area of each triangle that contacts may be drawn from: 0 where the regions allow none."""
+        """(f,) area of each triangle that contacts may be drawn from: 0 where the regions allow
+        none."""
         area = np.asarray(self.mesh.area_faces, dtype=np.float64)
         if self.regions:
             area = area * self.regions.faces_that_may_hold_contacts(self.mesh.triangles)
@@ -217,7 +223,8 @@ class SurfaceContext:
 
     @functools.cached_property
     def sample(self) -> SurfaceSample:
-        per_sample = max(np.pi * self.patch_radius_mm**2 / SAMPLES_PER_PATCH, float(self.mesh.area) / MAX_SAMPLES)
+        per_sample = max(np.pi * self.patch_radius_mm**2 / SAMPLES_PER_PATCH,
+                         float(self.mesh.area) / MAX_SAMPLES)
         sample = sample_surface(self.mesh, area_per_sample_mm2=per_sample,
                                 max_chord_edge_mm=2.0 * self.patch_radius_mm)
         log.debug("surface context: %d faces, %d samples (%.2f mm apart)", len(self.mesh.faces),
@@ -230,12 +237,13 @@ class SurfaceContext:
 
     @functools.cached_property
     def distance_field(self) -> DistanceField:
-        """Sure bounds on the distance to the dense sample, from a grid (exact beyond ``FIELD_MARGIN_MM``)."""
+        """Sure bounds on the distance to the dense sample, from a grid (exact beyond
+        ``FIELD_MARGIN_MM``)."""
         return DistanceField.of(self.sample.points, margin_mm=FIELD_MARGIN_MM)
 
     def keep_distance_field(self, field: DistanceField) -> None:
-        """Take ``field`` as this surface's :attr:`distance_field`: one made for the same sample elsewhere (a
-        run's workers take a tangible's, made once with its poses)."""
+        """Take ``field`` as this surface's :attr:`distance_field`: one made for the same sample
+        elsewhere (a run's workers take a tangible's, made once with its poses)."""
         self.__dict__["distance_field"] = field
 
     @functools.cached_property
@@ -281,7 +289,8 @@ class SurfaceContext:
             distance[hit] = np.where(np.isfinite(t), t, 0.0)
         return face, distance
 
-    def exits(self, origins: np.ndarray, directions: np.ndarray, *, max_distance: float, max_hits: int):
+    def exits(self, origins: np.ndarray, directions: np.ndarray, *, max_distance: float,
+              max_hits: int):
         """Every point where each ray leaves the solid, up to ``max_distance`` along it.
 
         The ray is followed through the surfaces it meets (walls, cavities, gaps): each hit
@@ -301,12 +310,14 @@ class SurfaceContext:
         for _ in range(max_hits):
             if len(live) == 0:
                 break
-            face, dist = self.first_hit(origins[live] + (start[live] + step)[:, None] * directions[live],
+            face, dist = self.first_hit(origins[live] + (start[live] + step)[:, None]
+                                        * directions[live],
                                         directions[live])
             total = start[live] + step + dist
             hit = (face >= 0) & (total <= max_distance)
             exiting = hit.copy()
-            exiting[hit] = np.einsum("ij,ij->i", self.face_normals[face[hit]], directions[live][hit]) > 0
+            exiting[hit] = np.einsum("ij,ij->i", self.face_normals[face[hit]],
+                                     directions[live][hit]) > 0
             rays.append(live[exiting])
             faces.append(face[exiting])
             dists.append(total[exiting])
@@ -323,8 +334,11 @@ class SurfaceContext:
         closest, distance, face = trimesh.proximity.closest_point(self.mesh, points)
         return np.asarray(closest), np.asarray(distance), np.asarray(face, dtype=np.int64)
 
-    def min_distance_to_samples(self, points: np.ndarray, *, beyond_mm: float = np.inf) -> np.ndarray:
-        """Distance (mm) from each point to the nearest dense surface sample; inf where it is ``beyond_mm``
-        or more (the tree's search stops there: a caller that only compares with it pays less)."""
-        distance, _ = query_tree(self.tree, points, k=1, distance_upper_bound=beyond_mm, work=len(points))
+    def min_distance_to_samples(self, points: np.ndarray, *,
+                                beyond_mm: float = np.inf) -> np.ndarray:
+        """Distance (mm) from each point to the nearest dense surface sample; inf where it is
+        ``beyond_mm`` or more (the tree's search stops there: a caller that only compares with it
+        pays less)."""
+        distance, _ = query_tree(self.tree, points, k=1, distance_upper_bound=beyond_mm,
+                                 work=len(points))
         return distance

@@ -3,12 +3,12 @@
 The loader's repairs (:func:`pinchmatch.mesh.load.load_mesh`) ask the same questions trimesh
 answers (``merge_vertices``, ``unique_faces``, ``face_adjacency``, ``is_watertight``,
 ``is_winding_consistent``, ``fix_inversion(multibody=True)``), and get the same answers, vertex
-order and face order included. trimesh groups rows by sorting them as byte strings and computes full mass
-properties for a volume; on a 5-million-face scan that takes a minute and several gigabytes. Here
-rows (a vertex's rounded coordinates, a face's sorted corners, an edge) are grouped in one pass over
-a hash table (:mod:`topology_kernel`, compiled), rows compared whole, groups numbered in the order
-their first rows come; volumes are sums of signed tetrahedra, without the inertia trimesh computes
-alongside. ``tests/test_load.py`` checks every answer against trimesh's.
+order and face order included. trimesh groups rows by sorting them as byte strings and computes full
+mass properties for a volume; on a 5-million-face scan that takes a minute and several gigabytes.
+Here rows (a vertex's rounded coordinates, a face's sorted corners, an edge) are grouped in one pass
+over a hash table (:mod:`topology_kernel`, compiled), rows compared whole, groups numbered in the
+order their first rows come; volumes are sums of signed tetrahedra, without the inertia trimesh
+computes alongside. ``tests/test_load.py`` checks every answer against trimesh's.
 """
 
 from __future__ import annotations
@@ -42,8 +42,8 @@ def nondegenerate_faces(vertices: np.ndarray, faces: np.ndarray, height: float) 
 
     from .topology_kernel import nondegenerate_faces as kernel
 
-    return kernel(np.ascontiguousarray(vertices, dtype=np.float64), np.ascontiguousarray(faces, dtype=np.int64),
-                  float(height), float(tol.merge))
+    return kernel(np.ascontiguousarray(vertices, dtype=np.float64),
+                  np.ascontiguousarray(faces, dtype=np.int64), float(height), float(tol.merge))
 
 
 #: rows are bucketed by a vertex in their first column while the buckets' comparisons, Σ size²,
@@ -51,9 +51,11 @@ def nondegenerate_faces(vertices: np.ndarray, faces: np.ndarray, height: float) 
 BUCKET_WORK_PER_ROW = 64
 
 
-def group_rows(rows: np.ndarray, keys: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Group equal integer rows: ``(first, last, inverse)``, the index of each group's first and last
-    row, groups in the order their first rows come, and each row's group (exact: rows compared whole).
+def group_rows(rows: np.ndarray,
+               keys: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Group equal integer rows: ``(first, last, inverse)``, the index of each group's first and
+    last row, groups in the order their first rows come, and each row's group (exact: rows compared
+    whole).
 
     ``keys``: the first column is a vertex below this number, so rows may be bucketed by it (the
     same groups, faster, where vertices have few rows each).
@@ -74,7 +76,8 @@ def group_rows_first(rows: np.ndarray, keys: int | None = None) -> tuple[np.ndar
     return first, inverse
 
 
-def merge_vertices(vertices: np.ndarray, faces: np.ndarray, digits: int) -> tuple[np.ndarray, np.ndarray]:
+def merge_vertices(vertices: np.ndarray, faces: np.ndarray,
+                   digits: int) -> tuple[np.ndarray, np.ndarray]:
     """trimesh's ``merge_vertices`` on positions alone: vertices equal after rounding to ``digits``
     decimals become one, kept in the order of their first referenced occurrence.
 
@@ -84,7 +87,8 @@ def merge_vertices(vertices: np.ndarray, faces: np.ndarray, digits: int) -> tupl
 
     referenced = np.zeros(len(vertices), dtype=bool)
     referenced[faces] = True
-    return merge_rounded(np.ascontiguousarray(vertices, dtype=np.float64), referenced, float(10**digits))
+    return merge_rounded(np.ascontiguousarray(vertices, dtype=np.float64), referenced,
+                         float(10**digits))
 
 
 def unique_faces(faces: np.ndarray) -> np.ndarray:
@@ -115,7 +119,8 @@ class Edges:
 
     @property
     def shared(self) -> np.ndarray:
-        """(3f,) bool: the edge is held by exactly two faces (trimesh's adjacency and watertight rule)."""
+        """(3f,) bool: the edge is held by exactly two faces (trimesh's adjacency and watertight
+        rule)."""
         return self.count[self.group] == 2
 
 
@@ -125,16 +130,19 @@ def edges(faces: np.ndarray) -> Edges:
 
     faces = np.ascontiguousarray(faces, dtype=np.int64)
     keys = int(faces.max()) + 1 if len(faces) else 0
-    ok, group, first, last, count, directed_dup = face_edges(faces, keys, float(BUCKET_WORK_PER_ROW))
+    ok, group, first, last, count, directed_dup = face_edges(faces, keys,
+                                                             float(BUCKET_WORK_PER_ROW))
     if not ok:  # a vertex of huge valence: the edges hashed
         directed = faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
         a, b = directed[:, 0], directed[:, 1]
         first, last, group = group_rows(np.column_stack([np.minimum(a, b), np.maximum(a, b)]))
         count = np.bincount(group, minlength=len(first))
-        # the same edge the same way: the same undirected edge, running from its smaller corner or not
+        # the same edge the same way: the same undirected edge, running from its smaller corner or
+        # not
         way = 2 * group + (a < b)
         directed_dup = np.bincount(way, minlength=2 * len(first))[way] > 1
-    return Edges(np.repeat(np.arange(len(faces)), 3), group, count, np.column_stack([first, last]), directed_dup)
+    return Edges(np.repeat(np.arange(len(faces)), 3), group, count, np.column_stack([first, last]),
+                 directed_dup)
 
 
 def face_adjacency(e: Edges) -> np.ndarray:
@@ -166,7 +174,8 @@ def signed_volumes(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     enclosed volume of a closed, outward-wound surface)."""
     from .topology_kernel import signed_volumes as kernel
 
-    return kernel(np.ascontiguousarray(vertices, dtype=np.float64), np.ascontiguousarray(faces, dtype=np.int64))
+    return kernel(np.ascontiguousarray(vertices, dtype=np.float64),
+                  np.ascontiguousarray(faces, dtype=np.int64))
 
 
 def inverted_bodies(vertices: np.ndarray, faces: np.ndarray, e: Edges, labels: np.ndarray,
@@ -181,8 +190,10 @@ def inverted_bodies(vertices: np.ndarray, faces: np.ndarray, e: Edges, labels: n
         bad = np.zeros(len(e.face), dtype=bool)  # every body is closed and wound on its own too
     else:
         undirected = group_rows_first(np.column_stack([body_of_edge, e.group]))
-        directed = group_rows_first(np.column_stack([body_of_edge, faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)]))
-        bad = (np.bincount(undirected[1])[undirected[1]] != 2) | (np.bincount(directed[1])[directed[1]] > 1)
+        directed = group_rows_first(np.column_stack([body_of_edge,
+                                                     faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)]))
+        bad = ((np.bincount(undirected[1])[undirected[1]] != 2)
+               | (np.bincount(directed[1])[directed[1]] > 1))
     broken = np.bincount(body_of_edge, weights=bad, minlength=bodies) > 0
     size = np.bincount(labels, minlength=bodies)
     volumes = signed_volumes(vertices, faces) if volumes is None else volumes
@@ -199,8 +210,9 @@ ENCLOSED_SAMPLES = 16
 
 def winding_numbers(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """(k,) the generalised winding number of a triangle surface around each point: the sum of the
-    triangles' signed solid angles (Van Oosterom and Strackee) over 4π; ±1 inside a closed surface, 0
-    outside. Vectorised over points and faces, as many points at a time as keep about 2 million pairs."""
+    triangles' signed solid angles (Van Oosterom and Strackee) over 4π; ±1 inside a closed surface,
+    0 outside. Vectorised over points and faces, as many points at a time as keep about 2 million
+    pairs."""
     tri = vertices[faces]  # (f, 3, 3)
     out = np.zeros(len(points))
     step = max(1, 2_000_000 // max(len(faces), 1))
@@ -209,19 +221,21 @@ def winding_numbers(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray)
         a, b, c = rel[:, :, 0], rel[:, :, 1], rel[:, :, 2]
         la, lb, lc = (np.linalg.norm(x, axis=-1) for x in (a, b, c))
         numerator = np.einsum("kfi,kfi->kf", a, np.cross(b, c))
-        denominator = la * lb * lc + np.einsum("kfi,kfi->kf", a, b) * lc + np.einsum("kfi,kfi->kf", a, c) * lb \
+        denominator = la * lb * lc + np.einsum("kfi,kfi->kf", a, b) * lc + np.einsum("kfi,kfi->kf",
+                                                                                     a, c) * lb \
             + np.einsum("kfi,kfi->kf", b, c) * la
         out[start:start + step] = np.arctan2(numerator, denominator).sum(axis=1) / (2.0 * np.pi)
     return out
 
 
 def enclosed_parts(vertices: np.ndarray, faces: np.ndarray, labels: np.ndarray) -> np.ndarray:
-    """(parts,) bool: the parts (bodies of ``labels``) that lie wholly inside another part (pages inside a
-    book's cover, a liner inside a shell): inside a part closed on its own, every sampled vertex of theirs has
-    a winding number of at least one half about it; inside an open one (a cover of three sheets, open at the
-    page edges), every sampled face centre has a generalized winding number of at least one half (Jacobson et
-    al. 2013's inside test for surfaces with holes: the page corners by the open edges see less of the cover,
-    their faces' centres are inside). Only parts inside another's bounding box are tested."""
+    """(parts,) bool: the parts (bodies of ``labels``) that lie wholly inside another part (pages
+    inside a book's cover, a liner inside a shell): inside a part closed on its own, every sampled
+    vertex of theirs has a winding number of at least one half about it; inside an open one (a cover
+    of three sheets, open at the page edges), every sampled face centre has a generalized winding
+    number of at least one half (Jacobson et al. 2013's inside test for surfaces with holes: the
+    page corners by the open edges see less of the cover, their faces' centres are inside). Only
+    parts inside another's bounding box are tested."""
     parts = int(labels.max()) + 1 if len(labels) else 0
     out = np.zeros(parts, dtype=bool)
     if parts < 2 or parts > MAX_ENCLOSED_TESTS:
@@ -236,8 +250,11 @@ def enclosed_parts(vertices: np.ndarray, faces: np.ndarray, labels: np.ndarray) 
     for p in range(parts):
         mine = faces[labels == p]
         own = np.unique(mine)
-        corners = vertices[own[np.linspace(0, len(own) - 1, min(ENCLOSED_SAMPLES, len(own))).astype(int)]]
-        centres = vertices[mine[np.linspace(0, len(mine) - 1, min(ENCLOSED_SAMPLES, len(mine))).astype(int)]].mean(axis=1)
+        corners = vertices[own[np.linspace(0, len(own) - 1,
+                                           min(ENCLOSED_SAMPLES, len(own))).astype(int)]]
+        centres = vertices[mine[np.linspace(0, len(mine) - 1,
+                                            min(ENCLOSED_SAMPLES,
+                                                len(mine))).astype(int)]].mean(axis=1)
         for q in np.flatnonzero(np.all(low <= low[p], axis=1) & np.all(high >= high[p], axis=1)):
             if q == p or out[q]:
                 continue

@@ -41,13 +41,13 @@ def _grow(table, hashes, groups):
 def group_rows(rows):
     """Group equal rows of an (n, k) int64 array in one pass over an open-addressing hash table.
 
-    Returns ``(first, last, inverse)``: the index of each group's first and last row, groups numbered
-    in the order their first rows come, and each row's group. Rows are compared whole, so no collision
-    of the hash can merge rows that differ. Slots hold group numbers; each group keeps its first
-    row's full hash, compared before the row itself, so a probe past another group's slot reads no
-    row. The table starts small and doubles when half full, so its size follows the number of
-    groups, not of rows: a triangle soup's 15 million corners that are 2.6 million vertices probe a
-    table a fraction of the size.
+    Returns ``(first, last, inverse)``: the index of each group's first and last row, groups
+    numbered in the order their first rows come, and each row's group. Rows are compared whole, so
+    no collision of the hash can merge rows that differ. Slots hold group numbers; each group keeps
+    its first row's full hash, compared before the row itself, so a probe past another group's slot
+    reads no row. The table starts small and doubles when half full, so its size follows the number
+    of groups, not of rows: a triangle soup's 15 million corners that are 2.6 million vertices probe
+    a table a fraction of the size.
     """
     n, k = rows.shape
     table = np.full(1024, -1, np.int64)
@@ -203,7 +203,8 @@ def _root(parent, i):
 @njit(cache=True, nogil=True)
 def component_labels(pairs, n):
     """(n,) connected component of each node over the (k, 2) pairs (union-find), components
-    numbered in the order of their smallest node, as scipy's ``connected_components`` numbers them."""
+    numbered in the order of their smallest node, as scipy's ``connected_components`` numbers
+    them."""
     parent = np.arange(n)
     for p in range(len(pairs)):
         a = _root(parent, pairs[p, 0])
@@ -297,7 +298,8 @@ def face_edges(faces, keys, work_per_row):
     last = np.empty(n, np.int64)
     group = np.empty(n, np.int64)
     count = np.zeros(n, np.int64)
-    ways = np.zeros((n, 2), np.uint8)  # per undirected edge, held from its larger corner / its smaller: 0, 1, 2+
+    # per undirected edge, held from its larger corner / its smaller: 0, 1, 2+
+    ways = np.zeros((n, 2), np.uint8)
     groups = 0
     for i in range(n):
         a, b = faces[i // 3, i % 3], faces[i // 3, (i % 3 + 1) % 3]
@@ -325,4 +327,5 @@ def face_edges(faces, keys, work_per_row):
     for i in range(n):
         a, b = faces[i // 3, i % 3], faces[i // 3, (i % 3 + 1) % 3]
         directed_dup[i] = ways[group[i], 1 if a < b else 0] > 1
-    return True, group, first[:groups].copy(), last[:groups].copy(), count[:groups].copy(), directed_dup
+    return (True, group, first[:groups].copy(), last[:groups].copy(), count[:groups].copy(),
+            directed_dup)

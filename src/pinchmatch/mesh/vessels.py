@@ -36,7 +36,8 @@ def cup(outer_diameter_mm: float = 70.0, height_mm: float = 90.0, wall_mm: float
 
 
 def mug(outer_diameter_mm: float = 70.0, height_mm: float = 90.0, wall_mm: float = 2.0, *,
-        handle_major_mm: float = 24.0, handle_minor_mm: float = 5.0, sections: int = 128) -> trimesh.Trimesh:
+        handle_major_mm: float = 24.0, handle_minor_mm: float = 5.0,
+        sections: int = 128) -> trimesh.Trimesh:
     """The cup with a ring handle on the +X side, in the XZ plane, at mid-height."""
     r = outer_diameter_mm / 2.0
     body = _cylinder(r, height_mm, 0.0, sections)
@@ -49,7 +50,8 @@ def mug(outer_diameter_mm: float = 70.0, height_mm: float = 90.0, wall_mm: float
     return _fine(trimesh.boolean.difference([solid, inner], engine="manifold"), 6.0)
 
 
-def bowl(outer_diameter_mm: float = 160.0, wall_mm: float = 1.5, *, subdivisions: int = 5) -> trimesh.Trimesh:
+def bowl(outer_diameter_mm: float = 160.0, wall_mm: float = 1.5, *,
+         subdivisions: int = 5) -> trimesh.Trimesh:
     """A hemispherical shell, opening up, its rim at z = R and its bottom at z = 0."""
     r = outer_diameter_mm / 2.0
     outer = trimesh.creation.icosphere(subdivisions=subdivisions, radius=r)
@@ -100,7 +102,8 @@ def plate(diameter_mm: float = 260.0, thickness_mm: float = 2.5, *, well_diamete
     top_end = np.array([R, rim_height_mm]) + t * normal
     # the top of the well meets the top of the rim where z = t
     knee_x = top_end[0] - (top_end[1] - t) * slope[0] / slope[1]
-    profile = np.array([[0.0, 0.0], [r_well, 0.0], [R, rim_height_mm], top_end, [knee_x, t], [0.0, t]])
+    profile = np.array([[0.0, 0.0], [r_well, 0.0], [R, rim_height_mm], top_end, [knee_x, t],
+                        [0.0, t]])
     mesh = trimesh.creation.revolve(profile, sections=sections)
     mesh.fix_normals()
     return _fine(mesh, 6.0)

@@ -1,27 +1,29 @@
-"""On-disk cache of each object's candidate poses and features: the first of the two cache boundaries.
+"""On-disk cache of each object's candidate poses and features: the first of the two cache
+boundaries.
 
 An entry is one ``.npz`` file named by a key: the SHA-256 of the mesh file's bytes (and of the
 buffers and images a ``.gltf`` names), the units and up direction and what else in the object's spec
-shapes its candidates, the pinch settings' digest (:func:`pinchmatch.options.digest`), the given poses
-if any, the code's digest (:func:`pinchmatch.options.code_digest`: every module of the package, so an
-upgrade or any edit never reads an old entry) and ``CACHE_FORMAT``. It holds the repaired mesh, the
-loading notes, and the feasible candidates' arrays. Matching settings (weights, criteria, normalisation,
-top-k, ...) are not in the key: tuning them reuses the entry.
+shapes its candidates, the pinch settings' digest (:func:`pinchmatch.options.digest`), the given
+poses if any, the code's digest (:func:`pinchmatch.options.code_digest`: every module of the
+package, so an upgrade or any edit never reads an old entry) and ``CACHE_FORMAT``. It holds the
+repaired mesh, the loading notes, and the feasible candidates' arrays. Matching settings (weights,
+criteria, normalisation, top-k, ...) are not in the key: tuning them reuses the entry.
 
-- Writes are atomic (a temporary file in the same folder, then ``os.replace``): a reader sees a whole
-  entry or none, and two runs writing the same key write the same bytes.
+- Writes are atomic (a temporary file in the same folder, then ``os.replace``): a reader sees a
+  whole entry or none, and two runs writing the same key write the same bytes.
 - An entry that cannot be read, or whose stored key, format or shapes do not match, is a miss
-  (:class:`DamagedEntry`): it is deleted and computed again. A cache folder that cannot be written only
-  loses the caching. An error of the code itself (not of the file) is raised, never turned into a miss.
+  (:class:`DamagedEntry`): it is deleted and computed again. A cache folder that cannot be written
+  only loses the caching. An error of the code itself (not of the file) is raised, never turned into
+  a miss.
 - Beside an entry, ``<key>.probes.npz`` keeps the pinches checked along given lines on that object
-  (the reference pose's, the memo of :func:`pinchmatch.match.reference.line_pinch`), added to as runs
-  ask for new lines: part of the object's boundary, a function of the object alone.
+  (the reference pose's, the memo of :func:`pinchmatch.match.reference.line_pinch`), added to as
+  runs ask for new lines: part of the object's boundary, a function of the object alone.
 - The second boundary, ``<key>.result.npz``, keeps a virtual object's whole result in one run's
   configuration (:mod:`pinchmatch.runner.results`, its key made of the object's, the tangibles', the
   configuration's digest and the code's).
-- ``clear`` deletes only what the cache wrote: files named ``<64 hex digits>.npz`` (or ``.probes.npz``,
-  ``.result.npz``) whose stored key is their name, and its own temporaries; anything else in the folder
-  is left alone.
+- ``clear`` deletes only what the cache wrote: files named ``<64 hex digits>.npz`` (or
+  ``.probes.npz``, ``.result.npz``) whose stored key is their name, and its own temporaries;
+  anything else in the folder is left alone.
 - A hit rebuilds exactly what a cold run computes (same arrays, bit for bit), so results do not
   depend on the cache.
 """
@@ -71,8 +73,9 @@ RESULT = ".result"  # a virtual object's whole result (:mod:`pinchmatch.runner.r
 
 
 class DamagedEntry(Exception):
-    """A cache file that is not a whole entry of its key: read as a miss, deleted and computed again.
-    Raised only while an entry is read, so that an error of the code itself is never taken for one."""
+    """A cache file that is not a whole entry of its key: read as a miss, deleted and computed
+    again. Raised only while an entry is read, so that an error of the code itself is never taken
+    for one."""
 
 
 class _Fields(dict):
@@ -99,7 +102,8 @@ def _feature_arrays(grasps) -> list[str]:
 
 
 def default_cache_dir() -> Path:
-    """``$PINCHMATCH_CACHE_DIR``, else ``$XDG_CACHE_HOME/pinchmatch``, else ``~/.cache/pinchmatch``."""
+    """``$PINCHMATCH_CACHE_DIR``, else ``$XDG_CACHE_HOME/pinchmatch``, else
+    ``~/.cache/pinchmatch``."""
     if os.environ.get("PINCHMATCH_CACHE_DIR"):
         return Path(os.environ["PINCHMATCH_CACHE_DIR"])
     base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
@@ -107,8 +111,9 @@ def default_cache_dir() -> Path:
 
 
 def _file_digest(path: Path) -> str:
-    """SHA-256 of a mesh file, and for a .gltf or .glb of every external buffer and image it names, found as
-    the loader finds them (URIs percent-decoded, beside the file; a missing one counts as missing)."""
+    """SHA-256 of a mesh file, and for a .gltf or .glb of every external buffer and image it names,
+    found as the loader finds them (URIs percent-decoded, beside the file; a missing one counts as
+    missing)."""
     h = hashlib.sha256()
     data = path.read_bytes()
     h.update(data)
@@ -121,18 +126,22 @@ def _file_digest(path: Path) -> str:
         folder = path.parent.resolve()
         for uri, file in external_files(path, document):
             h.update(len(uri.encode("utf-8")).to_bytes(8, "little") + uri.encode("utf-8"))
-            inside = file.resolve().is_relative_to(folder)  # one outside is refused when loading: never read
-            h.update(hashlib.sha256(file.read_bytes()).digest() if inside and file.is_file() else b"missing")
+            # one outside is refused when loading: never read
+            inside = file.resolve().is_relative_to(folder)
+            h.update(hashlib.sha256(file.read_bytes()).digest() if inside and file.is_file()
+                     else b"missing")
     return h.hexdigest()
 
 
-#: per level file, the digest of its bytes and of each node (:func:`pinchmatch.mesh.load.node_digests`)
+#: per level file, the digest of its bytes and of each node
+#: (:func:`pinchmatch.mesh.load.node_digests`)
 _NODE_DIGESTS: dict[str, tuple[str, dict]] = {}
 
 
 def _object_digest(spec: ObjectSpec) -> str:
-    """What an object's entry depends on of its file: the file's bytes, or for a level's node the node's own
-    triangles in world coordinates (editing, adding or removing another node changes nothing)."""
+    """What an object's entry depends on of its file: the file's bytes, or for a level's node the
+    node's own triangles in world coordinates (editing, adding or removing another node changes
+    nothing)."""
     path = Path(spec.path)
     whole = _file_digest(path)
     if spec.node is None:
@@ -162,14 +171,17 @@ class FeatureCache:
         self.hits = self.misses = 0
         self.last_key: str | None = None  # the key of the object last loaded or stored
 
-    def key(self, spec: ObjectSpec, *, settings: PinchSettings, given: tuple[np.ndarray, np.ndarray] | None = None) -> str:
-        """The entry of an object: its file's bytes (and the buffers and images a glTF names; a level's node:
-        its own triangles in the world, :func:`_object_digest`), what in its spec shapes its candidates (units, up, centre of mass, axis, regions, scene node), the pinch
+    def key(self, spec: ObjectSpec, *, settings: PinchSettings,
+            given: tuple[np.ndarray, np.ndarray] | None = None) -> str:
+        """The entry of an object: its file's bytes (and the buffers and images a glTF names; a
+        level's node: its own triangles in the world, :func:`_object_digest`), what in its spec
+        shapes its candidates (units, up, centre of mass, axis, regions, scene node), the pinch
         settings' digest, the given poses and the code's digest."""
         h = hashlib.sha256()
         h.update(_object_digest(spec).encode())
-        h.update(json.dumps({"format": CACHE_FORMAT, "code": code_digest(), "suffix": Path(spec.path).suffix.lower(),
-                             "object": spec.shape_key(), "settings": digest(settings)}, sort_keys=True).encode())
+        h.update(json.dumps({"format": CACHE_FORMAT, "code": code_digest(),
+                             "suffix": Path(spec.path).suffix.lower(), "object": spec.shape_key(),
+                             "settings": digest(settings)}, sort_keys=True).encode())
         if given is not None:
             for array in given:
                 h.update(np.ascontiguousarray(array, dtype=np.float64).tobytes())
@@ -179,8 +191,8 @@ class FeatureCache:
         return self.folder / f"{key}.npz"
 
     def write_entry(self, path: Path, arrays: dict) -> None:
-        """One entry file, atomically; a folder that cannot be written (no permission, a full disk) is
-        said once, not raised: the run goes on without caching."""
+        """One entry file, atomically; a folder that cannot be written (no permission, a full disk)
+        is said once, not raised: the run goes on without caching."""
         try:
             entry = AtomicFile(path, binary=True)
             try:
@@ -194,7 +206,8 @@ class FeatureCache:
         except OutputError as exc:
             if str(self.folder) not in _UNWRITABLE:
                 reason = str(exc).split("(", 1)[-1].split(")", 1)[0]
-                log.warning("cannot write the cache in %s (%s); going on without it", self.folder, reason)
+                log.warning("cannot write the cache in %s (%s); going on without it", self.folder,
+                            reason)
             _UNWRITABLE.add(str(self.folder))
 
     def load_probes(self, key: str) -> dict:
@@ -212,7 +225,8 @@ class FeatureCache:
                 probes[name] = Pinches(**{f: arrays[f"{name}.{f}"] for f in PINCH_ARRAYS}) \
                     if present else None
         except DAMAGED as exc:
-            log.warning("cache probes %s unusable (%s: %s); computing again", path.name, type(exc).__name__, exc)
+            log.warning("cache probes %s unusable (%s: %s); computing again", path.name,
+                        type(exc).__name__, exc)
             remove_file(path)
             probes.clear()
         return probes
@@ -228,12 +242,14 @@ class FeatureCache:
             return
         meta = {"key": key + PROBES, "format": CACHE_FORMAT,
                 "probes": {name: p is not None for name, p in sorted(probes.items())}}
-        arrays = {f"{name}.{f}": getattr(p, f) for name, p in sorted(probes.items()) if p is not None
+        arrays = {f"{name}.{f}": getattr(p, f) for name, p in sorted(probes.items())
+                  if p is not None
                   for f in PINCH_ARRAYS}
         self.write_entry(path, {"meta": np.array(json.dumps(meta))} | arrays)
 
     def load(self, key: str, spec: ObjectSpec, *, patch_radius_mm: float) -> Candidates | None:
-        """The candidates stored under ``key``, or None (a missing, unreadable or mismatched entry)."""
+        """The candidates stored under ``key``, or None (a missing, unreadable or mismatched
+        entry)."""
         entry = self._path(key)
         if not entry.is_file():
             return None
@@ -243,7 +259,8 @@ class FeatureCache:
                 raise DamagedEntry("the entry belongs to another key")
             _check_arrays(arrays)
         except DAMAGED as exc:  # a damaged file is a miss, never a crash or a wrong result
-            log.warning("cache entry %s unusable (%s: %s); computing again", entry.name, type(exc).__name__, exc)
+            log.warning("cache entry %s unusable (%s: %s); computing again", entry.name,
+                        type(exc).__name__, exc)
             entry.unlink(missing_ok=True)
             remove_file(self._path(key + PROBES))
             return None
@@ -252,13 +269,15 @@ class FeatureCache:
     def store(self, key: str, candidates: Candidates) -> None:
         """Write the entry atomically; a folder that cannot be written is logged, not raised."""
         meta, arrays = to_payload(candidates)
-        self.write_entry(self._path(key), {"meta": np.array(json.dumps(meta | {"key": key, "format": CACHE_FORMAT}))}
+        self.write_entry(self._path(key),
+                         {"meta": np.array(json.dumps(meta | {"key": key, "format": CACHE_FORMAT}))}
                     | arrays)
         remove_file(self._path(key + PROBES))  # a stale file's lines are asked again
 
     def _check_folder(self) -> bool:
         if self.folder.exists() and not self.folder.is_dir():
-            raise ConfigError(f"{self.folder}: a file, not a cache folder; give the folder with --cache")
+            raise ConfigError(f"{self.folder}: a file, not a cache folder; give the folder with "
+                              "--cache")
         return self.folder.is_dir()
 
     def _entries(self) -> list[Path]:
@@ -283,7 +302,8 @@ class FeatureCache:
                          sum(p.stat().st_size for p in entries))
 
     def clear(self) -> int:
-        """Delete every entry this cache wrote, and its temporary files; return how many entries went."""
+        """Delete every entry this cache wrote, and its temporary files; return how many entries
+        went."""
         if not self._check_folder():
             return 0
         entries = self._entries()
@@ -293,7 +313,8 @@ class FeatureCache:
             try:
                 p.unlink(missing_ok=True)
             except OSError as exc:
-                raise OutputError(f"{self.folder}: cannot delete its entries ({exc.strerror or exc}); make the folder "
+                raise OutputError(f"{self.folder}: cannot delete its entries "
+                                  f"({exc.strerror or exc}); make the folder "
                                   "writable, or give another with --cache") from None
         return len(entries)
 
@@ -307,8 +328,8 @@ def remove_file(path: Path) -> None:
 
 
 def read_entry(entry: Path, *, arrays: bool = True) -> tuple[dict, dict]:
-    """(meta, arrays) of an entry file; raises :class:`DamagedEntry` (or OSError, the file unreadable)
-    when it is not a whole entry."""
+    """(meta, arrays) of an entry file; raises :class:`DamagedEntry` (or OSError, the file
+    unreadable) when it is not a whole entry."""
     with open(entry, "rb") as fh:  # closed however numpy fails on a damaged file
         try:
             z = np.load(fh, allow_pickle=False)
@@ -320,20 +341,25 @@ def read_entry(entry: Path, *, arrays: bool = True) -> tuple[dict, dict]:
                 meta = json.loads(str(z["meta"]))
                 if not isinstance(meta, dict) or meta.get("format") != CACHE_FORMAT:
                     raise DamagedEntry("an entry of another format")
-                return _Fields(meta), _Fields({name: z[name] for name in z.files if name != "meta"} if arrays else {})
-        except (ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:  # numpy's and zipfile's words for damage
+                return _Fields(meta), _Fields({name: z[name] for name in z.files if name != "meta"}
+                                              if arrays else {})
+        except (ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
+            # numpy's and zipfile's words for damage
             raise DamagedEntry(f"{type(exc).__name__}: {str(exc).split('.', 1)[0]}") from None
 
 
 def _check_arrays(arrays: dict) -> None:
-    """Raise ValueError unless the arrays can make a mesh and candidates (shapes, kinds, indices)."""
+    """Raise ValueError unless the arrays can make a mesh and candidates (shapes, kinds,
+    indices)."""
     vertices, faces = arrays["vertices"], arrays["faces"]
-    if vertices.ndim != 2 or vertices.shape[1] != 3 or vertices.dtype.kind != "f" or not np.isfinite(vertices).all():
+    if (vertices.ndim != 2 or vertices.shape[1] != 3 or vertices.dtype.kind != "f"
+        or not np.isfinite(vertices).all()):
         raise DamagedEntry("the stored vertices are not finite (n, 3) floats")
     if faces.ndim != 2 or faces.shape[1] != 3 or faces.dtype.kind not in "iu" or len(faces) == 0 \
             or faces.min() < 0 or faces.max() >= len(vertices):
         raise DamagedEntry("the stored faces do not index the vertices")
-    missing = [name for name in [f"pinches.{p}" for p in PINCH_ARRAYS] + [f"features.{f}" for f in FEATURE_ARRAYS]
+    missing = [name for name in [f"pinches.{p}" for p in PINCH_ARRAYS]
+               + [f"features.{f}" for f in FEATURE_ARRAYS]
                + [f"props.{p}" for p in PROPS_ARRAYS] if name not in arrays]
     if missing:
         raise DamagedEntry(f"the entry lacks {', '.join(missing)}")
@@ -345,8 +371,9 @@ def to_payload(candidates: Candidates) -> tuple[dict, dict]:
     loaded = candidates.obj.loaded
     spec = candidates.obj.spec or ObjectSpec(str(loaded.path))
     meta = {"version": __version__, "spec": spec_to_dict(spec), "units_in": loaded.units_in,
-            "up_label": loaded.up_label, "watertight": bool(loaded.watertight), "repairs": list(loaded.repairs),
-            "warnings": list(loaded.warnings), "given": bool(candidates.given),
+            "up_label": loaded.up_label, "watertight": bool(loaded.watertight),
+            "repairs": list(loaded.repairs), "warnings": list(loaded.warnings),
+            "given": bool(candidates.given),
             "grasp": "tripod" if isinstance(candidates.pinches, Tripods) else "pinch",
             "patch_radius_mm": candidates.obj.context.patch_radius_mm,
             "rejected": {str(k): int(v) for k, v in candidates.pinches.rejected.items()},
@@ -355,23 +382,25 @@ def to_payload(candidates: Candidates) -> tuple[dict, dict]:
               "index": candidates.index}
     arrays |= {f"props.{name}": getattr(candidates.obj.props, name) for name in PROPS_ARRAYS}
     arrays |= {f"pinches.{name}": getattr(candidates.pinches, name) for name in PINCH_ARRAYS}
-    arrays |= {f"features.{name}": getattr(candidates.features, name) for name in _feature_arrays(candidates.pinches)}
+    arrays |= {f"features.{name}": getattr(candidates.features, name)
+               for name in _feature_arrays(candidates.pinches)}
     return meta, arrays
 
 
 def from_payload(meta: dict, arrays: dict, *, patch_radius_mm: float | None = None) -> Candidates:
     """Candidates as a cold run makes them, bit for bit, from :func:`to_payload`'s output."""
     return _rebuild(meta, arrays, spec_from_dict(meta["spec"]),
-                    patch_radius_mm=meta["patch_radius_mm"] if patch_radius_mm is None else patch_radius_mm)
+                    patch_radius_mm=meta["patch_radius_mm"] if patch_radius_mm is None
+                    else patch_radius_mm)
 
 
 def _rebuild(meta: dict, arrays: dict, spec: ObjectSpec, *, patch_radius_mm: float) -> Candidates:
     """Candidates as a cold run makes them, from an entry's arrays, described by ``spec`` (its
     name and mass may differ from the run that stored the entry: they are not in the key)."""
     mesh = trimesh.Trimesh(arrays["vertices"], arrays["faces"], process=False)
-    loaded = LoadedMesh(mesh=mesh, path=str(spec.path), units_in=meta["units_in"], up_label=meta["up_label"],
-                        up=arrays["up"], watertight=meta["watertight"], repairs=meta["repairs"],
-                        warnings=meta["warnings"], node=spec.node)
+    loaded = LoadedMesh(mesh=mesh, path=str(spec.path), units_in=meta["units_in"],
+                        up_label=meta["up_label"], up=arrays["up"], watertight=meta["watertight"],
+                        repairs=meta["repairs"], warnings=meta["warnings"], node=spec.node)
     props = ObjectProperties(**{name: arrays[f"props.{name}"] for name in PROPS_ARRAYS},
                              **{name: meta["props"][name] for name in PROPS_VALUES})
     context = SurfaceContext(mesh, patch_radius_mm=patch_radius_mm, regions=spec.regions,
@@ -379,25 +408,31 @@ def _rebuild(meta: dict, arrays: dict, spec: ObjectSpec, *, patch_radius_mm: flo
     obj = ObjectAnalysis(loaded, props, context,
                          spec)
     tripods = meta.get("grasp", "pinch") == "tripod"
-    kinds = (Tripods, TripodFeatures, TRIPOD_FEATURE_ARRAYS) if tripods else (Pinches, PinchFeatures, FEATURE_ARRAYS)
-    pinches = kinds[0](**{name: arrays[f"pinches.{name}"] for name in PINCH_ARRAYS}, rejected=meta["rejected"])
+    kinds = (Tripods, TripodFeatures, TRIPOD_FEATURE_ARRAYS) if tripods else (Pinches,
+                                                                              PinchFeatures,
+                                                                              FEATURE_ARRAYS)
+    pinches = kinds[0](**{name: arrays[f"pinches.{name}"] for name in PINCH_ARRAYS},
+                       rejected=meta["rejected"])
     features = kinds[1](**{name: arrays[f"features.{name}"] for name in kinds[2]})
     n = len(pinches)
     if not (len(arrays["index"]) == n and all(len(getattr(features, f)) == n for f in kinds[2])
             and all(len(arrays[f"pinches.{p}"]) == n for p in PINCH_ARRAYS)):
         raise DamagedEntry("the entry's arrays disagree in length")
-    return Candidates(obj, pinches, features, feature_table(features), arrays["index"], meta["given"])
+    return Candidates(obj, pinches, features, feature_table(features), arrays["index"],
+                      meta["given"])
 
 
-def cached_candidates(path: str | os.PathLike | ObjectSpec, *, cache: FeatureCache | None, units: str | None = None,
-                      up: str | None = None, settings: PinchSettings = PinchSettings(),
+def cached_candidates(path: str | os.PathLike | ObjectSpec, *, cache: FeatureCache | None,
+                      units: str | None = None, up: str | None = None,
+                      settings: PinchSettings = PinchSettings(),
                       given: tuple[np.ndarray, np.ndarray] | None = None, source: str | None = None,
                       progress=None) -> Candidates:
     """An object's candidate poses: from ``cache`` when it holds them, else computed (and stored).
 
     ``path`` is a mesh file, read with ``units`` and ``up``, or an object's spec (a manifest entry,
     a level node), whose own units and up come first. The patch radius is the settings' (the
-    object is analysed for it); ``progress`` is called with each stage of loading a computed object."""
+    object is analysed for it); ``progress`` is called with each stage of loading a computed
+    object."""
     spec = path if isinstance(path, ObjectSpec) else ObjectSpec(str(path))
     spec = spec.with_defaults(units=units, up=up)
     patch_radius_mm = settings.patch_radius_mm
@@ -408,7 +443,8 @@ def cached_candidates(path: str | os.PathLike | ObjectSpec, *, cache: FeatureCac
                 raise FileNotFoundError(spec.path)
             key = cache.key(spec, settings=settings, given=given)
         except OSError:
-            load_mesh(spec.path, units=spec.units, up=spec.up)  # raises the loader's one-line error for this path
+            # raises the loader's one-line error for this path
+            load_mesh(spec.path, units=spec.units, up=spec.up)
             raise
         cache.last_key = key
         hit = cache.load(key, spec, patch_radius_mm=patch_radius_mm)

@@ -71,7 +71,8 @@ class Executor:
 
 
 def _in_order(submit: Callable, items: Iterable, window: int) -> Iterator:
-    """The results of ``submit(item)`` futures, in input order, with at most ``window`` in flight."""
+    """The results of ``submit(item)`` futures, in input order, with at most ``window`` in
+    flight."""
     pending: deque = deque()
     for item in items:
         pending.append(submit(item))
@@ -91,7 +92,8 @@ RUN_FOLDER_PREFIX = "pinchmatch-run-"
 
 
 def _remove_orphaned_run_folders() -> None:
-    """Remove the temporary folders of local runs whose process is gone (killed, so it could not)."""
+    """Remove the temporary folders of local runs whose process is gone (killed, so it could
+    not)."""
     root = Path(tempfile.gettempdir())
     for folder in root.glob(f"{RUN_FOLDER_PREFIX}*-*"):
         pid = folder.name[len(RUN_FOLDER_PREFIX):].split("-", 1)[0]
@@ -116,16 +118,20 @@ class LocalExecutor(Executor):
         self.workers = jobs
         context = worker_context()
         self._stages = context.SimpleQueue()  # handed to each worker as it starts
-        self._pool = ProcessPoolExecutor(max_workers=jobs, mp_context=context, initializer=init_worker,
-                                         initargs=(max(1, default_jobs() // jobs), self._stages, os.getpid()))
+        self._pool = ProcessPoolExecutor(max_workers=jobs, mp_context=context,
+                                         initializer=init_worker,
+                                         initargs=(max(1, default_jobs() // jobs), self._stages,
+                                                   os.getpid()))
         _remove_orphaned_run_folders()
         self._folder = tempfile.TemporaryDirectory(prefix=f"{RUN_FOLDER_PREFIX}{os.getpid()}-")
-        # every worker started and running before anything else (a run that ends takes them all down)
+        # every worker started and running before anything else (a run that ends takes them all
+        # down)
         for future in [self._pool.submit(os.getpid) for _ in range(jobs)]:
             future.result()
 
     def map(self, fn, items, *args):
-        return _in_order(lambda item: self._pool.submit(fn, item, *args), items, WINDOW * self.workers)
+        return _in_order(lambda item: self._pool.submit(fn, item, *args), items,
+                         WINDOW * self.workers)
 
     @contextmanager
     def stages(self, show):
@@ -163,7 +169,8 @@ class LocalExecutor(Executor):
 
 def _probe_scheduler(address: str, timeout_s: float) -> None:
     """Refuse, in one line and at once, an address that is not a Dask address or where nothing
-    listens (a Dask client left half-made by such an address hangs for 20 s when it is collected)."""
+    listens (a Dask client left half-made by such an address hangs for 20 s when it is
+    collected)."""
     import socket
 
     from distributed.comm import parse_address, parse_host_port
@@ -185,29 +192,34 @@ def _probe_scheduler(address: str, timeout_s: float) -> None:
     except (ValueError, TypeError):
         raise ConfigError(f"--scheduler {address}: no host and port in it; {hint}") from None
     except OSError as exc:
-        raise ConfigError(f"--scheduler {address}: nothing answers there ({exc.strerror or exc}); check the "
+        raise ConfigError(f"--scheduler {address}: nothing answers there ({exc.strerror or exc}); "
+                          "check the "
                           "address and that the scheduler runs") from None
 
 
 class DaskExecutor(Executor):
-    """Tasks on an existing Dask cluster; the workers need pinchmatch installed and the mesh files in reach."""
+    """Tasks on an existing Dask cluster; the workers need pinchmatch installed and the mesh files
+    in reach."""
 
     def __init__(self, address: str, *, timeout_s: float = 10.0):
         try:
             from distributed import Client
         except ImportError:
-            raise ConfigError("--scheduler: Dask is not installed; install it with pip install 'pinchmatch[dask]'") \
+            raise ConfigError("--scheduler: Dask is not installed; install it with pip install "
+                              "'pinchmatch[dask]'") \
                 from None
         _probe_scheduler(address, timeout_s)
         try:
             self._client = Client(address, timeout=f"{timeout_s}s", set_as_default=False)
         except (OSError, TimeoutError, ValueError) as exc:
-            raise ConfigError(f"--scheduler {address}: cannot reach a Dask scheduler there ({exc}); "
+            raise ConfigError(f"--scheduler {address}: cannot reach a Dask scheduler there "
+                              f"({exc}); "
                               "check the address and that the scheduler runs") from None
         self.workers = max(1, sum(self._client.nthreads().values()))
 
     def map(self, fn, items, *args):
-        return _in_order(lambda item: self._client.submit(fn, item, *args, pure=False), items, 2 * self.workers)
+        return _in_order(lambda item: self._client.submit(fn, item, *args, pure=False), items,
+                         2 * self.workers)
 
     def share(self, payloads, tangibles):
         [future] = self._client.scatter([payloads], broadcast=True, hash=False)
@@ -221,7 +233,8 @@ def executor(jobs: int | None = None, scheduler: str | None = None) -> Executor:
     """The executor for ``--jobs`` and ``--scheduler`` (default: all local cores)."""
     if scheduler is not None:
         if jobs is not None:
-            raise ConfigError("--jobs and --scheduler: give one of them; the cluster decides how many workers run")
+            raise ConfigError("--jobs and --scheduler: give one of them; the cluster decides how "
+                              "many workers run")
         return DaskExecutor(scheduler)
     jobs = default_jobs() if jobs is None else jobs
     if jobs < 1:

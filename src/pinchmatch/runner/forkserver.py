@@ -12,8 +12,8 @@ What forks is sane: the server is started with BLAS held to one thread (no threa
 the fork), does nothing but load, and each worker sets its own share of the cores
 (:func:`pinchmatch.runner.worker.init_worker`). Where there is no fork server, workers are spawned.
 
-The server starts with SIGINT ignored, a disposition that survives its ``exec``: it imports the whole
-pipeline before it installs its own handlers, and a Ctrl-C in that second would print Python's
+The server starts with SIGINT ignored, a disposition that survives its ``exec``: it imports the
+whole pipeline before it installs its own handlers, and a Ctrl-C in that second would print Python's
 traceback. The command line's parent ends a run by killing its process group
 (:mod:`pinchmatch.cli.supervise`), the server and its workers with it.
 
@@ -44,7 +44,8 @@ def worker_context():
 
 def start_worker_server() -> bool:
     """Start the fork server now, if there is one, so that it loads while this process works; return
-    whether it runs. Workers started later fork from it (:class:`pinchmatch.runner.executors.LocalExecutor`)."""
+    whether it runs. Workers started later fork from it
+    (:class:`pinchmatch.runner.executors.LocalExecutor`)."""
     if worker_context().get_start_method() != "forkserver":
         return False
     from multiprocessing import forkserver

@@ -24,8 +24,8 @@ from ..match.scene import allowed_tangibles
 from ..match.search import cost_model
 from .executors import Executor
 from .worker import tangible_of
-from .tasks import (Failure, Job, ObjectTask, VirtualResult, bounds_task, candidates_task, load_task, row_task,
-                    virtual_task)
+from .tasks import (Failure, Job, ObjectTask, VirtualResult, bounds_task, candidates_task,
+                    load_task, row_task, virtual_task)
 
 
 @dataclass
@@ -37,27 +37,31 @@ class RunResult:
     computed: int
 
 
-def run_match(tangible_tasks: list[ObjectTask], virtual_tasks: list[ObjectTask], job: Job, ex: Executor, *,
-              on_failure: Callable[[Failure], None], on_result: Callable[[int, VirtualResult], None],
-              step: Callable, header: Callable[[list[Candidates]], None] = lambda tangibles: None,
+def run_match(tangible_tasks: list[ObjectTask], virtual_tasks: list[ObjectTask], job: Job,
+              ex: Executor, *, on_failure: Callable[[Failure], None],
+              on_result: Callable[[int, VirtualResult], None], step: Callable,
+              header: Callable[[list[Candidates]], None] = lambda tangibles: None,
               virtual_fn: Callable = virtual_task, plan: dict | None = None) -> RunResult:
-    """Run every task; hand each virtual object's result, in input order, to ``on_result(k, result)``.
+    """Run every task; hand each virtual object's result, in input order, to ``on_result(k,
+    result)``.
 
     ``virtual_fn`` is the virtual objects' task: :func:`virtual_task` (the whole result), or
     :func:`~pinchmatch.runner.tasks.served_task` (the row of the served matrix, for ``select``).
     ``plan`` gives, per virtual object (by position), the tangibles it may use and why none, as
     :func:`~pinchmatch.match.scene.allowed_tangibles` does (default: every tangible).
 
-    ``header(tangibles)`` is called once the tangibles are known, before any virtual object's result.
-    ``step(description, total)`` is a context manager yielding ``advance(note, done=...)``, as
-    :meth:`pinchmatch.cli.console.Presenter.step`. A role with no usable file raises the single error,
-    or a :class:`ConfigError` naming the first.
+    ``header(tangibles)`` is called once the tangibles are known, before any virtual object's
+    result. ``step(description, total)`` is a context manager yielding ``advance(note, done=...)``,
+    as :meth:`pinchmatch.cli.console.Presenter.step`. A role with no usable file raises the single
+    error, or a :class:`ConfigError` naming the first.
     """
     failed: list[Failure] = []
     counts = {"cached": 0, "computed": 0}
 
-    def each(description: str, fn: Callable, tasks: list[ObjectTask], items: list, *args) -> Iterator:
-        """(position, result) of ``fn`` over ``items`` (one per task), in order; failures recorded, left out."""
+    def each(description: str, fn: Callable, tasks: list[ObjectTask], items: list,
+             *args) -> Iterator:
+        """(position, result) of ``fn`` over ``items`` (one per task), in order; failures recorded,
+        left out."""
         with step(description, len(tasks)) as advance, \
                 ex.stages(lambda name, stage: advance(f"{name}: {stage}", done=False)):
             for k, (task, r) in enumerate(zip(tasks, ex.map(fn, items, *args))):
@@ -75,18 +79,21 @@ def run_match(tangible_tasks: list[ObjectTask], virtual_tasks: list[ObjectTask],
             return ConfigError(f"no {role} object given; name at least one with --{role}{also}")
         if len(errors) == 1:
             return RoleFailed(errors[0].error + also)
-        return ConfigError(f"none of the {len(errors)} {role} files could be used (first: {errors[0].error}); "
+        return ConfigError(f"none of the {len(errors)} {role} files could be used (first: "
+                           f"{errors[0].error}); "
                            f"fix or remove them{also}")
 
     payloads = []
-    for _, r in each("tangibles: poses and features", candidates_task, tangible_tasks, tangible_tasks, job):
+    for _, r in each("tangibles: poses and features", candidates_task, tangible_tasks,
+                     tangible_tasks, job):
         payloads.append((r.meta, r.arrays))
         counts["cached" if r.cached else "computed"] += 1
     if not payloads:
         # the virtual files are read too, so that one run shows every file's problem (units, say)
         bad = [f for f in ex.map(load_task, virtual_tasks, job) if isinstance(f, Failure)]
         also = "" if not bad else (f"; the virtual file {bad[0].error}" if len(bad) == 1 else
-                                   f"; {len(bad)} of the {len(virtual_tasks)} virtual files cannot be used "
+                                   f"; {len(bad)} of the {len(virtual_tasks)} virtual files cannot "
+                                   "be used "
                                    f"either (first: {bad[0].error})")
         raise none_usable("tangible", also)
     tangibles = [tangible_of(meta, arrays) for meta, arrays in payloads]
@@ -97,7 +104,8 @@ def run_match(tangible_tasks: list[ObjectTask], virtual_tasks: list[ObjectTask],
     ranges = None
     if job.match.normalize == "range":
         bounds = [feature_bounds(t.table) for t in tangibles]
-        done = list(each("virtual objects: feature ranges", bounds_task, virtual_tasks, virtual_tasks, job))
+        done = list(each("virtual objects: feature ranges", bounds_task, virtual_tasks,
+                         virtual_tasks, job))
         todo = [k for k, _ in done]
         ranges = ranges_from_bounds(bounds + [b for _, b in done])
     model = cost_model(job.match, tangibles, ranges=ranges)
@@ -105,7 +113,9 @@ def run_match(tangible_tasks: list[ObjectTask], virtual_tasks: list[ObjectTask],
     plan = {k: (None if plan is None else plan[k], None) for k in todo}
     if job.match.one_to_one:
         tasks = [virtual_tasks[k] for k in todo]
-        done = [(todo[i], row) for i, row in each("virtual objects: cost rows", row_task, tasks, tasks, job, shared,
+        done = [(todo[i], row)
+                for i, row in each("virtual objects: cost rows", row_task, tasks, tasks, job,
+                                   shared,
                                                     model)]
         todo = [k for k, _ in done]
         if todo:
@@ -115,7 +125,8 @@ def run_match(tangible_tasks: list[ObjectTask], virtual_tasks: list[ObjectTask],
     cost_rows = {}
     tasks = [virtual_tasks[k] for k in todo]
     items = [(virtual_tasks[k], *plan[k]) for k in todo]
-    for i, r in each("virtual objects: poses, features, search", virtual_fn, tasks, items, job, shared, model):
+    for i, r in each("virtual objects: poses, features, search", virtual_fn, tasks, items, job,
+                     shared, model):
         counts["cached" if r.cached else "computed"] += 1
         cost_rows[todo[i]] = r.row
         on_result(todo[i], r)

@@ -1,9 +1,11 @@
-"""What the fork server of local workers loads before it forks any (:mod:`pinchmatch.runner.forkserver`).
+"""What the fork server of local workers loads before it forks any
+(:mod:`pinchmatch.runner.forkserver`).
 
 Importing this module imports every module a task runs and compiles (or loads from numba's cache)
-the loader's topology kernels, by repairing a small sphere, and the patch-fit, neighbour and spread kernels,
-by sampling a few pinches on it and fitting a cluster of patches: each worker forked afterwards has them ready. A failure here is only logged: the worker then loads what it needs itself,
-and any real error shows in its task.
+the loader's topology kernels, by repairing a small sphere, and the patch-fit, neighbour and spread
+kernels, by sampling a few pinches on it and fitting a cluster of patches: each worker forked
+afterwards has them ready. A failure here is only logged: the worker then loads what it needs
+itself, and any real error shows in its task.
 """
 
 from __future__ import annotations
@@ -41,9 +43,10 @@ def warm_kernels() -> None:
         topology.signed_volumes(vertices, faces)
         context = SurfaceContext(mesh)
         sample_pinches(context, settings=PinchSettings(count=8, seed=0))
+        # a cluster's kernel
         patch_geometry(context, np.repeat(vertices[:1], CLUSTER_POINTS, axis=0),
-                       np.repeat(mesh.vertex_normals[:1], CLUSTER_POINTS, axis=0))  # a cluster's kernel
-    except Exception as exc:  # noqa: BLE001 - a warm-up only: the worker's own task shows any real error
+                       np.repeat(mesh.vertex_normals[:1], CLUSTER_POINTS, axis=0))
+    except Exception as exc:  # noqa: BLE001 - a warm-up: the worker's own task shows any real error
         log.debug("warming the kernels failed: %s", exc)
     finally:
         set_thread_budget(before)

@@ -46,8 +46,8 @@ PART_HEIGHT_MM = 40.0
 ORDERS = tuple(itertools.permutations(PARTS))
 CANDIDATE_HEIGHTS_MM = PART_HEIGHT_MM * 3 * np.arange(1, 18) / 18.0
 TANGIBLE_HEIGHTS_MM = PART_HEIGHT_MM * (np.arange(3) + 0.5)
-#: a study tripod's fingers: on lines this far apart across the stack's axis (contacts on the cube's face
-#: 20 mm apart, two 16 mm pads side by side)
+#: a study tripod's fingers: on lines this far apart across the stack's axis (contacts on the cube's
+#: face 20 mm apart, two 16 mm pads side by side)
 TRIPOD_SPACING_MM = 20.0
 
 
@@ -62,10 +62,11 @@ def part_at(order: tuple, height_mm: float) -> str:
 
 def horizontal_poses(obj, heights_mm: np.ndarray, grasp: str = "pinch") -> tuple:
     """Pinches along X through the Z axis at the given heights, where the fingers meet the surface:
-    (p1, p2) arrays. Tripods (``grasp``): the thumb where the pinch's first finger is, the index and the
-    middle finger on lines along X ``TRIPOD_SPACING_MM`` apart across the axis, from the other side:
-    a tuple of their (n, 3, 3) contacts."""
-    lines = [np.zeros(2)] if grasp == "pinch" else [np.zeros(2), [-TRIPOD_SPACING_MM / 2, 0], [TRIPOD_SPACING_MM / 2, 0]]
+    (p1, p2) arrays. Tripods (``grasp``): the thumb where the pinch's first finger is, the index and
+    the middle finger on lines along X ``TRIPOD_SPACING_MM`` apart across the axis, from the other
+    side: a tuple of their (n, 3, 3) contacts."""
+    lines = [np.zeros(2)] if grasp == "pinch" else [np.zeros(2), [-TRIPOD_SPACING_MM / 2,
+                                                                  0], [TRIPOD_SPACING_MM / 2, 0]]
     found = []
     for z in heights_mm:
         row = []
@@ -88,7 +89,8 @@ class Study:
 
 
 def study_mesh_names() -> list[str]:
-    """The file names of the six virtual objects, then the tangible, as :func:`write_study_meshes` writes them."""
+    """The file names of the six virtual objects, then the tangible, as :func:`write_study_meshes`
+    writes them."""
     return [f"vo{j}_{'_'.join(order)}.stl" for j, order in enumerate(ORDERS, start=1)] \
         + ["tangible_cylinder_cube_cone.stl"]
 
@@ -103,8 +105,8 @@ def write_study_meshes(folder: Path, *, sections: int = 96) -> tuple[Path, list[
     return tangible, names
 
 
-def _expected(tangible: Candidates, t_pose: int, virtual: Candidates, v_pose: int, *, cost, terms, swapped,
-              transform, model, tables: FeltTables) -> float:
+def _expected(tangible: Candidates, t_pose: int, virtual: Candidates, v_pose: int, *, cost, terms,
+              swapped, transform, model, tables: FeltTables) -> float:
     """The expected cost over the landings (:mod:`pinchmatch.match.felt`) of a rated pose pair."""
     choice = Choice(0, 0, int(t_pose), int(v_pose), float(cost), np.asarray(terms), bool(swapped),
                     np.asarray(transform), False, np.zeros(3))
@@ -113,8 +115,8 @@ def _expected(tangible: Candidates, t_pose: int, virtual: Candidates, v_pose: in
 
 def _contacts_fields(prefix: str, points, fingers: int) -> dict:
     """A pose's contacts (``fingers`` of them, or None: no pose) as the study's records name them:
-    ``contacts_mm`` for every grasp, and a pinch's ``p1_mm`` and ``p2_mm``, each under ``prefix``; null where
-    there is no pose."""
+    ``contacts_mm`` for every grasp, and a pinch's ``p1_mm`` and ``p2_mm``, each under ``prefix``;
+    null where there is no pose."""
     vectors = [None] * fingers if points is None else [json_vector(p) for p in points]
     out = {f"{prefix}contacts_mm": None if points is None else vectors}
     if fingers == 2:
@@ -122,13 +124,15 @@ def _contacts_fields(prefix: str, points, fingers: int) -> dict:
     return out
 
 
-def _pose_entry(order, candidates: Candidates, v_pose: int | None, *, points=None, flipped, cost, cost_paper,
-                reason=None, transform=None, swapped=False, terms=None, cost_expected=None) -> dict:
-    """One virtual pose of a row: candidate ``v_pose``, or the contacts ``points`` (neither: no pose, the
-    reference's fingers met nothing). ``transform`` (virtual -> tangible, mm), ``swapped`` (the virtual p1
-    lies on the tangible's p2) and ``terms`` (each criterion's contribution in JND², under our
-    criteria) describe the pose pair as the headset's study shows and rates it."""
-    pts = points if points is not None else None if v_pose is None else candidates.pinches.points[v_pose]
+def _pose_entry(order, candidates: Candidates, v_pose: int | None, *, points=None, flipped, cost,
+                cost_paper, reason=None, transform=None, swapped=False, terms=None,
+                cost_expected=None) -> dict:
+    """One virtual pose of a row: candidate ``v_pose``, or the contacts ``points`` (neither: no
+    pose, the reference's fingers met nothing). ``transform`` (virtual -> tangible, mm), ``swapped``
+    (the virtual p1 lies on the tangible's p2) and ``terms`` (each criterion's contribution in JND²,
+    under our criteria) describe the pose pair as the headset's study shows and rates it."""
+    pts = (points if points is not None else None if v_pose is None
+           else candidates.pinches.points[v_pose])
     height = float(pts[:, 2].mean()) if pts is not None else None
     entry = {
         "part": part_at(order, height) if height is not None else None,
@@ -143,7 +147,8 @@ def _pose_entry(order, candidates: Candidates, v_pose: int | None, *, points=Non
     if transform is not None and terms is not None:
         entry["finger_order_swapped"] = bool(swapped)
         entry["transform_virtual_to_tangible"] = [json_vector(row, 6) for row in transform]
-        entry["criteria_jnd"] = {c: json_number(np.sqrt(max(t, 0.0))) for c, t in zip(CRITERIA, terms)}
+        entry["criteria_jnd"] = {c: json_number(np.sqrt(max(t, 0.0)))
+                                 for c, t in zip(CRITERIA, terms)}
     return entry
 
 
@@ -163,7 +168,8 @@ def run_study(folder: Path, *, full: bool = False, settings: PinchSettings = Pin
         say(f"VO{j}: {' / '.join(ORDERS[j - 1])}")
         obj = analyze_object(path, units="mm", up="z")
         candidates = candidate_poses(obj, settings=settings,
-                                     given=horizontal_poses(obj, CANDIDATE_HEIGHTS_MM, settings.grasp),
+                                     given=horizontal_poses(obj, CANDIDATE_HEIGHTS_MM,
+                                                            settings.grasp),
                                      source=f"VO{j} candidate poses")
         if full:
             candidates = merge_candidates(candidate_poses(obj, settings=settings), candidates)
@@ -171,8 +177,10 @@ def run_study(folder: Path, *, full: bool = False, settings: PinchSettings = Pin
 
     everything = [tangible] + virtuals
     ours_model = cost_model(match_settings, everything)
-    paper_settings = MatchSettings(weights=dict.fromkeys(PAPER_CRITERIA, 1.0), criteria=PAPER_CRITERIA,
-                                   normalize="range", pooling="sum")  # the paper's algorithm, exactly
+    paper_settings = MatchSettings(weights=dict.fromkeys(PAPER_CRITERIA, 1.0),
+                                   criteria=PAPER_CRITERIA,
+                                   # the paper's algorithm, exactly
+                                   normalize="range", pooling="sum")
     paper_model = cost_model(paper_settings, everything)
 
     rows = []
@@ -185,33 +193,41 @@ def run_study(folder: Path, *, full: bool = False, settings: PinchSettings = Pin
             k_ours, k_paper = int(np.argmin(ours.cost)), int(np.argmin(paper.cost))
             ref = reference_pose(tangible, i, V, ours_model, settings=settings)
             # the paper's pose in the paper's finger order, judged by our criteria
-            paper_pair = evaluate_pairs(tangible, V, it[:1], iv[k_paper:k_paper + 1], model=ours_model,
-                                        swapped=bool(paper.swapped[k_paper]))
+            paper_pair = evaluate_pairs(tangible, V, it[:1], iv[k_paper:k_paper + 1],
+                                        model=ours_model, swapped=bool(paper.swapped[k_paper]))
             tables = FeltTables(match_settings.landing_mm, settings)
-            felt = {name: _expected(tangible, i, V, k, cost=r.cost[n], terms=r.terms[n], swapped=r.swapped[n],
-                                    transform=r.transform[n], model=ours_model, tables=tables)
-                    for name, r, k, n in (("ours", ours, k_ours, k_ours), ("paper", paper_pair, k_paper, 0))}
-            if ref.pinches is not None:  # the reference's virtual pinch, placed as the files place it
+            felt = {name: _expected(tangible, i, V, k, cost=r.cost[n], terms=r.terms[n],
+                                    swapped=r.swapped[n], transform=r.transform[n],
+                                    model=ours_model, tables=tables)
+                    for name, r, k, n in (("ours", ours, k_ours, k_ours),
+                                          ("paper", paper_pair, k_paper, 0))}
+            if ref.pinches is not None:
+                # the reference's virtual pinch, placed as the files place it
                 with_ref = extend(V, ref.pinches)
-                felt["ref"] = _expected(tangible, i, with_ref, len(V), cost=ref.cost, terms=ref.terms, swapped=False,
-                                        transform=np.eye(4), model=ours_model, tables=tables)
+                felt["ref"] = _expected(tangible, i, with_ref, len(V), cost=ref.cost,
+                                        terms=ref.terms, swapped=False, transform=np.eye(4),
+                                        model=ours_model, tables=tables)
             rows.append({
                 "tangible_part": t_part,
                 "tangible_height_mm": float(TANGIBLE_HEIGHTS_MM[i]),
                 "virtual": j + 1,
                 "virtual_order": list(order),
-                **_contacts_fields("tangible_", tangible.pinches.points[i], tangible.pinches.points.shape[1]),
+                **_contacts_fields("tangible_", tangible.pinches.points[i],
+                                   tangible.pinches.points.shape[1]),
                 "ours": _pose_entry(order, V, k_ours, flipped=bool(ours.flipped[k_ours]),
                                     cost=ours.cost[k_ours], cost_paper=paper.cost[k_ours],
                                     transform=ours.transform[k_ours], swapped=ours.swapped[k_ours],
                                     terms=ours.terms[k_ours], cost_expected=felt["ours"]),
                 "paper": _pose_entry(order, V, k_paper, flipped=bool(paper.flipped[k_paper]),
                                      cost=paper_pair.cost[0], cost_paper=paper.cost[k_paper],
-                                     transform=paper_pair.transform[0], swapped=paper_pair.swapped[0],
-                                     terms=paper_pair.terms[0], cost_expected=felt["paper"]),
-                "ref": _pose_entry(order, V, None, points=ref.pinches.points[0] if ref.pinches is not None else None,
-                                   flipped=ref.flipped,
-                                   cost=ref.cost, cost_paper=reference_cost(tangible, i, V, ref, paper_model),
+                                     transform=paper_pair.transform[0],
+                                     swapped=paper_pair.swapped[0], terms=paper_pair.terms[0],
+                                     cost_expected=felt["paper"]),
+                "ref": _pose_entry(order, V, None,
+                                   points=ref.pinches.points[0] if ref.pinches is not None
+                                   else None, flipped=ref.flipped,
+                                   cost=ref.cost,
+                                   cost_paper=reference_cost(tangible, i, V, ref, paper_model),
                                    reason=ref.reason, transform=np.eye(4), terms=ref.terms,
                                    cost_expected=felt.get("ref")),
             })

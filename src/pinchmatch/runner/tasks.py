@@ -68,19 +68,23 @@ class Job:
 class ObjectTask:
     role: str
     path: str
-    given: tuple | None = None  # (p1_mm, p2_mm) arrays of given pinches, or (contacts,) of tripods (n, 3, 3)
+    # (p1_mm, p2_mm) arrays of given pinches, or (contacts,) of tripods (n, 3, 3)
+    given: tuple | None = None
     source: str | None = None  # the poses file they came from
-    spec: ObjectSpec | None = None  # a manifest entry or a level node (None: the file, with the job's options)
+    # a manifest entry or a level node (None: the file, with the job's options)
+    spec: ObjectSpec | None = None
 
     @property
     def name(self) -> str:
-        """How progress names the object: as the result does (its manifest name, its node, its file)."""
+        """How progress names the object: as the result does (its manifest name, its node, its
+        file)."""
         return self.spec.display_name if self.spec is not None else Path(self.path).name
 
     @property
     def label(self) -> str:
         """How messages name the object: its file, and the scene node for one node of a level."""
-        return f"{self.path}#{self.spec.node}" if self.spec is not None and self.spec.node else self.path
+        return (f"{self.path}#{self.spec.node}" if self.spec is not None and self.spec.node
+                else self.path)
 
 
 @dataclass(frozen=True)
@@ -107,7 +111,8 @@ class Computed:
 
 @dataclass(frozen=True)
 class ServedRow:
-    """A virtual object's row of the served matrix (:func:`pinchmatch.match.scene.match_one`'s ranked row)."""
+    """A virtual object's row of the served matrix (:func:`pinchmatch.match.scene.match_one`'s
+    ranked row)."""
 
     name: str
     row: np.ndarray  # (n,) least cost on each prop, inf where none is allowed
@@ -118,14 +123,15 @@ class ServedRow:
 def _candidates(task: ObjectTask, job: Job) -> tuple[Candidates, bool, FeatureCache | None]:
     """The task's candidates, whether they came from the cache, and the cache (None: none used)."""
     cache = FeatureCache(job.cache_folder) if job.cache_folder is not None else None
-    c = cached_candidates(task.spec or task.path, cache=cache, units=job.units, up=job.up, settings=job.settings,
-                          given=task.given, source=task.source,
+    c = cached_candidates(task.spec or task.path, cache=cache, units=job.units, up=job.up,
+                          settings=job.settings, given=task.given, source=task.source,
                           progress=lambda stage: report_stage(task.name, stage))
     return c, bool(cache is not None and cache.hits), cache
 
 
 def _per_file(fn: Callable) -> Callable:
-    """A task whose item is an ObjectTask (or a tuple starting with one): a bad file makes a Failure."""
+    """A task whose item is an ObjectTask (or a tuple starting with one): a bad file makes a
+    Failure."""
 
     @functools.wraps(fn)
     def task(item, *args):
@@ -140,29 +146,34 @@ def _per_file(fn: Callable) -> Callable:
 
 @_per_file
 def candidates_task(task: ObjectTask, job: Job) -> Computed | Failure:
-    """A tangible's candidates, and what every worker's matches would each make of it, made once here, in
-    parallel (:func:`pinchmatch.runner.worker.tangible_of` takes them): where the match ranks by the felt
-    cost, its poses' landing moments (:func:`pinchmatch.match.steady.moments_of`); where it refines, its
-    feature pool (:func:`pinchmatch.match.targeted.feature_pool`) and its surface's distance field (the
-    hand's reach)."""
+    """A tangible's candidates, and what every worker's matches would each make of it, made once
+    here, in parallel (:func:`pinchmatch.runner.worker.tangible_of` takes them): where the match
+    ranks by the felt cost, its poses' landing moments (:func:`pinchmatch.match.steady.moments_of`);
+    where it refines, its feature pool (:func:`pinchmatch.match.targeted.feature_pool`) and its
+    surface's distance field (the hand's reach)."""
     c, cached, _ = _candidates(task, job)
     meta, arrays = to_payload(c)
     if ranks_by_landings(job.match):
         key = moments_key(job.match.landing_mm, job.settings)
         mean, var = moments_of(c, job.match.landing_mm, job.settings)
-        meta, arrays = meta | {"moments_key": list(key)}, arrays | {"moments.mean": mean, "moments.var": var}
+        meta, arrays = meta | {"moments_key": list(key)}, arrays | {"moments.mean": mean,
+                                                                    "moments.var": var}
     if job.match.refine and not c.given:
         points, faces, _, _ = feature_pool(c, job.settings)
         field = c.obj.context.distance_field
-        meta = meta | {"pool_settings": job.settings, "distance_field": [list(map(float, field.origin_mm)),
-                                                                          field.voxel_mm, field.margin_mm]}
-        arrays = arrays | {"pool.points": points, "pool.faces": faces, "distance_field": field.distance_mm}
+        meta = meta | {"pool_settings": job.settings,
+                       "distance_field": [list(map(float, field.origin_mm)),
+                                                                          field.voxel_mm,
+                                                                          field.margin_mm]}
+        arrays = arrays | {"pool.points": points, "pool.faces": faces,
+                           "distance_field": field.distance_mm}
     return Computed(meta, arrays, cached)
 
 
 @_per_file
 def load_task(task: ObjectTask, job: Job) -> None | Failure:
-    """Only read the object's file (and node) as the run would: a Failure says what is wrong with it."""
+    """Only read the object's file (and node) as the run would: a Failure says what is wrong with
+    it."""
     spec = (task.spec or ObjectSpec(task.path)).with_defaults(units=job.units, up=job.up)
     load_mesh(spec.path, units=spec.units, up=spec.up, node=spec.node)
     return None
@@ -177,7 +188,8 @@ def bounds_task(task: ObjectTask, job: Job) -> np.ndarray | Failure:
 def row_task(task: ObjectTask, job: Job, shared, model) -> np.ndarray | Failure:
     """A virtual object's row of the cost matrix (a one-to-one run's assignment needs every row)."""
     c = _candidates(task, job)[0]
-    return cost_row(refined_search(tangibles(shared), c, model, job.match, pinch_settings=job.settings), 0)
+    return cost_row(refined_search(tangibles(shared), c, model, job.match,
+                                   pinch_settings=job.settings), 0)
 
 
 @_per_file
@@ -204,7 +216,8 @@ def virtual_task(item: tuple, job: Job, shared, model) -> VirtualResult | Failur
     c, cached, cache = _candidates(task, job)
     key_c = cache.last_key if cache is not None else None
     probes = cache.load_probes(key_c) if cache is not None else {}
-    scene = match_virtual(tangibles(shared), c, model=model, config=job.config, allowed=allowed, probes=probes)
+    scene = match_virtual(tangibles(shared), c, model=model, config=job.config, allowed=allowed,
+                          probes=probes)
     result = virtual_result(scene, 0, job, cached=cached)
     if cache is not None:
         cache.store_probes(key_c, probes)  # the reference pose's pinch, for the next run
@@ -223,11 +236,13 @@ def virtual_result(scene, k: int, job: Job, *, cached: bool = False) -> VirtualR
     glb = png = None
     if vm.best is not None:
         if job.scenes:
-            glb = match_scene_glb(tangibles_k[vm.best.tangible], virtual, vm.best, hand=hand_of(job.settings))
+            glb = match_scene_glb(tangibles_k[vm.best.tangible], virtual, vm.best,
+                                  hand=hand_of(job.settings))
         if job.figures:
-            from ..export.figures import criteria_figure, png_bytes  # matplotlib: imported when figures are wanted
+            # matplotlib: imported when figures are wanted
+            from ..export.figures import criteria_figure, png_bytes
 
             png = png_bytes(criteria_figure(match))
-    return VirtualResult(virtual.name, object_entry(scene.virtuals[k], dump_poses=job.dump_poses), match,
-                         scene.cost_matrix[k], glb, png, cached)
+    return VirtualResult(virtual.name, object_entry(scene.virtuals[k], dump_poses=job.dump_poses),
+                         match, scene.cost_matrix[k], glb, png, cached)
 

@@ -36,7 +36,8 @@ _STAGES = None
 
 
 def report_stage(name: str, stage: str) -> None:
-    """Tell the run that the object in file ``name`` entered ``stage`` (nothing when no one listens)."""
+    """Tell the run that the object in file ``name`` entered ``stage`` (nothing when no one
+    listens)."""
     if _STAGES is not None:
         _STAGES.put((name, stage))
 
@@ -53,7 +54,8 @@ class _Direct:
 
 @contextmanager
 def stages_shown_by(show: Callable[[str, str], None]):
-    """While the block runs, the stages reported in this process go to ``show(file name, stage)``."""
+    """While the block runs, the stages reported in this process go to ``show(file name,
+    stage)``."""
     global _STAGES
     previous, _STAGES = _STAGES, _Direct(show)
     try:
@@ -75,7 +77,8 @@ def tangible_of(meta: dict, arrays: dict) -> Candidates:
     if "pool_settings" in meta:
         keep_pool(c, meta["pool_settings"], arrays["pool.points"], arrays["pool.faces"])
         origin, voxel, margin = meta["distance_field"]
-        c.obj.context.keep_distance_field(DistanceField(np.array(origin), voxel, arrays["distance_field"], margin))
+        c.obj.context.keep_distance_field(DistanceField(np.array(origin), voxel,
+                                                        arrays["distance_field"], margin))
     return c
 
 
@@ -113,8 +116,8 @@ def tangibles(shared) -> list[Candidates]:
 
 
 def _die_with_parent() -> None:
-    """Ask Linux to send this process SIGTERM when its parent dies (prctl PR_SET_PDEATHSIG); elsewhere
-    nothing happens."""
+    """Ask Linux to send this process SIGTERM when its parent dies (prctl PR_SET_PDEATHSIG);
+    elsewhere nothing happens."""
     if sys.platform != "linux":
         return
     try:
@@ -166,9 +169,9 @@ def _alive(pid: int) -> bool:
 
 
 def init_worker(threads: int, stages=None, run_pid: int | None = None) -> None:
-    """A local worker: numpy's BLAS and the patch fits get its share of the cores, not all of them; it ends when the
-    run that started it (process ``run_pid``, default the parent) ends, however that ends; it reports stages on
-    ``stages``."""
+    """A local worker: numpy's BLAS and the patch fits get its share of the cores, not all of them;
+    it ends when the run that started it (process ``run_pid``, default the parent) ends, however
+    that ends; it reports stages on ``stages``."""
     global _LIMITS, _STAGES
     _die_with_run(os.getppid() if run_pid is None else run_pid)
     _STAGES = stages
@@ -176,7 +179,8 @@ def init_worker(threads: int, stages=None, run_pid: int | None = None) -> None:
 
     _LIMITS = threadpool_limits(limits=threads)
     set_thread_budget(threads)  # the patch fits' threads too
-    logging.getLogger("pinchmatch").setLevel(logging.ERROR)  # the parent reports; workers stay quiet
+    # the parent reports; workers stay quiet
+    logging.getLogger("pinchmatch").setLevel(logging.ERROR)
     route_warnings(verbose=False)
 
 

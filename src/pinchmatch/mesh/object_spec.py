@@ -1,0 +1,106 @@
+"""One object as the pipeline reads it: its file and what a manifest or the command line says of it.
+
+:class:`ObjectSpec` is the record every stage passes along (the loader reads by it, the caches key
+by its :meth:`ObjectSpec.shape_key`, the documents write it with :func:`spec_to_dict`); the manifest
+reader (:mod:`pinchmatch.mesh.manifest`) and the command line make it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields, replace
+from pathlib import Path
+
+from .regions import ContactRegions, Region
+
+
+#: the fields of an :class:`ObjectSpec` that do not shape its candidates
+NOT_SHAPE = frozenset({"path", "name", "mass_g", "split", "node_path", "manifest", "nodes",
+                       "skip_nodes"})
+
+
+@dataclass(frozen=True)
+class ObjectSpec:
+    """How to read and describe one object: its file and what the manifest or command line says.
+
+    ``None`` means "not given": the loader's default (units, up), the computed value (centre of
+    mass, axis), unknown (mass), the file's or node's name (name).
+    """
+
+    path: str
+    name: str | None = None
+    units: str | None = None
+    up: str | None = None
+    com_mm: tuple | None = None
+    axis: tuple | None = None
+    mass_g: float | None = None
+    regions: ContactRegions = ContactRegions()
+    split: str | None = None  # "nodes": one object per mesh node of a glTF/GLB scene
+    node: str | None = None  # one mesh node of a level
+    node_path: str | None = None
+    manifest: str | None = None  # the manifest it was listed in
+    # ((x, y, z) mm, (qx, qy, qz, qw)): file coordinates (mm) -> the level's world
+    pose: tuple | None = None
+    # what it stands on (:mod:`pinchmatch.mesh.support`): "auto", "none", mm
+    support: str | float | None = None
+    # a level's node on furniture: the furniture's top under it (mm, along up)
+    rests_on_mm: float | None = None
+    # a posed prop: the up of the level its pose places it in (None: glTF's "y")
+    level_up: str | None = None
+    # a level split into nodes: only the nodes whose name or path matches one of these globs and
+    # none that matches one of these
+    nodes: tuple = ()
+    skip_nodes: tuple = ()
+
+    @property
+    def display_name(self) -> str:
+        """Its name: the given one, else the scene node's, else the file's."""
+        return self.name or self.node or Path(self.path).name
+
+    def with_defaults(self, *, units: str | None, up: str | None) -> "ObjectSpec":
+        """The spec with the command line's units and up where it gives none."""
+        return replace(self, units=self.units or units, up=self.up or up)
+
+    def shape_key(self) -> dict:
+        """What shapes the object's candidates (a cache key): every field but those in ``NOT_SHAPE``
+        (its name, mass, where it was listed, which file; the file is keyed by its contents), and of
+        the pose its turn, only for an object that stands (where it stands in the level moves
+        nothing in its frame)."""
+        out = {f.name: getattr(self, f.name) for f in fields(self) if f.name not in NOT_SHAPE}
+        out["regions"] = self.regions.as_dict()
+        out["pose"] = None if self.support in (None, "none") or self.pose is None else self.pose[1]
+        return out
+
+    def standing(self, default: str | None) -> "ObjectSpec":
+        """The spec with ``default`` support (``"auto"`` or ``"none"``) where it says none
+        itself."""
+        return self if self.support is not None or default is None else replace(self,
+                                                                                support=default)
+
+
+def spec_to_dict(spec: ObjectSpec) -> dict:
+    """A spec as plain JSON values (:func:`spec_from_dict` makes it again)."""
+    return {"path": spec.path, "name": spec.name, "units": spec.units, "up": spec.up,
+            "com_mm": None if spec.com_mm is None else [float(c) for c in spec.com_mm],
+            "axis": None if spec.axis is None else [float(c) for c in spec.axis],
+            "mass_g": spec.mass_g, "regions": spec.regions.as_dict(), "split": spec.split,
+            "node": spec.node, "node_path": spec.node_path, "manifest": spec.manifest,
+            "pose": None if spec.pose is None else [list(spec.pose[0]), list(spec.pose[1])],
+            "support": spec.support, "rests_on_mm": spec.rests_on_mm, "level_up": spec.level_up}
+
+
+def spec_from_dict(d: dict) -> ObjectSpec:
+    def region(r: dict) -> Region:
+        return Region.sphere(r["center_mm"],
+                             r["radius_mm"]) if "center_mm" in r else Region.box(r["min_mm"],
+                                                                                 r["max_mm"])
+
+    return ObjectSpec(d["path"], name=d["name"], units=d["units"], up=d["up"],
+                      com_mm=None if d["com_mm"] is None else tuple(d["com_mm"]),
+                      axis=None if d["axis"] is None else tuple(d["axis"]), mass_g=d["mass_g"],
+                      regions=ContactRegions(tuple(region(r) for r in d["regions"]["exclude"]),
+                                             tuple(region(r) for r in d["regions"]["only"])),
+                      split=d["split"], node=d["node"], node_path=d["node_path"],
+                      manifest=d["manifest"], pose=None if d.get("pose") is None
+                      else (tuple(d["pose"][0]), tuple(d["pose"][1])),
+                      support=d.get("support"), rests_on_mm=d.get("rests_on_mm"),
+                      level_up=d.get("level_up"))
