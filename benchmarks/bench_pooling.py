@@ -16,8 +16,8 @@ Per setting it prints how many objects get another best prop and how many keep t
 pair; of the objects whose best prop changes, how many get a smaller largest criterion (the
 difference a hand notices first) and how many answers are at least as good as the other run's under
 their own pooling (an exact search always is; refinement finds local optima); and over all objects
-the mean and median largest criterion and the largest ``p_noticed`` of each pooling's answers (both in
-the default's form, so that the two are comparable).
+the mean and median largest criterion and the largest ``p_noticed`` of each pooling's answers (both
+in the default's form, so that the two are comparable).
 """
 
 from __future__ import annotations
@@ -62,7 +62,8 @@ def pooled(m: dict, pooling: str) -> float:
 
 
 def noticed(m: dict) -> float:
-    """The match's p_noticed in the default form (probability summation, 1 JND noticed half of the time)."""
+    """The match's p_noticed in the default form (probability summation, 1 JND noticed half of the
+    time)."""
     return float(1.0 - 2.0 ** -(pooled(m, "quick") ** BETAS["quick"]))
 
 
@@ -80,19 +81,30 @@ def compare(quick: dict, summed: dict, detail: bool) -> dict:
         own_s += pooled(s, "sum") <= pooled(q, "sum") + 1e-12
         if detail:
             print(f"  {k}: sum {s['tangible']} -> quick {q['tangible']}; largest criterion "
-                  f"{jnds(s).max():.3f} -> {jnds(q).max():.3f} JND; quick cost {pooled(s, 'quick'):.4f} -> "
-                  f"{pooled(q, 'quick'):.4f}; sum cost {pooled(s, 'sum'):.4f} -> {pooled(q, 'sum'):.4f}")
+                  f"{jnds(s).max():.3f} -> {jnds(q).max():.3f} JND; quick cost "
+                  f"{pooled(s, 'quick'):.4f} -> "
+                  f"{pooled(q, 'quick'):.4f}; sum cost {pooled(s, 'sum'):.4f} -> "
+                  f"{pooled(q, 'sum'):.4f}")
     largest_q = np.array([jnds(m).max() for m in quick.values()])
     largest_s = np.array([jnds(m).max() for m in summed.values()])
-    return {"changed": len(changed), "same_pair": same_pair, "smaller": smaller, "own_q": own_q, "own_s": own_s,
-            "mean": (largest_s.mean(), largest_q.mean()), "median": (np.median(largest_s), np.median(largest_q)),
-            "p": (max(noticed(m) for m in summed.values()), max(noticed(m) for m in quick.values()))}
+    return {
+        "changed": len(changed),
+        "same_pair": same_pair,
+        "smaller": smaller,
+        "own_q": own_q,
+        "own_s": own_s,
+        "mean": (largest_s.mean(), largest_q.mean()),
+        "median": (np.median(largest_s), np.median(largest_q)),
+        "p": (max(noticed(m) for m in summed.values()), max(noticed(m) for m in quick.values())),
+    }
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="10 virtual objects instead of 40")
-    parser.add_argument("--detail", action="store_true", help="one line per object whose best prop changes")
+    parser.add_argument(
+        "--detail", action="store_true", help="one line per object whose best prop changes"
+    )
     args = parser.parse_args()
     n = 10 if args.quick else 40
     with tempfile.TemporaryDirectory(prefix="bench_pooling_") as tmp:
@@ -101,20 +113,30 @@ def main() -> None:
         tangibles = random_objects(root / "t", range(995, 1000))
         rows = []
         for label, refine in (("sampled (--refine off)", False), ("default (refined)", True)):
-            runs = {p: match(tangibles, virtuals, p, refine, root / "cache", root / f"{p}-{refine}") for p in BETAS}
+            runs = {
+                p: match(tangibles, virtuals, p, refine, root / "cache", root / f"{p}-{refine}")
+                for p in BETAS
+            }
             if args.detail:
                 print(f"{label}:")
             rows.append((label, compare(runs["quick"], runs["sum"], args.detail)))
-    print(f"\n# {len(tangibles)} props x {n} virtual objects (pybullet_data random_urdfs), --pooling sum -> quick")
-    print(f"{'setting':<24} {'other prop':>10} {'same pair':>9} {'smaller max':>11} {'own best q/s':>12} "
+    print(
+        f"\n# {len(tangibles)} props x {n} virtual objects (pybullet_data random_urdfs), --pooling "
+        "sum -> quick"
+    )
+    print(f"{'setting':<24} {'other prop':>10} {'same pair':>9} {'smaller max':>11} "
+          f"{'own best q/s':>12} "
           f"{'max JND mean':>14} {'max JND median':>15} {'largest p_noticed':>17}")
     for label, r in rows:
         print(f"{label:<24} {r['changed']:>10} {r['same_pair']:>9} {r['smaller']:>11} "
               f"{r['own_q']:>5}/{r['own_s']:<6} {r['mean'][0]:>6.3f}->{r['mean'][1]:.3f} "
               f"{r['median'][0]:>7.3f}->{r['median'][1]:.3f} {r['p'][0]:>10.3f}->{r['p'][1]:.3f}")
-    print("other prop: objects whose best prop differs; same pair: the very same pose pair; smaller max: of the "
-          "former, those whose largest criterion (JND) is smaller under quick; own best q/s: of the former, the quick "
-          "answer's quick cost at most the sum answer's / the sum answer's sum cost at most the quick answer's")
+    print("other prop: objects whose best prop differs; same pair: the very same pose pair; "
+          "smaller max: of the "
+          "former, those whose largest criterion (JND) is smaller under quick; own best q/s: of "
+          "the former, the quick "
+          "answer's quick cost at most the sum answer's / the sum answer's sum cost at most the "
+          "quick answer's")
 
 
 if __name__ == "__main__":

@@ -1,10 +1,10 @@
 """Benchmark of ``pinchmatch match`` on an asset library: start-up, --jobs, the cache, growth.
 
-    python benchmarks/bench_scale.py                  # all three parts (about 25 minutes on 2 cores)
+    python benchmarks/bench_scale.py                  # all three parts (25 minutes on 2 cores)
     python benchmarks/bench_scale.py --quick          # fewer objects (about 4 minutes)
-    python benchmarks/bench_scale.py --only startup   # start-up of the command line and of two workers
-    python benchmarks/bench_scale.py --only real      # 5 real props x 40 real virtual objects, default outputs
-    python benchmarks/bench_scale.py --only growth    # generated objects: growth with objects and poses
+    python benchmarks/bench_scale.py --only startup   # start-up of the command line and two workers
+    python benchmarks/bench_scale.py --only real      # 5 real props x 40 real objects, the outputs
+    python benchmarks/bench_scale.py --only growth    # generated objects: growth in objects, poses
 
 **start-up**: ``pinchmatch --help`` and a bad option against ``python -c pass`` (median of 7), and
 two local workers started with one task each.
@@ -13,14 +13,15 @@ two local workers started with one task each.
 subdivided to about 16k faces; see ``assets.py``), matched as users run it, with default options and
 its default outputs (matches.json, scenes, the page; PNG figures only with ``--figures``, and a
 checkout from before that writes them by default): cold with ``--jobs 1`` and with the default jobs
-(empty caches), then warm from the cache with both. Prints the ratios jobs 2 / jobs 1 and warm / cold,
-and each core's busy share over the middle 80 % of each run (/proc/stat).
+(empty caches), then warm from the cache with both. Prints the ratios jobs 2 / jobs 1 and warm /
+cold, and each core's busy share over the middle 80 % of each run (/proc/stat).
 
 **growth**: generated objects (seeded ellipsoids, cylinders and tori of random sizes, 20,000 faces,
 randomly rotated; five tangibles: the stacked study prop, an ellipsoid, a cylinder, a torus and a
 subdivided box), ``--no-view --no-figures`` (the scenes are written): cold with --jobs 1 and 2,
 warm, warm with --format jsonl; cold with 25, 50, 100 (and 200) objects; cold with 500, 1000 and
-2000 poses per object on 50 objects. The growth plot goes to ``--plot`` (default benchmarks/scale.png).
+2000 poses per object on 50 objects. The growth plot goes to ``--plot`` (default
+benchmarks/scale.png).
 
 Per run: wall time, time per virtual object, the peak resident memory of the main process and of the
 largest worker (sampled /proc VmHWM), and each core's busy share.
@@ -62,14 +63,30 @@ def make_objects(folder: Path, n_virtual: int, seed: int = 7) -> tuple[list[Path
     for k in range(n_virtual):
         kind = k % 3
         if kind == 0:
-            mesh = ellipsoid(rng.uniform(12, 50, 3), triangulation="random", faces=FACES, seed=k).mesh
+            mesh = ellipsoid(
+                rng.uniform(12, 50, 3), triangulation="random", faces=FACES, seed=k
+            ).mesh
         elif kind == 1:
-            mesh = cylinder(rng.uniform(8, 30), rng.uniform(30, 120), triangulation="random", faces=FACES, seed=k).mesh
+            mesh = cylinder(
+                rng.uniform(8, 30),
+                rng.uniform(30, 120),
+                triangulation="random",
+                faces=FACES,
+                seed=k,
+            ).mesh
         else:
             minor = rng.uniform(6, 14)
-            mesh = torus(minor + rng.uniform(10, 30), minor, triangulation="random", faces=FACES, seed=k).mesh
-        mesh.apply_transform(np.block([[Rotation.random(random_state=rng).as_matrix(), np.zeros((3, 1))],
-                                       [np.zeros((1, 3)), np.ones((1, 1))]]))
+            mesh = torus(
+                minor + rng.uniform(10, 30), minor, triangulation="random", faces=FACES, seed=k
+            ).mesh
+        mesh.apply_transform(
+            np.block(
+                [
+                    [Rotation.random(random_state=rng).as_matrix(), np.zeros((3, 1))],
+                    [np.zeros((1, 3)), np.ones((1, 1))],
+                ]
+            )
+        )
         mesh.export(folder / "v" / f"obj{k:04d}.stl")
     return sorted((folder / "t").glob("*.stl")), sorted((folder / "v").glob("*.stl"))
 
@@ -103,11 +120,20 @@ def _cpu_busy() -> np.ndarray:
     return np.stack([ticks.sum(axis=1) - idle, ticks.sum(axis=1)], axis=1)
 
 
-def run(tangibles, virtuals, *, poses: int | None, jobs: int | None, cache: Path, out: Path, fmt: str = "json",
-        outputs: bool = False) -> dict:
-    """One ``pinchmatch match`` as a user runs it; ``outputs``: the default outputs (the page, and the
-    figures where a checkout writes them by default), else the scenes only. ``poses`` and ``jobs`` None:
-    the defaults."""
+def run(
+    tangibles,
+    virtuals,
+    *,
+    poses: int | None,
+    jobs: int | None,
+    cache: Path,
+    out: Path,
+    fmt: str = "json",
+    outputs: bool = False,
+) -> dict:
+    """One ``pinchmatch match`` as a user runs it; ``outputs``: the default outputs (the page, and
+    the figures where a checkout writes them by default), else the scenes only. ``poses`` and
+    ``jobs`` None: the defaults."""
     argv = [sys.executable, "-m", "pinchmatch", "match", "--tangible", *map(str, tangibles),
             "--virtual", *map(str, virtuals), "--cache", str(cache), "-o", str(out), "-q"]
     argv += ["--count", str(poses)] if poses else []
@@ -134,12 +160,18 @@ def run(tangibles, virtuals, *, poses: int | None, jobs: int | None, cache: Path
     if proc.returncode != 0:
         raise SystemExit(f"pinchmatch failed ({proc.returncode}): {err.strip()}")
     entries = len(list(cache.glob("*.npz")))
-    # both cores' busy share over the middle 80 % of the run (start-up and the final writing left out)
+    # both cores' busy share over the middle 80 % of the run (start-up and the final writing left
+    # out)
     lo, hi = len(busy) // 10, max(len(busy) - len(busy) // 10 - 1, len(busy) // 10 + 1)
     d = busy[min(hi, len(busy) - 1)] - busy[lo] if len(busy) > 1 else np.ones((1, 2))
     per_core = d[:, 0] / np.maximum(d[:, 1], 1)
-    return {"seconds": seconds, "main_mib": peak["main"], "worker_mib": peak["worker"], "cache_entries": entries,
-            "busy": per_core}
+    return {
+        "seconds": seconds,
+        "main_mib": peak["main"],
+        "worker_mib": peak["worker"],
+        "cache_entries": entries,
+        "busy": per_core,
+    }
 
 
 def _median_seconds(argv: list[str], runs: int = 7) -> float:
@@ -155,7 +187,8 @@ WORKER_START = """
 import sys, time
 def main():
     from pinchmatch.runner.forkserver import start_worker_server
-    start_worker_server()  # what the command line does right after parsing, before it loads the pipeline
+    # what the command line does right after parsing, before it loads the pipeline
+    start_worker_server()
     import pinchmatch.runner.tasks  # the run's own load
     from pinchmatch.runner.executors import executor
     t0 = time.perf_counter()
@@ -175,19 +208,44 @@ def startup() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         script = Path(tmp) / "workers.py"
         script.write_text(WORKER_START)
-        worker_s = float(np.median([float(subprocess.run([sys.executable, str(script)], capture_output=True,
-                                                         text=True, check=True).stdout) for _ in range(3)]))
+        worker_s = float(
+            np.median(
+                [
+                    float(
+                        subprocess.run(
+                            [sys.executable, str(script)],
+                            capture_output=True,
+                            text=True,
+                            check=True,
+                        ).stdout
+                    )
+                    for _ in range(3)
+                ]
+            )
+        )
     print(f"start-up, median of 7: python -c pass {bare:.3f} s; pinchmatch --help {help_s:.3f} s "
           f"({help_s / bare:.1f}x); a bad option {bad_s:.3f} s ({bad_s / bare:.1f}x)")
-    print(f"local workers, median of 3: two started, one task each, {worker_s:.2f} s after the run has loaded")
+    print(
+        f"local workers, median of 3: two started, one task each, {worker_s:.2f} s after the run "
+        "has loaded"
+    )
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="16 virtual objects, 8 for the poses rows")
-    parser.add_argument("--only", choices=("startup", "real", "growth"),
-                        help="one part only: start-up, the real assets (all outputs), growth (generated objects)")
-    parser.add_argument("--plot", default=str(Path(__file__).with_name("scale.png")), help="where the growth plot goes")
+    parser.add_argument(
+        "--quick", action="store_true", help="16 virtual objects, 8 for the poses rows"
+    )
+    parser.add_argument(
+        "--only",
+        choices=("startup", "real", "growth"),
+        help="one part only: start-up, the real assets (all outputs), growth (generated objects)",
+    )
+    parser.add_argument(
+        "--plot",
+        default=str(Path(__file__).with_name("scale.png")),
+        help="where the growth plot goes",
+    )
     args = parser.parse_args()
     if args.only in (None, "startup"):
         startup()
@@ -202,13 +260,15 @@ def _table(rows) -> None:
           f"{'main_MiB':>8} {'worker_MiB':>10} {'busy_%':>9}")
     for r in rows:
         busy = "/".join(f"{100 * b:.0f}" for b in r["busy"])
-        print(f"{r['run']:>22} {r['objects']:>7} {r['poses'] or 'dflt':>5} {r['jobs'] or 'dflt':>4} "
+        print(f"{r['run']:>22} {r['objects']:>7} {r['poses'] or 'dflt':>5} "
+              f"{r['jobs'] or 'dflt':>4} "
               f"{r['seconds']:>8.1f} {r['seconds'] / r['objects']:>8.3f} {r['main_mib']:>8.0f} "
               f"{r['worker_mib']:>10.0f} {busy:>9}")
 
 
 def real_runs(root: Path, quick: bool) -> None:
-    """5 real props x 40 real virtual objects of about 16k faces, default options, default outputs."""
+    """5 real props x 40 real virtual objects of about 16k faces, default options, default
+    outputs."""
     from assets import face_counts, random_objects
 
     n = 10 if quick else 40
@@ -216,21 +276,34 @@ def real_runs(root: Path, quick: bool) -> None:
     virtuals = random_objects(root / "v", range(n))
     tangibles = random_objects(root / "t", range(995, 1000))
     faces = face_counts(virtuals + tangibles)
-    print(f"\n# {len(tangibles)} props x {len(virtuals)} virtual objects: pybullet_data random_urdfs, "
-          f"{faces.min()}-{faces.max()} faces (mean {faces.mean():.0f}), written in {time.perf_counter() - t0:.0f} s; "
+    print(f"\n# {len(tangibles)} props x {len(virtuals)} virtual objects: pybullet_data "
+          "random_urdfs, "
+          f"{faces.min()}-{faces.max()} faces (mean {faces.mean():.0f}), written in "
+          f"{time.perf_counter() - t0:.0f} s; "
           "pinchmatch match with default options and default outputs (matches.json, scenes, page)")
     rows = []
     for name, jobs, cache in (("cold --jobs 1", 1, "c1"), ("cold default jobs", None, "c2"),
                               ("warm --jobs 1", 1, "c2"), ("warm default jobs", None, "c2")):
-        r = run(tangibles, virtuals, poses=None, jobs=jobs, cache=root / cache, out=root / "out" / cache,
-                outputs=True)
+        r = run(
+            tangibles,
+            virtuals,
+            poses=None,
+            jobs=jobs,
+            cache=root / cache,
+            out=root / "out" / cache,
+            outputs=True,
+        )
         rows.append({"run": name, "objects": n, "poses": None, "jobs": jobs, **r})
         print(f"  {name}: {r['seconds']:.1f} s", file=sys.stderr, flush=True)
     _table(rows)
     cold1, cold2, warm1, warm2 = (r["seconds"] for r in rows)
     print(f"ratio jobs 2 / jobs 1, cold: {cold1 / cold2:.2f}x faster; both cores busy "
-          f"{'/'.join(f'{100 * b:.0f}' for b in rows[1]['busy'])} % (middle 80 % of the default run)")
-    print(f"ratio warm / cold, default outputs: {cold1 / warm1:.1f}x with --jobs 1, {cold2 / warm2:.1f}x by default")
+          f"{'/'.join(f'{100 * b:.0f}' for b in rows[1]['busy'])} % (middle 80 % of the default "
+          "run)")
+    print(
+        f"ratio warm / cold, default outputs: {cold1 / warm1:.1f}x with --jobs 1, "
+        f"{cold2 / warm2:.1f}x by default"
+    )
 
 
 def growth(quick: bool, plot_path: str) -> None:
@@ -242,15 +315,23 @@ def growth(quick: bool, plot_path: str) -> None:
     root = Path(tempfile.mkdtemp(prefix="pinchmatch-bench-"))
     t0 = time.perf_counter()
     tangibles, virtuals = make_objects(root / "objects", n)
-    print(f"# {len(virtuals)} virtual objects ({FACES} faces) and {len(tangibles)} tangibles generated in "
+    print(f"# {len(virtuals)} virtual objects ({FACES} faces) and {len(tangibles)} tangibles "
+          "generated in "
           f"{time.perf_counter() - t0:.0f} s; {os.cpu_count()} cores, {platform.machine()}, Python "
           f"{platform.python_version()}")
 
     rows = []
 
     def row(name, objects, poses, jobs, cache, fmt="json"):
-        r = run(tangibles, virtuals[:objects], poses=poses, jobs=jobs, cache=root / cache, out=root / "out" / name,
-                fmt=fmt)
+        r = run(
+            tangibles,
+            virtuals[:objects],
+            poses=poses,
+            jobs=jobs,
+            cache=root / cache,
+            out=root / "out" / name,
+            fmt=fmt,
+        )
         rows.append({"run": name, "objects": objects, "poses": poses, "jobs": jobs, **r})
         print(f"  {name}: {r['seconds']:.1f} s", file=sys.stderr, flush=True)
         return r
@@ -265,7 +346,9 @@ def growth(quick: bool, plot_path: str) -> None:
         growth_objects[k] = row(f"cold {k} objects", k, 1000, 2, f"cache-o{k}")["seconds"]
     growth_poses = {}
     for poses in (500, 1000, 2000):
-        growth_poses[poses] = row(f"cold {poses} poses", n_poses_objects, poses, 2, f"cache-p{poses}")["seconds"]
+        growth_poses[poses] = row(
+            f"cold {poses} poses", n_poses_objects, poses, 2, f"cache-p{poses}"
+        )["seconds"]
 
     print()
     _table(rows)
@@ -280,10 +363,14 @@ def growth(quick: bool, plot_path: str) -> None:
     fit = slope * ks + intercept
     r2 = 1 - ((ts - fit) ** 2).sum() / ((ts - ts.mean()) ** 2).sum()
     print(f"time vs objects: {slope:.3f} s per object + {intercept:.1f} s, R^2 = {r2:.4f}; "
-          f"log-log slope {np.polyfit(np.log(ks), np.log(ts - intercept if intercept > 0 else ts), 1)[0]:.2f}")
+          "log-log slope "
+          f"{np.polyfit(np.log(ks), np.log(ts - intercept if intercept > 0 else ts), 1)[0]:.2f}")
     ps = np.array(sorted(growth_poses))
     tp = np.array([growth_poses[p] for p in ps])
-    print(f"time vs poses ({n_poses_objects} objects): " + ", ".join(f"{p}: {t:.1f} s" for p, t in zip(ps, tp)))
+    print(
+        f"time vs poses ({n_poses_objects} objects): "
+        + ", ".join(f"{p}: {t:.1f} s" for p, t in zip(ps, tp))
+    )
     plot(ks, ts, slope, intercept, ps, tp, n_poses_objects, plot_path)
     print(f"plot: {plot_path}")
 
@@ -296,8 +383,17 @@ def plot(ks, ts, slope, intercept, ps, tp, n_poses_objects, path) -> None:
     FigureCanvasAgg(fig)
     a, b = fig.subplots(1, 2)
     a.plot(ks, ts, "o", color="#1f77b4", label="measured")
-    a.plot(ks, slope * ks + intercept, "-", color="#999999", label=f"{slope:.2f} s/object + {intercept:.1f} s")
-    a.set(xlabel="virtual objects (1000 poses each, 5 tangibles)", ylabel="wall time, cold, --jobs 2 (s)")
+    a.plot(
+        ks,
+        slope * ks + intercept,
+        "-",
+        color="#999999",
+        label=f"{slope:.2f} s/object + {intercept:.1f} s",
+    )
+    a.set(
+        xlabel="virtual objects (1000 poses each, 5 tangibles)",
+        ylabel="wall time, cold, --jobs 2 (s)",
+    )
     a.legend(frameon=False, fontsize=8)
     b.plot(ps, tp, "o-", color="#ff7f0e")
     b.set(xlabel="poses per object", ylabel="wall time, cold, --jobs 2 (s)",

@@ -15,9 +15,9 @@ def random_rigid(seed):
 
 
 def finger_axes(approach, u, splay_deg, fingers):
-    """(n, F, 3) each finger's direction: the hand's ``approach`` (n, 3) turned by ``splay_deg`` about
-    approach × u, away from the other finger (the thumb, finger 0, away from u; the others towards it),
-    by Rodrigues' formula (not the module's arithmetic)."""
+    """(n, F, 3) each finger's direction: the hand's ``approach`` (n, 3) turned by ``splay_deg``
+    about approach × u, away from the other finger (the thumb, finger 0, away from u; the others
+    towards it), by Rodrigues' formula (not the module's arithmetic)."""
     k = np.cross(approach, u)
     k /= np.linalg.norm(k, axis=1, keepdims=True)
     out = []

@@ -1,5 +1,6 @@
-"""A prop standing on a table is pinched from where the user stands: from the user's half, or from above;
-every angle re-measured here in the level's frame from the prop's pose (the code measures in the prop's)."""
+"""A prop standing on a table is pinched from where the user stands: from the user's half, or from
+above; every angle re-measured here in the level's frame from the prop's pose (the code measures in
+the prop's)."""
 
 import dataclasses
 import json
@@ -26,33 +27,38 @@ POSITION_MM = np.array([140.0, TABLE_Y_MM + 100.0, -60.0])
 
 
 def _world_angles(points, h, user):
-    """(elevation, azimuth) of approaches h (k, 3) at grasps (k, F, 3), both in the prop's frame, seen in the
-    level (y up) from ``user``: turned by the pose first."""
+    """(elevation, azimuth) of approaches h (k, 3) at grasps (k, F, 3), both in the prop's frame,
+    seen in the level (y up) from ``user``: turned by the pose first."""
     R = TURN.as_matrix()
     hw, mid = h @ R.T, points.mean(axis=1) @ R.T + POSITION_MM
     elevation = np.degrees(np.arcsin(np.clip(hw[:, 1], -1, 1)))
     flat, to_user = hw * [1, 0, 1], (user - mid) * [1, 0, 1]
-    cos = np.einsum("kd,kd->k", flat, to_user) / np.linalg.norm(flat, axis=1) / np.linalg.norm(to_user, axis=1)
+    cos = (
+        np.einsum("kd,kd->k", flat, to_user)
+        / np.linalg.norm(flat, axis=1)
+        / np.linalg.norm(to_user, axis=1)
+    )
     return elevation, np.degrees(np.arccos(np.clip(cos, -1, 1)))
 
 
 @pytest.fixture(scope="module")
 def bottle(tmp_path_factory):
-    """A bottle (z-up STL in mm, its origin at its middle) standing on a table in a y-up level, off the origin and
-    turned 35 degrees about the vertical, and its candidates."""
+    """A bottle (z-up STL in mm, its origin at its middle) standing on a table in a y-up level, off
+    the origin and turned 35 degrees about the vertical, and its candidates."""
     folder = tmp_path_factory.mktemp("bottle")
     trimesh.creation.cylinder(radius=33.0, height=200.0, sections=64).export(folder / "bottle.stl")
     (folder / "props.toml").write_text(
         '[[object]]\nfile = "bottle.stl"\nname = "bottle"\n'
-        f"pose = {{ position_mm = {POSITION_MM.tolist()}, quaternion_xyzw = {TURN.as_quat().tolist()} }}\n")
+        f"pose = {{ position_mm = {POSITION_MM.tolist()}, quaternion_xyzw = "
+        f"{TURN.as_quat().tolist()} }}\n")
     spec = object_specs([str(folder / "props.toml")], option="--tangible")[0].standing("auto")
     prop = candidate_poses(analyze_spec(spec), settings=PinchSettings(count=200, seed=0))
     return folder, prop
 
 
 def test_the_angles_are_the_level_s_seen_from_the_user(bottle):
-    """Random approaches at the bottle's pinches, a user on a random side: the same angles as worked out in
-    the level's frame."""
+    """Random approaches at the bottle's pinches, a user on a random side: the same angles as worked
+    out in the level's frame."""
     _, prop = bottle
     rng = np.random.default_rng(5)
     h = rng.normal(size=(len(prop), 3))
@@ -72,8 +78,9 @@ def test_comfortable_is_the_near_half_or_from_above():
 
 
 def test_a_prop_with_no_comfortable_pose_allows_every_pose(bottle):
-    """Every approach turned to come level from behind (seen from a user on the +Z side): nothing else is
-    feasible, so nothing is left out; one comfortable pose among them brings the rule back."""
+    """Every approach turned to come level from behind (seen from a user on the +Z side): nothing
+    else is feasible, so nothing is left out; one comfortable pose among them brings the rule
+    back."""
     _, prop = bottle
     user = np.array([140.0, 900.0, 5000.0])
     R = TURN.as_matrix()
@@ -83,7 +90,9 @@ def test_a_prop_with_no_comfortable_pose_allows_every_pose(bottle):
     assert comfortable_poses(held, user) is None
     one = away.approach.copy()
     one[3] = R.T @ np.array([0.0, 0.0, 1.0])
-    ok = comfortable_poses(dataclasses.replace(prop, pinches=dataclasses.replace(away, approach=one)), user)
+    ok = comfortable_poses(
+        dataclasses.replace(prop, pinches=dataclasses.replace(away, approach=one)), user
+    )
     assert ok is not None and ok.tolist() == [k == 3 for k in range(len(prop))]
 
 
@@ -105,17 +114,37 @@ def _level(folder):
 
 @pytest.mark.parametrize("user", [None, "140,1000,-900"])
 def test_no_pinch_comes_from_the_far_side_below_35_degrees(tmp_path, capsys, bottle, user):
-    """Best choices and alternatives, registered and fixed: approaches from the far half of the prop come from at
-    least 35 degrees up, seen from the default user (the hand's start, +Z) or one standing behind the table."""
+    """Best choices and alternatives, registered and fixed: approaches from the far half of the prop
+    come from at least 35 degrees up, seen from the default user (the hand's start, +Z) or one
+    standing behind the table."""
     folder, prop = bottle
     _level(folder)
     at = np.array([float(c) for c in user.split(",")]) if user else None
     for placement in ("registered", "fixed"):
         out = tmp_path / placement
         extra = ["--user-at", user] if user else []
-        code, _, err = run_cli(capsys, "match", "--tangible", folder / "props.toml", "--virtual", folder / "level.glb",
-                               "--split", "nodes", "--count", 200, "--placement", placement, "--no-view",
-                               "--no-figures", "--jobs", 1, "--no-cache", "-o", out, *extra)
+        code, _, err = run_cli(
+            capsys,
+            "match",
+            "--tangible",
+            folder / "props.toml",
+            "--virtual",
+            folder / "level.glb",
+            "--split",
+            "nodes",
+            "--count",
+            200,
+            "--placement",
+            placement,
+            "--no-view",
+            "--no-figures",
+            "--jobs",
+            1,
+            "--no-cache",
+            "-o",
+            out,
+            *extra,
+        )
         assert code == 0, err
         doc = json.loads((out / "matches.json").read_text())
         if at is None:
@@ -128,7 +157,11 @@ def test_no_pinch_comes_from_the_far_side_below_35_degrees(tmp_path, capsys, bot
                 pose = choice["tangible_pose"]
                 points = np.array([[pose["p1_mm"], pose["p2_mm"]]])
                 elevation, azimuth = _world_angles(points, np.array([pose["approach"]]), at)
-                assert azimuth[0] <= 90.0 or elevation[0] >= 35.0, (m["virtual"], elevation, azimuth)
+                assert azimuth[0] <= 90.0 or elevation[0] >= 35.0, (
+                    m["virtual"],
+                    elevation,
+                    azimuth,
+                )
                 assert choice["approach_elevation_deg"] == pytest.approx(elevation[0], abs=0.01)
                 assert choice["approach_azimuth_deg"] == pytest.approx(azimuth[0], abs=0.01)
                 checked += 1
@@ -136,15 +169,18 @@ def test_no_pinch_comes_from_the_far_side_below_35_degrees(tmp_path, capsys, bot
 
 
 def test_choices_that_feel_the_same_go_to_the_easiest_reach(bottle):
-    """A can against its own twin: many pinches cost nothing; the best is the one a person reaches most easily
-    (the comfort score is highest among the choices within the band), with its fingertips clear of the table."""
+    """A can against its own twin: many pinches cost nothing; the best is the one a person reaches
+    most easily (the comfort score is highest among the choices within the band), with its
+    fingertips clear of the table."""
     from pinchmatch import Config, cost_model
     from pinchmatch.match.scene import match_one
 
     folder, prop = bottle
     config = Config(PinchSettings(count=200, seed=0), MatchSettings(top_k=3, refine=False))
-    twin = candidate_poses(analyze_spec(object_specs([str(folder / "props.toml")], option="--virtual")[0]),
-                           settings=config.pinch)
+    twin = candidate_poses(
+        analyze_spec(object_specs([str(folder / "props.toml")], option="--virtual")[0]),
+        settings=config.pinch,
+    )
     vm = match_one([prop], twin, config, model=cost_model(config.match, [prop, twin]))
     band = [c for c in [vm.best, *vm.alternatives] if c.cost <= vm.best.cost + 0.1]
     assert len(band) >= 2
@@ -164,8 +200,9 @@ def test_the_summary_names_the_objects_pinched_from_behind():
 
 
 def test_a_props_manifest_says_where_the_user_stands(tmp_path, capsys, bottle):
-    """``user_mm`` at a props manifest's top level is the run's user (as --user-at, which overrides it): the
-    approaches are judged from there; a bad one, or two manifests that disagree, are one line each."""
+    """``user_mm`` at a props manifest's top level is the run's user (as --user-at, which overrides
+    it): the approaches are judged from there; a bad one, or two manifests that disagree, are one
+    line each."""
     folder, prop = bottle
     _level(folder)
     behind = [140.0, 1000.0, -900.0]
@@ -173,24 +210,69 @@ def test_a_props_manifest_says_where_the_user_stands(tmp_path, capsys, bottle):
     manifest.write_text(f"user_mm = {behind}\n" + (folder / "props.toml").read_text().replace(
         'file = "bottle.stl"', f'file = "{folder / "bottle.stl"}"'))
     out = tmp_path / "out"
-    code, _, err = run_cli(capsys, "match", "--tangible", manifest, "--virtual", folder / "level.glb", "--split",
-                           "nodes", "--count", 200, "--no-view", "--no-figures", "--jobs", 1, "--no-cache", "-o", out)
+    code, _, err = run_cli(
+        capsys,
+        "match",
+        "--tangible",
+        manifest,
+        "--virtual",
+        folder / "level.glb",
+        "--split",
+        "nodes",
+        "--count",
+        200,
+        "--no-view",
+        "--no-figures",
+        "--jobs",
+        1,
+        "--no-cache",
+        "-o",
+        out,
+    )
     assert code == 0, err
     doc = json.loads((out / "matches.json").read_text())
     assert doc["settings"]["user_mm"] == behind
     for m in doc["matches"]:
         pose = m["tangible_pose"]
-        elevation, azimuth = _world_angles(np.array([[pose["p1_mm"], pose["p2_mm"]]]), np.array([pose["approach"]]),
-                                           np.array(behind))
+        elevation, azimuth = _world_angles(
+            np.array([[pose["p1_mm"], pose["p2_mm"]]]),
+            np.array([pose["approach"]]),
+            np.array(behind),
+        )
         assert m["approach_azimuth_deg"] == pytest.approx(azimuth[0], abs=0.01)
         assert azimuth[0] <= 90.0 or elevation[0] >= 35.0
     bad = tmp_path / "bad.toml"
     bad.write_text('user_mm = [1, "a", 3]\n' + manifest.read_text().split("\n", 1)[1])
-    code, stdout, err = run_cli(capsys, "match", "--tangible", bad, "--virtual", folder / "level.glb", "-o",
-                                tmp_path / "bad_out")
-    assert code == 2 and "user_mm" in err and "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+    code, stdout, err = run_cli(
+        capsys,
+        "match",
+        "--tangible",
+        bad,
+        "--virtual",
+        folder / "level.glb",
+        "-o",
+        tmp_path / "bad_out",
+    )
+    assert (
+        code == 2
+        and "user_mm" in err
+        and "Traceback" not in err
+        and len(err.strip().splitlines()) == 1
+    ), err
     other = tmp_path / "other.toml"
-    other.write_text("user_mm = [0, 0, 900]\n" + manifest.read_text().split("\n", 1)[1].replace('"bottle"', '"b2"'))
-    code, stdout, err = run_cli(capsys, "match", "--tangible", manifest, other, "--virtual", folder / "level.glb",
-                                "-o", tmp_path / "two_out")
+    other.write_text(
+        "user_mm = [0, 0, 900]\n"
+        + manifest.read_text().split("\n", 1)[1].replace('"bottle"', '"b2"')
+    )
+    code, stdout, err = run_cli(
+        capsys,
+        "match",
+        "--tangible",
+        manifest,
+        other,
+        "--virtual",
+        folder / "level.glb",
+        "-o",
+        tmp_path / "two_out",
+    )
     assert code == 2 and "puts the user elsewhere" in err, err

@@ -21,7 +21,8 @@ def turned_mug():
 
 
 def _queries(points, rng, n=60_000, spread_mm=14.0):
-    """Points near the sample (most within a finger's radius), some far out, some beyond the grid."""
+    """Points near the sample (most within a finger's radius), some far out, some beyond the
+    grid."""
     near = points[rng.integers(0, len(points), n)] + rng.normal(0.0, spread_mm / 2.0, (n, 3))
     far = points.mean(axis=0) + rng.uniform(-300.0, 300.0, (n // 10, 3))
     return np.vstack([near, far])
@@ -36,11 +37,13 @@ def test_the_bounds_hold_the_exact_distance_at_a_random_rotation_off_the_origin(
     lower, upper = field.bounds(x)
     assert (lower <= exact).all() and (exact <= upper).all()
     inside = np.isfinite(upper)
-    # not trivial: inside the grid the interval is at most the voxel's diagonal plus twice the offset
+    # not trivial: inside the grid the interval is at most the voxel's diagonal plus twice the
+    # offset
     width = upper[inside] - lower[inside]
     assert width.max() <= 2.0 * np.sqrt(3.0) * field.voxel_mm + 1e-6
     assert field.voxel_mm == pytest.approx(1.5)
-    # far points are known to be far: the cap the hand asks for (9 mm) is decided for most beyond 12 mm
+    # far points are known to be far: the cap the hand asks for (9 mm) is decided for most beyond 12
+    # mm
     assert (lower[exact > 12.0] >= 9.0).mean() > 0.95
     # and the outside of the grid is at least the margin from every sample
     assert (exact[~inside] >= FIELD_MARGIN_MM).all() and (lower[~inside] == FIELD_MARGIN_MM).all()
@@ -72,7 +75,8 @@ def test_the_reach_search_decides_the_same_with_and_without_the_field(turned_mug
     support = SupportPlane(normal=up, height_mm=float(up @ t) + 0.5, source="pose")
     context = SurfaceContext(mesh, support=support)
     rng = np.random.default_rng(8)
-    # contacts anywhere on the surface, feasible or not: the inside, the handle, the bottom on the table
+    # contacts anywhere on the surface, feasible or not: the inside, the handle, the bottom on the
+    # table
     faces = rng.integers(0, len(mesh.faces), (400, fingers))
     bary = rng.dirichlet(np.ones(3), (400, fingers))
     points = np.einsum("nfk,nfkd->nfd", bary, mesh.triangles[faces])

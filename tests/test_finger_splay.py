@@ -1,5 +1,5 @@
-"""The hand's fingers form a V: each leans from the hand's approach, away from the other, and the hand's
-web joins their ends. Checked at a random rotation, off the origin."""
+"""The hand's fingers form a V: each leans from the hand's approach, away from the other, and the
+hand's web joins their ends. Checked at a random rotation, off the origin."""
 
 import numpy as np
 import pytest
@@ -17,8 +17,8 @@ def _unit(v):
 
 
 def _grasps(seed, fingers, n=40):
-    """Random contacts off the origin and, for each, an approach within 30 deg of the plane across its
-    pinch line (the thumb towards the others' middle)."""
+    """Random contacts off the origin and, for each, an approach within 30 deg of the plane across
+    its pinch line (the thumb towards the others' middle)."""
     rng = np.random.default_rng(seed)
     points = rng.uniform(-150.0, 150.0, 3) + rng.normal(scale=30.0, size=(n, fingers, 3))
     u = _unit(points[:, 1:].mean(axis=1) - points[:, 0])
@@ -35,7 +35,9 @@ def test_each_finger_leans_the_splay_from_the_approach_away_from_the_thumb_or_th
     np.testing.assert_allclose(np.linalg.norm(axes, axis=2), 1.0, atol=1e-12)
     angle = np.degrees(np.arccos(np.clip(np.einsum("nfd,nd->nf", axes, h), -1.0, 1.0)))
     np.testing.assert_allclose(angle, 15.0, atol=1e-6)
-    between = np.degrees(np.arccos(np.clip(np.einsum("nd,nd->n", axes[:, 0], axes[:, 1]), -1.0, 1.0)))
+    between = np.degrees(
+        np.arccos(np.clip(np.einsum("nd,nd->n", axes[:, 0], axes[:, 1]), -1.0, 1.0))
+    )
     np.testing.assert_allclose(between, 30.0, atol=1e-6)
     # each in the plane of h and u; the thumb leans away from u, the others towards it
     np.testing.assert_allclose(np.einsum("nfd,nd->nf", axes, np.cross(h, u)), 0.0, atol=1e-9)
@@ -45,19 +47,27 @@ def test_each_finger_leans_the_splay_from_the_approach_away_from_the_thumb_or_th
     np.testing.assert_allclose(finger_directions(points, h, Hand(finger_splay_deg=0.0)),
                                np.repeat(h[:, None], fingers, axis=1), atol=1e-12)
     R, t = random_rigid(9)
-    np.testing.assert_allclose(finger_directions(points @ R.T + t, h @ R.T, Hand()), axes @ R.T, atol=1e-9)
+    np.testing.assert_allclose(
+        finger_directions(points @ R.T + t, h @ R.T, Hand()), axes @ R.T, atol=1e-9
+    )
 
 
 def test_the_web_between_the_fingers_ends_may_not_pass_through_the_object():
-    # a sheet between the fingers: their ends past its edge, the hand gets out; ends over the sheet, it does not
+    # a sheet between the fingers: their ends past its edge, the hand gets out; ends over the sheet,
+    # it does not
     R, t = random_rigid(11)
     sheet = transformed(trimesh.creation.box(extents=(200.0, 200.0, 2.0)), R, t)
     context = SurfaceContext(sheet)
-    for inside, free in [(60.0, False), (30.0, True)]:  # the contacts this far in from the edge at x = 100
+    for inside, free in [
+        (60.0, False),
+        (30.0, True),
+    ]:  # the contacts this far in from the edge at x = 100
         tips = np.array([[[100.0 - inside, 0.0, 9.0], [100.0 - inside, 0.0, -9.0]]])
         h = np.array([[1.0, 0.0, 0.0]])  # outwards, past the edge: the ends 45 mm on
         fingers = finger_directions(tips, h, Hand(finger_splay_deg=15.0))
-        np.testing.assert_allclose(fingers[0, :, 2] * np.array([1.0, -1.0]), np.sin(np.radians(15.0)), atol=1e-12)
+        np.testing.assert_allclose(
+            fingers[0, :, 2] * np.array([1.0, -1.0]), np.sin(np.radians(15.0)), atol=1e-12
+        )
         got = _hand_free(context, tips @ R.T + t, fingers @ R.T, 45.0)[0]
         assert got == (inside < 45.0 * np.cos(np.radians(15.0))) == free, inside
 

@@ -23,14 +23,21 @@ EXAMPLES = int(os.environ.get("PINCHMATCH_FUZZ_EXAMPLES", "0")) or None
 FUZZ = settings(max_examples=EXAMPLES or 40, deadline=None, derandomize=EXAMPLES is None,
                 suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 
-json_values = st.recursive(st.none() | st.booleans() | st.floats() | st.integers() | st.text(max_size=8),
-                           lambda inner: st.lists(inner, max_size=4) | st.dictionaries(st.text(max_size=8), inner,
-                                                                                        max_size=4), max_leaves=12)
+json_values = st.recursive(
+    st.none() | st.booleans() | st.floats() | st.integers() | st.text(max_size=8),
+    lambda inner: st.lists(inner, max_size=4)
+    | st.dictionaries(st.text(max_size=8), inner, max_size=4),
+    max_leaves=12,
+)
 
 
 @FUZZ
-@given(doc=st.dictionaries(st.sampled_from(["weights", "pooling", "schema", "fit"]), json_values, max_size=4)
-       | json_values)
+@given(
+    doc=st.dictionaries(
+        st.sampled_from(["weights", "pooling", "schema", "fit"]), json_values, max_size=4
+    )
+    | json_values
+)
 def test_weights_files(doc):
     try:
         weights, pooling, _ = read_weights_file(json.dumps(doc), "w.json")
@@ -39,8 +46,8 @@ def test_weights_files(doc):
     assert all(isinstance(v, float) for v in weights.values()) and pooling in (None, "quick", "sum")
 
 
-RATINGS = ("rating,width_jnd,kmax_jnd,object\n6.2,0.1,0.2,a\n5.0,0.5,0.9,b\n3.1,1.2,0.3,c\n2.0,1.5,1.4,d\n"
-           "4.4,0.8,0.4,e\n6.5,0.0,0.1,f\n").encode()
+RATINGS = ("rating,width_jnd,kmax_jnd,object\n6.2,0.1,0.2,a\n5.0,0.5,0.9,b\n3.1,1.2,0.3,c\n"
+           "2.0,1.5,1.4,d\n4.4,0.8,0.4,e\n6.5,0.0,0.1,f\n").encode()
 
 
 @FUZZ
@@ -53,8 +60,10 @@ def test_ratings_tables(data):
         pass
 
 
-MANIFEST = b'[defaults]\nunits = "mm"\n\n[[object]]\nfile = "prop.stl"\nname = "prop"\nmass_g = 120\n' \
-           b'com_mm = [0, 0, 10]\nexclude = [{ center_mm = [0, 0, 20], radius_mm = 5 }]\n'
+MANIFEST = (
+    b'[defaults]\nunits = "mm"\n\n[[object]]\nfile = "prop.stl"\nname = "prop"\nmass_g = 120\n'
+    b"com_mm = [0, 0, 10]\nexclude = [{ center_mm = [0, 0, 20], radius_mm = 5 }]\n"
+)
 
 
 @FUZZ
@@ -82,8 +91,14 @@ def test_level_hierarchies(children):
     assert len(parents) == len(set(parents)) and all(0 <= k < len(children) for k in parents)
 
 
-LEVEL = glb([{"name": "root", "children": [1, 2]}, {"name": "crate", "mesh": 0, "translation": [0.1, 0, 0]},
-             {"name": "jar", "mesh": 0}], [0])
+LEVEL = glb(
+    [
+        {"name": "root", "children": [1, 2]},
+        {"name": "crate", "mesh": 0, "translation": [0.1, 0, 0]},
+        {"name": "jar", "mesh": 0},
+    ],
+    [0],
+)
 
 
 @FUZZ
@@ -102,14 +117,20 @@ EXTENSIONS = ["KHR_draco_mesh_compression", "EXT_meshopt_compression", "KHR_mesh
 
 
 @FUZZ
-@given(required=st.lists(st.sampled_from(EXTENSIONS) | st.text(max_size=12) | json_values, max_size=3),
-       node_extras=st.dictionaries(st.sampled_from(["extensions", "skin", "weights", "matrix"]), json_values,
-                                   max_size=2),
-       mesh_extras=st.dictionaries(st.sampled_from(["weights", "extensions"]), json_values, max_size=2),
-       sparse=st.booleans())
+@given(
+    required=st.lists(st.sampled_from(EXTENSIONS) | st.text(max_size=12) | json_values, max_size=3),
+    node_extras=st.dictionaries(
+        st.sampled_from(["extensions", "skin", "weights", "matrix"]), json_values, max_size=2
+    ),
+    mesh_extras=st.dictionaries(
+        st.sampled_from(["weights", "extensions"]), json_values, max_size=2
+    ),
+    sparse=st.booleans(),
+)
 def test_levels_with_extensions(tmp_path_factory, required, node_extras, mesh_extras, sparse):
-    """Required extensions, node and mesh extras and sparse accessors in any combination: the level is read
-    or refused in one line (the features the reader does not apply are named, never read as geometry)."""
+    """Required extensions, node and mesh extras and sparse accessors in any combination: the level
+    is read or refused in one line (the features the reader does not apply are named, never read as
+    geometry)."""
     from test_gltf_check import _changed
 
     def change(doc):
@@ -130,8 +151,8 @@ def test_levels_with_extensions(tmp_path_factory, required, node_extras, mesh_ex
 @FUZZ
 @given(journal=json_values, manifest=json_values, run=json_values)
 def test_received_control_folders(tmp_path_factory, journal, manifest, run):
-    """A result folder received with any journal, manifest and run record in its control folder: finishing
-    it touches nothing outside OUT and ends in a result or a one-line refusal."""
+    """A result folder received with any journal, manifest and run record in its control folder:
+    finishing it touches nothing outside OUT and ends in a result or a one-line refusal."""
     from pinchmatch.export.folder import recover
 
     root = tmp_path_factory.mktemp("r")
@@ -149,11 +170,24 @@ def test_received_control_folders(tmp_path_factory, journal, manifest, run):
 
 
 @FUZZ
-@given(value=json_values, field=st.sampled_from(["cost", "criteria", "landing", "alternatives", "position_mm",
-                                                 "equivalent_tangibles", "redirection", "p_noticed"]))
+@given(
+    value=json_values,
+    field=st.sampled_from(
+        [
+            "cost",
+            "criteria",
+            "landing",
+            "alternatives",
+            "position_mm",
+            "equivalent_tangibles",
+            "redirection",
+            "p_noticed",
+        ]
+    ),
+)
 def test_received_matches_documents(tmp_path_factory, value, field):
-    """Any JSON value in a field of a received matches.json: the page's data is made with numbers where the
-    page shows numbers, or the document is refused in one line."""
+    """Any JSON value in a field of a received matches.json: the page's data is made with numbers
+    where the page shows numbers, or the document is refused in one line."""
     from pinchmatch.export.view import _checked_values
 
     try:
@@ -162,4 +196,9 @@ def test_received_matches_documents(tmp_path_factory, value, field):
         assert "\n" not in str(exc)
         return
     text = json.dumps(value)
-    assert "<" not in text or field in ("criteria", "equivalent_tangibles", "landing", "redirection")
+    assert "<" not in text or field in (
+        "criteria",
+        "equivalent_tangibles",
+        "landing",
+        "redirection",
+    )

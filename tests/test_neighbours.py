@@ -9,7 +9,8 @@ from conftest import random_rigid
 
 
 def brute_force(samples, point, radius, k):
-    """The samples within ``radius`` of ``point``, the ``k`` nearest (ties to the lower index), by index."""
+    """The samples within ``radius`` of ``point``, the ``k`` nearest (ties to the lower index), by
+    index."""
     d2 = ((samples - point) ** 2).sum(axis=1)
     inside = np.flatnonzero(d2 < radius * radius)
     nearest = inside[np.lexsort((inside, d2[inside]))][:k]
@@ -17,10 +18,10 @@ def brute_force(samples, point, radius, k):
 
 
 def test_clustered_and_lone_points_get_the_brute_force_neighbours_by_index():
-    """A torus turned at random and moved off the origin, its dense points as samples: clusters of points
-    around a few targets (one ball query per cube) and lone points far apart (a KD-tree query each) get
-    exactly the brute force's neighbours, the nearest k where more lie within the radius, ascending; a
-    point gets the same neighbours whether it is asked alone or in a cluster."""
+    """A torus turned at random and moved off the origin, its dense points as samples: clusters of
+    points around a few targets (one ball query per cube) and lone points far apart (a KD-tree query
+    each) get exactly the brute force's neighbours, the nearest k where more lie within the radius,
+    ascending; a point gets the same neighbours whether it is asked alone or in a cluster."""
     R, t = random_rigid(11)
     mesh = torus(faces=6000).mesh
     samples = mesh.sample(20000, seed=3) @ R.T + t

@@ -1,4 +1,5 @@
-"""Progress where stderr is no terminal: a pipe or a log gets plain lines now and then, a short run none."""
+"""Progress where stderr is no terminal: a pipe or a log gets plain lines now and then, a short run
+none."""
 
 from __future__ import annotations
 
@@ -8,7 +9,8 @@ import re
 from conftest import run_cli
 from levels import standing_can, tabletop_level
 
-PROP = '[[object]]\nname = "can_prop"\nshape = { kind = "cylinder", diameter_mm = 54, height_mm = 66 }\n'
+PROP = ('[[object]]\nname = "can_prop"\nshape = { kind = "cylinder", diameter_mm = 54, height_mm = '
+        '66 }\n')
 
 
 def _level(folder):
@@ -18,8 +20,24 @@ def _level(folder):
 
 
 def _run(capsys, folder, *extra):
-    return run_cli(capsys, "match", "--tangible", folder / "props.toml", "--virtual", folder / "kitchen.glb", "--split",
-                   "nodes", "--count", 60, "-o", folder / "out", "--no-view", "--jobs", 1, *extra)
+    return run_cli(
+        capsys,
+        "match",
+        "--tangible",
+        folder / "props.toml",
+        "--virtual",
+        folder / "kitchen.glb",
+        "--split",
+        "nodes",
+        "--count",
+        60,
+        "-o",
+        folder / "out",
+        "--no-view",
+        "--jobs",
+        1,
+        *extra,
+    )
 
 
 def test_a_piped_run_prints_plain_progress_lines(tmp_path, capsys, monkeypatch):

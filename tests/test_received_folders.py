@@ -1,5 +1,6 @@
-"""A result folder received from elsewhere: no record in its control folder ever removes or changes a file
-the current run did not write, inside OUT or outside it (``pinchmatch.export.folder``, ``...seal``)."""
+"""A result folder received from elsewhere: no record in its control folder ever removes or changes
+a file the current run did not write, inside OUT or outside it (``pinchmatch.export.folder``,
+``...seal``)."""
 
 import hashlib
 import hmac
@@ -26,9 +27,9 @@ USER_FILES = ("my_notes.txt", "scenes/mine.glb", "props/keep.stl")
 
 
 def user_tree(root, *, links=True):
-    """OUT with the user's own files in it, a folder outside OUT with a file in it, and links from OUT to
-    the outside folder and to the user's file outside (in every place a record may name). Returns (out,
-    {path: bytes} of every user file)."""
+    """OUT with the user's own files in it, a folder outside OUT with a file in it, and links from
+    OUT to the outside folder and to the user's file outside (in every place a record may name).
+    Returns (out, {path: bytes} of every user file)."""
     out, outside = root / "out", root / "outside"
     outside.mkdir(parents=True)
     (outside / "victim.txt").write_bytes(b"outside: keep me")
@@ -42,7 +43,8 @@ def user_tree(root, *, links=True):
 
 
 def files_of(root):
-    """{path: bytes} of every regular file under ``root`` outside control folders, links not followed."""
+    """{path: bytes} of every regular file under ``root`` outside control folders, links not
+    followed."""
     out = {}
     for folder, dirs, names in os.walk(root):
         dirs[:] = [d for d in dirs if d != ".pinchmatch"]
@@ -57,13 +59,17 @@ def files_of(root):
 def foreign(kind, record):
     """``record`` sealed under another user's key (a colleague's folder)."""
     text = json.dumps({"kind": kind, "record": record}, sort_keys=True, separators=(",", ":"))
-    return json.dumps({**record, "seal": hmac.new(b"k" * 32, text.encode(), hashlib.sha256).hexdigest()})
+    return json.dumps(
+        {**record, "seal": hmac.new(b"k" * 32, text.encode(), hashlib.sha256).hexdigest()}
+    )
 
 
 @pytest.fixture(scope="module")
 def virtuals(tmp_path_factory):
     root = tmp_path_factory.mktemp("v")
-    ellipsoid((30.0, 20.0, 15.0), faces=1500, triangulation="random", seed=0).mesh.export(root / "e0.stl")
+    ellipsoid((30.0, 20.0, 15.0), faces=1500, triangulation="random", seed=0).mesh.export(
+        root / "e0.stl"
+    )
     return root
 
 
@@ -101,16 +107,35 @@ def test_the_key_is_kept_for_the_user_and_drawn_per_process_without_a_home(tmp_p
 
 
 @pytest.mark.parametrize("command", ["view", "match"])
-def test_a_received_run_record_saying_it_made_the_folder_removes_nothing(tmp_path, virtuals, capsys, command):
-    """``{"created": true, "undo": []}`` in a received folder: ``view`` and ``match -o`` refuse in one line
-    and OUT, with the user's files, stays."""
-    out, before = user_tree(tmp_path, links=False)  # (a folder linked out of OUT is refused by match itself)
+def test_a_received_run_record_saying_it_made_the_folder_removes_nothing(
+    tmp_path, virtuals, capsys, command
+):
+    """``{"created": true, "undo": []}`` in a received folder: ``view`` and ``match -o`` refuse in
+    one line and OUT, with the user's files, stays."""
+    out, before = user_tree(
+        tmp_path, links=False
+    )  # (a folder linked out of OUT is refused by match itself)
     (out / ".pinchmatch").mkdir()
     (out / ".pinchmatch" / "run.json").write_text(json.dumps({"created": True, "undo": []}))
     capsys.readouterr()
-    argv = ["view", str(out)] if command == "view" else \
-        ["match", "--tangible", str(virtuals / "e0.stl"), "--virtual", str(virtuals / "e0.stl"), "--count", "60",
-         "-q", "--jobs", "1", "-o", str(out)]
+    argv = (
+        ["view", str(out)]
+        if command == "view"
+        else [
+            "match",
+            "--tangible",
+            str(virtuals / "e0.stl"),
+            "--virtual",
+            str(virtuals / "e0.stl"),
+            "--count",
+            "60",
+            "-q",
+            "--jobs",
+            "1",
+            "-o",
+            str(out),
+        ]
+    )
     assert main(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "run.json" in err[0] and "delete" in err[0], err
@@ -118,20 +143,23 @@ def test_a_received_run_record_saying_it_made_the_folder_removes_nothing(tmp_pat
 
 
 def test_a_received_journal_removes_no_file_its_manifest_does_not_list(tmp_path, capsys):
-    """A received journal removing ``my_notes.txt``: refused. A sealed one (this user's own) whose manifest
-    lists only matches.json removes matches.json and leaves ``my_notes.txt``."""
+    """A received journal removing ``my_notes.txt``: refused. A sealed one (this user's own) whose
+    manifest lists only matches.json removes matches.json and leaves ``my_notes.txt``."""
     out, before = user_tree(tmp_path)
     control = out / ".pinchmatch"
     control.mkdir()
     (out / "matches.json").write_text("{}")
     (control / "manifest.json").write_text(json.dumps({"files": ["matches.json"]}))
-    (control / "commit.json").write_text(json.dumps({"new": [], "staged": [], "remove": ["my_notes.txt"]}))
+    (control / "commit.json").write_text(
+        json.dumps({"new": [], "staged": [], "remove": ["my_notes.txt"]})
+    )
     assert main(["view", str(out)]) == 2
     assert "commit.json" in capsys.readouterr().err
     assert files_of(tmp_path) == {**before, "out/matches.json": b"{}"}
     (control / "manifest.json").write_text(sealed("manifest", {"files": ["matches.json"]}))
-    (control / "commit.json").write_text(sealed("journal", {"new": [], "staged": [],
-                                                            "remove": ["my_notes.txt", "matches.json"]}))
+    (control / "commit.json").write_text(
+        sealed("journal", {"new": [], "staged": [], "remove": ["my_notes.txt", "matches.json"]})
+    )
     publish.finish_commit(out)
     assert files_of(tmp_path) == before and read_manifest(out) == []
 
@@ -141,19 +169,42 @@ def test_a_received_manifest_lists_nothing_the_next_run_deletes(tmp_path, virtua
     (out / ".pinchmatch").mkdir()
     (out / ".pinchmatch" / "manifest.json").write_text(json.dumps({"files": list(USER_FILES)}))
     assert read_manifest(out) == []
-    (out / ".pinchmatch" / "manifest.json").write_text(foreign("manifest", {"files": list(USER_FILES)}))
+    (out / ".pinchmatch" / "manifest.json").write_text(
+        foreign("manifest", {"files": list(USER_FILES)})
+    )
     assert read_manifest(out) == []
-    assert main(["match", "--tangible", str(virtuals / "e0.stl"), "--virtual", str(virtuals / "e0.stl"), "--count",
-                 "60", "-q", "--jobs", "1", "--no-view", "-o", str(out)]) == 0
+    assert (
+        main(
+            [
+                "match",
+                "--tangible",
+                str(virtuals / "e0.stl"),
+                "--virtual",
+                str(virtuals / "e0.stl"),
+                "--count",
+                "60",
+                "-q",
+                "--jobs",
+                "1",
+                "--no-view",
+                "-o",
+                str(out),
+            ]
+        )
+        == 0
+    )
     after = files_of(tmp_path)
     assert {k: v for k, v in after.items() if k in before} == before
-    assert "out/matches.json" in after and "out/matches.json" in {f"out/{f}" for f in read_manifest(out)}
+    assert "out/matches.json" in after and "out/matches.json" in {
+        f"out/{f}" for f in read_manifest(out)
+    }
 
 
 @pytest.mark.parametrize("where", ["added", "replaced", "kept"])
 def test_a_sealed_run_record_never_reaches_through_a_linked_folder(tmp_path, where):
-    """This user's own run record, naming a file behind a folder that is now a link out of OUT (as an added
-    file, as a replaced one, or as the file kept aside): taking it back touches nothing outside OUT."""
+    """This user's own run record, naming a file behind a folder that is now a link out of OUT (as
+    an added file, as a replaced one, or as the file kept aside): taking it back touches nothing
+    outside OUT."""
     out, before = user_tree(tmp_path)
     control = out / ".pinchmatch"
     (control / "replaced").mkdir(parents=True)
@@ -165,7 +216,10 @@ def test_a_sealed_run_record_never_reaches_through_a_linked_folder(tmp_path, whe
     (control / "run.json").write_text(sealed("run", {"created": False, "undo": undo}))
     undo_killed_run(out)
     after = files_of(tmp_path)
-    assert after["outside/victim.txt"] == b"outside: keep me" and after["out/my_notes.txt"] == b"mine: my_notes.txt"
+    assert (
+        after["outside/victim.txt"] == b"outside: keep me"
+        and after["out/my_notes.txt"] == b"mine: my_notes.txt"
+    )
     assert (out / "linked").is_symlink() and (tmp_path / "outside" / "victim.txt").exists()
 
 
@@ -183,25 +237,49 @@ def test_a_failed_run_into_a_new_folder_keeps_what_the_user_put_there(tmp_path):
     assert (out / "dropped.txt").read_text() == "mine"
 
 
-names = st.sampled_from(list(USER_FILES) + ["linked/victim.txt", "victim-link.txt", "linked", "scenes", "../outside/victim.txt",
-                         str("/tmp/outside/victim.txt"), "matches.json", ".pinchmatch/run.json", "", ".", "props"])
-entries = st.lists(st.one_of(st.lists(st.one_of(names, st.none(), st.integers()), max_size=3), names, st.none()),
-                   max_size=5)
-records = st.fixed_dictionaries({}, optional={"created": st.one_of(st.booleans(), st.none(), st.text(max_size=3)),
-                                              "undo": st.one_of(entries, st.integers()),
-                                              "new": st.lists(names, max_size=4), "staged": st.lists(names, max_size=4),
-                                              "remove": st.lists(names, max_size=4), "files": st.lists(names, max_size=4)})
+names = st.sampled_from(
+    list(USER_FILES)
+    + [
+        "linked/victim.txt",
+        "victim-link.txt",
+        "linked",
+        "scenes",
+        "../outside/victim.txt",
+        str("/tmp/outside/victim.txt"),
+        "matches.json",
+        ".pinchmatch/run.json",
+        "",
+        ".",
+        "props",
+    ]
+)
+entries = st.lists(
+    st.one_of(st.lists(st.one_of(names, st.none(), st.integers()), max_size=3), names, st.none()),
+    max_size=5,
+)
+records = st.fixed_dictionaries(
+    {},
+    optional={
+        "created": st.one_of(st.booleans(), st.none(), st.text(max_size=3)),
+        "undo": st.one_of(entries, st.integers()),
+        "new": st.lists(names, max_size=4),
+        "staged": st.lists(names, max_size=4),
+        "remove": st.lists(names, max_size=4),
+        "files": st.lists(names, max_size=4),
+    },
+)
 
 
 @FUZZ
 @given(run=records, journal=records, manifest=records, how=st.sampled_from(["plain", "foreign"]),
        staged=st.lists(names, max_size=3), step=st.sampled_from(["recover", "undo", "run"]))
-def test_received_control_folders_never_touch_a_users_file(tmp_path_factory, run, journal, manifest, how, staged,
-                                                          step):
-    """Any run record, journal and manifest (not sealed, or sealed under another user's key), with staged
-    and kept-aside files under any name: finishing the folder (``view``'s recovery), taking back a killed
-    run, or a new run into it, removes and changes no file the current run did not write, inside OUT or
-    outside, and ends in a result or a one-line refusal."""
+def test_received_control_folders_never_touch_a_users_file(
+    tmp_path_factory, run, journal, manifest, how, staged, step
+):
+    """Any run record, journal and manifest (not sealed, or sealed under another user's key), with
+    staged and kept-aside files under any name: finishing the folder (``view``'s recovery), taking
+    back a killed run, or a new run into it, removes and changes no file the current run did not
+    write, inside OUT or outside, and ends in a result or a one-line refusal."""
     root = tmp_path_factory.mktemp("r")
     out, before = user_tree(root)
     control = out / ".pinchmatch"
@@ -209,7 +287,12 @@ def test_received_control_folders_never_touch_a_users_file(tmp_path_factory, run
     for sub in ("staging", "replaced"):
         for name in staged:
             target = control / sub / name
-            if name and ".." not in name and not name.startswith("/") and not (control / sub / name).exists():
+            if (
+                name
+                and ".." not in name
+                and not name.startswith("/")
+                and not (control / sub / name).exists()
+            ):
                 try:
                     target.parent.mkdir(parents=True, exist_ok=True)
                     target.write_bytes(b"received")

@@ -85,10 +85,12 @@ def test_pool_keeps_one_order_across_added_candidates():
 def test_a_round_is_planned_by_the_rounds_own_yield_once_there_is_one():
     from pinchmatch.grasp.rounds import PROBE_PICKS, SELECT_MARGIN, round_plan
 
-    # the strata checked 1,000 and found 300 (rare widths, mostly where no hand gets); the probe 256, 200
+    # the strata checked 1,000 and found 300 (rare widths, mostly where no hand gets); the probe
+    # 256, 200
     want, local = round_plan(1000, 500, 1256, 1, rounds=(200, 256))
     assert want == int(np.ceil(SELECT_MARGIN * 1000 / (200 / 256))) and not local
-    # before any round, the first probes by what the strata saw, and a low yield there means local rounds
+    # before any round, the first probes by what the strata saw, and a low yield there means local
+    # rounds
     want, local = round_plan(1000, 300, 1000, 0)
     assert want == PROBE_PICKS and local
     # a round's own low yield still turns to local draws
@@ -96,8 +98,9 @@ def test_a_round_is_planned_by_the_rounds_own_yield_once_there_is_one():
 
 
 def test_a_scanned_mug_checks_about_as_many_picks_as_it_needs(tmp_path, monkeypatch):
-    """The YCB mug's width strata find few feasible pinches (most narrow candidates cross its wall), its
-    spread finds many: the rounds after them check about what the count needs, not the strata's share."""
+    """The YCB mug's width strata find few feasible pinches (most narrow candidates cross its wall),
+    its spread finds many: the rounds after them check about what the count needs, not the strata's
+    share."""
     import dataclasses
     import sys
     from pathlib import Path

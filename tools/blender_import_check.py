@@ -2,8 +2,9 @@
 
     blender -b --factory-startup --python tools/blender_import_check.py -- scene.glb
 
-Prints one line ``RESULT {...}``: per object its world matrix (Blender is Z-up, metres), its dimensions
-and its ``pinchmatch:`` custom properties (glTF extras). tests/test_scenes.py runs it when blender is there.
+Prints one line ``RESULT {...}``: per object its world matrix (Blender is Z-up, metres), its
+dimensions and its ``pinchmatch:`` custom properties (glTF extras). tests/test_scenes.py runs it
+when blender is there.
 """
 
 import json
@@ -11,7 +12,9 @@ import sys
 
 import numpy
 
-if not hasattr(numpy, "bool"):  # Debian's Blender 3.4 importer still says np.bool, gone from numpy >= 1.24
+if not hasattr(
+    numpy, "bool"
+):  # Debian's Blender 3.4 importer still says np.bool, gone from numpy >= 1.24
     numpy.bool = numpy.bool_
 
 import bpy  # noqa: E402 - Blender's module, only inside Blender
