@@ -69,6 +69,38 @@ def test_every_public_function_has_an_example(name):
     assert ">>> " in doc, f"{name}: no example in its docstring"
 
 
+def _section(doc: str, title: str) -> list[str]:
+    """The lines of a numpy-style section of ``doc`` (its entries and their descriptions)."""
+    lines = doc.splitlines()
+    for k in range(len(lines) - 1):
+        if lines[k].strip() == title and set(lines[k + 1].strip()) == {"-"}:
+            out = []
+            for line in lines[k + 2:]:
+                if line.strip() and not line.startswith(" ") and out and not out[-1].strip():
+                    break  # the next section's title, or the examples' text
+                out.append(line)
+            return out
+    return []
+
+
+@pytest.mark.parametrize("name", _functions())
+def test_every_public_function_documents_its_parameters_and_what_it_returns(name):
+    """numpy-style ``Parameters`` naming every parameter of the signature (``a, b : type`` names
+    two), and ``Returns``."""
+    function = getattr(pinchmatch, name)
+    doc = inspect.getdoc(function)
+    named = set()
+    for line in _section(doc, "Parameters"):
+        if line and not line.startswith(" ") and " : " in line:
+            named |= {n.strip() for n in line.split(" : ")[0].split(",")}
+        elif line.startswith("**"):
+            named.add(line.strip())
+    params = {("**" + p.name) if p.kind is p.VAR_KEYWORD else p.name
+              for p in inspect.signature(function).parameters.values()}
+    assert named == params, f"{name}: documented {sorted(named)}, takes {sorted(params)}"
+    assert any(line.strip() for line in _section(doc, "Returns")), f"{name}: no Returns section"
+
+
 def _callables():
     """Every public function of the API and every public method of its classes, by name."""
     out = []

@@ -79,6 +79,20 @@ def complete_weights(given: Mapping, *, criteria: tuple = DEFAULT_CRITERIA) -> d
     Refused: unknown or misspelt names, criteria not in use (unless given as 0), weights that
     are negative or not finite, and weights that are all zero (nothing would be compared).
 
+    Parameters
+    ----------
+    given : mapping
+        {criterion: weight} the user gave.
+    criteria : tuple of str
+        The criteria in use (:data:`pinchmatch.config.DEFAULT_CRITERIA` or the paper's).
+
+    Returns
+    -------
+    dict
+        {criterion: weight} for every criterion.
+
+    Examples
+    --------
     >>> weights = complete_weights({"width": 2})
     >>> weights["width"], weights["kmax"], weights["com"]  # com: not a default criterion
     (2.0, 1.0, 0.0)

@@ -75,6 +75,28 @@ def analyze_object(
     ``mass_g`` is its mass in grams where known (the ``mass`` criterion compares felt torques when
     both objects have one); ``progress``, if given, is called with each stage's name as it starts.
 
+    Parameters
+    ----------
+    path : path-like
+        A mesh file (STL, OBJ, PLY, OFF, glTF or GLB), read by :func:`load_mesh`.
+    units, up : str, optional
+        The file's units and up (:func:`load_mesh`'s defaults where not given).
+    com_mm, axis : (3,) float64, optional
+        The centre of mass (mm) and principal axis, where known better than the shape says.
+    mass_g : float, optional
+        The object's mass in grams.
+    patch_radius_mm : float
+        The radius of the fingertip patches whose curvatures describe a pinch.
+    progress : callable, optional
+        Called with each stage's name as it starts.
+
+    Returns
+    -------
+    ObjectAnalysis
+        The loaded mesh, its properties (centre of mass, axis, mass) and its surface context.
+
+    Examples
+    --------
     >>> obj = analyze_object(box_stl, mass_g=120)
     >>> extents = obj.loaded.mesh.extents
     >>> obj.name, obj.mass_g, obj.props.com_mm.round(1).tolist(), extents.round(1).tolist()
@@ -104,6 +126,21 @@ def analyze_prop(prop: str | os.PathLike | ObjectSpec, **options) -> ObjectAnaly
     object of its own file stands nowhere: read it with :func:`analyze_object`, as the command line
     does.
 
+    Parameters
+    ----------
+    prop : path-like or ObjectSpec
+        A prop's mesh file or its spec (a manifest entry, a level node).
+    **options
+        For a file, :func:`analyze_object`'s options; for a spec, ``patch_radius_mm`` and
+        ``progress``.
+
+    Returns
+    -------
+    ObjectAnalysis
+        The prop, standing on its support unless its spec says ``support = "none"``.
+
+    Examples
+    --------
     >>> prop = analyze_prop(box_stl)
     >>> prop.context.support.source, prop.context.support.height_mm
     ('lowest point', -10.0)
@@ -118,6 +155,22 @@ def analyze_spec(spec: ObjectSpec, *, patch_radius_mm: float = 8.0,
     """:func:`analyze_object` for an object described by a spec (a manifest entry, a level node):
     its units, up, centre of mass, axis, node and contact regions.
 
+    Parameters
+    ----------
+    spec : ObjectSpec
+        The object's file and what its manifest entry or the command line says of it.
+    patch_radius_mm : float
+        The radius of the fingertip patches.
+    progress : callable, optional
+        Called with each stage's name as it starts.
+
+    Returns
+    -------
+    ObjectAnalysis
+        The object as its spec describes it.
+
+    Examples
+    --------
     >>> from pinchmatch import read_manifest
     >>> box, can = [analyze_spec(spec) for spec in read_manifest(props_toml)]
     >>> can.name, can.loaded.mesh.extents.round(1).tolist()  # the manifest says it is in metres
@@ -156,6 +209,20 @@ def find_pinches(obj: ObjectAnalysis, *,
                  settings: PinchSettings = PinchSettings()) -> tuple[Pinches, PinchFeatures]:
     """Feasible pinches spread over ``obj`` and their features.
 
+    Parameters
+    ----------
+    obj : ObjectAnalysis
+        The object.
+    settings : PinchSettings
+        The sampling (``grasp``: pinches or tripods) and the rules a pinch must pass.
+
+    Returns
+    -------
+    (Pinches, PinchFeatures)
+        The feasible pinches (or tripods) and their features.
+
+    Examples
+    --------
     >>> obj = analyze_object(box_stl)
     >>> pinches, features = find_pinches(obj, settings=PinchSettings(count=50, seed=0))
     >>> len(pinches), features.width_mm.shape, features.kappa_max_per_m.shape
@@ -235,11 +302,30 @@ def score_pinches(
     Returns the pinches (all of them, feasible or not; ``snap_distance_mm``
     says how far each contact moved) and their features.
 
+    Parameters
+    ----------
+    obj : ObjectAnalysis
+        The object.
+    p1_mm, p2_mm : (n, 3) float64
+        The given contacts (mm).
+    settings : PinchSettings
+        The rules a pinch must pass and how far a contact may be snapped.
+    source : str, optional
+        What messages call the given pinches (their file).
+
+    Returns
+    -------
+    (Pinches, PinchFeatures)
+        The pinches (all of them, feasible or not; ``snap_distance_mm`` says how far each contact
+        moved) and their features.
+
     Raises
     ------
     ContactError
         A contact is farther than ``settings.snap_tolerance_mm`` from the surface.
 
+    Examples
+    --------
     >>> obj = analyze_object(box_stl)  # 20 mm tall: a pinch from the top face to the bottom one
     >>> top, bottom = np.array([[0.0, 0.0, 10.0]]), np.array([[0.0, 0.0, -10.0]])
     >>> pinches, f = score_pinches(obj, top, bottom)

@@ -112,6 +112,13 @@ def patch_geometry(
     patch_radius_mm : float, optional
         Patch radius; default the context's.
 
+    Returns
+    -------
+    PatchGeometry
+        Per contact the patch's normal, principal curvatures (1/m) and directions.
+
+    Examples
+    --------
     >>> from pinchmatch import analyze_object
     >>> obj = analyze_object(box_stl)  # 60 x 40 x 20 mm, centred on the origin
     >>> up = np.array([[0.0, 0.0, 1.0]])

@@ -83,6 +83,21 @@ def _axis_angles(grasps: Pinches, a: np.ndarray) -> np.ndarray:
 def pinch_features(pinches: Pinches, props: ObjectProperties) -> PinchFeatures:
     """The seven features of every pinch, from its contacts and patches.
 
+    Parameters
+    ----------
+    pinches : Pinches
+        The pinches (or tripods) and their patches.
+    props : ObjectProperties
+        The object's centre of mass and principal axis.
+
+    Returns
+    -------
+    PinchFeatures
+        Per pinch its width (mm), distance from the centre of mass along the axis (mm), tilt (deg)
+        and its fingertip patches' orientations and curvatures.
+
+    Examples
+    --------
     >>> from pinchmatch import PinchSettings, analyze_object, sample_pinches
     >>> obj = analyze_object(box_stl)  # 60 x 40 x 20 mm: a pinch spans 20, 40, 60 mm or a diagonal
     >>> pinches = sample_pinches(obj.context, settings=PinchSettings(count=50, seed=0))

@@ -241,8 +241,12 @@ def check_pinches(
 
     Parameters
     ----------
+    context : SurfaceContext
+        The object's surface.
     p1_mm, p2_mm : (n, 3) float64
         Candidate contacts, near the surface.
+    settings : PinchSettings
+        The rules a pinch must pass and how far a contact may be snapped.
     faces : (n, 2) int, optional
         The triangles the contacts lie on, when they are known to be on the surface (ray hits):
         they are then taken as they are, with no closest-point search.
@@ -262,6 +266,8 @@ def check_pinches(
     Pinches
         All n candidates, in order, with ``feasible``, ``broken`` and ``approach`` set.
 
+    Examples
+    --------
     >>> from pinchmatch import analyze_object
     >>> obj = analyze_object(box_stl)  # 60 x 40 x 20 mm, centred on the origin
     >>> top, bottom, side = [0.0, 0.0, 10.0], [0.0, 0.0, -10.0], [30.0, 0.0, 0.0]

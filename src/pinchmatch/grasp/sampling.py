@@ -114,11 +114,27 @@ def sample_pinches(
     A count above ``NESTED_ABOVE`` is sampled nested (:func:`nested_sample`): its first pinches are
     the sample of half the count, so a larger count's sample holds a smaller one's.
 
+    Parameters
+    ----------
+    context : SurfaceContext
+        The object's surface.
+    settings : PinchSettings
+        The count, the seed and the rules a pinch must pass.
+    source : str
+        What messages call the object (its file).
+
+    Returns
+    -------
+    Pinches
+        About ``settings.count`` feasible pinches, spread, with their patches.
+
     Raises
     ------
     NoFeasiblePinchError
         No candidate passes; the message says how many each rule rejected.
 
+    Examples
+    --------
     >>> from pinchmatch import analyze_object
     >>> obj = analyze_object(box_stl)
     >>> pinches = sample_pinches(obj.context, settings=PinchSettings(count=50, seed=0))

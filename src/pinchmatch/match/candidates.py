@@ -62,6 +62,22 @@ def candidate_poses(
 ) -> Candidates:
     """The feasible poses of ``obj``: sampled, or the ``given`` (p1_mm, p2_mm) checked.
 
+    Parameters
+    ----------
+    obj : ObjectAnalysis
+        The object (:func:`analyze_object`).
+    settings : PinchSettings
+        The sampling and the rules a pose must pass.
+    given : (p1_mm, p2_mm), optional
+        Poses to check instead of sampling: two (n, 3) arrays of contacts (mm).
+    source : str, optional
+        What messages call the given poses (their file).
+
+    Returns
+    -------
+    Candidates
+        The feasible poses, their features and the object they are on.
+
     Raises
     ------
     NoFeasiblePinchError
@@ -69,6 +85,8 @@ def candidate_poses(
     ContactError
         A given contact is off the surface.
 
+    Examples
+    --------
     >>> from pinchmatch import PinchSettings, analyze_object
     >>> box = candidate_poses(analyze_object(box_stl), settings=PinchSettings(count=100, seed=0))
     >>> len(box.pinches), box.table.shape  # a row of 9 features per finger

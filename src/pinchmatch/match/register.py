@@ -67,6 +67,24 @@ def register_poses(
     points, normals : (k, 2, 3), the virtual ones already in finger order (virtual p1 goes on
     tangible p1). com and axis : (3,) or (k, 3).
 
+    Parameters
+    ----------
+    tangible_points, tangible_normals : (k, 2, 3) float64
+        The prop's contacts (mm) and patch normals (k, F, 3 for grasps of three or more contacts).
+    virtual_points, virtual_normals : (k, 2, 3) float64
+        The virtual object's, already in finger order (virtual p1 goes on tangible p1).
+    tangible_com, virtual_com : (3,) or (k, 3) float64
+        The objects' centres of mass (mm).
+    tangible_axis, virtual_axis : (3,) or (k, 3) float64
+        The objects' principal axes.
+
+    Returns
+    -------
+    (k, 4, 4) float64
+        The transforms taking each virtual pose onto its tangible pose.
+
+    Examples
+    --------
     >>> tangible = np.array([[[-10.0, 0.0, 0.0], [10.0, 0.0, 0.0]]])  # a pinch across X
     >>> virtual = np.array([[[0.0, -10.0, 5.0], [0.0, 10.0, 5.0]]])  # one across Y, 5 mm up
     >>> T = register_poses(tangible, np.sign(tangible), virtual, np.sign(virtual) * [1, 1, 0],
@@ -169,6 +187,26 @@ def register_pose(
     points, normals : (2, 3) per object, [p1, p2]. ``swapped``: the virtual p1
     goes on the tangible p2.
 
+    Parameters
+    ----------
+    tangible_points, tangible_normals : (2, 3) float64
+        The prop's contacts (mm) and patch normals, [p1, p2].
+    virtual_points, virtual_normals : (2, 3) float64
+        The virtual object's.
+    swapped : bool
+        The virtual p1 goes on the tangible p2.
+    tangible_com, virtual_com : (3,) float64
+        The objects' centres of mass (mm).
+    tangible_axis, virtual_axis : (3,) float64
+        The objects' principal axes.
+
+    Returns
+    -------
+    (4, 4) float64
+        The transform taking the virtual object onto the prop.
+
+    Examples
+    --------
     >>> tangible = np.array([[-10.0, 0.0, 0.0], [10.0, 0.0, 0.0]])
     >>> virtual = np.array([[0.0, -10.0, 5.0], [0.0, 10.0, 5.0]])
     >>> z = np.array([0.0, 0.0, 1.0])

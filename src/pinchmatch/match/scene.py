@@ -141,6 +141,34 @@ def match_one(tangibles: list[Candidates], virtual: Candidates, config: Config, 
     With ``details`` off only the best choice, its alternatives and the cost row are made (no
     landing, reference or redirection): what ``select`` and ``design`` rank props by.
 
+    Parameters
+    ----------
+    tangibles : list of Candidates
+        The props' poses.
+    virtual : Candidates
+        The virtual object's poses.
+    config : Config
+        The run's pinch and match settings.
+    model : CostModel
+        The run's cost model.
+    allowed : (list of int, str or None), optional
+        The tangibles this object may use, and why none is left where none is.
+    index : int
+        The object's place in the scene.
+    probes : dict, optional
+        The memo of the reference's lines on this object.
+    details : bool
+        Make the landing, the reference and the redirection (off: the best, alternatives and row).
+    search : Search, optional
+        The object's search, when the caller already made it.
+
+    Returns
+    -------
+    VirtualMatch
+        The best choice, its alternatives, the cost row over the tangibles and what the details add.
+
+    Examples
+    --------
     >>> from pinchmatch import Config, PinchSettings, analyze_object, candidate_poses, cost_model
     >>> config = Config(PinchSettings(count=200, seed=0))
     >>> box = candidate_poses(analyze_object(box_stl), settings=config.pinch)
@@ -213,6 +241,26 @@ def match_scene(tangibles: list[Candidates], virtuals: list[Candidates], *,
     ``model`` defaults to :func:`cost_model` over all candidates. Each object is matched by
     :func:`match_one`.
 
+    Parameters
+    ----------
+    tangibles, virtuals : list of Candidates
+        The props' and the virtual objects' poses.
+    config : Config, optional
+        The run's settings (or its parts ``settings`` and ``pinch_settings``).
+    settings : MatchSettings, optional
+        The match settings, where ``config`` is not given.
+    model : CostModel, optional
+        The cost model (default: over every candidate).
+    pinch_settings : PinchSettings, optional
+        The pinch settings, where ``config`` is not given.
+
+    Returns
+    -------
+    SceneMatch
+        Every virtual object's match and the scene's cost matrix.
+
+    Examples
+    --------
     >>> from pinchmatch import MatchSettings, PinchSettings, analyze_object, candidate_poses
     >>> settings = PinchSettings(count=200, seed=0)
     >>> box = candidate_poses(analyze_object(box_stl), settings=settings)
@@ -472,6 +520,32 @@ def match_virtual(tangibles: list[Candidates], virtual: Candidates, *,
     :func:`match_scene`; ``allowed`` is its entry of :func:`allowed_tangibles` (default: every
     tangible, which is right unless ``one_to_one``); ``probes`` as for :func:`match_one`.
 
+    Parameters
+    ----------
+    tangibles : list of Candidates
+        The props' poses.
+    virtual : Candidates
+        The virtual object's poses.
+    model : CostModel, optional
+        The run's cost model (default: over these objects).
+    config : Config, optional
+        The run's settings (or ``settings`` and ``pinch_settings``).
+    settings : MatchSettings, optional
+        The match settings, where ``config`` is not given.
+    allowed : (list of int, str or None), optional
+        The tangibles this object may use.
+    pinch_settings : PinchSettings, optional
+        The pinch settings, where ``config`` is not given.
+    probes : dict, optional
+        The memo of the reference's lines on this object.
+
+    Returns
+    -------
+    SceneMatch
+        A scene of this one object.
+
+    Examples
+    --------
     >>> from pinchmatch import PinchSettings, analyze_object, candidate_poses
     >>> settings = PinchSettings(count=200, seed=0)
     >>> box = candidate_poses(analyze_object(box_stl), settings=settings)

@@ -40,6 +40,7 @@ from ..config import MatchSettings  # noqa: F401 (re-exported)
 from .candidates import Candidates, felt_table, mass_ratio, pair_terms
 from .cost import CostModel, feature_ranges, pair_cost_blocks, pooled_bound_blocks, total
 from .redirect import Redirect, pair_budget, placed_transform, redirection, seen_turn
+from .choice import Choice, Pose, pinch_distance  # noqa: F401 (re-exported)
 from .pairs import PairResult, Ranked, Seen, concat_pairs, take_pairs
 from .register import FLIP_COSINE, register_poses
 from .comfort import approach_angles, comfortable_poses
@@ -77,6 +78,22 @@ def cost_model(settings: MatchSettings, candidates: list[Candidates], *,
     (or ``ranges``, when they were gathered elsewhere, see
     :func:`pinchmatch.match.cost.ranges_from_bounds`).
 
+    Parameters
+    ----------
+    settings : MatchSettings
+        The match's weights, criteria, normalisation and pooling.
+    candidates : list of Candidates
+        Every object of the run (their features' ranges, under ``normalize="range"``).
+    ranges : ndarray, optional
+        The features' ranges when they were gathered elsewhere.
+
+    Returns
+    -------
+    CostModel
+        The cost every pair of the run is judged by.
+
+    Examples
+    --------
     >>> model = cost_model(MatchSettings(weights={"width": 2.0}), [])
     >>> model.pooling, model.normalize, model.weights["width"], model.weights["com"]
     ('quick', 'jnd', 2.0, 0.0)
@@ -112,6 +129,31 @@ def evaluate_pairs(
     poses reached comfortably from where the user stands (``user_mm``, the level's frame; default:
     where the hand starts), unless it has none (:mod:`pinchmatch.match.comfort`).
 
+    Parameters
+    ----------
+    tangible, virtual : Candidates
+        The prop's and the virtual object's poses.
+    it, iv : (k,) int
+        The pairs' tangible and virtual pose indices.
+    model : CostModel, optional
+        The cost model.
+    keep_upright : bool, optional
+        Charge a placement that turns the virtual object upside down an infinite cost.
+    swapped : bool, optional
+        The finger order of every pair (default: each pair's better one).
+    redirect : Redirect, optional
+        Keep the virtual object where it is and redirect the hand (``--placement fixed``).
+    user_mm : (3,) float64, optional
+        Where the user stands, in the level's frame.
+
+    Returns
+    -------
+    PairResult
+        Per pair the exact cost, its terms, the finger order, the registration (mm), whether it
+        flips the object, the mass offset, whether it is allowed, the redirection and the rest gap.
+
+    Examples
+    --------
     >>> from pinchmatch import PinchSettings, analyze_object, candidate_poses
     >>> settings = PinchSettings(count=50, seed=0)
     >>> can = candidate_poses(analyze_object(can_obj, units="m"), settings=settings)
@@ -267,122 +309,6 @@ class _PairPool:
     first: int
     ranked: Ranked
     seen: Seen | None
-
-
-def pinch_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Order-free distance between grasps a (k, F, 3) and b (F, 3): the largest contact
-    displacement, in the nearer of the two finger orders
-    (:func:`pinchmatch.grasp.spread.other_order`)."""
-    direct = np.linalg.norm(a - b, axis=2).max(axis=1)
-    crossed = np.linalg.norm(a - b[other_order(len(b))], axis=2).max(axis=1)
-    return np.minimum(direct, crossed)
-
-
-@dataclass(frozen=True)
-class Pose:
-    """One grasp of a choice, in its object's frame (mm), as matches.json names it: the contacts
-    ``contacts_mm`` (F, 3) (a pinch's p1 and p2; a tripod's thumb, index and middle), their outward
-    ``normals`` (F, 3), and the hand's ``approach`` (3,) unit direction from the fingertips towards
-    the palm (NaN for a pose given without one). A virtual pose is in the tangible's finger order:
-    its first contact meets the tangible's first, and so on."""
-
-    contacts_mm: np.ndarray
-    normals: np.ndarray
-    approach: np.ndarray
-
-    @property
-    def p1_mm(self) -> np.ndarray:
-        return self.contacts_mm[0]
-
-    @property
-    def p2_mm(self) -> np.ndarray:
-        return self.contacts_mm[1]
-
-    @property
-    def n1(self) -> np.ndarray:
-        return self.normals[0]
-
-    @property
-    def n2(self) -> np.ndarray:
-        return self.normals[1]
-
-    @classmethod
-    def of(cls, candidates: Candidates, i: int, swapped: bool = False) -> "Pose":
-        p, n = candidates.pinches.points[i], candidates.pinches.normals[i]
-        if swapped:
-            other = other_order(len(p))
-            p, n = p[other], n[other]
-        return cls(p.copy(), n.copy(), candidates.pinches.approach[i].copy())
-
-
-@dataclass(frozen=True)
-class Choice:
-    """One registered pose pair and its exact evaluation.
-
-    Virtual object ``virtual``'s pose ``v_pose`` placed on tangible ``tangible``'s pose ``t_pose``
-    (``int`` indices into the scene's lists and into each object's :class:`Candidates`).
-
-    - ``terms``: ``(8,) float64``, dimensionless, each criterion's contribution (mean over its
-      entries of (difference / scale)², in the run's normalisation; with ``jnd``, 1 is just
-      noticeable), in the order of :data:`pinchmatch.match.cost.CRITERIA`, computed for every
-      criterion (those not in use weigh 0);
-    - ``cost``: ``float``, dimensionless, the cost the match ranks by (``--rank``: the expected cost
-      over the landings by default, :mod:`pinchmatch.match.felt`); ``cost_nominal`` the cost with
-      the fingers on their targets: the terms pooled by the model (:meth:`CostModel.pool`), in JND
-      under the default ``quick`` pooling, Σ weight x term under ``sum`` (the search's, exact);
-      ``p_noticed`` the chance that the ranked difference is noticed (None as the search finds it);
-    - ``swapped``: ``bool``, the virtual pose's p1 lies on the tangible's p2;
-    - ``transform``: ``(4, 4) float64``, the rigid transform taking the virtual object's frame (mm)
-      to the tangible's, so that the fingertips meet (under ``placement="fixed"``, the hand's warp);
-    - ``placement``: ``(4, 4) float64``, where the virtual object is as seen from the tangible: the
-      transform, or under ``placement="fixed"`` the level's (world to the prop's frame);
-    - ``flipped``: ``bool``, the placement turns the virtual object's up direction more than 90°
-      from the tangible's;
-    - ``tangible_pose``, ``virtual_pose``: the two pinches (:class:`Pose`), so that a choice carries
-      itself (``t_pose`` and ``v_pose`` index the match's candidates, refined ones included);
-    - ``mass_delta_mm``: ``(3,) float64``, the centre-of-mass offset from the pinch midpoint as seen
-      (virtual, registered, its mass relative to the tangible's) minus as felt (tangible), in the
-      tangible's frame, mm;
-    - ``tangible_name``, ``virtual_name``: ``str``, the objects' names (a manifest's ``name``, a
-      level node's, else the file's);
-    - ``redirect_terms``: ``(2,) float64``, the hand redirection's contributions to ``cost`` under
-      ``placement="fixed"`` (:mod:`pinchmatch.match.redirect`), else ``None``;
-    - ``rest_gap_mm``: the placed virtual object's lowest point over the prop's support, mm
-      (negative: sunk into it), or None where it is not shown on a support
-      (:mod:`pinchmatch.match.rest`); ``rest_jnd`` what the gap adds to ``cost`` (JND-equivalents; 0
-      where nothing is charged);
-    - ``approach_elevation_deg``, ``approach_azimuth_deg``: the hand's approach to the tangible
-      pinch seen from where the user stands (:mod:`pinchmatch.match.comfort`): above the table's
-      horizontal, and away from the direction to the user (0: straight from the user); None where
-      the prop is held in the hand or the pose has no approach.
-    """
-
-    virtual: int
-    tangible: int
-    t_pose: int
-    v_pose: int
-    cost: float
-    terms: np.ndarray
-    swapped: bool
-    transform: np.ndarray
-    flipped: bool
-    mass_delta_mm: np.ndarray
-    tangible_name: str = ""
-    virtual_name: str = ""
-    redirect_terms: np.ndarray | None = None
-    placement: np.ndarray | None = None
-    tangible_pose: Pose | None = None
-    virtual_pose: Pose | None = None
-    cost_nominal: float | None = None
-    p_noticed: float | None = None
-    rest_gap_mm: float | None = None
-    rest_jnd: float = 0.0
-    approach_elevation_deg: float | None = None
-    approach_azimuth_deg: float | None = None
-
-    def __post_init__(self):
-        if self.cost_nominal is None:  # as the search finds it: ranked by its cost on target
-            object.__setattr__(self, "cost_nominal", self.cost)
 
 
 class Search:

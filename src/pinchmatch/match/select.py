@@ -176,6 +176,24 @@ def select_props(cost: np.ndarray, noticeable: np.ndarray, k: int, *,
                  objective: str = "mean") -> Selection:
     """The ``k`` props that serve the scene best under ``objective`` (see the module notes).
 
+    Parameters
+    ----------
+    cost : (m, n) float64
+        The ranked cost of each virtual object (rows) on each prop (columns); inf where none fits.
+    noticeable : (m, n) bool
+        Whether each object's difference on each prop is noticed at least half of the time.
+    k : int
+        How many props to keep.
+    objective : {"mean", "max", "noticeable"}
+        What the selection minimises.
+
+    Returns
+    -------
+    Selection
+        The props kept, the objective's value and the prop each object is assigned.
+
+    Examples
+    --------
     >>> cost = np.array([[0.2, 1.5, 0.9], [2.0, 0.3, 0.8], [1.1, 1.2, 0.4]])  # 3 objects x 3 props
     >>> pick = select_props(cost, cost >= 1.0, 2)
     >>> pick.props.tolist(), round(pick.mean_cost, 3), pick.assigned.tolist()
@@ -199,6 +217,24 @@ def coverage_curve(cost: np.ndarray, noticeable: np.ndarray, *, objective: str =
                    max_k: int | None = None) -> list[Selection]:
     """The best selection for K = 1 … min(n, max_k); values never increase with K.
 
+    Parameters
+    ----------
+    cost : (m, n) float64
+        The ranked cost of each virtual object (rows) on each prop (columns); inf where none fits.
+    noticeable : (m, n) bool
+        Whether each object's difference on each prop is noticed at least half of the time.
+    objective : {"mean", "max", "noticeable"}
+        What a selection minimises.
+    max_k : int, optional
+        The largest shelf (default: every prop).
+
+    Returns
+    -------
+    list of Selection
+        The best selection of each size K = 1, 2, ...
+
+    Examples
+    --------
     >>> cost = np.array([[0.2, 1.5, 0.9], [2.0, 0.3, 0.8], [1.1, 1.2, 0.4]])
     >>> [(s.props.tolist(), round(s.mean_cost, 3)) for s in coverage_curve(cost, cost >= 1.0)]
     [([2], 0.7), ([0, 2], 0.467), ([0, 1, 2], 0.3)]

@@ -111,6 +111,18 @@ def rotations_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
     Opposite vectors get a half turn about an axis perpendicular to them.
 
+    Parameters
+    ----------
+    a, b : (k, 3) float64
+        Unit vectors.
+
+    Returns
+    -------
+    (k, 3, 3) float64
+        The rotations taking each ``a`` onto its ``b``.
+
+    Examples
+    --------
     >>> import numpy as np
     >>> R = rotations_between(np.array([[0.0, 0.0, 1.0]]), np.array([[0.0, 1.0, 0.0]]))
     >>> np.round(R[0] @ [0.0, 0.0, 1.0], 12) + 0.0

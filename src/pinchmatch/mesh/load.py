@@ -417,6 +417,11 @@ def load_mesh(
         Only this mesh node of a glTF/GLB scene, in world coordinates (a level split into its
         nodes, :func:`read_level`).
 
+    Returns
+    -------
+    LoadedMesh
+        The mesh in mm with its up along +Z, and how it was read and repaired.
+
     Raises
     ------
     MeshError
@@ -424,6 +429,8 @@ def load_mesh(
     ConfigError
         ``units`` or ``up`` is not a known value.
 
+    Examples
+    --------
     >>> loaded = load_mesh(can_obj, units="m")  # a file in metres, read in mm
     >>> loaded.mesh.extents.round(1).tolist(), loaded.units_in, loaded.watertight
     ([54.0, 54.0, 66.0], 'm', True)

@@ -254,6 +254,18 @@ def _pose(value, where: str, problems: _Problems) -> tuple | None:
 def read_manifest(path: str | os.PathLike) -> list[ObjectSpec]:
     """The objects a manifest lists, checked; every problem in one ConfigError, one line each.
 
+    Parameters
+    ----------
+    path : path-like
+        A TOML manifest.
+
+    Returns
+    -------
+    list of ObjectSpec
+        The objects it lists, with their options.
+
+    Examples
+    --------
     >>> [(spec.name, spec.units, spec.mass_g) for spec in read_manifest(props_toml)]
     [('box', None, 120.0), ('can', 'm', None)]
     """
@@ -464,6 +476,28 @@ def object_specs(paths, *, option: str, split: str | None = None, nodes=(), skip
     left out, with a line in ``notes``: :mod:`pinchmatch.mesh.furniture`, the level read in its
     spec's units and up, else ``units`` and ``up``, the run's); other files are not split.
 
+    Parameters
+    ----------
+    paths : list of path-like
+        Mesh files, folders of them and manifests.
+    option : str
+        The command-line option the paths came from (for messages).
+    split : {"none", "nodes"}, optional
+        Split glTF/GLB scenes into one object per mesh node.
+    nodes, skip_nodes : tuple of str
+        Globs of the node names or paths to keep and to leave out.
+    notes : list, optional
+        Collects a line for each level's furniture left out.
+    units, up : str, optional
+        The run's units and up, for files that give none.
+
+    Returns
+    -------
+    list of ObjectSpec
+        One spec per object, in the order given.
+
+    Examples
+    --------
     >>> [spec.display_name for spec in object_specs([props_toml, box_stl], option="--tangible")]
     ['box', 'can', 'box.stl']
     """

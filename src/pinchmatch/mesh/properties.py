@@ -121,6 +121,13 @@ def object_properties(
     com_mm, axis : (3,) float64, optional
         User overrides (a prop with a weight inside it).
 
+    Returns
+    -------
+    ObjectProperties
+        The centre of mass (mm), the principal axis and what they were computed from.
+
+    Examples
+    --------
     >>> from pinchmatch import load_mesh
     >>> loaded = load_mesh(can_obj, units="m")
     >>> props = object_properties(loaded.mesh, up=loaded.up, watertight=loaded.watertight)

@@ -362,6 +362,8 @@ def design_props(virtuals: list[Candidates], s: DesignSettings, *, match: MatchS
     -------
     DesignResult
 
+    Examples
+    --------
     >>> from pinchmatch import MatchSettings, PinchSettings, analyze_object, candidate_poses
     >>> settings = PinchSettings(count=100, seed=0)
     >>> can = candidate_poses(analyze_object(can_obj, units="m"), settings=settings)
