@@ -93,7 +93,7 @@ def landing(
     axis_deg: float = LANDING_AXIS_DEG,
     rings=RING_POINTS,
 ) -> Landing:
-    """The cost of ``choice`` (a :class:`pinchmatch.match.search.Choice`) over its landings; with a
+    """The cost of ``choice`` (a :class:`pinchmatch.match.choice.Choice`) over its landings; with a
     radius of 0, the choice itself (nothing of either surface is built)."""
     if radius_mm == 0:
         chance = p_noticed(tangible, virtual, choice, model)

@@ -7,7 +7,7 @@ stacking order it stands for, the part pinched, ``pose_source`` and the mean and
 
 :func:`static_ratings_table` joins them with a run of the rebuilt study (``pinchmatch demo``): per
 rated placement, the study's object name, the cost under the run's model and each criterion's
-difference in JND, the columns :func:`pinchmatch.match.calibrate.read_ratings` reads. The
+difference in JND, the columns :func:`pinchmatch.match.ratings.read_ratings` reads. The
 differences are the run's, not the paper's: they follow this version's features and criteria.
 """
 

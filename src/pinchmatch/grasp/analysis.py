@@ -42,7 +42,7 @@ MAX_COORDINATE_MM = 1e6
 @dataclass(frozen=True)
 class ObjectAnalysis:
     """A loaded object with its properties and surface context, and what its spec says of it
-    (its name, mass and regions: :class:`~pinchmatch.mesh.manifest.ObjectSpec`)."""
+    (its name, mass and regions: :class:`~pinchmatch.mesh.object_spec.ObjectSpec`)."""
 
     loaded: LoadedMesh
     props: ObjectProperties

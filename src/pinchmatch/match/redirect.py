@@ -10,7 +10,7 @@ depends on the pinch pair: this module measures it and turns it into cost.
 Frames: the world is the level's (the glTF file's frame: y up), in mm. A virtual object's
 coordinates are world coordinates (a level's node is read with every transform above it applied).
 A prop's file coordinates (in mm) are mapped into the world by its manifest ``pose``
-(:class:`pinchmatch.mesh.manifest.ObjectSpec`, ``R x + p``); a prop without a pose stands at the
+(:class:`pinchmatch.mesh.object_spec.ObjectSpec`, ``R x + p``); a prop without a pose stands at the
 world's origin, unturned.
 
 Per pose pair (the virtual pose's fingers in the order the search chose: p1 on the tangible's p1,
