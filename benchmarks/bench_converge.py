@@ -53,20 +53,9 @@ from bench_select import SCENE_REAL  # noqa: E402
 
 #: the YCB props and objects of ``--props ycb``
 YCB_PROPS = ["077_rubiks_cube", "025_mug", "006_mustard_bottle", "055_baseball"]
-YCB_OBJECTS = [
-    "029_plate",
-    "024_bowl",
-    "011_banana",
-    "013_apple",
-    "005_tomato_soup_can",
-    "040_large_marker",
-    "037_scissors",
-    "048_hammer",
-    "008_pudding_box",
-    "065-a_cups",
-    "033_spatula",
-    "010_potted_meat_can",
-]
+YCB_OBJECTS = ["029_plate", "024_bowl", "011_banana", "013_apple", "005_tomato_soup_can",
+               "040_large_marker", "037_scissors", "048_hammer", "008_pudding_box", "065-a_cups",
+               "033_spatula", "010_potted_meat_can"]
 
 
 def settings(count: int, refine_known: bool) -> list[tuple[str, list[str]]]:
@@ -77,31 +66,17 @@ def settings(count: int, refine_known: bool) -> list[tuple[str, list[str]]]:
     out = [(f"refine off, {count}", off + ["--count", str(count)]),
            (f"refine off, {4 * count}", off + ["--count", str(4 * count)])]
     if refine_known:
-        out = [
-            (f"default, {count}", ["--count", str(count)]),
-            (f"default, {4 * count}", ["--count", str(4 * count)]),
-            *out,
-            (f"off, nominal, {count}", off + ["--rank", "nominal", "--count", str(count)]),
-        ]
+        out = [(f"default, {count}", ["--count", str(count)]),
+               (f"default, {4 * count}", ["--count", str(4 * count)]), *out,
+               (f"off, nominal, {count}", off + ["--rank", "nominal", "--count", str(count)])]
     return out
 
 
 def timed_match(options: list[str], out: Path) -> tuple[dict, float]:
     """``pinchmatch match OPTIONS -o OUT`` as from the command line (no cache, page or figures):
     {virtual name: its entry of matches.json}, and the run's wall time."""
-    argv = [
-        sys.executable,
-        "-m",
-        "pinchmatch",
-        "match",
-        *options,
-        "--no-cache",
-        "--no-view",
-        "--no-figures",
-        "-q",
-        "-o",
-        str(out),
-    ]
+    argv = [sys.executable, "-m", "pinchmatch", "match", *options, "--no-cache", "--no-view",
+            "--no-figures", "-q", "-o", str(out)]
     t0 = time.perf_counter()
     proc = subprocess.run(argv, capture_output=True, text=True)
     seconds = time.perf_counter() - t0
@@ -114,18 +89,8 @@ def timed_match(options: list[str], out: Path) -> tuple[dict, float]:
 def run(tangibles, virtuals, options, seed, out: Path) -> tuple[dict, float]:
     """{virtual name: (best prop, cost, expected cost over the landings, the props listed as
     equivalent)} of one run, and its wall time."""
-    matches, seconds = timed_match(
-        [
-            "--tangible",
-            *map(str, tangibles),
-            "--virtual",
-            *map(str, virtuals),
-            "--seed",
-            str(seed),
-            *options,
-        ],
-        out,
-    )
+    matches, seconds = timed_match(["--tangible", *map(str, tangibles), "--virtual",
+                                    *map(str, virtuals), "--seed", str(seed), *options], out)
     return {name: (m["tangible"], m["cost"], (m.get("landing") or {}).get("cost_mean", m["cost"]),
                    {e["tangible"] for e in m.get("equivalent_tangibles", [])})
             for name, m in matches.items()}, seconds
@@ -135,11 +100,8 @@ def prop_changes(runs) -> bool:
     """Whether the best prop changes between runs of one object, where no run lists the other's prop
     as equivalent to its own."""
     best = [r[0] for r in runs]
-    return any(
-        a != b and b not in r[3] and a not in s[3]
-        for r, a in zip(runs, best)
-        for s, b in zip(runs, best)
-    )
+    return any(a != b and b not in r[3] and a not in s[3] for r, a in zip(runs, best)
+               for s, b in zip(runs, best))
 
 
 def lab_props(folder: Path) -> list[Path]:
@@ -165,17 +127,13 @@ def spread(costs) -> float:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument(
-        "--quick", action="store_true", help="2 seeds, 300 poses, 6 virtual objects"
-    )
+    parser.add_argument("--quick", action="store_true",
+                        help="2 seeds, 300 poses, 6 virtual objects")
     parser.add_argument("--count", type=int, help="the base count (default 1000, 300 with --quick)")
     parser.add_argument("--seeds", type=int, help="how many seeds (default 3, 2 with --quick)")
-    parser.add_argument(
-        "--props",
-        choices=("rocks", "lab", "ycb"),
-        default="rocks",
-        help="four random_urdfs rocks (default), four props a lab has, or YCB scans on both sides",
-    )
+    parser.add_argument("--props", choices=("rocks", "lab", "ycb"), default="rocks",
+                        help="four random_urdfs rocks (default), four props a lab has, or YCB "
+                             "scans on both sides")
     args = parser.parse_args(argv)
     count = args.count or (300 if args.quick else 1000)
     seeds = range(args.seeds or (2 if args.quick else 3))
@@ -185,22 +143,15 @@ def main(argv=None) -> int:
         virtuals = ycb_objects(root / "scene", YCB_OBJECTS)
         props = ycb_objects(root / "props", YCB_PROPS)
     else:
-        virtuals = [
-            p
-            for name, p in real_meshes(DEFAULT_ASSETS, root / "scene")
-            if name.startswith(SCENE_REAL)
-        ]
+        virtuals = [p for name, p in real_meshes(DEFAULT_ASSETS, root / "scene")
+                    if name.startswith(SCENE_REAL)]
         virtuals += random_objects(root / "scene", range(4), faces=6000)
-        props = (
-            lab_props(root / "props")
-            if args.props == "lab"
-            else random_objects(root / "props", range(950, 954), faces=6000)
-        )
+        props = (lab_props(root / "props") if args.props == "lab"
+                 else random_objects(root / "props", range(950, 954), faces=6000))
     if args.quick:
         virtuals = virtuals[::2][:6]
-    help_text = subprocess.run(
-        [sys.executable, "-m", "pinchmatch", "match", "--help"], capture_output=True, text=True
-    ).stdout
+    help_text = subprocess.run([sys.executable, "-m", "pinchmatch", "match", "--help"],
+                               capture_output=True, text=True).stdout
     plan = settings(count, "--refine" in help_text)
     print(f"# {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}; "
           f"{len(props)} props, {len(virtuals)} virtual objects, seeds {list(seeds)}")
@@ -221,10 +172,8 @@ def main(argv=None) -> int:
         for label, _ in plan:
             runs = [r[name] for r in results[label]]
             props_seen = "/".join(p.split("_")[-1].split(".")[0] for p, *_ in runs)
-            cells.append(
-                f"{props_seen} {spread([r[1] for r in runs]):6.1%} "
-                f"{np.mean([r[1] for r in runs]):8.3f}"
-            )
+            cells.append(f"{props_seen} {spread([r[1] for r in runs]):6.1%} "
+                         f"{np.mean([r[1] for r in runs]):8.3f}")
         print(f"{name:<28}" + "".join(f"{c:>44}" for c in cells))
     print()
     # regret: each run's expected cost against the least any setting and seed found for the object
@@ -244,11 +193,8 @@ def main(argv=None) -> int:
               f"{np.mean(regret):>12.3f} {np.max(regret):>11.3f} {np.mean(times[label]):>8.1f}")
     if len(plan) > 4:  # the default at the base count and at four times it, seed by seed
         one, four = plan[0][0], plan[1][0]
-        rises = [
-            four_r[name][1] - one_r[name][1]
-            for one_r, four_r in zip(results[one], results[four])
-            for name in names
-        ]
+        rises = [four_r[name][1] - one_r[name][1]
+                 for one_r, four_r in zip(results[one], results[four]) for name in names]
         print(f"\n{four} against {one}, seed by seed: {sum(r > 0.1 for r in rises)} of "
               f"{len(rises)} costs rise by more "
               f"than 0.1 (largest {max(rises):+.3f}); the default takes "

@@ -65,23 +65,18 @@ def build_level(folder: Path) -> tuple[dict, np.ndarray, dict, np.ndarray]:
     """kitchen.glb and props.toml in ``folder``; returns {node: its lowest y in mm}, the prop's
     vertices (mm), {node: its vertices in the level, mm} and the prop's pose position (mm, the
     level's frame)."""
-    meshes = [
-        (name, path)
-        for name, path in real_meshes(DEFAULT_ASSETS, folder)
-        if name.startswith(OBJECTS)
-    ]
+    meshes = [(name, path) for name, path in real_meshes(DEFAULT_ASSETS, folder)
+              if name.startswith(OBJECTS)]
     scene, lowest, shapes = trimesh.Scene(), {}, {}
     spots = [(0.0, 0.0)] + [(SPACING_MM * math.cos(a), SPACING_MM * math.sin(a) * 1.5)
                             for a in np.linspace(0, 2 * math.pi, len(meshes), endpoint=False)[1:]]
     can = next(path for name, path in meshes if name == "robosuite can")
-    order = sorted(
-        meshes, key=lambda m: m[0] != "robosuite can"
-    )  # the level's can at the prop's spot
+    # the level's can at the prop's spot
+    order = sorted(meshes, key=lambda m: m[0] != "robosuite can")
     for (name, path), (x, z) in zip(order, spots):
         mesh = trimesh.load(path, force="mesh")
-        mesh.apply_transform(
-            trimesh.transformations.rotation_matrix(-math.pi / 2, [1, 0, 0])
-        )  # z up -> y up
+        # z up -> y up
+        mesh.apply_transform(trimesh.transformations.rotation_matrix(-math.pi / 2, [1, 0, 0]))
         centre = mesh.bounds.mean(axis=0)
         mesh.apply_translation([x - centre[0], COUNTER_Y_MM - mesh.bounds[0, 1], z - centre[2]])
         node = name.replace(" ", "_")
@@ -124,16 +119,12 @@ def under_table(pose: dict, normal: np.ndarray, height: float) -> bool:
     u = p[1:].mean(axis=0) - p[0]
     k = np.cross(h, u / np.linalg.norm(u))
     k /= np.linalg.norm(k)
-    axes = np.array(
-        [
-            Rotation.from_rotvec(k * math.radians(SPLAY_DEG * (-1.0 if i == 0 else 1.0))).apply(h)
-            for i in range(len(p))
-        ]
-    )
+    axes = np.array([Rotation.from_rotvec(k * math.radians(SPLAY_DEG * (
+        -1.0 if i == 0 else 1.0))).apply(h)
+                     for i in range(len(p))])
     ends = tips + LENGTH_MM * axes
-    return bool(
-        (ends @ normal - height < FINGER_MM - PAD_MM - 1e-6).any() or (axes @ normal < -1e-9).any()
-    )
+    return bool((ends @ normal - height < FINGER_MM - PAD_MM - 1e-6).any()
+                or (axes @ normal < -1e-9).any())
 
 
 #: a shown object reads as resting within this many mm below its prop's table; hovering is counted
@@ -180,9 +171,8 @@ def far_approaches(doc: dict, prop_vertices: np.ndarray, position: np.ndarray) -
             h = np.array(pose["approach"], dtype=float)
             if not np.isfinite(h).all():
                 continue
-            p = np.array(
-                pose["contacts_mm"] if "contacts_mm" in pose else [pose["p1_mm"], pose["p2_mm"]]
-            )
+            p = np.array(pose["contacts_mm"] if "contacts_mm" in pose
+                         else [pose["p1_mm"], pose["p2_mm"]])
             h, mid = R @ h, p.mean(axis=0) @ R.T + position
             to_user, flat = (user - mid) * [1, 0, 1], h * [1, 0, 1]
             elevation = math.degrees(math.asin(np.clip(h[1], -1.0, 1.0)))
@@ -212,15 +202,13 @@ def check(doc: dict, prop_vertices: np.ndarray, lowest: dict, fixed: bool) -> tu
             checked += 1
             tangible += under_table(choice["tangible_pose"], prop_up, prop_table)
             if fixed and mode == "redirect":  # the virtual pinch is made where the object stands
-                virtual += under_table(
-                    choice["virtual_pose"], np.array([0.0, 1.0, 0.0]), lowest[m["virtual"]]
-                )
+                virtual += under_table(choice["virtual_pose"], np.array([0.0, 1.0, 0.0]),
+                                       lowest[m["virtual"]])
     return checked, tangible, virtual
 
 
-def seed_spread(
-    folder: Path, placement: str, count: int, seeds: list[int], grasp: str = "pinch"
-) -> str:
+def seed_spread(folder: Path, placement: str, count: int, seeds: list[int],
+                grasp: str = "pinch") -> str:
     """One line: over ``seeds``, how much each object's ranked cost varies with the default options,
     (max - min) / mean per object (0 where every seed costs 0), its median and largest over the
     objects."""
@@ -228,30 +216,14 @@ def seed_spread(
         return f"{placement}: one seed, no spread"
     costs: dict[str, list] = {}
     for seed in seeds:
-        matches, _ = timed_match(
-            [
-                "--tangible",
-                str(folder / "props.toml"),
-                "--virtual",
-                str(folder / "kitchen.glb"),
-                "--split",
-                "nodes",
-                "--placement",
-                placement,
-                "--count",
-                str(count),
-                "--seed",
-                str(seed),
-                "--grasp",
-                grasp,
-            ],
-            folder / f"out_{placement}_seed{seed}",
-        )
+        matches, _ = timed_match(["--tangible", str(folder / "props.toml"), "--virtual",
+                                  str(folder / "kitchen.glb"), "--split", "nodes", "--placement",
+                                  placement, "--count", str(count), "--seed", str(seed), "--grasp",
+                                  grasp], folder / f"out_{placement}_seed{seed}")
         for name, m in matches.items():
             costs.setdefault(name, []).append(m["cost"] if m.get("cost") is not None else np.inf)
-    spread = {
-        name: (max(c) - min(c)) / np.mean(c) if np.mean(c) > 0 else 0.0 for name, c in costs.items()
-    }
+    spread = {name: (max(c) - min(c)) / np.mean(c) if np.mean(c) > 0 else 0.0
+              for name, c in costs.items()}
     worst = max(spread, key=spread.get)
     return (f"{placement}: over seeds {','.join(map(str, seeds))} the ranked cost per object "
             "varies by a median of "
@@ -261,42 +233,20 @@ def seed_spread(
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument(
-        "--quick", action="store_true", help="300 poses per object instead of 1,000"
-    )
-    parser.add_argument(
-        "--seeds",
-        default="0,1,2",
-        help="the default run over these seeds: how much each object's ranked cost varies",
-    )
-    parser.add_argument(
-        "--grasp",
-        choices=("pinch", "tripod"),
-        default="pinch",
-        help="the grasp every run looks for (tripod: thumb against index and middle finger)",
-    )
+    parser.add_argument("--quick", action="store_true",
+                        help="300 poses per object instead of 1,000")
+    parser.add_argument("--seeds", default="0,1,2",
+                        help="the default run over these seeds: how much each object's ranked cost "
+                             "varies")
+    parser.add_argument("--grasp", choices=("pinch", "tripod"), default="pinch",
+                        help="the grasp every run looks for (tripod: thumb against index and "
+                             "middle finger)")
     args = parser.parse_args(argv)
     count = 300 if args.quick else 1000
-    rows = [
-        (
-            "placement",
-            "support",
-            "rank",
-            "pinches",
-            "under the prop's table",
-            "under the counter",
-            f"far side < {FAR_ELEVATION_DEG:g} deg",
-            "shown",
-            f"sunk > {SINK_MM:g}",
-            f"float > {FLOAT_MM:g}",
-            "worst gap",
-            "nominal",
-            "expected",
-            "expected felt",
-            "exp <= 2 nom + 0.3",
-            "wall s",
-        )
-    ]
+    rows = [("placement", "support", "rank", "pinches", "under the prop's table",
+             "under the counter", f"far side < {FAR_ELEVATION_DEG:g} deg", "shown",
+             f"sunk > {SINK_MM:g}", f"float > {FLOAT_MM:g}", "worst gap", "nominal", "expected",
+             "expected felt", "exp <= 2 nom + 0.3", "wall s")]
     summary = []
     with tempfile.TemporaryDirectory(prefix="pinchmatch-bench-level-") as tmp:
         folder = Path(tmp)
@@ -306,26 +256,11 @@ def main(argv=None) -> int:
             for support, rank in (("auto", "expected"), ("auto", "nominal"), ("none", "nominal")):
                 out = folder / f"out_{placement}_{support}_{rank}"
                 matches, seconds = timed_match(
-                    [
-                        "--tangible",
-                        str(folder / "props.toml"),
-                        "--virtual",
-                        str(folder / "kitchen.glb"),
-                        "--split",
-                        "nodes",
-                        "--placement",
-                        placement,
-                        "--support",
-                        support,
-                        "--rank",
-                        rank,
-                        "--count",
-                        str(count),
-                        "--grasp",
-                        args.grasp,
-                    ],
-                    out,
-                )
+                    ["--tangible", str(folder / "props.toml"), "--virtual",
+                     str(folder / "kitchen.glb"), "--split", "nodes", "--placement", placement,
+                     "--support", support, "--rank", rank, "--count", str(count), "--grasp",
+                     args.grasp],
+                    out)
                 doc = json.loads((out / "matches.json").read_text())
                 checked, tangible, virtual = check(doc, prop_vertices, lowest, placement == "fixed")
                 gaps = np.array(rest_gaps(doc, prop_vertices, shapes) or [np.nan])
@@ -335,54 +270,28 @@ def main(argv=None) -> int:
                 expected = np.array([x["cost_mean"] for x in landed])
                 # what the hand feels alone: the expected cost less what a gap beyond 2 mm adds (1
                 # JND per mm sunk, per 10 mm hovering: the defaults)
-                charged = np.array(
-                    [
-                        rest_charge(m.get("rest_gap_mm"))
-                        for m in matches.values()
-                        if m.get("landing")
-                    ]
-                )
+                charged = np.array([rest_charge(m.get("rest_gap_mm")) for m in matches.values()
+                                    if m.get("landing")])
                 felt = expected - charged
                 near = float(np.mean(expected <= 2.0 * nominal + 0.3))
                 seen[(support, rank)] = (float(expected.mean()), seconds)
-                rows.append(
-                    (
-                        placement,
-                        support,
-                        rank,
-                        checked,
-                        tangible,
-                        virtual if placement == "fixed" else "-",
-                        far_approaches(doc, prop_vertices, position)[1],
-                        int(np.isfinite(gaps).sum()),
-                        int((gaps < -SINK_MM).sum()),
-                        int((gaps > FLOAT_MM).sum()),
-                        f"{worst:+.1f}",
-                        f"{nominal.mean():.3f}",
-                        f"{expected.mean():.3f}",
-                        f"{felt.mean():.3f}",
-                        f"{near:.0%}",
-                        f"{seconds:.1f}",
-                    )
-                )
-            (e_default, t_default), (e_nominal, t_nominal) = (
-                seen[("auto", "expected")],
-                seen[("auto", "nominal")],
-            )
+                rows.append((placement, support, rank, checked, tangible,
+                             virtual if placement == "fixed" else "-",
+                             far_approaches(doc, prop_vertices, position)[1],
+                             int(np.isfinite(gaps).sum()), int((gaps < -SINK_MM).sum()),
+                             int((gaps > FLOAT_MM).sum()), f"{worst:+.1f}", f"{nominal.mean():.3f}",
+                             f"{expected.mean():.3f}", f"{felt.mean():.3f}", f"{near:.0%}",
+                             f"{seconds:.1f}"))
+            (e_default, t_default), (e_nominal,
+                                     t_nominal) = seen[("auto", "expected")], seen[(
+                                         "auto", "nominal")]
             summary.append(f"{placement}: mean expected cost {e_default:.3f} ranked by it, "
                            f"{e_nominal:.3f} ranked "
                            f"on target ({e_default / e_nominal:.2f}x); wall time "
                            f"{t_default / t_nominal:.2f}x")
         for placement in ("fixed", "registered"):
-            summary.append(
-                seed_spread(
-                    folder,
-                    placement,
-                    count,
-                    [int(x) for x in args.seeds.split(",") if x],
-                    args.grasp,
-                )
-            )
+            summary.append(seed_spread(folder, placement, count,
+                                       [int(x) for x in args.seeds.split(",") if x], args.grasp))
     widths = [max(len(str(row[i])) for row in rows) for i in range(len(rows[0]))]
     print(f"# {len(lowest)} real objects on a counter at y = {COUNTER_Y_MM:g} mm, one scanned can "
           "as the prop, "

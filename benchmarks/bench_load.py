@@ -43,20 +43,17 @@ def load_in(checkout: str | None, path: Path) -> dict:
     env = dict(os.environ)
     if checkout is not None:
         env["PYTHONPATH"] = str(Path(checkout) / "src")
-    out = subprocess.run(
-        [sys.executable, "-c", ONE, str(path)], env=env, capture_output=True, text=True, check=True
-    )
+    out = subprocess.run([sys.executable, "-c", ONE, str(path)], env=env, capture_output=True,
+                         text=True, check=True)
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument(
-        "--subdivisions", type=int, default=9, help="icosphere subdivisions (default 9: 5.2M faces)"
-    )
-    parser.add_argument(
-        "--against", metavar="DIR", help="also load in the checkout DIR, side by side"
-    )
+    parser.add_argument("--subdivisions", type=int, default=9,
+                        help="icosphere subdivisions (default 9: 5.2M faces)")
+    parser.add_argument("--against", metavar="DIR",
+                        help="also load in the checkout DIR, side by side")
     parser.add_argument("--mesh", metavar="FILE", help="load this file instead of the sphere")
     args = parser.parse_args()
     if args.mesh:
@@ -74,10 +71,8 @@ def main() -> None:
     print(f"# {path.name}: {path.stat().st_size / 2**20:.0f} MiB; {os.cpu_count()} cores")
     print(f"{'checkout':>20} {'faces':>9} {'seconds':>8} {'peak_MiB':>9} {'watertight':>10}")
     for name, r in rows:
-        print(
-            f"{name:>20} {r['faces']:>9} {r['seconds']:>8.1f} {r['peak_mib']:>9.0f} "
-            f"{str(r['watertight']):>10}"
-        )
+        print(f"{name:>20} {r['faces']:>9} {r['seconds']:>8.1f} {r['peak_mib']:>9.0f} "
+              f"{str(r['watertight']):>10}")
     for name, r in rows:
         print(f"stages shown, {name}: " + "; ".join(f"{t:.1f} s {s}" for t, s in r["stages"]))
     if len(rows) == 2:

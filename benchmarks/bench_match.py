@@ -71,41 +71,21 @@ def main() -> None:
         path = Path(tmp) / "ellipsoid.stl"
         ellipsoid((40.0, 25.0, 18.0), faces=20000).mesh.export(path)
         count = max(sizes)
-        T = candidate_poses(
-            analyze_object(example_mesh_path()), settings=PinchSettings(count=count)
-        )
+        T = candidate_poses(analyze_object(example_mesh_path()),
+                            settings=PinchSettings(count=count))
         V = candidate_poses(analyze_object(path), settings=PinchSettings(count=count, seed=1))
-    print(
-        f"sampled {len(T)} + {len(V)} poses in {time.perf_counter() - t0:.1f} s (not part of the "
-        "search)\n"
-    )
+    print(f"sampled {len(T)} + {len(V)} poses in {time.perf_counter() - t0:.1f} s (not part of the "
+          "search)\n")
 
-    header = [
-        "poses_t",
-        "poses_v",
-        "pairs_M",
-        "criteria",
-        "first_s",
-        "median_s",
-        "pairs_M_per_s",
-        "peak_MiB",
-        "exact",
-    ]
+    header = ["poses_t", "poses_v", "pairs_M", "criteria", "first_s", "median_s", "pairs_M_per_s",
+              "peak_MiB", "exact"]
     rows = []
     # the search over the given poses alone: refinement would add poses the brute force does not see
     search_only = dict(refine=False, landing_mm=0.0)
-    settings_list = [
-        ("default", MatchSettings(**search_only)),
-        (
-            "paper+range",
-            MatchSettings(
-                weights=dict.fromkeys(PAPER_CRITERIA, 1.0),
-                criteria=PAPER_CRITERIA,
-                normalize="range",
-                **search_only,
-            ),
-        ),
-    ]
+    settings_list = [("default", MatchSettings(**search_only)),
+                     ("paper+range", MatchSettings(weights=dict.fromkeys(PAPER_CRITERIA, 1.0),
+                                                   criteria=PAPER_CRITERIA, normalize="range",
+                                                   **search_only))]
     for n in sizes:
         t, v = T.subset(np.arange(min(n, len(T)))), V.subset(np.arange(min(n, len(V))))
         for label, settings in settings_list:
@@ -115,11 +95,8 @@ def main() -> None:
                 it = np.repeat(np.arange(len(t)), len(v))
                 iv = np.tile(np.arange(len(v)), len(t))
                 brute = evaluate_pairs(t, v, it, iv, model=cost_model(settings, [t, v])).cost.min()
-                exact = (
-                    "yes"
-                    if abs(brute - best) <= 1e-9 * max(1.0, brute)
-                    else f"NO ({brute:.6g} vs {best:.6g})"
-                )
+                exact = ("yes" if abs(brute - best) <= 1e-9 * max(1.0, brute)
+                         else f"NO ({brute:.6g} vs {best:.6g})")
             pairs = len(t) * len(v) / 1e6
             rows.append([len(t), len(v), f"{pairs:.1f}", label, f"{first_s:.3f}", f"{median_s:.3f}",
                          f"{pairs / median_s:.0f}", f"{peak:.0f}", exact])

@@ -87,24 +87,18 @@ def compare(quick: dict, summed: dict, detail: bool) -> dict:
                   f"{pooled(q, 'sum'):.4f}")
     largest_q = np.array([jnds(m).max() for m in quick.values()])
     largest_s = np.array([jnds(m).max() for m in summed.values()])
-    return {
-        "changed": len(changed),
-        "same_pair": same_pair,
-        "smaller": smaller,
-        "own_q": own_q,
-        "own_s": own_s,
-        "mean": (largest_s.mean(), largest_q.mean()),
-        "median": (np.median(largest_s), np.median(largest_q)),
-        "p": (max(noticed(m) for m in summed.values()), max(noticed(m) for m in quick.values())),
-    }
+    return {"changed": len(changed), "same_pair": same_pair, "smaller": smaller, "own_q": own_q,
+            "own_s": own_s, "mean": (largest_s.mean(), largest_q.mean()),
+            "median": (np.median(largest_s), np.median(largest_q)),
+            "p": (max(noticed(m) for m in summed.values()),
+                  max(noticed(m) for m in quick.values()))}
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="10 virtual objects instead of 40")
-    parser.add_argument(
-        "--detail", action="store_true", help="one line per object whose best prop changes"
-    )
+    parser.add_argument("--detail", action="store_true",
+                        help="one line per object whose best prop changes")
     args = parser.parse_args()
     n = 10 if args.quick else 40
     with tempfile.TemporaryDirectory(prefix="bench_pooling_") as tmp:
@@ -113,17 +107,13 @@ def main() -> None:
         tangibles = random_objects(root / "t", range(995, 1000))
         rows = []
         for label, refine in (("sampled (--refine off)", False), ("default (refined)", True)):
-            runs = {
-                p: match(tangibles, virtuals, p, refine, root / "cache", root / f"{p}-{refine}")
-                for p in BETAS
-            }
+            runs = {p: match(tangibles, virtuals, p, refine, root / "cache",
+                             root / f"{p}-{refine}") for p in BETAS}
             if args.detail:
                 print(f"{label}:")
             rows.append((label, compare(runs["quick"], runs["sum"], args.detail)))
-    print(
-        f"\n# {len(tangibles)} props x {n} virtual objects (pybullet_data random_urdfs), --pooling "
-        "sum -> quick"
-    )
+    print(f"\n# {len(tangibles)} props x {n} virtual objects (pybullet_data random_urdfs), "
+          "--pooling sum -> quick")
     print(f"{'setting':<24} {'other prop':>10} {'same pair':>9} {'smaller max':>11} "
           f"{'own best q/s':>12} "
           f"{'max JND mean':>14} {'max JND median':>15} {'largest p_noticed':>17}")

@@ -108,14 +108,8 @@ def side_by_side(other: str, faces: int, count: int, rounds: int) -> list[list]:
                                       "--faces", str(faces), "--count", str(count)],
                                      env=env, capture_output=True, text=True, check=True).stdout
                 best[label] = min(best.get(label, np.inf), float(out.split()[-1]))
-        rows.append(
-            [
-                name,
-                f"{best['before']:.3f}",
-                f"{best['after']:.3f}",
-                f"{best['before'] / best['after']:.2f}",
-            ]
-        )
+        rows.append([name, f"{best['before']:.3f}", f"{best['after']:.3f}",
+                     f"{best['before'] / best['after']:.2f}"])
     return rows
 
 
@@ -141,18 +135,9 @@ def speed(faces: int, count: int) -> list[list]:
         features = pinch_features(pinches, props)
         t2 = time.perf_counter()
         assert len(features.width_mm) == len(pinches)
-        rows.append(
-            [
-                shape.name,
-                len(mesh.faces),
-                ctx.ray_engine_name,
-                f"{t1 - t0:.3f}",
-                len(pinches),
-                f"{t2 - t1:.3f}",
-                f"{len(pinches) / (t2 - t1):.0f}",
-                f"{reach.seconds / (t2 - t1):.0%}",
-            ]
-        )
+        rows.append([shape.name, len(mesh.faces), ctx.ray_engine_name, f"{t1 - t0:.3f}",
+                     len(pinches), f"{t2 - t1:.3f}", f"{len(pinches) / (t2 - t1):.0f}",
+                     f"{reach.seconds / (t2 - t1):.0%}"])
     # the numpy fallback when embreex is missing, on a smaller mesh
     from trimesh.ray.ray_triangle import RayMeshIntersector
 
@@ -170,36 +155,24 @@ def speed(faces: int, count: int) -> list[list]:
 def growth(faces: int, counts=(2000, 5000, 10000)) -> list[list]:
     from pinchmatch.grasp import pinches as pinches_module, spread
 
-    sample_pinches(
-        SurfaceContext(shapes.sphere(30.0, faces=2000).mesh),
-        settings=PinchSettings(count=20, seed=0),
-    )
+    sample_pinches(SurfaceContext(shapes.sphere(30.0, faces=2000).mesh),
+                   settings=PinchSettings(count=20, seed=0))
     mesh = SPEED_SHAPES["ellipsoid_random"](faces).mesh
     props = object_properties(mesh, up=UP, watertight=True)
     rows, base = [], None
     for count in counts:
         ctx = SurfaceContext(mesh)
         ctx.tree, ctx.rays
-        with (
-            _Timed(spread, "spread_order") as spreading,
-            _Timed(pinches_module, "patch_geometry") as fits,
-        ):
+        with _Timed(spread, "spread_order") as spreading, _Timed(
+            pinches_module, "patch_geometry") as fits:
             t = time.perf_counter()
             pinches = sample_pinches(ctx, settings=PinchSettings(count=count, seed=0))
             pinch_features(pinches, props)
             seconds = time.perf_counter() - t
         base = base or seconds
-        rows.append(
-            [
-                count,
-                len(pinches),
-                f"{seconds:.3f}",
-                f"{seconds / base:.2f}",
-                f"{count / counts[0]:.1f}",
-                f"{spreading.seconds / seconds:.0%}",
-                f"{fits.seconds / seconds:.0%}",
-            ]
-        )
+        rows.append([count, len(pinches), f"{seconds:.3f}", f"{seconds / base:.2f}",
+                     f"{count / counts[0]:.1f}", f"{spreading.seconds / seconds:.0%}",
+                     f"{fits.seconds / seconds:.0%}"])
     return rows
 
 
@@ -213,11 +186,8 @@ def _errors(k_max, k_min, truth, d_max=None, normal=None):
         "normal_med_deg": np.nan,
     }
     if d_max is not None and not np.isnan(truth.dir_max).all():
-        c = np.abs(
-            np.einsum(
-                "ij,ij->i", d_max / np.linalg.norm(d_max, axis=1, keepdims=True), truth.dir_max
-            )
-        )
+        c = np.abs(np.einsum("ij,ij->i", d_max / np.linalg.norm(d_max, axis=1, keepdims=True),
+                             truth.dir_max))
         out["dir_med_deg"] = np.nanmedian(np.degrees(np.arccos(np.clip(c, 0, 1))))
     if normal is not None:
         c = np.einsum("ij,ij->i", normal, truth.normal)
@@ -247,8 +217,7 @@ def accuracy(sizes, n_points: int, noise_mm: float, report=lambda row: None) -> 
                         if tri == "cad":
                             continue  # noise on long slivers is not a scan
                         mesh.vertices = mesh.vertices + rng.normal(
-                            scale=noise, size=mesh.vertices.shape
-                        )
+                            scale=noise, size=mesh.vertices.shape)
                     clean_v = shape.mesh.vertices
                     interior = np.flatnonzero(shape.interior(clean_v, 8.0))
                     if len(interior) == 0:
@@ -256,41 +225,28 @@ def accuracy(sizes, n_points: int, noise_mm: float, report=lambda row: None) -> 
                     pick = rng.choice(interior, size=min(n_points, len(interior)), replace=False)
                     truth = shape.truth(clean_v[pick])
                     label = f"{shape.name} {len(mesh.faces)}" + (
-                        f" noise {noise:g}" if noise else ""
-                    )
+                        f" noise {noise:g}" if noise else "")
 
                     ctx = SurfaceContext(mesh)
                     t = time.perf_counter()
                     geom = patch_geometry(ctx, mesh.vertices[pick], mesh.vertex_normals[pick])
                     dt = time.perf_counter() - t
-                    row = _errors(
-                        geom.kappa_max_per_m, geom.kappa_min_per_m, truth, geom.dir_max, geom.normal
-                    )
-                    results.append(
-                        {"mesh": label, "method": "pinchmatch", "pts_per_s": len(pick) / dt, **row}
-                    )
+                    row = _errors(geom.kappa_max_per_m, geom.kappa_min_per_m, truth, geom.dir_max,
+                                  geom.normal)
+                    results.append({"mesh": label, "method": "pinchmatch",
+                                    "pts_per_s": len(pick) / dt, **row})
                     report(results[-1])
 
                     if igl is not None:
                         t = time.perf_counter()
                         pd1, pd2, pv1, pv2 = igl.principal_curvature(
-                            mesh.vertices.astype(np.float64), mesh.faces.astype(np.int64)
-                        )[:4]
+                            mesh.vertices.astype(np.float64), mesh.faces.astype(np.int64))[:4]
                         dt = time.perf_counter() - t
-                        pv1, pv2, pd1 = (
-                            np.asarray(pv1) * 1000,
-                            np.asarray(pv2) * 1000,
-                            np.asarray(pd1),
-                        )
+                        pv1, pv2, pd1 = (np.asarray(pv1) * 1000, np.asarray(pv2) * 1000,
+                                         np.asarray(pd1))
                         row = _errors(pv1[pick], pv2[pick], truth, pd1[pick])
-                        results.append(
-                            {
-                                "mesh": label,
-                                "method": "libigl",
-                                "pts_per_s": len(mesh.vertices) / dt,
-                                **row,
-                            }
-                        )
+                        results.append({"mesh": label, "method": "libigl",
+                                        "pts_per_s": len(mesh.vertices) / dt, **row})
                         report(results[-1])
 
                     if pymeshlab is not None:
@@ -307,14 +263,8 @@ def accuracy(sizes, n_points: int, noise_mm: float, report=lambda row: None) -> 
                         dt = time.perf_counter() - t
                         kmax, kmin = np.maximum(*values), np.minimum(*values)
                         row = _errors(kmax[pick], kmin[pick], truth)
-                        results.append(
-                            {
-                                "mesh": label,
-                                "method": "pymeshlab",
-                                "pts_per_s": len(mesh.vertices) / dt,
-                                **row,
-                            }
-                        )
+                        results.append({"mesh": label, "method": "pymeshlab",
+                                        "pts_per_s": len(mesh.vertices) / dt, **row})
                         report(results[-1])
     return results
 
@@ -336,24 +286,18 @@ def quiet_stdout():
 def table(header, rows) -> str:
     widths = [max(len(str(x)) for x in col) for col in zip(header, *rows)]
     fmt = "  ".join(f"{{:>{w}}}" for w in widths)
-    return "\n".join(
-        [fmt.format(*header), fmt.format(*["-" * w for w in widths])]
-        + [fmt.format(*r) for r in rows]
-    )
+    return "\n".join([fmt.format(*header), fmt.format(*["-" * w for w in widths])]
+                     + [fmt.format(*r) for r in rows])
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="smaller meshes and fewer points")
     parser.add_argument("--only", choices=("speed", "accuracy", "growth"), help="run one part only")
-    parser.add_argument(
-        "--against",
-        metavar="DIR",
-        help="also time the speed part in the checkout DIR, side by side",
-    )
-    parser.add_argument(
-        "--rounds", type=int, default=3, help="alternating rounds of --against (default 3)"
-    )
+    parser.add_argument("--against", metavar="DIR",
+                        help="also time the speed part in the checkout DIR, side by side")
+    parser.add_argument("--rounds", type=int, default=3,
+                        help="alternating rounds of --against (default 3)")
     parser.add_argument("--time-one", metavar="MESH", help=argparse.SUPPRESS)
     parser.add_argument("--faces", type=int, help=argparse.SUPPRESS)
     parser.add_argument("--count", type=int, help=argparse.SUPPRESS)
@@ -361,72 +305,38 @@ def main() -> None:
     if args.time_one:  # a subprocess of --against
         print(time_warm(args.time_one, args.faces, args.count, rounds=2))
         return
-    print(
-        f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, python "
-        f"{platform.python_version()}"
-    )
+    print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, python "
+          f"{platform.python_version()}")
 
     faces = 20_000 if args.quick else 100_000
     count = 500 if args.quick else 2000
     if args.only == "growth":
-        print(
-            f"\n## Growth with the count: poses with features on one ellipsoid of {faces} faces, "
-            "after loading\n"
-        )
-        print(
-            table(
-                [
-                    "asked",
-                    "found",
-                    "seconds",
-                    "time_ratio",
-                    "count_ratio",
-                    "spread_share",
-                    "fits_share",
-                ],
-                growth(faces),
-            )
-        )
+        print(f"\n## Growth with the count: poses with features on one ellipsoid of {faces} faces, "
+              "after loading\n")
+        print(table(["asked", "found", "seconds", "time_ratio", "count_ratio", "spread_share",
+                     "fits_share"],
+                    growth(faces)))
         print("\ntarget: 10,000 pinches in at most 6x the time of 2,000")
         return
     if args.only != "accuracy":
-        print(
-            f"\n## Speed: {count} feasible poses with all features, after loading (target <= 1.5 s "
-            "at 100k faces)\n"
-        )
-        print(
-            table(
-                [
-                    "mesh",
-                    "faces",
-                    "rays",
-                    "context_s",
-                    "poses",
-                    "poses+features_s",
-                    "poses_per_s",
-                    "reach_share",
-                ],
-                speed(faces, count),
-            )
-        )
+        print(f"\n## Speed: {count} feasible poses with all features, after loading (target <= 1.5 "
+              "s at 100k faces)\n")
+        print(table(["mesh", "faces", "rays", "context_s", "poses", "poses+features_s",
+                     "poses_per_s", "reach_share"],
+                    speed(faces, count)))
         if args.against:
             print(f"\n## Side by side with {args.against}: best of {args.rounds} alternating "
                   "subprocesses, "
                   "each the best of 2 warm runs (s)\n")
-            print(
-                table(
-                    ["mesh", "before_s", "after_s", "ratio"],
-                    side_by_side(args.against, faces, count, args.rounds),
-                )
-            )
+            print(table(["mesh", "before_s", "after_s", "ratio"],
+                        side_by_side(args.against, faces, count, args.rounds)))
     if args.only == "speed":
         return
 
     sizes = (2_000, 20_000) if args.quick else (2_000, 100_000)
     n_points = 100 if args.quick else 300
-    print(
-        f"\n## Curvature accuracy at {n_points} interior vertices per mesh (truth: closed form)\n"
-    )
+    print(f"\n## Curvature accuracy at {n_points} interior vertices per mesh (truth: closed "
+          "form)\n")
     header = ["mesh", "method", "kmax_med_%", "kmax_p95_%", "kmin_med_per_m", "dir_med_deg",
               "normal_med_deg", "pts_per_s"]
     widths = [34, 10, 10, 10, 14, 11, 14, 9]
@@ -435,19 +345,10 @@ def main() -> None:
     print(line.format(*["-" * w for w in widths]))
 
     def report(r):
-        print(
-            line.format(
-                r["mesh"],
-                r["method"],
-                f"{r['kmax_med_pct']:.2f}",
-                f"{r['kmax_p95_pct']:.2f}",
-                f"{r['kmin_med_per_m']:.2f}",
-                f"{r['dir_med_deg']:.2f}",
-                f"{r['normal_med_deg']:.3f}",
-                f"{r['pts_per_s']:.0f}",
-            ),
-            flush=True,
-        )
+        print(line.format(r["mesh"], r["method"], f"{r['kmax_med_pct']:.2f}",
+                          f"{r['kmax_p95_pct']:.2f}", f"{r['kmin_med_per_m']:.2f}",
+                          f"{r['dir_med_deg']:.2f}", f"{r['normal_med_deg']:.3f}",
+                          f"{r['pts_per_s']:.0f}"), flush=True)
 
     accuracy(sizes, n_points, noise_mm=0.05, report=report)
     print("\ntargets (clean, 2k-100k faces): kmax median <= 1.5 %, p95 <= 5 %, kmin median <= 1 "

@@ -36,22 +36,10 @@ sys.path.insert(0, str(Path(__file__).parent))
 from assets import DEFAULT_ASSETS, ycb_objects  # noqa: E402
 from bench_converge import timed_match  # noqa: E402
 
-OBJECTS = [
-    "002_master_chef_can",
-    "003_cracker_box",
-    "004_sugar_box",
-    "005_tomato_soup_can",
-    "007_tuna_fish_can",
-    "008_pudding_box",
-    "010_potted_meat_can",
-    "011_banana",
-    "013_apple",
-    "017_orange",
-    "021_bleach_cleanser",
-    "040_large_marker",
-    "043_phillips_screwdriver",
-    "048_hammer",
-]
+OBJECTS = ["002_master_chef_can", "003_cracker_box", "004_sugar_box", "005_tomato_soup_can",
+           "007_tuna_fish_can", "008_pudding_box", "010_potted_meat_can", "011_banana", "013_apple",
+           "017_orange", "021_bleach_cleanser", "040_large_marker", "043_phillips_screwdriver",
+           "048_hammer"]
 PROPS = ["006_mustard_bottle", "025_mug"]
 COUNTER_Y_MM, SPACING_MM = 900.0, 80.0
 RUNS = {"pinch, default": [], "pinch, plain": ["--refine", "off", "--rank", "nominal"],
@@ -65,9 +53,8 @@ def build_level(folder: Path, assets: Path) -> tuple[Path, list[Path]]:
     columns = math.ceil(len(OBJECTS) / 2)
     for i, path in enumerate(paths[:len(OBJECTS)]):
         mesh = trimesh.load(path, force="mesh")
-        mesh.apply_transform(
-            trimesh.transformations.rotation_matrix(-math.pi / 2, [1, 0, 0])
-        )  # z up -> y up
+        # z up -> y up
+        mesh.apply_transform(trimesh.transformations.rotation_matrix(-math.pi / 2, [1, 0, 0]))
         x, z = (i % columns - columns / 2) * 1.5 * SPACING_MM, (i // columns) * 1.5 * SPACING_MM
         centre = mesh.bounds.mean(axis=0)
         mesh.apply_translation([x - centre[0], COUNTER_Y_MM - mesh.bounds[0, 1], z - centre[2]])
@@ -83,9 +70,8 @@ def sampling_seconds(folder: Path, assets: Path, rounds: int) -> dict:
     from pinchmatch.grasp.analysis import find_pinches
 
     [path] = ycb_objects(folder / "mug", ["025_mug"], assets=assets)
-    warm = analyze_object(
-        path, units="mm"
-    )  # the compiled loops loaded (or compiled) before any clock
+    # the compiled loops loaded (or compiled) before any clock
+    warm = analyze_object(path, units="mm")
     for grasp in ("pinch", "tripod"):
         find_pinches(warm, settings=PinchSettings(count=20, seed=1, grasp=grasp))
     best = {}
@@ -94,10 +80,8 @@ def sampling_seconds(folder: Path, assets: Path, rounds: int) -> dict:
         times = []
         for _ in range(rounds):
             obj = analyze_object(path, units="mm")
-            (
-                obj.context.tree,
-                obj.context.rays,
-            )  # built before the clock starts: loading, not sampling
+            # built before the clock starts: loading, not sampling
+            obj.context.tree, obj.context.rays
             t0 = time.perf_counter()
             found, _ = find_pinches(obj, settings=settings)
             times.append(time.perf_counter() - t0)
@@ -125,13 +109,11 @@ def main(argv=None) -> int:
         names = list(RUNS)
         for r in range(args.rounds):
             for name in names[r % len(names):] + names[:r % len(names)]:
-                matches, wall = timed_match(
-                    base + RUNS[name], folder / f"out_{r}_{len(seconds[name])}"
-                )
+                matches, wall = (timed_match(base + RUNS[name],
+                                             folder / f"out_{r}_{len(seconds[name])}"))
                 seconds[name].append(wall / len(OBJECTS))
-                costs[name] = float(
-                    np.mean([m["cost"] for m in matches.values() if m.get("cost") is not None])
-                )
+                costs[name] = float(np.mean([m["cost"] for m in matches.values()
+                                             if m.get("cost") is not None]))
                 print(f"  round {r + 1}: {name}: {wall:.1f} s", file=sys.stderr, flush=True)
         median = {name: float(np.median(v)) for name, v in seconds.items()}
         print("\n| run | " + " | ".join(f"round {r + 1} (s/object)" for r in range(args.rounds))

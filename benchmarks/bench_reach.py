@@ -36,11 +36,8 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from assets import (
-    DEFAULT_ASSETS,
-    fetch,
-    ycb_objects,
-)  # benchmarks/assets.py: the packages, downloaded once
+# benchmarks/assets.py: the packages, downloaded once
+from assets import DEFAULT_ASSETS, fetch, ycb_objects
 from pinchmatch import PinchSettings
 from pinchmatch.mesh import vessels
 from pinchmatch.grasp.analysis import analyze_object, find_pinches
@@ -102,32 +99,14 @@ def run(name: str, path: Path, count: int) -> list:
     try:
         pinches, _ = find_pinches(obj, settings=PinchSettings(count=count, seed=0))
     except PinchmatchError as exc:
-        return [
-            name,
-            len(obj.loaded.mesh.faces),
-            count,
-            0,
-            "-",
-            "-",
-            "-",
-            f"{time.perf_counter() - t1:.2f}",
-            f"{t1 - t0:.2f}",
-            str(exc).split("; ")[-1][:60],
-        ]
+        return [name, len(obj.loaded.mesh.faces), count, 0, "-", "-", "-",
+                f"{time.perf_counter() - t1:.2f}", f"{t1 - t0:.2f}", str(exc).split("; ")[-1][:60]]
     t2 = time.perf_counter()
     width = np.linalg.norm(pinches.points[:, 1] - pinches.points[:, 0], axis=1)
-    return [
-        name,
-        len(obj.loaded.mesh.faces),
-        count,
-        len(pinches),
-        f"{crosses(obj, pinches).mean():.0%}",
-        f"{(width < 10.0).mean():.0%}",
-        pinches.rejected.get("reach", 0),
-        f"{t2 - t1:.2f}",
-        f"{t1 - t0:.2f}",
-        "watertight" if obj.loaded.watertight else "open surface",
-    ]
+    return [name, len(obj.loaded.mesh.faces), count, len(pinches),
+            f"{crosses(obj, pinches).mean():.0%}", f"{(width < 10.0).mean():.0%}",
+            pinches.rejected.get("reach", 0), f"{t2 - t1:.2f}", f"{t1 - t0:.2f}",
+            "watertight" if obj.loaded.watertight else "open surface"]
 
 
 def hollow_speed(count: int = 2000, repeats: int = 7, assets: Path = DEFAULT_ASSETS) -> None:
@@ -140,9 +119,8 @@ def hollow_speed(count: int = 2000, repeats: int = 7, assets: Path = DEFAULT_ASS
     from pinchmatch.mesh import shapes
 
     with tempfile.TemporaryDirectory() as tmp:
-        mug = vessels._fine(
-            vessels.mug(), 2.8
-        )  # long triangles split to edges of 2.8 mm at most: 279k faces
+        # long triangles split to edges of 2.8 mm at most: 279k faces
+        mug = vessels._fine(vessels.mug(), 2.8)
         paths = {"mug twin": Path(tmp) / "mug.stl", "YCB mug": Path(tmp) / "025_mug.stl",
                  "torus": Path(tmp) / "torus.stl"}
         mug.export(paths["mug twin"])
@@ -151,14 +129,10 @@ def hollow_speed(count: int = 2000, repeats: int = 7, assets: Path = DEFAULT_ASS
         objects = {}
         for name, path in paths.items():
             obj = analyze_object(path, units="mm")
-            (
-                obj.context.tree,
-                obj.context.rays,
-                obj.context.distance_field,
-            )  # built before the clock: loading
-            find_pinches(
-                obj, settings=PinchSettings(count=count, seed=0)
-            )  # compiled kernels loaded
+            # built before the clock: loading
+            obj.context.tree, obj.context.rays, obj.context.distance_field
+            # compiled kernels loaded
+            find_pinches(obj, settings=PinchSettings(count=count, seed=0))
             objects[name] = obj
         times, found = {name: [] for name in objects}, {}
         for _ in range(repeats):
@@ -185,9 +159,8 @@ def table(rows, head) -> str:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument(
-        "--quick", action="store_true", help="150 pinches per object instead of 500"
-    )
+    parser.add_argument("--quick", action="store_true",
+                        help="150 pinches per object instead of 500")
     parser.add_argument("--assets", type=Path,
                         default=DEFAULT_ASSETS)
     parser.add_argument("--hollow-speed", action="store_true",
@@ -199,22 +172,10 @@ def main(argv=None) -> int:
         hollow_speed(assets=args.assets)
         return 0
     count = 150 if args.quick else 500
-    print(
-        f"# {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}; "
-        f"{count} pinches asked"
-    )
-    head = [
-        "object",
-        "faces",
-        "asked",
-        "found",
-        "across",
-        "wall<10mm",
-        "reach_rej",
-        "poses_s",
-        "load_s",
-        "note",
-    ]
+    print(f"# {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}; "
+          f"{count} pinches asked")
+    head = ["object", "faces", "asked", "found", "across", "wall<10mm", "reach_rej", "poses_s",
+            "load_s", "note"]
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
@@ -224,12 +185,8 @@ def main(argv=None) -> int:
             make().export(path)
             objects.append((name, path))
         objects += real_meshes(args.assets, folder)
-        objects += list(
-            zip(
-                [name for name, _ in YCB],
-                ycb_objects(folder, [key for _, key in YCB], assets=args.assets),
-            )
-        )
+        objects += list(zip([name for name, _ in YCB],
+                            ycb_objects(folder, [key for _, key in YCB], assets=args.assets)))
         for name, path in objects:
             rows.append(run(name, path, count))
             print(table(rows[-1:], head).splitlines()[-1], flush=True)

@@ -63,30 +63,18 @@ def make_objects(folder: Path, n_virtual: int, seed: int = 7) -> tuple[list[Path
     for k in range(n_virtual):
         kind = k % 3
         if kind == 0:
-            mesh = ellipsoid(
-                rng.uniform(12, 50, 3), triangulation="random", faces=FACES, seed=k
-            ).mesh
+            mesh = ellipsoid(rng.uniform(12, 50, 3), triangulation="random", faces=FACES,
+                             seed=k).mesh
         elif kind == 1:
-            mesh = cylinder(
-                rng.uniform(8, 30),
-                rng.uniform(30, 120),
-                triangulation="random",
-                faces=FACES,
-                seed=k,
-            ).mesh
+            mesh = cylinder(rng.uniform(8, 30), rng.uniform(30, 120), triangulation="random",
+                            faces=FACES, seed=k).mesh
         else:
             minor = rng.uniform(6, 14)
-            mesh = torus(
-                minor + rng.uniform(10, 30), minor, triangulation="random", faces=FACES, seed=k
-            ).mesh
-        mesh.apply_transform(
-            np.block(
-                [
-                    [Rotation.random(random_state=rng).as_matrix(), np.zeros((3, 1))],
-                    [np.zeros((1, 3)), np.ones((1, 1))],
-                ]
-            )
-        )
+            mesh = torus(minor + rng.uniform(10, 30), minor, triangulation="random", faces=FACES,
+                         seed=k).mesh
+        mesh.apply_transform(np.block([[Rotation.random(random_state=rng).as_matrix(),
+                                        np.zeros((3, 1))],
+                                       [np.zeros((1, 3)), np.ones((1, 1))]]))
         mesh.export(folder / "v" / f"obj{k:04d}.stl")
     return sorted((folder / "t").glob("*.stl")), sorted((folder / "v").glob("*.stl"))
 
@@ -120,17 +108,8 @@ def _cpu_busy() -> np.ndarray:
     return np.stack([ticks.sum(axis=1) - idle, ticks.sum(axis=1)], axis=1)
 
 
-def run(
-    tangibles,
-    virtuals,
-    *,
-    poses: int | None,
-    jobs: int | None,
-    cache: Path,
-    out: Path,
-    fmt: str = "json",
-    outputs: bool = False,
-) -> dict:
+def run(tangibles, virtuals, *, poses: int | None, jobs: int | None, cache: Path, out: Path,
+        fmt: str = "json", outputs: bool = False) -> dict:
     """One ``pinchmatch match`` as a user runs it; ``outputs``: the default outputs (the page, and
     the figures where a checkout writes them by default), else the scenes only. ``poses`` and
     ``jobs`` None: the defaults."""
@@ -165,13 +144,8 @@ def run(
     lo, hi = len(busy) // 10, max(len(busy) - len(busy) // 10 - 1, len(busy) // 10 + 1)
     d = busy[min(hi, len(busy) - 1)] - busy[lo] if len(busy) > 1 else np.ones((1, 2))
     per_core = d[:, 0] / np.maximum(d[:, 1], 1)
-    return {
-        "seconds": seconds,
-        "main_mib": peak["main"],
-        "worker_mib": peak["worker"],
-        "cache_entries": entries,
-        "busy": per_core,
-    }
+    return {"seconds": seconds, "main_mib": peak["main"], "worker_mib": peak["worker"],
+            "cache_entries": entries, "busy": per_core}
 
 
 def _median_seconds(argv: list[str], runs: int = 7) -> float:
@@ -208,44 +182,25 @@ def startup() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         script = Path(tmp) / "workers.py"
         script.write_text(WORKER_START)
-        worker_s = float(
-            np.median(
-                [
-                    float(
-                        subprocess.run(
-                            [sys.executable, str(script)],
-                            capture_output=True,
-                            text=True,
-                            check=True,
-                        ).stdout
-                    )
-                    for _ in range(3)
-                ]
-            )
-        )
+        worker_s = float(np.median([float(subprocess.run(
+            [sys.executable, str(script)], capture_output=True,
+                                                         text=True, check=True).stdout)
+                                                         for _ in range(3)]))
     print(f"start-up, median of 7: python -c pass {bare:.3f} s; pinchmatch --help {help_s:.3f} s "
           f"({help_s / bare:.1f}x); a bad option {bad_s:.3f} s ({bad_s / bare:.1f}x)")
-    print(
-        f"local workers, median of 3: two started, one task each, {worker_s:.2f} s after the run "
-        "has loaded"
-    )
+    print(f"local workers, median of 3: two started, one task each, {worker_s:.2f} s after the run "
+          "has loaded")
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument(
-        "--quick", action="store_true", help="16 virtual objects, 8 for the poses rows"
-    )
-    parser.add_argument(
-        "--only",
-        choices=("startup", "real", "growth"),
-        help="one part only: start-up, the real assets (all outputs), growth (generated objects)",
-    )
-    parser.add_argument(
-        "--plot",
-        default=str(Path(__file__).with_name("scale.png")),
-        help="where the growth plot goes",
-    )
+    parser.add_argument("--quick", action="store_true",
+                        help="16 virtual objects, 8 for the poses rows")
+    parser.add_argument("--only", choices=("startup", "real", "growth"),
+                        help="one part only: start-up, the real assets (all outputs), growth "
+                             "(generated objects)")
+    parser.add_argument("--plot", default=str(Path(__file__).with_name("scale.png")),
+                        help="where the growth plot goes")
     args = parser.parse_args()
     if args.only in (None, "startup"):
         startup()
@@ -284,15 +239,8 @@ def real_runs(root: Path, quick: bool) -> None:
     rows = []
     for name, jobs, cache in (("cold --jobs 1", 1, "c1"), ("cold default jobs", None, "c2"),
                               ("warm --jobs 1", 1, "c2"), ("warm default jobs", None, "c2")):
-        r = run(
-            tangibles,
-            virtuals,
-            poses=None,
-            jobs=jobs,
-            cache=root / cache,
-            out=root / "out" / cache,
-            outputs=True,
-        )
+        r = run(tangibles, virtuals, poses=None, jobs=jobs, cache=root / cache,
+                out=root / "out" / cache, outputs=True)
         rows.append({"run": name, "objects": n, "poses": None, "jobs": jobs, **r})
         print(f"  {name}: {r['seconds']:.1f} s", file=sys.stderr, flush=True)
     _table(rows)
@@ -300,10 +248,8 @@ def real_runs(root: Path, quick: bool) -> None:
     print(f"ratio jobs 2 / jobs 1, cold: {cold1 / cold2:.2f}x faster; both cores busy "
           f"{'/'.join(f'{100 * b:.0f}' for b in rows[1]['busy'])} % (middle 80 % of the default "
           "run)")
-    print(
-        f"ratio warm / cold, default outputs: {cold1 / warm1:.1f}x with --jobs 1, "
-        f"{cold2 / warm2:.1f}x by default"
-    )
+    print(f"ratio warm / cold, default outputs: {cold1 / warm1:.1f}x with --jobs 1, "
+          f"{cold2 / warm2:.1f}x by default")
 
 
 def growth(quick: bool, plot_path: str) -> None:
@@ -323,15 +269,8 @@ def growth(quick: bool, plot_path: str) -> None:
     rows = []
 
     def row(name, objects, poses, jobs, cache, fmt="json"):
-        r = run(
-            tangibles,
-            virtuals[:objects],
-            poses=poses,
-            jobs=jobs,
-            cache=root / cache,
-            out=root / "out" / name,
-            fmt=fmt,
-        )
+        r = run(tangibles, virtuals[:objects], poses=poses, jobs=jobs, cache=root / cache,
+                out=root / "out" / name, fmt=fmt)
         rows.append({"run": name, "objects": objects, "poses": poses, "jobs": jobs, **r})
         print(f"  {name}: {r['seconds']:.1f} s", file=sys.stderr, flush=True)
         return r
@@ -346,9 +285,8 @@ def growth(quick: bool, plot_path: str) -> None:
         growth_objects[k] = row(f"cold {k} objects", k, 1000, 2, f"cache-o{k}")["seconds"]
     growth_poses = {}
     for poses in (500, 1000, 2000):
-        growth_poses[poses] = row(
-            f"cold {poses} poses", n_poses_objects, poses, 2, f"cache-p{poses}"
-        )["seconds"]
+        growth_poses[poses] = row(f"cold {poses} poses", n_poses_objects, poses, 2,
+                                  f"cache-p{poses}")["seconds"]
 
     print()
     _table(rows)
@@ -367,10 +305,8 @@ def growth(quick: bool, plot_path: str) -> None:
           f"{np.polyfit(np.log(ks), np.log(ts - intercept if intercept > 0 else ts), 1)[0]:.2f}")
     ps = np.array(sorted(growth_poses))
     tp = np.array([growth_poses[p] for p in ps])
-    print(
-        f"time vs poses ({n_poses_objects} objects): "
-        + ", ".join(f"{p}: {t:.1f} s" for p, t in zip(ps, tp))
-    )
+    print(f"time vs poses ({n_poses_objects} objects): "
+          + ", ".join(f"{p}: {t:.1f} s" for p, t in zip(ps, tp)))
     plot(ks, ts, slope, intercept, ps, tp, n_poses_objects, plot_path)
     print(f"plot: {plot_path}")
 
@@ -383,17 +319,10 @@ def plot(ks, ts, slope, intercept, ps, tp, n_poses_objects, path) -> None:
     FigureCanvasAgg(fig)
     a, b = fig.subplots(1, 2)
     a.plot(ks, ts, "o", color="#1f77b4", label="measured")
-    a.plot(
-        ks,
-        slope * ks + intercept,
-        "-",
-        color="#999999",
-        label=f"{slope:.2f} s/object + {intercept:.1f} s",
-    )
-    a.set(
-        xlabel="virtual objects (1000 poses each, 5 tangibles)",
-        ylabel="wall time, cold, --jobs 2 (s)",
-    )
+    a.plot(ks, slope * ks + intercept, "-", color="#999999",
+           label=f"{slope:.2f} s/object + {intercept:.1f} s")
+    a.set(xlabel="virtual objects (1000 poses each, 5 tangibles)",
+          ylabel="wall time, cold, --jobs 2 (s)")
     a.legend(frameon=False, fontsize=8)
     b.plot(ps, tp, "o-", color="#ff7f0e")
     b.set(xlabel="poses per object", ylabel="wall time, cold, --jobs 2 (s)",

@@ -52,20 +52,17 @@ PROP = ('[[object]]\nname = "can_prop"\nshape = { kind = "cylinder", diameter_mm
 def build_level(folder: Path) -> list[tuple[str, float]]:
     """kitchen.glb in ``folder``: each real object turned from its file's +Z up to +Y, standing on
     the table at its distance; returns (node name, distance mm)."""
-    meshes = [
-        (name, path) for name, path in real_meshes(DEFAULT_ASSETS, folder) if name.startswith(LEVEL)
-    ]
+    meshes = [(name, path) for name, path in real_meshes(DEFAULT_ASSETS, folder)
+              if name.startswith(LEVEL)]
     scene, placed = trimesh.Scene(), []
     for k, ((name, path), distance) in enumerate(zip(meshes, DISTANCES_MM)):
         mesh = trimesh.load(path, force="mesh")
-        mesh.apply_transform(
-            trimesh.transformations.rotation_matrix(-math.pi / 2, [1, 0, 0])
-        )  # z up -> y up
+        # z up -> y up
+        mesh.apply_transform(trimesh.transformations.rotation_matrix(-math.pi / 2, [1, 0, 0]))
         mesh.apply_scale(0.001)  # the level in metres
         centre = mesh.bounds.mean(axis=0)
-        mesh.apply_translation(
-            [-centre[0], -mesh.bounds[0, 1], -centre[2]]
-        )  # on the table, centred
+        # on the table, centred
+        mesh.apply_translation([-centre[0], -mesh.bounds[0, 1], -centre[2]])
         angle = 2.4 * k  # the spiral: each object a little further round
         T = np.eye(4)
         T[:3, 3] = [distance / 1000 * math.cos(angle), 0.0, distance / 1000 * math.sin(angle)]
@@ -95,16 +92,14 @@ def build_big_level(folder: Path, n: int = PAGE_OBJECTS) -> None:
         mesh.apply_translation([-centre[0], -mesh.bounds[0, 1], -centre[2]])
         loaded.append((name.replace(" ", "_"), mesh))
     scene, side = trimesh.Scene(), math.ceil(math.sqrt(n + 1))
-    cells = [(i, j) for i in range(side) for j in range(side) if (i, j) != (side // 2, side // 2)][
-        :n
-    ]
+    cells = [(i, j) for i in range(side) for j in range(side)
+             if (i, j) != (side // 2, side // 2)][:n]
     for k, (i, j) in enumerate(cells):
         name, mesh = loaded[k % len(loaded)]
         T = np.eye(4)
         T[:3, 3] = [0.25 * (i - side // 2), 0.0, 0.25 * (j - side // 2)]
-        scene.add_geometry(
-            mesh, node_name=f"{name}_{k:03d}", geom_name=f"{name}_{k:03d}_mesh", transform=T
-        )
+        scene.add_geometry(mesh, node_name=f"{name}_{k:03d}", geom_name=f"{name}_{k:03d}_mesh",
+                           transform=T)
     scene.export(folder / "kitchen.glb")
     (folder / "props.toml").write_text(PROP)
 
@@ -121,9 +116,8 @@ def page_load(index: Path) -> tuple[float, float]:
     if not chromium.exists():
         return size, float("nan")
     with sync_playwright() as p:
-        browser = p.chromium.launch(
-            executable_path=str(chromium), args=["--no-sandbox", "--use-gl=swiftshader"]
-        )
+        browser = p.chromium.launch(executable_path=str(chromium),
+                                    args=["--no-sandbox", "--use-gl=swiftshader"])
         page = browser.new_page(viewport={"width": 1400, "height": 900})
         t0 = time.perf_counter()
         page.goto(index.as_uri())
@@ -134,21 +128,10 @@ def page_load(index: Path) -> tuple[float, float]:
 
 
 def run(folder: Path, placement: str, count: int) -> tuple[dict, float]:
-    return timed_match(
-        [
-            "--tangible",
-            str(folder / "props.toml"),
-            "--virtual",
-            str(folder / "kitchen.glb"),
-            "--split",
-            "nodes",
-            "--placement",
-            placement,
-            "--count",
-            str(count),
-        ],
-        folder / f"out_{placement}",
-    )
+    return timed_match(["--tangible", str(folder / "props.toml"), "--virtual",
+                        str(folder / "kitchen.glb"), "--split", "nodes", "--placement", placement,
+                        "--count", str(count)],
+                       folder / f"out_{placement}")
 
 
 def angle_deg(start, a, b) -> float:
@@ -159,16 +142,14 @@ def angle_deg(start, a, b) -> float:
 def pinch_moved_mm(a: dict, b: dict) -> float:
     p = np.array([a["tangible_pose"]["p1_mm"], a["tangible_pose"]["p2_mm"]])
     q = np.array([b["tangible_pose"]["p1_mm"], b["tangible_pose"]["p2_mm"]])
-    return float(
-        min(np.linalg.norm(p - q, axis=1).max(), np.linalg.norm(p - q[::-1], axis=1).max())
-    )
+    return float(min(np.linalg.norm(p - q, axis=1).max(),
+                     np.linalg.norm(p - q[::-1], axis=1).max()))
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument(
-        "--quick", action="store_true", help="300 poses per object instead of 1,000"
-    )
+    parser.add_argument("--quick", action="store_true",
+                        help="300 poses per object instead of 1,000")
     args = parser.parse_args(argv)
     count = 300 if args.quick else 1000
     with tempfile.TemporaryDirectory(prefix="pinchmatch-bench-scene-") as tmp:
@@ -179,43 +160,14 @@ def main(argv=None) -> int:
         big = folder / "big"
         big.mkdir()
         build_big_level(big)
-        argv = [
-            sys.executable,
-            "-m",
-            "pinchmatch",
-            "match",
-            "--tangible",
-            str(big / "props.toml"),
-            "--virtual",
-            str(big / "kitchen.glb"),
-            "--split",
-            "nodes",
-            "--placement",
-            "fixed",
-            "--count",
-            "200",
-            "--no-cache",
-            "--no-figures",
-            "-q",
-            "-o",
-            str(big / "out"),
-        ]
+        argv = [sys.executable, "-m", "pinchmatch", "match", "--tangible", str(big / "props.toml"),
+                "--virtual", str(big / "kitchen.glb"), "--split", "nodes", "--placement", "fixed",
+                "--count", "200", "--no-cache", "--no-figures", "-q", "-o", str(big / "out")]
         subprocess.run(argv, check=False, capture_output=True)
         page_mb, page_s = page_load(big / "out" / "index.html")
-    head = (
-        "object",
-        "from prop mm",
-        "mode",
-        "angle deg",
-        "recomputed",
-        "gain",
-        "redirect cost",
-        "carousel cost",
-        "fixed cost",
-        "registered cost",
-        "pinch moved mm",
-        "rest gap mm fixed/registered",
-    )
+    head = ("object", "from prop mm", "mode", "angle deg", "recomputed", "gain", "redirect cost",
+            "carousel cost", "fixed cost", "registered cost", "pinch moved mm",
+            "rest gap mm fixed/registered")
     rows, worst = [head], 0.0
     for node, distance in placed:
         m, r = fixed[node], registered[node]
@@ -225,62 +177,35 @@ def main(argv=None) -> int:
         def cost(value):
             return "-" if value is None else f"{value:.3g}"
 
-        rows.append(
-            (
-                node,
-                f"{distance:.0f}",
-                red["mode"],
-                f"{red['angle_deg']:.2f}",
-                f"{again:.2f}",
-                f"{red['gain']:.3f}",
-                cost(red.get("redirect_cost")),
-                cost(red.get("carousel_cost")),
-                f"{m['cost']:.3g}",
-                f"{r['cost']:.3g}",
-                f"{pinch_moved_mm(m, r):.1f}",
-                "/".join(
-                    "-" if x.get("rest_gap_mm") is None else f"{x['rest_gap_mm']:+.1f}"
-                    for x in (m, r)
-                ),
-            )
-        )
+        rows.append((node, f"{distance:.0f}", red["mode"], f"{red['angle_deg']:.2f}",
+                     f"{again:.2f}", f"{red['gain']:.3f}", cost(red.get("redirect_cost")),
+                     cost(red.get("carousel_cost")), f"{m['cost']:.3g}", f"{r['cost']:.3g}",
+                     f"{pinch_moved_mm(m, r):.1f}",
+                     "/".join("-" if x.get("rest_gap_mm") is None else f"{x['rest_gap_mm']:+.1f}"
+                              for x in (m, r))))
     widths = [max(len(str(row[i])) for row in rows) for i in range(len(head))]
     print(f"# {len(placed)} real objects around one prop, {count} poses each")
     for row in rows:
         print("  ".join(str(c).rjust(w) for c, w in zip(row, widths)))
     modes = [fixed[node]["redirection"]["mode"] for node, _ in placed]
     beyond = sum(fixed[node]["redirection"].get("redirect_cost") is None for node, _ in placed)
-    over = [
-        node
-        for node, _ in placed
-        if fixed[node]["redirection"]["mode"] == "redirect"
-        and fixed[node]["redirection"]["redirect_cost"]
-        > fixed[node]["redirection"]["carousel_cost"] + 0.5
-    ]
-    gains = [
-        fixed[node]["redirection"]["gain"]
-        for node, _ in placed
-        if fixed[node]["redirection"]["mode"] == "redirect"
-    ]
-    print(
-        f"\nredirects costing more than their carousel plus the margin: {len(over)}; redirect "
-        "gains "
-        + (f"{min(gains):.3f} to {max(gains):.3f}" if gains else "none")
-        + f"; carousel beyond the budget {beyond}"
-    )
+    over = [node for node, _ in placed if fixed[node]["redirection"]["mode"] == "redirect"
+            and fixed[node]["redirection"]["redirect_cost"]
+            > fixed[node]["redirection"]["carousel_cost"] + 0.5]
+    gains = [fixed[node]["redirection"]["gain"] for node, _ in placed
+             if fixed[node]["redirection"]["mode"] == "redirect"]
+    print(f"\nredirects costing more than their carousel plus the margin: {len(over)}; redirect "
+          "gains "
+          + (f"{min(gains):.3f} to {max(gains):.3f}" if gains else "none")
+          + f"; carousel beyond the budget {beyond}")
     print(f"redirect {modes.count('redirect')}, carousel {modes.count('carousel')}; largest "
           "difference between "
           f"reported and recomputed angle {worst:.4f} deg; wall time fixed {t_fixed:.1f} s, "
           "registered "
           f"{t_registered:.1f} s ({t_fixed / t_registered:.2f}x)")
     for name, doc in (("fixed (the carousel)", fixed), ("registered", registered)):
-        gaps = np.array(
-            [
-                doc[node]["rest_gap_mm"]
-                for node, _ in placed
-                if doc[node].get("rest_gap_mm") is not None
-            ]
-        )
+        gaps = np.array([doc[node]["rest_gap_mm"] for node, _ in placed
+                         if doc[node].get("rest_gap_mm") is not None])
         print(f"{name}: {len(gaps)} objects shown on the prop; sunk more than 2 mm into its table "
               f"{int((gaps < -2.0).sum())}, more than 10 mm above it {int((gaps > 10.0).sum())}, "
               "not within 2 mm "

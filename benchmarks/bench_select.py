@@ -37,31 +37,15 @@ def main() -> None:
     args = parser.parse_args()
     root = Path(tempfile.mkdtemp(prefix="pinchmatch-bench-select-"))
     (root / "scene").mkdir(parents=True)
-    scene = [
-        p for name, p in real_meshes(DEFAULT_ASSETS, root / "scene") if name.startswith(SCENE_REAL)
-    ]
+    scene = [p for name, p in real_meshes(DEFAULT_ASSETS, root / "scene")
+             if name.startswith(SCENE_REAL)]
     scene += random_objects(root / "scene", range(10), faces=6000)
     shelf = random_objects(root / "shelf", range(950, 965), faces=6000)
     print(f"# pinchmatch select: a shelf of {len(shelf)} props, a scene of {len(scene)} objects; "
           f"-k {args.k} --objective {args.objective} --max-k {args.max_k}")
-    argv = [
-        sys.executable,
-        "-m",
-        "pinchmatch",
-        "select",
-        "--tangible",
-        *map(str, shelf),
-        "--virtual",
-        *map(str, scene),
-        "-k",
-        str(args.k),
-        "--objective",
-        args.objective,
-        "--max-k",
-        str(args.max_k),
-        "--cache",
-        str(root / "cache"),
-    ]
+    argv = [sys.executable, "-m", "pinchmatch", "select", "--tangible", *map(str, shelf),
+            "--virtual", *map(str, scene), "-k", str(args.k), "--objective", args.objective,
+            "--max-k", str(args.max_k), "--cache", str(root / "cache")]
     for run in ("cold", "warm"):
         out = root / f"out-{run}"
         t0 = time.perf_counter()
@@ -71,18 +55,15 @@ def main() -> None:
             raise SystemExit(f"select failed ({proc.returncode}): {proc.stderr.strip()}")
         print(f"{run}: {seconds:.1f} s (exit {proc.returncode})")
     doc = json.loads((root / "out-warm" / "selection.json").read_text())
-    print(
-        f"\n{'K':>2} {'objective':>10} {'mean_cost':>10} {'worst':>9} {'noticeable':>10} "
-        f"{'exact':>5}  props"
-    )
+    print(f"\n{'K':>2} {'objective':>10} {'mean_cost':>10} {'worst':>9} {'noticeable':>10} "
+          f"{'exact':>5}  props")
     for c in doc["coverage"]:
         print(f"{c['k']:>2} {c['value']:>10} {c['mean_cost']:>10} {c['worst_cost']:>9} "
               f"{c['noticeable_count']:>10} "
               f"{str(c['exact']):>5}  {', '.join(c['props'])}")
     print(f"\nchosen: {', '.join(doc['selection']['props'])}; suggestion: {doc['suggestion']}")
-    print(
-        f"\n{'virtual':>28} {'tangible':>16} {'cost':>9} {'noticeable':>10} {'best addition':>16}"
-    )
+    print(f"\n{'virtual':>28} {'tangible':>16} {'cost':>9} {'noticeable':>10} "
+          f"{'best addition':>16}")
     for o in doc["objects"]:
         print(f"{o['virtual']:>28} {str(o['tangible']):>16} {str(o['cost']):>9} "
               f"{str(o['noticeable']):>10} "

@@ -26,41 +26,19 @@ from pathlib import Path
 
 import numpy as np
 
-from assets import (
-    DEFAULT_ASSETS,
-    ycb_objects,
-)  # benchmarks/assets.py: the packages, downloaded once
-from pinchmatch import (
-    Config,
-    MatchSettings,
-    PinchSettings,
-    analyze_object,
-    candidate_poses,
-    match_scene,
-)
+# benchmarks/assets.py: the packages, downloaded once
+from assets import DEFAULT_ASSETS, ycb_objects
+from pinchmatch import (Config, MatchSettings, PinchSettings, analyze_object, candidate_poses,
+                        match_scene)
 from pinchmatch.errors import NoFeasiblePinchError
 from pinchmatch.grasp.analysis import find_pinches
 from pinchmatch.match.cost import CostModel, pair_cost_blocks
 
-SPEED_SCANS = [
-    "013_apple",
-    "005_tomato_soup_can",
-    "025_mug",
-    "011_banana",
-    "037_scissors",
-    "048_hammer",
-]
+SPEED_SCANS = ["013_apple", "005_tomato_soup_can", "025_mug", "011_banana", "037_scissors",
+               "048_hammer"]
 PROPS = ["077_rubiks_cube", "025_mug", "006_mustard_bottle", "055_baseball"]
-OBJECTS = [
-    "013_apple",
-    "011_banana",
-    "037_scissors",
-    "033_spatula",
-    "040_large_marker",
-    "048_hammer",
-    "029_plate",
-    "024_bowl",
-]
+OBJECTS = ["013_apple", "011_banana", "037_scissors", "033_spatula", "040_large_marker",
+           "048_hammer", "029_plate", "024_bowl"]
 
 
 def table(rows, head) -> str:
@@ -72,9 +50,8 @@ def table(rows, head) -> str:
 def sampling(folder: Path, assets: Path) -> None:
     rows = []
     paths = ycb_objects(folder, SPEED_SCANS, assets=assets)
-    warm = analyze_object(
-        paths[0], units="mm"
-    )  # the compiled spread loop is loaded (or compiled) before any clock
+    # the compiled spread loop is loaded (or compiled) before any clock
+    warm = analyze_object(paths[0], units="mm")
     for grasp in ("pinch", "tripod"):
         find_pinches(warm, settings=PinchSettings(count=20, seed=1, grasp=grasp))
     for path in paths:
@@ -85,17 +62,10 @@ def sampling(folder: Path, assets: Path) -> None:
             t0 = time.perf_counter()
             grasps, _ = find_pinches(obj, settings=PinchSettings(count=1000, seed=0, grasp=grasp))
             seconds[grasp] = (time.perf_counter() - t0, len(grasps))
-        rows.append(
-            [
-                path.stem,
-                len(obj.loaded.mesh.faces),
-                seconds["pinch"][1],
-                f"{seconds['pinch'][0]:.2f}",
-                seconds["tripod"][1],
-                f"{seconds['tripod'][0]:.2f}",
-                f"{seconds['tripod'][0] / seconds['pinch'][0]:.2f}",
-            ]
-        )
+        rows.append([path.stem, len(obj.loaded.mesh.faces), seconds["pinch"][1],
+                     f"{seconds['pinch'][0]:.2f}", seconds["tripod"][1],
+                     f"{seconds['tripod'][0]:.2f}",
+                     f"{seconds['tripod'][0] / seconds['pinch'][0]:.2f}"])
     print(table(rows, ["scan", "faces", "pinches", "pinch s", "tripods", "tripod s", "x pinch"]))
 
 
@@ -112,15 +82,8 @@ def search_speed(folder: Path, assets: Path, n: int = 2000) -> None:
             for _, block, _ in pair_cost_blocks(table_, table_, model):
                 block.min()
             best = min(best, time.perf_counter() - t0)
-        rows.append(
-            [
-                grasp,
-                len(table_),
-                table_.shape[1],
-                f"{best:.3f}",
-                f"{1e9 * best / len(table_) ** 2:.1f}",
-            ]
-        )
+        rows.append([grasp, len(table_), table_.shape[1], f"{best:.3f}",
+                     f"{1e9 * best / len(table_) ** 2:.1f}"])
     print(table(rows, ["grasp", "poses", "contacts", "seconds", "ns/pair"]))
 
 
@@ -129,62 +92,39 @@ def pinch_against_tripod(folder: Path, assets: Path, count: int) -> None:
     results = {}
     for grasp in ("pinch", "tripod"):
         settings = PinchSettings(count=count, seed=0, grasp=grasp)
-        props = [
-            candidate_poses(analyze_object(paths[p], units="mm"), settings=settings) for p in PROPS
-        ]
+        props = [candidate_poses(analyze_object(paths[p], units="mm"), settings=settings)
+                 for p in PROPS]
         config = Config(settings, MatchSettings(top_k=1))
         for name in OBJECTS:
             t0 = time.perf_counter()
             try:
-                virtual = candidate_poses(
-                    analyze_object(paths[name], units="mm"), settings=settings
-                )
+                virtual = candidate_poses(analyze_object(paths[name], units="mm"),
+                                          settings=settings)
             except NoFeasiblePinchError as exc:
-                results[(name, grasp)] = (
-                    None,
-                    None,
-                    str(exc).split("; ")[0].split(": ", 1)[-1][:60],
-                    0.0,
-                )
+                results[(name, grasp)] = (None, None,
+                                          str(exc).split("; ")[0].split(": ", 1)[-1][:60], 0.0)
                 continue
             best = match_scene(props, [virtual], config=config).matches[0].best
-            results[(name, grasp)] = (
-                best.tangible_name.split(".")[0],
-                best.cost,
-                None,
-                time.perf_counter() - t0,
-            )
+            results[(name, grasp)] = (best.tangible_name.split(".")[0], best.cost, None,
+                                      time.perf_counter() - t0)
     rows = []
     for name in OBJECTS:
         p, t = results[(name, "pinch")], results[(name, "tripod")]
         closer = "-" if t[1] is None or p[1] is None else ("tripod" if t[1] < p[1] else "pinch")
         rows.append([name, p[0] or "-", "-" if p[1] is None else f"{p[1]:.3f}", t[0] or "-",
                      "-" if t[1] is None else f"{t[1]:.3f}", closer, t[2] or ""])
-    print(
-        table(
-            rows,
-            [
-                "object",
-                "pinch prop",
-                "pinch JND",
-                "tripod prop",
-                "tripod JND",
-                "closer",
-                "tripod impossible",
-            ],
-        )
-    )
+    print(table(rows,
+                ["object", "pinch prop", "pinch JND", "tripod prop", "tripod JND", "closer",
+                 "tripod impossible"]))
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument(
-        "--quick", action="store_true", help="300 poses per object in the scene table"
-    )
+    parser.add_argument("--quick", action="store_true",
+                        help="300 poses per object in the scene table")
     parser.add_argument("--assets", type=Path, default=DEFAULT_ASSETS)
-    parser.add_argument(
-        "--only", choices=("sampling", "search", "scene"), help="one of the three tables"
-    )
+    parser.add_argument("--only", choices=("sampling", "search", "scene"),
+                        help="one of the three tables")
     args = parser.parse_args(argv)
     print(f"# {platform.machine()}, {platform.python_version()}, {time.strftime('%Y-%m-%d')}")
     with tempfile.TemporaryDirectory() as tmp:
@@ -192,16 +132,12 @@ def main(argv=None) -> int:
             print("\n## sampling, 1,000 asked (seconds after loading)")
             sampling(Path(tmp) / "speed", args.assets)
         if args.only in (None, "search"):
-            print(
-                "\n## the exact search's separable pass, every pair of 2,000 x 2,000 poses (best "
-                "of 7)"
-            )
+            print("\n## the exact search's separable pass, every pair of 2,000 x 2,000 poses (best "
+                  "of 7)")
             search_speed(Path(tmp) / "search", args.assets)
         if args.only in (None, "scene"):
-            print(
-                "\n## pinch against tripod: 8 YCB objects on 4 YCB props, the default match "
-                "(ranked: expected cost)"
-            )
+            print("\n## pinch against tripod: 8 YCB objects on 4 YCB props, the default match "
+                  "(ranked: expected cost)")
             pinch_against_tripod(Path(tmp) / "scene", args.assets, 300 if args.quick else 1000)
     return 0
 

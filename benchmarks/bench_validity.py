@@ -39,9 +39,8 @@ from pinchmatch.match.cost import CRITERIA, DEFAULT_CRITERIA, PAPER_CRITERIA, Co
 EXPONENTS = (2.0, 2.5, 3.0, 3.5, 4.0, 5.0)
 
 
-def pooled(
-    jnd: np.ndarray, criteria: tuple, exponent: float, *, left_out: str | None = None
-) -> np.ndarray:
+def pooled(jnd: np.ndarray, criteria: tuple, exponent: float, *,
+           left_out: str | None = None) -> np.ndarray:
     """(n,) Minkowski pooling of rows of per-criterion differences (JND, in CRITERIA order), weights
     1: in JND whatever the exponent (for 2, the root of the sum pooling, which ranks the same)."""
     w = np.array([1.0 if c in criteria and c != left_out else 0.0 for c in CRITERIA])
@@ -54,9 +53,8 @@ def rho(cost, rating) -> float:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument(
-        "--study", metavar="study.json", help="a study.json to read instead of running the study"
-    )
+    parser.add_argument("--study", metavar="study.json",
+                        help="a study.json to read instead of running the study")
     args = parser.parse_args()
     if args.study:
         doc = json.loads(Path(args.study).read_text())
@@ -71,35 +69,22 @@ def main() -> None:
     rating = np.array([float(r["rating"]) for r in rows])
     jnd = np.array([[float(r[f"{c}_jnd"]) for c in CRITERIA] for r in rows])
     obj = np.array([names.index(r["object"]) for r in rows])
-    table = [
-        ("the study's default cost (cost)", rho([float(r["cost"]) for r in rows], rating)),
-        (
-            "the paper's cost (paper criteria, range, sum)",
-            rho([float(r["cost_paper"]) for r in rows], rating),
-        ),
-    ]
+    table = [("the study's default cost (cost)", rho([float(r["cost"]) for r in rows], rating)),
+             ("the paper's cost (paper criteria, range, sum)",
+              rho([float(r["cost_paper"]) for r in rows], rating))]
     felt = [r.get("cost_expected") for r in rows]
     if all(f is not None for f in felt):  # a study.json of a version that felt its placements
-        table.append(
-            (
-                "the default's expected cost over the landings (cost_expected, what --rank ranks "
-                "by)",
-                rho([float(f) for f in felt], rating),
-            )
-        )
+        table.append(("the default's expected cost over the landings (cost_expected, what --rank "
+                      "ranks by)",
+                      rho([float(f) for f in felt], rating)))
     for label, criteria in (("default", DEFAULT_CRITERIA), ("paper's seven", PAPER_CRITERIA),
                             ("paper's seven + mass", PAPER_CRITERIA + ("mass",))):
         for pooling, beta in (("quick", 3.5), ("sum", 2.0)):
-            table.append(
-                (f"{label} criteria, jnd, {pooling}", rho(pooled(jnd, criteria, beta), rating))
-            )
+            table.append((f"{label} criteria, jnd, {pooling}",
+                          rho(pooled(jnd, criteria, beta), rating)))
     for c in DEFAULT_CRITERIA:
-        table.append(
-            (
-                f"default without {c}, quick",
-                rho(pooled(jnd, DEFAULT_CRITERIA, 3.5, left_out=c), rating),
-            )
-        )
+        table.append((f"default without {c}, quick",
+                      rho(pooled(jnd, DEFAULT_CRITERIA, 3.5, left_out=c), rating)))
     # the exponent, chosen without the held-out object
     held = np.empty(len(rows))
     picked = []
@@ -109,23 +94,17 @@ def main() -> None:
         beta = EXPONENTS[int(np.argmin(scores))]
         picked.append(beta)
         held[test] = pooled(jnd[test], DEFAULT_CRITERIA, beta)
-    table.append(
-        (
-            "exponent chosen leaving one object out (picked "
-            f"{', '.join(f'{b:g}' for b in picked)})",
-            rho(held, rating),
-        )
-    )
-    varying = tuple(
-        c for c in DEFAULT_CRITERIA if jnd[:, CRITERIA.index(c)].max() >= SMALLEST_FITTED_JND
-    )
+    table.append(("exponent chosen leaving one object out (picked "
+                  f"{', '.join(f'{b:g}' for b in picked)})",
+                  rho(held, rating)))
+    varying = tuple(c for c in DEFAULT_CRITERIA if jnd[:, CRITERIA.index(c)].max()
+                    >= SMALLEST_FITTED_JND)
     ratings = read_ratings(static_ratings_table(rows_in, names), "static ratings", criteria=varying)
     for pooling in ("quick", "sum"):
         fit = calibrate(ratings, pooling=pooling, hold_out="object", force=True)
         weights = ", ".join(f"{c} {fit.fitted_weights[c]:.3g}" for c in varying)
-        table.append(
-            (f"calibrate, {pooling}, held out by object ({weights})", fit.held_out_spearman)
-        )
+        table.append((f"calibrate, {pooling}, held out by object ({weights})",
+                      fit.held_out_spearman))
     # the study's cost is the default pooling of its own differences
     model = CostModel()
     check = model.pool(jnd ** 2)

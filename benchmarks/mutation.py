@@ -72,23 +72,14 @@ CORE = {
     "mesh/level.py": ["test_manifest.py", "test_gltf_check.py"],
     "export/folder.py": ["test_publish.py", "test_option_extremes.py"],
     "runner/design.py": ["test_design.py"],
-    "config.py": [
-        "test_config.py",
-        "test_pinches.py",
-        "test_cost.py",
-        "test_redirect.py",
-        "test_match.py",
-    ],
+    "config.py": ["test_config.py", "test_pinches.py", "test_cost.py", "test_redirect.py",
+                  "test_match.py"],
     "options.py": ["test_config.py", "test_cache.py", "test_result_cache.py"],
     "match/scene.py": ["test_match.py", "test_redirect.py", "test_landing.py", "test_select.py"],
     "match/reference.py": ["test_match.py", "test_cache.py"],
     "match/felt.py": ["test_landing.py", "test_tripod_landing.py"],
-    "mesh/support.py": [
-        "test_pinches.py",
-        "test_redirect.py",
-        "test_manifest.py",
-        "test_furniture.py",
-    ],
+    "mesh/support.py": ["test_pinches.py", "test_redirect.py", "test_manifest.py",
+                        "test_furniture.py"],
     "memory.py": ["test_memory_limits.py"],
     "mesh/gltf_apply.py": ["test_gltf_sparse.py", "test_gltf_check.py"],
     "mesh/facing.py": ["test_load.py"],
@@ -127,142 +118,77 @@ _GUARD_WIDE = ("the round-off guard is 1e-9 mm per mm of the largest coordinate:
                "decides any point they leave open (the loop over the points' bounds, the same "
                "line, is killed)")
 EQUIVALENT: dict[tuple[str, str, str], str] = {
-    (
-        "grasp/curvature.py",
-        "(np.abs(normal[:, 0]) < 0.9)[:, None], np.array([1.0, 0.0, 0.0]), "
-        "np.array([0.0, 1.0, 0.0])",
-        "< -> <=",
-    ): _HELPER,
-    (
-        "grasp/curvature.py",
-        "(np.abs(normal[:, 0]) < 0.9)[:, None], np.array([1.0, 0.0, 0.0]), "
-        "np.array([0.0, 1.0, 0.0])",
-        "1.0 -> 2.0",
-    ): _SCALED,
-    (
-        "grasp/jets.py",
-        "hx, hy, hz = (1.0, 0.0, 0.0) if abs(n[0]) < 0.9 else (0.0, 1.0, 0.0)",
-        "< -> <=",
-    ): _HELPER,
-    (
-        "grasp/jets.py",
-        "hx, hy, hz = (1.0, 0.0, 0.0) if abs(n[0]) < 0.9 else (0.0, 1.0, 0.0)",
-        "1.0 -> 2.0",
-    ): _SCALED,
-    (
-        "match/cost.py",
-        "pose = np.stack([features.width_mm, features.com_distance_mm, features.tilt_deg], "
-        "axis=-1)",
-        "drop -1",
-    ): "np.stack of 1-D arrays: axis 1 is the last axis, as -1 is",
+    ("grasp/curvature.py", "(np.abs(normal[:, 0]) < 0.9)[:, None], np.array([1.0, 0.0, 0.0]), "
+     "np.array([0.0, 1.0, 0.0])", "< -> <="): _HELPER,
+    ("grasp/curvature.py", "(np.abs(normal[:, 0]) < 0.9)[:, None], np.array([1.0, 0.0, 0.0]), "
+     "np.array([0.0, 1.0, 0.0])", "1.0 -> 2.0"): _SCALED,
+    ("grasp/jets.py", "hx, hy, hz = (1.0, 0.0, 0.0) if abs(n[0]) < 0.9 else (0.0, 1.0, 0.0)",
+     "< -> <="): _HELPER,
+    ("grasp/jets.py", "hx, hy, hz = (1.0, 0.0, 0.0) if abs(n[0]) < 0.9 else (0.0, 1.0, 0.0)",
+     "1.0 -> 2.0"): _SCALED,
+    ("match/cost.py",
+     "pose = np.stack([features.width_mm, features.com_distance_mm, features.tilt_deg], "
+     "axis=-1)", "drop -1"): "np.stack of 1-D arrays: axis 1 is the last axis, as -1 is",
     ("match/cost.py", "stacked = table.reshape(-1, N_COLUMNS)", "1 -> 2"): _INFER,
-    (
-        "grasp/curvature.py",
-        "points_mm = np.asarray(points_mm, dtype=np.float64).reshape(-1, 3)",
-        "1 -> 2",
-    ): _INFER,
-    (
-        "grasp/curvature.py",
-        "normal = np.asarray(normals, dtype=np.float64).reshape(-1, 3)",
-        "1 -> 2",
-    ): _INFER,
+    ("grasp/curvature.py", "points_mm = np.asarray(points_mm, dtype=np.float64).reshape(-1, 3)",
+     "1 -> 2"): _INFER,
+    ("grasp/curvature.py", "normal = np.asarray(normals, dtype=np.float64).reshape(-1, 3)",
+     "1 -> 2"): _INFER,
     ("grasp/pinches.py", "raw = np.stack([p1_mm, p2_mm], axis=1).reshape(-1, 3)", "1 -> 2"): _INFER,
     ("grasp/pinches.py", "dtype=np.int64).reshape(-1)", "1 -> 2"): _INFER,
-    (
-        "match/search.py",
-        "return int(np.clip(n_tangible * n_virtual // POOL_PAIRS_PER_KEPT, MIN_POOL, MAX_POOL))",
-        "// -> /",
-    ): "int() truncates the positive quotient as // does",
-    (
-        "match/search.py",
-        "below = np.flatnonzero(result.cost < tau)",
-        "< -> <=",
-    ): "the greedy pick keeps only pairs costing less than tau again, so a pooled pair costing "
-       "exactly tau is "
-    "never picked either way",
-    (
-        "match/pairs.py",
-        "below = value < rest",
-        "< -> <=",
-    ): "a pair whose value equals the rest may be listed or not: every pair left out is still at "
-       "least the "
-    "rest, and a pool cut at it takes the rest as its bound either way",
-    (
-        "match/noticed.py",
-        "size = float(np.sqrt(jnd[k]))",
-        "drop float(...)",
-    ): "np.float64 is a subclass of float: it compares, formats and serialises (json) as the float "
-       "does",
-    (
-        "match/cost.py",
-        "block_rows: int = 2048):",
-        "2048 -> 2049",
-    ): "the block size splits the tangible rows into blocks, each row's costs are computed alike "
-       "in any block",
-    (
-        "match/cost.py",
-        "s = (model.scales(tangible_rows) if scales is None else scales)[:, 0, 7]",
-        "0 -> 1",
-    ): "the mass columns' scale is of the offset's length, the same in every contact's row (a "
-       "pinch's second row "
-    "holds the offset along the line negated)",
-    (
-        "match/cost.py",
-        "buffers = np.empty((2, rows, nv))  # allocated once: no page faults per block",
-        "2 -> 3",
-    ): "a third buffer is allocated and never written or read: the two orders use the first two",
-    (
-        "match/register.py",
-        "return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-300)",
-        "drop -1",
-    ): "every caller passes (k, 3) vectors, whose last axis is axis 1",
-    (
-        "grasp/features.py",
-        "u = seg / np.maximum(width, 1e-300)[:, None]",
-        "1e-300 -> 2e-300",
-    ): "the floor only keeps a zero-width pinch from dividing by zero: any tiny floor gives the "
-       "same zero vector",
-    (
-        "match/cost.py",
-        "s[..., 7:9] = np.maximum(fraction * np.hypot(t[..., 7], t[..., 8]),",
-        "9 -> 10",
-    ): "the table has 9 columns: the slice 7:10 is the slice 7:9",
-    (
-        "match/register.py",
-        "has_mass = (np.linalg.norm(perp(dm_v), axis=1) > 1e-9) & "
-        "(np.linalg.norm(perp(dm_t), axis=1)",
-        "1e-09 -> 2e-09",
-    ): _GUARD,
+    ("match/search.py",
+     "return int(np.clip(n_tangible * n_virtual // POOL_PAIRS_PER_KEPT, MIN_POOL, MAX_POOL))",
+     "// -> /"): "int() truncates the positive quotient as // does",
+    ("match/search.py", "below = np.flatnonzero(result.cost < tau)", "< -> <="):
+        "the greedy pick keeps only pairs costing less than tau again, so a pooled pair costing "
+        "exactly tau is "
+        "never picked either way",
+    ("match/pairs.py", "below = value < rest", "< -> <="):
+        "a pair whose value equals the rest may be listed or not: every pair left out is still at "
+        "least the "
+        "rest, and a pool cut at it takes the rest as its bound either way",
+    ("match/noticed.py", "size = float(np.sqrt(jnd[k]))", "drop float(...)"):
+        "np.float64 is a subclass of float: it compares, formats and serialises (json) as the "
+        "float does",
+    ("match/cost.py", "block_rows: int = 2048):", "2048 -> 2049"):
+        "the block size splits the tangible rows into blocks, each row's costs are computed alike "
+        "in any block",
+    ("match/cost.py", "s = (model.scales(tangible_rows) if scales is None else scales)[:, 0, 7]",
+     "0 -> 1"):
+        "the mass columns' scale is of the offset's length, the same in every contact's row (a "
+        "pinch's second row "
+        "holds the offset along the line negated)",
+    ("match/cost.py",
+     "buffers = np.empty((2, rows, nv))  # allocated once: no page faults per block", "2 -> 3"):
+        "a third buffer is allocated and never written or read: the two orders use the first two",
+    ("match/register.py",
+     "return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-300)", "drop -1"):
+        "every caller passes (k, 3) vectors, whose last axis is axis 1",
+    ("grasp/features.py", "u = seg / np.maximum(width, 1e-300)[:, None]", "1e-300 -> 2e-300"):
+        "the floor only keeps a zero-width pinch from dividing by zero: any tiny floor gives the "
+        "same zero vector",
+    ("match/cost.py", "s[..., 7:9] = np.maximum(fraction * np.hypot(t[..., 7], t[..., 8]),",
+     "9 -> 10"): "the table has 9 columns: the slice 7:10 is the slice 7:9",
+    ("match/register.py", "has_mass = (np.linalg.norm(perp(dm_v), axis=1) > 1e-9) & "
+     "(np.linalg.norm(perp(dm_t), axis=1)", "1e-09 -> 2e-09"): _GUARD,
     ("match/register.py", "> 1e-9)", "1e-09 -> 2e-09"): _GUARD,
     ("mesh/properties.py", "if not np.isfinite(norm) or norm < 1e-12:", "1e-12 -> 2e-12"): _GUARD,
     ("mesh/frames.py", "opposite = c < -1.0 + 1e-12", "1e-12 -> 2e-12"): _GUARD,
     ("mesh/frames.py", "small = np.linalg.norm(perp, axis=1) < 1e-6", "1e-06 -> 2e-06"): _GUARD,
     ("mesh/properties.py", "if abs(along) > 1e-9:", "1e-09 -> 2e-09"): _GUARD,
-    (
-        "mesh/properties.py",
-        "return axis if along > 0 else -axis",
-        "> -> >=",
-    ): "the line before returns only where |along| > 1e-9, so along is never 0 here",
-    (
-        "grasp/curvature.py",
-        "if workers > 1:",
-        "1 -> 2",
-    ): "with two workers the chunks run one after another instead of on two threads, and results "
-       "do not "
-    "depend on the threads (tests/test_jets.py)",
-    (
-        "grasp/curvature.py",
-        "CHUNK = 256",
-        "256 -> 257",
-    ): "the chunk size only splits the work; tests/test_jets.py checks that results do not depend "
-       "on it",
-    (
-        "mesh/frames.py",
-        "perp = np.cross(ao, [1.0, 0.0, 0.0])",
-        "0.0 -> 1.0",
-    ): "a half turn about any axis perpendicular to a takes a onto -a, and all are smallest; a "
-       "helper along "
-    "a itself is caught by the fallback on the next line",
+    ("mesh/properties.py", "return axis if along > 0 else -axis", "> -> >="):
+        "the line before returns only where |along| > 1e-9, so along is never 0 here",
+    ("grasp/curvature.py", "if workers > 1:", "1 -> 2"):
+        "with two workers the chunks run one after another instead of on two threads, and results "
+        "do not "
+        "depend on the threads (tests/test_jets.py)",
+    ("grasp/curvature.py", "CHUNK = 256", "256 -> 257"):
+        "the chunk size only splits the work; tests/test_jets.py checks that results do not depend "
+        "on it",
+    ("mesh/frames.py", "perp = np.cross(ao, [1.0, 0.0, 0.0])", "0.0 -> 1.0"):
+        "a half turn about any axis perpendicular to a takes a onto -a, and all are smallest; a "
+        "helper along "
+        "a itself is caught by the fallback on the next line",
 }
 
 _THREADS = ("a thread count only: results do not depend on how many threads share the work "
@@ -270,354 +196,181 @@ _THREADS = ("a thread count only: results do not depend on how many threads shar
 _BOUNDARY = ("the two sides differ only at exact equality of two floats no input lands on (a "
              "measure-zero "
              "boundary of a continuous quantity)")
-_SAME_TYPE = (
-    "every caller passes the type the call converts to, so the call returns its argument unchanged"
-)
-EQUIVALENT.update(
-    {
-        (
-            "grasp/curvature.py",
-            "radius = float(patch_radius_mm or context.patch_radius_mm)",
-            "drop float(...)",
-        ): _SAME_TYPE,
-        (
-            "grasp/curvature.py",
-            "workers = min(len(starts), thread_budget())",
-            "drop min(...)",
-        ): _THREADS,
-        (
-            "grasp/pinches.py",
-            "return (_angle_deg(u, -normals[:, 0]) > cone_deg) | (_angle_deg(-u, -normals[:, 1]) > "
-            "cone_deg)",
-            "> -> >=",
-        ): _BOUNDARY,
-        (
-            "config.py",
-            "return isinstance(other, Mapping) and dict(self) == dict(other)",
-            "drop dict(...)",
-        ): "self == dict(other) calls this method again with a dict, which compares dict(self) "
-           "with it: the same answer",
-        (
-            "match/register.py",
-            "return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-300)",
-            "1e-300 -> 2e-300",
-        ): _GUARD,
-        (
-            "mesh/frames.py",
-            "K = np.zeros(v.shape[:-1] + (3, 3))",
-            "drop -1",
-        ): "every caller passes (k, 3) vectors, whose shape[:1] is their shape[:-1]",
-        (
-            "mesh/properties.py",
-            'parts = [p for p in str(text).replace(" ", "").split(",") if p != ""]',
-            "drop str(...)",
-        ): _SAME_TYPE,
-        (
-            "match/select.py",
-            "score = _scores(cost, noticeable, np.array([chosen]), objective)[0]",
-            "drop .array(...)",
-        ): "numpy indexes with the list [chosen] as with the array made from it",
-        (
-            "match/ratings.py",
-            "if (np.abs(values[:, 0]) > MAX_RATING).any() or (values[:, 1:] > MAX_JND).any():",
-            "> -> >=",
-        ): _BOUNDARY,
-        (
-            "mesh/regions.py",
-            'return Region("sphere", tuple(float(c) for c in center_mm), float(radius_mm))',
-            "drop float(...)",
-        ): "an int radius compares and squares as the float would",
-        (
-            "mesh/level.py",
-            "faces = np.asarray(mesh.faces, dtype=np.int64)",
-            "drop .asarray(...)",
-        ): _SAME_TYPE,
-        (
-            "mesh/level.py",
-            "if np.linalg.det(transform[:3, :3]) < 0:  # a mirroring transform turns the winding "
-            "inside "
-            "out",
-            "< -> <=",
-        ): "a node whose transform has determinant 0 flattens its mesh to no volume, which the "
-           "load "
-        "refuses either way",
-        (
-            "runner/design.py",
-            "if first_s > s.budget_s and s.evaluations is None:",
-            "> -> >=",
-        ): _BOUNDARY,
-        (
-            "grasp/features.py",
-            "mass_along_mm=np.stack([along, -along], axis=-1),",
-            "drop -1",
-        ): "np.stack of 1-D arrays: axis 1 is the last axis, as -1 is",
-        (
-            "match/redirect.py",
-            "(turn / redirect.axis_threshold_deg) ** 2], axis=-1)",
-            "drop -1",
-        ): "np.stack of 1-D arrays: axis 1 is the last axis, as -1 is",
-        (
-            "match/candidates.py",
-            "keep = np.asarray(keep)",
-            "drop .asarray(...)",
-        ): "numpy indexes with a list of positions as with the array made from it",
-        (
-            "runner/design.py",
-            "total = s.evaluations or max(1, int(s.budget_s / max(first_s, 1e-3)))",
-            "1 -> 2",
-        ): "the total only labels the progress bar; the search stops by time, not by it",
-        ("match/search.py", "pick_b = b.cost < a.cost", "< -> <="): _BOUNDARY,
-        (
-            "mesh/support.py",
-            'return SupportPlane(normal, float(rests_on), "furniture top")',
-            "drop float(...)",
-        ): "the furniture survey gives the top's height as a float already (a median of heights)",
-        (
-            "mesh/support.py",
-            "LEVEL_UP = np.array([0.0, 1.0, 0.0])",
-            "drop .array(...)",
-        ): "a rotation matrix times a list of three numbers is the same vector",
-        (
-            "mesh/support.py",
-            "return np.asarray(points, dtype=np.float64) @ self.normal - self.height_mm",
-            "drop .asarray(...)",
-        ): "every caller passes a float array of points",
-        (
-            "mesh/support.py",
-            "normal = Rotation.from_quat(np.asarray(pose[1],",
-            "drop .asarray(...)",
-        ): "scipy takes the pose's tuple of four floats as it takes their array",
-        (
-            "mesh/support.py",
-            "return SupportPlane(normal, float(np.min(np.asarray(vertices, dtype=np.float64) "
-            "@ normal)),",
-            "drop float(...)",
-        ): "numpy's float64 is a subclass of Python's float: the same height",
-        (
-            "match/felt.py",
-            "back = radius_mm * math.tan(math.radians(axis_deg)) + radius_mm + 1.0",
-            "drop .tan(...)",
-        ): "tan(14 deg) and 14 deg in radians differ by 2 %: a start 0.02 mm nearer on a margin of "
-           "several mm",
-        (
-            "match/search.py",
-            "if len(picks) >= count or not np.isfinite(tau):",
-            ">= -> >",
-        ): "a pool grown past the picks adds only pairs costlier than they are: the same picks, "
-           "found later",
-        (
-            "match/scene.py",
-            "list(search.tangibles), virtual, landed)",
-            "drop list(...)",
-        ): "the search's list of tangibles is never changed after the search: the match may hold "
-           "it itself",
-        (
-            "match/scene.py",
-            "best = search.choices(0, [int(t)], 1)[0]",
-            "drop int(...)",
-        ): "numpy's integer indexes the tangibles as Python's does",
-        (
-            "match/scene.py",
-            "best = search.choices(0, [int(t)], 1)[0]",
-            "1 -> 2",
-        ): "the first of the two best choices is the best choice",
-        (
-            "match/scene.py",
-            "big = (np.abs(cost_matrix[finite]).sum() + 1.0) * (min(m, n) + 1)",
-            "drop .abs(...)",
-        ): "costs are never negative",
-        (
-            "match/cost.py",
-            'for item in str(text or "").split(","):',
-            "drop str(...)",
-        ): "the command line gives the weights as text or not at all: str of a string is the "
-           "string",
-        (
-            "match/search.py",
-            "return float(pool.result.cost.min()) if len(pool.it) else np.inf",
-            "drop float(...)",
-        ): "numpy's float64 is a subclass of Python's float: every caller reads the same number",
-        (
-            "match/reference.py",
-            "reach = (np.linalg.norm(bounds[1] - bounds[0]) + np.linalg.norm(point - "
-            "bounds.mean(axis=0))",
-            "+ -> -",
-        ): "the fingers start outside the object either way: the bounds' diagonal plus the point's "
-        "distance from their centre already reach past the surface; 1 mm is a margin",
-        (
-            "match/reference.py",
-            "face, dist = obj.context.first_hit(origins, np.array([u, -u]))",
-            "drop .array(...)",
-        ): "the ray engine makes an array of the list of two directions, as np.array does",
-        (
-            "match/reference.py",
-            "data = np.concatenate([np.asarray(x, np.float64).ravel() for x in parts])",
-            "drop .asarray(...)",
-        ): "every part is already a float64 array (a contact, a direction)",
-        (
-            "match/scene.py",
-            "big = (np.abs(cost_matrix[finite]).sum() + 1.0) * (min(m, n) + 1)",
-            "drop min(...)",
-        ): "any factor of at least min(m, n) + 1 makes a forbidden pair cost more than every full "
-           "assignment",
-        (
-            "export/folder.py",
-            "control = Path(out) / CONTROL",
-            "drop Path(...)",
-        ): "every caller passes a Path (the supervisor's output, the next run's OutputFolder)",
-        (
-            "export/folder.py",
-            'manifest = unsealed("manifest", (Path(out) / CONTROL / "manifest.json").read_bytes())',
-            "drop Path(...)",
-        ): "every caller passes a Path",
-        ("export/folder.py", "out = Path(out)", "drop Path(...)"): "every caller passes a Path",
-        (
-            "export/seal.py",
-            "value = os.read(fd, KEY_BYTES + 1)",
-            "1 -> 2",
-        ): "reading one byte past the key or two, a longer file is refused all the same (its "
-           "length is not KEY_BYTES)",
-        (
-            "mesh/gltf_apply.py",
-            'return any(isinstance(a, dict) and "sparse" in a for a in accessors) or any(',
-            "drop any(...)",
-        ): _APPLIED,
-        (
-            "mesh/gltf_apply.py",
-            'isinstance(m, dict) and any(m.get("weights") or []) for m in meshes)',
-            "and -> or",
-        ): _APPLIED,
-        (
-            "mesh/gltf_apply.py",
-            'blob.extend(data + b"\\0" * (-len(data) % 4))',
-            "4 -> 5",
-        ): "the applied document is read by trimesh in memory, which takes arrays at any offset: "
-           "the padding only "
+_SAME_TYPE = ("every caller passes the type the call converts to, so the call returns its argument "
+              "unchanged")
+EQUIVALENT.update({
+    ("grasp/curvature.py", "radius = float(patch_radius_mm or context.patch_radius_mm)",
+     "drop float(...)"):
+        _SAME_TYPE,
+    ("grasp/curvature.py", "workers = min(len(starts), thread_budget())",
+     "drop min(...)"): _THREADS,
+    ("grasp/pinches.py",
+     "return (_angle_deg(u, -normals[:, 0]) > cone_deg) | (_angle_deg(-u, -normals[:, 1]) > "
+     "cone_deg)", "> -> >="): _BOUNDARY,
+    ("config.py", "return isinstance(other, Mapping) and dict(self) == dict(other)",
+     "drop dict(...)"):
+        "self == dict(other) calls this method again with a dict, which compares dict(self) with "
+        "it: the same answer",
+    ("match/register.py",
+     "return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-300)",
+     "1e-300 -> 2e-300"): _GUARD,
+    ("mesh/frames.py", "K = np.zeros(v.shape[:-1] + (3, 3))", "drop -1"):
+        "every caller passes (k, 3) vectors, whose shape[:1] is their shape[:-1]",
+    ("mesh/properties.py", 'parts = [p for p in str(text).replace(" ", "").split(",") if p != ""]',
+     "drop str(...)"): _SAME_TYPE,
+    ("match/select.py", "score = _scores(cost, noticeable, np.array([chosen]), objective)[0]",
+     "drop .array(...)"):
+        "numpy indexes with the list [chosen] as with the array made from it",
+    ("match/ratings.py",
+     "if (np.abs(values[:, 0]) > MAX_RATING).any() or (values[:, 1:] > MAX_JND).any():",
+     "> -> >="): _BOUNDARY,
+    ("mesh/regions.py",
+     'return Region("sphere", tuple(float(c) for c in center_mm), float(radius_mm))',
+     "drop float(...)"): "an int radius compares and squares as the float would",
+    ("mesh/level.py", "faces = np.asarray(mesh.faces, dtype=np.int64)",
+     "drop .asarray(...)"): _SAME_TYPE,
+    ("mesh/level.py",
+     "if np.linalg.det(transform[:3, :3]) < 0:  # a mirroring transform turns the winding inside "
+     "out",
+     "< -> <="): "a node whose transform has determinant 0 flattens its mesh to no volume, which "
+                 "the load "
+                        "refuses either way",
+    ("runner/design.py", "if first_s > s.budget_s and s.evaluations is None:",
+     "> -> >="): _BOUNDARY,
+    ("grasp/features.py", "mass_along_mm=np.stack([along, -along], axis=-1),", "drop -1"):
+        "np.stack of 1-D arrays: axis 1 is the last axis, as -1 is",
+    ("match/redirect.py", "(turn / redirect.axis_threshold_deg) ** 2], axis=-1)",
+     "drop -1"): "np.stack of 1-D arrays: axis 1 is the last axis, as -1 is",
+    ("match/candidates.py", "keep = np.asarray(keep)", "drop .asarray(...)"):
+        "numpy indexes with a list of positions as with the array made from it",
+    ("runner/design.py", "total = s.evaluations or max(1, int(s.budget_s / max(first_s, 1e-3)))",
+     "1 -> 2"):
+        "the total only labels the progress bar; the search stops by time, not by it",
+    ("match/search.py", "pick_b = b.cost < a.cost", "< -> <="): _BOUNDARY,
+    ("mesh/support.py", 'return SupportPlane(normal, float(rests_on), "furniture top")',
+     "drop float(...)"):
+        "the furniture survey gives the top's height as a float already (a median of heights)",
+    ("mesh/support.py", "LEVEL_UP = np.array([0.0, 1.0, 0.0])", "drop .array(...)"):
+        "a rotation matrix times a list of three numbers is the same vector",
+    ("mesh/support.py",
+     "return np.asarray(points, dtype=np.float64) @ self.normal - self.height_mm",
+     "drop .asarray(...)"): "every caller passes a float array of points",
+    ("mesh/support.py", "normal = Rotation.from_quat(np.asarray(pose[1],",
+     "drop .asarray(...)"): "scipy takes the pose's tuple of four floats as it takes their array",
+    ("mesh/support.py",
+     "return SupportPlane(normal, float(np.min(np.asarray(vertices, dtype=np.float64) "
+     "@ normal)),",
+     "drop float(...)"): "numpy's float64 is a subclass of Python's float: the same height",
+    ("match/felt.py", "back = radius_mm * math.tan(math.radians(axis_deg)) + radius_mm + 1.0",
+     "drop .tan(...)"):
+        "tan(14 deg) and 14 deg in radians differ by 2 %: a start 0.02 mm nearer on a margin of "
+        "several mm",
+    ("match/search.py", "if len(picks) >= count or not np.isfinite(tau):", ">= -> >"):
+        "a pool grown past the picks adds only pairs costlier than they are: the same picks, found "
+        "later",
+    ("match/scene.py", "list(search.tangibles), virtual, landed)", "drop list(...)"):
+        "the search's list of tangibles is never changed after the search: the match may hold it "
+        "itself",
+    ("match/scene.py", "best = search.choices(0, [int(t)], 1)[0]", "drop int(...)"):
+        "numpy's integer indexes the tangibles as Python's does",
+    ("match/scene.py", "best = search.choices(0, [int(t)], 1)[0]", "1 -> 2"):
+        "the first of the two best choices is the best choice",
+    ("match/scene.py", "big = (np.abs(cost_matrix[finite]).sum() + 1.0) * (min(m, n) + 1)",
+     "drop .abs(...)"):
+        "costs are never negative",
+    ("match/cost.py", "for item in str(text or \"\").split(\",\"):", "drop str(...)"):
+        "the command line gives the weights as text or not at all: str of a string is the string",
+    ("match/search.py", "return float(pool.result.cost.min()) if len(pool.it) else np.inf",
+     "drop float(...)"):
+        "numpy's float64 is a subclass of Python's float: every caller reads the same number",
+    ("match/reference.py",
+     "reach = (np.linalg.norm(bounds[1] - bounds[0]) + np.linalg.norm(point - "
+     "bounds.mean(axis=0))",
+     "+ -> -"): "the fingers start outside the object either way: the bounds' diagonal plus the "
+                "point's "
+                          "distance from their centre already reach past the surface; 1 mm is a "
+                          "margin",
+    ("match/reference.py", "face, dist = obj.context.first_hit(origins, np.array([u, -u]))",
+     "drop .array(...)"):
+        "the ray engine makes an array of the list of two directions, as np.array does",
+    ("match/reference.py",
+     "data = np.concatenate([np.asarray(x, np.float64).ravel() for x in parts])",
+     "drop .asarray(...)"): "every part is already a float64 array (a contact, a direction)",
+    ("match/scene.py", "big = (np.abs(cost_matrix[finite]).sum() + 1.0) * (min(m, n) + 1)",
+     "drop min(...)"):
+        "any factor of at least min(m, n) + 1 makes a forbidden pair cost more than every full "
+        "assignment",
+    ("export/folder.py", "control = Path(out) / CONTROL", "drop Path(...)"):
+        "every caller passes a Path (the supervisor's output, the next run's OutputFolder)",
+    ("export/folder.py",
+     "manifest = unsealed(\"manifest\", (Path(out) / CONTROL / \"manifest.json\").read_bytes())",
+     "drop Path(...)"): "every caller passes a Path",
+    ("export/folder.py", "out = Path(out)", "drop Path(...)"): "every caller passes a Path",
+    ("export/seal.py", "value = os.read(fd, KEY_BYTES + 1)", "1 -> 2"):
+        "reading one byte past the key or two, a longer file is refused all the same (its length "
+        "is not KEY_BYTES)",
+    ("mesh/gltf_apply.py",
+     'return any(isinstance(a, dict) and "sparse" in a for a in accessors) or any(',
+     "drop any(...)"): _APPLIED,
+    ("mesh/gltf_apply.py", 'isinstance(m, dict) and any(m.get("weights") or []) for m in meshes)',
+     "and -> or"):
+        _APPLIED,
+    ("mesh/gltf_apply.py", 'blob.extend(data + b"\\0" * (-len(data) % 4))', "4 -> 5"):
+        "the applied document is read by trimesh in memory, which takes arrays at any offset: the "
+        "padding only "
         "keeps the views 4-byte aligned as the specification asks of files",
-        (
-            "grasp/tripods.py",
-            "offset = 0.5 * spacing[:, None] * (np.cos(phi)[:, None] * t1 + np.sin(phi)[:, None] * "
-            "t2)",
-            "+ -> -",
-        ): "phi is uniform over the whole turn: (cos phi, -sin phi) is the direction of -phi, as "
-           "uniform; "
-        "the fingers' directions are drawn from the same distribution",
-        (
-            "export/level.py",
-            'return {"translation": [float(c) for c in t],',
-            "drop float(...)",
-        ): "numpy's float64 is a subclass of float: json writes the same numbers",
-        (
-            "export/level.py",
-            '"rotation": [float(c) for c in Rotation.from_matrix(R).as_quat()]}',
-            "drop float(...)",
-        ): "numpy's float64 is a subclass of float: json writes the same numbers",
-        (
-            "mesh/neighbours.py",
-            "CUBE_SHARE = 1.0",
-            "1.0 -> 2.0",
-        ): "the cubes' side is a speed setting: each cube's ball query covers every ball of its "
-           "points at any side, "
+    ("grasp/tripods.py",
+     "offset = 0.5 * spacing[:, None] * (np.cos(phi)[:, None] * t1 + np.sin(phi)[:, None] * t2)",
+     "+ -> -"): "phi is uniform over the whole turn: (cos phi, -sin phi) is the direction of -phi, "
+                "as uniform; "
+                "the fingers' directions are drawn from the same distribution",
+    ("export/level.py", 'return {"translation": [float(c) for c in t],', "drop float(...)"):
+        "numpy's float64 is a subclass of float: json writes the same numbers",
+    ("export/level.py", '"rotation": [float(c) for c in Rotation.from_matrix(R).as_quat()]}',
+     "drop float(...)"):
+        "numpy's float64 is a subclass of float: json writes the same numbers",
+    ("mesh/neighbours.py", "CUBE_SHARE = 1.0", "1.0 -> 2.0"):
+        "the cubes' side is a speed setting: each cube's ball query covers every ball of its "
+        "points at any side, "
         "and the kernel keeps the samples within the radius exactly",
-        (
-            "mesh/neighbours.py",
-            "count=int(lengths.sum()))",
-            "drop int(...)",
-        ): "np.fromiter takes numpy's integer as its count",
-        (
-            "mesh/distance_field_kernel.py",
-            "for i in range(points.shape[0]):",
-            "0 -> 1",
-        ): _GUARD_WIDE,
-        (
-            "mesh/distance_field_kernel.py",
-            "constant = voxel * math.sqrt(3.0) / 2.0 + guard * (1.0 + largest)",
-            "1.0 -> 2.0",
-        ): _GUARD_WIDE,
-        (
-            "mesh/distance_field_kernel.py",
-            "e = np.float64(flat[index])",
-            "drop .float64(...)",
-        ): "numba computes e - slack and e + slack in float64 either way: the float32 value is "
-           "promoted exactly",
-        (
-            "match/felt.py",
-            "key = _pose_key(candidates.pinches, int(pose))",
-            "drop int(...)",
-        ): "a numpy integer indexes the contacts as an int does: the key's bytes are the same",
-        (
-            "grasp/tripods.py",
-            "phi = rng.random(len(ray)) * 2.0 * np.pi",
-            "2.0 -> 4.0",
-        ): "an angle uniform over two turns is uniform over one: its cosine and sine take the same "
-           "distribution",
-        (
-            "mesh/support.py",
-            'return SupportPlane(normal, float(support), "support_mm")',
-            "drop float(...)",
-        ): "a whole-number height computes as its float does, and the plane's record writes "
-           "float(...) of it",
-        (
-            "grasp/strata.py",
-            "return int(STRATUM_SHARE * count // max(strata, 1))",
-            "// -> /",
-        ): "int() of a positive quotient is its floor: dividing and flooring first gives the same "
-           "whole number",
-        (
-            "mesh/furniture.py",
-            "tops[other] = max(tops.get(other, -np.inf), float(np.median(closest[on] @ up)))",
-            "drop float(...)",
-        ): "numpy's float64 is a Python float: the same number, written to JSON the same way",
-        (
-            "mesh/facing.py",
-            "parts = int(labels.max()) + 1 if len(labels) else 0",
-            "0 -> 1",
-        ): "a mesh with no faces never comes here: the loader refuses it first",
-    }
-)
+    ("mesh/neighbours.py", "count=int(lengths.sum()))",
+     "drop int(...)"): "np.fromiter takes numpy's integer as its count",
+    ("mesh/distance_field_kernel.py", "for i in range(points.shape[0]):", "0 -> 1"): _GUARD_WIDE,
+    ("mesh/distance_field_kernel.py",
+     "constant = voxel * math.sqrt(3.0) / 2.0 + guard * (1.0 + largest)",
+     "1.0 -> 2.0"): _GUARD_WIDE,
+    ("mesh/distance_field_kernel.py", "e = np.float64(flat[index])", "drop .float64(...)"):
+        "numba computes e - slack and e + slack in float64 either way: the float32 value is "
+        "promoted exactly",
+    ("match/felt.py", "key = _pose_key(candidates.pinches, int(pose))", "drop int(...)"):
+        "a numpy integer indexes the contacts as an int does: the key's bytes are the same",
+    ("grasp/tripods.py", "phi = rng.random(len(ray)) * 2.0 * np.pi", "2.0 -> 4.0"):
+        "an angle uniform over two turns is uniform over one: its cosine and sine take the same "
+        "distribution",
+    ("mesh/support.py", 'return SupportPlane(normal, float(support), "support_mm")',
+     "drop float(...)"):
+        "a whole-number height computes as its float does, and the plane's record writes "
+        "float(...) of it",
+    ("grasp/strata.py", "return int(STRATUM_SHARE * count // max(strata, 1))", "// -> /"):
+        "int() of a positive quotient is its floor: dividing and flooring first gives the same "
+        "whole number",
+    ("mesh/furniture.py",
+     "tops[other] = max(tops.get(other, -np.inf), float(np.median(closest[on] @ up)))",
+     "drop float(...)"): "numpy's float64 is a Python float: the same number, written to JSON the "
+                         "same way",
+    ("mesh/facing.py", "parts = int(labels.max()) + 1 if len(labels) else 0", "0 -> 1"):
+        "a mesh with no faces never comes here: the loader refuses it first",
+})
 
-BINOPS = {
-    ast.Add: ast.Sub,
-    ast.Sub: ast.Add,
-    ast.Mult: ast.Div,
-    ast.Div: ast.Mult,
-    ast.Pow: ast.Mult,
-    ast.FloorDiv: ast.Div,
-    ast.Mod: ast.FloorDiv,
-}
-COMPARES = {
-    ast.Lt: ast.LtE,
-    ast.LtE: ast.Lt,
-    ast.Gt: ast.GtE,
-    ast.GtE: ast.Gt,
-    ast.Eq: ast.NotEq,
-    ast.NotEq: ast.Eq,
-    ast.Is: ast.IsNot,
-    ast.IsNot: ast.Is,
-    ast.In: ast.NotIn,
-    ast.NotIn: ast.In,
-}
-SYMBOL = {
-    ast.Add: "+",
-    ast.Sub: "-",
-    ast.Mult: "*",
-    ast.Div: "/",
-    ast.Pow: "**",
-    ast.FloorDiv: "//",
-    ast.Mod: "%",
-    ast.Lt: "<",
-    ast.LtE: "<=",
-    ast.Gt: ">",
-    ast.GtE: ">=",
-    ast.Eq: "==",
-    ast.NotEq: "!=",
-    ast.Is: "is",
-    ast.IsNot: "is not",
-    ast.In: "in",
-    ast.NotIn: "not in",
-    ast.And: "and",
-    ast.Or: "or",
-}
+BINOPS = {ast.Add: ast.Sub, ast.Sub: ast.Add, ast.Mult: ast.Div, ast.Div: ast.Mult,
+          ast.Pow: ast.Mult, ast.FloorDiv: ast.Div, ast.Mod: ast.FloorDiv}
+COMPARES = {ast.Lt: ast.LtE, ast.LtE: ast.Lt, ast.Gt: ast.GtE, ast.GtE: ast.Gt, ast.Eq: ast.NotEq,
+            ast.NotEq: ast.Eq, ast.Is: ast.IsNot, ast.IsNot: ast.Is, ast.In: ast.NotIn,
+            ast.NotIn: ast.In}
+SYMBOL = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Div: "/", ast.Pow: "**",
+          ast.FloorDiv: "//", ast.Mod: "%", ast.Lt: "<", ast.LtE: "<=", ast.Gt: ">", ast.GtE: ">=",
+          ast.Eq: "==", ast.NotEq: "!=", ast.Is: "is", ast.IsNot: "is not", ast.In: "in",
+          ast.NotIn: "not in", ast.And: "and", ast.Or: "or"}
 
 
 @dataclass(frozen=True)
@@ -671,31 +424,24 @@ def _sites(tree: ast.AST, source_lines: list[str]):
         if "pragma: no mutate" in source_lines[node.lineno - 1]:
             continue
         if isinstance(node, ast.BinOp) and type(node.op) in BINOPS:
-            found.append(
-                (node, "binop", f"{SYMBOL[type(node.op)]} -> {SYMBOL[BINOPS[type(node.op)]]}")
-            )
+            found.append((node, "binop",
+                          f"{SYMBOL[type(node.op)]} -> {SYMBOL[BINOPS[type(node.op)]]}"))
         elif isinstance(node, ast.AugAssign) and type(node.op) in BINOPS:
-            found.append(
-                (node, "augassign", f"{SYMBOL[type(node.op)]}= -> {SYMBOL[BINOPS[type(node.op)]]}=")
-            )
+            found.append((node, "augassign",
+                          f"{SYMBOL[type(node.op)]}= -> {SYMBOL[BINOPS[type(node.op)]]}="))
         elif isinstance(node, ast.Compare):
             for k, op in enumerate(node.ops):
                 if type(op) in COMPARES:
-                    found.append(
-                        (node, f"compare{k}", f"{SYMBOL[type(op)]} -> {SYMBOL[COMPARES[type(op)]]}")
-                    )
+                    found.append((node, f"compare{k}",
+                                  f"{SYMBOL[type(op)]} -> {SYMBOL[COMPARES[type(op)]]}"))
         elif isinstance(node, ast.BoolOp):
             other = "or" if isinstance(node.op, ast.And) else "and"
             found.append((node, "boolop", f"{SYMBOL[type(node.op)]} -> {other}"))
         elif isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.USub, ast.Not)):
             operand = ast.unparse(node.operand)  # which minus, where a line has several
-            found.append(
-                (
-                    node,
-                    "unary",
-                    "drop " + ("-" if isinstance(node.op, ast.USub) else "not ") + operand[:40],
-                )
-            )
+            found.append((node, "unary",
+                          "drop " + ("-" if isinstance(node.op, ast.USub) else "not ")
+                          + operand[:40]))
         elif isinstance(node, ast.Call) and _wraps(node):
             name = node.func.id if isinstance(node.func, ast.Name) else "." + node.func.attr
             found.append((node, "call", f"drop {name}(...)"))
@@ -794,17 +540,10 @@ def mutated_source(mutant: Mutant, package: Path = PACKAGE) -> str:
 
 
 def _copy_repository(target: Path) -> None:
-    ignore = shutil.ignore_patterns(
-        ".git", ".venv", "__pycache__", "*.egg-info", ".pytest_cache", ".hypothesis"
-    )
-    for name in (
-        "src",
-        "tests",
-        "docs",
-        "benchmarks",
-        "README.md",
-        "pyproject.toml",
-    ):  # tests read the docs and
+    ignore = shutil.ignore_patterns(".git", ".venv", "__pycache__", "*.egg-info", ".pytest_cache",
+                                    ".hypothesis")
+    for name in ("src", "tests", "docs", "benchmarks", "README.md", "pyproject.toml"):
+        # tests read the docs and
         # import the benchmarks' asset readers
         src = ROOT / name
         if src.is_dir():
@@ -849,9 +588,8 @@ def _clean_times(worker: Worker, modules: list[str]) -> dict[str, float]:
     for module in modules:
         outcome, seconds = _pytest(worker.dir, CORE[module], None)
         if outcome != "passed":
-            raise SystemExit(
-                f"mutation: the tests of {module} fail without any mutant; fix them first"
-            )
+            raise SystemExit(f"mutation: the tests of {module} fail without any mutant; fix them "
+                             "first")
         times[module] = seconds
     return times
 
@@ -859,18 +597,13 @@ def _clean_times(worker: Worker, modules: list[str]) -> dict[str, float]:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--modules", help="comma-separated modules (default: every core module)")
-    parser.add_argument(
-        "--sample", type=int, default=30, help="mutants per module, 0 for all (default 30)"
-    )
+    parser.add_argument("--sample", type=int, default=30,
+                        help="mutants per module, 0 for all (default 30)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--workers", type=int, default=2)
-    parser.add_argument(
-        "--fail-under",
-        type=float,
-        default=0.0,
-        metavar="PCT",
-        help="exit 1 when fewer than PCT %% of the non-equivalent mutants are killed",
-    )
+    parser.add_argument("--fail-under", type=float, default=0.0, metavar="PCT",
+                        help="exit 1 when fewer than PCT %% of the non-equivalent mutants are "
+                             "killed")
     args = parser.parse_args(argv)
     modules = args.modules.split(",") if args.modules else list(CORE)
     unknown = [m for m in modules if m not in CORE]
@@ -887,14 +620,9 @@ def main(argv=None) -> int:
         for module in modules:
             every = enumerate_mutants(module, package)
             totals[module] = len(every)
-            chosen = (
-                every
-                if args.sample <= 0 or args.sample >= len(every)
-                else sorted(
-                    random.Random(f"{args.seed}:{module}").sample(every, args.sample),
-                    key=lambda m: m.index,
-                )
-            )
+            chosen = every if args.sample <= 0 or args.sample >= len(every) else sorted(
+                random.Random(f"{args.seed}:{module}").sample(every, args.sample),
+                key=lambda m: m.index)
             plan.extend(chosen)
         sources = {module: (package / module).read_text().splitlines() for module in modules}
         clean = _clean_times(workers[0], modules)
@@ -941,10 +669,8 @@ def main(argv=None) -> int:
         for m in survivors:
             print(f"  {m.label()}    {sources[m.module][m.line - 1].strip()}")
     if share < args.fail_under:
-        print(
-            f"\nmutation: {share:.0f} % killed, under the --fail-under {args.fail_under:g} %",
-            file=sys.stderr,
-        )
+        print(f"\nmutation: {share:.0f} % killed, under the --fail-under {args.fail_under:g} %",
+              file=sys.stderr)
         return 1
     return 0
 

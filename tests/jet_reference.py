@@ -8,25 +8,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from pinchmatch.grasp.curvature import (
-    MAX_PATCH_SAMPLES,
-    MIN_PATCH_SAMPLES,
-    PatchGeometry,
-    tangent_frame,
-)
-from pinchmatch.grasp.jets import (
-    CHORD_TRUST_MM,
-    EXPONENTS as _EXPONENTS,
-    FIT_PASSES,
-    FLIP_VOTE,
-    HIGH_ORDER,
-    MAX_CENTROID_OFFSET,
-    MIN_QUARTIC_SUPPORT,
-    OUTLIER_FLOOR_MM,
-    QUARTIC_GRAM as _QUARTIC_GRAM,
-    QUARTIC_RIDGE,
-    SAME_SIDE_DEG,
-)
+from pinchmatch.grasp.curvature import (MAX_PATCH_SAMPLES, MIN_PATCH_SAMPLES, PatchGeometry,
+                                        tangent_frame)
+from pinchmatch.grasp.jets import (CHORD_TRUST_MM, EXPONENTS as _EXPONENTS, FIT_PASSES, FLIP_VOTE,
+                                   HIGH_ORDER, MAX_CENTROID_OFFSET, MIN_QUARTIC_SUPPORT,
+                                   OUTLIER_FLOOR_MM, QUARTIC_GRAM as _QUARTIC_GRAM, QUARTIC_RIDGE,
+                                   SAME_SIDE_DEG)
 
 _INDEX = {e: i for i, e in enumerate(_EXPONENTS)}
 _HIGH_ORDER = np.diag(HIGH_ORDER)
@@ -42,9 +29,8 @@ def reference_patch_geometry(context, points_mm, normals, radius) -> PatchGeomet
     used = int(np.isfinite(dist).sum(axis=1).max())
     parts = _patch_chunk(context.sample, points_mm, normal, dist[:, :used], idx[:, :used], radius)
     contact, n_out, k_max, k_min, d_max, d_min, count, rms, _ = parts
-    return PatchGeometry(
-        contact, n_out, k_max, k_min, d_max, d_min, count, rms, count >= MIN_PATCH_SAMPLES
-    )
+    return PatchGeometry(contact, n_out, k_max, k_min, d_max, d_min, count, rms,
+                         count >= MIN_PATCH_SAMPLES)
 
 
 def _fit_jets(points, origin, normal, weight, radius, quadric_only):
@@ -167,9 +153,8 @@ def _patch_chunk(sample, points_mm, normal, dist, idx, radius):
     # (one triangle's normal is noisy on scans; the far face of a thin wall faces away)
     # A triangle flipped by scan noise (a sliver) has an inverted normal: when the
     # samples facing against it outweigh those facing with it threefold, turn it.
-    weighted = inside * np.where(
-        sample.is_vertex[idx], 0.0, sample.weight[idx]
-    )  # triangle samples vote
+    # triangle samples vote
+    weighted = inside * np.where(sample.is_vertex[idx], 0.0, sample.weight[idx])
     cosine = np.einsum("nkd,nd->nk", nbr_normal, normal)
     agree = (weighted * (cosine > 0)).sum(axis=1)
     oppose = (weighted * (cosine < 0)).sum(axis=1)

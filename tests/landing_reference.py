@@ -11,14 +11,8 @@ from pinchmatch.grasp.features import pinch_features
 from pinchmatch.grasp.pinches import PinchSettings, Pinches, patches
 from pinchmatch.match.candidates import Candidates, pair_terms
 from pinchmatch.match.cost import CRITERIA, CostModel, feature_table
-from pinchmatch.match.landing import (
-    LANDING_AXIS_DEG,
-    LANDING_MM,
-    MISS_JND,
-    RING_POINTS,
-    Landing,
-    disc_offsets,
-)
+from pinchmatch.match.landing import (LANDING_AXIS_DEG, LANDING_MM, MISS_JND, RING_POINTS, Landing,
+                                      disc_offsets)
 from scipy.spatial.transform import Rotation
 from pinchmatch.match.refine import close_fingers, move_directions
 from pinchmatch.match.noticed import criterion_table, p_noticed
@@ -28,29 +22,16 @@ def _described(context, points: np.ndarray, faces: np.ndarray, settings: PinchSe
     """Pinches (n, 2) at given surface points, with their patches (no rule is checked)."""
     n = len(points)
     geom = patches(context, points, context.face_normals[faces], settings)
-    return Pinches(
-        points=points,
-        normals=geom.normal.reshape(n, 2, 3),
-        face_index=faces,
-        kappa_max_per_m=geom.kappa_max_per_m.reshape(n, 2),
-        kappa_min_per_m=geom.kappa_min_per_m.reshape(n, 2),
-        dir_max=geom.dir_max.reshape(n, 2, 3),
-        feasible=np.ones(n, dtype=bool),
-        broken=np.zeros((n, 7), dtype=bool),
-        snap_distance_mm=np.zeros((n, 2)),
-        approach=np.full((n, 3), np.nan),
-        approach_clearance_mm=np.full(n, np.nan),
-    )
+    return Pinches(points=points, normals=geom.normal.reshape(n, 2, 3), face_index=faces,
+                   kappa_max_per_m=geom.kappa_max_per_m.reshape(n, 2),
+                   kappa_min_per_m=geom.kappa_min_per_m.reshape(n, 2),
+                   dir_max=geom.dir_max.reshape(n, 2, 3), feasible=np.ones(n, dtype=bool),
+                   broken=np.zeros((n, 7), dtype=bool), snap_distance_mm=np.zeros((n, 2)),
+                   approach=np.full((n, 3), np.nan), approach_clearance_mm=np.full(n, np.nan))
 
 
-def landing_pinches(
-    virtual: Candidates,
-    v_pose: int,
-    swapped: bool,
-    radius_mm: float,
-    axis_deg: float,
-    rings=RING_POINTS,
-) -> np.ndarray:
+def landing_pinches(virtual: Candidates, v_pose: int, swapped: bool, radius_mm: float,
+                    axis_deg: float, rings=RING_POINTS) -> np.ndarray:
     """(k, 2, 3) the landings on the virtual object (target first), in the tangible's finger
     order, and (k, 2) their triangles."""
     p = virtual.pinches.points[v_pose]
@@ -65,9 +46,8 @@ def landing_pinches(
     landed, faces = [], []
     for k, toward in ((0, u), (1, -u)):
         moved = p[k] + offsets @ dirs
-        contact, face = close_fingers(
-            context, moved, np.broadcast_to(toward, moved.shape).copy(), back
-        )
+        contact, face = (close_fingers(context, moved, np.broadcast_to(toward, moved.shape).copy(),
+                                       back))
         contact[0], face[0] = p[k], f[k]  # the target itself
         landed.append(contact)
         faces.append(face)
@@ -82,32 +62,19 @@ def landing_pinches(
     return points[keep], faces[keep]
 
 
-def landing(
-    tangible: Candidates,
-    virtual: Candidates,
-    choice,
-    model: CostModel,
-    *,
-    settings: PinchSettings,
-    radius_mm: float = LANDING_MM,
-    axis_deg: float = LANDING_AXIS_DEG,
-    rings=RING_POINTS,
-) -> Landing:
+def landing(tangible: Candidates, virtual: Candidates, choice, model: CostModel, *,
+            settings: PinchSettings, radius_mm: float = LANDING_MM,
+            axis_deg: float = LANDING_AXIS_DEG, rings=RING_POINTS) -> Landing:
     """The cost of ``choice`` (a :class:`pinchmatch.match.choice.Choice`) over its landings; with a
     radius of 0, the choice itself (nothing of either surface is built)."""
     if radius_mm == 0:
         chance = p_noticed(tangible, virtual, choice, model)
-        loud = tuple(
-            c
-            for c, row in criterion_table(tangible, virtual, choice, model).items()
-            if row["noticeable"]
-        )
-        return Landing(
-            0.0, float(axis_deg), choice.cost, choice.cost, choice.cost, chance, loud, 1, 0
-        )
-    seen_points, seen_faces = landing_pinches(
-        virtual, choice.v_pose, choice.swapped, radius_mm, axis_deg, rings
-    )
+        loud = tuple(c for c, row in criterion_table(tangible, virtual, choice, model).items()
+                     if row["noticeable"])
+        return Landing(0.0, float(axis_deg), choice.cost, choice.cost, choice.cost, chance, loud, 1,
+                       0)
+    seen_points, seen_faces = (landing_pinches(virtual, choice.v_pose, choice.swapped, radius_mm,
+                                               axis_deg, rings))
     X = choice.transform
     R, t = X[:3, :3], X[:3, 3]
     placed = seen_points @ R.T + t  # the landings in the tangible's frame
@@ -115,15 +82,9 @@ def landing(
     u = u / np.linalg.norm(u, axis=1, keepdims=True)
     tp = tangible.pinches.points[choice.t_pose]
     # the fingers close from outside either surface: far enough back to pass the larger width
-    back = (
-        0.5
-        * abs(
-            float(np.linalg.norm(tp[1] - tp[0]))
-            - float(np.linalg.norm(seen_points[0, 1] - seen_points[0, 0]))
-        )
-        + radius_mm
-        + settings.fingertip_radius_mm
-    )
+    back = 0.5 * abs(float(np.linalg.norm(tp[1] - tp[0]))
+                     - float(np.linalg.norm(seen_points[0, 1] - seen_points[0, 0]))) \
+        + radius_mm + settings.fingertip_radius_mm
     felt, felt_faces = [], []
     for k, toward in ((0, u), (1, -u)):
         contact, face = close_fingers(tangible.obj.context, placed[:, k], toward, back)
@@ -146,53 +107,23 @@ def landing(
     pose = tangible.obj.spec.pose if tangible.obj.spec is not None else None
     R_mass = R if choice.redirect_terms is None else (
         np.eye(3) if pose is None else Rotation.from_quat(pose[1]).as_matrix().T)
-    terms, _ = pair_terms(
-        tangible,
-        virtual,
-        t_rows,
-        v_rows,
-        model,
-        R=R_mass,
-        t_points=felt_p.points,
-        v_points=seen.points,
-    )
-    cost = model.pool(
-        terms, extra=choice.redirect_terms, rest=choice.rest_jnd
-    )  # a redirection is planned for the targets: as the match's
+    terms, _ = pair_terms(tangible, virtual, t_rows, v_rows, model, R=R_mass,
+                          t_points=felt_p.points, v_points=seen.points)
+    # a redirection is planned for the targets: as the match's
+    cost = model.pool(terms, extra=choice.redirect_terms, rest=choice.rest_jnd)
     jnd = model.as_jnd()
     jnd_all = CostModel(normalize="jnd", criteria=CRITERIA, weights=dict.fromkeys(CRITERIA, 1.0))
-    jnd_terms, _ = pair_terms(
-        tangible,
-        virtual,
-        t_rows,
-        v_rows,
-        jnd_all,
-        R=R_mass,
-        t_points=felt_p.points,
-        v_points=seen.points,
-    )
-    loud = tuple(
-        c for k, c in enumerate(CRITERIA) if c in model.criteria and (jnd_terms[:, k] >= 1.0).any()
-    )
+    jnd_terms, _ = pair_terms(tangible, virtual, t_rows, v_rows, jnd_all, R=R_mass,
+                              t_points=felt_p.points, v_points=seen.points)
+    loud = tuple(c for k, c in enumerate(CRITERIA) if c in model.criteria
+                 and (jnd_terms[:, k] >= 1.0).any())
     worst = int(np.argmax(cost))
     p_worst = float(jnd.p_noticed(jnd.pool(jnd_terms[worst], extra=choice.redirect_terms)))
     missed = int((~hit).sum())
     if missed:  # a finger that meets no surface is noticed for certain
-        miss = float(
-            model.pool(np.full((1, len(CRITERIA)), MISS_JND**2) * (np.arange(len(CRITERIA)) == 0))[
-                0
-            ]
-        )
+        miss = float(model.pool(np.full((1, len(CRITERIA)), MISS_JND ** 2)
+                                * (np.arange(len(CRITERIA)) == 0))[0])
         cost = np.concatenate([cost, np.full(missed, max(miss, float(cost.max())))])
         worst, p_worst = len(cost) - 1, 1.0
-    return Landing(
-        float(radius_mm),
-        float(axis_deg),
-        float(cost[0]),
-        float(cost.mean()),
-        float(cost[worst]),
-        p_worst,
-        loud,
-        int(hit.sum()) + missed,
-        missed,
-    )
+    return Landing(float(radius_mm), float(axis_deg), float(cost[0]), float(cost.mean()),
+                   float(cost[worst]), p_worst, loud, int(hit.sum()) + missed, missed)

@@ -48,54 +48,29 @@ def game_level(crates: int = 12, jars: int = 9) -> tuple[bytes, dict]:
     for name, mesh in meshes:
         v = np.asarray(mesh.vertices, np.float32)
         f = np.asarray(mesh.faces, np.uint32).ravel()
-        for data, target, kind, count, extra in (
-            (v, 34962, "VEC3", len(v), {"min": v.min(0).tolist(), "max": v.max(0).tolist()}),
-            (f, 34963, "SCALAR", len(f), {}),
-        ):
-            views.append(
-                {"buffer": 0, "byteOffset": len(blob), "byteLength": data.nbytes, "target": target}
-            )
-            accessors.append(
-                {
-                    "bufferView": len(views) - 1,
-                    "componentType": 5126 if kind == "VEC3" else 5125,
-                    "count": count,
-                    "type": kind,
-                    **extra,
-                }
-            )
+        for data, target, kind, count, extra in ((v, 34962, "VEC3", len(v),
+                                                  {"min": v.min(0).tolist(),
+                                                   "max": v.max(0).tolist()}),
+                                                 (f, 34963, "SCALAR", len(f), {})):
+            views.append({"buffer": 0, "byteOffset": len(blob), "byteLength": data.nbytes,
+                          "target": target})
+            accessors.append({"bufferView": len(views) - 1, "componentType": 5126 if kind == "VEC3"
+                              else 5125,
+                              "count": count, "type": kind, **extra})
             blob += data.tobytes()
-        gltf_meshes.append(
-            {
-                "name": name,
-                "primitives": [
-                    {"attributes": {"POSITION": len(accessors) - 2}, "indices": len(accessors) - 1}
-                ],
-            }
-        )
-    nodes = [
-        {"name": "Level", "children": [1, 2], "translation": [1.0, 0.0, -2.0]},
-        {
-            "name": "Storeroom",
-            "children": [],
-            "rotation": _quaternion([0, 1, 0], 30.0),
-            "translation": [0.5, 0, 0],
-        },
-        {
-            "name": "Shelf",
-            "children": [],
-            "translation": [0, 0.8, 0],
-            "rotation": _quaternion([1, 0, 0], 10.0),
-        },
-    ]
+        gltf_meshes.append({"name": name,
+                            "primitives": [{"attributes": {"POSITION": len(accessors) - 2},
+                                                          "indices": len(accessors) - 1}]})
+    nodes = [{"name": "Level", "children": [1, 2], "translation": [1.0, 0.0, -2.0]},
+             {"name": "Storeroom", "children": [], "rotation": _quaternion([0, 1, 0], 30.0),
+              "translation": [0.5, 0, 0]},
+             {"name": "Shelf", "children": [], "translation": [0, 0.8, 0],
+              "rotation": _quaternion([1, 0, 0], 10.0)}]
     for k in range(crates):
         nodes[1]["children"].append(len(nodes))
-        node = {
-            "name": f"Crate.{k:03d}",
-            "mesh": 0,
-            "translation": [0.1 * (k % 4), 0.0, 0.12 * (k // 4)],
-            "rotation": _quaternion([0, 1, 0], 15.0 * k),
-        }
+        node = {"name": f"Crate.{k:03d}", "mesh": 0,
+                "translation": [0.1 * (k % 4), 0.0, 0.12 * (k // 4)],
+                "rotation": _quaternion([0, 1, 0], 15.0 * k)}
         if k == 5:
             node["scale"] = [-1.0, 1.0, 1.0]  # mirrored in the editor
         if k == 7:
@@ -104,16 +79,10 @@ def game_level(crates: int = 12, jars: int = 9) -> tuple[bytes, dict]:
     for k in range(jars):
         nodes[2]["children"].append(len(nodes))
         nodes.append({"name": f"Jar_{k}", "mesh": 1, "translation": [0.07 * k, 0.0, 0.0]})
-    document = {
-        "asset": {"version": "2.0", "generator": "pinchmatch tests"},
-        "scene": 0,
-        "scenes": [{"nodes": [0]}],
-        "nodes": nodes,
-        "meshes": gltf_meshes,
-        "accessors": accessors,
-        "bufferViews": views,
-        "buffers": [{"byteLength": len(blob)}],
-    }
+    document = {"asset": {"version": "2.0", "generator": "pinchmatch tests"}, "scene": 0,
+                "scenes": [{"nodes": [0]}], "nodes": nodes, "meshes": gltf_meshes,
+                "accessors": accessors, "bufferViews": views,
+                "buffers": [{"byteLength": len(blob)}]}
     expected = {}
 
     def walk(i, parent_matrix, parent_path):
@@ -131,12 +100,8 @@ def game_level(crates: int = 12, jars: int = 9) -> tuple[bytes, dict]:
     text += b" " * (-len(text) % 4)
     blob += b"\0" * (-len(blob) % 4)
     glb = struct.pack("<4sII", b"glTF", 2, 12 + 8 + len(text) + 8 + len(blob))
-    glb += (
-        struct.pack("<I4s", len(text), b"JSON")
-        + text
-        + struct.pack("<I4s", len(blob), b"BIN\0")
-        + blob
-    )
+    glb += struct.pack("<I4s", len(text), b"JSON") + text + struct.pack(
+        "<I4s", len(blob), b"BIN\0") + blob
     return glb, expected
 
 
@@ -175,67 +140,35 @@ def glb_of(meshes, nodes, *, scenes=None, **document) -> bytes:
             v = np.asarray(mesh.vertices, np.float32)
             f = np.asarray(mesh.faces, np.uint32).ravel()
             for data, target, kind, count, extra in (
-                (v, 34962, "VEC3", len(v), {"min": v.min(0).tolist(), "max": v.max(0).tolist()}),
-                (f, 34963, "SCALAR", len(f), {}),
-            ):
-                views.append(
-                    {
-                        "buffer": 0,
-                        "byteOffset": len(blob),
-                        "byteLength": data.nbytes,
-                        "target": target,
-                    }
-                )
-                accessors.append(
-                    {
-                        "bufferView": len(views) - 1,
-                        "componentType": 5126 if kind == "VEC3" else 5125,
-                        "count": count,
-                        "type": kind,
-                        **extra,
-                    }
-                )
+                    (v, 34962, "VEC3", len(v),
+                     {"min": v.min(0).tolist(), "max": v.max(0).tolist()}),
+                    (f, 34963, "SCALAR", len(f), {})):
+                views.append({"buffer": 0, "byteOffset": len(blob), "byteLength": data.nbytes,
+                              "target": target})
+                accessors.append({"bufferView": len(views) - 1, "componentType": 5126 if kind
+                                  == "VEC3" else 5125,
+                                  "count": count, "type": kind, **extra})
                 blob += data.tobytes()
             materials.append({"name": f"material_{len(materials)}"})
-            out.append(
-                {
-                    "attributes": {"POSITION": len(accessors) - 2},
-                    "indices": len(accessors) - 1,
-                    "material": len(materials) - 1,
-                }
-            )
+            out.append({"attributes": {"POSITION": len(accessors) - 2},
+                        "indices": len(accessors) - 1, "material": len(materials) - 1})
         gltf_meshes.append({"primitives": out})
     held = {c for n in nodes for c in n.get("children", [])}
-    doc = {
-        "asset": {"version": "2.0", "generator": "pinchmatch tests"},
-        "scene": 0,
-        "scenes": scenes
-        if scenes is not None
-        else [{"nodes": [i for i in range(len(nodes)) if i not in held]}],
-        "nodes": nodes,
-        "meshes": gltf_meshes,
-        "materials": materials,
-        "accessors": accessors,
-        "bufferViews": views,
-        "buffers": [{"byteLength": len(blob)}],
-        **document,
-    }
+    doc = {"asset": {"version": "2.0", "generator": "pinchmatch tests"}, "scene": 0,
+           "scenes": scenes if scenes is not None
+           else [{"nodes": [i for i in range(len(nodes)) if i not in held]}],
+           "nodes": nodes, "meshes": gltf_meshes, "materials": materials, "accessors": accessors,
+           "bufferViews": views, "buffers": [{"byteLength": len(blob)}], **document}
     text = json.dumps(doc).encode()
     text += b" " * (-len(text) % 4)
     blob += b"\0" * (-len(blob) % 4)
     glb = struct.pack("<4sII", b"glTF", 2, 12 + 8 + len(text) + 8 + len(blob))
-    return (
-        glb
-        + struct.pack("<I4s", len(text), b"JSON")
-        + text
-        + struct.pack("<I4s", len(blob), b"BIN\0")
-        + blob
-    )
+    return glb + struct.pack("<I4s", len(text), b"JSON") + text + struct.pack(
+        "<I4s", len(blob), b"BIN\0") + blob
 
 
-def can_prop_manifest(
-    position_mm=(0.0, 900.0, 0.0), quaternion_xyzw=None, name: str = "can_prop"
-) -> str:
+def can_prop_manifest(position_mm=(0.0, 900.0, 0.0), quaternion_xyzw=None,
+                      name: str = "can_prop") -> str:
     """A props manifest of one can (54 x 66 mm, its file's +Z up) posed in a y-up level: standing on
     the level's table at ``position_mm`` unless ``quaternion_xyzw`` turns it otherwise."""
     q = list(Z_UP_IN_Y_UP if quaternion_xyzw is None else quaternion_xyzw)

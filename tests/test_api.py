@@ -24,9 +24,8 @@ INIT = Path(pinchmatch.__file__)
 
 def test_every_public_name_resolves_and_static_tools_see_it():
     tree = ast.parse(INIT.read_text())
-    checked = [
-        n for n in tree.body if isinstance(n, ast.If) and ast.unparse(n.test) == "TYPE_CHECKING"
-    ]
+    checked = [n for n in tree.body if isinstance(n, ast.If) and ast.unparse(n.test)
+               == "TYPE_CHECKING"]
     assert len(checked) == 1
     seen = {}
     for node in checked[0].body:
@@ -40,21 +39,11 @@ def test_every_public_name_resolves_and_static_tools_see_it():
         assert inspect.getdoc(value), f"{name} has no docstring"
 
 
-@pytest.mark.parametrize(
-    "name",
-    [
-        "select_props",
-        "coverage_curve",
-        "design_props",
-        "DesignSettings",
-        "calibrate",
-        "read_ratings",
-        "register_poses",
-        "CostModel",
-        "Weights",
-        "evaluate_pairs",
-    ],
-)
+@pytest.mark.parametrize("name",
+                         ["select_props", "coverage_curve", "design_props", "DesignSettings",
+                          "calibrate",
+                                  "read_ratings", "register_poses", "CostModel", "Weights",
+                                  "evaluate_pairs"])
 def test_what_the_readme_sells_is_exported(name):
     assert name in pinchmatch.__all__
 
@@ -118,9 +107,8 @@ def _callables():
 def test_options_of_longer_signatures_are_keyword_only(name, function):
     """A function of more than two parameters takes its options (those with a default) by name only:
     ``select_props(cost, loud, 2, "max")`` cannot be read as anything but what it is."""
-    params = [
-        p for p in inspect.signature(function).parameters.values() if p.name not in ("self", "cls")
-    ]
+    params = [p for p in inspect.signature(function).parameters.values()
+              if p.name not in ("self", "cls")]
     positional = [p.name for p in params if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)
                   and p.default is not p.empty]
     assert len(params) <= 2 or not positional, f"{name}: {positional} should follow a '*'"
@@ -169,9 +157,8 @@ def test_the_examples_run(example_files, monkeypatch):
     assert tried >= 2 * len(_functions())
 
 
-@pytest.mark.parametrize(
-    "function, data", [("match_scene", 2), ("match_virtual", 2), ("evaluate_pairs", 4)]
-)
+@pytest.mark.parametrize("function, data",
+                         [("match_scene", 2), ("match_virtual", 2), ("evaluate_pairs", 4)])
 def test_options_are_keyword_only_and_default_to_none(function, data):
     params = list(inspect.signature(getattr(pinchmatch, function)).parameters.values())
     assert all(p.kind is p.POSITIONAL_OR_KEYWORD and p.default is p.empty for p in params[:data])
@@ -197,11 +184,8 @@ def test_a_cost_model_completes_its_weights_as_match_settings_do():
     model = pinchmatch.CostModel(weights={"width": 2})
     settings = pinchmatch.MatchSettings(weights={"width": 2})
     assert dict(model.weights) == dict(settings.weights)
-    assert (
-        model.weights["width"] == 2.0
-        and model.weights["kmax"] == 1.0
-        and model.weights["com"] == 0.0
-    )
+    assert (model.weights["width"] == 2.0 and model.weights["kmax"] == 1.0 and model.weights["com"]
+            == 0.0)
     for bad in ({"widht": 1}, {"width": -1}, {"width": float("nan")}):
         with pytest.raises(ConfigError):
             pinchmatch.CostModel(weights=bad)
@@ -215,21 +199,17 @@ def test_frozen_records_hold_no_mutable_state():
             weights["width"] = 5.0  # read-only
     assert hash(settings.weights) == hash(model.weights)
     fields = {f.name for f in pinchmatch.Candidates.__dataclass_fields__.values()}
-    assert (
-        "probes" not in fields
-    )  # the reference search's memo is its caller's, not the candidates'
+    # the reference search's memo is its caller's, not the candidates'
+    assert "probes" not in fields
 
 
 def _imports(path: Path, package: str) -> set[str]:
     """The pinchmatch modules a module imports, at the top or inside a function (not under
     TYPE_CHECKING)."""
     tree = ast.parse(path.read_text())
-    skip = {
-        id(n)
-        for node in ast.walk(tree)
-        if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test)
-        for n in ast.walk(node)
-    }
+    skip = {id(n) for node in ast.walk(tree) if isinstance(node, ast.If)
+            and "TYPE_CHECKING" in ast.unparse(node.test)
+            for n in ast.walk(node)}
     found = set()
     for node in ast.walk(tree):
         if id(node) in skip or not isinstance(node, ast.ImportFrom):

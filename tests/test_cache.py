@@ -28,15 +28,8 @@ def mesh_file(tmp_path):
 
 
 def same_candidates(a, b):
-    for name in (
-        "points",
-        "normals",
-        "face_index",
-        "kappa_max_per_m",
-        "kappa_min_per_m",
-        "dir_max",
-        "broken",
-    ):
+    for name in ("points", "normals", "face_index", "kappa_max_per_m", "kappa_min_per_m", "dir_max",
+                 "broken"):
         assert np.array_equal(getattr(a.pinches, name), getattr(b.pinches, name)), name
     assert np.array_equal(a.table, b.table, equal_nan=True) and np.array_equal(a.index, b.index)
     assert np.array_equal(a.obj.loaded.mesh.vertices, b.obj.loaded.mesh.vertices)
@@ -66,14 +59,9 @@ def test_the_key_follows_content_and_settings_only(tmp_path, mesh_file):
     assert same(settings=dataclasses.replace(SETTINGS, patch_radius_mm=6.0)) != key
     assert same(given=(np.zeros((1, 3)), np.ones((1, 3)))) != key
     # what shapes the candidates is in the key; the name and the mass are not
-    for change in (
-        {"units": "cm"},
-        {"up": "y"},
-        {"com_mm": (0.0, 0.0, 5.0)},
-        {"axis": (1.0, 0.0, 0.0)},
-        {"node": "handle"},
-        {"regions": ContactRegions(exclude=(Region.sphere((0, 0, 0), 5.0),))},
-    ):
+    for change in ({"units": "cm"}, {"up": "y"}, {"com_mm": (0.0, 0.0, 5.0)},
+                   {"axis": (1.0, 0.0, 0.0)}, {"node": "handle"},
+                   {"regions": ContactRegions(exclude=(Region.sphere((0, 0, 0), 5.0),))}):
         assert same(dataclasses.replace(spec, **change)) != key, change
     assert same(dataclasses.replace(spec, name="can", mass_g=350.0)) == key
     copy = tmp_path / "copy.stl"  # the name does not matter, the bytes do
@@ -143,8 +131,7 @@ def test_default_cache_dir_follows_the_environment(monkeypatch, tmp_path):
 
 
 def test_match_reuses_the_cache_when_weights_change_and_gives_the_same_result(
-    tmp_path, capsys, mesh_file
-):
+    tmp_path, capsys, mesh_file):
     base = ["match", "--tangible", example_mesh_path(), "--virtual", mesh_file, "--count", 150,
             "--no-view", "--no-figures"]
     code, cold_out, err = run_cli(capsys, *base, "-o", tmp_path / "cold")
@@ -154,23 +141,12 @@ def test_match_reuses_the_cache_when_weights_change_and_gives_the_same_result(
     assert code == 0 and "2 from the cache, 0 computed" in warm_out
     cold = (tmp_path / "cold" / "matches.json").read_text()
     assert (tmp_path / "warm" / "matches.json").read_text() == cold  # bit for bit
-    code, tuned_out, err = run_cli(
-        capsys,
-        *base,
-        "--weights",
-        "width=3,mass=0",
-        "--normalize",
-        "range",
-        "-o",
-        tmp_path / "tuned",
-    )
+    code, tuned_out, err = run_cli(capsys, *base, "--weights", "width=3,mass=0", "--normalize",
+                                   "range",
+                               "-o", tmp_path / "tuned")
     assert code == 0 and "2 from the cache, 0 computed" in tuned_out
-    assert (
-        json.loads((tmp_path / "tuned" / "matches.json").read_text())["settings"]["weights"][
-            "width"
-        ]
-        == 3.0
-    )
+    assert json.loads((tmp_path / "tuned"
+                       / "matches.json").read_text())["settings"]["weights"]["width"] == 3.0
     code, fresh_out, err = run_cli(capsys, *base, "--no-cache", "-o", tmp_path / "fresh")
     assert code == 0 and "from the cache" not in fresh_out
     assert (tmp_path / "fresh" / "matches.json").read_text() == cold
@@ -197,31 +173,17 @@ def test_folders_are_searched_recursively_and_a_bad_file_is_left_out(tmp_path, c
     ellipsoid((22.0, 22.0, 22.0), faces=900).mesh.export(assets / "room" / "shelf" / "ball.obj")
     ellipsoid((22.0, 22.0, 22.0), faces=900).mesh.export(assets / ".hidden" / "ignored.stl")
     (assets / "notes.txt").write_text("not a mesh")
-    (assets / "room" / "broken.stl").write_bytes(
-        b"solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0"
-    )
+    (assets / "room"
+     / "broken.stl").write_bytes(b"solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0")
     out = tmp_path / "out"
-    code, stdout, err = run_cli(
-        capsys,
-        "match",
-        "--tangible",
-        props,
-        "--virtual",
-        assets,
-        "--count",
-        120,
-        "-o",
-        out,
-        "--no-view",
-        "--no-figures",
-    )
+    code, stdout, err = run_cli(capsys, "match", "--tangible", props, "--virtual", assets,
+                                "--count", 120, "-o", out,
+                            "--no-view", "--no-figures")
     assert code == 3, err
     assert err.count("pinchmatch: error:") == 1 and "broken.stl" in err and "going on" in err
     doc = json.loads((out / "matches.json").read_text())
-    assert [m["virtual"] for m in doc["matches"]] == [
-        "egg.STL",
-        "ball.obj",
-    ]  # by path: room/egg < room/shelf/ball
+    # by path: room/egg < room/shelf/ball
+    assert [m["virtual"] for m in doc["matches"]] == ["egg.STL", "ball.obj"]
     assert len(doc["failed"]) == 1 and doc["failed"][0]["path"].endswith("broken.stl")
     assert doc["failed"][0]["role"] == "virtual" and "broken.stl" in doc["failed"][0]["error"]
     assert "failed: 1 files" in stdout
@@ -233,24 +195,18 @@ def test_when_no_file_of_a_role_can_be_used_the_run_stops(tmp_path, capsys):
     for name in ("a.stl", "b.stl"):
         (bad / name).write_bytes(b"")
     out = tmp_path / "out"
-    code, _, err = run_cli(
-        capsys, "match", "--tangible", example_mesh_path(), "--virtual", bad, "-o", out
-    )
-    assert (
-        code == 2 and "none of the 2 virtual files could be used" in err and "Traceback" not in err
-    )
+    code, _, err = (run_cli(capsys, "match", "--tangible", example_mesh_path(), "--virtual", bad,
+                            "-o", out))
+    assert (code == 2 and "none of the 2 virtual files could be used" in err
+            and "Traceback" not in err)
     assert err.strip().splitlines()[-1].startswith("pinchmatch: error: none of the 2")
     assert not out.exists()
     empty = tmp_path / "empty"
     empty.mkdir()
-    code, _, err = run_cli(
-        capsys, "match", "--tangible", example_mesh_path(), "--virtual", empty, "-o", out
-    )
-    assert (
-        code == 2
-        and "names a folder that has no mesh file" in err
-        and len(err.strip().splitlines()) == 1
-    )
+    code, _, err = (run_cli(capsys, "match", "--tangible", example_mesh_path(), "--virtual", empty,
+                            "-o", out))
+    assert (code == 2 and "names a folder that has no mesh file" in err
+            and len(err.strip().splitlines()) == 1)
 
 
 def test_clear_deletes_only_what_the_cache_wrote(tmp_path, capsys, mesh_file):
@@ -263,15 +219,13 @@ def test_clear_deletes_only_what_the_cache_wrote(tmp_path, capsys, mesh_file):
     impostor = folder / ("ab" * 32 + ".npz")  # named like an entry, holding something else
     np.savez(impostor, meta=np.array('{"format": 2, "key": "someone else"}'))
     (folder / ("cd" * 32 + ".npz")).mkdir()  # a folder named like an entry
-    (folder / f".{'ef' * 32}.npz.x1y2.tmp").write_bytes(
-        b"half an entry"
-    )  # the cache's own temporary
+    # the cache's own temporary
+    (folder / f".{'ef' * 32}.npz.x1y2.tmp").write_bytes(b"half an entry")
     code, out, err = run_cli(capsys, "cache", "clear", "--cache", folder)
     assert code == 0 and "deleted 1 entries" in out, err
     left = sorted(p.name for p in folder.iterdir())
-    assert left == sorted(
-        [".hidden.tmp", "notes.tmp", "results.npz", impostor.name, "cd" * 32 + ".npz"]
-    )
+    assert left == sorted([".hidden.tmp", "notes.tmp", "results.npz", impostor.name,
+                           "cd" * 32 + ".npz"])
     assert not ours.exists()
 
 
@@ -280,9 +234,8 @@ def test_info_and_clear_on_a_file_say_so(tmp_path, capsys):
     path.write_bytes(b"user data")
     for action in ("info", "clear"):
         code, _, err = run_cli(capsys, "cache", action, "--cache", path)
-        assert (
-            code == 2 and "a file, not a cache folder" in err and len(err.strip().splitlines()) == 1
-        )
+        assert (code == 2 and "a file, not a cache folder" in err and len(err.strip().splitlines())
+                == 1)
     assert path.read_bytes() == b"user data"
 
 
@@ -292,25 +245,20 @@ def test_the_key_covers_the_code(tmp_path, mesh_file, monkeypatch):
 
     cache = FeatureCache(tmp_path / "c")
     key = cache.key(ObjectSpec(str(mesh_file)), settings=SETTINGS)
-    monkeypatch.setattr(
-        cache_module, "code_digest", lambda: "0" * 64
-    )  # as after an edit of any module
+    # as after an edit of any module
+    monkeypatch.setattr(cache_module, "code_digest", lambda: "0" * 64)
     assert cache.key(ObjectSpec(str(mesh_file)), settings=SETTINGS) != key
     # the code's digest reads every module of the package: none can be left out of a key
     copy = tmp_path / "pinchmatch"
-    shutil.copytree(
-        Path(cache_module.__file__).parents[1], copy, ignore=shutil.ignore_patterns("__pycache__")
-    )
+    shutil.copytree(Path(cache_module.__file__).parents[1], copy,
+                    ignore=shutil.ignore_patterns("__pycache__"))
     assert options.package_digest(copy) == options.code_digest()
     (copy / "data" / "notes.txt").write_text("a data file is no code")
     assert options.package_digest(copy) == options.code_digest()
-    for edit in (
-        lambda: (copy / "grasp" / "hand.py").write_text(
-            (copy / "grasp" / "hand.py").read_text() + "#"
-        ),
-        lambda: (copy / "match" / "new_stage.py").write_text("x = 1\n"),
-        lambda: (copy / "viewer" / "viewer.js").write_text("//"),
-    ):
+    for edit in (lambda: (copy / "grasp"
+                          / "hand.py").write_text((copy / "grasp" / "hand.py").read_text() + "#"),
+                 lambda: (copy / "match" / "new_stage.py").write_text("x = 1\n"),
+                 lambda: (copy / "viewer" / "viewer.js").write_text("//")):
         before = options.package_digest(copy)
         edit()
         assert options.package_digest(copy) != before
@@ -333,8 +281,8 @@ def test_a_code_error_while_reading_an_entry_is_raised_not_a_miss(tmp_path, mesh
 
 @pytest.mark.parametrize("error", [ValueError, KeyError])
 def test_a_value_error_of_the_code_while_an_entry_is_checked_is_raised_not_a_miss(
-    tmp_path, mesh_file, monkeypatch, error
-):
+    tmp_path, mesh_file, monkeypatch,
+                                                                                   error):
     """Damage has its own exception: a bug that raises ValueError or KeyError while an entry is read
     or its arrays checked is raised, and the entry stays."""
     from pinchmatch.runner import cache as cache_module
@@ -358,9 +306,8 @@ def test_the_reference_pose_comes_from_the_cache_in_a_warm_run(tmp_path, mesh_fi
     from pinchmatch.match.search import MatchSettings, cost_model
 
     cache = FeatureCache(tmp_path / "c")
-    tangible = cached_candidates(
-        mesh_file, cache=None, settings=SETTINGS
-    )  # itself: the pinch line meets it
+    # itself: the pinch line meets it
+    tangible = cached_candidates(mesh_file, cache=None, settings=SETTINGS)
     cold = cached_candidates(mesh_file, cache=cache, settings=SETTINGS)
     # neither refined nor landed: both need the surface (a warm run of the same settings reads its
     # whole result from the cache instead)
@@ -381,20 +328,15 @@ def test_the_reference_pose_comes_from_the_cache_in_a_warm_run(tmp_path, mesh_fi
     warm_probes = cache.load_probes(cache.last_key)
     assert cache.last_key == key and warm_probes.keys() == cold_probes.keys()
     ref_warm = match(warm, warm_probes)
-    assert not {"sample", "tree", "rays"} & set(
-        vars(warm.obj.context)
-    )  # nothing of the surface was built
+    # nothing of the surface was built
+    assert not {"sample", "tree", "rays"} & set(vars(warm.obj.context))
     assert ref_warm.cost == ref_cold.cost and ref_warm.flipped == ref_cold.flipped
     for name in ("points", "normals", "kappa_max_per_m", "kappa_min_per_m", "broken", "approach"):
-        assert np.array_equal(
-            getattr(ref_warm.pinches, name),
-            getattr(cold_probes[next(iter(cold_probes))], name),
-            equal_nan=True,
-        )
+        assert np.array_equal(getattr(ref_warm.pinches, name),
+                              getattr(cold_probes[next(iter(cold_probes))], name), equal_nan=True)
     assert dataclasses.asdict(warm.obj.props).keys() == dataclasses.asdict(cold.obj.props).keys()
-    for name, value in dataclasses.asdict(
-        cold.obj.props
-    ).items():  # mass properties stored, not recomputed
+    for name, value in dataclasses.asdict(cold.obj.props).items():
+        # mass properties stored, not recomputed
         assert np.array_equal(getattr(warm.obj.props, name), value), name
 
     # a damaged probes file is a miss: computed again, the same
@@ -412,10 +354,8 @@ def test_given_poses_key_the_cache_by_their_values_in_any_number_type(tmp_path, 
     spec = ObjectSpec(str(mesh_file))
     p1 = np.array([[10.0, -4.0, 2.0], [0.0, 6.0, -8.0]])
     p2 = np.array([[-10.0, -4.0, 2.0], [0.0, -6.0, -8.0]])
-    keys = {
-        cache.key(spec, settings=SETTINGS, given=(p1.astype(t), p2.astype(t)))
-        for t in (np.float64, np.float32, np.int32)
-    }
+    keys = {cache.key(spec, settings=SETTINGS, given=(p1.astype(t), p2.astype(t)))
+            for t in (np.float64, np.float32, np.int32)}
     assert len(keys) == 1
     assert cache.key(spec, settings=SETTINGS, given=(p1, p2 + 1.0)) not in keys
 
@@ -429,6 +369,5 @@ def test_an_unwritable_cache_is_said_once_with_the_systems_reason(tmp_path, mesh
     [record] = [r for r in caplog.records if "cannot write the cache" in r.getMessage()]
     import re
 
-    assert re.fullmatch(
-        r"cannot write the cache in .+ \([^()]+\); going on without it", record.getMessage()
-    )
+    assert re.fullmatch(r"cannot write the cache in .+ \([^()]+\); going on without it",
+                        record.getMessage())

@@ -15,28 +15,16 @@ def test_poses_on_the_example_writes_a_complete_document(tmp_path, capsys):
     assert doc["schema"] == "pinchmatch.poses/1" and doc["version"]
     assert doc["settings"]["count"] == 150 and doc["settings"]["units"] == "mm"
     obj = doc["object"]
-    for key in (
-        "com_mm",
-        "principal_axis",
-        "axis_source",
-        "up",
-        "units_in",
-        "bounds_mm",
-        "watertight",
-        "repairs",
-    ):
+    for key in ("com_mm", "principal_axis", "axis_source", "up", "units_in", "bounds_mm",
+                "watertight", "repairs"):
         assert key in obj
     assert obj["watertight"] and obj["axis_source"] == "pca" and obj["up"] == "z"
     assert doc["pose_count"] == len(doc["poses"]) == 150
     pose = doc["poses"][0]
     for key in ("p1_mm", "p2_mm", "n1", "n2", "width_mm", "com_distance_mm", "tilt_deg"):
         assert key in pose
-    assert set(pose["patches"][0]) >= {
-        "normal_angle_deg",
-        "curvature_axis_angle_deg",
-        "kappa_max_per_m",
-        "kappa_min_per_m",
-    }
+    assert set(pose["patches"][0]) >= {"normal_angle_deg", "curvature_axis_angle_deg",
+                                       "kappa_max_per_m", "kappa_min_per_m"}
     assert "150 feasible" in stdout
 
 
@@ -64,11 +52,8 @@ def test_given_poses_are_checked_and_infeasible_ones_named(tmp_path, capsys):
 
 @pytest.mark.parametrize("style", ["equals", "separate"])
 def test_features_accepts_negative_coordinates(capsys, style):
-    args = (
-        ["--p1=-20,0,20", "--p2=20,0,20"]
-        if style == "equals"
-        else ["--p1", "-20,0,20", "--p2", "20,0,20"]
-    )
+    args = (["--p1=-20,0,20", "--p2=20,0,20"] if style == "equals"
+            else ["--p1", "-20,0,20", "--p2", "20,0,20"])
     code, stdout, err = run_cli(capsys, "features", "--example", *args, "-q")
     assert code == 0, err
     doc = json.loads(stdout)
@@ -82,17 +67,15 @@ def test_features_accepts_negative_coordinates(capsys, style):
 
 
 def test_features_names_the_approach_and_the_csv_carries_it(capsys):
-    code, stdout, _ = run_cli(
-        capsys, "features", "--example", "--p1", "-20,0,20", "--p2", "20,0,20"
-    )
+    code, stdout, _ = (run_cli(capsys, "features", "--example", "--p1", "-20,0,20", "--p2",
+                               "20,0,20"))
     assert code == 0 and "approach [" in stdout and "fingers clear by" in stdout
     code, stdout, _ = run_cli(capsys, "poses", "--example", "--count", "5", "--format", "csv")
     head, first = stdout.splitlines()[:2]
     columns = dict(zip(head.split(","), first.split(",")))
     h = [float(columns[f"approach_{c}"]) for c in "xyz"]
-    assert (
-        sum(c * c for c in h) == pytest.approx(1.0, abs=1e-4) and "approach_clearance_mm" in columns
-    )
+    assert (sum(c * c for c in h) == pytest.approx(1.0, abs=1e-4)
+            and "approach_clearance_mm" in columns)
 
 
 def test_a_thinner_finger_reaches_into_a_narrow_tube(tmp_path, capsys):
@@ -105,9 +88,8 @@ def test_a_thinner_finger_reaches_into_a_narrow_tube(tmp_path, capsys):
     argv = ["features", str(path), "--p1", "8,0,90", "--p2", "6,0,90", "-q"]
     code, stdout, _ = run_cli(capsys, *argv)
     assert code == 0 and "clearance" in json.loads(stdout)["pose"]["broken_rules"]
-    code, stdout, _ = run_cli(
-        capsys, *argv, "--fingertip-radius-mm", "5", "--finger-radius-mm", "5"
-    )
+    code, stdout, _ = (run_cli(capsys, *argv, "--fingertip-radius-mm", "5", "--finger-radius-mm",
+                               "5"))
     pose = json.loads(stdout)["pose"]
     assert code == 0 and pose["feasible"] and abs(pose["approach"][2]) > 0.85  # up, along the bore
 
@@ -126,9 +108,8 @@ def _bad_files(tmp_path):
     truncated.write_bytes(truncated.read_bytes()[:300])
     (tmp_path / "empty.obj").write_text("")
     (tmp_path / "badidx.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n")
-    (tmp_path / "nan.obj").write_text(
-        "v 0 0 0\nv nan 0 0\nv 0 9 0\nv 0 0 9\nf 1 2 3\nf 1 3 4\nf 1 2 4\nf 2 3 4\n"
-    )
+    (tmp_path / "nan.obj").write_text("v 0 0 0\nv nan 0 0\nv 0 9 0\nv 0 0 9\nf 1 2 3\nf 1 3 4\nf 1 "
+                                      "2 4\nf 2 3 4\n")
     (tmp_path / "points.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\n")
     (tmp_path / "mesh.dat").write_text("1 2 3")
     (tmp_path / "folder.stl").mkdir()
@@ -159,31 +140,25 @@ def test_each_bad_file_fails_cleanly(tmp_path, capsys):
         assert not list(tmp_path.glob(f".{out.name}*"))  # no temporary left behind
 
 
-@pytest.mark.parametrize(
-    "argv, expected",
-    [
-        (["--count", "0"], "--count: got 0"),
-        (["--friction-cone-deg", "95"], "--friction-cone-deg: got 95"),
-        (["--max-width-mm", "1"], "--max-width-mm"),
-        (["--fingertip-radius-mm", "-1"], "--fingertip-radius-mm"),
-        (
-            ["--finger-radius-mm", "9"],
-            "--finger-radius-mm: got 9.0; it must be more than 0.3 and at most "
-            "--fingertip-radius-mm",
-        ),
-        (["--finger-radius-mm", "0.2"], "--finger-radius-mm: got 0.2"),
-        (["--finger-length-mm", "0"], "--finger-length-mm: got 0.0"),
-        (["--approach-tilt-deg", "90"], "--approach-tilt-deg: got 90.0"),
-        (["--approach-tilt-deg", "-5"], "--approach-tilt-deg: got -5.0"),
-        (["--patch-radius-mm", "0"], "--patch-radius-mm: got 0.0"),
-        (["--snap-tolerance-mm", "-1"], "--snap-tolerance-mm: got -1.0"),
-        (["--min-width-mm", "-0.5"], "--min-width-mm: got -0.5"),
-        (["--units", "ft"], "invalid choice: 'ft'"),
-        (["--com", "1,2"], "--com: expected three finite numbers"),
-        (["--axis", "0,0,0"], "--axis: the axis must be a non-zero vector"),
-        (["--bogus"], "unknown option --bogus"),
-    ],
-)
+@pytest.mark.parametrize("argv, expected", [
+    (["--count", "0"], "--count: got 0"),
+    (["--friction-cone-deg", "95"], "--friction-cone-deg: got 95"),
+    (["--max-width-mm", "1"], "--max-width-mm"),
+    (["--fingertip-radius-mm", "-1"], "--fingertip-radius-mm"),
+    (["--finger-radius-mm", "9"],
+     "--finger-radius-mm: got 9.0; it must be more than 0.3 and at most --fingertip-radius-mm"),
+    (["--finger-radius-mm", "0.2"], "--finger-radius-mm: got 0.2"),
+    (["--finger-length-mm", "0"], "--finger-length-mm: got 0.0"),
+    (["--approach-tilt-deg", "90"], "--approach-tilt-deg: got 90.0"),
+    (["--approach-tilt-deg", "-5"], "--approach-tilt-deg: got -5.0"),
+    (["--patch-radius-mm", "0"], "--patch-radius-mm: got 0.0"),
+    (["--snap-tolerance-mm", "-1"], "--snap-tolerance-mm: got -1.0"),
+    (["--min-width-mm", "-0.5"], "--min-width-mm: got -0.5"),
+    (["--units", "ft"], "invalid choice: 'ft'"),
+    (["--com", "1,2"], "--com: expected three finite numbers"),
+    (["--axis", "0,0,0"], "--axis: the axis must be a non-zero vector"),
+    (["--bogus"], "unknown option --bogus"),
+])
 def test_bad_options_fail_cleanly(tmp_path, capsys, argv, expected):
     out = tmp_path / "o.json"
     code, _, err = run_cli(capsys, "poses", "--example", *argv, "-o", str(out))
@@ -239,25 +214,12 @@ def test_tables_fit_80_columns_and_explain_their_units(tmp_path, capsys, monkeyp
     trimesh.creation.box(extents=(60.0, 40.0, 20.0)).export(long_t)
     trimesh.creation.box(extents=(58.0, 41.0, 22.0)).export(long_v)
     monkeypatch.setenv("COLUMNS", "80")
-    code, out, err = run_cli(
-        capsys,
-        "match",
-        "--tangible",
-        long_t,
-        "--virtual",
-        long_v,
-        "--count",
-        "60",
-        "--no-view",
-        "--no-figures",
-        "-o",
-        tmp_path / "out",
-    )
+    code, out, err = run_cli(capsys, "match", "--tangible", long_t, "--virtual", long_v, "--count",
+                             "60", "--no-view", "--no-figures", "-o", tmp_path / "out")
     assert code == 0, err
     assert max(len(line) for line in out.splitlines()) <= 80
     assert "…" not in out  # long names wrap, whole, instead of being cut
     assert "virtual_asset" in out and "tangible_prop" in out
-    assert (
-        "cost: the differences in JND pooled by probability summation (1: noticed half of the time)"
-        in " ".join(out.split())
-    )
+    said = " ".join(out.split())
+    assert ("cost: the differences in JND pooled by probability summation (1: noticed half of the "
+            "time)") in said

@@ -33,11 +33,8 @@ def _world_angles(points, h, user):
     hw, mid = h @ R.T, points.mean(axis=1) @ R.T + POSITION_MM
     elevation = np.degrees(np.arcsin(np.clip(hw[:, 1], -1, 1)))
     flat, to_user = hw * [1, 0, 1], (user - mid) * [1, 0, 1]
-    cos = (
-        np.einsum("kd,kd->k", flat, to_user)
-        / np.linalg.norm(flat, axis=1)
-        / np.linalg.norm(to_user, axis=1)
-    )
+    cos = np.einsum("kd,kd->k", flat, to_user) / np.linalg.norm(
+        flat, axis=1) / np.linalg.norm(to_user, axis=1)
     return elevation, np.degrees(np.arccos(np.clip(cos, -1, 1)))
 
 
@@ -90,9 +87,9 @@ def test_a_prop_with_no_comfortable_pose_allows_every_pose(bottle):
     assert comfortable_poses(held, user) is None
     one = away.approach.copy()
     one[3] = R.T @ np.array([0.0, 0.0, 1.0])
-    ok = comfortable_poses(
-        dataclasses.replace(prop, pinches=dataclasses.replace(away, approach=one)), user
-    )
+    ok = comfortable_poses(dataclasses.replace(prop,
+                                               pinches=dataclasses.replace(away, approach=one)),
+                                               user)
     assert ok is not None and ok.tolist() == [k == 3 for k in range(len(prop))]
 
 
@@ -123,28 +120,10 @@ def test_no_pinch_comes_from_the_far_side_below_35_degrees(tmp_path, capsys, bot
     for placement in ("registered", "fixed"):
         out = tmp_path / placement
         extra = ["--user-at", user] if user else []
-        code, _, err = run_cli(
-            capsys,
-            "match",
-            "--tangible",
-            folder / "props.toml",
-            "--virtual",
-            folder / "level.glb",
-            "--split",
-            "nodes",
-            "--count",
-            200,
-            "--placement",
-            placement,
-            "--no-view",
-            "--no-figures",
-            "--jobs",
-            1,
-            "--no-cache",
-            "-o",
-            out,
-            *extra,
-        )
+        code, _, err = run_cli(capsys, "match", "--tangible", folder / "props.toml", "--virtual",
+                               folder / "level.glb", "--split", "nodes", "--count", 200,
+                               "--placement", placement, "--no-view", "--no-figures", "--jobs", 1,
+                               "--no-cache", "-o", out, *extra)
         assert code == 0, err
         doc = json.loads((out / "matches.json").read_text())
         if at is None:
@@ -157,11 +136,8 @@ def test_no_pinch_comes_from_the_far_side_below_35_degrees(tmp_path, capsys, bot
                 pose = choice["tangible_pose"]
                 points = np.array([[pose["p1_mm"], pose["p2_mm"]]])
                 elevation, azimuth = _world_angles(points, np.array([pose["approach"]]), at)
-                assert azimuth[0] <= 90.0 or elevation[0] >= 35.0, (
-                    m["virtual"],
-                    elevation,
-                    azimuth,
-                )
+                assert (azimuth[0] <= 90.0 or elevation[0] >= 35.0), (
+                    m["virtual"], elevation, azimuth)
                 assert choice["approach_elevation_deg"] == pytest.approx(elevation[0], abs=0.01)
                 assert choice["approach_azimuth_deg"] == pytest.approx(azimuth[0], abs=0.01)
                 checked += 1
@@ -177,10 +153,9 @@ def test_choices_that_feel_the_same_go_to_the_easiest_reach(bottle):
 
     folder, prop = bottle
     config = Config(PinchSettings(count=200, seed=0), MatchSettings(top_k=3, refine=False))
-    twin = candidate_poses(
-        analyze_spec(object_specs([str(folder / "props.toml")], option="--virtual")[0]),
-        settings=config.pinch,
-    )
+    twin = candidate_poses(analyze_spec(object_specs(
+        [str(folder / "props.toml")], option="--virtual")[0]),
+                           settings=config.pinch)
     vm = match_one([prop], twin, config, model=cost_model(config.match, [prop, twin]))
     band = [c for c in [vm.best, *vm.alternatives] if c.cost <= vm.best.cost + 0.1]
     assert len(band) >= 2
@@ -210,69 +185,27 @@ def test_a_props_manifest_says_where_the_user_stands(tmp_path, capsys, bottle):
     manifest.write_text(f"user_mm = {behind}\n" + (folder / "props.toml").read_text().replace(
         'file = "bottle.stl"', f'file = "{folder / "bottle.stl"}"'))
     out = tmp_path / "out"
-    code, _, err = run_cli(
-        capsys,
-        "match",
-        "--tangible",
-        manifest,
-        "--virtual",
-        folder / "level.glb",
-        "--split",
-        "nodes",
-        "--count",
-        200,
-        "--no-view",
-        "--no-figures",
-        "--jobs",
-        1,
-        "--no-cache",
-        "-o",
-        out,
-    )
+    code, _, err = run_cli(capsys, "match", "--tangible", manifest, "--virtual",
+                           folder / "level.glb", "--split", "nodes", "--count", 200, "--no-view",
+                           "--no-figures", "--jobs", 1, "--no-cache", "-o", out)
     assert code == 0, err
     doc = json.loads((out / "matches.json").read_text())
     assert doc["settings"]["user_mm"] == behind
     for m in doc["matches"]:
         pose = m["tangible_pose"]
-        elevation, azimuth = _world_angles(
-            np.array([[pose["p1_mm"], pose["p2_mm"]]]),
-            np.array([pose["approach"]]),
-            np.array(behind),
-        )
+        elevation, azimuth = _world_angles(np.array([[pose["p1_mm"], pose["p2_mm"]]]),
+                                           np.array([pose["approach"]]), np.array(behind))
         assert m["approach_azimuth_deg"] == pytest.approx(azimuth[0], abs=0.01)
         assert azimuth[0] <= 90.0 or elevation[0] >= 35.0
     bad = tmp_path / "bad.toml"
     bad.write_text('user_mm = [1, "a", 3]\n' + manifest.read_text().split("\n", 1)[1])
-    code, stdout, err = run_cli(
-        capsys,
-        "match",
-        "--tangible",
-        bad,
-        "--virtual",
-        folder / "level.glb",
-        "-o",
-        tmp_path / "bad_out",
-    )
-    assert (
-        code == 2
-        and "user_mm" in err
-        and "Traceback" not in err
-        and len(err.strip().splitlines()) == 1
-    ), err
+    code, stdout, err = run_cli(capsys, "match", "--tangible", bad, "--virtual",
+                                folder / "level.glb", "-o", tmp_path / "bad_out")
+    assert (code == 2 and "user_mm" in err and "Traceback" not in err
+            and len(err.strip().splitlines()) == 1), err
     other = tmp_path / "other.toml"
-    other.write_text(
-        "user_mm = [0, 0, 900]\n"
-        + manifest.read_text().split("\n", 1)[1].replace('"bottle"', '"b2"')
-    )
-    code, stdout, err = run_cli(
-        capsys,
-        "match",
-        "--tangible",
-        manifest,
-        other,
-        "--virtual",
-        folder / "level.glb",
-        "-o",
-        tmp_path / "two_out",
-    )
+    other.write_text("user_mm = [0, 0, 900]\n"
+                     + manifest.read_text().split("\n", 1)[1].replace('"bottle"', '"b2"'))
+    code, stdout, err = run_cli(capsys, "match", "--tangible", manifest, other, "--virtual",
+                                folder / "level.glb", "-o", tmp_path / "two_out")
     assert code == 2 and "puts the user elsewhere" in err, err

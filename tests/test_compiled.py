@@ -14,17 +14,14 @@ def test_a_writable_package_or_a_given_folder_leaves_numba_its_own_choice(monkey
     assert compiled.kernel_cache_dir() is None
 
 
-def test_a_read_only_package_sends_the_kernels_to_the_users_cache_else_to_the_temporary_folder(
-    tmp_path, monkeypatch
-):
+def test_a_read_only_package_sends_the_kernels_to_the_users_cache_else_to_the_temporary_one(
+        tmp_path, monkeypatch):
     package = Path(compiled.__file__).resolve().parent
     real_access = os.access
     monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
-    monkeypatch.setattr(
-        compiled.os,
-        "access",
-        lambda path, mode: not str(path).startswith(str(package)) and real_access(path, mode),
-    )
+    monkeypatch.setattr(compiled.os, "access", lambda path,
+                        mode: not str(path).startswith(str(package))
+                        and real_access(path, mode))
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
     assert compiled.kernel_cache_dir() == str(tmp_path / "cache" / "pinchmatch" / "numba")
     assert (tmp_path / "cache" / "pinchmatch" / "numba").is_dir()

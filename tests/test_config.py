@@ -24,58 +24,27 @@ from levels import standing_can, tabletop_level
 #: a value other than the default for every field the command line offers, as the command line
 #: writes it
 CHANGED = {
-    "friction_cone_deg": "24",
-    "min_width_mm": "3",
-    "max_width_mm": "70",
-    "fingertip_radius_mm": "9",
-    "patch_radius_mm": "6",
-    "count": "61",
-    "seed": "3",
-    "snap_tolerance_mm": "3",
-    "finger_radius_mm": "6.5",
-    "finger_length_mm": "40",
-    "approach_tilt_deg": "20",
-    "finger_splay_deg": "5",
-    "grasp": "tripod",
-    "weights": "width=3",
-    "criteria": "paper",
-    "normalize": "range",
-    "pooling": "sum",
-    "top_k": "1",
-    "one_to_one": None,
-    "keep_upright": None,
-    "distinct_mm": "40",
-    "refine": "off",
-    "landing_mm": "3",
-    "rank": "nominal",
-    "placement": "fixed",
-    "hand_start_mm": "40,180,260",
-    "redirect_threshold_deg": "6",
-    "max_redirect_deg": "9",
-    "axis_threshold_deg": "25",
-    "gain_range": "0.9,1.2",
-    "carousel_margin_jnd": "1.5",
-    "rest_sink_mm_per_jnd": "0.5",
-    "rest_float_mm_per_jnd": "20",
-    "user_mm": "100,900,-400",
+    "friction_cone_deg": "24", "min_width_mm": "3", "max_width_mm": "70",
+    "fingertip_radius_mm": "9", "patch_radius_mm": "6", "count": "61", "seed": "3",
+    "snap_tolerance_mm": "3", "finger_radius_mm": "6.5", "finger_length_mm": "40",
+    "approach_tilt_deg": "20", "finger_splay_deg": "5", "grasp": "tripod",
+    "weights": "width=3", "criteria": "paper", "normalize": "range", "pooling": "sum", "top_k": "1",
+    "one_to_one": None, "keep_upright": None, "distinct_mm": "40", "refine": "off",
+    "landing_mm": "3", "rank": "nominal", "placement": "fixed", "hand_start_mm": "40,180,260",
+    "redirect_threshold_deg": "6", "max_redirect_deg": "9", "axis_threshold_deg": "25",
+    "gain_range": "0.9,1.2", "carousel_margin_jnd": "1.5", "rest_sink_mm_per_jnd": "0.5",
+    "rest_float_mm_per_jnd": "20", "user_mm": "100,900,-400",
 }
 #: fields of the records that are no option: they change how the work is split, never a result
 INTERNAL = {"block_rows"}
 #: the fields that matter only where the virtual objects stay in the level
-PLACED = {
-    "hand_start_mm",
-    "redirect_threshold_deg",
-    "max_redirect_deg",
-    "axis_threshold_deg",
-    "gain_range",
-    "carousel_margin_jnd",
-}
+PLACED = {"hand_start_mm", "redirect_threshold_deg", "max_redirect_deg", "axis_threshold_deg",
+          "gain_range", "carousel_margin_jnd"}
 
 
 def _fields():
-    return [
-        (record, f, opt) for record in (PinchSettings, MatchSettings) for f, opt in offered(record)
-    ]
+    return [(record, f, opt) for record in (PinchSettings,
+                                            MatchSettings) for f, opt in offered(record)]
 
 
 def _argv(name, value):
@@ -84,9 +53,8 @@ def _argv(name, value):
 
 
 def test_every_field_is_an_option_or_internal():
-    names = {
-        f.name for record in (PinchSettings, MatchSettings) for f in dataclasses.fields(record)
-    }
+    names = {f.name for record in (PinchSettings, MatchSettings)
+             for f in dataclasses.fields(record)}
     assert names == {f.name for _, f, _ in _fields()} | INTERNAL
     assert set(CHANGED) == {f.name for _, f, _ in _fields()}
 
@@ -101,17 +69,13 @@ def test_the_command_line_with_no_options_is_the_librarys_default(command):
 
 @pytest.mark.parametrize("name", sorted(CHANGED))
 def test_each_option_sets_its_own_field_and_no_other(name):
-    args = build_parser().parse_args(
-        ["match", "--tangible", "a", "--virtual", "b", *_argv(name, CHANGED[name])]
-    )
+    args = build_parser().parse_args(["match", "--tangible", "a", "--virtual", "b",
+                                      *_argv(name, CHANGED[name])])
     config = config_of_args(args)
     default = Config()
-    changed = {
-        f.name
-        for part in ("pinch", "match")
-        for f in dataclasses.fields(getattr(config, part))
-        if getattr(getattr(config, part), f.name) != getattr(getattr(default, part), f.name)
-    }
+    changed = {f.name for part in ("pinch", "match")
+               for f in dataclasses.fields(getattr(config, part))
+               if getattr(getattr(config, part), f.name) != getattr(getattr(default, part), f.name)}
     # the paper's criteria complete the weights with their own (com weighs 1 there)
     assert changed == ({name, "weights"} if name == "criteria" else {name})
     assert config.digest() != default.digest()
@@ -145,25 +109,9 @@ def level(tmp_path_factory):
 
 
 def _run(capsys, level, out, *extra, cache=None):
-    argv = [
-        "match",
-        "--tangible",
-        level / "props.toml",
-        "--virtual",
-        level / "level.glb",
-        "--split",
-        "nodes",
-        "--count",
-        60,
-        "--jobs",
-        1,
-        "-o",
-        out,
-        "--no-view",
-        "-q",
-        *(["--cache", cache] if cache else ["--no-cache"]),
-        *extra,
-    ]
+    argv = ["match", "--tangible", level / "props.toml", "--virtual", level / "level.glb",
+            "--split", "nodes", "--count", 60, "--jobs", 1, "-o", out, "--no-view", "-q",
+            *(["--cache", cache] if cache else ["--no-cache"]), *extra]
     code, _, err = run_cli(capsys, *argv)
     assert code == 0, err
     return (out / "matches.json").read_bytes()
@@ -189,13 +137,10 @@ def test_a_warm_run_after_any_change_equals_a_cold_run(tmp_path, capsys, level):
 def _documented(flag: str) -> set:
     """The numbers the README and docs give with ``flag``: "`--flag` (N)", "`--flag N`" (a default,
     or an example), "(default **N°**)"."""
-    text = "\n".join(
-        p.read_text()
-        for p in [
-            Path(__file__).parents[1] / "README.md",
-            *sorted((Path(__file__).parents[1] / "docs").glob("*.md")),
-        ]
-    )
+    text = "\n".join(p.read_text() for p in [Path(__file__).parents[1] / "README.md",
+                                              *sorted((
+                                                  Path(__file__).parents[1]
+                                                  / "docs").glob("*.md"))])
     number = r"(-?\d+(?:\.\d+)?)"
     found = set()
     for pattern in (rf"`{re.escape(flag)}`\s*\({number}\)", rf"`{re.escape(flag)} {number}`",
@@ -225,37 +170,17 @@ def test_a_list_of_criteria_is_kept_as_the_tuple_it_names():
     assert Config(match=settings).digest() == Config().digest()
 
 
-@pytest.mark.parametrize(
-    "field, value",
-    [
-        ("distinct_mm", -1.0),
-        ("distinct_mm", float("nan")),
-        ("distinct_mm", float("inf")),
-        ("distinct_mm", "8"),
-        ("distinct_mm", True),
-        ("top_k", -1),
-        ("top_k", 1.5),
-        ("landing_mm", -0.1),
-        ("landing_mm", 20.5),
-        ("normalize", "rank"),
-        ("pooling", "max"),
-        ("placement", "here"),
-        ("refine", "on"),
-        ("hand_start_mm", (0.0, 1.0)),
-        ("hand_start_mm", (0.0, float("nan"), 1.0)),
-        ("hand_start_mm", (2e5, 0.0, 0.0)),
-        ("max_redirect_deg", 0.0),
-        ("redirect_threshold_deg", 91.0),
-        ("axis_threshold_deg", -5.0),
-        ("criteria", ("width",)),
-        ("gain_range", (1.1, 1.2)),
-        ("gain_range", (0.9,)),
-        ("gain_range", (0.9, float("inf"))),
-        ("gain_range", (0.0, 1.1)),
-        ("carousel_margin_jnd", -0.1),
-        ("carousel_margin_jnd", float("nan")),
-    ],
-)
+@pytest.mark.parametrize("field, value", [
+    ("distinct_mm", -1.0), ("distinct_mm", float("nan")), ("distinct_mm", float("inf")),
+    ("distinct_mm", "8"), ("distinct_mm", True), ("top_k", -1), ("top_k", 1.5),
+    ("landing_mm", -0.1), ("landing_mm", 20.5), ("normalize", "rank"), ("pooling", "max"),
+    ("placement", "here"), ("refine", "on"), ("hand_start_mm", (0.0, 1.0)),
+    ("hand_start_mm", (0.0, float("nan"), 1.0)), ("hand_start_mm", (2e5, 0.0, 0.0)),
+    ("max_redirect_deg", 0.0), ("redirect_threshold_deg", 91.0), ("axis_threshold_deg", -5.0),
+    ("criteria", ("width",)), ("gain_range", (1.1, 1.2)), ("gain_range", (0.9,)),
+    ("gain_range", (0.9, float("inf"))), ("gain_range", (0.0, 1.1)), ("carousel_margin_jnd", -0.1),
+    ("carousel_margin_jnd", float("nan")),
+])
 def test_a_match_setting_out_of_bounds_is_refused(field, value):
     from pinchmatch.errors import ConfigError
 
@@ -263,33 +188,15 @@ def test_a_match_setting_out_of_bounds_is_refused(field, value):
         MatchSettings(**{field: value})
 
 
-@pytest.mark.parametrize(
-    "field, value",
-    [
-        ("friction_cone_deg", 0.0),
-        ("friction_cone_deg", 90.0),
-        ("min_width_mm", -0.1),
-        ("max_width_mm", 0.4),
-        ("max_width_mm", 301.0),
-        ("fingertip_radius_mm", 1.9),
-        ("fingertip_radius_mm", 25.1),
-        ("patch_radius_mm", 0.4),
-        ("patch_radius_mm", 50.1),
-        ("count", 0),
-        ("count", 100_001),
-        ("count", 10.0),
-        ("count", True),
-        ("seed", -1),
-        ("snap_tolerance_mm", 0.0),
-        ("finger_radius_mm", 0.3),
-        ("finger_radius_mm", 8.1),
-        ("finger_length_mm", 4.9),
-        ("finger_length_mm", 150.1),
-        ("approach_tilt_deg", -1.0),
-        ("approach_tilt_deg", 90.0),
-        ("friction_cone_deg", float("nan")),
-    ],
-)
+@pytest.mark.parametrize("field, value", [
+    ("friction_cone_deg", 0.0), ("friction_cone_deg", 90.0), ("min_width_mm", -0.1),
+    ("max_width_mm", 0.4), ("max_width_mm", 301.0), ("fingertip_radius_mm", 1.9),
+    ("fingertip_radius_mm", 25.1), ("patch_radius_mm", 0.4), ("patch_radius_mm", 50.1),
+    ("count", 0), ("count", 100_001), ("count", 10.0), ("count", True), ("seed", -1),
+    ("snap_tolerance_mm", 0.0), ("finger_radius_mm", 0.3), ("finger_radius_mm", 8.1),
+    ("finger_length_mm", 4.9), ("finger_length_mm", 150.1), ("approach_tilt_deg", -1.0),
+    ("approach_tilt_deg", 90.0), ("friction_cone_deg", float("nan")),
+])
 def test_a_pinch_setting_out_of_bounds_is_refused(field, value):
     from pinchmatch.errors import ConfigError
 
@@ -297,21 +204,14 @@ def test_a_pinch_setting_out_of_bounds_is_refused(field, value):
         PinchSettings(**{field: value})
 
 
-@pytest.mark.parametrize(
-    "field, value",
-    [
-        ("distinct_mm", 0.0),
-        ("top_k", 0),
-        ("landing_mm", 20.0),
-        ("landing_mm", 0.0),
-        ("max_redirect_deg", 90.0),
-        ("hand_start_mm", (1e5, -1e5, 0.0)),
-        ("redirect_threshold_deg", 0.5),
-        ("axis_threshold_deg", 0.25),
-        ("gain_range", (1.0, 1.0)),
-        ("carousel_margin_jnd", 0.0),
-    ],
-)
+@pytest.mark.parametrize("field, value",
+                         [("distinct_mm", 0.0), ("top_k", 0), ("landing_mm", 20.0),
+                          ("landing_mm", 0.0),
+                                          ("max_redirect_deg", 90.0),
+                                          ("hand_start_mm", (1e5, -1e5, 0.0)),
+                                          ("redirect_threshold_deg", 0.5),
+                                          ("axis_threshold_deg", 0.25), ("gain_range", (1.0, 1.0)),
+                                          ("carousel_margin_jnd", 0.0)])
 def test_a_match_setting_at_its_bound_is_taken(field, value):
     assert getattr(MatchSettings(**{field: value}), field) == value
 
@@ -333,12 +233,10 @@ def test_a_digest_sees_every_number_of_an_array_a_record_holds():
     b[2500] = 1e-9
     assert digest(Holder(a)) != digest(Holder(b))
     assert digest(Holder(a)) == digest(Holder(a.copy()))
-    assert digest(Holder(a, np.float64(2.0))) == digest(
-        Holder(a, 2.0)
-    )  # a numpy number is its value
-    assert digest({"m": Holder(a)}) != digest({"m": Holder(b)}) and digest([Holder(a)]) != digest(
-        [Holder(b)]
-    )
+    # a numpy number is its value
+    assert digest(Holder(a, np.float64(2.0))) == digest(Holder(a, 2.0))
+    assert (digest({"m": Holder(a)}) != digest({"m": Holder(b)})
+            and digest([Holder(a)]) != digest([Holder(b)]))
 
 
 def test_a_configuration_is_changed_field_by_field_in_either_part():
@@ -346,9 +244,8 @@ def test_a_configuration_is_changed_field_by_field_in_either_part():
 
     changed = Config().replace(top_k=1, count=300, pooling="sum")
     assert (changed.match.top_k, changed.pinch.count, changed.match.pooling) == (1, 300, "sum")
-    assert changed.pinch == PinchSettings(count=300) and changed.match == MatchSettings(
-        top_k=1, pooling="sum"
-    )
+    assert (changed.pinch == PinchSettings(count=300) and changed.match
+            == MatchSettings(top_k=1, pooling="sum"))
     assert Config().replace() == Config()
     with pytest.raises(ConfigError, match="no setting named 'topk'"):
         Config().replace(topk=1)
@@ -379,14 +276,12 @@ def test_equal_settings_have_equal_digests_and_a_bool_is_not_a_number(record_typ
     fields = _numeric_fields(record)
     assert fields
     for f, kind, default in fields:
-        if (
-            kind == "float" and float(default).is_integer()
-        ):  # (a whole-number option takes whole numbers only)
+        if kind == "float" and float(default).is_integer():
+            # (a whole-number option takes whole numbers only)
             a, b = record(**{f.name: int(default)}), record(**{f.name: float(default)})
             assert a == b
-            configs = [
-                Config(x) if record_type == "PinchSettings" else Config(match=x) for x in (a, b)
-            ]
+            configs = [Config(x) if record_type == "PinchSettings" else Config(match=x)
+                       for x in (a, b)]
             assert configs[0].digest() == configs[1].digest(), f.name
         with pytest.raises(ConfigError) as refused:
             record(**{f.name: True})

@@ -2,15 +2,8 @@ import numpy as np
 import pytest
 
 from pinchmatch import ConfigError
-from pinchmatch.match.cost import (
-    CRITERIA,
-    CostModel,
-    contributions,
-    feature_ranges,
-    pair_costs,
-    parse_weights,
-    pooled_bound_blocks,
-)
+from pinchmatch.match.cost import (CRITERIA, CostModel, contributions, feature_ranges, pair_costs,
+                                   parse_weights, pooled_bound_blocks)
 
 
 def random_table(n, seed):
@@ -25,7 +18,8 @@ def random_table(n, seed):
     t[:, :, 5] = rng.uniform(0, 100, (n, 2))             # kappa max
     t[:, :, 6] = t[:, :, 5] - rng.uniform(0, 100, (n, 2))
     along = rng.uniform(-40, 40, n)
-    t[:, 0, 7], t[:, 1, 7] = along, -along  # mass offset along the line, seen from each finger
+    # mass offset along the line, seen from each finger
+    t[:, 0, 7], t[:, 1, 7] = along, -along
     t[:, :, 8] = rng.uniform(0, 60, n)[:, None]          # mass lever arm
     return t
 
@@ -35,10 +29,8 @@ def brute_force(tang, virt, model):
     for i, t in enumerate(tang):
         for j, v in enumerate(virt):
             w = model.weights
-            c = [
-                sum(w[k] * x for k, x in contributions(t, v, model, swapped=s).items())
-                for s in (False, True)
-            ]
+            c = [sum(w[k] * x for k, x in contributions(t, v, model, swapped=s).items())
+                 for s in (False, True)]
             cost[i, j] = min(c)
     return cost
 
@@ -57,9 +49,8 @@ def test_the_pooled_bound_pools_each_criterion_in_the_better_finger_order(poolin
     """Blockwise, each pair's bound is the model's pooling of its separable contributions (``mass``
     at its lower bound), the cheaper of the two finger orders."""
     tang, virt = random_table(23, 5), random_table(17, 6)
-    model = CostModel(
-        weights=dict(zip(CRITERIA, [1, 0.5, 2, 1, 1, 3, 1, 2])), criteria=CRITERIA, pooling=pooling
-    )
+    model = CostModel(weights=dict(zip(CRITERIA, [1, 0.5, 2, 1, 1, 3, 1, 2])), criteria=CRITERIA,
+                      pooling=pooling)
     bound = np.concatenate([b for _, b in pooled_bound_blocks(tang, virt, model, block_rows=5)])
     each = np.array([[[model.pool(np.array(list(contributions(t, v, model, swapped=s).values())))
                        for s in (False, True)] for v in virt] for t in tang])
@@ -119,11 +110,9 @@ def test_jnd_scales_are_the_perception_data_as_literals():
     # lever arm
     above = np.array([[40.0, 12.0, 60.0, 50.0, 70.0, 50.0, 30.0, 60.0, 80.0]])
     below = np.array([[5.0, 0.0, 10.0, 0.0, 30.0, 1.0, 0.0, 3.0, 4.0]])
-    np.testing.assert_allclose(
-        model.scales(above)[0],
-        [2.3, 20.0, 26.28, 21.9, 30.66, 33.33, 19.998, 22.0, 22.0],
-        rtol=1e-3,
-    )
+    np.testing.assert_allclose(model.scales(above)[0],
+                               [2.3, 20.0, 26.28, 21.9, 30.66, 33.33, 19.998, 22.0, 22.0],
+                               rtol=1e-3)
     np.testing.assert_allclose(model.scales(below)[0],
                                [0.4, 20.0, 20.0, 20.0, 20.0, 2.0, 2.0, 20.0, 20.0], rtol=1e-9)
 
@@ -149,17 +138,8 @@ def test_each_column_counts_towards_its_own_criterion():
     model = CostModel(dict.fromkeys(CRITERIA, 1.0), "jnd", None, CRITERIA)
     base = np.array([[40.0, 12.0, 60.0, 50.0, 70.0, 50.0, 30.0, 60.0, 80.0]] * 2)
     owner = ["width", "com", "tilt", "normal", "axis", "kmax", "kmin", "mass", "mass"]
-    assert list(COLUMNS) == [
-        "width",
-        "com",
-        "tilt",
-        "normal",
-        "axis",
-        "kmax",
-        "kmin",
-        "mass_along",
-        "mass_perp",
-    ]
+    assert list(COLUMNS) == ["width", "com", "tilt", "normal", "axis", "kmax", "kmin", "mass_along",
+                             "mass_perp"]
     for k, criterion in enumerate(owner):
         other = base.copy()
         other[:, k] += 5.0
@@ -171,17 +151,12 @@ def test_the_feature_table_lays_out_pose_and_patch_features():
     from pinchmatch.grasp.features import PinchFeatures
     from pinchmatch.match.cost import feature_table
 
-    f = PinchFeatures(
-        width_mm=np.array([40.0]),
-        com_distance_mm=np.array([12.0]),
-        tilt_deg=np.array([60.0]),
-        normal_angle_deg=np.array([[5.0, 6.0]]),
-        curvature_axis_angle_deg=np.array([[70.0, np.nan]]),
-        kappa_max_per_m=np.array([[50.0, 51.0]]),
-        kappa_min_per_m=np.array([[30.0, 31.0]]),
-        mass_along_mm=np.array([[7.0, -7.0]]),
-        mass_perp_mm=np.array([9.0]),
-    )
+    f = PinchFeatures(width_mm=np.array([40.0]), com_distance_mm=np.array([12.0]),
+                      tilt_deg=np.array([60.0]), normal_angle_deg=np.array([[5.0, 6.0]]),
+                      curvature_axis_angle_deg=np.array([[70.0, np.nan]]),
+                      kappa_max_per_m=np.array([[50.0, 51.0]]),
+                      kappa_min_per_m=np.array([[30.0, 31.0]]),
+                      mass_along_mm=np.array([[7.0, -7.0]]), mass_perp_mm=np.array([9.0]))
     np.testing.assert_array_equal(feature_table(f), [[[40, 12, 60, 5, 70, 50, 30, 7, 9],
                                                        [40, 12, 60, 6, np.nan, 51, 31, -7, 9]]])
 
@@ -189,17 +164,14 @@ def test_the_feature_table_lays_out_pose_and_patch_features():
 def test_weights_default_to_one_for_criteria_in_use_and_zero_for_the_rest():
     from pinchmatch.match.cost import PAPER_CRITERIA, complete_weights
 
-    assert complete_weights({}) == {
-        **dict.fromkeys(CRITERIA, 1.0),
-        "com": 0.0,
-    }  # mass carries the lever arm
+    # mass carries the lever arm
+    assert complete_weights({}) == {**dict.fromkeys(CRITERIA, 1.0), "com": 0.0}
     with pytest.raises(ConfigError, match="not part of --criteria default"):
         complete_weights({"com": 1})
     paper = complete_weights({"width": 2.0}, criteria=PAPER_CRITERIA)
     assert paper == {**dict.fromkeys(PAPER_CRITERIA, 1.0), "width": 2.0, "mass": 0.0}
-    assert (
-        complete_weights({"mass": 0}, criteria=PAPER_CRITERIA)["mass"] == 0.0
-    )  # off, though not in use
+    # off, though not in use
+    assert complete_weights({"mass": 0}, criteria=PAPER_CRITERIA)["mass"] == 0.0
     with pytest.raises(ConfigError, match="not part of --criteria paper"):
         complete_weights({"mass": 1}, criteria=PAPER_CRITERIA)
     assert complete_weights({"width": 0.0})["width"] == 0.0
@@ -227,9 +199,8 @@ def test_the_mass_term_is_the_squared_offset_mismatch_over_the_squared_jnd():
     rows[0, :, 7:] = [30.0, 40.0]
     rows[1, :, 7:] = [300.0, 400.0]
     delta = np.array([[10.0, 0.0, 0.0], [0.0, 55.0, 0.0]])
-    np.testing.assert_allclose(
-        mass_term(rows, delta, model), [100.0 / 400.0, 55.0**2 / 110.0**2], rtol=1e-12
-    )
+    np.testing.assert_allclose(mass_term(rows, delta, model), [100.0 / 400.0, 55.0**2 / 110.0**2],
+                               rtol=1e-12)
 
 
 def test_a_felt_table_scales_both_mass_columns_and_nothing_else():
@@ -261,9 +232,8 @@ def test_quick_pooling_is_probability_summation_of_weibull_detections():
     cost = model.pool(terms)
     np.testing.assert_allclose(cost, expected, rtol=1e-12)
     # P = 1 - prod over criteria (1 - P_c), P_c = 1 - 2^(-w x^3.5)
-    p_c = 1.0 - 2.0 ** -(
-        np.array([2.0, 1, 1, 1, 1, 1, 1]) * np.sqrt(terms[:, [0, 2, 3, 4, 5, 6, 7]]) ** 3.5
-    )
+    p_c = 1.0 - 2.0 ** -(np.array([2.0, 1, 1, 1, 1, 1, 1])
+                         * np.sqrt(terms[:, [0, 2, 3, 4, 5, 6, 7]]) ** 3.5)
     np.testing.assert_allclose(model.p_noticed(cost), 1.0 - np.prod(1.0 - p_c, axis=1), rtol=1e-12)
     assert model.p_noticed(1.0) == pytest.approx(0.5)
     # one large difference is not outweighed by several small ones, unlike the sum of squares
@@ -285,9 +255,8 @@ def test_the_bound_from_the_separable_sum_never_exceeds_the_pooled_cost(pooling)
     one = np.zeros((1, 8))
     one[0, 0] = 1.0  # equal differences everywhere make the bound tight
     equal = np.where(model.weight_vector() > 0, 1.0, 0.0)[None]
-    np.testing.assert_allclose(
-        model.bound_from_separable(equal @ model.weight_vector()), model.pool(equal)
-    )
+    np.testing.assert_allclose(model.bound_from_separable(equal @ model.weight_vector()),
+                               model.pool(equal))
 
 
 def test_a_concave_patch_scales_by_its_curvature_s_size_not_its_sign():
@@ -363,9 +332,8 @@ def test_tripod_pairs_cost_the_written_out_sum_in_the_better_order_of_the_finger
     np.testing.assert_allclose(got, want, rtol=1e-12)
     assert swapped.any() and not swapped.all()
     keep, repeats = distinct_entries(3)
-    assert (
-        len(keep) == 17 and repeats.sum() == 24
-    )  # 27 entries less the three across the grasp (always 0)
+    # 27 entries less the three across the grasp (always 0)
+    assert len(keep) == 17 and repeats.sum() == 24
     bound = np.concatenate([b for _, b in pooled_bound_blocks(T, V, model, block_rows=4)])
     assert np.all(bound <= got ** (1 / 2) * 10) and np.all(bound > 0)
 
@@ -377,21 +345,16 @@ def test_a_placement_s_visible_fault_adds_to_the_pooled_cost_in_the_pooling_s_un
     bit."""
     rng = np.random.default_rng(3)
     model = CostModel(pooling=pooling)
-    terms, extra, rest = (
-        rng.uniform(0, 4, (50, 8)),
-        rng.uniform(0, 2, (50, 2)),
-        rng.uniform(0, 3, 50),
-    )
+    terms, extra, rest = (rng.uniform(0, 4, (50, 8)), rng.uniform(0, 2, (50, 2)),
+                          rng.uniform(0, 3, 50))
     pooled = model.pool(terms, extra=extra)
     added = rest if pooling == "quick" else rest ** 2
-    np.testing.assert_allclose(
-        model.pool(terms, extra=extra, rest=rest), pooled + added, rtol=1e-12
-    )
+    np.testing.assert_allclose(model.pool(terms, extra=extra, rest=rest), pooled + added,
+                               rtol=1e-12)
     assert np.array_equal(model.pool(terms, extra=extra, rest=np.zeros(50)), pooled)
     assert np.array_equal(model.pool(terms, extra=None, rest=None), model.pool(terms))
-    np.testing.assert_allclose(
-        model.pool(terms[0], rest=1.5), model.pool(terms[0]) + (1.5 if pooling == "quick" else 2.25)
-    )
+    np.testing.assert_allclose(model.pool(terms[0], rest=1.5),
+                               model.pool(terms[0]) + (1.5 if pooling == "quick" else 2.25))
 
 
 def test_a_model_keeps_its_rest_rates_in_jnd_form():

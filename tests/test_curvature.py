@@ -45,17 +45,15 @@ def measure(shape, seed, n=300):
     truth = shape.truth((geom.point_mm - t) @ R)
     k_err = np.abs(geom.kappa_max_per_m - truth.kappa_max_per_m) / np.abs(truth.kappa_max_per_m)
     kmin_err = np.abs(geom.kappa_min_per_m - truth.kappa_min_per_m)
-    n_err = np.degrees(
-        np.arccos(np.clip(np.einsum("ij,ij->i", geom.normal @ R, truth.normal), -1, 1))
-    )
+    n_err = np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", geom.normal @ R, truth.normal), -1,
+                                         1)))
     d = np.abs(np.einsum("ij,ij->i", geom.dir_max @ R, truth.dir_max))
     d_err = np.degrees(np.arccos(np.clip(d, 0, 1)))
     return k_err, kmin_err, n_err, d_err
 
 
-@pytest.mark.parametrize(
-    "make, tri, faces", CASES, ids=[f"{m.__name__}-{t}-{f}" for m, t, f in CASES]
-)
+@pytest.mark.parametrize("make, tri, faces", CASES,
+                         ids=[f"{m.__name__}-{t}-{f}" for m, t, f in CASES])
 def test_curvature_meets_targets(make, tri, faces):
     k_err, kmin_err, n_err, d_err = measure(make(triangulation=tri, faces=faces), seed=faces % 97)
     assert np.median(k_err) <= 0.015
@@ -73,9 +71,8 @@ def test_curvature_scales_inversely_with_size():
     for s in (1.0, 2.0):
         mesh = base.copy()
         mesh.vertices *= s
-        geom = patch_geometry(
-            SurfaceContext(mesh, patch_radius_mm=8.0 * s), pts * s, mesh.face_normals[face]
-        )
+        geom = patch_geometry(SurfaceContext(mesh, patch_radius_mm=8.0 * s), pts * s,
+                              mesh.face_normals[face])
         k[s] = geom.kappa_max_per_m
     np.testing.assert_allclose(k[2.0] * 2.0, k[1.0], rtol=0.01)
 
@@ -150,9 +147,8 @@ def test_spikes_of_a_scan_are_left_out_of_the_fit():
     vertices[spike] *= 30.7 / 30.0
     mesh = trimesh.Trimesh(vertices, mesh.faces, process=False)
     points = mesh.vertices[~spike][:300]
-    geom = patch_geometry(
-        SurfaceContext(mesh), points, points / np.linalg.norm(points, axis=1, keepdims=True)
-    )
+    geom = patch_geometry(SurfaceContext(mesh), points,
+                          points / np.linalg.norm(points, axis=1, keepdims=True))
     kappa = np.concatenate([geom.kappa_max_per_m, geom.kappa_min_per_m])
     assert np.median(np.abs(kappa - 1000.0 / 30.0)) < 2.0
 

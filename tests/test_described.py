@@ -23,34 +23,19 @@ def write(path: Path, text: str) -> Path:
     return path
 
 
-@pytest.mark.parametrize(
-    "shape, extents, volume",
-    [
-        (
-            {"kind": "cylinder", "diameter_mm": 54, "height_mm": 66},
-            (54, 54, 66),
-            math.pi * 27**2 * 66,
-        ),
-        ({"kind": "sphere", "diameter_mm": 60}, (60, 60, 60), 4 / 3 * math.pi * 30**3),
-        ({"kind": "box", "size_mm": [40, 30, 25]}, (40, 30, 25), 40 * 30 * 25),
-        (
-            {"kind": "frustum", "diameter_mm": 40, "top_diameter_mm": 0, "height_mm": 30},
-            (40, 40, 30),
-            math.pi * 20**2 * 30 / 3,
-        ),
-        (
-            {"kind": "frustum", "diameter_mm": 40, "top_diameter_mm": 20, "height_mm": 30},
-            (40, 40, 30),
-            math.pi * 30 / 3 * (20**2 + 20 * 10 + 10**2),
-        ),
-        # the middle of an ellipsoid: a = 30, through (20, ±25), so c² = 25² / (1 - (20/30)²)
-        (
-            {"kind": "barrel", "diameter_mm": 60, "end_diameter_mm": 40, "height_mm": 50},
-            (60, 60, 50),
-            math.pi * 30**2 * (50 - 50**3 / (12 * 25**2 / (1 - (20 / 30) ** 2))),
-        ),
-    ],
-)
+@pytest.mark.parametrize("shape, extents, volume", [
+    ({"kind": "cylinder", "diameter_mm": 54, "height_mm": 66}, (54, 54, 66),
+     math.pi * 27 ** 2 * 66),
+    ({"kind": "sphere", "diameter_mm": 60}, (60, 60, 60), 4 / 3 * math.pi * 30 ** 3),
+    ({"kind": "box", "size_mm": [40, 30, 25]}, (40, 30, 25), 40 * 30 * 25),
+    ({"kind": "frustum", "diameter_mm": 40, "top_diameter_mm": 0, "height_mm": 30}, (40, 40, 30),
+     math.pi * 20 ** 2 * 30 / 3),
+    ({"kind": "frustum", "diameter_mm": 40, "top_diameter_mm": 20, "height_mm": 30}, (40, 40, 30),
+     math.pi * 30 / 3 * (20 ** 2 + 20 * 10 + 10 ** 2)),
+    # the middle of an ellipsoid: a = 30, through (20, ±25), so c² = 25² / (1 - (20/30)²)
+    ({"kind": "barrel", "diameter_mm": 60, "end_diameter_mm": 40, "height_mm": 50}, (60, 60, 50),
+     math.pi * 30 ** 2 * (50 - 50 ** 3 / (12 * 25 ** 2 / (1 - (20 / 30) ** 2)))),
+])
 def test_each_kind_is_a_closed_solid_of_its_sizes_standing_on_z0(shape, extents, volume):
     stack, problems = read_shape(shape, "object 1")
     assert problems == []
@@ -59,9 +44,8 @@ def test_each_kind_is_a_closed_solid_of_its_sizes_standing_on_z0(shape, extents,
     assert np.allclose(mesh.extents, extents, atol=1e-6 * max(extents) + 1e-9) or \
         np.allclose(mesh.extents, extents, rtol=2e-3)  # 96-gons: a round part's width to 0.05 %
     assert mesh.bounds[0, 2] == pytest.approx(0.0, abs=1e-9)
-    assert mesh.volume == pytest.approx(
-        volume, rel=5e-3
-    )  # a sphere: 32 segments pole to pole, -0.43 %
+    # a sphere: 32 segments pole to pole, -0.43 %
+    assert mesh.volume == pytest.approx(volume, rel=5e-3)
 
 
 def test_a_stack_rests_part_on_part_and_its_centre_of_mass_is_the_parts():
@@ -91,12 +75,7 @@ def test_a_shape_is_read_in_mm_with_z_up_whatever_the_defaults_say(tmp_path):
                      'com_mm = [0, 0, 20]\n')
     (can,) = read_manifest(manifest)
     assert (can.name, can.units, can.up, can.mass_g, can.com_mm) == (
-        "can",
-        "mm",
-        "z",
-        200.0,
-        (0.0, 0.0, 20.0),
-    )
+        "can", "mm", "z", 200.0, (0.0, 0.0, 20.0))
     assert can.manifest == str(manifest)
 
 
@@ -111,83 +90,46 @@ def test_a_described_can_serves_the_same_can_as_a_mesh_in_metres(tmp_path, capsy
     can = trimesh.creation.cylinder(radius=0.027, height=0.066, sections=96)
     can.export(tmp_path / "can.stl")
     out = tmp_path / "out"
-    code, _, err = run_cli(
-        capsys,
-        "match",
-        "--tangible",
-        tmp_path / "props.toml",
-        "--virtual",
-        tmp_path / "can.stl",
-        "--units",
-        "m",
-        "-o",
-        out,
-        "--no-view",
-        "--jobs",
-        1,
-        "--count",
-        300,
-    )
+    code, _, err = run_cli(capsys, "match", "--tangible", tmp_path / "props.toml", "--virtual",
+                           tmp_path / "can.stl", "--units", "m", "-o", out, "--no-view", "--jobs",
+                           1, "--count", 300)
     assert code == 0, err
     (match,) = json.loads((out / "matches.json").read_text())["matches"]
     assert match["tangible"] == "can"
     assert match["cost"] < 0.3 and not match["noticeable"]
 
 
-@pytest.mark.parametrize(
-    "shape, words",
-    [
-        (
-            '{ kind = "cylindre", diameter_mm = 54, height_mm = 66 }',
-            "kind 'cylindre' is not a shape",
-        ),
-        ('{ kind = "cylinder", diameter_mm = 54 }', "(missing: height_mm)"),
-        (
-            '{ kind = "cylinder", diameter_mm = 54, height_mm = 66, colour = 1 }',
-            "(unknown: colour)",
-        ),
-        (
-            '{ kind = "cylinder", diameter_mm = -5, height_mm = 66 }',
-            "diameter_mm must be from 1 to 1000 mm",
-        ),
-        ('{ kind = "box", size_mm = [40, 30] }', "size_mm must be [across X, across Y, tall]"),
-        (
-            '{ kind = "barrel", diameter_mm = 40, end_diameter_mm = 50, height_mm = 30 }',
-            "must be below its diameter",
-        ),
-        (
-            '[{ kind = "sphere", diameter_mm = 40 }, { kind = "sphere", diameter_mm = 40 }]',
-            "a sphere stands alone",
-        ),
-        ("[]", "give 1 to 8 parts"),
-    ],
-)
+@pytest.mark.parametrize("shape, words", [
+    ('{ kind = "cylindre", diameter_mm = 54, height_mm = 66 }', "kind 'cylindre' is not a shape"),
+    ('{ kind = "cylinder", diameter_mm = 54 }', "(missing: height_mm)"),
+    ('{ kind = "cylinder", diameter_mm = 54, height_mm = 66, colour = 1 }', "(unknown: colour)"),
+    ('{ kind = "cylinder", diameter_mm = -5, height_mm = 66 }',
+     "diameter_mm must be from 1 to 1000 mm"),
+    ('{ kind = "box", size_mm = [40, 30] }', "size_mm must be [across X, across Y, tall]"),
+    ('{ kind = "barrel", diameter_mm = 40, end_diameter_mm = 50, height_mm = 30 }',
+     "must be below its diameter"),
+    ('[{ kind = "sphere", diameter_mm = 40 }, { kind = "sphere", diameter_mm = 40 }]',
+     "a sphere stands alone"),
+    ('[]', "give 1 to 8 parts"),
+])
 def test_a_bad_shape_is_one_line_naming_the_manifest_object_and_fix(tmp_path, capsys, shape, words):
     manifest = write(tmp_path / "props.toml", f'[[object]]\nname = "p"\nshape = {shape}\n')
     trimesh.creation.box(extents=(30, 30, 30)).export(tmp_path / "v.stl")
     out = tmp_path / "out"
-    code, _, err = run_cli(
-        capsys, "match", "--tangible", manifest, "--virtual", tmp_path / "v.stl", "-o", out
-    )
+    code, _, err = (run_cli(capsys, "match", "--tangible", manifest, "--virtual",
+                            tmp_path / "v.stl", "-o", out))
     assert_bad_input(code, err, str(manifest), words)
     assert "object 1 (p): shape" in err and len(err.strip().splitlines()) == 1, err
     assert not out.exists()
 
 
-@pytest.mark.parametrize(
-    "extra, words",
-    [
-        ('units = "m"\n', "drop units"),
-        ('file = "a.stl"\n', "drop file"),
-        ("", "a shape needs a name"),
-    ],
-)
+@pytest.mark.parametrize("extra, words",
+                         [('units = "m"\n', "drop units"), ('file = "a.stl"\n', "drop file"),
+                                          ("", "a shape needs a name")])
 def test_a_shape_with_a_file_s_keys_or_no_name_is_refused(tmp_path, extra, words):
     name = "" if not extra else 'name = "p"\n'
-    manifest = write(
-        tmp_path / "props.toml",
-        f'[[object]]\n{name}{extra}shape = {{ kind = "sphere", diameter_mm = 40 }}\n',
-    )
+    manifest = write(tmp_path / "props.toml",
+                     f'[[object]]\n{name}{extra}shape = {{ kind = "sphere", diameter_mm = 40 }}\n')
     with pytest.raises(Exception, match=re.escape(words)):
         read_manifest(manifest)
 
@@ -202,11 +144,10 @@ def test_the_documented_shapes_follow_the_schema_and_read(tmp_path):
     can, tower = read_manifest(write(tmp_path / "props.toml", block))
     assert trimesh.load(tower.path).extents == pytest.approx((40, 30, 65), abs=1e-6)
     assert can.mass_g == 350.0
-    for bad in (
-        '[[object]]\nname = "p"\nunits = "m"\nshape = { kind = "sphere", diameter_mm = 4 }\n',
-        '[[object]]\nshape = { kind = "sphere", diameter_mm = 4 }\n',
-        '[[object]]\nname = "p"\nshape = { kind = "cylinder", diameter_mm = 4 }\n',
-    ):
+    for bad in ('[[object]]\nname = "p"\nunits = "m"\nshape = { kind = "sphere", diameter_mm = 4 '
+                '}\n',
+                '[[object]]\nshape = { kind = "sphere", diameter_mm = 4 }\n',
+                '[[object]]\nname = "p"\nshape = { kind = "cylinder", diameter_mm = 4 }\n'):
         with pytest.raises(jsonschema.ValidationError):
             jsonschema.validate(tomllib.loads(bad), schema)
 
@@ -230,8 +171,7 @@ def test_a_turned_box_is_the_box_turned_about_its_up(tmp_path):
 
 
 def test_a_described_solid_is_kept_per_user_checked_and_named_by_the_code_that_builds_it(
-    tmp_path, monkeypatch
-):
+    tmp_path, monkeypatch):
     """The solid lives in a 0700 folder of this user's; a damaged file there is written again (not
     blamed on the manifest); a folder others may write is not used; other code gives another
     file."""
@@ -243,16 +183,13 @@ def test_a_described_solid_is_kept_per_user_checked_and_named_by_the_code_that_b
     from pinchmatch.mesh.described import read_shape, shape_file
 
     monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
-    stack, problems = read_shape(
-        {"kind": "cylinder", "diameter_mm": 54, "height_mm": 66}, "props.toml"
-    )
+    stack, problems = (read_shape({"kind": "cylinder", "diameter_mm": 54, "height_mm": 66},
+                                  "props.toml"))
     assert not problems
     path = shape_file(stack)
     info = os.lstat(path.parent)
-    assert (
-        path.parent.name == f"pinchmatch-shapes-{os.getuid()}"
-        and stat.S_IMODE(info.st_mode) == 0o700
-    )
+    assert (path.parent.name == f"pinchmatch-shapes-{os.getuid()}" and stat.S_IMODE(info.st_mode)
+            == 0o700)
     whole = path.read_bytes()
     path.write_bytes(whole[:1000])  # a damaged file: rewritten
     assert shape_file(stack) == path and path.read_bytes() == whole

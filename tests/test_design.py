@@ -16,18 +16,10 @@ from pinchmatch.runner.design import DesignSettings, _repair, initial_stacks, mu
 
 
 def _every_kind():
-    return [
-        Stack((Part("cylinder", 30, 40),)),
-        Stack((Part("box", 25, 30, turn_deg=20), Part("frustum", 40, 50, 20))),
-        Stack(
-            (
-                Part("barrel", 40, 60, 35),
-                Part("cylinder", 20, 25),
-                Part("box", 30, 20),
-                Part("frustum", 15, 18, 30),
-            )
-        ),
-    ]
+    return [Stack((Part("cylinder", 30, 40),)), Stack((
+        Part("box", 25, 30, turn_deg=20), Part("frustum", 40, 50, 20))),
+            Stack((Part("barrel", 40, 60, 35), Part("cylinder", 20, 25), Part("box", 30, 20),
+                   Part("frustum", 15, 18, 30)))]
 
 
 @pytest.mark.parametrize("stack", _every_kind())
@@ -35,12 +27,10 @@ def test_every_stack_is_a_closed_manifold_solid_on_a_flat_base(stack):
     mesh = stack_mesh(stack)
     assert mesh.is_watertight and mesh.is_winding_consistent and mesh.volume > 0
     edges = np.sort(mesh.edges, axis=1)
-    assert (
-        np.unique(edges, axis=0, return_counts=True)[1] == 2
-    ).all()  # manifold: each edge on two faces
-    assert mesh.bounds[0, 2] == pytest.approx(0.0) and mesh.bounds[1, 2] == pytest.approx(
-        stack.height_mm
-    )
+    # manifold: each edge on two faces
+    assert (np.unique(edges, axis=0, return_counts=True)[1] == 2).all()
+    assert (mesh.bounds[0, 2] == pytest.approx(0.0) and mesh.bounds[1, 2]
+            == pytest.approx(stack.height_mm))
     base = stacks.base_area_mm2(mesh)
     first = stack.parts[0]
     want = first.width_mm**2 if first.kind == "box" else np.pi * first.radius_at("bottom") ** 2
@@ -71,27 +61,13 @@ def test_supported_stacks_print_without_supports_and_only_shrink():
     for _ in range(120):
         parts = []
         for _ in range(int(rng.integers(1, 5))):
-            kind, width, height = (
-                str(rng.choice(stacks.PART_KINDS)),
-                rng.uniform(12, 70),
-                rng.uniform(12, 50),
-            )
-            top = (
-                rng.uniform(10, 0.9 * width)
-                if kind == "barrel"
-                else rng.uniform(10, 80)
-                if kind == "frustum"
-                else None
-            )
-            parts.append(
-                Part(
-                    kind,
-                    round(height, 1),
-                    round(width, 1),
-                    None if top is None else round(top, 1),
-                    rng.uniform(0, 90) if kind == "box" else 0.0,
-                )
-            )
+            kind, width, height = (str(rng.choice(stacks.PART_KINDS)), rng.uniform(12, 70),
+                                   rng.uniform(12, 50))
+            top = (rng.uniform(10, 0.9 * width) if kind == "barrel" else rng.uniform(10, 80)
+                   if kind == "frustum" else None)
+            parts.append(Part(kind, round(height, 1), round(width, 1),
+                              None if top is None else round(top, 1),
+                              rng.uniform(0, 90) if kind == "box" else 0.0))
         before = Stack(tuple(parts))
         after = stacks.supported(before)
         assert 1 <= len(after.parts) and stacks.supported(after) == after
@@ -102,16 +78,10 @@ def test_supported_stacks_print_without_supports_and_only_shrink():
     # flat barrel
     tower = Stack((Part("cylinder", 30, 40), Part("box", 20, 28), Part("frustum", 30, 25, 12)))
     assert stacks.supported(tower) == tower
-    assert (
-        stacks.supported(Stack((Part("cylinder", 30, 20), Part("cylinder", 30, 40))))
-        .parts[1]
-        .width_mm
-        < 20
-    )
-    assert (
-        stacks.supported(Stack((Part("cylinder", 30, 40), Part("box", 20, 40)))).parts[1].width_mm
-        <= 40 / 2**0.5
-    )
+    assert stacks.supported(Stack((Part("cylinder", 30, 20),
+                                   Part("cylinder", 30, 40)))).parts[1].width_mm < 20
+    assert stacks.supported(Stack((Part("cylinder", 30, 40),
+                                   Part("box", 20, 40)))).parts[1].width_mm <= 40 / 2**0.5
     flat = stacks.supported(Stack((Part("barrel", 20, 60, 20),))).parts[0]
     a, e = flat.width_mm / 2, (flat.top_width_mm or flat.width_mm) / 2
     assert a * a - e * e <= e * flat.height_mm / 2 + 1e-9
@@ -120,17 +90,8 @@ def test_supported_stacks_print_without_supports_and_only_shrink():
 def test_repaired_and_mutated_stacks_stay_in_the_limits():
     s = DesignSettings(max_parts=3, max_height_mm=90.0, max_width_mm=60.0)
     rng = np.random.default_rng(4)
-    stack = _repair(
-        Stack(
-            (
-                Part("box", 200, 90),
-                Part("barrel", 5, 80, 90),
-                Part("frustum", 40, 3, 70),
-                Part("cylinder", 40, 40),
-            )
-        ),
-        s,
-    )
+    stack = _repair(Stack((Part("box", 200, 90), Part("barrel", 5, 80, 90),
+                           Part("frustum", 40, 3, 70), Part("cylinder", 40, 40))), s)
     for _ in range(300):
         assert not stack_problems(stack, max_height_mm=90.0, max_width_mm=60.0), stack
         assert len(stack.parts) <= 3
@@ -151,10 +112,8 @@ def test_the_proxy_starts_from_the_scenes_pinch_widths():
 
     starts = initial_stacks([V([20.0] * 50), V([60.0] * 5)], DesignSettings(max_parts=2))
     two = [s for s in starts if len(s.parts) == 2 and s.parts[0].kind == "cylinder"][0]
-    assert [p.width_mm for p in two.parts] == [
-        62.0,
-        22.0,
-    ]  # each object weighs the same, whatever its pose count
+    # each object weighs the same, whatever its pose count
+    assert [p.width_mm for p in two.parts] == [62.0, 22.0]
 
 
 @pytest.fixture
@@ -162,31 +121,17 @@ def scene(tmp_path):
     """Two virtual objects that are themselves stacks of the family."""
     folder = tmp_path / "scene"
     folder.mkdir()
-    for name, stack in {
-        "tower": Stack((Part("cylinder", 40, 44), Part("cylinder", 40, 30))),
-        "post": Stack((Part("cylinder", 50, 32), Part("cylinder", 30, 44))),
-    }.items():
+    for name, stack in {"tower": Stack((Part("cylinder", 40, 44), Part("cylinder", 40, 30))),
+                        "post": Stack((Part("cylinder", 50, 32),
+                                       Part("cylinder", 30, 44)))}.items():
         (folder / f"{name}.stl").write_bytes(stack_mesh(stack).export(file_type="stl"))
     return folder
 
 
 def test_design_covers_a_scene_of_stacks_and_its_costs_are_a_match_runs(tmp_path, capsys, scene):
     out = tmp_path / "out"
-    code, stdout, err = run_cli(
-        capsys,
-        "design",
-        "--virtual",
-        scene,
-        "--count",
-        200,
-        "--evaluations",
-        12,
-        "-o",
-        out,
-        "--jobs",
-        1,
-        "--no-view",
-    )
+    code, stdout, err = run_cli(capsys, "design", "--virtual", scene, "--count", 200,
+                                "--evaluations", 12, "-o", out, "--jobs", 1, "--no-view")
     assert code == 0, err
     doc = json.loads((out / "design.json").read_text())
     assert doc["schema"] == "pinchmatch.design/1" and len(doc["props"]) == 1
@@ -195,30 +140,14 @@ def test_design_covers_a_scene_of_stacks_and_its_costs_are_a_match_runs(tmp_path
     assert prop["widest_mm"] <= 100.0 and prop["base_area_mm2"] > 100.0
     mesh = trimesh.load(out / prop["file"], force="mesh")
     assert mesh.is_watertight and mesh.bounds[0, 2] == pytest.approx(0.0)
-    assert (
-        doc["mean_cost"] < 0.5 and doc["noticeable_count"] == 0
-    )  # near zero: the family holds the scene
+    # near zero: the family holds the scene
+    assert doc["mean_cost"] < 0.5 and doc["noticeable_count"] == 0
     # an independent match run of the scene against the written STL gives the same costs
-    code, _, err = run_cli(
-        capsys,
-        "match",
-        "--tangible",
-        out / prop["file"],
-        "--virtual",
-        scene,
-        "--count",
-        200,
-        "-o",
-        tmp_path / "check",
-        "--jobs",
-        1,
-        "--no-view",
-    )
+    code, _, err = run_cli(capsys, "match", "--tangible", out / prop["file"], "--virtual", scene,
+                           "--count", 200, "-o", tmp_path / "check", "--jobs", 1, "--no-view")
     assert code == 0, err
-    check = {
-        m["virtual"]: m["cost"]
-        for m in json.loads((tmp_path / "check" / "matches.json").read_text())["matches"]
-    }
+    check = {m["virtual"]: m["cost"]
+             for m in json.loads((tmp_path / "check" / "matches.json").read_text())["matches"]}
     assert {o["virtual"]: o["cost"] for o in doc["objects"]} == pytest.approx(check, abs=1e-9)
 
 
@@ -232,90 +161,39 @@ def test_a_scene_in_metres_is_matched_on_the_props_designed_for_it(tmp_path, cap
         mesh.apply_scale(0.001)
         mesh.export(metres / path.name)
     out = tmp_path / "out"
-    code, _, err = run_cli(
-        capsys,
-        "design",
-        "--virtual",
-        metres,
-        "--units",
-        "m",
-        "--count",
-        150,
-        "--evaluations",
-        8,
-        "-o",
-        out,
-        "--jobs",
-        1,
-        "--no-view",
-    )
+    code, _, err = run_cli(capsys, "design", "--virtual", metres, "--units", "m", "--count", 150,
+                           "--evaluations", 8, "-o", out, "--jobs", 1, "--no-view")
     assert code == 0, err
     doc = json.loads((out / "design.json").read_text())
     assert len(doc["objects"]) == 2 and all(o["cost"] is not None for o in doc["objects"])
-    assert (
-        trimesh.load(out / doc["props"][0]["file"], force="mesh").extents.max() > 20.0
-    )  # mm, as written
+    # mm, as written
+    assert trimesh.load(out / doc["props"][0]["file"], force="mesh").extents.max() > 20.0
 
 
 def test_without_supports_every_candidate_and_the_output_print_standing(tmp_path, capsys, scene):
     s = DesignSettings(supports=False)
     rng = np.random.default_rng(2)
-    stack = _repair(
-        Stack(
-            (Part("cylinder", 30, 20), Part("box", 30, 60, turn_deg=30), Part("barrel", 40, 60, 20))
-        ),
-        s,
-    )
+    stack = _repair(Stack((Part("cylinder", 30, 20), Part("box", 30, 60, turn_deg=30),
+                           Part("barrel", 40, 60, 20))), s)
     for _ in range(100):
         assert stacks.overhang_area_mm2(stack_mesh(stack)) < 1e-6, stack
         stack = mutate(stack, rng, s)
     out = tmp_path / "out"
-    code, _, err = run_cli(
-        capsys,
-        "design",
-        "--virtual",
-        scene,
-        "--count",
-        150,
-        "--evaluations",
-        8,
-        "--no-supports",
-        "-o",
-        out,
-        "--jobs",
-        1,
-        "--no-view",
-    )
+    code, _, err = run_cli(capsys, "design", "--virtual", scene, "--count", 150, "--evaluations", 8,
+                           "--no-supports", "-o", out, "--jobs", 1, "--no-view")
     assert code == 0, err
     doc = json.loads((out / "design.json").read_text())
     assert doc["settings"]["supports"] is False
-    assert all(
-        p["overhang_area_mm2"] == 0 and p["printable_without_supports"] for p in doc["props"]
-    )
+    assert all(p["overhang_area_mm2"] == 0 and p["printable_without_supports"]
+               for p in doc["props"])
 
 
 def test_design_is_deterministic_for_a_seed_and_a_count_of_evaluations(tmp_path, capsys, scene):
     written = []
     for run in ("a", "b"):
-        code, _, err = run_cli(
-            capsys,
-            "design",
-            "--virtual",
-            scene,
-            "--count",
-            120,
-            "--evaluations",
-            6,
-            "-k",
-            2,
-            "-o",
-            tmp_path / run,
-            "--jobs",
-            1,
-            "--no-view",
-            "--seed",
-            3,
-        )
+        code, _, err = run_cli(capsys, "design", "--virtual", scene, "--count", 120,
+                               "--evaluations", 6, "-k", 2, "-o", tmp_path / run, "--jobs", 1,
+                               "--no-view", "--seed", 3)
         assert code == 0, err
         written.append([(tmp_path / run / "props" / f"prop_{i}.stl").read_bytes() for i in (1, 2)])
     assert written[0] == written[1]
@@ -330,19 +208,16 @@ def test_design_is_deterministic_for_a_seed_and_a_count_of_evaluations(tmp_path,
     (["--normalize", "range"], "use --normalize jnd"),
 ])
 def test_bad_design_options_end_in_one_line_and_write_nothing(
-    tmp_path, capsys, scene, argv, message
-):
+    tmp_path, capsys, scene, argv, message):
     out = tmp_path / "out"
-    code, _, err = run_cli(
-        capsys, "design", "--virtual", scene, "--count", 100, *argv, "-o", out, "--jobs", 1
-    )
+    code, _, err = (run_cli(capsys, "design", "--virtual", scene, "--count", 100, *argv, "-o", out,
+                            "--jobs", 1))
     assert code == 2 and message in err and len(err.strip().splitlines()) == 1, err
     assert not out.exists()
 
 
 def test_a_budget_shorter_than_a_candidate_is_refused_after_it_and_a_longer_one_is_the_searchs(
-    tmp_path, capsys, scene, monkeypatch
-):
+        tmp_path, capsys, scene, monkeypatch):
     """Each judged candidate takes 20 s of a fake clock. A 15 s budget cannot hold one: the run says
     so after judging it, and writes nothing. A 50 s budget is the search's own: two candidates fit
     in it (the second ends at 40 s, a third would end at 60 s); the finalists' ranking and the final
@@ -361,49 +236,23 @@ def test_a_budget_shorter_than_a_candidate_is_refused_after_it_and_a_longer_one_
             offset[0] += 20.0
         return real_rows(self, stack, bound, order)
 
-    monkeypatch.setattr(
-        design, "time", SimpleNamespace(perf_counter=lambda: time.perf_counter() + offset[0])
-    )
+    monkeypatch.setattr(design, "time",
+                        SimpleNamespace(perf_counter=lambda: time.perf_counter() + offset[0]))
     monkeypatch.setattr(design.Judge, "prop_rows", slow_rows)
     out = tmp_path / "out"
-    code, _, err = run_cli(
-        capsys,
-        "design",
-        "--virtual",
-        scene,
-        "--count",
-        100,
-        "--budget-s",
-        15,
-        "-o",
-        out,
-        "--jobs",
-        1,
-    )
+    code, _, err = run_cli(capsys, "design", "--virtual", scene, "--count", 100, "--budget-s", 15,
+                           "-o", out, "--jobs", 1)
     # the fake 20 s and the real judging time, which a loaded machine can stretch past a second
     said = re.search(r"judging one candidate takes (\d+\.\d) s", err)
     assert code == 2 and said and 20.0 <= float(said.group(1)) < 30.0, err
     assert len(judged) == 1
     assert not out.exists()
     judged.clear()
-    code, _, err = run_cli(
-        capsys,
-        "design",
-        "--virtual",
-        scene,
-        "--count",
-        100,
-        "--budget-s",
-        50,
-        "-o",
-        out,
-        "--jobs",
-        1,
-    )
+    code, _, err = run_cli(capsys, "design", "--virtual", scene, "--count", 100, "--budget-s", 50,
+                           "-o", out, "--jobs", 1)
     assert code == 0, err
-    assert (
-        len(judged) == 4
-    )  # two on target within the budget, then both ranked again as finalists on top
+    # two on target within the budget, then both ranked again as finalists on top
+    assert len(judged) == 4
     assert json.loads((out / "design.json").read_text())["search"]["evaluations"] == 2
 
 
@@ -412,9 +261,8 @@ def test_a_scene_with_no_usable_object_ends_in_one_line(tmp_path, capsys):
     empty.write_bytes(b"")
     out = tmp_path / "out"
     code, _, err = run_cli(capsys, "design", "--virtual", empty, "-o", out)
-    assert (
-        code == 2 and "empty.stl" in err and len(err.strip().splitlines()) == 1 and not out.exists()
-    )
+    assert (code == 2 and "empty.stl" in err and len(err.strip().splitlines()) == 1
+            and not out.exists())
 
 
 def test_giving_up_hopeless_candidates_keeps_the_search_s_answer(tmp_path, monkeypatch):
@@ -433,17 +281,14 @@ def test_giving_up_hopeless_candidates_keeps_the_search_s_answer(tmp_path, monke
     virtuals = []
     for name, mesh in shapes.items():
         mesh.export(tmp_path / f"{name}.stl")
-        virtuals.append(
-            candidate_poses(analyze_object(tmp_path / f"{name}.stl"), settings=settings)
-        )
+        virtuals.append(candidate_poses(analyze_object(tmp_path / f"{name}.stl"),
+                                        settings=settings))
     options = DesignSettings(evaluations=12, search_count=120)
-    pruned = design.design_props(
-        virtuals, options, match=MatchSettings(refine=False), pinch=settings
-    )
+    pruned = design.design_props(virtuals, options, match=MatchSettings(refine=False),
+                                 pinch=settings)
     full_judge = design.Judge.judge
-    monkeypatch.setattr(
-        design.Judge, "judge", lambda self, stacks, prune=False: full_judge(self, stacks)
-    )
+    monkeypatch.setattr(design.Judge, "judge", lambda self, stacks,
+                        prune=False: full_judge(self, stacks))
     full = design.design_props(virtuals, options, match=MatchSettings(refine=False), pinch=settings)
     assert pruned.best.stacks == full.best.stacks
     np.testing.assert_array_equal(pruned.best.cost, full.best.cost)
@@ -456,13 +301,8 @@ def test_a_fitted_stack_follows_a_stacks_profile_wherever_it_stands_on_its_base(
     profile's bins are 2.5 mm tall: a step between parts may fall inside one)."""
     from pinchmatch.mesh.stack_fit import fitted_stack
 
-    truth = Stack(
-        (
-            Part("cylinder", 40.0, 60.0),
-            Part("frustum", 50.0, 60.0, 30.0),
-            Part("cylinder", 30.0, 30.0),
-        )
-    )
+    truth = Stack((Part("cylinder", 40.0, 60.0), Part("frustum", 50.0, 60.0, 30.0),
+                   Part("cylinder", 30.0, 30.0)))
     mesh = stack_mesh(truth)
     mesh.apply_transform(trimesh.transformations.rotation_matrix(0.7, [0, 0, 1]))
     mesh.apply_translation([120.0, -45.0, 300.0])
@@ -473,9 +313,8 @@ def test_a_fitted_stack_follows_a_stacks_profile_wherever_it_stands_on_its_base(
         for part in stack.parts:
             if z <= bottom + part.height_mm:
                 share = (z - bottom) / part.height_mm
-                return part.width_mm + share * (
-                    (part.top_width_mm or part.width_mm) - part.width_mm
-                )
+                return part.width_mm + share * ((part.top_width_mm or part.width_mm)
+                                                - part.width_mm)
             bottom += part.height_mm
         return np.nan
 
@@ -513,23 +352,14 @@ def test_the_search_starts_from_its_seeds(tmp_path, scene):
     from pinchmatch.runner import design
 
     settings = PinchSettings(count=100, seed=0)
-    virtuals = [
-        candidate_poses(analyze_object(p), settings=settings) for p in sorted(scene.glob("*.stl"))
-    ]
+    virtuals = [candidate_poses(analyze_object(p), settings=settings)
+                for p in sorted(scene.glob("*.stl"))]
     seed = Stack((Part("cylinder", 40, 44), Part("cylinder", 40, 30)))
-    one = design.design_props(
-        virtuals,
-        DesignSettings(evaluations=1, search_count=100),
-        match=MatchSettings(refine=False, rank="nominal"),
-        pinch=settings,
-        seeds=(seed,),
-    )
+    one = design.design_props(virtuals, DesignSettings(evaluations=1, search_count=100),
+                              match=MatchSettings(refine=False, rank="nominal"), pinch=settings,
+                              seeds=(seed,))
     assert one.best.stacks == (_repair(seed, DesignSettings()),)
-    more = design.design_props(
-        virtuals,
-        DesignSettings(evaluations=6, search_count=100),
-        match=MatchSettings(refine=False, rank="nominal"),
-        pinch=settings,
-        seeds=(seed,),
-    )
+    more = design.design_props(virtuals, DesignSettings(evaluations=6, search_count=100),
+                               match=MatchSettings(refine=False, rank="nominal"), pinch=settings,
+                               seeds=(seed,))
     assert more.best.score <= one.best.score

@@ -56,23 +56,10 @@ def test_an_unreadable_mesh_is_one_line_and_exit_2(objects, tmp_path):
 
 
 def test_a_folder_run_lists_unreadable_files_and_folders_under_failed_and_goes_on(
-    objects, tmp_path
-):
+    objects, tmp_path):
     out = tmp_path / "out"
-    code, _, err = cli(
-        "match",
-        "--tangible",
-        example_mesh_path(),
-        "--virtual",
-        objects,
-        "--count",
-        100,
-        "-q",
-        "--no-view",
-        "--no-figures",
-        "-o",
-        out,
-    )
+    code, _, err = cli("match", "--tangible", example_mesh_path(), "--virtual", objects, "--count",
+                       100, "-q", "--no-view", "--no-figures", "-o", out)
     assert code == 3, err
     doc = json.loads((out / "matches.json").read_text())
     failed = {os.path.basename(f["path"]): f["error"] for f in doc["failed"]}
@@ -96,27 +83,13 @@ def test_an_output_that_cannot_be_written_is_refused_before_any_work(tmp_path, t
     locked.mkdir()
     if target == "read-only folder":
         os.chmod(locked, 0o555)
-        argv = [
-            "match",
-            "--tangible",
-            example_mesh_path(),
-            "--virtual",
-            example_mesh_path(),
-            "-o",
-            locked / "out",
-        ]
+        argv = ["match", "--tangible", example_mesh_path(), "--virtual", example_mesh_path(), "-o",
+                locked / "out"]
         words = [f"{locked / 'out'}: cannot write in {locked}"]
     elif target == "a file as OUT":
         (tmp_path / "file").write_text("mine")
-        argv = [
-            "match",
-            "--tangible",
-            example_mesh_path(),
-            "--virtual",
-            example_mesh_path(),
-            "-o",
-            tmp_path / "file",
-        ]
+        argv = ["match", "--tangible", example_mesh_path(), "--virtual", example_mesh_path(), "-o",
+                tmp_path / "file"]
         words = ["-o names a file"]
     else:
         argv = ["poses", "--example", "-o", locked]
@@ -154,13 +127,9 @@ def test_a_full_disk_met_while_writing_names_the_file(tmp_path, monkeypatch, cap
 def small_tmpfs(mount, size: str):
     """A real, small file system at ``mount`` (root only; skipped where it cannot be mounted)."""
     mount.mkdir()
-    if (
-        os.geteuid() != 0
-        or subprocess.run(
-            ["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(mount)], capture_output=True
-        ).returncode
-        != 0
-    ):
+    if os.geteuid() != 0 or subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs",
+                                            str(mount)],
+                                           capture_output=True).returncode != 0:
         pytest.skip("cannot mount a tmpfs here")
     try:
         yield mount
@@ -171,30 +140,13 @@ def small_tmpfs(mount, size: str):
 def test_a_full_tmpfs(tmp_path):
     """A real full disk: a 300 KB tmpfs cannot hold a match run's outputs."""
     with small_tmpfs(tmp_path / "small", "300k") as mount:
-        proc = subprocess.run(
-            [
-                sys.executable,
-                "-m",
-                "pinchmatch",
-                "match",
-                "--tangible",
-                example_mesh_path(),
-                "--virtual",
-                example_mesh_path(),
-                "--count",
-                "120",
-                "-q",
-                "-o",
-                mount / "out",
-            ],
-            capture_output=True,
-            text=True,
-            timeout=600,
-        )
+        proc = subprocess.run([sys.executable, "-m", "pinchmatch", "match", "--tangible",
+                               example_mesh_path(), "--virtual", example_mesh_path(), "--count",
+                               "120", "-q", "-o", mount / "out"],
+                              capture_output=True, text=True, timeout=600)
         assert proc.returncode == 2, proc.stderr
-        assert_one_line(
-            proc.stderr, "cannot write it (No space left on device)", str(mount / "out")
-        )
+        assert_one_line(proc.stderr, "cannot write it (No space left on device)",
+                        str(mount / "out"))
 
 
 def test_a_full_cache_disk_costs_only_the_caching(tmp_path):
@@ -202,74 +154,34 @@ def test_a_full_cache_disk_costs_only_the_caching(tmp_path):
     no temporary file there and writes the same result as a run without a cache."""
     with small_tmpfs(tmp_path / "cache", "100k") as mount:
         (mount / "filler").write_bytes(b"\0" * 90_000)
-        argv = [
-            sys.executable,
-            "-m",
-            "pinchmatch",
-            "match",
-            "--tangible",
-            example_mesh_path(),
-            "--virtual",
-            example_mesh_path(),
-            "--count",
-            "120",
-            "-q",
-            "--jobs",
-            "1",
-            "--no-view",
-        ]
-        proc = subprocess.run(
-            argv + ["-o", tmp_path / "out", "--cache", mount],
-            capture_output=True,
-            text=True,
-            timeout=600,
-        )
+        argv = [sys.executable, "-m", "pinchmatch", "match", "--tangible", example_mesh_path(),
+                "--virtual", example_mesh_path(), "--count", "120", "-q", "--jobs", "1",
+                "--no-view"]
+        proc = subprocess.run(argv + ["-o", tmp_path / "out", "--cache", mount],
+                              capture_output=True, text=True, timeout=600)
         assert proc.returncode == 0, proc.stderr
         lines = proc.stderr.strip().splitlines()
         assert len(lines) == 1 and "cache" in lines[0] and "going on without it" in lines[0], lines
-        assert not [
-            p.name for p in mount.iterdir() if p.name.endswith(".tmp")
-        ]  # what fitted is whole, no more
-        plain = subprocess.run(
-            argv + ["-o", tmp_path / "plain", "--no-cache"], capture_output=True, timeout=600
-        )
+        # what fitted is whole, no more
+        assert not [p.name for p in mount.iterdir() if p.name.endswith(".tmp")]
+        plain = subprocess.run(argv + ["-o", tmp_path / "plain", "--no-cache"], capture_output=True,
+                               timeout=600)
         assert plain.returncode == 0
         assert (tmp_path / "out" / "matches.json").read_bytes() == (
-            tmp_path / "plain" / "matches.json"
-        ).read_bytes()
+            tmp_path / "plain" / "matches.json").read_bytes()
 
 
 def test_clearing_a_read_only_cache_is_one_line(tmp_path, capsys):
     cache = tmp_path / "cache"
-    assert (
-        main(
-            [
-                "match",
-                "--tangible",
-                str(example_mesh_path()),
-                "--virtual",
-                str(example_mesh_path()),
-                "--count",
-                "60",
-                "-q",
-                "--jobs",
-                "1",
-                "--no-view",
-                "-o",
-                str(tmp_path / "out"),
-                "--cache",
-                str(cache),
-            ]
-        )
-        == 0
-    )
+    assert main(["match", "--tangible", str(example_mesh_path()), "--virtual",
+                 str(example_mesh_path()), "--count", "60", "-q", "--jobs", "1", "--no-view", "-o",
+                 str(tmp_path / "out"), "--cache", str(cache)]) == 0
     capsys.readouterr()
     cache.chmod(0o555)
     try:
         if os.access(cache, os.W_OK) and os.geteuid() == 0:
-            mount_ro = subprocess.run(
-                ["mount", "--bind", "-o", "ro", str(cache), str(cache)], capture_output=True
-            )
+            mount_ro = subprocess.run(["mount", "--bind", "-o", "ro", str(cache), str(cache)],
+                                      capture_output=True)
             if mount_ro.returncode != 0:
                 pytest.skip("cannot make a read-only folder here")
             subprocess.run(["mount", "-o", "remount,ro,bind", str(cache)], capture_output=True)

@@ -2,13 +2,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from pinchmatch import (
-    PinchSettings,
-    check_pinches,
-    object_properties,
-    pinch_features,
-    sample_pinches,
-)
+from pinchmatch import (PinchSettings, check_pinches, object_properties, pinch_features,
+                        sample_pinches)
 from pinchmatch.mesh import shapes
 from pinchmatch.mesh.surface import SurfaceContext
 
@@ -84,9 +79,8 @@ def test_features_are_invariant_under_rigid_motion(seed):
     np.testing.assert_allclose(f1.kappa_max_per_m, f0.kappa_max_per_m, rtol=0.02, atol=0.5)
     np.testing.assert_allclose(f1.kappa_min_per_m, f0.kappa_min_per_m, rtol=0.02, atol=0.5)
     both = ~np.isnan(f0.curvature_axis_angle_deg) & ~np.isnan(f1.curvature_axis_angle_deg)
-    np.testing.assert_allclose(
-        f1.curvature_axis_angle_deg[both], f0.curvature_axis_angle_deg[both], atol=1.5
-    )
+    np.testing.assert_allclose(f1.curvature_axis_angle_deg[both], f0.curvature_axis_angle_deg[both],
+                               atol=1.5)
 
 
 def test_com_distance_is_measured_along_the_axis_not_to_the_midpoint():
@@ -104,38 +98,24 @@ def _pinches(points, normals, kappa_max, kappa_min, dir_max):
     from pinchmatch.grasp.pinches import RULES, Pinches
 
     n = len(points)
-    return Pinches(
-        np.asarray(points, float),
-        np.asarray(normals, float),
-        np.zeros((n, 2), np.int64),
-        np.asarray(kappa_max, float),
-        np.asarray(kappa_min, float),
-        np.asarray(dir_max, float),
-        np.ones(n, bool),
-        np.zeros((n, len(RULES)), bool),
-        np.zeros((n, 2)),
-        np.zeros((n, 3)),
-        np.zeros(n),
-    )
+    return Pinches(np.asarray(points, float), np.asarray(normals, float),
+                   np.zeros((n, 2), np.int64), np.asarray(kappa_max, float),
+                   np.asarray(kappa_min, float), np.asarray(dir_max, float), np.ones(n, bool),
+                   np.zeros((n, len(RULES)), bool), np.zeros((n, 2)), np.zeros((n, 3)), np.zeros(n))
 
 
 def _props(com_mm, axis=(0.0, 0.0, 1.0)):
-    return object_properties(
-        trimesh.creation.box(extents=(60.0, 40.0, 20.0)),
-        up=np.array([0.0, 0.0, 1.0]),
-        watertight=True,
-        com_mm=np.array(com_mm),
-        axis=np.array(axis),
-    )
+    return object_properties(trimesh.creation.box(extents=(60.0, 40.0, 20.0)),
+                             up=np.array([0.0, 0.0, 1.0]), watertight=True, com_mm=np.array(com_mm),
+                             axis=np.array(axis))
 
 
 def test_mass_offsets_along_the_pinch_line_and_the_lever_arm_in_closed_form():
     # pinch from (-30, 5, 2) to (30, 5, 2), centre of mass at (5, 3, 0): offset from the midpoint
     # (5, -2, -2), so 5 mm along the line from p1 (-5 from p2) and a lever arm of sqrt(8) mm
     x = np.array([1.0, 0.0, 0.0])
-    pinches = _pinches(
-        [[[-30, 5, 2], [30, 5, 2]]], [[-x, x]], [[0.0, 0.0]], [[0.0, 0.0]], [[[0, 1, 0], [0, 1, 0]]]
-    )
+    pinches = _pinches([[[-30, 5, 2], [30, 5, 2]]], [[-x, x]], [[0.0, 0.0]], [[0.0, 0.0]],
+                       [[[0, 1, 0], [0, 1, 0]]])
     f = pinch_features(pinches, _props([5.0, 3.0, 0.0]))
     np.testing.assert_allclose(f.mass_along_mm, [[5.0, -5.0]], atol=1e-12)
     np.testing.assert_allclose(f.mass_perp_mm, [np.sqrt(8.0)], atol=1e-12)
@@ -147,13 +127,8 @@ def test_the_curvature_axis_angle_needs_2_per_m_of_anisotropy(anisotropy, define
     # perception.md: curvature differences below about 2 /m are not felt, so no direction of
     # kappa_max either; the axis (z) lies in both patches' tangent planes, at 90 deg to dir_max (y)
     x = np.array([1.0, 0.0, 0.0])
-    pinches = _pinches(
-        [[[-30, 0, 0], [30, 0, 0]]],
-        [[-x, x]],
-        [[10.0 + anisotropy] * 2],
-        [[10.0, 10.0]],
-        [[[0, 1, 0], [0, 1, 0]]],
-    )
+    pinches = _pinches([[[-30, 0, 0], [30, 0, 0]]], [[-x, x]], [[10.0 + anisotropy] * 2],
+                       [[10.0, 10.0]], [[[0, 1, 0], [0, 1, 0]]])
     rho = pinch_features(pinches, _props([0.0, 0.0, 0.0])).curvature_axis_angle_deg
     if defined:
         np.testing.assert_allclose(rho, [[90.0, 90.0]], atol=1e-9)
@@ -166,9 +141,8 @@ def test_a_normal_exactly_along_the_pinch_line_is_0_deg_not_nan():
     seg = np.array([-23.3, -2.2, -12.5])
     u = seg / np.linalg.norm(seg)
     assert abs(u @ u) > 1.0
-    pinches = _pinches(
-        [[[0, 0, 0], seg]], [[-u, u]], [[0.0, 0.0]], [[0.0, 0.0]], [[[0, 0, 1], [0, 0, 1]]]
-    )
+    pinches = _pinches([[[0, 0, 0], seg]], [[-u, u]], [[0.0, 0.0]], [[0.0, 0.0]],
+                       [[[0, 0, 1], [0, 0, 1]]])
     psi = pinch_features(pinches, _props([5.0, 5.0, 5.0])).normal_angle_deg
     np.testing.assert_array_equal(psi, [[0.0, 0.0]])
 
@@ -177,9 +151,8 @@ def test_a_pinch_exactly_along_the_axis_is_tilted_90_deg_not_nan():
     # for this line and this axis the rounded dot product of the unit vectors is -1 - 2e-16
     seg = np.array([6.0, 0.4, -2.9])
     x = seg / np.linalg.norm(seg)
-    pinches = _pinches(
-        [[[0, 0, 0], seg]], [[-x, x]], [[0.0, 0.0]], [[0.0, 0.0]], [[[0, 0, 1], [0, 0, 1]]]
-    )
+    pinches = _pinches([[[0, 0, 0], seg]], [[-x, x]], [[0.0, 0.0]], [[0.0, 0.0]],
+                       [[[0, 0, 1], [0, 0, 1]]])
     tilt = pinch_features(pinches, _props([0.0, 0.0, 0.0], axis=seg)).tilt_deg
     np.testing.assert_array_equal(tilt, [90.0])
 

@@ -42,9 +42,8 @@ def test_criteria_bars_are_red_exactly_where_a_criterion_is_noticeable(demo_out)
             for m in doc["matches"]}
     assert any(loud.values()) and not all(loud.values())  # the demo has both kinds
     for stem, noticeable in loud.items():
-        assert (
-            has_color(demo_out / "figures" / "criteria" / f"{stem}.png", LOUD) == noticeable
-        ), stem
+        assert (has_color(demo_out / "figures" / "criteria" / f"{stem}.png", LOUD)
+                == noticeable), stem
 
 
 def test_study_figure_is_not_blank(demo_out):
@@ -56,15 +55,11 @@ def test_study_figure_is_not_blank(demo_out):
 
 def test_cost_matrix_outlines_the_chosen_tangible():
     doc = {
-        "cost_matrix": {
-            "rows_virtual": ["a.stl", "b.stl"],
-            "columns_tangible": ["t1.stl", "t2.stl", "t3.stl"],
-            "values": [[0.5, 2.0, None], [0.0, 0.02, 7.0]],
-        },
-        "matches": [
-            {"virtual": "a.stl", "tangible": "t1.stl"},
-            {"virtual": "b.stl", "tangible": "t1.stl"},
-        ],
+        "cost_matrix": {"rows_virtual": ["a.stl", "b.stl"],
+                        "columns_tangible": ["t1.stl", "t2.stl", "t3.stl"],
+                        "values": [[0.5, 2.0, None], [0.0, 0.02, 7.0]]},
+        "matches": [{"virtual": "a.stl", "tangible": "t1.stl"},
+                    {"virtual": "b.stl", "tangible": "t1.stl"}],
     }
     fig = cost_matrix_figure(doc)
     ax = fig.axes[0]
@@ -89,23 +84,14 @@ def test_criteria_figure_draws_one_bar_per_criterion_and_the_line_at_one():
 def test_the_cost_colour_scale_follows_the_data():
     from pinchmatch.export.figures import cost_color_range
 
-    assert cost_color_range(np.array([[500.0, 628.0], [np.nan, 551.0]])) == (
-        500.0,
-        628.0,
-    )  # not from 1e-3
+    # not from 1e-3
+    assert cost_color_range(np.array([[500.0, 628.0], [np.nan, 551.0]])) == (500.0, 628.0)
     assert cost_color_range(np.array([[0.0, 0.02], [7.0, np.inf]])) == (0.02, 7.0)
     assert cost_color_range(np.array([[3.0, np.nan]])) == (1.5, 6.0)
     assert cost_color_range(np.array([[0.0, np.nan]])) == (pytest.approx(1e-3), pytest.approx(1e-2))
-    fig = cost_matrix_figure(
-        {
-            "cost_matrix": {
-                "rows_virtual": ["a"],
-                "columns_tangible": ["t1", "t2"],
-                "values": [[500.0, 628.0]],
-            },
-            "matches": [],
-        }
-    )
+    fig = cost_matrix_figure({"cost_matrix": {"rows_virtual": ["a"],
+                                              "columns_tangible": ["t1", "t2"],
+                                              "values": [[500.0, 628.0]]}, "matches": []})
     norm = fig.axes[0].images[0].norm
     assert (norm.vmin, norm.vmax) == (500.0, 628.0)
 

@@ -35,9 +35,8 @@ def test_each_finger_leans_the_splay_from_the_approach_away_from_the_thumb_or_th
     np.testing.assert_allclose(np.linalg.norm(axes, axis=2), 1.0, atol=1e-12)
     angle = np.degrees(np.arccos(np.clip(np.einsum("nfd,nd->nf", axes, h), -1.0, 1.0)))
     np.testing.assert_allclose(angle, 15.0, atol=1e-6)
-    between = np.degrees(
-        np.arccos(np.clip(np.einsum("nd,nd->n", axes[:, 0], axes[:, 1]), -1.0, 1.0))
-    )
+    between = np.degrees(np.arccos(np.clip(np.einsum("nd,nd->n", axes[:, 0], axes[:, 1]), -1.0,
+                                           1.0)))
     np.testing.assert_allclose(between, 30.0, atol=1e-6)
     # each in the plane of h and u; the thumb leans away from u, the others towards it
     np.testing.assert_allclose(np.einsum("nfd,nd->nf", axes, np.cross(h, u)), 0.0, atol=1e-9)
@@ -47,9 +46,8 @@ def test_each_finger_leans_the_splay_from_the_approach_away_from_the_thumb_or_th
     np.testing.assert_allclose(finger_directions(points, h, Hand(finger_splay_deg=0.0)),
                                np.repeat(h[:, None], fingers, axis=1), atol=1e-12)
     R, t = random_rigid(9)
-    np.testing.assert_allclose(
-        finger_directions(points @ R.T + t, h @ R.T, Hand()), axes @ R.T, atol=1e-9
-    )
+    np.testing.assert_allclose(finger_directions(points @ R.T + t, h @ R.T, Hand()), axes @ R.T,
+                               atol=1e-9)
 
 
 def test_the_web_between_the_fingers_ends_may_not_pass_through_the_object():
@@ -58,16 +56,13 @@ def test_the_web_between_the_fingers_ends_may_not_pass_through_the_object():
     R, t = random_rigid(11)
     sheet = transformed(trimesh.creation.box(extents=(200.0, 200.0, 2.0)), R, t)
     context = SurfaceContext(sheet)
-    for inside, free in [
-        (60.0, False),
-        (30.0, True),
-    ]:  # the contacts this far in from the edge at x = 100
+    for inside, free in [(60.0, False), (30.0, True)]:
+        # the contacts this far in from the edge at x = 100
         tips = np.array([[[100.0 - inside, 0.0, 9.0], [100.0 - inside, 0.0, -9.0]]])
         h = np.array([[1.0, 0.0, 0.0]])  # outwards, past the edge: the ends 45 mm on
         fingers = finger_directions(tips, h, Hand(finger_splay_deg=15.0))
-        np.testing.assert_allclose(
-            fingers[0, :, 2] * np.array([1.0, -1.0]), np.sin(np.radians(15.0)), atol=1e-12
-        )
+        np.testing.assert_allclose(fingers[0, :, 2] * np.array([1.0, -1.0]),
+                                   np.sin(np.radians(15.0)), atol=1e-12)
         got = _hand_free(context, tips @ R.T + t, fingers @ R.T, 45.0)[0]
         assert got == (inside < 45.0 * np.cos(np.radians(15.0))) == free, inside
 

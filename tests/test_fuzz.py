@@ -63,9 +63,8 @@ def mutated(draw, seed: bytes):
         elif kind == "delete":
             del data[at:at + draw(st.integers(1, 64))]
         else:  # a run of digits or a huge number where text numbers are
-            data[at:at] = draw(
-                st.sampled_from([b"1e308", b"nan", b"-inf", b"99999999999", b"-0", b"\n", b" "])
-            )
+            data[at:at] = draw(st.sampled_from([b"1e308", b"nan", b"-inf", b"99999999999", b"-0",
+                                                b"\n", b" "]))
     return bytes(data)
 
 
@@ -94,19 +93,12 @@ def test_mutated_mesh_files_end_cleanly(fmt, tmp_path, capsys):
 
 
 json_values = st.recursive(
-    st.none()
-    | st.booleans()
-    | st.floats(allow_nan=True, allow_infinity=True)
-    | st.integers()
+    st.none() | st.booleans() | st.floats(allow_nan=True, allow_infinity=True) | st.integers()
     | st.text(max_size=8),
-    lambda children: st.lists(children, max_size=4)
-    | st.dictionaries(
-        st.sampled_from(["p1_mm", "p2_mm", "poses", "x"]) | st.text(max_size=4),
-        children,
-        max_size=4,
-    ),
-    max_leaves=20,
-)
+    lambda children: st.lists(children, max_size=4) | st.dictionaries(
+        st.sampled_from(["p1_mm", "p2_mm", "poses", "x"]) | st.text(max_size=4), children,
+        max_size=4),
+    max_leaves=20)
 
 
 @FUZZ
@@ -119,12 +111,8 @@ def test_any_json_poses_file_is_read_or_refused_in_one_line(tmp_path_factory, va
     except ConfigError as exc:
         assert "\n" not in str(exc) and str(path) in str(exc)
         return
-    assert (
-        p1.shape == p2.shape
-        and p1.shape[1] == 3
-        and np.isfinite(p1).all()
-        and np.isfinite(p2).all()
-    )
+    assert (p1.shape == p2.shape and p1.shape[1] == 3 and np.isfinite(p1).all()
+            and np.isfinite(p2).all())
 
 
 @FUZZ
@@ -144,42 +132,24 @@ def test_poses_files_through_the_command_line(tmp_path, capsys):
     for k, data in enumerate(cases):
         path = tmp_path / f"p{k}.json"
         path.write_bytes(data)
-        code = main(
-            ["poses", "--example", "--poses", str(path), "-q", "-o", str(tmp_path / f"o{k}.json")]
-        )
+        code = main(["poses", "--example", "--poses", str(path), "-q", "-o",
+                     str(tmp_path / f"o{k}.json")])
         _, err = capsys.readouterr()
         assert_contract(code, err)
 
 
-numbers = (
-    st.floats(allow_nan=True, allow_infinity=True).map(repr)
-    | st.integers(-(10**12), 10**12).map(str)
-    | st.sampled_from(["", "1e999", "-0", "0x10", "1_000", "nan", "inf", " 3", "3 ", "8mm", "1,2"])
-)
-OPTIONS = [
-    "--count",
-    "--seed",
-    "--friction-cone-deg",
-    "--min-width-mm",
-    "--max-width-mm",
-    "--fingertip-radius-mm",
-    "--patch-radius-mm",
-    "--finger-radius-mm",
-    "--finger-length-mm",
-    "--approach-tilt-deg",
-    "--snap-tolerance-mm",
-    "--top-k",
-    "--distinct-mm",
-]
-weights = st.lists(
-    st.tuples(
-        st.sampled_from(
-            ["width", "com", "tilt", "normal", "axis", "kmax", "kmin", "mass", "widht", "", "x"]
-        ),
-        numbers,
-    ),
-    max_size=5,
-).map(lambda items: ",".join(f"{k}={v}" for k, v in items)) | st.text(max_size=30)
+numbers = (st.floats(allow_nan=True, allow_infinity=True).map(repr)
+           | st.integers(-10**12, 10**12).map(str)
+           | st.sampled_from(["", "1e999", "-0", "0x10", "1_000", "nan", "inf", " 3", "3 ", "8mm",
+                              "1,2"]))
+OPTIONS = ["--count", "--seed", "--friction-cone-deg", "--min-width-mm", "--max-width-mm",
+           "--fingertip-radius-mm", "--patch-radius-mm", "--finger-radius-mm", "--finger-length-mm",
+           "--approach-tilt-deg", "--snap-tolerance-mm", "--top-k", "--distinct-mm"]
+weights = st.lists(st.tuples(st.sampled_from(["width", "com", "tilt", "normal", "axis", "kmax",
+                                              "kmin", "mass", "widht", "", "x"]),
+                             numbers),
+                             max_size=5).map(lambda items: ",".join(f"{k}={v}" for k, v in items)) \
+    | st.text(max_size=30)
 
 
 @FUZZ

@@ -23,21 +23,17 @@ EXAMPLES = int(os.environ.get("PINCHMATCH_FUZZ_EXAMPLES", "0")) or None
 FUZZ = settings(max_examples=EXAMPLES or 40, deadline=None, derandomize=EXAMPLES is None,
                 suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 
-json_values = st.recursive(
-    st.none() | st.booleans() | st.floats() | st.integers() | st.text(max_size=8),
-    lambda inner: st.lists(inner, max_size=4)
-    | st.dictionaries(st.text(max_size=8), inner, max_size=4),
-    max_leaves=12,
-)
+json_values = st.recursive(st.none() | st.booleans() | st.floats() | st.integers()
+                           | st.text(max_size=8),
+                           lambda inner: st.lists(inner, max_size=4)
+                           | st.dictionaries(st.text(max_size=8), inner, max_size=4),
+                           max_leaves=12)
 
 
 @FUZZ
-@given(
-    doc=st.dictionaries(
-        st.sampled_from(["weights", "pooling", "schema", "fit"]), json_values, max_size=4
-    )
-    | json_values
-)
+@given(doc=st.dictionaries(st.sampled_from(["weights", "pooling", "schema", "fit"]), json_values,
+                           max_size=4)
+       | json_values)
 def test_weights_files(doc):
     try:
         weights, pooling, _ = read_weights_file(json.dumps(doc), "w.json")
@@ -60,10 +56,9 @@ def test_ratings_tables(data):
         pass
 
 
-MANIFEST = (
-    b'[defaults]\nunits = "mm"\n\n[[object]]\nfile = "prop.stl"\nname = "prop"\nmass_g = 120\n'
-    b"com_mm = [0, 0, 10]\nexclude = [{ center_mm = [0, 0, 20], radius_mm = 5 }]\n"
-)
+MANIFEST = (b'[defaults]\nunits = "mm"\n\n[[object]]\nfile = "prop.stl"\nname = "prop"\n'
+            b'mass_g = 120\ncom_mm = [0, 0, 10]\n'
+            b'exclude = [{ center_mm = [0, 0, 20], radius_mm = 5 }]\n')
 
 
 @FUZZ
@@ -91,14 +86,9 @@ def test_level_hierarchies(children):
     assert len(parents) == len(set(parents)) and all(0 <= k < len(children) for k in parents)
 
 
-LEVEL = glb(
-    [
-        {"name": "root", "children": [1, 2]},
-        {"name": "crate", "mesh": 0, "translation": [0.1, 0, 0]},
-        {"name": "jar", "mesh": 0},
-    ],
-    [0],
-)
+LEVEL = glb([{"name": "root", "children": [1, 2]},
+             {"name": "crate", "mesh": 0, "translation": [0.1, 0, 0]}, {"name": "jar", "mesh": 0}],
+             [0])
 
 
 @FUZZ
@@ -117,16 +107,13 @@ EXTENSIONS = ["KHR_draco_mesh_compression", "EXT_meshopt_compression", "KHR_mesh
 
 
 @FUZZ
-@given(
-    required=st.lists(st.sampled_from(EXTENSIONS) | st.text(max_size=12) | json_values, max_size=3),
-    node_extras=st.dictionaries(
-        st.sampled_from(["extensions", "skin", "weights", "matrix"]), json_values, max_size=2
-    ),
-    mesh_extras=st.dictionaries(
-        st.sampled_from(["weights", "extensions"]), json_values, max_size=2
-    ),
-    sparse=st.booleans(),
-)
+@given(required=st.lists(st.sampled_from(EXTENSIONS) | st.text(max_size=12) | json_values,
+                         max_size=3),
+       node_extras=st.dictionaries(st.sampled_from(["extensions", "skin", "weights", "matrix"]),
+                                   json_values, max_size=2),
+       mesh_extras=st.dictionaries(st.sampled_from(["weights", "extensions"]), json_values,
+                                   max_size=2),
+       sparse=st.booleans())
 def test_levels_with_extensions(tmp_path_factory, required, node_extras, mesh_extras, sparse):
     """Required extensions, node and mesh extras and sparse accessors in any combination: the level
     is read or refused in one line (the features the reader does not apply are named, never read as
@@ -170,21 +157,10 @@ def test_received_control_folders(tmp_path_factory, journal, manifest, run):
 
 
 @FUZZ
-@given(
-    value=json_values,
-    field=st.sampled_from(
-        [
-            "cost",
-            "criteria",
-            "landing",
-            "alternatives",
-            "position_mm",
-            "equivalent_tangibles",
-            "redirection",
-            "p_noticed",
-        ]
-    ),
-)
+@given(value=json_values,
+       field=st.sampled_from(["cost", "criteria", "landing", "alternatives", "position_mm",
+                                                 "equivalent_tangibles", "redirection",
+                                                 "p_noticed"]))
 def test_received_matches_documents(tmp_path_factory, value, field):
     """Any JSON value in a field of a received matches.json: the page's data is made with numbers
     where the page shows numbers, or the document is refused in one line."""
@@ -196,9 +172,5 @@ def test_received_matches_documents(tmp_path_factory, value, field):
         assert "\n" not in str(exc)
         return
     text = json.dumps(value)
-    assert "<" not in text or field in (
-        "criteria",
-        "equivalent_tangibles",
-        "landing",
-        "redirection",
-    )
+    assert ("<" not in text
+            or field in ("criteria", "equivalent_tangibles", "landing", "redirection"))

@@ -25,88 +25,49 @@ def glb(nodes: list[dict], scenes_roots: list[int]) -> bytes:
     v = np.asarray(box.vertices, np.float32).tobytes()
     f = np.asarray(box.faces, np.uint32).ravel().tobytes()
     blob = v + f
-    doc = {
-        "asset": {"version": "2.0"},
-        "scene": 0,
-        "scenes": [{"nodes": scenes_roots}],
-        "nodes": nodes,
-        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
-        "buffers": [{"byteLength": len(blob)}],
-        "bufferViews": [
-            {"buffer": 0, "byteOffset": 0, "byteLength": len(v)},
-            {"buffer": 0, "byteOffset": len(v), "byteLength": len(f)},
-        ],
-        "accessors": [
-            {
-                "bufferView": 0,
-                "componentType": 5126,
-                "count": len(box.vertices),
-                "type": "VEC3",
-                "min": box.vertices.min(axis=0).tolist(),
-                "max": box.vertices.max(axis=0).tolist(),
-            },
-            {"bufferView": 1, "componentType": 5125, "count": box.faces.size, "type": "SCALAR"},
-        ],
-    }
+    doc = {"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": scenes_roots}],
+           "nodes": nodes,
+           "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
+           "buffers": [{"byteLength": len(blob)}],
+           "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": len(v)},
+                           {"buffer": 0, "byteOffset": len(v), "byteLength": len(f)}],
+           "accessors": [{"bufferView": 0, "componentType": 5126, "count": len(box.vertices),
+                          "type": "VEC3", "min": box.vertices.min(axis=0).tolist(),
+                          "max": box.vertices.max(axis=0).tolist()},
+                         {"bufferView": 1, "componentType": 5125, "count": box.faces.size,
+                          "type": "SCALAR"}]}
     text = json.dumps(doc).encode()
     text += b" " * (-len(text) % 4)
     blob += b"\0" * (-len(blob) % 4)
-    body = (
-        struct.pack("<I4s", len(text), b"JSON")
-        + text
-        + struct.pack("<I4s", len(blob), b"BIN\0")
-        + blob
-    )
+    body = struct.pack("<I4s", len(text), b"JSON") + text + struct.pack(
+        "<I4s", len(blob), b"BIN\0") + blob
     return struct.pack("<4sII", b"glTF", 2, 12 + len(body)) + body
 
 
 def chain(depth: int) -> list[dict]:
     """Nodes 0 -> 1 -> ... -> depth-1, the last holding the mesh, each moved 1 cm."""
-    nodes = [
-        {"name": f"n{i}", "translation": [0.01, 0, 0], "children": [i + 1]}
-        for i in range(depth - 1)
-    ]
+    nodes = [{"name": f"n{i}", "translation": [0.01, 0, 0], "children": [i + 1]}
+             for i in range(depth - 1)]
     return nodes + [{"name": f"n{depth - 1}", "mesh": 0}]
 
 
-@pytest.mark.parametrize(
-    "nodes, roots, words",
-    [
-        ([{"name": "a", "mesh": 0, "children": [1]}, {"name": "b", "children": [0]}], [0], "cycle"),
-        ([{"name": "a", "mesh": 0, "children": [0]}], [0], "of itself"),
-        (
-            [
-                {"name": "a", "children": [2]},
-                {"name": "b", "children": [2]},
-                {"name": "c", "mesh": 0},
-            ],
-            [0, 1],
-            "child of two nodes",
-        ),
-        ([{"name": "a", "mesh": 0, "children": [7]}], [0], "names child node 7"),
-        ([{"name": "a", "mesh": 0, "children": ["1"]}], [0], "not a list of node indices"),
-        (chain(MAX_DEPTH + 1), [0], f"nest more than {MAX_DEPTH} deep"),
-    ],
-)
+@pytest.mark.parametrize("nodes, roots, words", [
+    ([{"name": "a", "mesh": 0, "children": [1]}, {"name": "b", "children": [0]}], [0], "cycle"),
+    ([{"name": "a", "mesh": 0, "children": [0]}], [0], "of itself"),
+    ([{"name": "a", "children": [2]}, {"name": "b", "children": [2]}, {"name": "c", "mesh": 0}],
+     [0, 1], "child of two nodes"),
+    ([{"name": "a", "mesh": 0, "children": [7]}], [0], "names child node 7"),
+    ([{"name": "a", "mesh": 0, "children": ["1"]}], [0], "not a list of node indices"),
+    (chain(MAX_DEPTH + 1), [0], f"nest more than {MAX_DEPTH} deep"),
+])
 @pytest.mark.parametrize("split", [True, False])
 def test_a_level_that_is_not_a_bounded_tree_is_one_line(
-    tmp_path, capsys, nodes, roots, words, split
-):
+    tmp_path, capsys, nodes, roots, words, split):
     level = tmp_path / "level.glb"
     level.write_bytes(glb(nodes, roots))
-    argv = [
-        "match",
-        "--tangible",
-        str(level) if not split else str(tmp_path / "prop.stl"),
-        "--virtual",
-        str(level),
-        "--count",
-        "60",
-        "-q",
-        "--no-cache",
-        "-o",
-        str(tmp_path / "out"),
-    ]
+    argv = ["match", "--tangible", str(level) if not split else str(tmp_path / "prop.stl"),
+            "--virtual", str(level), "--count", "60", "-q", "--no-cache", "-o",
+            str(tmp_path / "out")]
     trimesh.creation.box(extents=(40.0, 30.0, 20.0)).export(tmp_path / "prop.stl")
     if split:
         argv += ["--split", "nodes"]
@@ -139,26 +100,23 @@ def test_the_hierarchy_walk_is_linear_in_the_nodes():
 def test_a_gltf_buffer_uri_is_percent_decoded_as_the_specification_says(tmp_path):
     from pinchmatch.mesh.load import load_mesh
 
-    files = trimesh.exchange.gltf.export_gltf(
-        trimesh.Scene(trimesh.creation.box(extents=(0.04, 0.03, 0.02)))
-    )
+    files = trimesh.exchange.gltf.export_gltf(trimesh.Scene(trimesh.creation.box(extents=(
+        0.04, 0.03, 0.02))))
     doc = json.loads(files["model.gltf"])
     for i, buffer in enumerate(doc["buffers"]):
         (tmp_path / f"a b{i}.bin").write_bytes(files[buffer["uri"]])
         buffer["uri"] = f"a%20b{i}.bin"
     (tmp_path / "m.gltf").write_text(json.dumps(doc))
     mesh = load_mesh(tmp_path / "m.gltf")
-    np.testing.assert_allclose(
-        mesh.mesh.extents, [40.0, 30.0, 20.0], atol=1e-4
-    )  # metres read as mm
+    # metres read as mm
+    np.testing.assert_allclose(mesh.mesh.extents, [40.0, 30.0, 20.0], atol=1e-4)
 
 
 def test_a_gltf_buffer_outside_its_folder_is_one_clear_line(tmp_path):
     from pinchmatch.mesh.load import load_mesh
 
-    files = trimesh.exchange.gltf.export_gltf(trimesh.Scene(trimesh.creation.box(extents=(0.04,
-                                                                                          0.03,
-                                                                                          0.02))))
+    files = trimesh.exchange.gltf.export_gltf(trimesh.Scene(trimesh.creation.box(extents=(
+        0.04, 0.03, 0.02))))
     doc = json.loads(files["model.gltf"])
     (tmp_path / "inner").mkdir()
     for i, buffer in enumerate(doc["buffers"]):
@@ -181,15 +139,9 @@ def test_a_bad_node_mesh_index_speaks_of_indices_not_of_vertices(tmp_path):
 
 def test_a_level_whose_mesh_nodes_share_a_name_is_not_split_under_made_up_names(tmp_path):
     level = tmp_path / "dup.glb"
-    level.write_bytes(
-        glb(
-            [
-                {"name": "crate", "mesh": 0, "translation": [0.1, 0, 0]},
-                {"name": "crate", "mesh": 0},
-            ],
-            [0, 1],
-        )
-    )
+    level.write_bytes(glb([{"name": "crate", "mesh": 0, "translation": [0.1, 0, 0]},
+                           {"name": "crate", "mesh": 0}],
+                          [0, 1]))
     with pytest.raises(MeshError, match="several mesh nodes are named 'crate'"):
         read_level(level)
 
@@ -233,14 +185,12 @@ def test_the_cache_key_covers_every_buffer_the_loader_reads(tmp_path, kind):
 
     cache, settings = FeatureCache(tmp_path / "cache"), PinchSettings(count=50)
     path = (_box_gltf if kind == "gltf" else _glb_with_external_buffer)(
-        tmp_path, "a%20b.bin", (0.04, 0.03, 0.02)
-    )
+        tmp_path, "a%20b.bin", (0.04, 0.03, 0.02))
     document = path.read_bytes()
     before = cache.key(ObjectSpec(str(path)), settings=settings)
     np.testing.assert_allclose(np.sort(load_mesh(path).mesh.extents), [20.0, 30.0, 40.0], atol=1e-3)
-    _external_buffers(
-        tmp_path, "a%20b.bin", (0.04, 0.03, 0.05)
-    )  # the buffers only: same names, same sizes
+    # the buffers only: same names, same sizes
+    _external_buffers(tmp_path, "a%20b.bin", (0.04, 0.03, 0.05))
     assert path.read_bytes() == document
     assert cache.key(ObjectSpec(str(path)), settings=settings) != before
     np.testing.assert_allclose(np.sort(load_mesh(path).mesh.extents), [30.0, 40.0, 50.0], atol=1e-3)
@@ -267,19 +217,14 @@ def test_a_document_the_checks_cannot_read_is_refused_not_handed_on(tmp_path, da
     never read unchecked."""
     from pinchmatch.mesh.load import load_mesh
 
-    doc = {
-        "asset": {"version": "2.0"},
-        "scene": 0,
-        "scenes": [{"nodes": [0]}],
-        "nodes": [{"name": "caf\u00e9", "children": [0]}],
-    }  # a cycle, which the check would refuse
+    doc = {"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}],
+           # a cycle, which the check would refuse
+           "nodes": [{"name": "caf\u00e9", "children": [0]}]}
     chunk = json.dumps(doc, ensure_ascii=False).encode(
-        "latin-1" if damage == "latin-1 name" else "utf-8"
-    )
+        "latin-1" if damage == "latin-1 name" else "utf-8")
     chunk += b" " * (-len(chunk) % 4)
-    length = (
-        65 * 2**20 if damage == "huge chunk" else len(chunk) + (64 if damage == "cut chunk" else 0)
-    )
+    length = (65 * 2**20 if damage == "huge chunk" else len(chunk)
+              + (64 if damage == "cut chunk" else 0))
     body = struct.pack("<I4s", length, b"JSON") + chunk
     (tmp_path / "level.glb").write_bytes(b"glTF" + struct.pack("<II", 2, 12 + len(body)) + body)
     with pytest.raises(MeshError, match=message) as info:
@@ -299,38 +244,22 @@ def _changed(data: bytes, change) -> bytes:
     return struct.pack("<4sII", b"glTF", 2, 12 + len(body)) + body
 
 
-@pytest.mark.parametrize(
-    "change, words",
-    [
-        (
-            lambda d: d.update(extensionsRequired=["KHR_draco_mesh_compression"]),
-            "KHR_draco_mesh_compression (Draco",
-        ),
-        (
-            lambda d: d.update(extensionsRequired=["EXT_meshopt_compression"]),
-            "EXT_meshopt_compression (meshopt",
-        ),
-        (
-            lambda d: d.update(extensionsRequired=["KHR_mesh_quantization"]),
-            "KHR_mesh_quantization (quantized",
-        ),
-        (
-            lambda d: d.update(extensionsRequired=["VENDOR_unknown_thing"]),
-            "the required extension VENDOR_unknown_thing",
-        ),
-        (
-            lambda d: d["nodes"][0].update(
-                extensions={"EXT_mesh_gpu_instancing": {"attributes": {}}}
-            ),
-            "GPU instancing",
-        ),
-        (lambda d: d["nodes"][0].update(skin=0), "a skinned mesh on node 'box'"),
-        (lambda d: d["nodes"][0].update(weights=[0.5]), "morph weights of its own on node 'box'"),
-    ],
-)
+@pytest.mark.parametrize("change, words", [
+    (lambda d: d.update(extensionsRequired=["KHR_draco_mesh_compression"]),
+     "KHR_draco_mesh_compression (Draco"),
+    (lambda d: d.update(extensionsRequired=["EXT_meshopt_compression"]),
+     "EXT_meshopt_compression (meshopt"),
+    (lambda d: d.update(extensionsRequired=["KHR_mesh_quantization"]),
+     "KHR_mesh_quantization (quantized"),
+    (lambda d: d.update(extensionsRequired=["VENDOR_unknown_thing"]),
+     "the required extension VENDOR_unknown_thing"),
+    (lambda d: d["nodes"][0].update(extensions={"EXT_mesh_gpu_instancing": {"attributes": {}}}),
+     "GPU instancing"),
+    (lambda d: d["nodes"][0].update(skin=0), "a skinned mesh on node 'box'"),
+    (lambda d: d["nodes"][0].update(weights=[0.5]), "morph weights of its own on node 'box'"),
+])
 def test_gltf_features_the_reader_does_not_apply_are_refused_by_name(
-    tmp_path, capsys, change, words
-):
+    tmp_path, capsys, change, words):
     path = tmp_path / "level.glb"
     path.write_bytes(_changed(glb([{"name": "box", "mesh": 0}], [0]), change))
     with pytest.raises(MeshError, match="which pinchmatch does not apply") as info:
@@ -339,10 +268,9 @@ def test_gltf_features_the_reader_does_not_apply_are_refused_by_name(
 
 
 def test_extensions_that_change_no_geometry_are_read():
-    data = _changed(
-        glb([{"name": "box", "mesh": 0}], [0]),
-        lambda d: d.update(extensionsRequired=["KHR_materials_unlit", "KHR_texture_transform"]),
-    )
+    data = _changed(glb([{"name": "box", "mesh": 0}], [0]),
+                    lambda d: d.update(extensionsRequired=[
+                        "KHR_materials_unlit", "KHR_texture_transform"]))
     import tempfile
     from pathlib import Path
     with tempfile.TemporaryDirectory() as tmp:
@@ -367,12 +295,8 @@ def _box_with_extra(extra_arrays, change):
     change(doc)
     text = json.dumps(doc).encode()
     text += b" " * (-len(text) % 4)
-    body = (
-        struct.pack("<I4s", len(text), b"JSON")
-        + text
-        + struct.pack("<I4s", len(blob), b"BIN\0")
-        + bytes(blob)
-    )
+    body = struct.pack("<I4s", len(text), b"JSON") + text + struct.pack(
+        "<I4s", len(blob), b"BIN\0") + bytes(blob)
     return struct.pack("<4sII", b"glTF", 2, 12 + len(body)) + body
 
 
@@ -390,36 +314,23 @@ def test_sparse_accessors_and_default_morph_weights_are_applied(tmp_path):
     delta = np.asarray(box.vertices, np.float32)
 
     def sparse(doc):
-        doc["accessors"][0]["sparse"] = {
-            "count": n,
-            "indices": {"bufferView": 2, "componentType": 5123},
-            "values": {"bufferView": 3},
-        }
-        doc["accessors"][0].update(
-            min=(2 * box.vertices.min(axis=0)).tolist(), max=(2 * box.vertices.max(axis=0)).tolist()
-        )
+        doc["accessors"][0]["sparse"] = {"count": n,
+                                         "indices": {"bufferView": 2, "componentType": 5123},
+                                         "values": {"bufferView": 3}}
+        doc["accessors"][0].update(min=(2 * box.vertices.min(axis=0)).tolist(),
+                                   max=(2 * box.vertices.max(axis=0)).tolist())
 
     def morph(doc):
-        doc["accessors"].append(
-            {
-                "bufferView": 2,
-                "componentType": 5126,
-                "count": n,
-                "type": "VEC3",
-                "min": delta.min(axis=0).tolist(),
-                "max": delta.max(axis=0).tolist(),
-            }
-        )
+        doc["accessors"].append({"bufferView": 2, "componentType": 5126, "count": n, "type": "VEC3",
+                                 "min": delta.min(axis=0).tolist(),
+                                 "max": delta.max(axis=0).tolist()})
         doc["meshes"][0]["primitives"][0]["targets"] = [{"POSITION": 2}]
         doc["meshes"][0]["weights"] = [0.5]
 
-    for name, arrays, change, scale in (
-        ("sparse", [indices, doubled], sparse, 2.0),
-        ("morph", [delta], morph, 1.5),
-    ):
+    for name, arrays, change, scale in (("sparse", [indices, doubled], sparse, 2.0),
+                                        ("morph", [delta], morph, 1.5)):
         path = tmp_path / f"{name}.glb"
         path.write_bytes(_box_with_extra(arrays, change))
         mesh = load_mesh(path).mesh
-        np.testing.assert_allclose(
-            np.sort(mesh.extents), scale * np.array([30.0, 40.0, 50.0]), atol=1e-3
-        )
+        np.testing.assert_allclose(np.sort(mesh.extents), scale * np.array([30.0, 40.0, 50.0]),
+                                   atol=1e-3)

@@ -32,19 +32,14 @@ def test_a_pinch_across_a_box_breaks_no_rule_and_reports_its_approach(box):
     given = check_pinches(box, [[-30.0, 0, 0]], [[30.0, 0, 0]])
     assert given.feasible[0]
     h = given.approach[0]
-    assert (
-        abs(np.linalg.norm(h) - 1.0) < 1e-9 and abs(h[0]) < 0.5
-    )  # within 30 deg of the plane x = 0
+    # within 30 deg of the plane x = 0
+    assert abs(np.linalg.norm(h) - 1.0) < 1e-9 and abs(h[0]) < 0.5
     assert given.approach_clearance_mm[0] >= -0.3
 
 
 def test_width_alone(box):
-    _only(
-        check_pinches(
-            box, [[-30.0, 0, 0]], [[30.0, 0, 0]], settings=PinchSettings(max_width_mm=50.0)
-        ),
-        "width",
-    )
+    _only(check_pinches(box, [[-30.0, 0, 0]], [[30.0, 0, 0]],
+                        settings=PinchSettings(max_width_mm=50.0)), "width")
 
 
 def test_antipodal_alone(box):
@@ -70,10 +65,8 @@ def test_clearance_alone():
     bump.apply_translation((-22.0, 0.0, 7.0))
     mesh = trimesh.boolean.union([block, bump], engine="manifold").subdivide_to_size(3.0)
     settings = PinchSettings(finger_radius_mm=4.0)
-    _only(
-        check_pinches(_ctx(mesh), [[-20.0, 0, -1.0]], [[20.0, 0, -1.0]], settings=settings),
-        "clearance",
-    )
+    _only(check_pinches(_ctx(mesh), [[-20.0, 0, -1.0]], [[20.0, 0, -1.0]], settings=settings),
+          "clearance")
 
 
 @pytest.mark.parametrize("gap_mm, broken", [(7.8, []), (7.5, ["clearance"])])
@@ -87,12 +80,8 @@ def test_the_fingertip_may_press_0_3_mm_into_an_overhang(gap_mm, broken):
     shelf.apply_translation((-30.0, 0.0, gap_mm + 2.0))
     mesh = trimesh.boolean.union([block, shelf], engine="manifold").subdivide_to_size(3.0)
     settings = PinchSettings(finger_radius_mm=4.0, patch_radius_mm=5.0)
-    given = check_pinches(
-        SurfaceContext(mesh, patch_radius_mm=5.0),
-        [[-20.0, 0, 0]],
-        [[20.0, 0, 0]],
-        settings=settings,
-    )
+    given = check_pinches(SurfaceContext(mesh, patch_radius_mm=5.0), [[-20.0, 0, 0]],
+                          [[20.0, 0, 0]], settings=settings)
     assert given.broken_rules(0) == broken
 
 
@@ -121,12 +110,10 @@ def test_cup_is_squeezed_from_outside_across_its_cavity(cup):
     level = np.abs(pinches.points[:, 1, 2] - pinches.points[:, 0, 2]) < 1.0
     outside = (radial > 34.9).all(axis=1) & level
     width = np.linalg.norm(pinches.points[:, 1] - pinches.points[:, 0], axis=1)
-    assert (
-        outside.sum() >= 5
-    )  # 7-11 of 300 over seeds 0-2: pinches within 1 mm of level are a thin set
-    assert (
-        69.5 <= width[outside].max() <= np.hypot(70.0, 1.0)
-    )  # through the axis: the outer diameter
+    # 7-11 of 300 over seeds 0-2: pinches within 1 mm of level are a thin set
+    assert outside.sum() >= 5
+    # through the axis: the outer diameter
+    assert 69.5 <= width[outside].max() <= np.hypot(70.0, 1.0)
     # and the given horizontal pinch through the axis, as everyone holds a cup
     given = check_pinches(_ctx(mesh), [[-35.0, 0, 50.0]], [[35.0, 0, 50.0]])
     assert given.feasible[0]
@@ -163,24 +150,11 @@ def _across_the_wall_below_the_rim(pinches, rim_z, settings):
     assert np.median(depth) > settings.fingertip_radius_mm
 
 
-@pytest.mark.parametrize(
-    "make, rim_z, count, found",
-    [
-        (
-            vessels.bowl,
-            80.0,
-            300,
-            270,
-        ),  # hemispherical shell, 1.5 mm wall, 160 across, rim at z = 80
-        (
-            vessels.scanned_bowl,
-            55.0,
-            500,
-            450,
-        ),  # 161 across, 55 tall, 1.5 mm wall, rounded rim, rough triangles
-    ],
-    ids=["hemisphere", "scanned"],
-)
+@pytest.mark.parametrize("make, rim_z, count, found", [
+    (vessels.bowl, 80.0, 300, 270),  # hemispherical shell, 1.5 mm wall, 160 across, rim at z = 80
+    # 161 across, 55 tall, 1.5 mm wall, rounded rim, rough triangles
+    (vessels.scanned_bowl, 55.0, 500, 450),
+], ids=["hemisphere", "scanned"])
 def test_a_bowl_is_pinched_across_its_wall_within_a_finger_of_its_rim(make, rim_z, count, found):
     mesh = make()
     assert mesh.is_volume and mesh.bounds[1, 2] == pytest.approx(rim_z, abs=1.5)
@@ -198,11 +172,8 @@ def test_with_the_fingers_side_by_side_a_bowl_is_pinched_only_at_its_rim():
     pinches = sample_pinches(_ctx(mesh), settings=settings)
     depth = 55.0 - pinches.points[..., 2].min(axis=1)
     assert np.median(depth) < 0.5 * np.median(
-        55.0
-        - sample_pinches(_ctx(mesh), settings=PinchSettings(count=300, seed=0))
-        .points[..., 2]
-        .min(axis=1)
-    )
+        55.0 - sample_pinches(_ctx(mesh),
+                              settings=PinchSettings(count=300, seed=0)).points[..., 2].min(axis=1))
     assert_rules_hold(mesh, pinches, settings)
 
 
@@ -228,10 +199,8 @@ def test_plate_rim_is_pinched_and_thin_wall_patches_stay_apart():
     assert np.all(np.einsum("ij,ij->i", n[:, 0], n[:, 1]) < -0.99)
     clear_of_creases = across & ((radial > 110.0) & (radial < 120.0)).all(axis=1)  # 8 mm patches
     assert clear_of_creases.sum() >= 3
-    kmax, kmin = (
-        pinches.kappa_max_per_m[clear_of_creases],
-        pinches.kappa_min_per_m[clear_of_creases],
-    )
+    kmax, kmin = (pinches.kappa_max_per_m[clear_of_creases],
+                  pinches.kappa_min_per_m[clear_of_creases])
     # one principal curvature is the cone's straight slope (0), the other its circle: convex
     # below, concave on top, cos(27 deg) / 115 mm = 7.7 per m at most (patches seen from one face
     # only)
@@ -246,19 +215,15 @@ def test_a_scan_with_holes_gives_pinches_with_the_closed_surfaces_features():
     shape = shapes.ellipsoid(triangulation="random", faces=40000)
     mesh = shape.mesh
     holes = mesh.vertices[np.random.default_rng(1).choice(len(mesh.vertices), 6, replace=False)]
-    near = (
-        np.min(np.linalg.norm(mesh.triangles_center[:, None] - holes[None], axis=-1), axis=1) < 5.0
-    )
+    near = np.min(np.linalg.norm(mesh.triangles_center[:, None] - holes[None], axis=-1),
+                  axis=1) < 5.0
     holed = mesh.submesh([np.flatnonzero(~near)], append=True)  # six holes 10 mm across
     assert not holed.is_watertight
     pinches = sample_pinches(_ctx(holed), settings=PinchSettings(count=300, seed=0))
     assert len(pinches) == 300
     truth = shape.truth(pinches.points.reshape(-1, 3))
-    err = (
-        np.abs(pinches.kappa_max_per_m.ravel() - truth.kappa_max_per_m)
-        / truth.kappa_max_per_m
-        * 100
-    )
+    err = np.abs(pinches.kappa_max_per_m.ravel()
+                 - truth.kappa_max_per_m) / truth.kappa_max_per_m * 100
     assert np.median(err) <= 1.5 and np.percentile(err, 95) <= 5.0  # the curvature targets, in %
     closed = check_pinches(_ctx(mesh), pinches.points[:, 0], pinches.points[:, 1])
     assert np.median(np.abs(closed.kappa_max_per_m - pinches.kappa_max_per_m)) < 0.5  # 1/m
@@ -276,16 +241,12 @@ def test_the_hand_is_stuck_whatever_the_index_of_the_triangle_above_it(first):
     slab.apply_translation((0.0, 0.0, 80.0))
     above = np.flatnonzero(slab.triangles_center[:, 2] < 79.0)  # the underside, facing the fingers
     hit = above[0]
-    order = (
-        np.r_[hit, np.delete(np.arange(len(slab.faces)), hit)]
-        if first
-        else np.arange(len(slab.faces))
-    )
+    order = (np.r_[hit, np.delete(np.arange(len(slab.faces)), hit)] if first
+             else np.arange(len(slab.faces)))
     slab = trimesh.Trimesh(slab.vertices, slab.faces[order], process=False)
     context = SurfaceContext(slab)
-    c = slab.triangles_center[
-        0 if first else np.flatnonzero(order == hit)[0]
-    ]  # under that triangle
+    # under that triangle
+    c = slab.triangles_center[0 if first else np.flatnonzero(order == hit)[0]]
     tips = np.array([[[c[0] - 1.0, c[1], 0.0], [c[0] + 1.0, c[1], 0.0]]])
     h = np.array([[0.0, 0.0, 1.0]])
     face = context.rays.intersects_first(tips.reshape(-1, 3) + 45.0 * h[0], np.repeat(h, 2, axis=0))
@@ -317,9 +278,8 @@ def test_every_approach_keeps_within_the_band_on_both_sides(name):
 def test_a_ring_held_across_its_hole_with_no_tilt_is_approached_square_on():
     """--approach-tilt-deg 0: every approach is perpendicular to its pinch line."""
     mesh = shapes.torus(30.0, 8.0, faces=20000).mesh
-    pinches = sample_pinches(
-        _ctx(mesh), settings=PinchSettings(count=150, seed=2, approach_tilt_deg=0.0)
-    )
+    pinches = sample_pinches(_ctx(mesh),
+                             settings=PinchSettings(count=150, seed=2, approach_tilt_deg=0.0))
     lean, _ = _in_band(pinches, 0.0)
     width = np.linalg.norm(pinches.points[:, 1] - pinches.points[:, 0], axis=1)
     assert (width > 40.0).sum() >= 5  # across the hole

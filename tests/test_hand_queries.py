@@ -58,11 +58,8 @@ def _exact(context, tips, h, offsets, cap):
 def test_the_spheres_left_unqueried_change_no_decision(standing_mug, fingers, monkeypatch):
     context = standing_mug
     hand = Hand()
-    offsets, rho, cap = (
-        hand.test_offsets_mm,
-        hand.test_radius_mm,
-        hand.finger_radius_mm + hand_module.CLEARANCE_CAP_MM,
-    )
+    offsets, rho, cap = (hand.test_offsets_mm, hand.test_radius_mm,
+                         hand.finger_radius_mm + hand_module.CLEARANCE_CAP_MM)
     tips, h, delta, first = _batch(context, fingers, np.random.default_rng(fingers))
     stuck = np.random.default_rng(40 + fingers).random(len(h)) < 0.3  # the gate refuses these
     asked = []
@@ -85,17 +82,13 @@ def test_the_spheres_left_unqueried_change_no_decision(standing_mug, fingers, mo
     open_ = ~refused
     np.testing.assert_array_equal((term < rho).any(axis=(1, 2))[open_], ruled[open_])
     np.testing.assert_array_equal((d >= rho).all(axis=(1, 2))[open_], fits[open_])
-    np.testing.assert_array_equal(
-        d[open_ & fits], exact[open_ & fits]
-    )  # a fitting centre's clearance
-    assert (
-        (exact[open_ & fits] < cap).any(axis=(1, 2))
-    ).sum() >= 20  # and fitting rows near the surface
+    # a fitting centre's clearance
+    np.testing.assert_array_equal(d[open_ & fits], exact[open_ & fits])
+    # and fitting rows near the surface
+    assert ((exact[open_ & fits] < cap).any(axis=(1, 2))).sum() >= 20
     between = open_ & ~ruled & ~fits
-    flat, exact_flat = (
-        term[between].reshape(between.sum(), -1),
-        exact_term[between].reshape(between.sum(), -1),
-    )
+    flat, exact_flat = (term[between].reshape(between.sum(), -1),
+                        exact_term[between].reshape(between.sum(), -1))
     np.testing.assert_array_equal(flat.min(axis=1), exact_flat.min(axis=1))
     np.testing.assert_array_equal(flat.argmin(axis=1), exact_flat.argmin(axis=1))
     # not trivial: every kind of row is there, and far fewer spheres were queried than there are
@@ -111,40 +104,34 @@ def test_a_gate_that_refuses_every_row_leaves_only_the_hints_queried(standing_mu
     tips, h, delta, first = _batch(context, 2, np.random.default_rng(7), m=500)
     asked = []
     query = spheres.query_tree
-    monkeypatch.setattr(
-        spheres,
-        "query_tree",
-        lambda tree, points, **options: asked.append(len(points)) or query(tree, points, **options),
-    )
+    monkeypatch.setattr(spheres, "query_tree",
+                        lambda tree, points, **options: asked.append(len(points))
+                        or query(tree, points, **options))
     _, refused = spheres.axis_distances(context, tips, h, offsets, cap, rho, delta, first=first,
                                           gate=lambda rows: np.zeros(len(rows), dtype=bool))
     assert sum(asked) <= (first >= 0).sum()
-    assert refused.sum() > 0.1 * len(
-        h
-    )  # random directions mostly run into the mug: the rest are refused
+    # random directions mostly run into the mug: the rest are refused
+    assert refused.sum() > 0.1 * len(h)
 
 
 @pytest.mark.parametrize("fingers", [2, 3])
 def test_the_reach_search_decides_as_if_every_sphere_were_queried(
-    standing_mug, fingers, monkeypatch
-):
+    standing_mug, fingers, monkeypatch):
     """The whole search, quick directions and band, against one whose every direction has every
     sphere queried and the hand tested: the same verdicts, approaches and clearances."""
     context = standing_mug
     mesh, rng = context.mesh, np.random.default_rng(50 + fingers)
     faces = rng.integers(0, len(mesh.faces), (300, fingers))
-    points = np.einsum(
-        "nfk,nfkd->nfd", rng.dirichlet(np.ones(3), (300, fingers)), mesh.triangles[faces]
-    )
+    points = np.einsum("nfk,nfkd->nfd", rng.dirichlet(np.ones(3), (300, fingers)),
+                       mesh.triangles[faces])
     normals = mesh.face_normals[faces]
     hand = Hand()
     found = reach(context, points, normals, hand)
 
     def every_sphere(context, tips, h, offsets, cap, rho, delta=None, first=None, gate=None):
         every = np.arange(len(h))
-        return _exact(context, tips, h, offsets, cap), np.zeros(
-            len(h), dtype=bool
-        ) if gate is None else ~gate(every)
+        return (_exact(context, tips, h, offsets, cap),
+                np.zeros(len(h), dtype=bool) if gate is None else ~gate(every))
 
     monkeypatch.setattr(hand_module, "axis_distances", every_sphere)
     reference = reach(context, points, normals, hand)

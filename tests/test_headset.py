@@ -67,9 +67,8 @@ def _headset(browser, demo_out):
         if emulated:
             pg.add_init_script(IWER.read_text() + "\n" + INSTALL)
         pg.goto((demo_out / "index.html").as_uri() + query)
-        pg.wait_for_function(
-            "window.pinchmatchXR !== undefined && document.body.dataset.shown !== undefined"
-        )
+        pg.wait_for_function("window.pinchmatchXR !== undefined && document.body.dataset.shown !== "
+                             "undefined")
         if emulated:
             pg.add_script_tag(path=str(DRIVE))
             pg.evaluate("drive.look([-0.05, 1.16, -0.08], [0.05, 0.99, -0.38])")
@@ -118,9 +117,8 @@ def calibrate(pg) -> dict:
 def pinch_off_target(pg, turn_deg: float = 0.0, hand: str = "right"):
     """Configure a hand's pinch on the targets moved by AWAY (and turned), without touching them."""
     p1, p2 = (np.array(t) for t in pg.evaluate("pinchmatchXR.targets()"))
-    pg.evaluate(
-        "([h, a, b]) => drive.pinch(h, a, b)", [hand, (p1 + AWAY).tolist(), (p2 + AWAY).tolist()]
-    )
+    pg.evaluate("([h, a, b]) => drive.pinch(h, a, b)",
+                [hand, (p1 + AWAY).tolist(), (p2 + AWAY).tolist()])
     if turn_deg:
         axis = np.cross(p2 - p1, [0.0, 1.0, 0.0])
         pg.evaluate("([h, c, a, d]) => drive.turnAbout(h, c, a, d)",
@@ -153,12 +151,8 @@ def test_calibrate_then_validate_after_one_second_and_not_before(headset):
     assert cal["refused"] is False and cal["rms_mm"] < 1.0, cal
     fitted = np.array(pg.evaluate("pinchmatchXR.propMatrix()")).reshape(4, 4).T  # column-major
     assert np.abs(fitted[:3, 3] - PROP_POSE[:3, 3]).max() < 1e-3
-    assert (
-        np.degrees(
-            np.arccos(np.clip((np.trace(fitted[:3, :3] @ PROP_POSE[:3, :3].T) - 1) / 2, -1, 1))
-        )
-        < 0.5
-    )
+    assert np.degrees(np.arccos(np.clip((np.trace(fitted[:3, :3] @ PROP_POSE[:3, :3].T) - 1) / 2,
+                                        -1, 1))) < 0.5
     assert pg.evaluate(f"localStorage.getItem({json.dumps('pinchmatch.calibration.')} + "
                        # kept for the next session
                        "pinchmatchViewer.DATA.matches[0].tangible)") is not None
@@ -177,9 +171,8 @@ def test_calibrate_then_validate_after_one_second_and_not_before(headset):
     assert s["validation"]["time_s"] >= 1.0 and s["phase"] == "done"
     canvas_shot(pg, "headset_validated.png")
     # then the next match of the page, not yet validated
-    pg.wait_for_function(
-        "pinchmatchXR.state().phase === 'guiding' && pinchmatchViewer.current() === 1", timeout=8000
-    )
+    pg.wait_for_function("pinchmatchXR.state().phase === 'guiding' && pinchmatchViewer.current() "
+                         "=== 1", timeout=8000)
     assert state(pg)["validated"] is False
 
 
@@ -195,13 +188,11 @@ def test_a_fingertip_6_mm_off_or_a_direction_15_degrees_off_is_not_validated(hea
     pg.wait_for_timeout(1500)
     s = state(pg)
     assert s["validated"] is False and not s["check"]["ok"]
-    assert 5.5 < s["check"]["index_error_mm"] < 6.5 and 5.5 < s["check"]["thumb_error_mm"] < 6.5, s[
-        "check"
-    ]
+    assert (5.5 < s["check"]["index_error_mm"] < 6.5 and 5.5 < s["check"]["thumb_error_mm"]
+            < 6.5), s["check"]
 
-    pg = headset(
-        "?pos_mm=50"
-    )  # positions loose: the direction alone decides; the left hand pinches
+    # positions loose: the direction alone decides; the left hand pinches
+    pg = headset("?pos_mm=50")
     pg.click("#enter-vr")
     wait_phase(pg, "guiding")
     pinch_off_target(pg, turn_deg=15.0, hand="left")
@@ -240,10 +231,9 @@ def test_a_short_study_with_ratings_writes_the_csv(headset, demo_out):
     pg.click("#enter-vr")
     ratings = [5, 2, 7]
     for k, rating in enumerate(ratings):
-        pg.wait_for_function(
-            f"pinchmatchXR.state().trial === {k} && pinchmatchXR.state().phase === 'guiding'",
-            timeout=8000,
-        )
+        pg.wait_for_function(f"pinchmatchXR.state().trial === {k} && pinchmatchXR.state().phase "
+                             "=== 'guiding'",
+                             timeout=8000)
         pinch_off_target(pg)
         move_on(pg)
         wait_phase(pg, "rating")
@@ -251,9 +241,8 @@ def test_a_short_study_with_ratings_writes_the_csv(headset, demo_out):
         pg.evaluate("([q]) => drive.touch('right', q)", [button["position"]])
         pg.wait_for_function(f"pinchmatchXR.state().results.length === {k + 1}", timeout=4000)
     wait_phase(pg, "done")
-    pg.wait_for_function(
-        "document.body.dataset.xr === 'ready'", timeout=8000
-    )  # the session ends by itself
+    # the session ends by itself
+    pg.wait_for_function("document.body.dataset.xr === 'ready'", timeout=8000)
     with pg.expect_download() as download:
         pg.click("#download-csv")
     text = Path(download.value.path()).read_text()
@@ -271,11 +260,8 @@ def test_a_short_study_with_ratings_writes_the_csv(headset, demo_out):
             assert float(r[f"{c}_jnd"]) == pytest.approx(v, abs=1e-4)
     # the table pinchmatch calibrate reads, pairs grouped by object and placement
     table = read_ratings(text, "study.csv")
-    assert (
-        table.criteria == CRITERIA
-        and table.rating.tolist() == ratings
-        and table.jnd.shape == (3, 8)
-    )
+    assert (table.criteria == CRITERIA and table.rating.tolist() == ratings
+            and table.jnd.shape == (3, 8))
 
 
 def test_the_dynamic_task_waits_for_the_lift_before_the_rating(headset):
@@ -313,9 +299,8 @@ def test_a_tripod_is_validated_when_all_three_fingertips_are_on_their_targets(tr
     pg.wait_for_timeout(1500)
     s = state(pg)
     assert s["validated"] is False and not s["check"]["ok"], s["check"]
-    assert 5.0 < s["check"]["middle_error_mm"] < 7.0 and s["check"]["thumb_error_mm"] < 2.0, s[
-        "check"
-    ]
+    assert (5.0 < s["check"]["middle_error_mm"] < 7.0 and s["check"]["thumb_error_mm"]
+            < 2.0), s["check"]
     # every fingertip on its target: validated after the hold
     pg.evaluate("([d]) => drive.shift('right', d)", [AWAY.tolist()])
     pg.evaluate("([h, a, b, c]) => drive.tripod(h, a, b, c)", ["right", *(targets + AWAY).tolist()])

@@ -44,31 +44,10 @@ def level_out(tmp_path_factory):
     out = folder / "out"
     from pinchmatch.cli.main import main
 
-    code = main(
-        [
-            "match",
-            "--tangible",
-            str(folder / "props.toml"),
-            "--virtual",
-            str(folder / "kitchen.glb"),
-            "--split",
-            "nodes",
-            "--placement",
-            "fixed",
-            "--max-redirect-deg",
-            "15",
-            "--redirect-threshold-deg",
-            "15",
-            "--carousel-margin-jnd",
-            "5",
-            "--count",
-            "200",
-            "--jobs",
-            "1",
-            "-o",
-            str(out),
-        ]
-    )
+    code = main(["match", "--tangible", str(folder / "props.toml"), "--virtual",
+                 str(folder / "kitchen.glb"), "--split", "nodes", "--placement", "fixed",
+                 "--max-redirect-deg", "15", "--redirect-threshold-deg", "15",
+                 "--carousel-margin-jnd", "5", "--count", "200", "--jobs", "1", "-o", str(out)])
     assert code == 0
     return out
 
@@ -83,9 +62,8 @@ def _in_scene_mode(browser, out: Path, look=None):
     pg.on("pageerror", lambda e: errors.append(str(e)))
     pg.add_init_script(IWER.read_text() + "\n" + INSTALL)
     pg.goto((out / "index.html").as_uri() + "?mode=scene")
-    pg.wait_for_function(
-        "window.pinchmatchXR !== undefined && document.body.dataset.shown !== undefined"
-    )
+    pg.wait_for_function("window.pinchmatchXR !== undefined && document.body.dataset.shown !== "
+                         "undefined")
     pg.add_script_tag(path=str(DRIVE))
     if look is not None:
         pg.evaluate(f"drive.look({list(look[0])}, {list(look[1])})")
@@ -95,9 +73,8 @@ def _in_scene_mode(browser, out: Path, look=None):
                 f"matrix: {json.dumps(PROP_POSE.T.reshape(-1).tolist())}}}))")
     assert pg.eval_on_selector("#scene-mode", "e => e.checked") is True
     pg.click("#enter-vr")
-    pg.wait_for_function(
-        "pinchmatchXR.scene && pinchmatchXR.scene.state().phase === 'scene'", timeout=15000
-    )
+    pg.wait_for_function("pinchmatchXR.scene && pinchmatchXR.scene.state().phase === 'scene'",
+                         timeout=15000)
     yield pg
     assert errors == [], errors
     context.close()
@@ -123,18 +100,13 @@ def test_the_hand_is_led_from_its_start_to_the_virtual_pinch(scene_page):
     pg = scene_page
     pg.evaluate(f"pinchmatchXR.scene.go({task_of(pg, 'can_near')})")
     t = pg.evaluate("pinchmatchXR.scene.targets()")
-    start, (q1, q2), (v1, v2) = (
-        np.array(t["start"]),
-        np.array(t["physical"]),
-        np.array(t["virtual"]),
-    )
+    start, (q1, q2), (v1,
+                      v2) = np.array(t["start"]), np.array(t["physical"]), np.array(t["virtual"])
     mid = (q1 + q2) / 2
     assert np.linalg.norm((v1 + v2) / 2 - mid) > 0.02  # a redirection worth the name
     # the pinch set up at the start: thumb and index as on the prop, shifted to the hand's start
-    pg.evaluate(
-        "([h, a, b]) => drive.pinch(h, a, b)",
-        ["right", (q1 - mid + start).tolist(), (q2 - mid + start).tolist()],
-    )
+    pg.evaluate("([h, a, b]) => drive.pinch(h, a, b)",
+                ["right", (q1 - mid + start).tolist(), (q2 - mid + start).tolist()])
     rendered, real = [], []
     for k in range(STEPS + 1):
         s = scene_state(pg)
@@ -157,10 +129,8 @@ def test_the_hand_is_led_from_its_start_to_the_virtual_pinch(scene_page):
     # the prop and the object leaves each fingertip up to half the width times that angle off
     cos = (q2 - q1) @ (v2 - v1) / np.linalg.norm(q2 - q1) / np.linalg.norm(v2 - v1)
     turn = math.acos(min(1.0, abs(cos)))
-    assert (
-        err
-        < 0.001 + np.linalg.norm(real[-1].mean(axis=0) - mid) + 0.5 * np.linalg.norm(q2 - q1) * turn
-    ), err
+    assert (err < 0.001 + np.linalg.norm(real[-1].mean(axis=0) - mid) + 0.5
+            * np.linalg.norm(q2 - q1) * turn), err
     pg.wait_for_function("pinchmatchXR.scene.state().validated", timeout=4000)
     canvas_shot(pg, "headset_scene_redirected.png")
 
@@ -177,15 +147,13 @@ def test_the_carousel_brings_each_object_onto_the_prop(scene_page):
     for turn in range(2):
         pg.evaluate("([q]) => drive.touch('right', q)", [away])
         pg.evaluate("([q]) => drive.touch('right', q)", [button])
-        pg.wait_for_function(
-            f"pinchmatchXR.scene.state().carousel_turns === {turn + 1}", timeout=4000
-        )
+        pg.wait_for_function(f"pinchmatchXR.scene.state().carousel_turns === {turn + 1}",
+                             timeout=4000)
         i = scene_state(pg)["on_prop"]
         brought.append(i)
         placed = np.array(pg.evaluate(f"pinchmatchXR.scene.objectInRoom({i})")).reshape(4, 4).T
-        registered = (
-            np.array(pg.evaluate(f"pinchmatchXR.scene.registeredInRoom({i})")).reshape(4, 4).T
-        )
+        registered = np.array(pg.evaluate(f"pinchmatchXR.scene.registeredInRoom({i})")).reshape(
+            4, 4).T
         assert np.abs(placed - registered).max() < 1e-6  # on the prop, registered
     assert sorted(brought) == sorted(s["queue"])
     canvas_shot(pg, "headset_scene_carousel.png")
@@ -213,32 +181,15 @@ def shelf_out(tmp_path_factory):
     out = folder / "out"
     from pinchmatch.cli.main import main
 
-    code = main(
-        [
-            "match",
-            "--tangible",
-            str(folder / "props.toml"),
-            "--virtual",
-            str(folder / "kitchen.glb"),
-            "--split",
-            "nodes",
-            "--placement",
-            "fixed",
-            "--count",
-            "120",
-            "--jobs",
-            "1",
-            "-o",
-            str(out),
-        ]
-    )
+    code = main(["match", "--tangible", str(folder / "props.toml"), "--virtual",
+                 str(folder / "kitchen.glb"), "--split", "nodes", "--placement", "fixed", "--count",
+                 "120", "--jobs", "1", "-o", str(out)])
     assert code == 0
     return out
 
 
 def test_the_carousel_holds_its_objects_apart_and_the_level_s_own_object_gives_way(
-    browser, shelf_out
-):
+    browser, shelf_out):
     """Eight boxes wait on the carousel, no two touching; while one of them is on the prop, the
     level's can that stands where the prop stands is hidden and the prompt names the box on the
     prop; the can's own task sends the box back and shows the can."""
@@ -256,31 +207,23 @@ def test_the_carousel_holds_its_objects_apart_and_the_level_s_own_object_gives_w
                 assert apart.any(), (names[s["queue"][a]], names[s["queue"][b]])
         pg.evaluate("pinchmatchXR.scene.turn()")
         s = scene_state(pg)
-        assert (
-            s["on_prop"] is not None and pg.evaluate(f"pinchmatchXR.scene.visible({here})") is False
-        )
-        pg.evaluate(
-            f"pinchmatchXR.scene.go({s['tasks'].index(s['on_prop'])})"
-        )  # the box on the prop, to pinch
-        assert (
-            f"On the prop: {names[s['on_prop']]}. Pinch {names[s['on_prop']]}"
-            in pg.locator("#xr-status").inner_text()
-        )
+        assert (s["on_prop"] is not None
+                and pg.evaluate(f"pinchmatchXR.scene.visible({here})") is False)
+        # the box on the prop, to pinch
+        pg.evaluate(f"pinchmatchXR.scene.go({s['tasks'].index(s['on_prop'])})")
+        assert (f"On the prop: {names[s['on_prop']]}. Pinch "
+                f"{names[s['on_prop']]}" in pg.locator("#xr-status").inner_text())
         at = np.mean(pg.evaluate("pinchmatchXR.scene.targets()")["physical"], axis=0)
-        pg.evaluate(
-            f"drive.look({(at + [0.1, 0.35, 0.45]).tolist()}, {(at + [0.15, -0.05, 0.0]).tolist()})"
-        )
+        pg.evaluate(f"drive.look({(at + [0.1, 0.35, 0.45]).tolist()}, "
+                    f"{(at + [0.15, -0.05, 0.0]).tolist()})")
         pg.wait_for_timeout(300)
         canvas_shot(pg, "headset_scene_shelf.png")
-        pg.evaluate(
-            f"pinchmatchXR.scene.go({s['tasks'].index(s['queue'][1])})"
-        )  # a box still on the carousel
+        # a box still on the carousel
+        pg.evaluate(f"pinchmatchXR.scene.go({s['tasks'].index(s['queue'][1])})")
         assert f"On the prop: {names[s['on_prop']]}." in pg.locator("#xr-status").inner_text()
         pg.evaluate(f"pinchmatchXR.scene.go({s['tasks'].index(here)})")
-        assert (
-            scene_state(pg)["on_prop"] is None
-            and pg.evaluate(f"pinchmatchXR.scene.visible({here})") is True
-        )
+        assert (scene_state(pg)["on_prop"] is None
+                and pg.evaluate(f"pinchmatchXR.scene.visible({here})") is True)
 
 
 def test_a_desktop_previews_the_scene_mode(browser, shelf_out):
@@ -296,11 +239,8 @@ def test_a_desktop_previews_the_scene_mode(browser, shelf_out):
     pg.on("pageerror", lambda e: errors.append(str(e)))
     pg.goto((shelf_out / "index.html").as_uri() + "?mode=scene")
     pg.wait_for_selector("body[data-preview='scene']", timeout=30_000)
-    assert (
-        pg.locator("#main-title")
-        .inner_text()
-        .startswith("scene preview (as the headset shows it): ")
-    )
+    assert pg.locator("#main-title").inner_text().startswith("scene preview (as the headset shows "
+                                                             "it): ")
     s = pg.evaluate("pinchmatchXR.preview.state()")
     assert s["phase"] == "scene" and len(s["queue"]) == 8
     boxes = [np.array(pg.evaluate(f"pinchmatchXR.preview.boxInRoom({i})")) for i in s["queue"]]
@@ -324,10 +264,8 @@ def test_a_desktop_previews_the_scene_mode(browser, shelf_out):
     for i in s["queue"]:
         rest = pg.evaluate(f"pinchmatchViewer.DATA.matches[{i}].rest_gap_mm")
         lowest = pg.evaluate(f"pinchmatchXR.preview.boxInRoom({i})")[0][1]
-        assert (
-            lowest - high[1] == pytest.approx(rest / 1000.0, abs=2e-4)
-            and -0.002 - 1e-6 <= rest / 1000.0 <= 0.01
-        )
+        assert (lowest - high[1] == pytest.approx(rest / 1000.0, abs=2e-4) and -0.002 - 1e-6
+                <= rest / 1000.0 <= 0.01)
     assert "can_prop" in pg.locator("#main-title").inner_text()
     assert errors == [], errors
     context.close()

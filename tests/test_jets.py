@@ -96,5 +96,4 @@ def test_the_quartic_ridge_is_the_weighted_norm_over_the_disc():
         c = rng.normal(size=len(EXPONENTS)) * np.array([i + j == 4 for i, j in EXPONENTS])
         q = sum(ck * u**i * v**j for ck, (i, j) in zip(c, EXPONENTS))
         assert c @ QUARTIC_GRAM @ c == pytest.approx(
-            (weight * q**2).sum() / weight.sum(), rel=1e-10
-        )
+            (weight * q**2).sum() / weight.sum(), rel=1e-10)

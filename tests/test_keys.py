@@ -17,16 +17,12 @@ from pinchmatch.mesh.object_spec import NOT_SHAPE, ObjectSpec
 
 #: the fields that do not shape an object's candidates, and why (a new field must be added here or
 #: to the key)
-EXCLUDED = {
-    "path": "the file is keyed by its bytes",
-    "name": "a label",
-    "mass_g": "enters the cost, not the poses",
-    "split": "a level is split before its nodes are keyed",
-    "node_path": "the node is keyed by its name",
-    "manifest": "where it was listed",
-    "nodes": "chooses nodes, each keyed on its own",
-    "skip_nodes": "chooses nodes, each keyed on its own",
-}
+EXCLUDED = {"path": "the file is keyed by its bytes", "name": "a label",
+            "mass_g": "enters the cost, not the poses",
+            "split": "a level is split before its nodes are keyed",
+            "node_path": "the node is keyed by its name", "manifest": "where it was listed",
+            "nodes": "chooses nodes, each keyed on its own",
+            "skip_nodes": "chooses nodes, each keyed on its own"}
 
 
 def test_every_field_of_a_spec_is_keyed_or_excluded_by_name():
@@ -41,53 +37,33 @@ def test_the_key_turns_with_a_standing_props_pose_not_with_where_it_stands():
     turn = Rotation.from_euler("y", 30, degrees=True).as_quat().tolist()
     other = Rotation.from_euler("y", 75, degrees=True).as_quat().tolist()
     base = ObjectSpec("can.stl", support="auto", pose=((0.0, 900.0, 0.0), tuple(turn)))
-    assert (
-        base.shape_key()
-        != dataclasses.replace(base, pose=((0.0, 900.0, 0.0), tuple(other))).shape_key()
-    )
-    assert (
-        base.shape_key()
-        == dataclasses.replace(base, pose=((500.0, 900.0, -40.0), tuple(turn))).shape_key()
-    )
-    assert (
-        base.shape_key()
-        == dataclasses.replace(base, name="x", mass_g=300.0, manifest="m.toml").shape_key()
-    )
+    assert base.shape_key() != dataclasses.replace(base,
+                                                   pose=(
+                                                       (0.0, 900.0, 0.0), tuple(other))).shape_key()
+    assert base.shape_key() == dataclasses.replace(base,
+                                                   pose=(
+                                                       (500.0, 900.0, -40.0),
+                                                       tuple(turn))).shape_key()
+    assert base.shape_key() == dataclasses.replace(base, name="x", mass_g=300.0,
+                                                   manifest="m.toml").shape_key()
     held = dataclasses.replace(base, support="none")  # a held prop's pose shapes nothing
-    assert (
-        held.shape_key()
-        == dataclasses.replace(held, pose=((0.0, 900.0, 0.0), tuple(other))).shape_key()
-    )
+    assert held.shape_key() == dataclasses.replace(held,
+                                                   pose=(
+                                                       (0.0, 900.0, 0.0), tuple(other))).shape_key()
 
 
 def _match(out, *argv, cache=None):
-    code = main(
-        [
-            *map(str, argv),
-            "--count",
-            "60",
-            "--jobs",
-            "1",
-            "-q",
-            "--no-view",
-            "--no-figures",
-            "-o",
-            str(out),
-            *(["--cache", str(cache)] if cache else ["--no-cache"]),
-        ]
-    )
+    code = main([*map(str, argv), "--count", "60", "--jobs", "1", "-q", "--no-view", "--no-figures",
+                 "-o", str(out), *(["--cache", str(cache)] if cache else ["--no-cache"])])
     assert code == 0
     doc = json.loads((out / "matches.json").read_text())
-    return [
-        (m["virtual"], m["tangible"], m["cost"], m["tangible_pose"], m["virtual_pose"])
-        for m in doc["matches"]
-    ]
+    return [(m["virtual"], m["tangible"], m["cost"], m["tangible_pose"],
+             m["virtual_pose"]) for m in doc["matches"]]
 
 
 def _prop(folder, deg):
-    turn = (
-        Rotation.from_euler("y", deg, degrees=True) * Rotation.from_euler("x", -90, degrees=True)
-    ).as_quat()
+    turn = (Rotation.from_euler("y", deg, degrees=True)
+            * Rotation.from_euler("x", -90, degrees=True)).as_quat()
     (folder / "props.toml").write_text('[[object]]\nname = "prop"\nshape = { kind = "box", size_mm '
                                        '= [40, 60, 30] }\n'
                                        f"pose = {{ position_mm = [300.0, 900.0, -200.0], "
@@ -120,29 +96,17 @@ def _level(path, triangulation=0):
         jar = _flipped_diagonals(jar)
     box = trimesh.creation.box(extents=(0.05, 0.04, 0.06))
     box.apply_translation([0, 0.03, 0])
-    path.write_bytes(
-        glb_of(
-            [[jar], [box]],
-            [
-                {"name": "jar", "mesh": 0, "translation": [0.3, 0.9, -0.1]},
-                {"name": "box", "mesh": 1, "translation": [0.2, 0.9, -0.15]},
-            ],
-        )
-    )
+    path.write_bytes(glb_of([[jar], [box]],
+                            [{"name": "jar", "mesh": 0, "translation": [0.3, 0.9, -0.1]},
+                                             {"name": "box", "mesh": 1,
+                                              "translation": [0.2, 0.9, -0.15]}]))
 
 
 def test_a_turned_prop_and_a_retriangulated_node_are_made_anew(tmp_path):
     _level(tmp_path / "kitchen.glb")
     _prop(tmp_path, 30)
-    run = (
-        "match",
-        "--tangible",
-        tmp_path / "props.toml",
-        "--virtual",
-        tmp_path / "kitchen.glb",
-        "--split",
-        "nodes",
-    )
+    run = ("match", "--tangible", tmp_path / "props.toml", "--virtual", tmp_path / "kitchen.glb",
+           "--split", "nodes")
     cache = tmp_path / "cache"
     _match(tmp_path / "warm0", *run, cache=cache)
     _prop(tmp_path, 75)  # the prop turned on its table: its support turns in its frame
@@ -153,9 +117,8 @@ def test_a_turned_prop_and_a_retriangulated_node_are_made_anew(tmp_path):
     assert _match(tmp_path / "warm2", *run, cache=cache) == _match(tmp_path / "cold2", *run)
     retriangulated = node_digests(tmp_path / "kitchen.glb")
     _level(tmp_path / "again.glb")
-    assert (
-        node_digests(tmp_path / "again.glb")["jar"] != retriangulated["jar"]
-    )  # the same vertices, other faces
+    # the same vertices, other faces
+    assert node_digests(tmp_path / "again.glb")["jar"] != retriangulated["jar"]
     assert node_digests(tmp_path / "again.glb")["box"] == retriangulated["box"]
 
 
@@ -168,32 +131,11 @@ def test_two_settings_in_one_process_give_what_two_processes_give(tmp_path):
     _match(tmp_path / "first", *run, "--patch-radius-mm", "8", "--landing-mm", "5")
     second = _match(tmp_path / "second", *run, "--patch-radius-mm", "6", "--landing-mm", "3")
     fresh = tmp_path / "fresh"
-    subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "pinchmatch",
-            *map(str, run),
-            "--patch-radius-mm",
-            "6",
-            "--landing-mm",
-            "3",
-            "--count",
-            "60",
-            "--jobs",
-            "1",
-            "-q",
-            "--no-view",
-            "--no-figures",
-            "--no-cache",
-            "-o",
-            str(fresh),
-        ],
-        check=True,
-        capture_output=True,
-    )
+    subprocess.run([sys.executable, "-m", "pinchmatch", *map(str, run), "--patch-radius-mm", "6",
+                    "--landing-mm", "3", "--count", "60", "--jobs", "1", "-q", "--no-view",
+                    "--no-figures", "--no-cache", "-o", str(fresh)],
+                   check=True, capture_output=True)
     doc = json.loads((fresh / "matches.json").read_text())
-    assert second == [
-        (m["virtual"], m["tangible"], m["cost"], m["tangible_pose"], m["virtual_pose"])
-        for m in doc["matches"]
-    ]
+    assert second == [(m["virtual"], m["tangible"], m["cost"], m["tangible_pose"],
+                       m["virtual_pose"])
+                      for m in doc["matches"]]

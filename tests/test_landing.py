@@ -28,9 +28,8 @@ def given(tmp_path, name, mesh, p1, p2):
 
 
 def matched(tangible, virtual, **options):
-    scene = match_scene(
-        [tangible], [virtual], settings=MatchSettings(**options), pinch_settings=SETTINGS
-    )
+    scene = match_scene([tangible], [virtual], settings=MatchSettings(**options),
+                        pinch_settings=SETTINGS)
     vm = scene.matches[0]
     return scene, vm
 
@@ -45,20 +44,10 @@ def test_the_disc_holds_the_target_and_rings_inside_the_radius():
 def test_on_flat_parallel_faces_the_landing_costs_what_the_match_costs(tmp_path):
     """Box against a larger box with the same 40 mm slab, pinched off-centre (the mass offsets
     differ, so the match costs something): every landing slides both pinches alike on flat faces."""
-    virtual = given(
-        tmp_path,
-        "small",
-        box((60.0, 40.0, 30.0), subdivide_mm=4.0).mesh,
-        (10.0, -20.0, 0.0),
-        (10.0, 20.0, 0.0),
-    )
-    tangible = given(
-        tmp_path,
-        "large",
-        box((90.0, 40.0, 50.0), subdivide_mm=4.0).mesh,
-        (25.0, -20.0, 0.0),
-        (25.0, 20.0, 0.0),
-    )
+    virtual = given(tmp_path, "small", box((60.0, 40.0, 30.0), subdivide_mm=4.0).mesh,
+                    (10.0, -20.0, 0.0), (10.0, 20.0, 0.0))
+    tangible = given(tmp_path, "large", box((90.0, 40.0, 50.0), subdivide_mm=4.0).mesh,
+                     (25.0, -20.0, 0.0), (25.0, 20.0, 0.0))
     _, vm = matched(tangible, virtual)
     land = vm.landing
     assert vm.best.cost > 1e-3  # the mass offsets differ
@@ -69,9 +58,8 @@ def test_on_flat_parallel_faces_the_landing_costs_what_the_match_costs(tmp_path)
 
 
 def test_every_landing_is_within_the_radius_and_the_axis_tolerance(tmp_path):
-    virtual = given(
-        tmp_path, "s", sphere(20.0, faces=20000).mesh, (0.0, -20.0, 0.0), (0.0, 20.0, 0.0)
-    )
+    virtual = given(tmp_path, "s", sphere(20.0, faces=20000).mesh, (0.0, -20.0, 0.0),
+                    (0.0, 20.0, 0.0))
     points, _ = landing_pinches(virtual, 0, False, 5.0, 14.0)
     target = virtual.pinches.points[0]
     assert np.allclose(points[0], target)
@@ -90,23 +78,18 @@ def test_a_sphere_on_a_cylinder_costs_more_off_target_and_the_worst_is_the_brute
     the widths, normals and tilt part. The worst landing of the reported pattern matches a brute
     force over a dense polar grid of the tolerance disc (both fingers, every pair within the axis
     tolerance)."""
-    virtual = given(
-        tmp_path, "ball", sphere(20.0, faces=20000).mesh, (0.0, -20.0, 0.0), (0.0, 20.0, 0.0)
-    )
-    tangible = given(
-        tmp_path, "rod", cylinder(20.0, 80.0, faces=20000).mesh, (0.0, -20.0, 0.0), (0.0, 20.0, 0.0)
-    )
+    virtual = given(tmp_path, "ball", sphere(20.0, faces=20000).mesh, (0.0, -20.0, 0.0),
+                    (0.0, 20.0, 0.0))
+    tangible = given(tmp_path, "rod", cylinder(20.0, 80.0, faces=20000).mesh, (0.0, -20.0, 0.0),
+                     (0.0, 20.0, 0.0))
     scene, vm = matched(tangible, virtual, weights={"kmin": 0.0})
-    land = (
-        vm.landing
-    )  # the felt cost: each object's own landing table, matched through the registration
+    # the felt cost: each object's own landing table, matched through the registration
+    land = vm.landing
     assert land.cost_nominal == pytest.approx(vm.best.cost_nominal, rel=1e-9)
     assert vm.best.cost == pytest.approx(land.cost_mean, rel=1e-9)  # ranked by the expected cost
     assert land.cost_nominal < 0.05  # on target: nothing a hand could tell
-    assert (
-        land.cost_worst > land.cost_nominal + 0.1
-        and land.cost_worst > land.cost_mean > land.cost_nominal
-    )
+    assert (land.cost_worst > land.cost_nominal + 0.1 and land.cost_worst > land.cost_mean
+            > land.cost_nominal)
     (T,), V = scene.objects(vm)
     # the exact closing-line pattern (fingers closing on the prop along each seen landing's line)
     # ...
@@ -131,10 +114,8 @@ def test_a_zero_radius_is_the_match_itself(tmp_path):
     (T,), V = scene.objects(vm)
     exact = landing(T, V, vm.best, scene.model, settings=SETTINGS, radius_mm=0.0)
     assert exact.cost_worst == exact.cost_mean == vm.best.cost_nominal and exact.landings == 1
-    assert (
-        exact.p_noticed_worst == pytest.approx(vm.best.p_noticed)
-        and 0.0 <= exact.p_noticed_worst <= 1.0
-    )
+    assert (exact.p_noticed_worst == pytest.approx(vm.best.p_noticed) and 0.0
+            <= exact.p_noticed_worst <= 1.0)
 
 
 def test_robust_ranking_puts_the_steadier_choice_first(tmp_path):
@@ -147,9 +128,8 @@ def test_robust_ranking_puts_the_steadier_choice_first(tmp_path):
     p1 = np.array([[0.0, -20.0, 0.0], [24.0, -20.0, 14.0]])
     p2 = np.array([[0.0, 20.0, 0.0], [24.0, 20.0, 14.0]])
     both = candidate_poses(obj, settings=SETTINGS, given=(p1, p2))
-    ball = given(
-        tmp_path, "ball", sphere(20.0, faces=20000).mesh, (0.0, -20.0, 0.0), (0.0, 20.0, 0.0)
-    )
+    ball = given(tmp_path, "ball", sphere(20.0, faces=20000).mesh, (0.0, -20.0, 0.0),
+                 (0.0, 20.0, 0.0))
     scene, plain = matched(both, ball, top_k=1, distinct_mm=1.0, rank="nominal")
     _, steady = matched(both, ball, top_k=1, distinct_mm=1.0, rank="worst")
     _, expected = matched(both, ball, top_k=1, distinct_mm=1.0)
@@ -158,15 +138,13 @@ def test_robust_ranking_puts_the_steadier_choice_first(tmp_path):
     tables = FeltTables(5.0, SETTINGS)
     felt = {c.t_pose: felt_cost(T, V, c, scene.model, tables) for c in picks}
     exact = {c.t_pose: landing(T, V, c, scene.model, settings=SETTINGS).cost_worst for c in picks}
-    assert (
-        exact[1] > exact[0] and felt[1].worst > felt[0].worst
-    )  # near the edges a finger lands past them
+    # near the edges a finger lands past them
+    assert exact[1] > exact[0] and felt[1].worst > felt[0].worst
     assert felt[1].expected > felt[0].expected
     assert steady.best.t_pose == 0 and steady.best.cost == pytest.approx(felt[0].worst)
     assert steady.landing.cost_worst == pytest.approx(felt[0].worst)
     assert [c.t_pose for c in [steady.best] + steady.alternatives] == sorted(
-        felt, key=lambda t: felt[t].worst
-    )
+        felt, key=lambda t: felt[t].worst)
     assert expected.best.t_pose == 0 and expected.best.cost == pytest.approx(felt[0].expected)
 
 
@@ -218,33 +196,25 @@ def test_a_finger_that_lands_on_nothing_is_noticed_and_counted(tmp_path):
         objects.append(candidate_poses(obj, settings=small, given=(np.array([[0.0, -20.0, 0.0]]),
                                                                     np.array([[0.0, 20.0, 0.0]]))))
     virtual, tangible = objects
-    scene = match_scene(
-        [tangible],
-        [virtual],
-        settings=MatchSettings(weights={"kmin": 0.0, "kmax": 0.0, "mass": 0.0}),
-        pinch_settings=small,
-    )
+    scene = match_scene([tangible], [virtual],
+                        settings=MatchSettings(weights={"kmin": 0.0, "kmax": 0.0, "mass": 0.0}),
+                        pinch_settings=small)
     vm = scene.matches[0]
     land = vm.landing
     assert land.missed > land.landings // 2  # most of the disc lies beside a 4 mm bar
     assert land.p_noticed_worst == 1.0 and land.as_dict()["noticeable_worst"]
     miss = float(scene.model.pool(np.array([MISS_JND ** 2] + [0.0] * 7)))
     assert land.cost_worst >= miss
-    assert (
-        land.cost_mean >= 0.8 * miss > land.cost_nominal
-    )  # most of the landing distribution misses
-    assert (
-        type(land.missed) is int and type(land.landings) is int
-    )  # plain numbers, as JSON holds them
+    # most of the landing distribution misses
+    assert land.cost_mean >= 0.8 * miss > land.cost_nominal
+    # plain numbers, as JSON holds them
+    assert type(land.missed) is int and type(land.landings) is int
     json.dumps(land.as_dict())
     # the closing-line reference counts them the same way
     (T,), V = scene.objects(vm)
     exact = landing(T, V, vm.best, scene.model, settings=small)
-    assert (
-        type(exact.missed) is int
-        and exact.missed > exact.landings // 2
-        and exact.p_noticed_worst == 1.0
-    )
+    assert (type(exact.missed) is int and exact.missed > exact.landings // 2
+            and exact.p_noticed_worst == 1.0)
     assert exact.cost_worst >= miss and exact.cost_mean >= exact.missed / exact.landings * miss
     json.dumps(exact.as_dict())
 
@@ -256,7 +226,7 @@ def test_the_landing_weights_are_the_truncated_gaussians_masses():
     assert len(w) == 25 and w.sum() == pytest.approx(1.0)
     sigma = 2.5  # half the radius
     def mass(a, b):
-        return np.exp(-a * a / (2 * sigma**2)) - np.exp(-b * b / (2 * sigma**2))
+        return np.exp(-a * a / (2 * sigma ** 2)) - np.exp(-b * b / (2 * sigma ** 2))
     total = mass(0.0, 5.0)
     assert w[0] == pytest.approx(mass(0.0, 1.25) / total)
     assert w[1:9] == pytest.approx(np.full(8, mass(1.25, 3.75) / total / 8))
@@ -278,34 +248,18 @@ def test_the_ranked_best_is_the_brute_forces_best_over_every_pair(tmp_path):
     v_given = (np.array([[0.0, -20.0, 0.0], [-20.0, 0.0, 0.0], [0.0, 0.0, -20.0]]),
                np.array([[0.0, 20.0, 0.0], [20.0, 0.0, 0.0], [0.0, 0.0, 20.0]]))
     V = candidate_poses(analyze_object(tmp_path / "ball.stl"), settings=SETTINGS, given=v_given)
-    scene = match_scene(
-        [T], [V], settings=MatchSettings(top_k=0, distinct_mm=0.0), pinch_settings=SETTINGS
-    )
+    scene = match_scene([T], [V], settings=MatchSettings(top_k=0, distinct_mm=0.0),
+                        pinch_settings=SETTINGS)
     best = scene.matches[0].best
     it, iv = np.repeat(np.arange(len(T)), len(V)), np.tile(np.arange(len(V)), len(T))
     r = evaluate_pairs(T, V, it, iv, model=scene.model)
     tables = FeltTables(5.0, SETTINGS)
-    expected = [
-        felt_cost(
-            T,
-            V,
-            Choice(
-                0,
-                0,
-                int(it[k]),
-                int(iv[k]),
-                float(r.cost[k]),
-                r.terms[k],
-                bool(r.swapped[k]),
-                r.transform[k],
-                bool(r.flipped[k]),
-                r.mass_delta_mm[k],
-            ),
-            scene.model,
-            tables,
-        ).expected
-        for k in range(len(it))
-    ]
+    expected = [felt_cost(T, V,
+                          Choice(0, 0, int(it[k]), int(iv[k]), float(r.cost[k]), r.terms[k],
+                                 bool(r.swapped[k]),
+                                       r.transform[k], bool(r.flipped[k]), r.mass_delta_mm[k]),
+                                       scene.model,
+                          tables).expected for k in range(len(it))]
     k = int(np.argmin(expected))
     assert (best.t_pose, best.v_pose) == (int(it[k]), int(iv[k]))
     assert best.cost == pytest.approx(expected[k], rel=1e-9)
@@ -320,13 +274,8 @@ def test_a_landing_table_weighs_exactly_the_pairs_within_the_axis_tolerance(tmp_
     from pinchmatch.match.felt import landing_table, ring_weights
 
     half = thick_mm / 2.0
-    block = given(
-        tmp_path,
-        "slab",
-        box((60.0, thick_mm, 40.0), subdivide_mm=2.0).mesh,
-        (0.0, -half, 0.0),
-        (0.0, half, 0.0),
-    )
+    block = given(tmp_path, "slab", box((60.0, thick_mm, 40.0), subdivide_mm=2.0).mesh,
+                  (0.0, -half, 0.0), (0.0, half, 0.0))
     table = landing_table(block, 0, 5.0, SETTINGS)
     assert table.hit.all() and len(table.weights) == 625
     axis = table.points[:, 1] - table.points[:, 0]
@@ -351,31 +300,23 @@ def test_a_landing_table_is_made_once_per_object_whichever_candidates_ask(tmp_pa
 
     mesh = sphere(30.0).mesh
     M = np.eye(4)
-    M[:3, :3], M[:3, 3] = (
-        Rotation.from_euler("yxz", [-48.0, 71.0, 16.0], degrees=True).as_matrix(),
-        [85.0, -410.0, 33.0],
-    )
+    M[:3, :3], M[:3, 3] = Rotation.from_euler("yxz", [-48.0, 71.0, 16.0],
+                                              degrees=True).as_matrix(), [85.0, -410.0, 33.0]
     mesh.apply_transform(M)
     (tmp_path / "ball.stl").write_bytes(mesh.export(file_type="stl"))
     c = candidate_poses(analyze_object(tmp_path / "ball.stl"), settings=SETTINGS)
     context = c.obj.context
     fresh = patches(context, c.pinches.points, context.face_normals[c.pinches.face_index], SETTINGS)
-    for mine, theirs in (
-        ("normals", "normal"),
-        ("kappa_max_per_m",) * 2,
-        ("kappa_min_per_m",) * 2,
-        ("dir_max",) * 2,
-    ):
-        np.testing.assert_array_equal(
-            getattr(c.pinches, mine).reshape(getattr(fresh, theirs).shape), getattr(fresh, theirs)
-        )
+    for mine, theirs in (("normals", "normal"), ("kappa_max_per_m",) * 2, ("kappa_min_per_m",) * 2,
+                         ("dir_max",) * 2):
+        np.testing.assert_array_equal(getattr(c.pinches,
+                                              mine).reshape(getattr(fresh, theirs).shape),
+                                              getattr(fresh, theirs))
     made = []
     real = felt.landing_tables
-    monkeypatch.setattr(
-        felt,
-        "landing_tables",
-        lambda cands, poses, *a, **k: made.append(len(poses)) or real(cands, poses, *a, **k),
-    )
+    monkeypatch.setattr(felt, "landing_tables", lambda cands, poses, *a,
+                        **k: made.append(len(poses))
+                        or real(cands, poses, *a, **k))
     first = FeltTables(5.0, SETTINGS)
     first.prefetch(c, range(10))
     grown = extend(c, c.pinches.subset(np.array([2, 7])))
@@ -393,8 +334,7 @@ def test_a_landing_table_is_made_once_per_object_whichever_candidates_ask(tmp_pa
 
 @pytest.mark.parametrize("turn_deg", [(0.0, 0.0), (35.0, -90.0), (-120.0, -90.0)])
 def test_under_fixed_placement_the_felt_cost_turns_the_mass_offset_as_the_level_holds_the_object(
-    tmp_path, turn_deg
-):
+        tmp_path, turn_deg):
     """A box of the level (off its centre, so its mass pulls sideways) pinched through the hand's
     warp onto a prop posed in the level, turned about the level's up (and stood from its file's +Z):
     the felt cost on target is the match's own, and the exact reference (the mass offset turned by
@@ -410,8 +350,7 @@ def test_under_fixed_placement_the_felt_cost_turns_the_mass_offset_as_the_level_
     block.apply_translation([0.02, 0.015, 0.0])  # its mass off the node's origin
     tabletop_level(tmp_path / "level.glb", [("block", block, (0.35, 0.9, -0.2))])
     turn = Rotation.from_euler("y", turn_deg[0], degrees=True) * Rotation.from_euler(
-        "x", turn_deg[1], degrees=True
-    )
+        "x", turn_deg[1], degrees=True)
     (tmp_path / "props.toml").write_text(
         '[[object]]\nname = "prop"\nshape = { kind = "box", size_mm = [60, 30, 40] }\nmass_g = '
         '180\n'
@@ -421,36 +360,29 @@ def test_under_fixed_placement_the_felt_cost_turns_the_mass_offset_as_the_level_
     V = candidate_poses(analyze_spec(spec.standing("auto")), settings=SETTINGS)
     (prop,) = object_specs([tmp_path / "props.toml"], option="--tangible")
     T = candidate_poses(analyze_prop(prop), settings=SETTINGS)
-    scene = match_scene(
-        [T],
-        [V],
-        settings=MatchSettings(placement="fixed", top_k=1, carousel_margin_jnd=100.0),
-        pinch_settings=SETTINGS,
-    )
+    scene = match_scene([T], [V],
+                        settings=MatchSettings(placement="fixed", top_k=1,
+                                               carousel_margin_jnd=100.0), pinch_settings=SETTINGS)
     vm = scene.matches[0]
-    assert (
-        vm.best is not None and vm.best.redirect_terms is not None
-    )  # stays in the level, the hand warped
+    # stays in the level, the hand warped
+    assert vm.best is not None and vm.best.redirect_terms is not None
     (T,), V = scene.objects(vm)  # the candidates the search grew
-    pattern = landing(
-        T, V, vm.best, scene.model, settings=SETTINGS
-    )  # its first landing: the target itself
+    # its first landing: the target itself
+    pattern = landing(T, V, vm.best, scene.model, settings=SETTINGS)
     assert pattern.cost_nominal == pytest.approx(vm.best.cost_nominal, rel=1e-9, abs=1e-12)
     assert vm.landing.cost_nominal == pytest.approx(vm.best.cost_nominal, rel=1e-9, abs=1e-12)
     assert vm.landing.cost_worst == pytest.approx(pattern.cost_worst, rel=0.2)
 
 
 def test_the_noticeable_criteria_over_the_landings_are_judged_in_jnd_under_any_normalisation(
-    tmp_path,
-):
+        tmp_path):
     """A sphere pinched on a cylinder: the felt cost of one choice under a range-normalised model
     names the same noticeable criteria, with the same chances of being noticed, as under the JND
     model: noticing is judged in JNDs, whatever scale the ranking uses."""
     from pinchmatch.match.search import cost_model
 
-    T = given(
-        tmp_path, "cyl", cylinder(15.0, 60.0, faces=8000).mesh, (-15.0, 0.0, 0.0), (15.0, 0.0, 0.0)
-    )
+    T = given(tmp_path, "cyl", cylinder(15.0, 60.0, faces=8000).mesh, (-15.0, 0.0, 0.0),
+              (15.0, 0.0, 0.0))
     V = given(tmp_path, "ball", sphere(18.0, faces=8000).mesh, (-18.0, 0.0, 0.0), (18.0, 0.0, 0.0))
     _, vm = matched(T, V)
     choice = vm.best
@@ -458,10 +390,7 @@ def test_the_noticeable_criteria_over_the_landings_are_judged_in_jnd_under_any_n
     for normalize in ("jnd", "range"):
         model = cost_model(MatchSettings(normalize=normalize), [T, V])
         felt[normalize] = felt_cost(T, V, choice, model, FeltTables(5.0, SETTINGS))
-    assert (
-        felt["jnd"].criteria_noticeable
-        and felt["jnd"].criteria_noticeable == felt["range"].criteria_noticeable
-    )
+    assert (felt["jnd"].criteria_noticeable and felt["jnd"].criteria_noticeable
+            == felt["range"].criteria_noticeable)
     assert felt["range"].p_noticed_expected == pytest.approx(
-        felt["jnd"].p_noticed_expected, rel=1e-9
-    )
+        felt["jnd"].p_noticed_expected, rel=1e-9)

@@ -18,20 +18,14 @@ MODULES = sorted(p for p in PACKAGE.rglob("*.py") if "__pycache__" not in p.part
 
 def test_the_stage_contracts_hold():
     """lint-imports checks the contracts of pyproject.toml: a stage never imports a later one."""
-    tool = shutil.which("lint-imports", path=os.path.dirname(sys.executable)) or shutil.which(
-        "lint-imports"
-    )
+    tool = (shutil.which("lint-imports", path=os.path.dirname(sys.executable))
+            or shutil.which("lint-imports"))
     if tool is None:
         pytest.fail("lint-imports (import-linter) is not installed; pip install -e '.[test]'")
     root = PACKAGE.parents[1]
-    done = subprocess.run(
-        [tool, "--no-cache", "--config", str(root / "pyproject.toml")],
-        cwd=root,
-        capture_output=True,
-        text=True,
-        env=dict(os.environ, PYTHONPATH=str(PACKAGE.parent)),
-        timeout=120,
-    )
+    done = subprocess.run([tool, "--no-cache", "--config", str(root / "pyproject.toml")], cwd=root,
+                          capture_output=True, text=True,
+                          env=dict(os.environ, PYTHONPATH=str(PACKAGE.parent)), timeout=120)
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-2000:]
     assert "0 broken" in done.stdout
 
@@ -40,23 +34,18 @@ def _imports(path: Path):
     """(module imported from, name) of every ``from ... import name`` in a module of the package."""
     tree = ast.parse(path.read_text())
     for node in ast.walk(tree):
-        if isinstance(node, ast.ImportFrom) and (
-            node.level > 0 or (node.module or "").startswith("pinchmatch")
-        ):
+        if (isinstance(node, ast.ImportFrom)
+            and (node.level > 0 or (node.module or "").startswith("pinchmatch"))):
             for alias in node.names:
                 yield node.module, alias.name
 
 
 @pytest.mark.parametrize("path", MODULES, ids=lambda p: str(p.relative_to(PACKAGE)))
 def test_no_private_name_crosses_a_module(path):
-    private = [
-        f"{module}.{name}"
-        for module, name in _imports(path)
-        if name.startswith("_") and name != "__version__"
-    ]
-    assert (
-        not private
-    ), f"{path.name} imports private names {private}; make them public in their own module"
+    private = [f"{module}.{name}" for module, name in _imports(path) if name.startswith("_")
+               and name != "__version__"]
+    assert not private, (f"{path.name} imports private names {private}; make them public in their "
+                         "own module")
 
 
 @pytest.mark.parametrize("path", MODULES, ids=lambda p: str(p.relative_to(PACKAGE)))
@@ -111,21 +100,18 @@ def test_every_mutant_listed_as_equivalent_names_a_line_of_the_code():
         assert module in mutation.CORE, module
         source = [s.strip() for s in (PACKAGE / module).read_text().splitlines()]
         assert line in source, (module, line)
-        assert mutation.EQUIVALENT[
-            (module, line, description)
-        ], "an equivalent mutant needs its reason"
+        assert (mutation.EQUIVALENT[(module, line,
+                                     description)]), "an equivalent mutant needs its reason"
 
 
-@pytest.mark.parametrize(
-    "argv", [["--help"], ["match", "--help"], ["--version"], ["match", "--bogus"], []]
-)
+@pytest.mark.parametrize("argv",
+                         [["--help"], ["match", "--help"], ["--version"], ["match", "--bogus"], []])
 def test_help_version_and_bad_options_answer_without_loading_the_pipeline(argv):
     code = ("import sys\nfrom pinchmatch.cli.main import main\n"
             "try:\n    main(sys.argv[1:])\nexcept SystemExit:\n    pass\n"
             "heavy = [m for m in ('numpy', 'scipy', 'trimesh', 'matplotlib', "
             "'pinchmatch.cli.commands') if m in sys.modules]\n"
             "print(heavy, file=sys.stderr)")
-    done = subprocess.run(
-        [sys.executable, "-c", code, *argv], capture_output=True, text=True, timeout=60
-    )
+    done = subprocess.run([sys.executable, "-c", code, *argv], capture_output=True, text=True,
+                          timeout=60)
     assert done.stderr.strip().splitlines()[-1] == "[]", done.stderr

@@ -46,26 +46,9 @@ def level_out(tmp_path_factory):
 
 
 def _run(capsys, folder, out, *extra):
-    code, _, err = run_cli(
-        capsys,
-        "match",
-        "--tangible",
-        folder / "props.toml",
-        "--virtual",
-        folder / "kitchen.glb",
-        "--split",
-        "nodes",
-        "--skip-nodes",
-        "counter",
-        "--count",
-        120,
-        "-o",
-        out,
-        "--no-view",
-        "--jobs",
-        1,
-        *extra,
-    )
+    code, _, err = run_cli(capsys, "match", "--tangible", folder / "props.toml", "--virtual",
+                           folder / "kitchen.glb", "--split", "nodes", "--skip-nodes", "counter",
+                           "--count", 120, "-o", out, "--no-view", "--jobs", 1, *extra)
     assert code == 0, err
     return out
 
@@ -73,18 +56,14 @@ def _run(capsys, folder, out, *extra):
 def _document(path: Path) -> dict:
     data = path.read_bytes()
     length, = struct.unpack_from("<I", data, 12)
-    assert (
-        data[:4] == b"glTF"
-        and struct.unpack_from("<I", data, 8)[0] == len(data)
-        and length % 4 == 0
-    )
+    assert (data[:4] == b"glTF" and struct.unpack_from("<I", data, 8)[0] == len(data)
+            and length % 4 == 0)
     return json.loads(data[20:20 + length])
 
 
 def test_the_level_carries_the_prop_at_its_pose_and_each_node_s_match(level_out, tmp_path, capsys):
-    out = _run(
-        capsys, level_out, tmp_path / "out", "--placement", "fixed", "--carousel-margin-jnd", "3"
-    )
+    out = _run(capsys, level_out, tmp_path / "out", "--placement", "fixed", "--carousel-margin-jnd",
+               "3")
     matches = {m["virtual"]: m for m in json.loads((out / "matches.json").read_text())["matches"]}
     doc = _document(out / "level.glb")
     nodes = {n["name"]: n for n in doc["nodes"]}
@@ -100,18 +79,12 @@ def test_the_level_carries_the_prop_at_its_pose_and_each_node_s_match(level_out,
         v = np.array([m["virtual_pose"]["p1_mm"], m["virtual_pose"]["p2_mm"]]) / 1000.0
         np.testing.assert_allclose(np.reshape(x["virtual_contacts_m"], (2, 3)), v, atol=2e-6)
         t = np.array([m["tangible_pose"]["p1_mm"], m["tangible_pose"]["p2_mm"]])
-        np.testing.assert_allclose(
-            np.reshape(x["physical_contacts_m"], (2, 3)),
-            (t @ R.T + POSITION_MM) / 1000.0,
-            atol=2e-6,
-        )
-        np.testing.assert_allclose(
-            x["hand_start_m"], np.array(r["hand_start_mm"]) / 1000.0, atol=2e-6
-        )
-    assert {x["extras"]["pinchmatch"]["mode"] for n, x in nodes.items() if n in matches} == {
-        "redirect",
-        "carousel",
-    }
+        np.testing.assert_allclose(np.reshape(x["physical_contacts_m"], (2, 3)),
+                                   (t @ R.T + POSITION_MM) / 1000.0, atol=2e-6)
+        np.testing.assert_allclose(x["hand_start_m"], np.array(r["hand_start_mm"]) / 1000.0,
+                                   atol=2e-6)
+    assert {x["extras"]["pinchmatch"]["mode"] for n, x in nodes.items()
+            if n in matches} == {"redirect", "carousel"}
     # the prop's mesh where its pose puts it: standing on the counter (y = 0.9 m), centred on its
     # position
     scene = trimesh.load(out / "level.glb", force="scene")
@@ -129,11 +102,8 @@ def _world(doc: dict) -> dict:
     from levels import _trs
 
     def local(node):
-        return (
-            np.array(node["matrix"], dtype=float).reshape(4, 4).T
-            if "matrix" in node
-            else _trs(node)
-        )
+        return (np.array(node["matrix"], dtype=float).reshape(4, 4).T if "matrix" in node
+                else _trs(node))
 
     out = {}
 
@@ -148,16 +118,14 @@ def _world(doc: dict) -> dict:
 
 
 def test_a_carousel_object_parented_to_its_tracked_prop_rests_on_the_table(
-    level_out, tmp_path, capsys
-):
+    level_out, tmp_path, capsys):
     """Every carousel object is a node below its prop's node; placed by that local transform under
     the prop where the pose puts it, and again under the prop moved and turned elsewhere (as a
     tracker moves it), its mesh rests on the prop's table (within 2 mm below, 10 mm above); its
     fingertip joints are the pads of matches.json's contacts, named as OpenXR's joints; masses under
     OMI_physics_body."""
-    out = _run(
-        capsys, level_out, tmp_path / "out", "--placement", "fixed", "--max-redirect-deg", "0.5"
-    )
+    out = _run(capsys, level_out, tmp_path / "out", "--placement", "fixed", "--max-redirect-deg",
+               "0.5")
     matches = {m["virtual"]: m for m in json.loads((out / "matches.json").read_text())["matches"]}
     doc = _document(out / "level.glb")
     world = _world(doc)
@@ -172,9 +140,9 @@ def test_a_carousel_object_parented_to_its_tracked_prop_rests_on_the_table(
     tracked[:3, :3] = Rotation.from_euler("y", -70, degrees=True).as_matrix() @ TURN.as_matrix()
     tracked[:3, 3] = [-1.2, world[prop][1, 3] + 0.3, 2.0]  # elsewhere, on a table 0.3 m higher
     carousels = [n for n in doc["nodes"] if n["name"].startswith("carousel_")]
-    assert {n["name"] for n in carousels} == {
-        f"carousel_{name}" for name, m in matches.items() if m["redirection"]["mode"] == "carousel"
-    } and carousels
+    assert {n["name"] for n in carousels} == {f"carousel_{name}" for name, m in matches.items()
+                                              if m["redirection"]["mode"]
+                                              == "carousel"} and carousels
     scene = trimesh.load(out / "level.glb", force="scene")
     for node in carousels:
         i = index[node["name"]]
@@ -191,9 +159,8 @@ def test_a_carousel_object_parented_to_its_tracked_prop_rests_on_the_table(
         v = matches[name]["virtual_pose"]
         T = np.array(matches[name]["transform_virtual_to_tangible"])
         for joint, p, n in (("thumb_tip", v["p1_mm"], v["n1"]), ("index_tip", v["p2_mm"], v["n2"])):
-            pad = np.array(p) + 8.0 * np.array(
-                n
-            )  # the seen pad, registered onto the prop, into the level
+            # the seen pad, registered onto the prop, into the level
+            pad = np.array(p) + 8.0 * np.array(n)
             expected = world[prop] @ np.r_[(T[:3, :3] @ pad + T[:3, 3]) / 1000.0, 1.0]
             np.testing.assert_allclose(joints[joint], expected[:3], atol=2e-6)
         assert {"pinch_center", "wrist"} <= set(joints)
@@ -212,18 +179,9 @@ def test_the_level_is_valid_gltf(level_out, tmp_path, capsys):
             pytest.fail("node or the glTF validator missing; .ci/run installs both")
         pytest.skip("node or tests/js's gltf-validator is not installed (npm ci --prefix tests/js)")
     out = _run(capsys, level_out, tmp_path / "out", "--placement", "fixed")
-    proc = subprocess.run(
-        [
-            NODE,
-            str(VALIDATE),
-            str(out / "level.glb"),
-            *map(str, sorted((out / "scenes").glob("*.glb"))),
-        ],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        check=False,
-    )
+    proc = subprocess.run([NODE, str(VALIDATE), str(out / "level.glb"),
+                           *map(str, sorted((out / "scenes").glob("*.glb")))],
+                          capture_output=True, text=True, timeout=120, check=False)
     assert proc.returncode == 0, proc.stderr
     reports = [json.loads(line) for line in proc.stdout.splitlines()]
     assert len(reports) >= 2
@@ -239,8 +197,7 @@ def browser():
 
 
 def test_the_desktop_page_says_each_object_s_mode_and_lists_the_failed_node(
-    level_out, tmp_path, capsys, browser
-):
+    level_out, tmp_path, capsys, browser):
     """The page of a fixed run on a level with a crate no hand can pinch: each entry says redirect
     (with its angle and gain) or carousel, the title says whether the object stays or is brought
     onto the prop, and the failed node is listed with its reason."""
@@ -253,26 +210,9 @@ def test_the_desktop_page_says_each_object_s_mode_and_lists_the_failed_node(
                                            ("can_far", standing_can(), (0.9, 0.9, -0.5)),
                                            ("crate", crate, (0.0, 0.9, 0.3))])
     out = tmp_path / "out"
-    code, _, err = run_cli(
-        capsys,
-        "match",
-        "--tangible",
-        folder / "props.toml",
-        "--virtual",
-        folder / "kitchen.glb",
-        "--split",
-        "nodes",
-        "--count",
-        120,
-        "-o",
-        out,
-        "--jobs",
-        1,
-        "--placement",
-        "fixed",
-        "--carousel-margin-jnd",
-        "3",
-    )
+    code, _, err = run_cli(capsys, "match", "--tangible", folder / "props.toml", "--virtual",
+                           folder / "kitchen.glb", "--split", "nodes", "--count", 120, "-o", out,
+                           "--jobs", 1, "--placement", "fixed", "--carousel-margin-jnd", "3")
     assert code == 3, err  # the crate failed, the others are matched
     matches = {m["virtual"]: m for m in json.loads((out / "matches.json").read_text())["matches"]}
     pg = browser.new_page(viewport={"width": 1400, "height": 900})
@@ -293,11 +233,9 @@ def test_the_desktop_page_says_each_object_s_mode_and_lists_the_failed_node(
             entries.nth(k).click()
             pg.wait_for_timeout(300)
             title = pg.locator("#main-title").inner_text()
-            assert title == (
-                f"{name} stays in the level; the hand is led to can_prop"
-                if r["mode"] == "redirect"
-                else f"{name} brought onto can_prop (carousel)"
-            )
+            assert title == (f"{name} stays in the level; the hand is led to can_prop" if r["mode"]
+                             == "redirect"
+                             else f"{name} brought onto can_prop (carousel)")
         failed = pg.locator("#matches li.failed").inner_text()
         assert "crate" in failed and "wider than the largest pinch" in failed
         assert errors == []
@@ -306,8 +244,7 @@ def test_the_desktop_page_says_each_object_s_mode_and_lists_the_failed_node(
 
 
 def test_three_js_places_a_carousel_object_on_its_prop_s_table(
-    level_out, tmp_path, capsys, browser
-):
+    level_out, tmp_path, capsys, browser):
     """The level as three.js's GLTFLoader reads it (the page's own bundle): each carousel node, a
     child of its prop's node, has its mesh resting on the prop's table at y = 0.9 m; moving the
     prop's node (as a tracker does) carries it along, still resting on the prop's table, now 0.3 m
@@ -315,27 +252,10 @@ def test_three_js_places_a_carousel_object_on_its_prop_s_table(
     import base64
 
     out = tmp_path / "out"
-    code, _, err = run_cli(
-        capsys,
-        "match",
-        "--tangible",
-        level_out / "props.toml",
-        "--virtual",
-        level_out / "kitchen.glb",
-        "--split",
-        "nodes",
-        "--count",
-        120,
-        "-o",
-        out,
-        "--jobs",
-        1,
-        "--placement",
-        "fixed",
-        "--max-redirect-deg",
-        "0.5",
-        "--no-figures",
-    )
+    code, _, err = run_cli(capsys, "match", "--tangible", level_out / "props.toml", "--virtual",
+                           level_out / "kitchen.glb", "--split", "nodes", "--count", 120, "-o", out,
+                           "--jobs", 1, "--placement", "fixed", "--max-redirect-deg", "0.5",
+                           "--no-figures")
     assert code == 0, err
     pg = browser.new_page()
     try:

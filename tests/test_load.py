@@ -87,9 +87,8 @@ def test_empty_file(tmp_path):
 
 def test_unknown_extension(tmp_path):
     (tmp_path / "m.xyz").write_text("1 2 3\n")
-    with pytest.raises(
-        MeshError, match=r"m\.xyz: unknown mesh format '\.xyz'.*export it as one of"
-    ):
+    with pytest.raises(MeshError,
+                       match=r"m\.xyz: unknown mesh format '\.xyz'.*export it as one of"):
         load_mesh(tmp_path / "m.xyz")
 
 
@@ -109,9 +108,8 @@ def test_truncated_binary_stl(write_mesh):
     path = write_mesh(box(), "t.stl")
     data = path.read_bytes()
     path.write_bytes(data[: len(data) // 2])
-    with pytest.raises(
-        MeshError, match=r"t\.stl: truncated binary STL: its header promises 12 triangles"
-    ):
+    with pytest.raises(MeshError,
+                       match=r"t\.stl: truncated binary STL: its header promises 12 triangles"):
         load_mesh(path)
 
 
@@ -137,36 +135,22 @@ def test_no_faces(tmp_path):
 
 def test_mesh_in_metres_read_as_mm_suggests_units(write_mesh):
     # in Python the fix is a keyword argument; the command line names the flag (tests/test_cli.py)
-    with pytest.raises(
-        MeshError,
-        match=r'm\.stl: mesh is 0\.06 mm across .*read it with units="m" \(60 mm across\)$',
-    ):
+    with pytest.raises(MeshError,
+                       match=r'm\.stl: mesh is 0\.06 mm across .*read it with units="m" \(60 mm '
+                             r'across\)$'):
         load_mesh(write_mesh(box((0.06, 0.04, 0.02)), "m.stl"))
 
 
-@pytest.mark.parametrize(
-    "size, units, fixes",
-    [
-        (
-            0.206,
-            "mm",
-            ['units="m" (206 mm across)'],
-        ),  # cm would make it 2 mm: not a thing a hand holds
-        (60_000.0, "m", ['units="mm" (60 mm across)']),
-        (
-            0.5,
-            "mm",
-            ['units="m" (500 mm across)', 'units="in" (12.7 mm across)'],
-        ),  # two fit: both named
-    ],
-)
+@pytest.mark.parametrize("size, units, fixes", [
+    (0.206, "mm", ['units="m" (206 mm across)']),  # cm would make it 2 mm: not a thing a hand holds
+    (60_000.0, "m", ['units="mm" (60 mm across)']),
+    # two fit: both named
+    (0.5, "mm", ['units="m" (500 mm across)', 'units="in" (12.7 mm across)']),
+])
 def test_the_units_hint_names_the_units_that_make_a_graspable_size(write_mesh, size, units, fixes):
     name = "a.stl" if units == "mm" else "a.glb"
-    mesh = (
-        box((size, size * 0.6, size * 0.3))
-        if units == "mm"
-        else box((size / 1000.0, size * 0.6e-3, size * 0.3e-3))
-    )
+    mesh = (box((size, size * 0.6, size * 0.3)) if units == "mm"
+            else box((size / 1000.0, size * 0.6e-3, size * 0.3e-3)))
     with pytest.raises(MeshError) as info:
         load_mesh(write_mesh(mesh, name), units=units)
     assert str(info.value).endswith("read it with " + " or ".join(fixes)), str(info.value)
@@ -226,8 +210,7 @@ def test_parts_inside_a_closed_part_are_left_out_a_book_is_pinched_on_its_cover(
     # across the cover (30 mm, longer where the pinch line leans within the friction cone), or the
     # loose sheet
     assert ((widths > 29.9) & (widths < 36.0)).sum() > 30 and (
-        (widths > 3.9) & (widths < 5.0)
-    ).any()
+        (widths > 3.9) & (widths < 5.0)).any()
 
 
 @pytest.mark.parametrize("wound", ["outward", "inward"])
@@ -242,17 +225,12 @@ def test_a_book_in_an_open_cover_is_pinched_across_its_cover(tmp_path, wound):
     from pinchmatch import PinchSettings, analyze_object, candidate_poses
 
     W, H, T = 150.0, 220.0, 30.0
-    corners = [
-        (W / 2, T / 2),
-        (-W / 2, T / 2),
-        (-W / 2, -T / 2),
-        (W / 2, -T / 2),
-    ]  # front, spine, back
+    # front, spine, back
+    corners = [(W / 2, T / 2), (-W / 2, T / 2), (-W / 2, -T / 2), (W / 2, -T / 2)]
     vertices = [[x, y, z] for y in (-H / 2, H / 2) for x, z in corners]
     faces = [f for k in range(3) for f in ([k, k + 1, 5 + k], [k, 5 + k, 4 + k])]
-    cover = (
-        trimesh.Trimesh(vertices, faces, process=False).subdivide().subdivide()
-    )  # wound into the book
+    # wound into the book
+    cover = trimesh.Trimesh(vertices, faces, process=False).subdivide().subdivide()
     if wound == "outward":
         cover.invert()
     pages = []
@@ -269,23 +247,18 @@ def test_a_book_in_an_open_cover_is_pinched_across_its_cover(tmp_path, wound):
     loaded = load_mesh(tmp_path / "book.stl")
     assert any("32 part(s) lying inside another" in r for r in loaded.repairs), loaded.repairs
     assert any("face outward" in r for r in loaded.repairs) == (wound == "inward"), loaded.repairs
-    front = (
-        loaded.mesh.triangles_center @ M[:3, 2] - M[:3, 3] @ M[:3, 2] > T / 2 - 1e-6
-    )  # the front sheet's faces
+    # the front sheet's faces
+    front = loaded.mesh.triangles_center @ M[:3, 2] - M[:3, 3] @ M[:3, 2] > T / 2 - 1e-6
     assert (loaded.mesh.face_normals[front] @ M[:3, 2] > 0.99).all()  # facing out of the book
-    poses = candidate_poses(
-        analyze_object(tmp_path / "book.stl"), settings=PinchSettings(count=40, seed=3)
-    )
+    poses = candidate_poses(analyze_object(tmp_path / "book.stl"),
+                            settings=PinchSettings(count=40, seed=3))
     widths = np.linalg.norm(poses.pinches.points[:, 1] - poses.pinches.points[:, 0], axis=1)
     assert len(poses) == 40 and ((widths > 29.9) & (widths < 36.0)).all(), widths
     tile = trimesh.creation.cylinder(radius=30.0, height=80.0, sections=48)
-    tile.update_faces(
-        (np.abs(tile.face_normals[:, 2]) < 0.5) & (tile.triangles_center[:, 1] > 0)
-    )  # half a tube
-    for turned in (
-        False,
-        True,
-    ):  # a lone sheet, facing either way: its two sides are alike, it stays as it is
+    # half a tube
+    tile.update_faces((np.abs(tile.face_normals[:, 2]) < 0.5) & (tile.triangles_center[:, 1] > 0))
+    for turned in (False, True):
+        # a lone sheet, facing either way: its two sides are alike, it stays as it is
         sheet = tile.copy()
         if turned:
             sheet.invert()
@@ -293,6 +266,5 @@ def test_a_book_in_an_open_cover_is_pinched_across_its_cover(tmp_path, wound):
         sheet.export(tmp_path / "sheet.stl")
         lone = load_mesh(tmp_path / "sheet.stl")
         assert not any("face outward" in r for r in lone.repairs), lone.repairs
-        np.testing.assert_allclose(
-            lone.mesh.face_normals.mean(axis=0), sheet.face_normals.mean(axis=0), atol=1e-6
-        )
+        np.testing.assert_allclose(lone.mesh.face_normals.mean(axis=0),
+                                   sheet.face_normals.mean(axis=0), atol=1e-6)

@@ -34,9 +34,8 @@ def props(tmp_path):
     box.export(tmp_path / "box_mm.stl")
     metres = box.copy()
     metres.apply_scale(0.001)
-    metres.apply_transform(
-        trimesh.transformations.rotation_matrix(-np.pi / 2, [1, 0, 0])
-    )  # z up -> y up
+    # z up -> y up
+    metres.apply_transform(trimesh.transformations.rotation_matrix(-np.pi / 2, [1, 0, 0]))
     metres.export(tmp_path / "box_m.obj")
     return tmp_path
 
@@ -61,17 +60,11 @@ def test_each_object_has_its_own_units_up_centre_of_mass_axis_and_mass(props):
     """)
     mm, m = read_manifest(manifest)
     assert (mm.units, mm.up, mm.com_mm, mm.axis, mm.mass_g) == (
-        "mm",
-        "z",
-        (5.0, 0.0, -2.0),
-        (0.0, 1.0, 0.0),
-        350.0,
-    )
+        "mm", "z", (5.0, 0.0, -2.0), (0.0, 1.0, 0.0), 350.0)
     assert (m.units, m.up, m.mass_g, m.name) == ("m", "y", None, None)
     a, b = analyze_spec(mm), analyze_spec(m)
-    assert (
-        a.name == "box in mm" and b.name == "box_m.obj" and a.mass_g == 350.0 and b.mass_g is None
-    )
+    assert (a.name == "box in mm" and b.name == "box_m.obj" and a.mass_g == 350.0
+            and b.mass_g is None)
     # both read as the same 60 x 40 x 20 mm box, the metre asset with y up
     np.testing.assert_allclose(np.ptp(a.loaded.mesh.vertices, axis=0), [60, 40, 20], atol=1e-6)
     np.testing.assert_allclose(np.ptp(b.loaded.mesh.vertices, axis=0), [60, 20, 40], atol=1e-6)
@@ -102,29 +95,17 @@ def test_every_problem_of_a_manifest_is_one_line_naming_file_object_and_key(prop
     with pytest.raises(ConfigError) as info:
         read_manifest(manifest)
     lines = str(info.value).splitlines()
-    want = [
-        ("object 1 (lid): unit", "did you mean 'units'?"),
-        ("object 1 (lid): mass_g", "above 0"),
-        ("object 1 (lid): exclude[0]", "center_mm = [x, y, z]"),
-        ("object 2: up", "'sideways'"),
-        ("object 2: only[0]", "below max_mm"),
-        ("object 2: file", "no such file"),
-        ("object 3: split", "only a glTF or GLB scene"),
-    ]
+    want = [("object 1 (lid): unit", "did you mean 'units'?"),
+            ("object 1 (lid): mass_g", "above 0"),
+            ("object 1 (lid): exclude[0]", "center_mm = [x, y, z]"), ("object 2: up", "'sideways'"),
+            ("object 2: only[0]", "below max_mm"), ("object 2: file", "no such file"),
+            ("object 3: split", "only a glTF or GLB scene")]
     assert len(lines) == len(want), lines
     for line, (where, what) in zip(lines, want):
         assert line.startswith(f"{manifest}: {where}:") and what in line, line
     # the command line says the same, exit 2, before any work
-    code, out, err = run_cli(
-        capsys,
-        "match",
-        "--tangible",
-        str(manifest),
-        "--virtual",
-        str(props / "box_m.obj"),
-        "-o",
-        str(props / "out"),
-    )
+    code, out, err = run_cli(capsys, "match", "--tangible", str(manifest), "--virtual",
+                             str(props / "box_m.obj"), "-o", str(props / "out"))
     assert code == 2 and "Traceback" not in err and len(err.strip().splitlines()) == len(want)
     assert not (props / "out").exists()
 
@@ -143,9 +124,8 @@ def test_malformed_manifests_are_refused_in_one_line(tmp_path, capsys, text, wor
 
 
 def _box_context(regions_toml, tmp_path):
-    trimesh.creation.box(extents=(60.0, 40.0, 20.0)).subdivide_to_size(4.0).export(
-        tmp_path / "box.stl"
-    )
+    trimesh.creation.box(extents=(60.0, 40.0,
+                                  20.0)).subdivide_to_size(4.0).export(tmp_path / "box.stl")
     manifest = write(tmp_path / "box.toml", f"""
         [[object]]
         file = "box.stl"
@@ -165,12 +145,9 @@ def test_no_contact_falls_in_an_exclude_region(tmp_path):
     in_box = (p >= [-31, -25, -11]).all(axis=1) & (p <= [-20, 0, 11]).all(axis=1)
     assert not in_box.any()
     # without the regions, many pinches would use those places
-    free = sample_pinches(
-        analyze_spec(
-            read_manifest(write(tmp_path / "free.toml", '[[object]]\nfile = "box.stl"\n'))[0]
-        ).context,
-        settings=PinchSettings(count=200),
-    ).points.reshape(-1, 3)
+    free = sample_pinches(analyze_spec(read_manifest(write(
+        tmp_path / "free.toml", '[[object]]\nfile = "box.stl"\n'))[0]).context,
+                          settings=PinchSettings(count=200)).points.reshape(-1, 3)
     assert (np.linalg.norm(free - [30.0, 0.0, 0.0], axis=1) <= 15.0).sum() > 20
 
 
@@ -189,46 +166,39 @@ def test_every_contact_falls_in_the_only_regions(tmp_path):
 
 
 def test_regions_that_leave_no_surface_say_so(tmp_path, capsys):
-    obj = _box_context(
-        "only = [{ center_mm = [0, 0, 0], radius_mm = 5 }]", tmp_path
-    )  # inside the box
+    # inside the box
+    obj = _box_context("only = [{ center_mm = [0, 0, 0], radius_mm = 5 }]", tmp_path)
     with pytest.raises(Exception, match="contact regions leave no surface"):
         sample_pinches(obj.context, settings=PinchSettings(count=50))
 
 
 def _with_mass(tmp_path, name, mass_g):
     text = f'[[object]]\nfile = "prop.stl"\nname = "{name}"\n' + (
-        f"mass_g = {mass_g}\n" if mass_g else ""
-    )
+        f"mass_g = {mass_g}\n" if mass_g else "")
     return candidate_poses(analyze_spec(read_manifest(write(tmp_path / f"{name}.toml", text))[0]),
                            settings=PinchSettings(count=120))
 
 
 def test_the_mass_criterion_compares_torques_where_both_masses_are_known(tmp_path):
     stacked_prop(sections=48).export(tmp_path / "prop.stl")
-    light, heavy, unknown = (
-        _with_mass(tmp_path, "light", 100),
-        _with_mass(tmp_path, "heavy", 200),
-        _with_mass(tmp_path, "unknown", None),
-    )
+    light, heavy, unknown = _with_mass(tmp_path, "light", 100), _with_mass(
+        tmp_path, "heavy", 200), \
+        _with_mass(tmp_path, "unknown", None)
     model = match_scene([light], [light], settings=MatchSettings()).model
     i = np.arange(len(light))
-    same = evaluate_pairs(
-        light, light, i, i, model=model
-    )  # each pose on itself: identity, no offset mismatch
+    # each pose on itself: identity, no offset mismatch
+    same = evaluate_pairs(light, light, i, i, model=model)
     np.testing.assert_allclose(same.terms[:, 7], 0.0, atol=1e-12)
-    np.testing.assert_allclose(
-        evaluate_pairs(light, unknown, i, i, model=model).terms[:, 7], 0.0, atol=1e-12
-    )
+    np.testing.assert_allclose(evaluate_pairs(light, unknown, i, i, model=model).terms[:, 7], 0.0,
+                               atol=1e-12)
     # twice the mass seen: the felt offset must double, so the mismatch is the offset itself,
     # |o_T|^2 / s^2 with s = max(22 % of |o_T|, 20 mm)
     doubled = evaluate_pairs(light, heavy, i, i, model=model)
     offset = np.linalg.norm(light.obj.props.com_mm - light.pinches.points.mean(axis=1), axis=1)
     scale = np.maximum(0.22 * offset, 20.0)
     np.testing.assert_allclose(doubled.terms[:, 7], offset**2 / scale**2, rtol=1e-6)
-    np.testing.assert_allclose(
-        np.linalg.norm(doubled.mass_delta_mm, axis=1), offset, rtol=1e-6, atol=1e-9
-    )
+    np.testing.assert_allclose(np.linalg.norm(doubled.mass_delta_mm, axis=1), offset, rtol=1e-6,
+                               atol=1e-9)
 
 
 def test_a_level_splits_into_its_nodes_in_world_coordinates(tmp_path):
@@ -258,25 +228,10 @@ def test_a_level_run_names_each_node_and_its_path(tmp_path, capsys):
         name = "stack"
         mass_g = 120
     """)
-    code, out, err = run_cli(
-        capsys,
-        "match",
-        "--tangible",
-        str(tmp_path / "props.toml"),
-        "--virtual",
-        str(tmp_path / "level.glb"),
-        "--split",
-        "nodes",
-        "--count",
-        "80",
-        "-q",
-        "--no-view",
-        "--no-figures",
-        "--jobs",
-        "1",
-        "-o",
-        str(tmp_path / "out"),
-    )
+    code, out, err = run_cli(capsys, "match", "--tangible", str(tmp_path / "props.toml"),
+                             "--virtual", str(tmp_path / "level.glb"), "--split", "nodes",
+                             "--count", "80", "-q", "--no-view", "--no-figures", "--jobs", "1",
+                             "-o", str(tmp_path / "out"))
     assert code == 0, err
     doc = json.loads((tmp_path / "out" / "matches.json").read_text())
     virtuals = {v["name"]: v for v in doc["virtuals"]}
@@ -291,37 +246,16 @@ def test_a_level_run_names_each_node_and_its_path(tmp_path, capsys):
 def test_a_folder_holding_a_pinchmatch_result_is_not_read_as_input(tmp_path, capsys):
     trimesh.creation.box(extents=(60.0, 40.0, 20.0)).export(tmp_path / "box.stl")
     out = tmp_path / "pinchmatch-out"
-    argv = [
-        "match",
-        "--tangible",
-        str(tmp_path / "box.stl"),
-        "--virtual",
-        str(tmp_path),
-        "--count",
-        "60",
-        "-q",
-        "--no-view",
-        "--no-figures",
-        "-o",
-        str(out),
-    ]
+    argv = ["match", "--tangible", str(tmp_path / "box.stl"), "--virtual", str(tmp_path), "--count",
+            "60", "-q", "--no-view", "--no-figures", "-o", str(out)]
     assert run_cli(capsys, *argv)[0] == 0
     assert list((out / "scenes").glob("*.glb"))  # outputs that a folder search would find
     assert mesh_files([tmp_path], option="--virtual") == [tmp_path / "box.stl"]
     assert run_cli(capsys, *argv)[0] == 0
-    assert [v["name"] for v in json.loads((out / "matches.json").read_text())["virtuals"]] == [
-        "box.stl"
-    ]
-    code, _, err = run_cli(
-        capsys,
-        "match",
-        "--tangible",
-        str(tmp_path / "box.stl"),
-        "--virtual",
-        str(out),
-        "-o",
-        str(tmp_path / "again"),
-    )
+    assert ([v["name"] for v in json.loads((out / "matches.json").read_text())["virtuals"]]
+            == ["box.stl"])
+    code, _, err = run_cli(capsys, "match", "--tangible", str(tmp_path / "box.stl"), "--virtual",
+                           str(out), "-o", str(tmp_path / "again"))
     assert_bad_input(code, err, str(out), "holds a pinchmatch result")
 
 
@@ -346,22 +280,15 @@ def test_the_documented_manifest_follows_the_schema_and_reads(tmp_path):
     write(tmp_path / "props.toml", block)
     can, mug, level = read_manifest(tmp_path / "props.toml")
     assert (can.name, can.mass_g, can.units, mug.units, level.split) == (
-        "can",
-        350.0,
-        "mm",
-        "m",
-        "nodes",
-    )
+        "can", 350.0, "mm", "m", "nodes")
     assert len(can.regions.exclude) == 1 and len(mug.regions.only) == 1
     # what read_manifest refuses, the schema refuses too
-    for bad in (
-        '[[object]]\nfile = "a.stl"\nunit = "mm"\n',
-        '[[object]]\nfile = "a.stl"\nmass_g = 0\n',
-        '[[object]]\nfile = "a.stl"\naxis = [0, 0, 0]\n',
-        '[[object]]\nfile = "a.stl"\nsplit = "parts"\n',
-        '[[object]]\nfile = "a.stl"\nonly = [{ center_mm = [0, 0, 0] }]\n',
-        '[defaults]\nunits = "mm"\n',
-    ):
+    for bad in ('[[object]]\nfile = "a.stl"\nunit = "mm"\n',
+                '[[object]]\nfile = "a.stl"\nmass_g = 0\n',
+                '[[object]]\nfile = "a.stl"\naxis = [0, 0, 0]\n',
+                '[[object]]\nfile = "a.stl"\nsplit = "parts"\n',
+                '[[object]]\nfile = "a.stl"\nonly = [{ center_mm = [0, 0, 0] }]\n',
+                '[defaults]\nunits = "mm"\n'):
         with pytest.raises(jsonschema.ValidationError):
             jsonschema.validate(tomllib.loads(bad), schema)
 
@@ -370,18 +297,14 @@ def test_the_readme_python_example_runs(tmp_path, monkeypatch):
     import re
     from pathlib import Path
 
-    code = re.search(
-        r"## From Python\n\n```python\n(.*?)```",
-        (Path(__file__).parents[1] / "README.md").read_text(),
-        re.S,
-    ).group(1)
+    code = re.search(r"## From Python\n\n```python\n(.*?)```",
+                     (Path(__file__).parents[1] / "README.md").read_text(), re.S).group(1)
     mug = trimesh.creation.cylinder(radius=0.04, height=0.09, sections=32)  # metres, as glTF is
     mug.apply_transform(trimesh.transformations.rotation_matrix(-np.pi / 2, [1, 0, 0]))  # y up
     mug.export(tmp_path / "mug.glb")
     trimesh.creation.box(extents=(60.0, 40.0, 30.0)).export(tmp_path / "block.stl")
-    trimesh.creation.cylinder(radius=0.03, height=0.2, sections=32).export(
-        tmp_path / "bottle.obj"
-    )  # metres
+    # metres
+    trimesh.creation.cylinder(radius=0.03, height=0.2, sections=32).export(tmp_path / "bottle.obj")
     stacked_prop(sections=32).export(tmp_path / "stack.stl")
     write(tmp_path / "props.toml", '[[object]]\nfile = "stack.stl"\nname = "stack"\nmass_g = 90\n')
     monkeypatch.chdir(tmp_path)
@@ -414,35 +337,17 @@ def test_a_bad_node_of_a_level_is_named_with_its_file(tmp_path, capsys):
     """One node of a split level is a flat sheet: the run goes on with the others, and the failure
     names the file and the node."""
     scene = trimesh.Scene()
-    scene.add_geometry(
-        trimesh.creation.box(extents=(0.05, 0.04, 0.03)), node_name="crate", geom_name="crate"
-    )
-    sheet = trimesh.Trimesh(
-        [[0, 0, 0], [0.05, 0, 0], [0, 0.05, 0], [0.05, 0.05, 0]], [[0, 1, 2], [1, 3, 2]]
-    )
+    scene.add_geometry(trimesh.creation.box(extents=(0.05, 0.04, 0.03)), node_name="crate",
+                       geom_name="crate")
+    sheet = trimesh.Trimesh([[0, 0, 0], [0.05, 0, 0], [0, 0.05, 0], [0.05, 0.05, 0]],
+                            [[0, 1, 2], [1, 3, 2]])
     scene.add_geometry(sheet, node_name="sheet", geom_name="sheet")
     (tmp_path / "level.glb").write_bytes(scene.export(file_type="glb"))
     stacked_prop().export(tmp_path / "prop.stl")
-    code, _, err = run_cli(
-        capsys,
-        "match",
-        "--tangible",
-        str(tmp_path / "prop.stl"),
-        "--virtual",
-        str(tmp_path / "level.glb"),
-        "--split",
-        "nodes",
-        "-o",
-        str(tmp_path / "out"),
-        "--count",
-        "60",
-        "--no-cache",
-        "--no-figures",
-        "--no-view",
-        "-q",
-        "--jobs",
-        "1",
-    )
+    code, _, err = run_cli(capsys, "match", "--tangible", str(tmp_path / "prop.stl"), "--virtual",
+                           str(tmp_path / "level.glb"), "--split", "nodes", "-o",
+                           str(tmp_path / "out"), "--count", "60", "--no-cache", "--no-figures",
+                           "--no-view", "-q", "--jobs", "1")
     assert code == 3, err  # a result, with a failed object
     assert f"{tmp_path / 'level.glb'}#sheet" in err and "flat" in err
     doc = json.loads((tmp_path / "out" / "matches.json").read_text())
@@ -463,20 +368,12 @@ def test_a_sphere_region_meets_the_boxes_within_its_radius_wherever_it_is():
     assert sphere.overlaps_boxes(corner, corner + 1.0).tolist() == [True]
     assert sphere.overlaps_boxes(corner + 0.1, corner + 1.1).tolist() == [False]
     assert sphere.contains(np.array([[13.0, 24.0, 30.0], [13.1, 24.0, 30.0]])).tolist() == [
-        True,
-        False,
-    ]
+        True, False]
 
 
-@pytest.mark.parametrize(
-    "entry, support",
-    [
-        ('support = "none"', "none"),
-        ('support = "auto"', "auto"),
-        ("support_mm = 12.5", 12.5),
-        ("", None),
-    ],
-)
+@pytest.mark.parametrize("entry, support",
+                         [('support = "none"', "none"), ('support = "auto"', "auto"),
+                                            ("support_mm = 12.5", 12.5), ("", None)])
 def test_a_manifest_says_what_a_prop_stands_on(tmp_path, entry, support):
     trimesh.creation.box(extents=(60.0, 40.0, 20.0)).export(tmp_path / "box.stl")
     (spec,) = read_manifest(write(tmp_path / "m.toml", f'[[object]]\nfile = "box.stl"\n{entry}\n'))
@@ -490,14 +387,6 @@ def test_a_manifest_says_what_a_prop_stands_on(tmp_path, entry, support):
 def test_a_bad_support_is_one_line(tmp_path, capsys, entry, words):
     trimesh.creation.box(extents=(60.0, 40.0, 20.0)).export(tmp_path / "box.stl")
     manifest = write(tmp_path / "m.toml", f'[[object]]\nfile = "box.stl"\n{entry}\n')
-    code, _, err = run_cli(
-        capsys,
-        "match",
-        "--tangible",
-        str(manifest),
-        "--virtual",
-        str(tmp_path / "box.stl"),
-        "-o",
-        str(tmp_path / "out"),
-    )
+    code, _, err = run_cli(capsys, "match", "--tangible", str(manifest), "--virtual",
+                           str(tmp_path / "box.stl"), "-o", str(tmp_path / "out"))
     assert_bad_input(code, err, str(manifest), *words)

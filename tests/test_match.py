@@ -59,38 +59,33 @@ def patch_disagreement_mm(tangible, virtual, choice, radius_mm=8.0):
 
 @pytest.mark.parametrize("seed", [1, 2, 3])
 def test_an_object_matched_against_a_moved_retriangulated_copy_gets_the_same_place(
-    tmp_path, example, seed
-):
+    tmp_path, example, seed):
     """The copy's candidates are the original's pinches carried over, then snapped, checked and
     described again on the re-triangulated copy: the same places exist on both, at new triangles."""
     path, R, t = moved_copy(tmp_path, trimesh.load(example_mesh_path()), seed, "copy.stl")
     p = example.pinches.points @ R.T + t
     copy = candidate_poses(analyze_object(path, up="z"), given=(p[:, 0], p[:, 1]))
-    assert len(copy) >= 0.95 * len(
-        example
-    )  # a few sit on a rule's boundary (friction cone, clearance)
+    # a few sit on a rule's boundary (friction cone, clearance)
+    assert len(copy) >= 0.95 * len(example)
     scene = match_scene([example], [copy])
     best = scene.matches[0].best
-    (tangible,), virtual = scene.objects(
-        scene.matches[0]
-    )  # refinement may add poses on the example
+    # refinement may add poses on the example
+    (tangible,), virtual = scene.objects(scene.matches[0])
     assert best.cost < 1e-4  # in JND: nothing a hand could tell
     assert patch_disagreement_mm(tangible, virtual, best) < 0.5
     assert abs(np.linalg.det(best.transform[:3, :3]) - 1.0) < 1e-9
     # the pinch lines meet: midpoints coincide
     vp = virtual.pinches.points[best.v_pose] @ best.transform[:3, :3].T + best.transform[:3, 3]
-    np.testing.assert_allclose(
-        vp.mean(axis=0), tangible.pinches.points[best.t_pose].mean(axis=0), atol=1e-6
-    )
+    np.testing.assert_allclose(vp.mean(axis=0), tangible.pinches.points[best.t_pose].mean(axis=0),
+                               atol=1e-6)
 
 
 def test_an_ellipsoid_registers_onto_its_moved_copy_sampled_anew(tmp_path):
     """Poses sampled independently on both: the best pair still puts the surfaces together."""
     mesh = ellipsoid((40.0, 25.0, 15.0), faces=5000).mesh
     mesh.export(tmp_path / "e.stl")
-    original = candidate_poses(
-        analyze_object(tmp_path / "e.stl"), settings=PinchSettings(count=1000)
-    )
+    original = candidate_poses(analyze_object(tmp_path / "e.stl"),
+                               settings=PinchSettings(count=1000))
     path, R, t = moved_copy(tmp_path, mesh, 7, "copy.stl")
     copy = candidate_poses(analyze_object(path), settings=PinchSettings(count=1000, seed=3))
     scene = match_scene([original], [copy])
@@ -101,13 +96,11 @@ def test_an_ellipsoid_registers_onto_its_moved_copy_sampled_anew(tmp_path):
 
 def test_a_pose_against_itself_costs_nothing_and_registers_to_the_identity(example):
     idx = np.arange(len(example))
-    result = evaluate_pairs(
-        example, example, idx, idx, model=cost_model(MatchSettings(), [example])
-    )
+    result = evaluate_pairs(example, example, idx, idx,
+                            model=cost_model(MatchSettings(), [example]))
     np.testing.assert_allclose(result.cost, 0.0, atol=1e-9)
-    np.testing.assert_allclose(
-        result.transform, np.broadcast_to(np.eye(4), result.transform.shape), atol=1e-6
-    )
+    np.testing.assert_allclose(result.transform, np.broadcast_to(np.eye(4), result.transform.shape),
+                               atol=1e-6)
     assert not result.flipped.any()
 
 
@@ -137,38 +130,33 @@ def order_free_mm(a, b) -> float:
 def test_pinch_distance_with_literals():
     a = np.array([[0.0, 0.0, 0.0], [40.0, 0.0, 0.0]])
     assert search_module.pinch_distance(a[None], a)[0] == 0.0
-    assert (
-        search_module.pinch_distance(a[::-1][None], a)[0] == 0.0
-    )  # the same pinch, fingers swapped
+    # the same pinch, fingers swapped
+    assert search_module.pinch_distance(a[::-1][None], a)[0] == 0.0
     moved = a + [0.0, 3.0, 0.0]
     assert search_module.pinch_distance(moved[None], a)[0] == pytest.approx(3.0)
     assert search_module.pinch_distance(moved[::-1][None], a)[0] == pytest.approx(3.0)
     one = a.copy()
     one[1] += [0.0, 0.0, 5.0]  # one contact 5 mm away: the larger displacement
     assert search_module.pinch_distance(one[::-1][None], a)[0] == pytest.approx(5.0)
-    assert search_module.pinch_distance(one[None], a)[0] == pytest.approx(
-        5.0
-    )  # in the direct order too
+    # in the direct order too
+    assert search_module.pinch_distance(one[None], a)[0] == pytest.approx(5.0)
 
 
 @pytest.mark.parametrize("keep_upright", [False, True])
 @pytest.mark.parametrize("normalize", ["jnd", "range"])
-def test_the_pooled_search_finds_the_exact_minimum(
-    example, tmp_path, monkeypatch, keep_upright, normalize
-):
+def test_the_pooled_search_finds_the_exact_minimum(example, tmp_path, monkeypatch, keep_upright,
+                                                   normalize):
     mesh = ellipsoid((30.0, 22.0, 14.0), faces=1300).mesh
     mesh.export(tmp_path / "e.stl")
     virtual = candidate_poses(analyze_object(tmp_path / "e.stl"), settings=PinchSettings(count=120))
     monkeypatch.setattr(search_module, "MIN_POOL", 7)  # force the pool to grow
     monkeypatch.setattr(search_module, "MAX_POOL", 7)
     # the search is exact on target: ranked on target here (--rank nominal)
-    settings = MatchSettings(
-        normalize=normalize, keep_upright=keep_upright, top_k=4, distinct_mm=10.0, rank="nominal"
-    )
+    settings = MatchSettings(normalize=normalize, keep_upright=keep_upright, top_k=4,
+                             distinct_mm=10.0, rank="nominal")
     scene = match_scene([example], [virtual], settings=settings)
-    (example,), virtual = scene.objects(
-        scene.matches[0]
-    )  # with the refined poses: exact within them
+    # with the refined poses: exact within them
+    (example,), virtual = scene.objects(scene.matches[0])
     it = np.repeat(np.arange(len(example)), len(virtual))
     iv = np.tile(np.arange(len(virtual)), len(example))
     brute = evaluate_pairs(example, virtual, it, iv, model=scene.model, keep_upright=keep_upright)
@@ -195,8 +183,7 @@ def test_the_pooled_search_finds_the_exact_minimum(
 
 
 def test_kept_upright_an_upside_down_copy_grows_past_pools_of_flipped_pairs(
-    example, tmp_path, monkeypatch
-):
+    example, tmp_path, monkeypatch):
     # the cheapest separable pairs of the example against itself turned over are its own places,
     # which register only upside down: a 5-pair pool holds nothing allowed and must grow
     R = trimesh.transformations.rotation_matrix(np.pi, [1.0, 0.0, 0.0])[:3, :3]
@@ -230,8 +217,7 @@ def with_mass(candidates, mass_g: float):
 @pytest.mark.parametrize("tight", [False, True])
 @pytest.mark.parametrize("pooling", ["quick", "sum"])
 def test_the_pooled_lower_bound_holds_for_every_pair_with_unequal_masses(
-    example, tmp_path, pooling, tight
-):
+    example, tmp_path, pooling, tight):
     """The bound the search pools by (the separable sum's, or the pooled one) never exceeds a pair's
     exact cost, whatever the mass ratio: every pair the pool leaves out costs at least its tau, and
     each pooled pair's bound is at most its cost."""
@@ -247,13 +233,9 @@ def test_the_pooled_lower_bound_holds_for_every_pair_with_unequal_masses(
         ratios.append(mass_ratio(T, V))
         model = cost_model(MatchSettings(pooling=pooling), [T, V])
         it, iv, separable, tau = search_module.pool_pairs(T, V, model, 50, 64, tight)
-        exact = evaluate_pairs(
-            T,
-            V,
-            np.repeat(np.arange(len(T)), len(V)),
-            np.tile(np.arange(len(V)), len(T)),
-            model=model,
-        ).cost.reshape(len(T), len(V))
+        exact = evaluate_pairs(T, V, np.repeat(np.arange(len(T)), len(V)),
+                               np.tile(np.arange(len(V)), len(T)), model=model).cost.reshape(
+                                   len(T), len(V))
         left_out = np.ones(exact.shape, dtype=bool)
         left_out[it, iv] = False
         assert (exact[left_out] >= tau * (1 - 1e-9)).all(), (m_t, factor)
@@ -265,27 +247,22 @@ def test_the_pooled_lower_bound_holds_for_every_pair_with_unequal_masses(
 @pytest.mark.parametrize("tight_after", [0, search_module.TIGHT_AFTER])
 @pytest.mark.parametrize("pooling", ["quick", "sum"])
 def test_the_pooled_search_with_masses_on_both_sides_equals_brute_force(
-    example, tmp_path, monkeypatch, pooling, tight_after
-):
+    example, tmp_path, monkeypatch, pooling,
+                                                                        tight_after):
     mesh = ellipsoid((30.0, 22.0, 14.0), faces=1300).mesh
     mesh.export(tmp_path / "e.stl")
-    virtual = with_mass(
-        candidate_poses(analyze_object(tmp_path / "e.stl"), settings=PinchSettings(count=120)), 10.0
-    )
+    virtual = with_mass(candidate_poses(analyze_object(tmp_path / "e.stl"),
+                                        settings=PinchSettings(count=120)), 10.0)
     tangible = with_mass(example, 100.0)
     monkeypatch.setattr(search_module, "MIN_POOL", 7)  # force the pool to grow
     monkeypatch.setattr(search_module, "MAX_POOL", 7)
-    monkeypatch.setattr(
-        search_module, "TIGHT_AFTER", tight_after
-    )  # 0: every pool by the pooled bound
-    scene = match_scene(
-        [tangible],
-        [virtual],
-        settings=MatchSettings(pooling=pooling, top_k=2, distinct_mm=10.0, rank="nominal"),
-    )
-    (tangible,), virtual = scene.objects(
-        scene.matches[0]
-    )  # with the refined poses: exact within them
+    # 0: every pool by the pooled bound
+    monkeypatch.setattr(search_module, "TIGHT_AFTER", tight_after)
+    scene = match_scene([tangible], [virtual],
+                        settings=MatchSettings(pooling=pooling, top_k=2, distinct_mm=10.0,
+                                                                      rank="nominal"))
+    # with the refined poses: exact within them
+    (tangible,), virtual = scene.objects(scene.matches[0])
     it = np.repeat(np.arange(len(tangible)), len(virtual))
     iv = np.tile(np.arange(len(virtual)), len(tangible))
     brute = evaluate_pairs(tangible, virtual, it, iv, model=scene.model)
@@ -293,14 +270,10 @@ def test_the_pooled_search_with_masses_on_both_sides_equals_brute_force(
     assert best.cost == pytest.approx(brute.cost.min(), rel=1e-9, abs=1e-12)
     k = int(np.argmin(brute.cost))
     assert (best.t_pose, best.v_pose) == (int(it[k]), int(iv[k]))
-    unweighed = match_scene(
-        [example],
-        [with_mass(virtual, None)],
-        settings=MatchSettings(pooling=pooling, rank="nominal"),
-    )
-    assert unweighed.matches[0].best.cost != pytest.approx(
-        best.cost
-    )  # the masses change the answer's cost
+    unweighed = match_scene([example], [with_mass(virtual, None)],
+                            settings=MatchSettings(pooling=pooling, rank="nominal"))
+    # the masses change the answer's cost
+    assert unweighed.matches[0].best.cost != pytest.approx(best.cost)
 
 
 def test_a_ball_against_a_box_is_bounded_closely_by_the_pooled_bound(tmp_path):
@@ -312,27 +285,19 @@ def test_a_ball_against_a_box_is_bounded_closely_by_the_pooled_bound(tmp_path):
 
     sphere(30.0, faces=2000).mesh.export(tmp_path / "ball.stl")
     box((60.0, 40.0, 20.0), subdivide_mm=6.0).mesh.export(tmp_path / "block.stl")
-    ball, block = (
-        candidate_poses(analyze_object(tmp_path / f"{n}.stl"), settings=PinchSettings(count=80))
-        for n in ("ball", "block")
-    )
+    ball, block = (candidate_poses(analyze_object(tmp_path / f"{n}.stl"),
+                                   settings=PinchSettings(count=80))
+                   for n in ("ball", "block"))
     model = cost_model(MatchSettings(), [ball, block])
-    exact = evaluate_pairs(
-        ball,
-        block,
-        np.repeat(np.arange(len(ball)), len(block)),
-        np.tile(np.arange(len(block)), len(ball)),
-        model=model,
-    ).cost.reshape(len(ball), len(block))
-    ((_, loose, _),) = pair_cost_blocks(
-        ball.table, block.table, model, block_rows=len(ball), with_swapped=False
-    )
+    exact = evaluate_pairs(ball, block, np.repeat(np.arange(len(ball)), len(block)),
+                           np.tile(np.arange(len(block)), len(ball)),
+                           model=model).cost.reshape(len(ball), len(block))
+    (_, loose, _), = pair_cost_blocks(ball.table, block.table, model, block_rows=len(ball),
+                                      with_swapped=False)
     (_, pooled), = pooled_bound_blocks(ball.table, block.table, model, block_rows=len(ball))
     assert (pooled <= exact * (1 + 1e-9)).all()
-    assert (
-        np.median(pooled / exact) > 0.95
-        and np.median(model.bound_from_separable(loose) / exact) < 0.75
-    )
+    assert (np.median(pooled / exact) > 0.95
+            and np.median(model.bound_from_separable(loose) / exact) < 0.75)
     it, iv, _, tau = search_module.pool_pairs(ball, block, model, 200, 64, True)
     assert tau > exact.min()  # 200 of 6,400 pairs prove the best
 
@@ -357,9 +322,8 @@ def brute_force_assignment(cost):
     best = (-1, np.inf, None)
     for targets in itertools.product(range(-1, n), repeat=m):
         used = [t for t in targets if t >= 0]
-        if len(used) != len(set(used)) or any(
-            not np.isfinite(cost[j, t]) for j, t in enumerate(targets) if t >= 0
-        ):
+        if (len(used) != len(set(used))
+            or any(not np.isfinite(cost[j, t]) for j, t in enumerate(targets) if t >= 0)):
             continue
         served, total = len(used), sum(cost[j, t] for j, t in enumerate(targets) if t >= 0)
         if served > best[0] or (served == best[0] and total < best[1] - 1e-12):
@@ -384,15 +348,12 @@ def test_one_to_one_in_a_scene_gives_each_tangible_to_one_virtual_object(example
     mesh = ellipsoid((30.0, 22.0, 14.0), faces=1300).mesh
     mesh.export(tmp_path / "e.stl")
     egg = candidate_poses(analyze_object(tmp_path / "e.stl"), settings=PinchSettings(count=80))
-    scene = match_scene(
-        [example, egg], [egg, example, egg], settings=MatchSettings(one_to_one=True, top_k=1)
-    )
+    scene = match_scene([example, egg], [egg, example, egg],
+                        settings=MatchSettings(one_to_one=True, top_k=1))
     tangibles = [vm.best.tangible if vm.best else None for vm in scene.matches]
     assert sorted(t for t in tangibles if t is not None) == [0, 1]
-    assert tangibles[1] == 0 and 1 in (
-        tangibles[0],
-        tangibles[2],
-    )  # each object goes to its own kind
+    # each object goes to its own kind
+    assert tangibles[1] == 0 and 1 in (tangibles[0], tangibles[2])
     left = [vm for vm in scene.matches if vm.best is None]
     assert len(left) == 1 and "another virtual object" in left[0].reason
     for vm in scene.matches:
@@ -411,22 +372,18 @@ def test_study_vo1_maps_each_part_to_itself_and_ours_never_costs_more_than_ref(s
     rows = study.rows
     assert len(rows) == 18
     assert {(r["tangible_part"], r["virtual"]) for r in rows} == {
-        (p, v) for p in PARTS for v in range(1, 7)
-    }
+        (p, v) for p in PARTS for v in range(1, 7)}
     for r in rows:
         if r["virtual"] == 1:
             assert r["ours"]["part"] == r["tangible_part"]
-            assert r["ours"]["height_mm"] == pytest.approx(
-                TANGIBLE_HEIGHTS_MM[PARTS.index(r["tangible_part"])], abs=0.5
-            )
+            assert (r["ours"]["height_mm"]
+                    == pytest.approx(TANGIBLE_HEIGHTS_MM[PARTS.index(r["tangible_part"])], abs=0.5))
             assert r["ours"]["cost"] == pytest.approx(0.0, abs=1e-6) and not r["ours"]["flipped"]
-        assert (
-            r["ref"]["cost"] is not None
-        )  # the stacks share their axis: the fingers always meet the VO
+        # the stacks share their axis: the fingers always meet the VO
+        assert r["ref"]["cost"] is not None
         assert r["ours"]["cost"] <= r["ref"]["cost"] + 1e-6
-        assert (
-            r["paper"]["cost_paper"] <= r["ours"]["cost_paper"] + 1e-6
-        )  # each is optimal for its own model
+        # each is optimal for its own model
+        assert r["paper"]["cost_paper"] <= r["ours"]["cost_paper"] + 1e-6
         assert r["paper"]["cost_paper"] <= r["ref"]["cost_paper"] + 1e-6
 
 
@@ -441,48 +398,23 @@ def test_match_cli_writes_matches_json(tmp_path, capsys):
     mesh = ellipsoid((30.0, 22.0, 14.0), faces=1300).mesh
     mesh.export(tmp_path / "e.stl")
     out = tmp_path / "out"
-    code, stdout, err = run_cli(
-        capsys,
-        "match",
-        "--tangible",
-        example_mesh_path(),
-        "--virtual",
-        tmp_path / "e.stl",
-        example_mesh_path(),
-        "--count",
-        150,
-        "--top-k",
-        2,
-        "--figures",
-        "-o",
-        out,
-    )
+    code, stdout, err = run_cli(capsys, "match", "--tangible", example_mesh_path(), "--virtual",
+                                tmp_path / "e.stl",
+                            example_mesh_path(), "--count", 150, "--top-k", 2, "--figures", "-o",
+                            out)
     assert code == 0, err
     doc = json.loads((out / "matches.json").read_text())
     assert doc["schema"] == "pinchmatch.matches/1" and doc["settings"]["top_k"] == 2
     assert len(doc["matches"]) == 2 and len(doc["cost_matrix"]["values"]) == 2
     m = doc["matches"][1]
-    for key in (
-        "virtual",
-        "tangible",
-        "cost",
-        "criteria",
-        "tangible_pose",
-        "virtual_pose",
-        "transform_virtual_to_tangible",
-        "position_mm",
-        "quaternion_xyzw",
-        "flipped",
-        "contact_offset_mm",
-        "alternatives",
-        "reference",
-    ):
+    for key in ("virtual", "tangible", "cost", "criteria", "tangible_pose", "virtual_pose",
+                "transform_virtual_to_tangible", "position_mm", "quaternion_xyzw", "flipped",
+                "contact_offset_mm", "alternatives", "reference"):
         assert key in m
     assert set(m["criteria"]) == set(DEFAULT_CRITERIA)
     assert 0.0 <= m["p_noticed"] <= 1.0 and m["noticeable"] == (m["p_noticed"] >= 0.5)
-    assert all(
-        {"contribution", "jnd", "noticeable", "weight"} <= set(v) for v in m["criteria"].values()
-    )
+    assert all({"contribution", "jnd", "noticeable", "weight"} <= set(v)
+               for v in m["criteria"].values())
     assert len(m["alternatives"]) == 2
     T = np.array(m["transform_virtual_to_tangible"])
     assert np.linalg.det(T[:3, :3]) == pytest.approx(1.0, abs=1e-5)
@@ -491,42 +423,28 @@ def test_match_cli_writes_matches_json(tmp_path, capsys):
     # the summary names every object with its pose count, and every output
     for obj in doc["tangibles"] + doc["virtuals"]:
         assert obj["name"] in stdout
-    assert (
-        f"{len(doc['matches'])} glTF scenes" in stdout
-        and "figures" in stdout
-        and "index.html" in stdout
-    )
+    assert (f"{len(doc['matches'])} glTF scenes" in stdout and "figures" in stdout
+            and "index.html" in stdout)
     assert sorted(p.name for p in (out / "scenes").glob("*.glb")) == ["e.glb", "example_prop.glb"]
     assert (out / "figures" / "cost_matrix.png").is_file() and (out / "index.html").is_file()
 
 
 def test_match_cli_json_quiet_and_skips(tmp_path, capsys):
-    args = [
-        "match",
-        "--tangible",
-        example_mesh_path(),
-        "--virtual",
-        example_mesh_path(),
-        "--count",
-        120,
-    ]
-    code, stdout, err = run_cli(
-        capsys, *args, "-o", tmp_path / "a", "--json", "--no-view", "--no-figures"
-    )
+    args = ["match", "--tangible", example_mesh_path(), "--virtual", example_mesh_path(), "--count",
+            120]
+    code, stdout, err = (run_cli(capsys, *args, "-o", tmp_path / "a", "--json", "--no-view",
+                                 "--no-figures"))
     assert code == 0, err
-    assert json.loads(stdout) == json.loads(
-        (tmp_path / "a" / "matches.json").read_text()
-    )  # stdout: the document only
+    # stdout: the document only
+    assert json.loads(stdout) == json.loads((tmp_path / "a" / "matches.json").read_text())
     assert (tmp_path / "a" / "scenes" / "example_prop.glb").is_file()
-    assert (
-        not (tmp_path / "a" / "index.html").exists() and not (tmp_path / "a" / "figures").exists()
-    )
+    assert (not (tmp_path / "a" / "index.html").exists()
+            and not (tmp_path / "a" / "figures").exists())
     code, stdout, err = run_cli(capsys, *args, "-o", tmp_path / "b", "-q")
     assert code == 0 and stdout == "" and err == ""
     assert (tmp_path / "b" / "index.html").is_file()
-    assert not (
-        tmp_path / "b" / "figures"
-    ).exists()  # PNG figures only when asked: the page draws the bars
+    # PNG figures only when asked: the page draws the bars
+    assert not (tmp_path / "b" / "figures").exists()
     code, _, err = run_cli(capsys, *args, "-o", tmp_path / "c", "-q", "--figures", "--no-figures")
     assert code == 2 and "--figures and --no-figures" in err
 
@@ -536,25 +454,10 @@ def test_match_cli_paper_criteria_and_given_tangible_poses(tmp_path, capsys):
     poses.write_text(json.dumps([{"p1_mm": [-20, 0, 20], "p2_mm": [20, 0, 20]},
                                  {"p1_mm": [-20, 0, 60], "p2_mm": [20, 0, 60]}]))
     out = tmp_path / "out"
-    code, _, err = run_cli(
-        capsys,
-        "match",
-        "--tangible",
-        example_mesh_path(),
-        "--tangible-poses",
-        poses,
-        "--virtual",
-        example_mesh_path(),
-        "--count",
-        100,
-        "--criteria",
-        "paper",
-        "--normalize",
-        "range",
-        "-q",
-        "-o",
-        out,
-    )
+    code, _, err = run_cli(capsys, "match", "--tangible", example_mesh_path(), "--tangible-poses",
+                           poses,
+                       "--virtual", example_mesh_path(), "--count", 100, "--criteria", "paper",
+                       "--normalize", "range", "-q", "-o", out)
     assert code == 0, err
     doc = json.loads((out / "matches.json").read_text())
     assert doc["tangibles"][0]["pose_count"] == 2 and doc["tangibles"][0]["poses_given"]
@@ -570,17 +473,9 @@ def test_match_cli_paper_criteria_and_given_tangible_poses(tmp_path, capsys):
     (["--top-k", "-1"], "--top-k"),
 ])
 def test_match_cli_refuses_bad_options(tmp_path, capsys, argv, message):
-    code, _, err = run_cli(
-        capsys,
-        "match",
-        "--tangible",
-        example_mesh_path(),
-        "--virtual",
-        example_mesh_path(),
-        *argv,
-        "-o",
-        tmp_path / "out",
-    )
+    code, _, err = run_cli(capsys, "match", "--tangible", example_mesh_path(), "--virtual",
+                           example_mesh_path(),
+                       *argv, "-o", tmp_path / "out")
     assert code == 2 and message in err and "Traceback" not in err
     assert len(err.strip().splitlines()) == 1
     assert not (tmp_path / "out").exists()
@@ -589,47 +484,19 @@ def test_match_cli_refuses_bad_options(tmp_path, capsys, argv, message):
 def test_match_cli_refuses_bad_pose_files(tmp_path, capsys):
     broken = tmp_path / "broken.json"
     broken.write_text('[{"p1_mm": [0, 0')
-    code, _, err = run_cli(
-        capsys,
-        "match",
-        "--tangible",
-        example_mesh_path(),
-        "--tangible-poses",
-        broken,
-        "--virtual",
-        example_mesh_path(),
-        "-o",
-        tmp_path / "out",
-    )
+    code, _, err = run_cli(capsys, "match", "--tangible", example_mesh_path(), "--tangible-poses",
+                           broken,
+                       "--virtual", example_mesh_path(), "-o", tmp_path / "out")
     assert code == 2 and "broken.json: not valid JSON" in err
     infeasible = tmp_path / "infeasible.json"  # both fingers on the same face
     infeasible.write_text(json.dumps([{"p1_mm": [-20, -5, 60], "p2_mm": [-20, 5, 60]}]))
-    code, _, err = run_cli(
-        capsys,
-        "match",
-        "--tangible",
-        example_mesh_path(),
-        "--tangible-poses",
-        infeasible,
-        "--virtual",
-        example_mesh_path(),
-        "-o",
-        tmp_path / "out",
-    )
+    code, _, err = run_cli(capsys, "match", "--tangible", example_mesh_path(), "--tangible-poses",
+                           infeasible,
+                       "--virtual", example_mesh_path(), "-o", tmp_path / "out")
     assert code == 2 and "infeasible.json: none of the 1 given poses is feasible" in err
-    code, _, err = run_cli(
-        capsys,
-        "match",
-        "--tangible",
-        example_mesh_path(),
-        example_mesh_path(),
-        "--tangible-poses",
-        infeasible,
-        "--virtual",
-        example_mesh_path(),
-        "-o",
-        tmp_path / "out",
-    )
+    code, _, err = run_cli(capsys, "match", "--tangible", example_mesh_path(), example_mesh_path(),
+                       "--tangible-poses", infeasible, "--virtual", example_mesh_path(), "-o",
+                       tmp_path / "out")
     assert code == 2 and "got 1 files for 2 objects" in err
     assert not (tmp_path / "out").exists()
 
@@ -644,9 +511,8 @@ def test_demo_writes_the_study_and_the_scene(demo):
     assert len(scene["matches"]) == 6
     assert "cylinder/cube/cone" in demo.stdout
     flipped = sum(m["flipped"] for m in scene["matches"])
-    assert flipped and f"{flipped} of 6 placements turn the virtual object upside down" in " ".join(
-        demo.stdout.split()
-    )
+    assert (flipped and f"{flipped} of 6 placements turn the virtual object upside "
+                        "down" in " ".join(demo.stdout.split()))
     assert "--keep-upright keeps every one upright" in " ".join(demo.stdout.split())
 
 
@@ -654,8 +520,7 @@ def test_demo_ends_with_scenes_page_and_figures(demo_out):
     assert len(list((demo_out / "scenes").glob("*.glb"))) == 6
     assert (demo_out / "index.html").is_file()
     assert (demo_out / "figures" / "study.png").is_file() and (
-        demo_out / "figures" / "cost_matrix.png"
-    ).is_file()
+        demo_out / "figures" / "cost_matrix.png").is_file()
     assert len(list((demo_out / "figures" / "criteria").glob("*.png"))) == 6
 
 
@@ -664,17 +529,14 @@ def test_demo_json_prints_the_study_document_it_writes(tmp_path, capsys, monkeyp
     from pinchmatch.cli import commands
 
     monkeypatch.setattr(commands, "run_study", lambda *args, **kwargs: demo.study)
-    code, stdout, err = run_cli(
-        capsys, "demo", "-o", tmp_path / "demo", "--json", "--no-view", "--no-figures"
-    )
+    code, stdout, err = (run_cli(capsys, "demo", "-o", tmp_path / "demo", "--json", "--no-view",
+                                 "--no-figures"))
     assert code == 0, err
     doc = json.loads(stdout)
     assert doc["schema"] == "pinchmatch.study/1" and len(doc["rows"]) == 18
     assert doc["rows"] == json.loads((demo.out / "study.json").read_text())["rows"]
-    assert (
-        not (tmp_path / "demo" / "index.html").exists()
-        and not (tmp_path / "demo" / "figures").exists()
-    )
+    assert (not (tmp_path / "demo" / "index.html").exists()
+            and not (tmp_path / "demo" / "figures").exists())
 
 
 def test_full_study_adds_sampled_candidates_and_only_gains(tmp_path, study):
@@ -688,35 +550,20 @@ def test_full_study_adds_sampled_candidates_and_only_gains(tmp_path, study):
 #: the paper's algorithm's costs of its own poses and of the reference in the rebuilt study (Table
 #: 2's 18 rows: tangible part, virtual object), as the version before probability summation wrote
 #: them
-PAPER_COSTS = [
-    ("cylinder", 1, 0.0, 0.0),
-    ("cylinder", 2, 0.0017, 0.0017),
-    ("cylinder", 3, 0.2337, 0.5604),
-    ("cylinder", 4, 0.0021, 0.5626),
-    ("cylinder", 5, 0.1949, 1.0059),
-    ("cylinder", 6, 0.0037, 1.0035),
-    ("cube", 1, 0.0, 0.0),
-    ("cube", 2, 0.1751, 1.4428),
-    ("cube", 3, 0.1472, 0.5617),
-    ("cube", 4, 0.2159, 1.4462),
-    ("cube", 5, 0.1981, 0.559),
-    ("cube", 6, 0.0012, 0.0012),
-    ("cone", 1, 0.0, 0.0),
-    ("cone", 2, 0.3932, 1.4433),
-    ("cone", 3, 0.0068, 0.0068),
-    ("cone", 4, 0.3319, 1.0111),
-    ("cone", 5, 0.003, 1.4423),
-    ("cone", 6, 0.0057, 1.0061),
-]
+PAPER_COSTS = [("cylinder", 1, 0.0, 0.0), ("cylinder", 2, 0.0017, 0.0017),
+               ("cylinder", 3, 0.2337, 0.5604), ("cylinder", 4, 0.0021, 0.5626),
+               ("cylinder", 5, 0.1949, 1.0059), ("cylinder", 6, 0.0037, 1.0035),
+               ("cube", 1, 0.0, 0.0), ("cube", 2, 0.1751, 1.4428), ("cube", 3, 0.1472, 0.5617),
+               ("cube", 4, 0.2159, 1.4462), ("cube", 5, 0.1981, 0.559), ("cube", 6, 0.0012, 0.0012),
+               ("cone", 1, 0.0, 0.0), ("cone", 2, 0.3932, 1.4433), ("cone", 3, 0.0068, 0.0068),
+               ("cone", 4, 0.3319, 1.0111), ("cone", 5, 0.003, 1.4423), ("cone", 6, 0.0057, 1.0061)]
 
 
 def test_the_papers_algorithm_reproduces_its_own_costs_unchanged(study):
     """--criteria paper --normalize range --pooling sum is the paper's algorithm: whatever the
     default cost becomes, its poses and costs in the study stay what they were."""
-    got = [
-        (r["tangible_part"], r["virtual"], r["paper"]["cost_paper"], r["ref"]["cost_paper"])
-        for r in study.rows
-    ]
+    got = [(r["tangible_part"], r["virtual"], r["paper"]["cost_paper"], r["ref"]["cost_paper"])
+           for r in study.rows]
     assert [g[:2] for g in got] == [e[:2] for e in PAPER_COSTS]
     np.testing.assert_allclose([g[2:] for g in got], [e[2:] for e in PAPER_COSTS], atol=6e-5)
 
@@ -738,9 +585,8 @@ def test_the_reference_of_an_object_on_itself_costs_nothing_across_walls_too(tmp
         np.testing.assert_allclose(ref.pinches.points[0], c.pinches.points[i], atol=1e-6)
 
 
-@pytest.mark.parametrize(
-    "landing_mm, ok", [(0.0, True), (20.0, True), (-0.1, False), (20.5, False)]
-)
+@pytest.mark.parametrize("landing_mm, ok",
+                         [(0.0, True), (20.0, True), (-0.1, False), (20.5, False)])
 def test_the_landing_radius_takes_its_documented_bounds_inclusive(landing_mm, ok):
     if ok:
         assert MatchSettings(landing_mm=landing_mm).landing_mm == landing_mm
@@ -751,9 +597,8 @@ def test_the_landing_radius_takes_its_documented_bounds_inclusive(landing_mm, ok
 
 def test_evaluate_pairs_defaults_to_the_default_settings_model(example):
     i = np.arange(0, 40, 4)
-    given = evaluate_pairs(
-        example, example, i, i[::-1], model=cost_model(MatchSettings(), [example, example])
-    )
+    given = evaluate_pairs(example, example, i, i[::-1],
+                           model=cost_model(MatchSettings(), [example, example]))
     default = evaluate_pairs(example, example, i, i[::-1])
     np.testing.assert_array_equal(default.cost, given.cost)
 
@@ -766,9 +611,8 @@ def test_fewer_distinct_pairs_than_asked_for_are_all_returned(tmp_path):
     p1 = np.array([[0.0, 0.0, 10.0], [30.0, 0.0, 0.0], [0.0, 20.0, 0.0]])
     p2 = np.array([[0.0, 0.0, -10.0], [-30.0, 0.0, 0.0], [0.0, -20.0, 0.0]])
     c = candidate_poses(analyze_object(path), settings=PinchSettings(count=10), given=(p1, p2))
-    vm = match_scene(
-        [c], [c], settings=MatchSettings(top_k=10, refine=False, landing_mm=0.0)
-    ).matches[0]
+    vm = match_scene([c], [c],
+                     settings=MatchSettings(top_k=10, refine=False, landing_mm=0.0)).matches[0]
     assert vm.best.cost == pytest.approx(0.0, abs=1e-12)
     assert 1 <= len(vm.alternatives) < 10
 
@@ -802,8 +646,7 @@ def test_a_subset_keeps_poses_features_and_table_together(example):
 
 @pytest.mark.parametrize("seed", [0, 1])
 def test_a_z_up_prop_and_a_y_up_object_report_the_turn_of_up_the_transform_makes(
-    tmp_path, capsys, seed
-):
+    tmp_path, capsys, seed):
     """Mixed up axes: a z-up STL prop and a y-up GLB object (metres), off the origin.
     ``up_turn_deg`` and ``flipped`` are what the reported transform does to the object's up: two
     points along its up, carried by the 4x4 matrix as points (not its rotation applied to a vector),
@@ -811,44 +654,24 @@ def test_a_z_up_prop_and_a_y_up_object_report_the_turn_of_up_the_transform_makes
     prop = trimesh.creation.box(extents=(60.0, 40.0, 90.0))  # mm, z up: tall along z
     prop.apply_translation([30.0, -20.0, 45.0])
     prop.export(tmp_path / "prop.stl")
-    bottle = trimesh.creation.cylinder(
-        radius=0.025, height=0.11, sections=40
-    )  # metres, tall along z ...
-    bottle.apply_transform(
-        trimesh.transformations.rotation_matrix(-np.pi / 2, [1, 0, 0])
-    )  # ... now along y
+    # metres, tall along z ...
+    bottle = trimesh.creation.cylinder(radius=0.025, height=0.11, sections=40)
+    # ... now along y
+    bottle.apply_transform(trimesh.transformations.rotation_matrix(-np.pi / 2, [1, 0, 0]))
     bottle.apply_translation([0.2, 0.055, -0.1])
     bottle.export(tmp_path / "bottle.glb")
     out = tmp_path / "out"
-    code, _, err = run_cli(
-        capsys,
-        "match",
-        "--tangible",
-        tmp_path / "prop.stl",
-        "--virtual",
-        tmp_path / "bottle.glb",
-        "--count",
-        200,
-        "--seed",
-        seed,
-        "--no-cache",
-        "--no-view",
-        "-o",
-        out,
-        "--jobs",
-        1,
-    )
+    code, _, err = run_cli(capsys, "match", "--tangible", tmp_path / "prop.stl", "--virtual",
+                           tmp_path / "bottle.glb", "--count", 200, "--seed", seed, "--no-cache",
+                           "--no-view", "-o", out, "--jobs", 1)
     assert code == 0, err
     doc = json.loads((out / "matches.json").read_text())
-    assert doc["virtuals"][0]["up_vector"] == [0.0, 1.0, 0.0] and doc["tangibles"][0][
-        "up_vector"
-    ] == [0.0, 0.0, 1.0]
+    assert (doc["virtuals"][0]["up_vector"] == [0.0, 1.0, 0.0] and doc["tangibles"][0]["up_vector"]
+            == [0.0, 0.0, 1.0])
     for m in [doc["matches"][0]] + doc["matches"][0]["alternatives"]:
         X = np.array(m["transform_virtual_to_tangible"])
-        a, b = (
-            X @ [200.0, 0.0, -100.0, 1.0],
-            X @ [200.0, 100.0, -100.0, 1.0],
-        )  # the object's up, as points
+        # the object's up, as points
+        a, b = X @ [200.0, 0.0, -100.0, 1.0], X @ [200.0, 100.0, -100.0, 1.0]
         up = (b - a)[:3] / np.linalg.norm((b - a)[:3])
         turn = np.degrees(np.arccos(np.clip(up @ [0.0, 0.0, 1.0], -1.0, 1.0)))
         assert m["up_turn_deg"] == pytest.approx(turn, abs=0.02)

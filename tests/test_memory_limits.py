@@ -14,12 +14,10 @@ def proc(tmp_path, monkeypatch):
     hierarchy."""
     (tmp_path / "cgroup" / "system.slice" / "app.service").mkdir(parents=True)
     (tmp_path / "self_cgroup").write_text("0::/system.slice/app.service\n")
-    (tmp_path / "meminfo").write_text(
-        f"MemTotal: {32 * GIB // 1024} kB\nMemAvailable: {20 * GIB // 1024} kB\n"
-    )
-    (tmp_path / "status").write_text(
-        f"Name: python\nVmSize: {3 * GIB // 1024} kB\nVmRSS: {1 * GIB // 1024} kB\n"
-    )
+    (tmp_path / "meminfo").write_text(f"MemTotal: {32 * GIB // 1024} kB\nMemAvailable: "
+                                      f"{20 * GIB // 1024} kB\n")
+    (tmp_path / "status").write_text(f"Name: python\nVmSize: {3 * GIB // 1024} kB\nVmRSS: "
+                                     f"{1 * GIB // 1024} kB\n")
     monkeypatch.setattr(memory, "PROC_MEMINFO", str(tmp_path / "meminfo"))
     monkeypatch.setattr(memory, "PROC_STATUS", str(tmp_path / "status"))
     monkeypatch.setattr(memory, "PROC_CGROUP", str(tmp_path / "self_cgroup"))
@@ -55,8 +53,7 @@ def test_the_tightest_group_is_the_one_with_least_free(proc):
 
 
 def test_the_address_space_left_is_the_limit_less_what_is_mapped_not_what_is_resident(
-    proc, monkeypatch
-):
+    proc, monkeypatch):
     """ulimit -v counts mapped memory: 4 GiB less VmSize's 3 GiB leaves 1 GiB (VmRSS's 1 GiB would
     say 3)."""
     monkeypatch.setattr(memory, "address_space_limit", lambda: 4 * GIB)
@@ -73,8 +70,7 @@ def test_the_out_of_memory_line_names_the_limits_that_are_set(proc, monkeypatch)
     _group(proc / "system.slice", 6 * GIB, 5 * GIB)
     _group(proc / "system.slice" / "app.service", "max", 0)
     line = memory.out_of_memory_message()
-    assert (
-        "control group 6.0 GiB" in line and "machine 32.0 GiB" in line and "ulimit -v" not in line
-    )
+    assert ("control group 6.0 GiB" in line and "machine 32.0 GiB" in line
+            and "ulimit -v" not in line)
     monkeypatch.setattr(memory, "address_space_limit", lambda: 4 * GIB)
     assert "ulimit -v 4.0 GiB" in memory.out_of_memory_message()

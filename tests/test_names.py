@@ -28,32 +28,14 @@ def test_files_of_one_name_in_two_folders_are_named_by_their_folders(tmp_path, c
         (tmp_path / folder).mkdir()
         trimesh.creation.box(extents=extents).export(tmp_path / folder / "prop.stl")
     trimesh.creation.icosphere(radius=25.0).export(tmp_path / "ball.stl")
-    names = [
-        s.display_name
-        for s in object_specs(
-            [tmp_path / "a" / "prop.stl", tmp_path / "b" / "prop.stl", tmp_path / "ball.stl"],
-            option="--tangible",
-        )
-    ]
+    names = [s.display_name
+             for s in object_specs([tmp_path / "a" / "prop.stl", tmp_path / "b" / "prop.stl",
+                                                   tmp_path / "ball.stl"], option="--tangible")]
     assert names == ["a/prop.stl", "b/prop.stl", "ball.stl"]
-    code, out, err = run_cli(
-        capsys,
-        "match",
-        "--tangible",
-        tmp_path / "a" / "prop.stl",
-        tmp_path / "b" / "prop.stl",
-        "--virtual",
-        tmp_path / "ball.stl",
-        "--count",
-        80,
-        "--jobs",
-        1,
-        "--no-view",
-        "-q",
-        "--no-cache",
-        "-o",
-        tmp_path / "out",
-    )
+    code, out, err = run_cli(capsys, "match", "--tangible", tmp_path / "a" / "prop.stl",
+                             tmp_path / "b" / "prop.stl", "--virtual", tmp_path / "ball.stl",
+                             "--count", 80, "--jobs", 1, "--no-view", "-q", "--no-cache", "-o",
+                             tmp_path / "out")
     assert code == 0, err
     doc = json.loads((tmp_path / "out" / "matches.json").read_text())
     assert [t["name"] for t in doc["tangibles"]] == ["a/prop.stl", "b/prop.stl"]
@@ -65,18 +47,8 @@ def test_a_manifest_giving_two_objects_one_name_is_one_line(tmp_path, capsys):
     trimesh.creation.box(extents=(30.0, 30.0, 70.0)).export(tmp_path / "b.stl")
     (tmp_path / "props.toml").write_text('[[object]]\nfile = "a.stl"\nname = "prop"\n'
                                          '[[object]]\nfile = "b.stl"\nname = "prop"\n')
-    code, out, err = run_cli(
-        capsys,
-        "match",
-        "--tangible",
-        tmp_path / "props.toml",
-        "--virtual",
-        tmp_path / "a.stl",
-        "--count",
-        60,
-        "-o",
-        tmp_path / "out",
-    )
+    code, out, err = run_cli(capsys, "match", "--tangible", tmp_path / "props.toml", "--virtual",
+                             tmp_path / "a.stl", "--count", 60, "-o", tmp_path / "out")
     assert code == 2
     assert_one_line(err, "named 'prop'", "its own name")
     assert not (tmp_path / "out").exists()
@@ -96,27 +68,9 @@ def test_two_levels_with_a_node_of_one_name_each_keep_their_own(tmp_path, capsys
     for k, path in enumerate(paths):
         _kitchen(path, 0.01 * k)
     (tmp_path / "props.toml").write_text(PROP)
-    code, out, err = run_cli(
-        capsys,
-        "match",
-        "--tangible",
-        tmp_path / "props.toml",
-        "--virtual",
-        *paths,
-        "--split",
-        "nodes",
-        "--placement",
-        "fixed",
-        "--count",
-        100,
-        "--jobs",
-        1,
-        "--no-view",
-        "-q",
-        "--no-cache",
-        "-o",
-        tmp_path / "out",
-    )
+    code, out, err = run_cli(capsys, "match", "--tangible", tmp_path / "props.toml", "--virtual",
+                             *paths, "--split", "nodes", "--placement", "fixed", "--count", 100,
+                             "--jobs", 1, "--no-view", "-q", "--no-cache", "-o", tmp_path / "out")
     assert code == 0, err
     doc = json.loads((tmp_path / "out" / "matches.json").read_text())
     names = [m["virtual"] for m in doc["matches"]]
@@ -129,23 +83,16 @@ def test_two_levels_with_a_node_of_one_name_each_keep_their_own(tmp_path, capsys
 
     for path, name in zip(paths, expected):
         level = _document(tmp_path / "out" / name)
-        matched = {
-            n["name"]: n["extras"]["pinchmatch"]
-            for n in level["nodes"]
-            if isinstance(n.get("extras"), dict)
-            and "pinchmatch" in n["extras"]
-            and "cost" in n["extras"]["pinchmatch"]
-        }
+        matched = {n["name"]: n["extras"]["pinchmatch"] for n in level["nodes"]
+                   if isinstance(n.get("extras"), dict) and "pinchmatch" in n["extras"]
+                   and "cost" in n["extras"]["pinchmatch"]}
         assert set(matched) == {"mug", "box"}
         # each node's contacts are its own level's: the mug in the second level is 10 mm further
         # along x
         label = f"{path.parent.name}/{path.name}" if layout != "two names" else path.name
         mine = [m for m in doc["matches"] if m["virtual"] == f"{label}/mug"]
         assert len(mine) == 1
-        assert np.allclose(
-            np.reshape(matched["mug"]["virtual_contacts_m"], (-1, 3)) * 1000.0,
-            np.reshape(
-                [mine[0]["virtual_pose"]["p1_mm"], mine[0]["virtual_pose"]["p2_mm"]], (-1, 3)
-            ),
-            atol=1e-3,
-        )
+        assert np.allclose(np.reshape(matched["mug"]["virtual_contacts_m"], (-1, 3)) * 1000.0,
+                           np.reshape([mine[0]["virtual_pose"]["p1_mm"],
+                                       mine[0]["virtual_pose"]["p2_mm"]], (-1, 3)),
+                           atol=1e-3)

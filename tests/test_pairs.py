@@ -22,9 +22,8 @@ def objects(tmp_path_factory):
     """An ellipsoid and a torus, each turned and moved off the origin."""
     tmp = tmp_path_factory.mktemp("pairs")
     out = []
-    for k, mesh in enumerate(
-        [ellipsoid((30.0, 22.0, 14.0), faces=1300).mesh, torus(faces=2000).mesh]
-    ):
+    for k, mesh in enumerate([ellipsoid((30.0, 22.0, 14.0), faces=1300).mesh,
+                              torus(faces=2000).mesh]):
         R, t = random_rigid(40 + k)
         path = tmp / f"o{k}.stl"
         transformed(mesh, R, t).export(path)
@@ -36,21 +35,16 @@ def every_value(T, V, model, tight):
     """(nt, nv) the value each pair is pooled by: its separable sum, or its pooled bound."""
     felt = felt_table(V.table, mass_ratio(T, V))
     if tight:
-        return np.concatenate(
-            [b for _, b in pooled_bound_blocks(T.table, felt, model, block_rows=16)]
-        )
-    return np.concatenate(
-        [
-            b.copy()
-            for _, b, _ in pair_cost_blocks(T.table, felt, model, block_rows=16, with_swapped=False)
-        ]
-    )
+        return np.concatenate([b for _, b in pooled_bound_blocks(
+            T.table, felt, model, block_rows=16)])
+    return np.concatenate([b.copy() for _, b, _ in pair_cost_blocks(
+        T.table, felt, model, block_rows=16,
+                                                                      with_swapped=False)])
 
 
 @pytest.mark.parametrize("tight", [False, True])
 def test_a_pool_served_from_a_larger_pass_holds_the_pairs_of_least_value_and_bounds_the_rest(
-    objects, tight
-):
+        objects, tight):
     T, V = objects
     model = cost_model(MatchSettings(), [T, V])
     values = every_value(T, V, model, tight)
@@ -62,9 +56,8 @@ def test_a_pool_served_from_a_larger_pass_holds_the_pairs_of_least_value_and_bou
         assert len(it) == size and len({(a, b) for a, b in zip(it, iv)}) == size
         left_out = np.ones(values.shape, dtype=bool)
         left_out[it, iv] = False
-        assert values[left_out].min() >= rest * (
-            1 - 1e-12
-        )  # every pair left out is at least the rest
+        # every pair left out is at least the rest
+        assert values[left_out].min() >= rest * (1 - 1e-12)
         assert values[it, iv].max() <= rest * (1 + 1e-12)
         # what a pass of that size finds: the same pairs, up to those its quicker threshold leaves
         # out
@@ -88,15 +81,13 @@ def counting(monkeypatch):
 
 
 def picks(search, count):
-    return [
-        (c.tangible, c.t_pose, c.v_pose, round(c.cost, 12)) for c in search.choices(0, [0], count)
-    ]
+    return [(c.tangible, c.t_pose, c.v_pose, round(c.cost, 12)) for c in search.choices(
+        0, [0], count)]
 
 
 @pytest.mark.parametrize("tight_after", [0, 1, search_module.TIGHT_AFTER])
 def test_a_growing_pool_evaluates_each_pair_once_and_finds_what_brute_force_does(
-    objects, monkeypatch, tight_after
-):
+    objects, monkeypatch, tight_after):
     T, V = objects
     settings = MatchSettings(distinct_mm=6.0)
     model = cost_model(settings, [T, V])
@@ -107,16 +98,14 @@ def test_a_growing_pool_evaluates_each_pair_once_and_finds_what_brute_force_does
     grown = picks(Search([T], [V], model, settings), 25)
     assert len(asked) == len(set(asked))  # no pair evaluated twice
     once = len(asked)
-    monkeypatch.setattr(
-        search_module, "RESERVE", 1
-    )  # a pass per growth, and every pool evaluated afresh
+    # a pass per growth, and every pool evaluated afresh
+    monkeypatch.setattr(search_module, "RESERVE", 1)
     monkeypatch.setattr(search_module, "SEEN_PAIRS", 0)
     asked.clear()
     assert picks(Search([T], [V], model, settings), 25) == grown
     assert len(asked) > once
-    brute = evaluate_pairs(
-        T, V, np.repeat(np.arange(len(T)), len(V)), np.tile(np.arange(len(V)), len(T)), model=model
-    ).cost
+    brute = evaluate_pairs(T, V, np.repeat(np.arange(len(T)), len(V)),
+                           np.tile(np.arange(len(V)), len(T)), model=model).cost
     assert grown[0][3] == pytest.approx(brute.min(), rel=1e-12)
     assert sorted(c for *_, c in grown) == [c for *_, c in grown]
 

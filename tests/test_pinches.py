@@ -5,13 +5,8 @@ import pytest
 import trimesh
 from scipy.spatial import cKDTree
 
-from pinchmatch import (
-    ConfigError,
-    NoFeasiblePinchError,
-    PinchSettings,
-    check_pinches,
-    sample_pinches,
-)
+from pinchmatch import (ConfigError, NoFeasiblePinchError, PinchSettings, check_pinches,
+                        sample_pinches)
 from pinchmatch.grasp.pinches import RULES
 from pinchmatch.mesh.surface import SurfaceContext
 from pinchmatch.mesh import shapes
@@ -60,26 +55,22 @@ def assert_rules_hold(mesh, pinches, settings, support=None):
     # the pinch line, and both finger axes along it keep the finger radius from the exact mesh
     h = pinches.approach
     np.testing.assert_allclose(np.linalg.norm(h, axis=1), 1.0, atol=1e-9)
-    assert np.all(
-        np.abs(np.einsum("ij,ij->i", h, u)) <= np.sin(np.radians(settings.approach_tilt_deg)) + 1e-9
-    )
+    assert np.all(np.abs(np.einsum("ij,ij->i", h, u))
+                  <= np.sin(np.radians(settings.approach_tilt_deg)) + 1e-9)
     s = np.linspace(0.0, settings.finger_length_mm, 46)  # every mm along the finger
     fingers = finger_axes(h, u, settings.finger_splay_deg, 2)  # each leaned away from the other
-    axis = (pinches.points + r * pinches.normals)[:, :, None, :] + s[None, None, :, None] * fingers[
-        :, :, None, :
-    ]
-    assert np.all(
-        _distance_to_surface(mesh, axis.reshape(-1, 3)) >= settings.finger_radius_mm - 0.3 - 0.5
-    )
+    axis = (pinches.points + r
+            * pinches.normals)[:, :, None, :] + s[None, None, :, None] * fingers[:, :, None, :]
+    assert np.all(_distance_to_surface(mesh, axis.reshape(-1, 3)) >= settings.finger_radius_mm
+                  - 0.3 - 0.5)
     # contacts on the surface
     _, on, _ = trimesh.proximity.closest_point(mesh, pinches.points.reshape(-1, 3))
     assert on.max() < 1e-6
     if support is not None:  # fingertips and fingers above the table, no hand from below it
         normal, height = support
         assert np.all(centres @ normal - height >= r - 0.3 - 1e-9)
-        assert np.all(
-            axis.reshape(-1, 3) @ normal - height >= settings.finger_radius_mm - 0.3 - 1e-9
-        )
+        assert np.all(axis.reshape(-1, 3) @ normal - height >= settings.finger_radius_mm - 0.3
+                      - 1e-9)
         assert np.all(fingers @ normal >= -1e-9)
 
 
@@ -116,9 +107,8 @@ def test_pinches_spread_over_the_whole_sphere():
     # no clumps: no two pinches nearly the same (either finger order)
     a = pinches.points.reshape(len(pinches), 6)
     b = pinches.points[:, ::-1].reshape(len(pinches), 6)
-    d = np.minimum(
-        np.linalg.norm(a[:, None] - a[None], axis=-1), np.linalg.norm(a[:, None] - b[None], axis=-1)
-    )
+    d = np.minimum(np.linalg.norm(a[:, None] - a[None], axis=-1),
+                   np.linalg.norm(a[:, None] - b[None], axis=-1))
     d[np.diag_indices(len(d))] = np.inf
     assert d.min() > 2.0
 
@@ -135,8 +125,7 @@ def test_no_pinch_inside_a_slot_narrower_than_a_finger():
     ctx = SurfaceContext(mesh)
     pinches = sample_pinches(ctx, settings=PinchSettings(count=300, seed=0))
     inside_slot = (np.abs(pinches.points[..., 0]) <= 5.0 + 1e-6) & (
-        pinches.points[..., 2] > -5.0 + 1e-6
-    )
+        pinches.points[..., 2] > -5.0 + 1e-6)
     assert not inside_slot.any()
     assert_rules_hold(mesh, pinches, PinchSettings())
     # the slot walls themselves, pinched from inside the slot: the fingertips do not fit
@@ -155,17 +144,15 @@ def test_two_parts_are_squeezed_together_but_no_finger_enters_the_gap():
     assert not ((x > 10.0 + 1e-6) & (x < 13.0 - 1e-6)).any()  # no contact on a face inside the gap
     across = (x.min(axis=1) < -9.0) & (x.max(axis=1) > 32.0)  # the two outer faces: 43 mm apart
     assert across.any()
-    np.testing.assert_allclose(
-        np.abs(pinches.points[across, 1, 0] - pinches.points[across, 0, 0]), 43.0, atol=1e-6
-    )
+    np.testing.assert_allclose(np.abs(pinches.points[across, 1, 0] - pinches.points[across, 0, 0]),
+                               43.0, atol=1e-6)
     assert_rules_hold(mesh, pinches, PinchSettings())
 
 
 def test_no_feasible_pinch_says_which_rule():
     ctx = SurfaceContext(shapes.sphere(80.0, faces=5000).mesh)
-    with pytest.raises(
-        NoFeasiblePinchError, match=r"ball: no feasible pinch .*width \d+.*--max-width-mm"
-    ):
+    with pytest.raises(NoFeasiblePinchError,
+                       match=r"ball: no feasible pinch .*width \d+.*--max-width-mm"):
         sample_pinches(ctx, settings=PinchSettings(count=50), source="ball")
 
 
@@ -206,11 +193,8 @@ def test_without_embree_the_numpy_engine_gives_feasible_pinches(monkeypatch, cap
 # the documented bounds of every pinch setting (README, --help), at and just beyond each end
 BOUNDS = [
     ("patch_radius_mm", [0.5, 50.0], [0.49, 50.1]),
-    (
-        "fingertip_radius_mm",
-        [2.0, 25.0],
-        [1.9, 25.1],
-    ),  # with a 1 mm finger, which it must not be thinner than
+    # with a 1 mm finger, which it must not be thinner than
+    ("fingertip_radius_mm", [2.0, 25.0], [1.9, 25.1]),
     ("count", [1, 100_000], [0, 100_001, 3.0, True]),
     ("seed", [0, 2**63 - 1], [-1, 2**63, 1.5, False]),
     ("finger_radius_mm", [0.31, 8.0], [0.3, 8.01]),
@@ -265,18 +249,16 @@ def test_a_posed_prop_is_pinched_above_its_table_whatever_its_tilt(tmp_path, see
     lowest = float((mesh.vertices @ normal).min())
     settings = PinchSettings(count=150, seed=seed)
     for support, height in (("auto", lowest), (lowest + 13.7, lowest + 13.7)):
-        candidates = candidate_poses(
-            analyze_spec(ObjectSpec(str(path), pose=pose, support=support)), settings=settings
-        )
+        candidates = candidate_poses(analyze_spec(ObjectSpec(
+            str(path), pose=pose, support=support)),
+                                     settings=settings)
         assert len(candidates) > 40
         assert_rules_hold(mesh, candidates.pinches, settings, support=(normal, height))
-    free = candidate_poses(
-        analyze_spec(ObjectSpec(str(path), pose=pose)), settings=settings
-    ).pinches
+    free = candidate_poses(analyze_spec(ObjectSpec(str(path), pose=pose)),
+                           settings=settings).pinches
     tips = (free.points + settings.fingertip_radius_mm * free.normals) @ normal - lowest
     assert (tips.min(axis=1) < settings.fingertip_radius_mm - 0.3).any() or (
-        free.approach @ normal < 0
-    ).any()
+        free.approach @ normal < 0).any()
 
 
 def test_a_support_is_reported_in_plain_rounded_numbers():
@@ -301,17 +283,15 @@ def test_the_clearance_rule_decides_as_the_unbounded_distance_does():
     context = SurfaceContext(transformed(vessels.mug(), R, t))
     rng = np.random.default_rng(4)
     faces = rng.integers(0, len(context.mesh.faces), (3000, 2))
-    points = np.einsum(
-        "nfk,nfkd->nfd", rng.dirichlet(np.ones(3), (3000, 2)), context.mesh.triangles[faces]
-    )
+    points = np.einsum("nfk,nfkd->nfd", rng.dirichlet(np.ones(3), (3000, 2)),
+                       context.mesh.triangles[faces])
     normals = context.mesh.face_normals[faces]
     settings = PinchSettings()
     broken = clearance_broken(context, points, normals, settings)
     centres = (points + settings.fingertip_radius_mm * normals).reshape(-1, 3)
     exact, _ = cKDTree(context.sample.points).query(centres)
-    expected = ~(exact >= settings.fingertip_radius_mm - CLEARANCE_TOLERANCE_MM).reshape(-1, 2).all(
-        axis=1
-    )
+    expected = ~(exact >= settings.fingertip_radius_mm - CLEARANCE_TOLERANCE_MM).reshape(
+        -1, 2).all(axis=1)
     np.testing.assert_array_equal(broken, expected)
     assert 0.05 < broken.mean() < 0.95
 
@@ -322,12 +302,10 @@ def test_too_wide_refuses_a_wide_convex_object_and_leaves_a_wide_ring_to_samplin
 
     R, t = random_rigid(23)
     settings = PinchSettings()  # the largest pinch: 100 mm
-    ball = transformed(
-        shapes.sphere(70.0, faces=20_000).mesh, R, t
-    )  # 140 mm across in every direction
-    with pytest.raises(
-        NoFeasiblePinchError, match=r"ball: no feasible pinch: 1[34]\d x 1[34]\d x 1[34]\d mm"
-    ):
+    # 140 mm across in every direction
+    ball = transformed(shapes.sphere(70.0, faces=20_000).mesh, R, t)
+    with pytest.raises(NoFeasiblePinchError,
+                       match=r"ball: no feasible pinch: 1[34]\d x 1[34]\d x 1[34]\d mm"):
         too_wide(ball, settings, "ball")
     # a 200 mm ring whose tube a hand pinches (24 mm): its oriented box's least extent is 24 mm, and
     # a thick ring 104 mm across its tube and 264 mm wide is not convex either: sampling decides for

@@ -20,24 +20,9 @@ def _level(folder):
 
 
 def _run(capsys, folder, *extra):
-    return run_cli(
-        capsys,
-        "match",
-        "--tangible",
-        folder / "props.toml",
-        "--virtual",
-        folder / "kitchen.glb",
-        "--split",
-        "nodes",
-        "--count",
-        60,
-        "-o",
-        folder / "out",
-        "--no-view",
-        "--jobs",
-        1,
-        *extra,
-    )
+    return run_cli(capsys, "match", "--tangible", folder / "props.toml", "--virtual",
+                   folder / "kitchen.glb", "--split", "nodes", "--count", 60, "-o", folder / "out",
+                   "--no-view", "--jobs", 1, *extra)
 
 
 def test_a_piped_run_prints_plain_progress_lines(tmp_path, capsys, monkeypatch):

@@ -28,17 +28,11 @@ def test_com_of_the_solid_not_of_the_surface():
     mesh = stacked_prop(sections=64)
     props = object_properties(mesh, up=np.array([0.0, 0.0, 1.0]), watertight=True)
     k = 64 / (2 * np.pi) * np.sin(2 * np.pi / 64)
-    volumes = np.array(
-        [
-            k * np.pi * 20.0**2 * 40.0,
-            40.0**3,
-            k * np.pi * 40.0 / 3 * (30.0**2 + 30.0 * 10.0 + 10.0**2),
-        ]
-    )
+    volumes = np.array([k * np.pi * 20.0**2 * 40.0, 40.0**3,
+                        k * np.pi * 40.0 / 3 * (30.0**2 + 30.0 * 10.0 + 10.0**2)])
     heights = np.array([20.0, 60.0, 80.0 + 40.0 * (900.0 + 600.0 + 300.0) / (4 * 1300.0)])
-    np.testing.assert_allclose(
-        props.com_mm, [0.0, 0.0, volumes @ heights / volumes.sum()], atol=1e-6
-    )
+    np.testing.assert_allclose(props.com_mm, [0.0, 0.0, volumes @ heights / volumes.sum()],
+                               atol=1e-6)
     surface_centroid = (mesh.triangles_center * mesh.area_faces[:, None]).sum(axis=0) / mesh.area
     assert abs(surface_centroid[2] - props.com_mm[2]) > 0.5  # 58.3 mm: the shell's would be wrong
     np.testing.assert_allclose(props.principal_axis, [0, 0, 1], atol=1e-9)
@@ -118,25 +112,14 @@ def test_the_axis_is_ambiguous_within_5_percent_of_the_largest_variance(ratio, s
     box = trimesh.creation.box(extents=(b, 100.0, 30.0))
     props = object_properties(box, up=np.array([0.0, 0.0, 1.0]), watertight=True)
     assert props.axis_source == source
-    np.testing.assert_allclose(
-        np.abs(props.principal_axis), [0, 1, 0] if source == "pca" else [0, 0, 1], atol=1e-9
-    )
+    np.testing.assert_allclose(np.abs(props.principal_axis),
+                               [0, 1, 0] if source == "pca" else [0, 0, 1], atol=1e-9)
 
 
-@pytest.mark.parametrize(
-    "text, ok",
-    [
-        ("1,2,3", True),
-        ("-1, 0.5 ,2", True),
-        ("1,2,nan", False),
-        ("1,2", False),
-        ("1,2,3,4", False),
-        ("a,b,c", False),
-        ("1,2,inf", False),
-        ("0,0,1.5e6", False),
-        ("0,0,999999", True),
-    ],
-)
+@pytest.mark.parametrize("text, ok",
+                         [("1,2,3", True), ("-1, 0.5 ,2", True), ("1,2,nan", False), ("1,2", False),
+                                      ("1,2,3,4", False), ("a,b,c", False), ("1,2,inf", False),
+                                      ("0,0,1.5e6", False), ("0,0,999999", True)])
 def test_vectors_are_three_finite_numbers(text, ok):
     from pinchmatch.mesh.properties import parse_vector
 
@@ -147,9 +130,8 @@ def test_vectors_are_three_finite_numbers(text, ok):
             parse_vector(text, option="--com")
 
 
-@pytest.mark.parametrize(
-    "axis", [(float("nan"), 0.0, 1.0), (0.0, 0.0, float("inf")), (0.0, 0.0, 0.0)]
-)
+@pytest.mark.parametrize("axis",
+                         [(float("nan"), 0.0, 1.0), (0.0, 0.0, float("inf")), (0.0, 0.0, 0.0)])
 def test_a_given_axis_must_be_a_finite_non_zero_vector(axis):
     mesh = trimesh.creation.box(extents=(60.0, 40.0, 20.0))
     with pytest.raises(ConfigError, match="non-zero vector"):

@@ -50,8 +50,7 @@ def assert_whole(out):
 
 
 def test_a_run_that_fails_midway_leaves_the_previous_result(
-    tmp_path, virtuals, monkeypatch, capsys
-):
+    tmp_path, virtuals, monkeypatch, capsys):
     out = tmp_path / "out"
     assert match(out, sorted(virtuals.glob("*.stl"))) == 0
     before = snapshot(out)
@@ -81,8 +80,7 @@ def test_files_of_an_earlier_result_go_and_a_users_files_stay(tmp_path, virtuals
     assert sorted(p.name for p in (out / "scenes").iterdir()) == ["e1.glb", "mine.glb"]
     assert not (out / "figures").exists()  # every figure was the earlier result's
     assert (out / "notes.txt").read_text() == "mine" and (
-        out / "scenes" / "mine.glb"
-    ).read_bytes() == b"mine"
+        out / "scenes" / "mine.glb").read_bytes() == b"mine"
     assert_whole(out)
 
 
@@ -90,15 +88,11 @@ def test_a_second_run_into_the_same_folder_is_refused_while_one_runs(tmp_path, v
     out = tmp_path / "out"
     with OutputFolder(out) as stage:
         code = match(out, [virtuals / "e0.stl"])
-        assert (
-            list(stage.iterdir()) == [] and not (out / "matches.json").exists()
-        )  # the second wrote nothing
+        # the second wrote nothing
+        assert list(stage.iterdir()) == [] and not (out / "matches.json").exists()
     err = capsys.readouterr().err
-    assert (
-        code == 2
-        and "another pinchmatch run is writing this folder" in err
-        and len(err.strip().splitlines()) == 1
-    )
+    assert (code == 2 and "another pinchmatch run is writing this folder" in err
+            and len(err.strip().splitlines()) == 1)
 
 
 def test_view_leaves_the_page_alone_while_a_run_holds_the_folder(tmp_path, virtuals, capsys):
@@ -113,11 +107,8 @@ def test_view_leaves_the_page_alone_while_a_run_holds_the_folder(tmp_path, virtu
         code = main(["view", str(out), "-q"])
         after = page()  # (the run, when it ends, publishes its own folder)
     err = capsys.readouterr().err
-    assert (
-        code == 2
-        and "a pinchmatch run is writing this folder" in err
-        and len(err.strip().splitlines()) == 1
-    )
+    assert (code == 2 and "a pinchmatch run is writing this folder" in err
+            and len(err.strip().splitlines()) == 1)
     assert after == before is not None
 
 
@@ -163,34 +154,18 @@ def _pgid_members(pgid):
     return members
 
 
-@pytest.mark.parametrize(
-    "sig, delay_s",
-    [(signal.SIGINT, 2.0), (signal.SIGTERM, 3.0), (signal.SIGKILL, 1.5), (signal.SIGKILL, 3.5)],
-)
+@pytest.mark.parametrize("sig, delay_s",
+                         [(signal.SIGINT, 2.0), (signal.SIGTERM, 3.0), (signal.SIGKILL, 1.5),
+                                         (signal.SIGKILL, 3.5)])
 def test_signals_leave_a_whole_result_and_no_worker(tmp_path, virtuals, sig, delay_s):
     out = tmp_path / "out"
     assert match(out, [virtuals / "e0.stl"], "--no-view") == 0
     before = snapshot(out)
-    argv = [
-        sys.executable,
-        "-m",
-        "pinchmatch",
-        "match",
-        "--tangible",
-        str(example_mesh_path()),
-        "--virtual",
-        *map(str, sorted(virtuals.glob("*.stl"))),
-        "--count",
-        "400",
-        "-q",
-        "--jobs",
-        "2",
-        "-o",
-        str(out),
-    ]
-    proc = subprocess.Popen(
-        argv, start_new_session=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
-    )
+    argv = [sys.executable, "-m", "pinchmatch", "match", "--tangible", str(example_mesh_path()),
+            "--virtual", *map(str, sorted(virtuals.glob("*.stl"))), "--count", "400", "-q",
+            "--jobs", "2", "-o", str(out)]
+    proc = subprocess.Popen(argv, start_new_session=True, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
     time.sleep(delay_s)
     proc.send_signal(sig)
     _, err = proc.communicate(timeout=120)
@@ -234,29 +209,11 @@ if __name__ == "__main__":
 def test_a_normal_parallel_run_leaves_no_defunct_child(tmp_path, virtuals):
     script = tmp_path / "children.py"
     script.write_text(CHILDREN)
-    proc = subprocess.run(
-        [
-            sys.executable,
-            str(script),
-            "match",
-            "--tangible",
-            str(example_mesh_path()),
-            "--virtual",
-            str(virtuals / "e0.stl"),
-            str(virtuals / "e1.stl"),
-            "--count",
-            "120",
-            "-q",
-            "--jobs",
-            "2",
-            "--no-cache",
-            "-o",
-            str(tmp_path / "out"),
-        ],
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
+    proc = subprocess.run([sys.executable, str(script), "match", "--tangible",
+                           str(example_mesh_path()), "--virtual", str(virtuals / "e0.stl"),
+                           str(virtuals / "e1.stl"), "--count", "120", "-q", "--jobs", "2",
+                           "--no-cache", "-o", str(tmp_path / "out")],
+                          capture_output=True, text=True, timeout=300)
     code, *states = proc.stdout.split()
     assert code == "0", proc.stderr
     assert "Z" not in states  # workers joined; the resource tracker ends with the process
@@ -264,25 +221,11 @@ def test_a_normal_parallel_run_leaves_no_defunct_child(tmp_path, virtuals):
 
 def test_two_runs_at_once_one_is_refused(tmp_path, virtuals):
     out = tmp_path / "out"
-    argv = [
-        sys.executable,
-        "-m",
-        "pinchmatch",
-        "match",
-        "--tangible",
-        str(example_mesh_path()),
-        "--virtual",
-        *map(str, sorted(virtuals.glob("*.stl"))),
-        "--count",
-        "300",
-        "-q",
-        "--jobs",
-        "1",
-        "--no-cache",
-        "--figures",
-        "-o",
-        str(out),
-    ]  # computed, with figures: the first run is still writing when the second starts
+    argv = [sys.executable, "-m", "pinchmatch", "match", "--tangible", str(example_mesh_path()),
+            "--virtual", *map(str, sorted(virtuals.glob("*.stl"))), "--count", "300", "-q",
+            "--jobs", "1", "--no-cache",
+            # computed, with figures: the first run is still writing when the second starts
+            "--figures", "-o", str(out)]
     first = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.time() + 60
     while not (out / ".pinchmatch" / "staging").exists() and time.time() < deadline:
@@ -290,9 +233,8 @@ def test_two_runs_at_once_one_is_refused(tmp_path, virtuals):
     second = subprocess.run(argv, capture_output=True, text=True, timeout=120)
     _, first_err = first.communicate(timeout=300)
     assert first.returncode == 0, first_err
-    assert (
-        second.returncode == 2 and "another pinchmatch run is writing this folder" in second.stderr
-    )
+    assert (second.returncode == 2
+            and "another pinchmatch run is writing this folder" in second.stderr)
     assert len(second.stderr.strip().splitlines()) == 1
     assert_whole(out)
 
@@ -305,17 +247,15 @@ def test_the_next_parallel_run_removes_a_killed_runs_temporary_folder(tmp_path, 
     orphan = tempfile.mkdtemp(prefix=f"{executors.RUN_FOLDER_PREFIX}{dead.pid}-")
     mine = tempfile.mkdtemp(prefix=f"{executors.RUN_FOLDER_PREFIX}{os.getpid()}-")  # a live run's
     try:
-        assert (
-            match(tmp_path / "out", [virtuals / "e0.stl"], "--no-figures", "--no-view", jobs=2) == 0
-        )
+        assert match(tmp_path / "out", [virtuals / "e0.stl"], "--no-figures", "--no-view",
+                     jobs=2) == 0
         assert not os.path.exists(orphan) and os.path.isdir(mine)
     finally:
         os.rmdir(mine)
 
 
 def test_a_worker_that_dies_is_an_internal_error_not_bad_input(
-    tmp_path, virtuals, monkeypatch, capsys
-):
+    tmp_path, virtuals, monkeypatch, capsys):
     from concurrent.futures.process import BrokenProcessPool
 
     from pinchmatch.cli import runs as cli
@@ -326,17 +266,14 @@ def test_a_worker_that_dies_is_an_internal_error_not_bad_input(
     monkeypatch.setattr(cli, "run_match", broken)
     assert match(tmp_path / "out", [virtuals / "e0.stl"]) == 1
     err = capsys.readouterr().err
-    assert (
-        err.startswith("pinchmatch: internal error: a worker process died")
-        and len(err.strip().splitlines()) == 1
-    )
+    assert (err.startswith("pinchmatch: internal error: a worker process died")
+            and len(err.strip().splitlines()) == 1)
     assert not (tmp_path / "out").exists()
 
 
 @pytest.mark.parametrize("link", ["scenes", "figures"])
 def test_a_folder_of_out_linked_elsewhere_is_never_written_or_pruned_through(
-    tmp_path, virtuals, capsys, link
-):
+    tmp_path, virtuals, capsys, link):
     out, elsewhere = tmp_path / "out", tmp_path / "elsewhere"
     assert match(out, [virtuals / "e0.stl"], "--figures") == 0
     elsewhere.mkdir()
@@ -349,19 +286,16 @@ def test_a_folder_of_out_linked_elsewhere_is_never_written_or_pruned_through(
     (out / link).symlink_to(elsewhere, target_is_directory=True)
     before = snapshot(out)
     capsys.readouterr()
-    assert (
-        match(out, [virtuals / "e1.stl"], "--figures") == 2
-    )  # would prune e0's files and write e1's there
+    # would prune e0's files and write e1's there
+    assert match(out, [virtuals / "e1.stl"], "--figures") == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert (
-        len(err) == 1 and "symbolic link out of the output folder" in err[0] and link in err[0]
-    ), err
+    assert (len(err) == 1 and "symbolic link out of the output folder" in err[0]
+            and link in err[0]), err
     assert snapshot(elsewhere) == victims and snapshot(out) == before
 
 
-@pytest.mark.parametrize(
-    "name", ["../victim.txt", "{abs}", "scenes/../../victim.txt", "linked/victim.txt"]
-)
+@pytest.mark.parametrize("name",
+                         ["../victim.txt", "{abs}", "scenes/../../victim.txt", "linked/victim.txt"])
 def test_a_journal_naming_a_path_outside_out_leaves_it_in_place(tmp_path, virtuals, name):
     out = tmp_path / "out"
     assert match(out, [virtuals / "e0.stl"], "--no-view") == 0
@@ -370,9 +304,8 @@ def test_a_journal_naming_a_path_outside_out_leaves_it_in_place(tmp_path, virtua
     (out / "linked").symlink_to(tmp_path, target_is_directory=True)
     name = name.format(abs=str(victim))
     control = out / ".pinchmatch"
-    (control / "commit.json").write_text(
-        sealed("journal", {"new": [name], "staged": [], "remove": [name]})
-    )
+    (control / "commit.json").write_text(sealed("journal",
+                                                {"new": [name], "staged": [], "remove": [name]}))
     (control / "manifest.json").write_text(sealed("manifest", {"files": [name]}))
     publish.finish_commit(out)
     assert victim.read_text() == "keep me"
@@ -390,23 +323,17 @@ def test_a_journal_or_manifest_naming_files_outside_out_touches_none_of_them(tmp
     for path in victims.values():
         path.write_text("keep me")
     (out / "linked").symlink_to(outside, target_is_directory=True)
-    names = [
-        "../outside/a.txt",
-        str(victims["b.txt"]),
-        "scenes/../../outside/c.txt",
-        "linked/d.txt",
-    ]
+    names = ["../outside/a.txt", str(victims["b.txt"]), "scenes/../../outside/c.txt",
+             "linked/d.txt"]
     control = out / ".pinchmatch"
-    (control / "commit.json").write_text(
-        sealed("journal", {"new": [], "staged": names, "remove": names})
-    )
+    (control / "commit.json").write_text(sealed("journal",
+                                                {"new": [], "staged": names, "remove": names}))
     publish.finish_commit(out)
     assert all(p.read_text() == "keep me" for p in victims.values())
     assert not (control / "commit.json").exists()
     # the manifest of the last result names them too: the next run prunes only what is inside OUT
-    (control / "manifest.json").write_text(
-        sealed("manifest", {"files": read_manifest(out) + names})
-    )
+    (control / "manifest.json").write_text(sealed("manifest",
+                                                  {"files": read_manifest(out) + names}))
     (out / "linked").unlink()  # (a folder linked out of OUT is refused outright; its own test)
     (out / "linked").mkdir()
     assert match(out, [virtuals / "e1.stl"]) == 0
@@ -416,8 +343,8 @@ def test_a_journal_or_manifest_naming_files_outside_out_touches_none_of_them(tmp
 
 @pytest.mark.parametrize("link", ["staging", "staging-folder", "staged-file", "control", "journal"])
 def test_a_received_folder_with_links_in_its_control_folder_moves_nothing_from_outside(
-    tmp_path, virtuals, capsys, link
-):
+    tmp_path, virtuals, capsys,
+                                                                                        link):
     """A result folder received from someone else: its staging folder a link to another folder, a
     folder in staging a link, a staged file a link, the control folder itself a link, or the journal
     a link; its journal names a file there. ``view`` and the next ``match`` refuse in one line or
@@ -430,11 +357,8 @@ def test_a_received_folder_with_links_in_its_control_folder_moves_nothing_from_o
     (elsewhere / "victim.txt").write_text("keep me")
     (elsewhere / "sub" / "victim.txt").write_text("keep me")
     control = out / ".pinchmatch"
-    journal = {
-        "new": ["victim.txt", "sub/victim.txt"],
-        "staged": ["victim.txt", "sub/victim.txt"],
-        "remove": [],
-    }
+    journal = {"new": ["victim.txt", "sub/victim.txt"], "staged": ["victim.txt", "sub/victim.txt"],
+               "remove": []}
     if link == "control":
         real = tmp_path / "control-elsewhere"
         control.rename(real)
@@ -465,9 +389,8 @@ def test_a_received_folder_with_links_in_its_control_folder_moves_nothing_from_o
             assert len(err.splitlines()) == 1 and "pinchmatch never follows" in err, err
         assert (elsewhere / "victim.txt").read_text() == "keep me"
         assert (elsewhere / "sub" / "victim.txt").read_text() == "keep me"
-        assert (
-            sorted(p.name for p in elsewhere.rglob("*")) == before
-        )  # no lock, no file written outside
+        # no lock, no file written outside
+        assert sorted(p.name for p in elsewhere.rglob("*")) == before
         assert not (out / "victim.txt").exists() and not (out / "sub").exists()
 
 
@@ -498,9 +421,8 @@ def test_files_written_straight_into_out_are_taken_back_when_the_run_does_not_fi
         publisher.write_direct(out / "props" / "prop_1.stl", b"new prop 1")
     assert (out / "props" / "prop_1.stl").read_bytes() == b"new prop 1"
     assert not (out / ".pinchmatch" / "replaced").exists()
-    assert read_manifest(out) == [
-        "props/prop_1.stl"
-    ]  # part of the result: the next run prunes it if it goes
+    # part of the result: the next run prunes it if it goes
+    assert read_manifest(out) == ["props/prop_1.stl"]
 
 
 @pytest.mark.parametrize("publishing", [False, True])
@@ -522,52 +444,35 @@ def test_a_run_whose_process_is_killed_is_taken_back_or_finished_by_the_next(tmp
     stage = publisher.__enter__()
     publisher.write_direct(out / "props" / "prop_1.stl", b"new prop 1")
     publisher.write_direct(out / "props" / "prop_2.stl", b"new prop 2")
-    publisher.direct(
-        out / "objects" / "a.stl", new=True
-    )  # recorded, then written: killed while it writes
+    # recorded, then written: killed while it writes
+    publisher.direct(out / "objects" / "a.stl", new=True)
     (out / "objects").mkdir()
     (out / "objects" / ".a.stl.k3J9x_2q.tmp").write_bytes(b"half")
     (stage / "matches.json").write_text("{}")
     if publishing:
-        publisher._publish = (
-            lambda: None
-        )  # (not called: the journal below is what a killed publication leaves)
-        (out / ".pinchmatch" / "commit.json").write_text(
-            sealed(
-                "journal",
-                {
-                    "new": ["matches.json", "props/prop_1.stl", "props/prop_2.stl"],
-                    "staged": ["matches.json"],
-                    "remove": [],
-                },
-            )
-        )
+        # (not called: the journal below is what a killed publication leaves)
+        publisher._publish = lambda: None
+        (out / ".pinchmatch" / "commit.json").write_text(sealed("journal",
+            {"new": ["matches.json", "props/prop_1.stl", "props/prop_2.stl"],
+             "staged": ["matches.json"], "remove": []}))
     fcntl.flock(publisher._lock, fcntl.LOCK_UN)  # the process is gone: its lock with it
     os.close(publisher._lock)
     assert undo_killed_run(out) is publishing
     if publishing:
         assert (out / "matches.json").read_text() == "{}" and (
-            out / "props" / "prop_2.stl"
-        ).exists()
+            out / "props" / "prop_2.stl").exists()
         assert read_manifest(out) == ["matches.json", "props/prop_1.stl", "props/prop_2.stl"]
     else:
         assert snapshot(out) == before
-    assert (
-        not (out / ".pinchmatch" / "staging").exists()
-        and not (out / ".pinchmatch" / "run.json").exists()
-    )
+    assert (not (out / ".pinchmatch" / "staging").exists()
+            and not (out / ".pinchmatch" / "run.json").exists())
     assert not (out / ".pinchmatch" / "replaced").exists()
 
 
-@pytest.mark.parametrize(
-    "run",
-    [
-        {"undo": [1, "x", ["a.txt", 5], ["b.txt", ["c"]], [7, None]]},
-        {"undo": 3},
-        {"created": "yes", "undo": [["../victim.txt", None]]},
-        [1, 2],
-    ],
-)
+@pytest.mark.parametrize("run",
+                         [{"undo": [1, "x", ["a.txt", 5], ["b.txt", ["c"]], [7, None]]},
+                          {"undo": 3},
+                                 {"created": "yes", "undo": [["../victim.txt", None]]}, [1, 2]])
 def test_a_run_record_of_any_shape_is_taken_back_safely(tmp_path, run):
     """A run record (``run.json``) of any shape: received (not sealed), it is refused in one line;
     sealed by this user's runs, entries of other shapes are skipped. Either way nothing outside OUT

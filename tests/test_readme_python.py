@@ -6,16 +6,8 @@ import numpy as np
 import trimesh
 
 from conftest import run_cli
-from pinchmatch import (
-    Config,
-    MatchSettings,
-    PinchSettings,
-    analyze_object,
-    analyze_prop,
-    candidate_poses,
-    match_scene,
-    read_manifest,
-)
+from pinchmatch import (Config, MatchSettings, PinchSettings, analyze_object, analyze_prop,
+                        candidate_poses, match_scene, read_manifest)
 
 
 def test_the_python_path_gives_the_command_lines_answer(tmp_path, capsys):
@@ -33,36 +25,16 @@ def test_the_python_path_gives_the_command_lines_answer(tmp_path, capsys):
     settings = PinchSettings(count=200, seed=1)
     config = Config(settings, MatchSettings(top_k=2))
     props = [candidate_poses(analyze_prop(tmp_path / "block.stl"), settings=settings)]
-    props += [
-        candidate_poses(analyze_prop(spec), settings=settings)
-        for spec in read_manifest(tmp_path / "props.toml")
-    ]
+    props += [candidate_poses(analyze_prop(spec), settings=settings)
+              for spec in read_manifest(tmp_path / "props.toml")]
     obj = analyze_object(tmp_path / "mug.glb")
     scene = match_scene(props, [candidate_poses(obj, settings=settings)], config=config)
     best = scene.matches[0].best
 
-    code, _, err = run_cli(
-        capsys,
-        "match",
-        "--tangible",
-        tmp_path / "block.stl",
-        tmp_path / "props.toml",
-        "--virtual",
-        tmp_path / "mug.glb",
-        "--count",
-        200,
-        "--seed",
-        1,
-        "--top-k",
-        2,
-        "--jobs",
-        1,
-        "--no-view",
-        "-q",
-        "--no-cache",
-        "-o",
-        tmp_path / "out",
-    )
+    code, _, err = run_cli(capsys, "match", "--tangible", tmp_path / "block.stl",
+                           tmp_path / "props.toml", "--virtual", tmp_path / "mug.glb", "--count",
+                           200, "--seed", 1, "--top-k", 2, "--jobs", 1, "--no-view", "-q",
+                           "--no-cache", "-o", tmp_path / "out")
     assert code == 0, err
     cli = json.loads((tmp_path / "out" / "matches.json").read_text())["matches"][0]
     assert best.tangible_name == cli["tangible"]

@@ -59,17 +59,15 @@ def files_of(root):
 def foreign(kind, record):
     """``record`` sealed under another user's key (a colleague's folder)."""
     text = json.dumps({"kind": kind, "record": record}, sort_keys=True, separators=(",", ":"))
-    return json.dumps(
-        {**record, "seal": hmac.new(b"k" * 32, text.encode(), hashlib.sha256).hexdigest()}
-    )
+    return json.dumps({**record,
+                       "seal": hmac.new(b"k" * 32, text.encode(), hashlib.sha256).hexdigest()})
 
 
 @pytest.fixture(scope="module")
 def virtuals(tmp_path_factory):
     root = tmp_path_factory.mktemp("v")
-    ellipsoid((30.0, 20.0, 15.0), faces=1500, triangulation="random", seed=0).mesh.export(
-        root / "e0.stl"
-    )
+    ellipsoid((30.0, 20.0, 15.0), faces=1500, triangulation="random",
+              seed=0).mesh.export(root / "e0.stl")
     return root
 
 
@@ -108,34 +106,17 @@ def test_the_key_is_kept_for_the_user_and_drawn_per_process_without_a_home(tmp_p
 
 @pytest.mark.parametrize("command", ["view", "match"])
 def test_a_received_run_record_saying_it_made_the_folder_removes_nothing(
-    tmp_path, virtuals, capsys, command
-):
+    tmp_path, virtuals, capsys, command):
     """``{"created": true, "undo": []}`` in a received folder: ``view`` and ``match -o`` refuse in
     one line and OUT, with the user's files, stays."""
-    out, before = user_tree(
-        tmp_path, links=False
-    )  # (a folder linked out of OUT is refused by match itself)
+    # (a folder linked out of OUT is refused by match itself)
+    out, before = user_tree(tmp_path, links=False)
     (out / ".pinchmatch").mkdir()
     (out / ".pinchmatch" / "run.json").write_text(json.dumps({"created": True, "undo": []}))
     capsys.readouterr()
-    argv = (
-        ["view", str(out)]
-        if command == "view"
-        else [
-            "match",
-            "--tangible",
-            str(virtuals / "e0.stl"),
-            "--virtual",
-            str(virtuals / "e0.stl"),
-            "--count",
-            "60",
-            "-q",
-            "--jobs",
-            "1",
-            "-o",
-            str(out),
-        ]
-    )
+    argv = ["view", str(out)] if command == "view" else \
+        ["match", "--tangible", str(virtuals / "e0.stl"), "--virtual", str(virtuals / "e0.stl"),
+         "--count", "60", "-q", "--jobs", "1", "-o", str(out)]
     assert main(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "run.json" in err[0] and "delete" in err[0], err
@@ -150,16 +131,15 @@ def test_a_received_journal_removes_no_file_its_manifest_does_not_list(tmp_path,
     control.mkdir()
     (out / "matches.json").write_text("{}")
     (control / "manifest.json").write_text(json.dumps({"files": ["matches.json"]}))
-    (control / "commit.json").write_text(
-        json.dumps({"new": [], "staged": [], "remove": ["my_notes.txt"]})
-    )
+    (control / "commit.json").write_text(json.dumps({
+        "new": [], "staged": [], "remove": ["my_notes.txt"]}))
     assert main(["view", str(out)]) == 2
     assert "commit.json" in capsys.readouterr().err
     assert files_of(tmp_path) == {**before, "out/matches.json": b"{}"}
     (control / "manifest.json").write_text(sealed("manifest", {"files": ["matches.json"]}))
-    (control / "commit.json").write_text(
-        sealed("journal", {"new": [], "staged": [], "remove": ["my_notes.txt", "matches.json"]})
-    )
+    (control / "commit.json").write_text(sealed("journal", {"new": [], "staged": [],
+                                                            "remove": [
+                                                                "my_notes.txt", "matches.json"]}))
     publish.finish_commit(out)
     assert files_of(tmp_path) == before and read_manifest(out) == []
 
@@ -169,35 +149,16 @@ def test_a_received_manifest_lists_nothing_the_next_run_deletes(tmp_path, virtua
     (out / ".pinchmatch").mkdir()
     (out / ".pinchmatch" / "manifest.json").write_text(json.dumps({"files": list(USER_FILES)}))
     assert read_manifest(out) == []
-    (out / ".pinchmatch" / "manifest.json").write_text(
-        foreign("manifest", {"files": list(USER_FILES)})
-    )
+    (out / ".pinchmatch"
+     / "manifest.json").write_text(foreign("manifest", {"files": list(USER_FILES)}))
     assert read_manifest(out) == []
-    assert (
-        main(
-            [
-                "match",
-                "--tangible",
-                str(virtuals / "e0.stl"),
-                "--virtual",
-                str(virtuals / "e0.stl"),
-                "--count",
-                "60",
-                "-q",
-                "--jobs",
-                "1",
-                "--no-view",
-                "-o",
-                str(out),
-            ]
-        )
-        == 0
-    )
+    assert main(["match", "--tangible", str(virtuals / "e0.stl"), "--virtual",
+                 str(virtuals / "e0.stl"), "--count", "60", "-q", "--jobs", "1", "--no-view", "-o",
+                 str(out)]) == 0
     after = files_of(tmp_path)
     assert {k: v for k, v in after.items() if k in before} == before
-    assert "out/matches.json" in after and "out/matches.json" in {
-        f"out/{f}" for f in read_manifest(out)
-    }
+    assert ("out/matches.json" in after
+            and "out/matches.json" in {f"out/{f}" for f in read_manifest(out)})
 
 
 @pytest.mark.parametrize("where", ["added", "replaced", "kept"])
@@ -216,10 +177,8 @@ def test_a_sealed_run_record_never_reaches_through_a_linked_folder(tmp_path, whe
     (control / "run.json").write_text(sealed("run", {"created": False, "undo": undo}))
     undo_killed_run(out)
     after = files_of(tmp_path)
-    assert (
-        after["outside/victim.txt"] == b"outside: keep me"
-        and after["out/my_notes.txt"] == b"mine: my_notes.txt"
-    )
+    assert (after["outside/victim.txt"] == b"outside: keep me" and after["out/my_notes.txt"]
+            == b"mine: my_notes.txt")
     assert (out / "linked").is_symlink() and (tmp_path / "outside" / "victim.txt").exists()
 
 
@@ -237,45 +196,30 @@ def test_a_failed_run_into_a_new_folder_keeps_what_the_user_put_there(tmp_path):
     assert (out / "dropped.txt").read_text() == "mine"
 
 
-names = st.sampled_from(
-    list(USER_FILES)
-    + [
-        "linked/victim.txt",
-        "victim-link.txt",
-        "linked",
-        "scenes",
-        "../outside/victim.txt",
-        str("/tmp/outside/victim.txt"),
-        "matches.json",
-        ".pinchmatch/run.json",
-        "",
-        ".",
-        "props",
-    ]
-)
-entries = st.lists(
-    st.one_of(st.lists(st.one_of(names, st.none(), st.integers()), max_size=3), names, st.none()),
-    max_size=5,
-)
-records = st.fixed_dictionaries(
-    {},
-    optional={
-        "created": st.one_of(st.booleans(), st.none(), st.text(max_size=3)),
-        "undo": st.one_of(entries, st.integers()),
-        "new": st.lists(names, max_size=4),
-        "staged": st.lists(names, max_size=4),
-        "remove": st.lists(names, max_size=4),
-        "files": st.lists(names, max_size=4),
-    },
-)
+names = st.sampled_from(list(USER_FILES)
+                        + ["linked/victim.txt", "victim-link.txt", "linked", "scenes",
+                           "../outside/victim.txt",
+                         str("/tmp/outside/victim.txt"), "matches.json", ".pinchmatch/run.json", "",
+                         ".", "props"])
+entries = st.lists(st.one_of(st.lists(st.one_of(names, st.none(), st.integers()), max_size=3),
+                             names, st.none()),
+                   max_size=5)
+records = st.fixed_dictionaries({},
+                                optional={"created": st.one_of(
+                                    st.booleans(), st.none(), st.text(max_size=3)),
+                                              "undo": st.one_of(entries, st.integers()),
+                                              "new": st.lists(names, max_size=4),
+                                              "staged": st.lists(names, max_size=4),
+                                              "remove": st.lists(names, max_size=4),
+                                              "files": st.lists(names, max_size=4)})
 
 
 @FUZZ
 @given(run=records, journal=records, manifest=records, how=st.sampled_from(["plain", "foreign"]),
        staged=st.lists(names, max_size=3), step=st.sampled_from(["recover", "undo", "run"]))
 def test_received_control_folders_never_touch_a_users_file(
-    tmp_path_factory, run, journal, manifest, how, staged, step
-):
+    tmp_path_factory, run, journal, manifest, how, staged,
+                                                          step):
     """Any run record, journal and manifest (not sealed, or sealed under another user's key), with
     staged and kept-aside files under any name: finishing the folder (``view``'s recovery), taking
     back a killed run, or a new run into it, removes and changes no file the current run did not
@@ -287,12 +231,8 @@ def test_received_control_folders_never_touch_a_users_file(
     for sub in ("staging", "replaced"):
         for name in staged:
             target = control / sub / name
-            if (
-                name
-                and ".." not in name
-                and not name.startswith("/")
-                and not (control / sub / name).exists()
-            ):
+            if (name and ".." not in name and not name.startswith("/")
+                and not (control / sub / name).exists()):
                 try:
                     target.parent.mkdir(parents=True, exist_ok=True)
                     target.write_bytes(b"received")

@@ -8,14 +8,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from pinchmatch import (
-    MatchSettings,
-    PinchSettings,
-    analyze_spec,
-    candidate_poses,
-    evaluate_pairs,
-    match_scene,
-)
+from pinchmatch import (MatchSettings, PinchSettings, analyze_spec, candidate_poses, evaluate_pairs,
+                        match_scene)
 from pinchmatch.match.redirect import quaternion_matrix
 from pinchmatch.mesh.manifest import object_specs
 
@@ -43,39 +37,22 @@ def kitchen(tmp_path_factory):
 
 
 def _run(capsys, kitchen, out, *extra):
-    code, _, err = run_cli(
-        capsys,
-        "match",
-        "--tangible",
-        kitchen / "props.toml",
-        "--virtual",
-        kitchen / "kitchen.glb",
-        "--split",
-        "nodes",
-        "--count",
-        200,
-        "-o",
-        out,
-        "--no-view",
-        "--jobs",
-        1,
-        *extra,
-    )
+    code, _, err = run_cli(capsys, "match", "--tangible", kitchen / "props.toml", "--virtual",
+                           kitchen / "kitchen.glb", "--split", "nodes", "--count", 200, "-o", out,
+                           "--no-view", "--jobs", 1, *extra)
     assert code == 0, err
     return {m["virtual"]: m for m in json.loads((out / "matches.json").read_text())["matches"]}
 
 
 def _angle(a, b):
     a, b = np.asarray(a, float), np.asarray(b, float)
-    return math.degrees(
-        math.acos(np.clip(a @ b / np.linalg.norm(a) / np.linalg.norm(b), -1.0, 1.0))
-    )
+    return math.degrees(math.acos(np.clip(a @ b / np.linalg.norm(a) / np.linalg.norm(b), -1.0,
+                                          1.0)))
 
 
 @pytest.mark.parametrize("margin", [None, "5"])
 def test_near_objects_are_redirected_far_ones_served_by_the_carousel(
-    tmp_path, capsys, kitchen, margin
-):
+    tmp_path, capsys, kitchen, margin):
     """Each object stays in the level, the hand redirected, unless no pair is within the budget (the
     far cans) or the carousel costs more than the margin less (both costs reported); with a margin
     of 5 JND both near objects stay."""
@@ -102,21 +79,20 @@ def test_near_objects_are_redirected_far_ones_served_by_the_carousel(
         # 0) and 300 mm in front of the middle of its footprint
         assert r["hand_start_mm"] == [0.0, 150.0, 300.0]
         # recomputed from the reported targets and the hand's start
-        recomputed = _angle(
-            np.array(r["physical_target_mm"]) - start, np.array(r["virtual_target_mm"]) - start
-        )
+        recomputed = _angle(np.array(r["physical_target_mm"]) - start,
+                            np.array(r["virtual_target_mm"]) - start)
         assert r["angle_deg"] == pytest.approx(recomputed, abs=0.01)
-        assert r["offset_mm"] == pytest.approx(
-            np.linalg.norm(np.subtract(r["virtual_target_mm"], r["physical_target_mm"])), abs=0.01
-        )
+        assert r["offset_mm"] == pytest.approx(np.linalg.norm(np.subtract(r["virtual_target_mm"],
+                                                                          r["physical_target_mm"])),
+                                                                          abs=0.01)
         # the physical target is the tangible pose's midpoint, placed by the prop's pose
         mid = np.mean([m["tangible_pose"]["p1_mm"], m["tangible_pose"]["p2_mm"]], axis=0)
         assert np.allclose(R @ mid, r["physical_target_mm"], atol=0.01)
         if r["mode"] == "redirect":
             assert r["angle_deg"] <= 4.5 and 0.94 <= r["gain"] <= 1.14
-            recomputed_gain = np.linalg.norm(
-                np.subtract(r["virtual_target_mm"], start)
-            ) / np.linalg.norm(np.subtract(r["physical_target_mm"], start))
+            recomputed_gain = np.linalg.norm(np.subtract(
+                r["virtual_target_mm"], start)) / np.linalg.norm(
+                np.subtract(r["physical_target_mm"], start))
             assert r["gain"] == pytest.approx(recomputed_gain, abs=1e-3)
     # a can beside its twin: the hand barely turned, and it is felt as its twin is (the mass where
     # the level holds it, not where a registration would turn it: the pinch must sit on both cans
@@ -125,10 +101,8 @@ def test_near_objects_are_redirected_far_ones_served_by_the_carousel(
 
 
 def test_the_redirection_term_changes_the_choice_and_the_search_stays_exact(kitchen):
-    T = [
-        candidate_poses(analyze_spec(s), settings=SETTINGS)
-        for s in object_specs([kitchen / "props.toml"], option="--tangible")
-    ]
+    T = [candidate_poses(analyze_spec(s), settings=SETTINGS)
+         for s in object_specs([kitchen / "props.toml"], option="--tangible")]
     V = [candidate_poses(analyze_spec(s), settings=SETTINGS)
          for s in object_specs([kitchen / "kitchen.glb"], option="--virtual", split="nodes")]
     box = next(v for v in V if v.name == "box_near")
@@ -153,35 +127,18 @@ def test_keep_upright_still_holds_for_the_carousel(tmp_path, capsys, kitchen):
 
 
 def test_a_pose_with_the_registered_placement_says_where_the_user_reaches_from(
-    tmp_path, capsys, kitchen
-):
+    tmp_path, capsys, kitchen):
     """Registered, nothing is redirected, and the prop's pose is used, not ignored: it stands the
     prop on the level's table with the user in front (+Z), so every pinch is reached from the user's
     half or from above 35 degrees, which the reported angles say and which the prop's file frame
     alone (no pose) cannot say."""
-    code, out, err = run_cli(
-        capsys,
-        "match",
-        "--tangible",
-        kitchen / "props.toml",
-        "--virtual",
-        kitchen / "kitchen.glb",
-        "--split",
-        "nodes",
-        "--count",
-        200,
-        "-o",
-        tmp_path / "a",
-        "--no-view",
-        "--jobs",
-        1,
-    )
+    code, out, err = run_cli(capsys, "match", "--tangible", kitchen / "props.toml", "--virtual",
+                             kitchen / "kitchen.glb", "--split", "nodes", "--count", 200, "-o",
+                             tmp_path / "a", "--no-view", "--jobs", 1)
     assert code == 0, err
     assert "ignored" not in " ".join((out + err).split())
-    a = {
-        m["virtual"]: m
-        for m in json.loads((tmp_path / "a" / "matches.json").read_text())["matches"]
-    }
+    a = {m["virtual"]: m
+         for m in json.loads((tmp_path / "a" / "matches.json").read_text())["matches"]}
     assert all("redirection" not in m for m in a.values())
     R = quaternion_matrix(Z_UP_IN_Y_UP)
     for m in a.values():
@@ -201,26 +158,13 @@ def test_a_pose_with_the_registered_placement_says_where_the_user_reaches_from(
 ])
 def test_a_pose_that_is_not_a_rigid_motion_is_one_line(tmp_path, capsys, kitchen, pose, words):
     props = tmp_path / "props.toml"
-    props.write_text(
-        '[[object]]\nname = "p"\nshape = { kind = "cylinder", diameter_mm = 54, height_mm = 66 }\n'
-        + pose
-        + "\n"
-    )
+    props.write_text('[[object]]\nname = "p"\nshape = { kind = "cylinder", diameter_mm = 54, '
+                     'height_mm = 66 }\n'
+                     + pose + "\n")
     out = tmp_path / "out"
-    code, _, err = run_cli(
-        capsys,
-        "match",
-        "--tangible",
-        props,
-        "--virtual",
-        kitchen / "kitchen.glb",
-        "--split",
-        "nodes",
-        "--placement",
-        "fixed",
-        "-o",
-        out,
-    )
+    code, _, err = run_cli(capsys, "match", "--tangible", props, "--virtual",
+                           kitchen / "kitchen.glb", "--split", "nodes", "--placement", "fixed",
+                           "-o", out)
     assert_bad_input(code, err, str(props), "pose", words)
     assert not out.exists()
 
@@ -235,54 +179,23 @@ def test_a_pose_that_is_not_a_rigid_motion_is_one_line(tmp_path, capsys, kitchen
 ])
 def test_bad_redirection_options_are_one_line(tmp_path, capsys, kitchen, extra, words):
     out = tmp_path / "out"
-    code, _, err = run_cli(
-        capsys,
-        "match",
-        "--tangible",
-        kitchen / "props.toml",
-        "--virtual",
-        kitchen / "kitchen.glb",
-        "--split",
-        "nodes",
-        "--placement",
-        "fixed",
-        *extra,
-        "-o",
-        out,
-    )
+    code, _, err = run_cli(capsys, "match", "--tangible", kitchen / "props.toml", "--virtual",
+                           kitchen / "kitchen.glb", "--split", "nodes", "--placement", "fixed",
+                           *extra, "-o", out)
     assert_bad_input(code, err, words)
     assert not out.exists()
 
 
 def test_placement_options_under_registered_placement_are_noted_as_ignored(
-    tmp_path, capsys, kitchen
-):
+    tmp_path, capsys, kitchen):
     out = tmp_path / "out"
-    code, out_text, err = run_cli(
-        capsys,
-        "match",
-        "--tangible",
-        kitchen / "props.toml",
-        "--virtual",
-        kitchen / "kitchen.glb",
-        "--split",
-        "nodes",
-        "--nodes",
-        "can*",
-        "--count",
-        "60",
-        "--hand-start",
-        "0,150,300",
-        "--gain-range",
-        "0.9,1.2",
-        "--no-view",
-        "-o",
-        out,
-    )
+    code, out_text, err = run_cli(capsys, "match", "--tangible", kitchen / "props.toml",
+                                  "--virtual", kitchen / "kitchen.glb", "--split", "nodes",
+                                  "--nodes", "can*", "--count", "60", "--hand-start", "0,150,300",
+                           "--gain-range", "0.9,1.2", "--no-view", "-o", out)
     assert code in (0, 3), err
-    assert "--hand-start, --gain-range are used with --placement fixed only; ignored" in " ".join(
-        (out_text + err).split()
-    )
+    assert ("--hand-start, --gain-range are used with --placement fixed only; "
+            "ignored" in " ".join((out_text + err).split()))
 
 
 def test_fixed_placement_needs_a_level(tmp_path, capsys, kitchen):
@@ -305,34 +218,16 @@ def test_a_near_object_that_would_feel_wrong_in_place_goes_to_the_carousel(tmp_p
         PROP + '[[object]]\nname = "box_prop"\nshape = { kind = "box", size_mm = [40, 40, 40] }\n'
         f'pose = {{ position_mm = [1000, 0, 0], quaternion_xyzw = {Z_UP_IN_Y_UP} }}\n')
     out = tmp_path / "out"
-    code, _, err = run_cli(
-        capsys,
-        "match",
-        "--tangible",
-        tmp_path / "props.toml",
-        "--virtual",
-        tmp_path / "level.glb",
-        "--split",
-        "nodes",
-        "--placement",
-        "fixed",
-        "--count",
-        200,
-        "-o",
-        out,
-        "--no-view",
-        "--jobs",
-        1,
-    )
+    code, _, err = run_cli(capsys, "match", "--tangible", tmp_path / "props.toml", "--virtual",
+                           tmp_path / "level.glb", "--split", "nodes", "--placement", "fixed",
+                           "--count", 200, "-o", out, "--no-view", "--jobs", 1)
     assert code == 0, err
     (m,) = json.loads((out / "matches.json").read_text())["matches"]
     assert m["redirection"]["mode"] == "carousel" and m["tangible"] == "box_prop"
     assert m["p_noticed"] < 0.5
     # in place, on the can, it would have been noticed: the redirected search's best
-    T = [
-        candidate_poses(analyze_spec(s), settings=SETTINGS)
-        for s in object_specs([tmp_path / "props.toml"], option="--tangible")
-    ]
+    T = [candidate_poses(analyze_spec(s), settings=SETTINGS)
+         for s in object_specs([tmp_path / "props.toml"], option="--tangible")]
     (V,) = [candidate_poses(analyze_spec(s), settings=SETTINGS)
             for s in object_specs([tmp_path / "level.glb"], option="--virtual", split="nodes")]
     fixed = MatchSettings(placement="fixed", refine=False, landing_mm=0.0, top_k=0)
@@ -351,48 +246,14 @@ def test_the_hand_start_check_reads_props_in_the_run_s_units(tmp_path, capsys, k
                                          '[0, 0, 0], '
                                          f'quaternion_xyzw = {Z_UP_IN_Y_UP} }}\n')
     out = tmp_path / "out"
-    code, _, err = run_cli(
-        capsys,
-        "match",
-        "--tangible",
-        tmp_path / "props.toml",
-        "--virtual",
-        kitchen / "kitchen.glb",
-        "--split",
-        "nodes",
-        "--placement",
-        "fixed",
-        "--units",
-        "m",
-        "--count",
-        100,
-        "-o",
-        out,
-        "--no-view",
-        "--jobs",
-        1,
-    )
+    code, _, err = run_cli(capsys, "match", "--tangible", tmp_path / "props.toml", "--virtual",
+                           kitchen / "kitchen.glb", "--split", "nodes", "--placement", "fixed",
+                           "--units", "m", "--count", 100, "-o", out, "--no-view", "--jobs", 1)
     assert code == 0, err
-    code, _, err = run_cli(
-        capsys,
-        "match",
-        "--tangible",
-        tmp_path / "props.toml",
-        "--virtual",
-        kitchen / "kitchen.glb",
-        "--split",
-        "nodes",
-        "--placement",
-        "fixed",
-        "--units",
-        "m",
-        "--hand-start",
-        "0,30,0",
-        "--count",
-        100,
-        "-o",
-        tmp_path / "out2",
-    )
+    code, _, err = run_cli(capsys, "match", "--tangible", tmp_path / "props.toml", "--virtual",
+                           kitchen / "kitchen.glb", "--split", "nodes", "--placement", "fixed",
+                           "--units", "m", "--hand-start", "0,30,0", "--count", 100, "-o",
+                           tmp_path / "out2")
     assert_bad_input(code, err, "lies inside the prop")
 
 
@@ -409,13 +270,10 @@ def test_the_redirection_s_terms_are_its_angles_in_threshold_units_squared(kitch
 
     (spec,) = object_specs([kitchen / "props.toml"], option="--tangible")
     rng = np.random.default_rng(0)
-    t_points, v_points = (
-        rng.normal(0, 20, (5, 2, 3)),
-        rng.normal(0, 20, (5, 2, 3)) + [60.0, 30.0, 0.0],
-    )
-    r = redirection(
-        analyze_spec(spec), t_points, v_points, Redirect(threshold_deg=4.0, axis_threshold_deg=25.0)
-    )
+    t_points, v_points = (rng.normal(0, 20, (5, 2, 3)),
+                          rng.normal(0, 20, (5, 2, 3)) + [60.0, 30.0, 0.0])
+    r = redirection(analyze_spec(spec), t_points, v_points,
+                    Redirect(threshold_deg=4.0, axis_threshold_deg=25.0))
     start = np.array([0.0, 150.0, 300.0])
     R = quaternion_matrix(Z_UP_IN_Y_UP)
     for k in range(5):
@@ -426,8 +284,7 @@ def test_the_redirection_s_terms_are_its_angles_in_threshold_units_squared(kitch
 
 
 def test_a_warm_cache_from_the_registered_placement_gives_the_cold_fixed_answer(
-    tmp_path, capsys, kitchen
-):
+    tmp_path, capsys, kitchen):
     """The refined poses and the results cached by a registered run are not reused by a fixed
     one."""
     cache = tmp_path / "cache"
@@ -457,8 +314,8 @@ def test_fixed_placement_weighs_the_mass_where_the_level_holds_the_object(tmp_pa
     folder.mkdir()
     tabletop_level(folder / "level.glb", [("can", standing_can(), (0.16, 0.0, -0.06))])
     turn = Rotation.from_euler("y", 35, degrees=True) * Rotation.from_euler(
-        "x", 90 if upside_down else -90, degrees=True
-    )
+        "x", 90 if upside_down else -90,
+                                                                          degrees=True)
     (folder / "props.toml").write_text(
         '[[object]]\nname = "can_prop"\nshape = { kind = "cylinder", diameter_mm = 54, height_mm = '
         '66 }\n'
@@ -478,8 +335,7 @@ def test_fixed_placement_weighs_the_mass_where_the_level_holds_the_object(tmp_pa
         tp = T.pinches.points[it[k]]
         vp = V.pinches.points[iv[k]]
         expected = R.T @ (V.obj.props.com_mm - vp.mean(axis=0)) - (
-            T.obj.props.com_mm - tp.mean(axis=0)
-        )
+            T.obj.props.com_mm - tp.mean(axis=0))
         assert np.allclose(result.mass_delta_mm[k], expected, atol=1e-6)
     assert (result.flipped == upside_down).all()
     registered = evaluate_pairs(T, V, it, iv)  # brought onto the prop: the registration turns it
@@ -501,15 +357,12 @@ def test_the_redirection_of_a_prop_standing_off_the_origin_turned_about_the_leve
         f"pose = {{ position_mm = [120, 0, -80], quaternion_xyzw = {turn.as_quat().tolist()} }}\n")
     (spec,) = object_specs([tmp_path / "props.toml"], option="--tangible")
     rng = np.random.default_rng(4)
-    t_points, v_points = (
-        rng.normal(0, 20, (6, 2, 3)),
-        rng.normal(0, 20, (6, 2, 3)) + [180.0, 40.0, -60.0],
-    )
+    t_points, v_points = (rng.normal(0, 20, (6, 2, 3)),
+                          rng.normal(0, 20, (6, 2, 3)) + [180.0, 40.0, -60.0])
     r = redirection(analyze_spec(spec), t_points, v_points,
                     Redirect(threshold_deg=4.0, axis_threshold_deg=25.0))
-    R = Rotation.from_euler(
-        "YX", [35, -90], degrees=True
-    ).as_matrix()  # the same turn, written another way
+    # the same turn, written another way
+    R = Rotation.from_euler("YX", [35, -90], degrees=True).as_matrix()
     # 150 mm above the prop's table (the can stands on y = 0) and 300 mm in front of the middle of
     # its footprint
     start = np.array([120.0, 150.0, 220.0])
@@ -521,9 +374,8 @@ def test_the_redirection_of_a_prop_standing_off_the_origin_turned_about_the_leve
         axis_turn = _angle(physical[1] - physical[0], v_points[k][1] - v_points[k][0])
         assert r.angle_deg[k] == pytest.approx(angle, abs=1e-6)
         assert r.axis_turn_deg[k] == pytest.approx(axis_turn, abs=1e-6)
-        assert r.offset_mm[k] == pytest.approx(
-            np.linalg.norm(v_points[k].mean(axis=0) - physical.mean(axis=0))
-        )
+        assert r.offset_mm[k] == pytest.approx(np.linalg.norm(
+            v_points[k].mean(axis=0) - physical.mean(axis=0)))
 
 
 def _under_table(pose, normal, height, hand=(8.0, 8.0, 45.0)):
@@ -551,9 +403,8 @@ def test_no_pinch_reaches_under_the_counter_or_the_prop_s_table(tmp_path, capsys
     box.apply_translation([0.0, 0.03, 0.0])
     tabletop_level(tmp_path / "level.glb", [("can", standing_can(), (0.12, 0.9, -0.08)),
                                             ("box", box, (0.19, 0.9, -0.05))])
-    prop = trimesh.creation.cylinder(
-        radius=27.0, height=66.0, sections=64
-    )  # mm, z up, centred on its middle
+    # mm, z up, centred on its middle
+    prop = trimesh.creation.cylinder(radius=27.0, height=66.0, sections=64)
     prop.export(tmp_path / "can.stl")
     turn = Rotation.from_euler("y", 35, degrees=True) * Rotation.from_euler("x", -90, degrees=True)
     (tmp_path / "props.toml").write_text(
@@ -565,30 +416,10 @@ def test_no_pinch_reaches_under_the_counter_or_the_prop_s_table(tmp_path, capsys
     under = {}
     for support in ("auto", "none"):
         out = tmp_path / f"out_{support}"
-        code, _, err = run_cli(
-            capsys,
-            "match",
-            "--tangible",
-            tmp_path / "props.toml",
-            "--virtual",
-            tmp_path / "level.glb",
-            "--split",
-            "nodes",
-            "--placement",
-            placement,
-            "--support",
-            support,
-            "--count",
-            150,
-            "--max-redirect-deg",
-            "30",
-            "-o",
-            out,
-            "--no-view",
-            "--jobs",
-            1,
-            "--no-cache",
-        )
+        code, _, err = run_cli(capsys, "match", "--tangible", tmp_path / "props.toml", "--virtual",
+                               tmp_path / "level.glb", "--split", "nodes", "--placement", placement,
+                               "--support", support, "--count", 150, "--max-redirect-deg", "30",
+                               "-o", out, "--no-view", "--jobs", 1, "--no-cache")
         assert code == 0, err
         doc = json.loads((out / "matches.json").read_text())
         counted = []
@@ -596,15 +427,13 @@ def test_no_pinch_reaches_under_the_counter_or_the_prop_s_table(tmp_path, capsys
             for choice in [m] + m["alternatives"]:
                 counted.append(_under_table(choice["tangible_pose"], up_in_prop, prop_table))
                 if placement == "fixed" and m["redirection"]["mode"] == "redirect":
-                    counted.append(
-                        _under_table(choice["virtual_pose"], np.array([0.0, 1.0, 0.0]), 900.0)
-                    )
+                    counted.append(_under_table(choice["virtual_pose"], np.array([0.0, 1.0, 0.0]),
+                                                900.0))
         under[support] = sum(counted)
         if support == "auto":
             assert doc["tangibles"][0]["support"]["source"] == "pose"
-            np.testing.assert_allclose(
-                doc["tangibles"][0]["support"]["normal"], up_in_prop, atol=1e-6
-            )
+            np.testing.assert_allclose(doc["tangibles"][0]["support"]["normal"], up_in_prop,
+                                       atol=1e-6)
     assert under["auto"] == 0 and under["none"] > 0, under
 
 
@@ -648,8 +477,7 @@ def test_the_blockwise_budget_never_drops_an_allowed_pair_and_bounds_the_angle_s
 
 
 def test_an_object_behind_the_prop_on_the_line_of_sight_is_not_redirected_beyond_the_gain(
-    tmp_path, capsys
-):
+    tmp_path, capsys):
     """A can 150 mm behind the prop, nearly on the line from the hand's start: within a wide angle
     budget its reach would be 40 % longer than the felt one, beyond the gain range; a wider range
     redirects it."""
@@ -667,37 +495,17 @@ def test_an_object_behind_the_prop_on_the_line_of_sight_is_not_redirected_beyond
 
 
 def test_select_with_the_fixed_placement_ranks_props_as_the_match_serves_them(
-    tmp_path, capsys, kitchen
-):
+    tmp_path, capsys, kitchen):
     """Two posed props; under --placement fixed each object's cost on the chosen prop is what the
     match serves it with there (redirected, or by the carousel when that is cheaper by more than the
     margin): the row ranks fewer choices than the match, so the match's is at most the row's."""
     props = tmp_path / "shelf.toml"
-    props.write_text(
-        PROP + PROP.replace('"can_prop"', '"far_prop"').replace("[0, 0, 0]", "[600, 0, -400]")
-    )
+    props.write_text(PROP + PROP.replace('"can_prop"', '"far_prop"').replace(
+        "[0, 0, 0]", "[600, 0, -400]"))
     out = tmp_path / "out"
-    code, _, err = run_cli(
-        capsys,
-        "select",
-        "--tangible",
-        props,
-        "--virtual",
-        kitchen / "kitchen.glb",
-        "--split",
-        "nodes",
-        "--placement",
-        "fixed",
-        "-k",
-        "1",
-        "--count",
-        120,
-        "-o",
-        out,
-        "--no-view",
-        "--jobs",
-        1,
-    )
+    code, _, err = run_cli(capsys, "select", "--tangible", props, "--virtual",
+                           kitchen / "kitchen.glb", "--split", "nodes", "--placement", "fixed",
+                           "-k", "1", "--count", 120, "-o", out, "--no-view", "--jobs", 1)
     assert code == 0, err
     selection = json.loads((out / "selection.json").read_text())
     assert selection["settings"]["placement"] == "fixed"

@@ -33,9 +33,8 @@ def objects(tmp_path_factory):
     for name, mesh in meshes.items():
         mesh.export(folder / f"{name}.stl")
         obj = analyze_object(folder / f"{name}.stl")
-        out[name] = [
-            candidate_poses(obj, settings=PinchSettings(count=COUNT, seed=s)) for s in range(3)
-        ]
+        out[name] = [candidate_poses(obj, settings=PinchSettings(count=COUNT, seed=s))
+                     for s in range(3)]
     return out
 
 
@@ -47,9 +46,8 @@ def test_refinement_never_costs_more_and_its_poses_keep_every_rule(objects):
     tangibles, virtual = [objects["oval"][0], objects["rod"][0]], objects["egg"][0]
     model = cost_model(MatchSettings(), tangibles + [virtual])
     sampled = cost_row(Search(tangibles, [virtual], model, MatchSettings(refine=False)), 0)
-    search = refined_search(
-        tangibles, virtual, model, MatchSettings(), pinch_settings=settings_for(0)
-    )
+    search = refined_search(tangibles, virtual, model, MatchSettings(),
+                            pinch_settings=settings_for(0))
     refined = cost_row(search, 0)
     assert (refined <= sampled + 1e-12).all()
     assert refined.min() < 0.9 * sampled.min()  # the sample's best is not where the cost is lowest
@@ -67,12 +65,9 @@ def test_the_answer_hangs_less_on_the_seed(objects):
     """Three seeds: refined, the best costs agree far better than the sampled ones do."""
     def best(seed, refine):
         tangibles, virtual = [objects["oval"][seed], objects["rod"][seed]], objects["egg"][seed]
-        scene = match_scene(
-            tangibles,
-            [virtual],
-            settings=MatchSettings(refine=refine, landing_mm=0.0),
-            pinch_settings=settings_for(seed),
-        )
+        scene = match_scene(tangibles, [virtual],
+                            settings=MatchSettings(refine=refine, landing_mm=0.0),
+                            pinch_settings=settings_for(seed))
         return scene.matches[0].best
 
     def spread(costs):
@@ -96,9 +91,8 @@ def test_moves_turn_with_the_object():
     a = move_directions(points, axis)
     b = move_directions(points @ R.T, R @ axis)
     np.testing.assert_allclose(b, a @ R.T, atol=1e-12)
-    np.testing.assert_allclose(
-        np.einsum("kid,kd->ki", a, points[:, 1] - points[:, 0]), 0.0, atol=1e-9
-    )
+    np.testing.assert_allclose(np.einsum("kid,kd->ki", a, points[:, 1] - points[:, 0]), 0.0,
+                               atol=1e-9)
     assert len(np.unique(MOVES, axis=0)) == len(MOVES) == 16
 
 
@@ -109,9 +103,8 @@ def test_moved_contacts_stay_on_the_surface_within_the_step(objects):
     assert len(points) > 0.9 * 16 * 10
     tri = egg.obj.loaded.mesh.triangles[faces]  # each contact lies in its triangle's plane
     normal = np.cross(tri[:, :, 1] - tri[:, :, 0], tri[:, :, 2] - tri[:, :, 0])
-    offset = np.einsum(
-        "kid,kid->ki", points - tri[:, :, 0], normal / np.linalg.norm(normal, axis=2, keepdims=True)
-    )
+    offset = np.einsum("kid,kid->ki", points - tri[:, :, 0],
+                       normal / np.linalg.norm(normal, axis=2, keepdims=True))
     assert np.abs(offset).max() < 1e-6
     moved = np.linalg.norm(points - egg.pinches.points[poses][which], axis=2)
     assert moved.max() < 2.0 * 2.0 and (moved.max(axis=1) > 1.0).all()
@@ -122,13 +115,8 @@ def test_given_poses_are_not_moved(objects):
     p = egg.pinches.points[:20]
     given = candidate_poses(egg.obj, settings=settings_for(0), given=(p[:, 0], p[:, 1]))
     tangible = objects["oval"][0]
-    search = refined_search(
-        [tangible],
-        given,
-        cost_model(MatchSettings(), [tangible, given]),
-        MatchSettings(),
-        pinch_settings=settings_for(0),
-    )
+    search = refined_search([tangible], given, cost_model(MatchSettings(), [tangible, given]),
+                            MatchSettings(), pinch_settings=settings_for(0))
     assert len(search.virtuals[0]) == len(given)
 
 
@@ -164,11 +152,8 @@ def test_a_pair_takes_its_cheapest_move_that_the_hand_reaches(objects):
     v = moves(50, [1, -1, 1])  # virtual moves 50..52: 51 unreachable
     live = [_Pair(0, 0, 0, 1.0, 4.0), _Pair(0, 1, 1, 1.0, 4.0), _Pair(0, 2, 2, 1.0, 4.0)]
     options = {
-        0: (
-            np.array([100, 101, 101, 102]),
-            np.array([50, 51, 52, 50]),
-            np.array([0.1, 0.2, 0.3, 0.4]),
-        ),
+        0: (np.array([100, 101, 101, 102]), np.array([50, 51, 52, 50]),
+            np.array([0.1, 0.2, 0.3, 0.4])),
         1: (np.array([103, 7]), np.array([50, 51]), np.array([0.1, 0.2])),  # none reachable
         2: (np.array([3]), np.array([4]), np.array([0.5])),  # sampled poses: reachable
     }
@@ -189,17 +174,15 @@ def test_an_option_is_taken_only_once_the_hand_is_known_to_reach_it(monkeypatch)
         moves.reached[rows] = [truth[moves.base + r] for r in rows]
 
     monkeypatch.setattr(refine_module, "_confirm", confirm)
-    grown = SimpleNamespace(
-        current=SimpleNamespace(obj=SimpleNamespace(context=None))
-    )  # confirm needs none
+    # confirm needs none
+    grown = SimpleNamespace(current=SimpleNamespace(obj=SimpleNamespace(context=None)))
     for last, expected in ((102, {}), (103, {0: (103, 5, 0.4)})):
         t = _Moves(None, np.zeros(4, dtype=np.int64), np.zeros((4, 3)), 100)
         v = _Moves(None, np.zeros(0, dtype=np.int64), np.zeros((0, 3)), 50)
         its = np.array([100, 101, last])
         options = {0: (its, np.full(3, 5), np.array([0.1, 0.2, 0.4]))}
-        taken = _take_reachable(
-            [_Pair(0, 0, 5, 1.0, 4.0)], options, {0: t}, v, [grown], grown, settings_for(0)
-        )
+        taken = _take_reachable([_Pair(0, 0, 5, 1.0, 4.0)], options, {0: t}, v, [grown], grown,
+                                settings_for(0))
         assert taken == expected
         assert (t.reached[its - 100] != 0).all()  # each option looked at was checked
 
@@ -222,13 +205,11 @@ def test_a_moved_pose_keeps_the_triangle_of_each_contact_that_did_not_move(objec
     poses = np.array([len(T) - 1, 7, len(T) // 2, 7])
     points, faces, which = moved_poses(T, poses, np.full(len(poses), 3.0))
     for contact in (0, 1):
-        still = np.flatnonzero(
-            np.abs(points[:, contact] - T.pinches.points[poses[which], contact]).max(axis=1) == 0
-        )
-        assert (
-            len(still)
-            and (faces[still, contact] == T.pinches.face_index[poses[which[still]], contact]).all()
-        )
+        still = np.flatnonzero(np.abs(points[:, contact]
+                                      - T.pinches.points[poses[which], contact]).max(axis=1) == 0)
+        assert (len(still)
+                and (faces[still, contact]
+                     == T.pinches.face_index[poses[which[still]], contact]).all())
     # every contact lies on its triangle's plane
     tri = ctx.mesh.triangles[faces]
     normal = np.cross(tri[:, :, 1] - tri[:, :, 0], tri[:, :, 2] - tri[:, :, 0])
@@ -255,25 +236,16 @@ def test_refinement_starts_from_more_pairs_at_a_larger_count(objects, monkeypatc
     starts = []
     real = refine_module.refine
     monkeypatch.setattr(refine_module, "CONTENDER_RATIO", 100.0)  # both props contend
-    monkeypatch.setattr(
-        refine_module,
-        "refine",
-        lambda t, v, seeds, *a, **k: starts.append(seeds) or real(t, v, seeds, *a, **k),
-    )
+    monkeypatch.setattr(refine_module, "refine", lambda t, v, seeds, *a,
+                        **k: starts.append(seeds) or real(t, v, seeds, *a, **k))
     for count in (1000, 3000):
-        refined_search(
-            tangibles,
-            virtual,
-            model,
-            MatchSettings(),
-            pinch_settings=PinchSettings(count=count, seed=0),
-        )
+        refined_search(tangibles, virtual, model, MatchSettings(),
+                       pinch_settings=PinchSettings(count=count, seed=0))
     for seeds, (on_best, on_other) in zip(starts, [(2, 1), (6, 3)]):
         per_prop = {t: [s for s in seeds if s[0] == t] for t in {s[0] for s in seeds}}
         best = min(per_prop, key=lambda t: min(s[3] for s in per_prop[t]))
         assert len(per_prop[best]) == on_best
         assert all(len(v) == on_other for t, v in per_prop.items() if t != best)
-        assert all(
-            np.diff([s[3] for s in v]).min(initial=0.0) >= 0.0 for v in per_prop.values()
-        )  # best first
+        # best first
+        assert all(np.diff([s[3] for s in v]).min(initial=0.0) >= 0.0 for v in per_prop.values())
         assert len(per_prop) == 2

@@ -24,17 +24,9 @@ def test_a_moved_copy_registers_back_onto_the_original(seed, swapped):
     v_points, v_normals = points @ R.T + t, normals @ R.T
     if swapped:
         v_points, v_normals = v_points[::-1], v_normals[::-1]
-    T = register_pose(
-        points,
-        normals,
-        v_points,
-        v_normals,
-        swapped=swapped,
-        tangible_com=com,
-        virtual_com=R @ com + t,
-        tangible_axis=axis,
-        virtual_axis=R @ axis,
-    )
+    T = register_pose(points, normals, v_points, v_normals, swapped=swapped,
+                      tangible_com=com, virtual_com=R @ com + t, tangible_axis=axis,
+                      virtual_axis=R @ axis)
     assert np.linalg.det(T[:3, :3]) == pytest.approx(1.0)
     np.testing.assert_allclose(T[:3, :3], R.T, atol=1e-9)
     np.testing.assert_allclose(T[:3, 3], -R.T @ t, atol=1e-7)
@@ -67,16 +59,11 @@ def test_the_smallest_rotation_between_opposite_vectors_is_a_half_turn():
 def test_register_pose_takes_plain_lists():
     args = dict(swapped=False, tangible_com=[0.0, 0.0, 0.0], virtual_com=[0.0, 0.0, 0.0],
                 tangible_axis=[0.0, 0.0, 1.0], virtual_axis=[0.0, 0.0, 1.0])
-    T = register_pose(
-        [[-10.0, 0.0, 0.0], [10.0, 0.0, 0.0]],
-        [[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0]],
-        [[0.0, -10.0, 5.0], [0.0, 10.0, 5.0]],
-        [[0.0, -1.0, 0.0], [0.0, 1.0, 0.0]],
-        **args,
-    )
-    np.testing.assert_allclose(
-        T[:3, :3] @ [0.0, -10.0, 5.0] + T[:3, 3], [-10.0, 0.0, 0.0], atol=1e-9
-    )
+    T = register_pose([[-10.0, 0.0, 0.0], [10.0, 0.0, 0.0]], [[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0]],
+                      [[0.0, -10.0, 5.0], [0.0, 10.0, 5.0]], [[0.0, -1.0, 0.0], [0.0, 1.0, 0.0]],
+                      **args)
+    np.testing.assert_allclose(T[:3, :3] @ [0.0, -10.0, 5.0] + T[:3, 3], [-10.0, 0.0, 0.0],
+                               atol=1e-9)
 
 
 @pytest.mark.parametrize("side", ["virtual", "tangible"])
@@ -92,29 +79,13 @@ def test_a_normal_within_five_degrees_of_the_line_has_no_say_in_the_roll(side):
     near, far = normals(3.0, [0.0, 1.0, 0.0]), normals(30.0, [0.0, 0.0, 1.0])
     t_normals, v_normals = (far, near) if side == "virtual" else (near, far)
     com, axis = np.array([0.0, -30.0, 0.0]), np.array([0.0, 0.0, 1.0])
-    T = register_pose(
-        points,
-        t_normals,
-        points,
-        v_normals,
-        swapped=False,
-        tangible_com=com,
-        virtual_com=com,
-        tangible_axis=axis,
-        virtual_axis=axis,
-    )
+    T = register_pose(points, t_normals, points, v_normals, swapped=False, tangible_com=com,
+                      virtual_com=com, tangible_axis=axis, virtual_axis=axis)
     np.testing.assert_allclose(T[:3, :3], np.eye(3), atol=1e-12)
-    tilted = register_pose(
-        points,
-        t_normals,
-        points,
-        normals(6.0, [0.0, 1.0, 0.0]) if side == "virtual" else v_normals,
-        swapped=False,
-        tangible_com=com,
-        virtual_com=com,
-        tangible_axis=axis,
-        virtual_axis=axis,
-    )
+    tilted = register_pose(points, t_normals, points, normals(6.0, [0.0, 1.0, 0.0]) if side
+                           == "virtual" else v_normals,
+                           swapped=False, tangible_com=com, virtual_com=com, tangible_axis=axis,
+                           virtual_axis=axis)
     if side == "virtual":  # at 6° the normal has its say: the roll turns towards it
         assert abs(tilted[2, 1]) > 1e-3
 
@@ -127,10 +98,8 @@ def test_three_contacts_register_back_onto_the_original_at_a_random_place(seed):
     from pinchmatch.match.register import NORMAL_LEVER_MM, register_contacts
 
     rng = np.random.default_rng(seed)
-    p = (
-        np.array([[-25.0, 3.0, 1.0], [22.0, -11.0, 4.0], [24.0, 12.0, -2.0]])
-        + rng.normal(size=3) * 40.0
-    )
+    p = np.array([[-25.0, 3.0, 1.0], [22.0, -11.0, 4.0],
+                  [24.0, 12.0, -2.0]]) + rng.normal(size=3) * 40.0
     n = np.array([[-1.0, 0.1, 0.0], [0.9, -0.3, 0.1], [0.9, 0.4, -0.1]])
     n /= np.linalg.norm(n, axis=1, keepdims=True)
     R, t = random_rigid(seed)

@@ -53,15 +53,8 @@ def test_the_rest_gap_is_the_lowest_vertex_of_the_moved_object(tmp_path):
 
 
 def test_a_gap_costs_nothing_within_the_tolerance_and_grows_at_each_side_s_rate():
-    gaps = np.array(
-        [
-            -REST_TOLERANCE_MM,
-            REST_TOLERANCE_MM,
-            -REST_TOLERANCE_MM - 3.0,
-            REST_TOLERANCE_MM + 15.0,
-            np.nan,
-        ]
-    )
+    gaps = np.array([-REST_TOLERANCE_MM, REST_TOLERANCE_MM, -REST_TOLERANCE_MM - 3.0,
+                     REST_TOLERANCE_MM + 15.0, np.nan])
     np.testing.assert_allclose(rest_jnd(gaps, sink_mm_per_jnd=1.5, float_mm_per_jnd=5.0),
                                [0.0, 0.0, 3.0 / 1.5, 15.0 / 5.0, 0.0])
 
@@ -100,9 +93,8 @@ def table(tmp_path_factory):
     shapes = {}
     for name, mesh, xyz in places:
         shapes[name] = (np.asarray(mesh.vertices) + xyz) * 1000.0
-    bottle = trimesh.creation.cylinder(
-        radius=33.0, height=200.0, sections=64
-    )  # mm, z up, centred on its middle
+    # mm, z up, centred on its middle
+    bottle = trimesh.creation.cylinder(radius=33.0, height=200.0, sections=64)
     bottle.export(folder / "bottle.stl")
     turn = Rotation.from_euler("y", 35, degrees=True) * Rotation.from_euler("x", -90, degrees=True)
     (folder / "props.toml").write_text(
@@ -130,26 +122,9 @@ def _gaps(doc, shapes, prop_vertices, up):
 
 
 def _match(capsys, folder, out, *extra):
-    code, _, err = run_cli(
-        capsys,
-        "match",
-        "--tangible",
-        folder / "props.toml",
-        "--virtual",
-        folder / "level.glb",
-        "--split",
-        "nodes",
-        "--count",
-        150,
-        "-o",
-        out,
-        "--no-view",
-        "--no-figures",
-        "--jobs",
-        1,
-        "--no-cache",
-        *extra,
-    )
+    code, _, err = run_cli(capsys, "match", "--tangible", folder / "props.toml", "--virtual",
+                           folder / "level.glb", "--split", "nodes", "--count", 150, "-o", out,
+                           "--no-view", "--no-figures", "--jobs", 1, "--no-cache", *extra)
     assert code == 0, err
     return json.loads((out / "matches.json").read_text())
 
@@ -161,28 +136,14 @@ def test_objects_shown_on_a_standing_prop_rest_on_its_table(tmp_path, capsys, ta
     (rates of 10^4 mm per JND) the same run sinks the knife or the vase, so the rule is what keeps
     them up."""
     folder, shapes, prop_vertices, up = table
-    extra = ["--placement", placement] + (
-        ["--max-redirect-deg", "0.5"] if placement == "fixed" else []
-    )
+    extra = ["--placement", placement] + (["--max-redirect-deg", "0.5"] if placement == "fixed"
+                                          else [])
     gaps = _gaps(_match(capsys, folder, tmp_path / "rest", *extra), shapes, prop_vertices, up)
     assert set(gaps) == set(shapes)  # every object shown on the prop (the carousel, under fixed)
     best = {name: g[0] for name, g in gaps.items()}
     assert all(-2.0 - 1e-6 <= g <= 10.0 for g in best.values()), best
-    loose = _gaps(
-        _match(
-            capsys,
-            folder,
-            tmp_path / "loose",
-            *extra,
-            "--rest-sink-mm-per-jnd",
-            "10000",
-            "--rest-float-mm-per-jnd",
-            "10000",
-        ),
-        shapes,
-        prop_vertices,
-        up,
-    )
+    loose = _gaps(_match(capsys, folder, tmp_path / "loose", *extra, "--rest-sink-mm-per-jnd",
+                         "10000", "--rest-float-mm-per-jnd", "10000"), shapes, prop_vertices, up)
     assert min(g[0] for g in loose.values()) < -2.0, loose
 
 
@@ -194,9 +155,8 @@ def test_a_prop_held_in_the_hand_reports_no_gap(tmp_path, capsys, table):
 
 def test_tripods_shown_on_a_standing_prop_rest_on_its_table(tmp_path, capsys, table):
     folder, shapes, prop_vertices, up = table
-    gaps = _gaps(
-        _match(capsys, folder, tmp_path / "tripod", "--grasp", "tripod"), shapes, prop_vertices, up
-    )
+    gaps = _gaps(_match(capsys, folder, tmp_path / "tripod", "--grasp", "tripod"), shapes,
+                 prop_vertices, up)
     assert gaps and all(-2.0 - 1e-6 <= g[0] <= 10.0 for g in gaps.values()), gaps
 
 

@@ -35,50 +35,32 @@ def _outputs(folder: Path) -> dict:
 
 
 def _match(capsys, meshes, out, cache, *extra):
-    argv = [
-        "match",
-        "--tangible",
-        example_mesh_path(),
-        "--virtual",
-        *meshes,
-        "--count",
-        150,
-        "--jobs",
-        1,
-        "--cache",
-        cache,
-        "-o",
-        out,
-        *extra,
-    ]
+    argv = ["match", "--tangible", example_mesh_path(), "--virtual", *meshes, "--count", 150,
+            "--jobs", 1, "--cache", cache, "-o", out, *extra]
     code, stdout, err = run_cli(capsys, *argv)
     assert code == 0, err
     return stdout
 
 
 def test_a_warm_run_reads_each_result_back_bit_for_bit_without_searching(
-    tmp_path, capsys, meshes, monkeypatch
-):
+    tmp_path, capsys, meshes, monkeypatch):
     cache = tmp_path / "cache"
     _match(capsys, meshes, tmp_path / "cold", cache)
     assert len(list(cache.glob("*.result.npz"))) == 2
     searched = []
     inner = tasks.match_virtual
-    monkeypatch.setattr(
-        tasks, "match_virtual", lambda *a, **k: searched.append(1) or inner(*a, **k)
-    )
+    monkeypatch.setattr(tasks, "match_virtual", lambda *a,
+                        **k: searched.append(1) or inner(*a, **k))
     _match(capsys, meshes, tmp_path / "warm", cache)
     assert searched == []  # every virtual object's result came from the cache
-    assert _outputs(tmp_path / "warm") == _outputs(
-        tmp_path / "cold"
-    )  # page, scenes, figures, matches.json
+    # page, scenes, figures, matches.json
+    assert _outputs(tmp_path / "warm") == _outputs(tmp_path / "cold")
 
     # other weights: other results, searched again, as a run without the cache finds them
     _match(capsys, meshes, tmp_path / "tuned", cache, "--weights", "width=3,mass=0")
     assert len(searched) == 2
-    _match(
-        capsys, meshes, tmp_path / "fresh", tmp_path / "other-cache", "--weights", "width=3,mass=0"
-    )
+    _match(capsys, meshes, tmp_path / "fresh", tmp_path / "other-cache", "--weights",
+           "width=3,mass=0")
     assert _outputs(tmp_path / "tuned") == _outputs(tmp_path / "fresh")
     assert _outputs(tmp_path / "tuned") != _outputs(tmp_path / "cold")
 
@@ -114,49 +96,21 @@ def test_the_key_covers_every_input_of_a_result(tmp_path, meshes):
     assert key == results.result_key(cache, task, job, shared, model, None, None)  # deterministic
     changed = {
         "another file": (ObjectTask("virtual", str(ball)), job, shared, model, None, None),
-        "another name or mass": (
-            ObjectTask("virtual", str(egg), spec=ObjectSpec(str(egg), mass_g=50.0)),
-            job,
-            shared,
-            model,
-            None,
-            None,
-        ),
+        "another name or mass": (ObjectTask("virtual", str(egg),
+                                            spec=ObjectSpec(str(egg), mass_g=50.0)),
+                                 job, shared, model, None, None),
         "other tangibles": (task, job, ("b" * 64, None), model, None, None),
         "another cost model": (task, job, shared, {"weights": 2.0}, None, None),
-        "other match settings": (
-            task,
-            dataclasses.replace(job, config=job.config.replace(top_k=5)),
-            shared,
-            model,
-            None,
-            None,
-        ),
-        "other pinch settings": (
-            task,
-            dataclasses.replace(job, config=job.config.replace(count=151)),
-            shared,
-            model,
-            None,
-            None,
-        ),
+        "other match settings": (task, dataclasses.replace(job, config=job.config.replace(top_k=5)),
+                                 shared, model, None, None),
+        "other pinch settings": (task,
+                                 dataclasses.replace(job, config=job.config.replace(count=151)),
+                                 shared, model, None, None),
         "units": (task, dataclasses.replace(job, units="cm"), shared, model, None, None),
-        "a one-to-one plan": (
-            task,
-            job,
-            shared,
-            model,
-            np.array([True, False]),
-            np.array([0.5, 1.5]),
-        ),
-        "no scenes written": (
-            task,
-            dataclasses.replace(job, scenes=False),
-            shared,
-            model,
-            None,
-            None,
-        ),
+        "a one-to-one plan": (task, job, shared, model, np.array([True, False]),
+                              np.array([0.5, 1.5])),
+        "no scenes written": (task, dataclasses.replace(job, scenes=False), shared, model, None,
+                              None),
     }
     keys = {name: results.result_key(cache, *args) for name, args in changed.items()}
     assert key not in keys.values() and len(set(keys.values())) == len(keys), keys

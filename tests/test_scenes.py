@@ -44,9 +44,8 @@ def test_glb_round_trip_gives_named_nodes_transforms_and_extras(written):
             finger = scene.geometry[f"finger_p{k + 1}"]
             tip = (p[k] + 8.0 * T.pinches.normals[vm.best.t_pose, k]) @ Q.T / 1000.0
             along = (finger.vertices - tip) @ (Q @ axes[k])
-            assert along.min() == pytest.approx(-0.008, abs=2e-4) and along.max() == pytest.approx(
-                0.053, abs=2e-4
-            )
+            assert (along.min() == pytest.approx(-0.008, abs=2e-4) and along.max()
+                    == pytest.approx(0.053, abs=2e-4))
             extras = scene.graph.transforms.edge_data[("world", f"finger_p{k + 1}")]["metadata"]
             np.testing.assert_allclose(extras["pinchmatch:approach"], h, atol=1e-9)
             np.testing.assert_allclose(extras["pinchmatch:direction"], axes[k], atol=1e-9)
@@ -62,15 +61,13 @@ def test_glb_round_trip_gives_named_nodes_transforms_and_extras(written):
         local = scene.geometry["virtual"].vertices.mean(axis=0)
         placed = matrix[:3, :3] @ local + matrix[:3, 3]
         file_mm = study.scene.virtuals[vm.virtual].obj.loaded.mesh.vertices.mean(axis=0)
-        np.testing.assert_allclose(
-            placed, Z_UP_TO_GLTF @ (X[:3, :3] @ file_mm + X[:3, 3]) / 1000.0, atol=1e-6
-        )
+        np.testing.assert_allclose(placed, Z_UP_TO_GLTF @ (X[:3, :3] @ file_mm + X[:3, 3]) / 1000.0,
+                                   atol=1e-6)
         extras = scene.graph.transforms.edge_data[("world", "virtual")]["metadata"]
         assert extras["pinchmatch:cost"] == pytest.approx(vm.best.cost)
         assert extras["pinchmatch:flipped"] == vm.best.flipped
-        np.testing.assert_allclose(
-            np.reshape(extras["pinchmatch:transform_virtual_to_tangible_mm"], (4, 4)), X
-        )
+        np.testing.assert_allclose(np.reshape(extras["pinchmatch:transform_virtual_to_tangible_mm"],
+                                              (4, 4)), X)
         # each cone's tip sits on its contact, its body outside along the pinch line
         p = study.tangible.pinches.points[vm.best.t_pose]
         for k in range(2):
@@ -111,9 +108,8 @@ def test_the_engine_guide_recipes_give_the_scene_placement(written):
         scene = trimesh.load(path)
         B = np.reshape(scene.metadata["pinchmatch:file_mm_to_gltf_m"], (4, 4))
         node, _ = scene.graph["virtual"]
-        np.testing.assert_allclose(
-            B @ vm.best.transform @ np.linalg.inv(B), node, atol=1e-6
-        )  # GLB: float32
+        # GLB: float32
+        np.testing.assert_allclose(B @ vm.best.transform @ np.linalg.inv(B), node, atol=1e-6)
         S = np.diag([-1.0, 1.0, 1.0])
         unity = S @ node[:3, :3] @ S
         assert np.linalg.det(unity) == pytest.approx(1.0)
@@ -124,10 +120,9 @@ def test_the_engine_guide_recipes_give_the_scene_placement(written):
 BLENDER = shutil.which("blender")
 
 
-@pytest.mark.skipif(
-    BLENDER is None and not os.environ.get("CI"),
-    reason="Blender not installed (apt-get install blender python3-numpy); .ci/run installs it",
-)
+@pytest.mark.skipif(BLENDER is None and not os.environ.get("CI"),
+                    reason="Blender not installed (apt-get install blender python3-numpy); .ci/run "
+                           "installs it")
 def test_scene_opens_in_blender(written):
     """Blender's own glTF importer: Z-up metres, so the node matrix comes back as the mm transform /
     1000."""
@@ -139,13 +134,9 @@ def test_scene_opens_in_blender(written):
     env = dict(os.environ, PATH=os.pathsep.join(["/usr/bin", "/bin", str(Path(BLENDER).parent)]))
     env.pop("PYTHONHOME", None)
     env.pop("PYTHONPATH", None)
-    run = subprocess.run(
-        [BLENDER, "-b", "--factory-startup", "--python", str(script), "--", str(path)],
-        capture_output=True,
-        text=True,
-        timeout=300,
-        env=env,
-    )
+    run = subprocess.run([BLENDER, "-b", "--factory-startup", "--python", str(script), "--",
+                          str(path)],
+                         capture_output=True, text=True, timeout=300, env=env)
     line = next((x for x in run.stdout.splitlines() if x.startswith("RESULT ")), None)
     assert line is not None, run.stdout[-2000:] + run.stderr[-2000:]
     objects = json.loads(line[len("RESULT "):])
@@ -153,12 +144,9 @@ def test_scene_opens_in_blender(written):
     assert objects["tangible"]["dimensions"] == pytest.approx([0.06, 0.06, 0.12], abs=1e-4)
     X = vm.best.transform
     world = np.array(objects["virtual"]["matrix_world"])
-    np.testing.assert_allclose(
-        world[:3, :3], X[:3, :3], atol=1e-5
-    )  # the study files are Z-up, like Blender
+    # the study files are Z-up, like Blender
+    np.testing.assert_allclose(world[:3, :3], X[:3, :3], atol=1e-5)
     np.testing.assert_allclose(world[:3, 3], X[:3, 3] / 1000.0, atol=1e-6)
     extras = objects["virtual"]["extras"]
-    assert (
-        extras["pinchmatch:cost"] == pytest.approx(vm.best.cost)
-        and bool(extras["pinchmatch:flipped"]) == vm.best.flipped
-    )
+    assert (extras["pinchmatch:cost"] == pytest.approx(vm.best.cost)
+            and bool(extras["pinchmatch:flipped"]) == vm.best.flipped)

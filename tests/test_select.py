@@ -23,9 +23,8 @@ def _brute(cost, noticeable, k, objective):
     for subset in itertools.combinations(range(cost.shape[1]), k):
         sub = c[:, subset]
         pick = np.argmin(sub, axis=1)
-        if (
-            objective == "noticeable"
-        ):  # a quiet prop first, when the object has one among the chosen
+        if objective == "noticeable":
+            # a quiet prop first, when the object has one among the chosen
             for j in range(len(sub)):
                 quiet = [i for i in range(k) if not q[j, subset[i]] and np.isfinite(sub[j, i])]
                 if quiet:
@@ -37,11 +36,8 @@ def _brute(cost, noticeable, k, objective):
         elif objective == "max":
             value = own.max()
         else:
-            value = (
-                float(q[:, subset][np.arange(len(sub)), pick].sum())
-                if np.isfinite(own).all()
-                else np.inf
-            )
+            value = (float(q[:, subset][np.arange(len(sub)), pick].sum()) if np.isfinite(own).all()
+                     else np.inf)
         if best is None or (value, mean) < best[:2]:
             best = (value, mean, subset)
     return best
@@ -65,10 +61,8 @@ def test_the_exhaustive_answer_is_the_brute_force_one(objective, seed):
         assert s.exact and s.value == pytest.approx(value) and s.mean_cost == pytest.approx(mean)
         assert tuple(s.props) == subset  # the first of equals, in lexicographic order
         served = s.assigned >= 0
-        assert (
-            not served[0]
-            and served[1:].all() == np.isfinite(cost[1:][:, s.props]).any(axis=1).all()
-        )
+        assert (not served[0] and served[1:].all()
+                == np.isfinite(cost[1:][:, s.props]).any(axis=1).all())
         if objective != "noticeable":  # each object's prop is its cheapest chosen one
             assert np.allclose(s.cost[served], cost[served][:, s.props].min(axis=1))
 
@@ -143,26 +137,11 @@ def shelf_and_scene(tmp_path):
 
 
 def test_select_writes_the_selection_and_the_chosen_props_matches(
-    tmp_path, capsys, shelf_and_scene
-):
+    tmp_path, capsys, shelf_and_scene):
     shelf, scene = shelf_and_scene
     out = tmp_path / "out"
-    code, stdout, err = run_cli(
-        capsys,
-        "select",
-        "--tangible",
-        shelf,
-        "--virtual",
-        scene,
-        "-k",
-        2,
-        "--count",
-        120,
-        "-o",
-        out,
-        "--jobs",
-        1,
-    )
+    code, stdout, err = run_cli(capsys, "select", "--tangible", shelf, "--virtual", scene, "-k", 2,
+                                "--count", 120, "-o", out, "--jobs", 1)
     assert code == 0, err
     doc = json.loads((out / "selection.json").read_text())
     assert doc["schema"] == "pinchmatch.selection/1" and doc["selection"]["exact"]
@@ -172,25 +151,20 @@ def test_select_writes_the_selection_and_the_chosen_props_matches(
     assert [c["k"] for c in doc["coverage"]] == [1, 2, 3] and values == sorted(values, reverse=True)
     matches = json.loads((out / "matches.json").read_text())
     assert [t["name"] for t in matches["tangibles"]] == sorted(
-        chosen, key=["long.stl", "ball.stl", "disc.stl"].index
-    ) or sorted(t["name"] for t in matches["tangibles"]) == sorted(chosen)
+        chosen, key=["long.stl", "ball.stl", "disc.stl"].index) \
+        or sorted(t["name"] for t in matches["tangibles"]) == sorted(chosen)
     # the chosen props' match gives every object the prop and cost the selection says
     by_name = {m["virtual"]: m for m in matches["matches"]}
     for o in doc["objects"]:
         assert by_name[o["virtual"]]["tangible"] == o["tangible"]
         assert by_name[o["virtual"]]["cost"] == pytest.approx(o["cost"], abs=1e-6)
-    served = np.array(
-        [[np.inf if x is None else x for x in row] for row in doc["served_matrix"]["values"]]
-    )
-    assert doc["selection"]["mean_cost"] == pytest.approx(
-        served[:, [doc["served_matrix"]["columns_tangible"].index(p) for p in chosen]]
-        .min(axis=1)
-        .mean(),
-        abs=1e-5,
-    )
-    assert (out / "figures" / "coverage.png").stat().st_size > 10_000 and (
-        out / "index.html"
-    ).is_file()
+    served = np.array([[np.inf if x is None else x for x in row]
+                       for row in doc["served_matrix"]["values"]])
+    columns = [doc["served_matrix"]["columns_tangible"].index(p) for p in chosen]
+    assert doc["selection"]["mean_cost"] == pytest.approx(served[:, columns].min(axis=1).mean(),
+                                                          abs=1e-5)
+    assert (out / "figures"
+            / "coverage.png").stat().st_size > 10_000 and (out / "index.html").is_file()
     assert "chosen props" in stdout
 
 
@@ -202,13 +176,11 @@ def test_select_writes_the_selection_and_the_chosen_props_matches(
     (["-k", "1", "--one-to-one"], "unknown option --one-to-one"),
 ])
 def test_bad_options_end_in_one_line_and_write_nothing(
-    tmp_path, capsys, shelf_and_scene, argv, message
-):
+    tmp_path, capsys, shelf_and_scene, argv, message):
     shelf, scene = shelf_and_scene
     out = tmp_path / "out"
-    code, _, err = run_cli(
-        capsys, "select", "--tangible", shelf, "--virtual", scene, *argv, "-o", out
-    )
+    code, _, err = (run_cli(capsys, "select", "--tangible", shelf, "--virtual", scene, *argv, "-o",
+                            out))
     assert code == 2 and message in err and len(err.strip().splitlines()) == 1, err
     assert not out.exists()
 
@@ -218,52 +190,19 @@ def test_a_scene_with_no_usable_object_ends_in_one_line(tmp_path, capsys, shelf_
     flat = tmp_path / "flat.stl"
     flat.write_bytes(b"solid x\nendsolid x\n")
     out = tmp_path / "out"
-    code, _, err = run_cli(
-        capsys,
-        "select",
-        "--tangible",
-        shelf,
-        "--virtual",
-        flat,
-        "-k",
-        1,
-        "--count",
-        60,
-        "-o",
-        out,
-        "--jobs",
-        1,
-    )
+    code, _, err = run_cli(capsys, "select", "--tangible", shelf, "--virtual", flat, "-k", 1,
+                           "--count", 60, "-o", out, "--jobs", 1)
     assert code == 2 and "flat.stl" in err and "Traceback" not in err
     assert len(err.strip().splitlines()) == 1 and not out.exists()
 
 
 def test_under_noticeable_the_matches_place_each_object_where_the_selection_does(
-    tmp_path, capsys, shelf_and_scene
-):
+    tmp_path, capsys, shelf_and_scene):
     shelf, scene = shelf_and_scene
     out = tmp_path / "out"
-    code, _, err = run_cli(
-        capsys,
-        "select",
-        "--tangible",
-        shelf,
-        "--virtual",
-        scene,
-        "-k",
-        2,
-        "--count",
-        120,
-        "--objective",
-        "noticeable",
-        "--max-k",
-        2,
-        "-o",
-        out,
-        "--jobs",
-        1,
-        "--no-view",
-    )
+    code, _, err = run_cli(capsys, "select", "--tangible", shelf, "--virtual", scene, "-k", 2,
+                           "--count", 120, "--objective", "noticeable", "--max-k", 2, "-o", out,
+                           "--jobs", 1, "--no-view")
     assert code == 0, err
     doc = json.loads((out / "selection.json").read_text())
     assert doc["selection"]["objective"] == "noticeable" and len(doc["coverage"]) == 2
@@ -272,32 +211,18 @@ def test_under_noticeable_the_matches_place_each_object_where_the_selection_does
     for o in doc["objects"]:
         assert matches[o["virtual"]]["tangible"] == o["tangible"]
         assert matches[o["virtual"]]["cost"] == pytest.approx(o["cost"], abs=1e-6)
-        assert (
-            matches[o["virtual"]]["noticeable"] == o["noticeable"]
-        )  # the pooled difference, noticed or not
+        # the pooled difference, noticed or not
+        assert matches[o["virtual"]]["noticeable"] == o["noticeable"]
 
 
 def test_the_coverage_table_shows_the_mean_once_under_the_mean_objective():
     from pinchmatch.export.selection import coverage_rows
 
-    curve = [
-        {
-            "k": 1,
-            "value": 2.5,
-            "mean_cost": 2.5,
-            "noticeable_count": 3,
-            "exact": True,
-            "props": ["a"],
-        }
-    ]
+    curve = [{"k": 1, "value": 2.5, "mean_cost": 2.5, "noticeable_count": 3, "exact": True,
+              "props": ["a"]}]
     mean = coverage_rows({"settings": {"objective": "mean"}, "coverage": curve})
     assert mean[0] == ("K", "mean_cost", "noticeable", "exact", "props") and mean[1] == (
-        1,
-        2.5,
-        3,
-        "yes",
-        "a",
-    )
+        1, 2.5, 3, "yes", "a")
     worst = coverage_rows({"settings": {"objective": "max"}, "coverage": curve})
     assert worst[0] == ("K", "max", "mean_cost", "noticeable", "exact", "props")
 
@@ -307,10 +232,8 @@ def test_one_prop_and_an_object_it_cannot_serve():
     loud = np.array([[False], [True]])
     pick = select.select_props(cost, loud, 1)
     assert pick.props.tolist() == [0] and pick.assigned.tolist() == [0, -1]
-    assert pick.noticeable.tolist() == [
-        False,
-        False,
-    ]  # an object served by no prop is not a noticed match
+    # an object served by no prop is not a noticed match
+    assert pick.noticeable.tolist() == [False, False]
 
 
 def test_an_object_noticed_on_the_first_prop_is_counted_noticed():

@@ -31,74 +31,38 @@ def scene(tmp_path_factory):
 def command(name, scene, out, jobs):
     prop, objects = str(example_mesh_path()), [str(p) for p in sorted(scene.glob("*.stl"))]
     common = ["--count", "300", "-q", "--no-cache", "-o", str(out)]
-    if (
-        name == "match"
-    ):  # more poses: the run lasts well past the latest signal (about 1.4 s at 300 poses here)
-        return [
-            "match",
-            "--tangible",
-            prop,
-            "--virtual",
-            *objects,
-            "--jobs",
-            str(jobs),
-            *common,
-            "--count",
-            "3000",
-        ]
+    if name == "match":
+        # more poses: the run lasts well past the latest signal (about 1.4 s at 300 poses here)
+        return (["match", "--tangible", prop, "--virtual", *objects, "--jobs", str(jobs), *common,
+                 "--count", "3000"])
     if name == "select":
-        return [
-            "select",
-            "--tangible",
-            prop,
-            prop,
-            "--virtual",
-            *objects,
-            "-k",
-            "1",
-            "--jobs",
-            str(jobs),
-            *common,
-        ]
+        return (["select", "--tangible", prop, prop, "--virtual", *objects, "-k", "1", "--jobs",
+                 str(jobs), *common])
     if name == "design":
         return ["design", "--virtual", *objects, "--evaluations", "3", "--jobs", str(jobs), *common]
     return ["demo", "-o", str(out), "-q"]
 
 
-CASES = (
-    [
-        ("match", jobs, delay, signal.SIGTERM)
-        for jobs in (1, 2)
-        for delay in (0.2, 0.4, 0.7, 1.0, 1.5)
-    ]
-    + [("match", 1, 0.5, signal.SIGINT), ("match", 2, 0.9, signal.SIGINT)]
-    + [
-        (name, jobs, delay, signal.SIGTERM)
-        for name in ("select", "design")
-        for jobs in (1, 2)
-        for delay in (0.4, 1.2)
-    ]
-    + [("demo", 1, delay, sig) for delay in (0.3, 0.8) for sig in (signal.SIGTERM, signal.SIGINT)]
-)
+CASES = ([("match", jobs, delay, signal.SIGTERM) for jobs in (1, 2)
+          for delay in (0.2, 0.4, 0.7, 1.0, 1.5)]
+         + [("match", 1, 0.5, signal.SIGINT), ("match", 2, 0.9, signal.SIGINT)]
+         + [(name, jobs, delay, signal.SIGTERM) for name in ("select", "design") for jobs in (1, 2)
+            for delay in (0.4, 1.2)]
+         + [("demo", 1, delay, sig) for delay in (0.3, 0.8)
+            for sig in (signal.SIGTERM, signal.SIGINT)])
 
 
 @pytest.mark.parametrize("name, jobs, delay_s, sig", CASES)
 def test_an_early_signal_ends_the_run_and_leaves_the_folder_as_it_was(
-    tmp_path, scene, name, jobs, delay_s, sig
-):
+    tmp_path, scene, name, jobs, delay_s, sig):
     out = tmp_path / "out"
     out.mkdir()
     (out / "notes.txt").write_text("the user's own file")
     before = snapshot(out)
     argv = [sys.executable, "-m", "pinchmatch", *command(name, scene, out, jobs)]
-    proc = subprocess.Popen(
-        argv,
-        start_new_session=True,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        env={**os.environ, "PINCHMATCH_CACHE_DIR": str(tmp_path / "cache")},
-    )
+    proc = subprocess.Popen(argv, start_new_session=True, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True,
+                            env={**os.environ, "PINCHMATCH_CACHE_DIR": str(tmp_path / "cache")})
     time.sleep(delay_s)
     proc.send_signal(sig)
     _, err = proc.communicate(timeout=180)
@@ -154,10 +118,8 @@ def test_an_interrupted_calibrate_says_nothing_was_written(tmp_path, monkeypatch
     monkeypatch.setattr(calibrate_module, "calibrate", interrupted)
     assert main(["calibrate", str(table), "-o", str(tmp_path / "w.json")]) == 130
     err = capsys.readouterr().err.strip().splitlines()
-    assert (
-        err == ["pinchmatch: interrupted; nothing was written"]
-        and not (tmp_path / "w.json").exists()
-    )
+    assert (err == ["pinchmatch: interrupted; nothing was written"]
+            and not (tmp_path / "w.json").exists())
 
 
 FINISHED_THEN_WAITS = '''
@@ -183,23 +145,10 @@ def test_a_signal_after_the_result_is_published_says_so(tmp_path):
     script = tmp_path / "finished.py"
     script.write_text(FINISHED_THEN_WAITS)
     out = tmp_path / "out"
-    proc = subprocess.Popen(
-        [
-            sys.executable,
-            str(script),
-            "match",
-            "--tangible",
-            "a.stl",
-            "--virtual",
-            "b.stl",
-            "-o",
-            str(out),
-        ],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        start_new_session=True,
-    )
+    proc = subprocess.Popen([sys.executable, str(script), "match", "--tangible", "a.stl",
+                             "--virtual", "b.stl", "-o", str(out)], stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
     assert proc.stdout.readline().strip() == "published"
     proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=30)
@@ -229,9 +178,8 @@ def test_a_ctrl_c_while_the_fork_server_loads_the_pipeline_prints_no_traceback(d
             state = [line for line in fh if line.startswith("State:")][0]
         print("alive" if "Z" not in state.split()[1] else "dead")
     """)
-    proc = subprocess.run(
-        [sys.executable, "-c", script], capture_output=True, text=True, timeout=60
-    )
+    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                          timeout=60)
     assert proc.returncode == 0, proc.stderr
     if proc.stdout.strip() == "no fork server":
         pytest.skip("no fork server on this system")

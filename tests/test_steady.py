@@ -37,20 +37,12 @@ def _tables(rng, n):
     """A feature table of n random poses in plausible units, some ρ undefined, and a variance per
     entry. As every feature table (and its landings' moments) has them, the pose columns and the
     lever arm are the same in both patches' rows, their variances too."""
-    table = np.stack(
-        [rng.uniform(10, 80, n), rng.uniform(0, 60, n), rng.uniform(0, 40, n)], axis=1
-    )[:, None, :]
-    patch = np.stack(
-        [
-            rng.uniform(0, 30, (n, 2)),
-            rng.uniform(0, 90, (n, 2)),
-            rng.uniform(0, 80, (n, 2)),
-            rng.uniform(-20, 40, (n, 2)),
-            rng.uniform(-30, 30, (n, 2)),
-            np.repeat(rng.uniform(0, 40, (n, 1)), 2, axis=1),
-        ],
-        axis=-1,
-    )
+    table = np.stack([rng.uniform(10, 80, n), rng.uniform(0, 60, n), rng.uniform(0, 40, n)],
+                     axis=1)[:, None, :]
+    patch = np.stack([rng.uniform(0, 30, (n, 2)), rng.uniform(0, 90, (n, 2)),
+                      rng.uniform(0, 80, (n, 2)), rng.uniform(-20, 40, (n, 2)),
+                      rng.uniform(-30, 30, (n, 2)),
+                      np.repeat(rng.uniform(0, 40, (n, 1)), 2, axis=1)], axis=-1)
     rows = np.concatenate([np.broadcast_to(table, (n, 2, 3)), patch], axis=-1).copy()
     rows[rng.random((n, 2)) < 0.2, 4] = np.nan
     var = rng.uniform(0, 25, rows.shape)
@@ -64,12 +56,8 @@ def test_the_spread_pass_is_the_expected_separable_cost_of_every_pair():
     rng = np.random.default_rng(4)
     (t, t_var), (v, v_var) = _tables(rng, 7), _tables(rng, 5)
     model = CostModel()
-    got = np.concatenate(
-        [
-            c.copy()
-            for _, c, _ in pair_cost_blocks(t, v, model, block_rows=3, spreads=(t_var, v_var))
-        ]
-    )
+    got = np.concatenate([c.copy() for _, c, _ in pair_cost_blocks(
+        t, v, model, block_rows=3, spreads=(t_var, v_var))])
     a = model.column_weights() / model.scales(t) ** 2  # (7, 2, 9)
     want = np.empty((7, 5))
     for i in range(7):
@@ -82,9 +70,8 @@ def test_the_spread_pass_is_the_expected_separable_cost_of_every_pair():
     assert got == pytest.approx(want, rel=1e-9, abs=1e-9)
     plain, _ = pair_costs(t, v, model)
     assert (got > plain).all()  # the spread only adds
-    zero = np.concatenate(
-        [c.copy() for _, c, _ in pair_cost_blocks(t, v, model, spreads=(0 * t_var, 0 * v_var))]
-    )
+    zero = np.concatenate([c.copy() for _, c, _ in pair_cost_blocks(
+        t, v, model, spreads=(0 * t_var, 0 * v_var))])
     assert np.array_equal(zero, plain)
 
 
@@ -101,9 +88,8 @@ def test_expected_terms_are_the_mean_contribution_of_independent_draws():
     td = t + rng.standard_normal((draws, 2, 9)) * np.sqrt(t_var)
     vd = v + rng.standard_normal((draws, 2, 9)) * np.sqrt(v_var)
     s = model.scales(t)
-    z = (
-        (((vd - td) / s) ** 2).mean(axis=0).mean(axis=0)
-    )  # mean over draws, then over the two patches
+    # mean over draws, then over the two patches
+    z = (((vd - td) / s) ** 2).mean(axis=0).mean(axis=0)
     assert want[:7] == pytest.approx([z[0], z[1], z[2], z[3], z[4], z[5], z[6]], rel=0.02)
 
 
@@ -125,15 +111,13 @@ def test_moments_are_the_weighted_moments_of_the_landing_tables(tmp_path):
     # weight
     missed = (t.weights * ~t.hit).sum(axis=1) / t.weights.sum(axis=1)
     width_jnd = np.maximum(0.0575 * m[..., 0], 0.4)
-    assert var[..., 0] == pytest.approx(
-        v[..., 0] + missed[:, None] * (3.0 * width_jnd) ** 2, rel=1e-9, abs=1e-9
-    )
+    assert var[..., 0] == pytest.approx(v[..., 0] + missed[:, None] * (3.0 * width_jnd) ** 2,
+                                        rel=1e-9, abs=1e-9)
     assert missed.max() > 0  # some poses near the rod's ends
     g_mean, _ = landing_moments(C, 5.0, SETTINGS, rings=MOMENT_RINGS, patch_spacing_mm=2.5)
     assert np.abs(g_mean[..., 5] - mean[..., 5]).max() < 2.0  # per m, on a rod of 50 /m
-    assert np.array_equal(
-        g_mean[..., 0], mean[..., 0]
-    )  # where the fingers land does not depend on the grid
+    # where the fingers land does not depend on the grid
+    assert np.array_equal(g_mean[..., 0], mean[..., 0])
 
 
 def test_a_pinch_mid_side_lands_steadier_than_one_at_the_rim(tmp_path):
@@ -143,9 +127,8 @@ def test_a_pinch_mid_side_lands_steadier_than_one_at_the_rim(tmp_path):
     share of the weight)."""
     path = _exported(tmp_path, "rod", cylinder(20.0, 80.0, faces=20000).mesh, turned=True)
     obj = analyze_object(path)
-    local = np.array(
-        [[[0.0, -20.0, 0.0], [0.0, 20.0, 0.0]], [[0.0, -20.0, 37.0], [0.0, 20.0, 37.0]]]
-    )
+    local = np.array([[[0.0, -20.0, 0.0], [0.0, 20.0, 0.0]],
+                      [[0.0, -20.0, 37.0], [0.0, 20.0, 37.0]]])
     world = local @ ROTATION.T + OFFSET
     C = candidate_poses(obj, settings=SETTINGS, given=(world[:, 0], world[:, 1]))
     mean, var = landing_moments(C, 5.0, SETTINGS, rings=MOMENT_RINGS)
@@ -161,48 +144,26 @@ def test_the_ranked_best_is_the_brute_forces_best_over_the_sampled_pairs(tmp_pat
     best on target and the steady search's), and a brute force that feels every sampled pair finds
     the same best. The seeds are ones whose samples' steadiest pair is not their best on target
     (checked last)."""
-    block = candidate_poses(
-        analyze_object(
-            _exported(tmp_path, "block", box((50.0, 36.0, 30.0), subdivide_mm=3.0).mesh)
-        ),
-        settings=PinchSettings(count=40, seed=seed),
-    )
-    rod = candidate_poses(
-        analyze_object(
-            _exported(tmp_path, "rod", cylinder(16.0, 60.0, faces=8000).mesh, turned=True)
-        ),
-        settings=PinchSettings(count=40, seed=seed),
-    )
-    scene = match_scene(
-        [block], [rod], settings=MatchSettings(top_k=0, refine=False), pinch_settings=SETTINGS
-    )
+    block = candidate_poses(analyze_object(_exported(
+        tmp_path, "block", box((50.0, 36.0, 30.0), subdivide_mm=3.0).mesh)),
+                            settings=PinchSettings(count=40, seed=seed))
+    rod = candidate_poses(analyze_object(_exported(tmp_path, "rod",
+                                                   cylinder(16.0, 60.0, faces=8000).mesh,
+                                                   turned=True)),
+                          settings=PinchSettings(count=40, seed=seed))
+    scene = match_scene([block], [rod], settings=MatchSettings(top_k=0, refine=False),
+                        pinch_settings=SETTINGS)
     best = scene.matches[0].best
     it, iv = np.repeat(np.arange(len(block)), len(rod)), np.tile(np.arange(len(rod)), len(block))
     r = evaluate_pairs(block, rod, it, iv, model=scene.model)
     tables = FeltTables(5.0, SETTINGS)
-    expected = np.array(
-        [
-            felt_cost(
-                block,
-                rod,
-                Choice(
-                    0,
-                    0,
-                    int(it[k]),
-                    int(iv[k]),
-                    float(r.cost[k]),
-                    r.terms[k],
-                    bool(r.swapped[k]),
-                    r.transform[k],
-                    bool(r.flipped[k]),
-                    r.mass_delta_mm[k],
-                ),
-                scene.model,
-                tables,
-            ).expected
-            for k in range(len(it))
-        ]
-    )
+    expected = np.array([felt_cost(block, rod,
+                                   Choice(0, 0, int(it[k]), int(iv[k]), float(r.cost[k]),
+                                          r.terms[k],
+                                                      bool(r.swapped[k]), r.transform[k],
+                                                      bool(r.flipped[k]), r.mass_delta_mm[k]),
+                                                      scene.model, tables).expected
+                         for k in range(len(it))])
     k = int(np.argmin(expected))
     assert len(it) > 1000  # far more pairs than the match feels
     assert best.cost == pytest.approx(expected[k], rel=1e-9)
@@ -214,30 +175,21 @@ def test_the_ranked_best_is_the_brute_forces_best_over_the_sampled_pairs(tmp_pat
 def test_the_steady_search_is_used_unless_ranked_on_target(tmp_path):
     """Ranked on target, the match is the search's best; ranked by the felt cost, never worse to
     feel."""
-    ball = candidate_poses(
-        analyze_object(_exported(tmp_path, "ball", sphere(22.0, faces=8000).mesh, turned=True)),
-        settings=PinchSettings(count=60, seed=1),
-    )
-    block = candidate_poses(analyze_object(_exported(tmp_path, "block",
-                                                     box((50.0, 36.0, 30.0),
-                                                         subdivide_mm=3.0).mesh)),
+    ball = candidate_poses(analyze_object(_exported(tmp_path, "ball", sphere(22.0, faces=8000).mesh,
+                                                    turned=True)),
+                           settings=PinchSettings(count=60, seed=1))
+    block = candidate_poses(analyze_object(_exported(
+        tmp_path, "block", box((50.0, 36.0, 30.0), subdivide_mm=3.0).mesh)),
                             settings=PinchSettings(count=60, seed=1))
-    on_target = match_scene(
-        [block],
-        [ball],
-        settings=MatchSettings(rank="nominal", refine=False),
-        pinch_settings=SETTINGS,
-    )
-    felt = match_scene(
-        [block], [ball], settings=MatchSettings(refine=False), pinch_settings=SETTINGS
-    )
+    on_target = match_scene([block], [ball], settings=MatchSettings(rank="nominal", refine=False),
+                            pinch_settings=SETTINGS)
+    felt = match_scene([block], [ball], settings=MatchSettings(refine=False),
+                       pinch_settings=SETTINGS)
     a, b = on_target.matches[0], felt.matches[0]
     assert a.best.cost == a.best.cost_nominal == pytest.approx(float(on_target.cost_matrix[0, 0]))
     assert b.landing.cost_mean <= a.landing.cost_mean + 1e-12
-    assert (
-        b.best.cost == pytest.approx(b.landing.cost_mean)
-        and b.best.cost_nominal >= a.best.cost_nominal - 1e-12
-    )
+    assert (b.best.cost == pytest.approx(b.landing.cost_mean) and b.best.cost_nominal
+            >= a.best.cost_nominal - 1e-12)
 
 
 def test_the_study_feels_each_rated_placement(tmp_path):
@@ -275,24 +227,10 @@ def test_equivalent_props_are_listed_and_ties_go_to_the_prop_given_first(tmp_pat
     for order, refine in ((("block_a", "block_b"), "on"), (("block_b", "block_a"), "on"),
                           (("block_a", "block_b"), "off")):
         out = tmp_path / f"out_{order[0]}_{refine}"
-        code, stdout, err = run_cli(
-            capsys,
-            "match",
-            "--tangible",
-            *(tmp_path / f"{n}.stl" for n in order),
-            tmp_path / "ball.stl",
-            "--virtual",
-            tmp_path / "rod.stl",
-            "--count",
-            80,
-            "--refine",
-            refine,
-            "-o",
-            out,
-            "--no-view",
-            "--jobs",
-            1,
-        )
+        code, stdout, err = run_cli(capsys, "match", "--tangible",
+                                    *(tmp_path / f"{n}.stl" for n in order), tmp_path / "ball.stl",
+                                    "--virtual", tmp_path / "rod.stl", "--count", 80, "--refine",
+                                    refine, "-o", out, "--no-view", "--jobs", 1)
         assert code == 0, err
         doc = __import__("json").loads((out / "matches.json").read_text())
         (m,) = doc["matches"]
@@ -316,41 +254,27 @@ def test_the_felt_set_on_target_grows_with_the_count(tmp_path, monkeypatch):
     from pinchmatch.match.search import Search
 
     assert [scene_module.ranked_choices(n) for n in (50, 1000, 1001, 4000, 100_000)] == [
-        128,
-        128,
-        129,
-        512,
-        1024,
-    ]
+        128, 128, 129, 512, 1024]
     ball = candidate_poses(analyze_object(_exported(tmp_path, "ball", sphere(22.0, faces=8000).mesh,
                                                     turned=True)),
                            settings=PinchSettings(count=60, seed=1))
-    block = candidate_poses(analyze_object(_exported(tmp_path, "block",
-                                                     box((50.0, 36.0, 30.0),
-                                                         subdivide_mm=3.0).mesh)),
+    block = candidate_poses(analyze_object(_exported(
+        tmp_path, "block", box((50.0, 36.0, 30.0), subdivide_mm=3.0).mesh)),
                             settings=PinchSettings(count=60, seed=1))
     asked = []
     real = Search.choices
-    monkeypatch.setattr(
-        Search,
-        "choices",
-        lambda self, j, allowed, count: asked.append(count) or real(self, j, allowed, count),
-    )
+    monkeypatch.setattr(Search, "choices", lambda self, j, allowed,
+                        count: asked.append(count) or real(self, j, allowed, count))
     for count, want in ((1000, 128), (3000, 384)):
         asked.clear()
-        match_scene(
-            [block],
-            [ball],
-            settings=MatchSettings(refine=False),
-            pinch_settings=PinchSettings(count=count),
-        )
+        match_scene([block], [ball], settings=MatchSettings(refine=False),
+                    pinch_settings=PinchSettings(count=count))
         assert max(asked) == want and scene_module.ROW_CHOICES in asked
 
 
 @pytest.mark.parametrize("masses_g", [(None, None), (80.0, 260.0), (300.0, 45.0)])
 def test_every_pooled_pairs_key_is_its_expected_cost_in_the_tangibles_finger_order(
-    tmp_path, masses_g
-):
+    tmp_path, masses_g):
     """The steady search's key of each pooled pair, recomputed here: the virtual pose's landing
     moments in the tangible's finger order (its two patches exchanged where the pair is swapped),
     each criterion's contribution of the means' difference plus both variances, the mass columns
@@ -363,29 +287,24 @@ def test_every_pooled_pairs_key_is_its_expected_cost_in_the_tangibles_finger_ord
     from pinchmatch.match.search import Search, cost_model
     from pinchmatch.match.steady import SteadySearch, moments_of
 
-    block = candidate_poses(
-        analyze_object(
-            _exported(tmp_path, "block", box((50.0, 36.0, 30.0), subdivide_mm=3.0).mesh),
-            mass_g=masses_g[0],
-        ),
-        settings=PinchSettings(count=60, seed=4),
-    )
-    rod = candidate_poses(
-        analyze_object(
-            _exported(tmp_path, "rod", cylinder(16.0, 60.0, faces=8000).mesh, turned=True),
-            mass_g=masses_g[1],
-        ),
-        settings=PinchSettings(count=60, seed=4),
-    )
+    block = candidate_poses(analyze_object(_exported(
+        tmp_path, "block", box((50.0, 36.0, 30.0), subdivide_mm=3.0).mesh),
+                                           mass_g=masses_g[0]),
+                                           settings=PinchSettings(count=60, seed=4))
+    rod = candidate_poses(analyze_object(_exported(tmp_path, "rod",
+                                                   cylinder(16.0, 60.0, faces=8000).mesh,
+                                                   turned=True),
+                                         mass_g=masses_g[1]),
+                                         settings=PinchSettings(count=60, seed=4))
     settings = MatchSettings()
     model = cost_model(settings, [block, rod])
     steady = SteadySearch(Search([block], [rod], model, settings), [block], rod, 5.0, SETTINGS)
     (_, it, iv, r), key = steady.part(0)
     assert r.swapped.any() and (~r.swapped).any()
     mt, mv = moments_of(block, 5.0, SETTINGS), moments_of(rod, 5.0, SETTINGS)
-    np.testing.assert_array_equal(
-        mt[0], landing_moments(block, 5.0, SETTINGS, rings=(8,), patch_spacing_mm=2.5)[0]
-    )
+    np.testing.assert_array_equal(mt[0],
+                                  landing_moments(block, 5.0, SETTINGS, rings=(8,),
+                                                  patch_spacing_mm=2.5)[0])
     ratio = mass_ratio(block, rod)
     assert ratio == pytest.approx(1.0 if masses_g[0] is None else masses_g[1] / masses_g[0])
     order = [other_order(2) if s else [0, 1] for s in r.swapped]
@@ -395,7 +314,6 @@ def test_every_pooled_pairs_key_is_its_expected_cost_in_the_tangibles_finger_ord
     spread = np.sqrt(np.nan_to_num(t_var) + np.nan_to_num(v_var) * np.where(
         np.isin(np.arange(9), [7, 8]), ratio * ratio, 1.0))
     terms = separable_terms(t_mean, felt_table(v_mean, ratio), model) + separable_terms(
-        t_mean, t_mean + spread, model
-    )
+        t_mean, t_mean + spread, model)
     terms[:, 7] = r.terms[:, 7] + separable_terms(t_mean, t_mean + spread, model)[:, 7]
     np.testing.assert_allclose(key, model.pool(terms, rest=r.rest_jnd), rtol=1e-9, atol=1e-12)

@@ -20,9 +20,8 @@ def test_widths_in_jnd_are_linear_below_the_knee_logarithmic_above_and_continuou
     # its slope is one over the JND at every width (the integral of dw / JND(w))
     for width in (2.0, knee + 3.0, 40.0):
         slope = (strata.width_jnd(width + 1e-6) - strata.width_jnd(width - 1e-6)) / 2e-6
-        assert slope == pytest.approx(
-            1.0 / max(WIDTH_JND_FRACTION * width, WIDTH_JND_FLOOR_MM), rel=1e-5
-        )
+        assert slope == pytest.approx(1.0 / max(WIDTH_JND_FRACTION * width, WIDTH_JND_FLOOR_MM),
+                                      rel=1e-5)
 
 
 def _pinches(widths, rng):
@@ -39,11 +38,8 @@ def _width_at(jnd):
     width_jnd)."""
     knee = WIDTH_JND_FLOOR_MM / WIDTH_JND_FRACTION
     at_knee = knee / WIDTH_JND_FLOOR_MM
-    return (
-        jnd * WIDTH_JND_FLOOR_MM
-        if jnd <= at_knee
-        else knee * np.exp((jnd - at_knee) * WIDTH_JND_FRACTION)
-    )
+    return (jnd * WIDTH_JND_FLOOR_MM if jnd <= at_knee else knee
+            * np.exp((jnd - at_knee) * WIDTH_JND_FRACTION))
 
 
 def test_a_stratum_begins_at_its_boundary_width():
@@ -60,9 +56,8 @@ def test_a_stratum_begins_at_its_boundary_width():
 def test_the_quota_is_the_stratified_share_of_the_count():
     assert strata.quota_per_stratum(1000, 4) == int(strata.STRATUM_SHARE * 1000 // 4)
     assert strata.quota_per_stratum(1000, 200) == 0  # less than one each: left to the spread
-    assert (
-        strata.quota_per_stratum(2000, 4) >= 2 * strata.quota_per_stratum(1000, 4) - 1
-    )  # grows with the count
+    # grows with the count
+    assert strata.quota_per_stratum(2000, 4) >= 2 * strata.quota_per_stratum(1000, 4) - 1
 
 
 def test_each_stratum_stops_at_its_quota_its_tries_or_after_empty_batches():
@@ -70,11 +65,9 @@ def test_each_stratum_stops_at_its_quota_its_tries_or_after_empty_batches():
     feasible (given up after EMPTY_BATCHES batches), one in twenty feasible (goes on doubling until
     its quota or its tries)."""
     rng = np.random.default_rng(3)
-    widths = {
-        "full": _width_at(2 * strata.STRATUM_JND + 1.0),
-        "empty": _width_at(5 * strata.STRATUM_JND + 1.0),
-        "sparse": _width_at(8 * strata.STRATUM_JND + 1.0),
-    }
+    widths = {"full": _width_at(2 * strata.STRATUM_JND + 1.0),
+              "empty": _width_at(5 * strata.STRATUM_JND + 1.0),
+              "sparse": _width_at(8 * strata.STRATUM_JND + 1.0)}
     n = 4000
     points = np.concatenate([_pinches(np.full(n, w), rng) for w in widths.values()])
     faces = np.zeros((len(points), 2), np.int64)
@@ -95,15 +88,13 @@ def test_each_stratum_stops_at_its_quota_its_tries_or_after_empty_batches():
     rows = np.concatenate(checked)
     spent = {k: int((kind[rows] == k).sum()) for k in widths}
     assert spent["full"] == strata.FIRST_BATCH * quota  # met its quota at once
-    assert spent["empty"] == sum(
-        strata.FIRST_BATCH * quota * 2**b for b in range(strata.EMPTY_BATCHES)
-    )
+    assert spent["empty"] == sum(strata.FIRST_BATCH * quota * 2**b
+                                 for b in range(strata.EMPTY_BATCHES))
     found_sparse = int((feasible[rows] & (kind[rows] == "sparse")).sum())
     assert found_sparse >= quota or spent["sparse"] >= quota * strata.TRIES_PER_PINCH
     assert spent["sparse"] <= quota * strata.TRIES_PER_PINCH + strata.FIRST_BATCH * quota * 2**6
-    assert (
-        len(taken) == len(rows) and (pool.nearest[rows] == -1).all()
-    )  # the checked ones are picked
+    # the checked ones are picked
+    assert len(taken) == len(rows) and (pool.nearest[rows] == -1).all()
     assert sum(len(p.points) for p in parts) == int(feasible[rows].sum())
 
 
@@ -114,21 +105,17 @@ def test_a_stratum_stops_the_moment_its_quota_is_met_or_its_candidates_run_out()
     rng = np.random.default_rng(5)
     count = 300
     quota = strata.quota_per_stratum(count, 2)
-    exact_w, few_w = (
-        _width_at(3 * strata.STRATUM_JND + 1.0),
-        _width_at(7 * strata.STRATUM_JND + 1.0),
-    )
-    points = np.concatenate(
-        [_pinches(np.full(1000, exact_w), rng), _pinches(np.full(quota // 3, few_w), rng)]
-    )
+    exact_w, few_w = (_width_at(3 * strata.STRATUM_JND + 1.0),
+                      _width_at(7 * strata.STRATUM_JND + 1.0))
+    points = np.concatenate([_pinches(np.full(1000, exact_w), rng),
+                             _pinches(np.full(quota // 3, few_w), rng)])
     kind = np.array(["exact"] * 1000 + ["few"] * (quota // 3))
     seen = {"exact": 0}
     calls = []
 
     def check(p, f):
-        rows = np.array(
-            [np.flatnonzero((points == q).all(axis=(1, 2)))[0] for q in p], dtype=np.int64
-        )
+        rows = np.array([np.flatnonzero((points == q).all(axis=(1, 2)))[0] for q in p],
+                        dtype=np.int64)
         calls.append(len(rows))
         ok = np.zeros(len(rows), bool)
         for i, r in enumerate(rows):
@@ -140,12 +127,9 @@ def test_a_stratum_stops_the_moment_its_quota_is_met_or_its_candidates_run_out()
     pool = Pool.of(points, np.zeros((len(points), 2), np.int64), np.zeros((0, 2, 3)))
     parts, taken = strata.stratified_checks(pool, count, check)
     assert all(n > 0 for n in calls)  # never an empty batch
-    exact_spent = int(
-        (
-            kind[np.concatenate([np.flatnonzero((points == q).all(axis=(1, 2))) for q in taken])]
-            == "exact"
-        ).sum()
-    )
+    exact_spent = int((kind[np.concatenate([np.flatnonzero((points == q).all(axis=(1, 2)))
+                                            for q in taken])]
+                       == "exact").sum())
     assert exact_spent == strata.FIRST_BATCH * quota  # its quota met in the first batch: no second
     assert (kind == "few").sum() == quota // 3 and len(taken) == exact_spent + quota // 3
 
@@ -174,8 +158,7 @@ def test_a_stratum_whose_candidates_are_spent_exactly_checks_no_more(extra):
 
 def test_too_small_a_count_checks_nothing_and_says_so_in_the_grasps_shape():
     rng = np.random.default_rng(1)
-    pool = Pool.of(
-        _pinches([20.0, 30.0, 40.0], rng), np.zeros((3, 2), np.int64), np.zeros((0, 2, 3))
-    )
+    pool = Pool.of(_pinches([20.0, 30.0, 40.0], rng), np.zeros((3, 2), np.int64),
+                   np.zeros((0, 2, 3)))
     parts, taken = strata.stratified_checks(pool, 5, lambda p, f: None)  # a quota of 0 per stratum
     assert parts == [] and taken.shape == (0, 2, 3)

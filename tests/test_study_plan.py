@@ -18,9 +18,8 @@ def test_the_demo_writes_the_methods_plan(demo_out, demo):
     # three blocks, each every pair once, in different orders
     blocks = [[t["pair"] for t in plan["trials"] if t["repetition"] == r] for r in (1, 2, 3)]
     assert all(sorted(b) == list(range(36)) for b in blocks)
-    assert blocks[0] != blocks[1] != blocks[2] and [t["trial"] for t in plan["trials"]] == list(
-        range(1, 109)
-    )
+    assert (blocks[0] != blocks[1] != blocks[2] and [t["trial"] for t in plan["trials"]]
+            == list(range(1, 109)))
     names = {m["virtual"] for m in json.loads((demo_out / "matches.json").read_text())["matches"]}
     assert {p["virtual"] for p in plan["pairs"]} == names
     assert Counter(p["pose_source"] for p in plan["pairs"]) == {"paper": 18, "ref": 18}
@@ -32,10 +31,8 @@ def test_each_pair_places_the_virtual_fingers_on_the_props(demo_out):
     plan = json.loads((demo_out / "study_plan.json").read_text())
     for p in plan["pairs"]:
         T = np.array(p["transform_virtual_to_tangible"])
-        assert (
-            np.allclose(T[:3, :3] @ T[:3, :3].T, np.eye(3), atol=1e-5)
-            and np.linalg.det(T[:3, :3]) > 0
-        )
+        assert (np.allclose(T[:3, :3] @ T[:3, :3].T, np.eye(3), atol=1e-5)
+                and np.linalg.det(T[:3, :3]) > 0)
         v = np.array([p["virtual_p1_mm"], p["virtual_p2_mm"]])
         if p["finger_order_swapped"]:
             v = v[::-1]
@@ -50,9 +47,8 @@ def test_each_pair_places_the_virtual_fingers_on_the_props(demo_out):
             assert np.allclose(placed.mean(axis=0), t.mean(axis=0), atol=0.05)
             a, b = placed[1] - placed[0], t[1] - t[0]
             assert np.dot(a, b) / np.linalg.norm(a) / np.linalg.norm(b) > 1 - 1e-6
-        total = sum(
-            v**QUICK_EXPONENT for c, v in p["criteria_jnd"].items() if c in DEFAULT_CRITERIA
-        )
+        total = sum(v ** QUICK_EXPONENT for c, v in p["criteria_jnd"].items()
+                    if c in DEFAULT_CRITERIA)
         assert total ** (1 / QUICK_EXPONENT) == pytest.approx(p["cost"], rel=2e-3, abs=2e-4), p
 
 
@@ -71,15 +67,10 @@ def test_the_page_leaves_out_the_trials_of_objects_it_has_no_scene_for(demo_out)
 
     doc = read_matches(demo_out)
     gone = doc["matches"][1]["virtual"]
-    doc["matches"][1] = {
-        "virtual": gone,
-        "tangible": None,
-        "cost": None,
-        "reason": "no tangible left",
-    }
+    doc["matches"][1] = {"virtual": gone, "tangible": None, "cost": None,
+                         "reason": "no tangible left"}
     study = page_data(demo_out, doc)["study"]
     assert study["left_out"] == [gone] and len(study["pairs"]) == 30 and len(study["trials"]) == 90
-    assert all(
-        study["pairs"][t["pair"]]["virtual"] == t["virtual"] != gone for t in study["trials"]
-    )
+    assert all(study["pairs"][t["pair"]]["virtual"] == t["virtual"] != gone
+               for t in study["trials"])
     assert [p["pair"] for p in study["pairs"]] == list(range(30))

@@ -20,18 +20,13 @@ def _soup(mesh: trimesh.Trimesh, rng) -> trimesh.Trimesh:
 
 def _cases():
     rng = np.random.default_rng(3)
-    two = trimesh.util.concatenate(
-        [
-            trimesh.creation.icosphere(3, radius=10.0),
-            trimesh.creation.box((8.0, 6.0, 4.0)).apply_translation([30.0, 0, 0]),
-        ]
-    )
-    fin = trimesh.util.concatenate(
-        [
-            trimesh.creation.box((10.0, 10.0, 10.0)),
-            trimesh.Trimesh([[5, -5, 5], [5, 5, 5], [15, 0, 5]], [[0, 1, 2]]),
-        ]
-    )  # open fin
+    two = trimesh.util.concatenate([trimesh.creation.icosphere(3, radius=10.0),
+                                    trimesh.creation.box((8.0, 6.0, 4.0)).apply_translation([
+                                        30.0, 0, 0])])
+    fin = trimesh.util.concatenate([trimesh.creation.box((10.0, 10.0, 10.0)),
+                                    # open fin
+                                    trimesh.Trimesh([[5, -5, 5], [5, 5, 5], [15, 0, 5]],
+                                                    [[0, 1, 2]])])
     return [("torus", _soup(torus(triangulation="random", faces=3000, seed=1).mesh, rng)),
             ("two bodies", _soup(two, rng)), ("box with a fin", _soup(fin, rng)),
             ("open cylinder", _soup(_open_cylinder(), rng))]
@@ -49,9 +44,8 @@ def test_every_answer_is_trimeshs(name, raw):
     ours, theirs = raw.copy(), raw.copy()
     theirs.merge_vertices()
     ours.update_vertices(*topology.merge_vertices(raw.vertices, raw.faces, MERGE_DIGITS))
-    assert np.array_equal(ours.vertices, theirs.vertices) and np.array_equal(
-        ours.faces, theirs.faces
-    ), name
+    assert (np.array_equal(ours.vertices, theirs.vertices)
+            and np.array_equal(ours.faces, theirs.faces)), name
 
     doubled = np.vstack([ours.faces, ours.faces[:7][:, [2, 1, 0]], ours.faces[3:5]])
     want = np.asarray(trimesh.Trimesh(ours.vertices, doubled, process=False).unique_faces())
@@ -64,14 +58,11 @@ def test_every_answer_is_trimeshs(name, raw):
     assert sorted(map(tuple, adjacency)) == sorted(map(tuple, np.sort(ours.face_adjacency, axis=1)))
     assert topology.watertight_and_wound(e) == (ours.is_watertight, ours.is_winding_consistent)
     labels = topology.component_labels(adjacency, len(ours.faces))
-    assert np.array_equal(
-        labels,
-        trimesh.graph.connected_component_labels(ours.face_adjacency, node_count=len(ours.faces)),
-    )
+    assert np.array_equal(labels, trimesh.graph.connected_component_labels(
+        ours.face_adjacency, node_count=len(ours.faces)))
     if ours.is_watertight:
-        assert topology.signed_volumes(ours.vertices, ours.faces).sum() == pytest.approx(
-            ours.volume, rel=1e-9
-        )
+        assert topology.signed_volumes(ours.vertices,
+                                       ours.faces).sum() == pytest.approx(ours.volume, rel=1e-9)
 
     # one body turned inside out: the same faces turned back
     faces = ours.faces.copy()
@@ -89,9 +80,8 @@ def test_every_answer_is_trimeshs(name, raw):
 def test_rows_equal_under_one_hash_stay_apart():
     """Rows are compared whole: many rows, few buckets' worth of hash bits alike, each its own
     group."""
-    rows = np.stack(
-        np.meshgrid(np.arange(60), np.arange(60), np.arange(60), indexing="ij"), -1
-    ).reshape(-1, 3)
+    rows = np.stack(np.meshgrid(np.arange(60), np.arange(60), np.arange(60), indexing="ij"),
+                    -1).reshape(-1, 3)
     rows = np.vstack([rows, rows[::-1]])
     first, inverse = topology.group_rows_first(rows)
     assert len(first) == 60**3 and np.array_equal(first, np.arange(60**3))
@@ -130,9 +120,8 @@ def test_degenerate_faces_as_trimesh_finds_them():
     vertices[200:] = vertices[:100] + rng.normal(size=(100, 3)) * 1e-10  # corners a hair apart
     faces = rng.integers(0, 300, (4000, 3))
     faces[:50, 2] = faces[:50, 1]  # two corners the same
-    line = np.array(
-        [[0.0, 0.0, 0.0], [1.0, 1.0, 1.0], [2.0, 2.0, 2.000000001]]
-    )  # all but collinear
+    # all but collinear
+    line = np.array([[0.0, 0.0, 0.0], [1.0, 1.0, 1.0], [2.0, 2.0, 2.000000001]])
     vertices = np.vstack([vertices, line])
     faces = np.vstack([faces, [[300, 301, 302]], faces[:100] % 100 + np.array([0, 200, 0])])
     mesh = trimesh.Trimesh(vertices, faces, process=False)
@@ -149,19 +138,14 @@ def test_edges_around_a_vertex_of_huge_valence_are_hashed_alike():
 
     cone = trimesh.creation.cone(radius=10.0, height=20.0, sections=3000)
     faces = np.ascontiguousarray(cone.faces, dtype=np.int64)
-    assert not face_edges(faces, len(cone.vertices), float(topology.BUCKET_WORK_PER_ROW))[
-        0
-    ]  # too skewed to bucket
+    # too skewed to bucket
+    assert not face_edges(faces, len(cone.vertices), float(topology.BUCKET_WORK_PER_ROW))[0]
     e = topology.edges(cone.faces)
     assert np.array_equal(np.sort(topology.face_adjacency(e), axis=0),
                           np.sort(np.sort(cone.face_adjacency, axis=1), axis=0))
-    assert (
-        topology.watertight_and_wound(e)
-        == (cone.is_watertight, cone.is_winding_consistent)
-        == (True, True)
-    )
-    doubled = trimesh.Trimesh(
-        cone.vertices, np.vstack([cone.faces, cone.faces[:5, ::-1]]), process=False
-    )
+    assert topology.watertight_and_wound(e) == (cone.is_watertight,
+                                                cone.is_winding_consistent) == (True, True)
+    doubled = trimesh.Trimesh(cone.vertices, np.vstack([cone.faces, cone.faces[:5, ::-1]]),
+                              process=False)
     assert topology.watertight_and_wound(topology.edges(doubled.faces)) == \
         (doubled.is_watertight, doubled.is_winding_consistent) == (False, True)

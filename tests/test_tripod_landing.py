@@ -29,18 +29,16 @@ SHIFT = np.array([-210.0, 95.0, 460.0])
 def _tripod_on(tmp_path, name, mesh, points):
     path = tmp_path / f"{name}.stl"
     mesh.export(path)
-    return candidate_poses(
-        analyze_object(path), settings=SETTINGS, given=(np.asarray(points)[None],)
-    )
+    return candidate_poses(analyze_object(path), settings=SETTINGS,
+                           given=(np.asarray(points)[None],))
 
 
 def test_the_combinations_pair_every_point_and_couple_a_tripods_fingers():
     pinch, tripod = landing_combos(25, 2), landing_combos(25, 3)
     assert pinch.shape == (2, 625) and len({tuple(c) for c in pinch.T}) == 625
     assert tripod.shape == (3, 625)
-    np.testing.assert_array_equal(
-        tripod[1], tripod[2]
-    )  # index and middle finger on the same point of their discs
+    # index and middle finger on the same point of their discs
+    np.testing.assert_array_equal(tripod[1], tripod[2])
     np.testing.assert_array_equal(tripod[:2], pinch)  # the thumb slowest, as a pinch's first finger
     assert landing_combos(1, 3).shape == (3, 1)
 
@@ -61,14 +59,12 @@ def test_a_tripods_fingers_land_with_one_offset_and_the_thumb_with_its_own(tmp_p
     middle = TRIPOD_MM[1:].mean(axis=0)
     axis = middle + offsets[b] - (TRIPOD_MM[0] + offsets[a])
     target = (middle - TRIPOD_MM[0]) / np.linalg.norm(middle - TRIPOD_MM[0])
-    within = (
-        axis @ target / np.linalg.norm(axis, axis=1) >= np.cos(np.radians(LANDING_AXIS_DEG)) - 1e-12
-    )
+    within = axis @ target / np.linalg.norm(axis,
+                                            axis=1) >= np.cos(np.radians(LANDING_AXIS_DEG)) - 1e-12
     assert 0 < (~within).sum() < 100
     w = ring_weights(5.0)
-    np.testing.assert_allclose(
-        table.weights, np.where(within, w[a] * w[b], 0.0), rtol=1e-12, atol=1e-15
-    )
+    np.testing.assert_allclose(table.weights, np.where(within, w[a] * w[b], 0.0), rtol=1e-12,
+                               atol=1e-15)
 
 
 @pytest.mark.parametrize("swapped", [False, True])
@@ -91,6 +87,5 @@ def test_a_tripod_on_a_turned_moved_copy_feels_nothing_wherever_it_lands(tmp_pat
     np.testing.assert_allclose(best.transform[:3, :3], TURN.T, atol=1e-6)
     felt = felt_cost(prop, virtual, best, scene.model, FeltTables(5.0, SETTINGS))
     assert felt.landings > 500 and felt.missed == 0 and felt.criteria_noticeable == ()
-    assert (
-        felt.worst < 1e-3 and felt.expected < 1e-3
-    )  # the nominal: about 2e-4, from the STL's float32 vertices
+    # the nominal: about 2e-4, from the STL's float32 vertices
+    assert felt.worst < 1e-3 and felt.expected < 1e-3

@@ -12,22 +12,11 @@ import trimesh
 from scipy.optimize import linprog
 from scipy.spatial.transform import Rotation
 
-from pinchmatch import (
-    Config,
-    MatchSettings,
-    PinchSettings,
-    analyze_object,
-    candidate_poses,
-    match_scene,
-)
+from pinchmatch import (Config, MatchSettings, PinchSettings, analyze_object, candidate_poses,
+                        match_scene)
 from conftest import finger_axes
-from pinchmatch.grasp.tripod_rules import (
-    MAX_SPACING_MM,
-    TRIPOD_RULES,
-    Tripods,
-    balance_broken,
-    check_tripods,
-)
+from pinchmatch.grasp.tripod_rules import (MAX_SPACING_MM, TRIPOD_RULES, Tripods, balance_broken,
+                                           check_tripods)
 from pinchmatch.grasp.tripods import sample_tripods
 from pinchmatch.match.register import register_contacts, register_poses
 from pinchmatch.mesh.surface import SurfaceContext
@@ -76,26 +65,19 @@ def force_closure(points, normals, cone_deg, edges=16, torsion_mm=TORSION_MM) ->
     if np.linalg.matrix_rank(W, tol=1e-9) < 6:
         return False
     m = W.shape[1]
-    res = linprog(
-        np.r_[np.zeros(m), -1.0],
-        A_ub=np.hstack([-np.eye(m), np.ones((m, 1))]),
-        b_ub=np.zeros(m),
-        A_eq=np.vstack([np.hstack([W, np.zeros((6, 1))]), np.r_[np.ones(m), 0.0][None]]),
-        b_eq=np.r_[np.zeros(6), 1.0],
-        bounds=[(0, None)] * m + [(None, None)],
-        method="highs",
-    )
+    res = linprog(np.r_[np.zeros(m), -1.0], A_ub=np.hstack([-np.eye(m), np.ones((m, 1))]),
+                  b_ub=np.zeros(m),
+                  A_eq=np.vstack([np.hstack([W, np.zeros((6, 1))]), np.r_[np.ones(m), 0.0][None]]),
+                  b_eq=np.r_[np.zeros(6), 1.0], bounds=[(0, None)] * m + [(None, None)],
+                  method="highs")
     return res.status == 0 and -res.fun > 1e-9
 
 
 def assert_tripod_rules_hold(mesh, tripods, settings):
     """Every rule of a tripod, re-checked independently of the code under test, with literal
     tolerances."""
-    assert (
-        isinstance(tripods, Tripods)
-        and tripods.feasible.all()
-        and tripods.points.shape[1:] == (3, 3)
-    )
+    assert isinstance(tripods,
+                      Tripods) and tripods.feasible.all() and tripods.points.shape[1:] == (3, 3)
     p, n = tripods.points, tripods.normals
     middle = p[:, 1:].mean(axis=1)
     aperture = np.linalg.norm(middle - p[:, 0], axis=1)
@@ -116,18 +98,14 @@ def assert_tripod_rules_hold(mesh, tripods, settings):
     h = tripods.approach
     np.testing.assert_allclose(np.linalg.norm(h, axis=1), 1.0, atol=1e-9)
     u = (middle - p[:, 0]) / aperture[:, None]
-    assert np.all(
-        np.abs(np.einsum("ij,ij->i", h, u)) <= np.sin(np.radians(settings.approach_tilt_deg)) + 1e-9
-    )
+    assert np.all(np.abs(np.einsum("ij,ij->i", h, u))
+                  <= np.sin(np.radians(settings.approach_tilt_deg)) + 1e-9)
     assert np.all(np.abs(np.einsum("ij,ij->i", tips[:, 2] - tips[:, 1], h)) <= 20.0 + 1e-9)
     s = np.linspace(0.0, settings.finger_length_mm, 46)
-    axis = (
-        tips[:, :, None, :]
-        + s[None, None, :, None] * finger_axes(h, u, settings.finger_splay_deg, 3)[:, :, None, :]
-    )
-    assert np.all(
-        _distance_to_surface(mesh, axis.reshape(-1, 3)) >= settings.finger_radius_mm - 0.3 - 0.5
-    )
+    axis = tips[:, :, None, :] + s[None, None, :, None] * finger_axes(
+        h, u, settings.finger_splay_deg, 3)[:, :, None, :]
+    assert np.all(_distance_to_surface(mesh, axis.reshape(-1, 3)) >= settings.finger_radius_mm
+                  - 0.3 - 0.5)
     # contacts on the surface, unit normals
     _, on, _ = trimesh.proximity.closest_point(mesh, p.reshape(-1, 3))
     assert on.max() < 1e-6
@@ -164,11 +142,8 @@ def test_balance_of_known_tripods_at_a_random_place():
     wide, wn = _three_fingers_round_a_cylinder(R, t, spread_deg=120.0)
     broken = balance_broken(np.stack([balanced, one_side, wide]), np.stack([bn, on, wn]), 30.0)
     assert broken.tolist() == [False, True, True]
-    assert [force_closure(p, n, 30.0) for p, n in ((balanced, bn), (one_side, on), (wide, wn))] == [
-        True,
-        False,
-        False,
-    ]
+    assert [force_closure(p, n, 30.0) for p, n in ((balanced, bn), (one_side, on),
+                                                   (wide, wn))] == [True, False, False]
 
 
 def test_the_balance_test_implies_force_closure_and_turns_with_the_object(scans):
@@ -198,9 +173,8 @@ def test_registration_of_three_contacts_undoes_a_rigid_motion():
     vp, vn = np.einsum("kij,knj->kni", R, p) + t[:, None], np.einsum("kij,knj->kni", R, n)
     T = register_poses(p, n, vp, vn, tangible_com=np.zeros(3), virtual_com=np.zeros(3),
                        tangible_axis=[0.0, 0.0, 1.0], virtual_axis=[0.0, 0.0, 1.0])
-    np.testing.assert_allclose(
-        np.einsum("kij,knj->kni", T[:, :3, :3], vp) + T[:, None, :3, 3], p, atol=1e-9
-    )
+    np.testing.assert_allclose(np.einsum("kij,knj->kni", T[:, :3, :3], vp) + T[:, None, :3, 3], p,
+                               atol=1e-9)
     np.testing.assert_allclose(np.linalg.det(T[:, :3, :3]), 1.0, atol=1e-12)
     # a mirrored copy cannot be reached by a rotation: the fit stays a rotation
     mirrored = register_contacts(p, n, -vp, -vn)
@@ -208,8 +182,7 @@ def test_registration_of_three_contacts_undoes_a_rigid_motion():
 
 
 def test_a_scan_matched_against_its_turned_moved_retriangulated_copy_gets_its_own_tripod_back(
-    scans, tmp_path
-):
+    scans, tmp_path):
     # the hammer: no symmetry gives it a second place that feels the same (a mug's body turns into
     # itself)
     mesh = trimesh.load(scans["048_hammer"])
@@ -223,9 +196,8 @@ def test_a_scan_matched_against_its_turned_moved_retriangulated_copy_gets_its_ow
     config = Config(settings, MatchSettings(rank="nominal", top_k=1))
     prop = candidate_poses(analyze_object(scans["048_hammer"], units="mm"), settings=settings)
     other = candidate_poses(analyze_object(scans["013_apple"], units="mm"), settings=settings)
-    seen = candidate_poses(
-        analyze_object(tmp_path / "hammer_copy.stl", units="mm"), settings=settings
-    )
+    seen = candidate_poses(analyze_object(tmp_path / "hammer_copy.stl", units="mm"),
+                           settings=settings)
     best = match_scene([other, prop], [seen], config=config).matches[0].best
     assert best.tangible_name == "048_hammer.stl" and best.cost < 0.1
     # its own place: the copy's contacts carried back by the inverse motion meet the prop's within 2
@@ -248,59 +220,30 @@ def test_check_tripods_names_the_broken_rule():
     checked = check_tripods(ctx, np.stack([good, close, same_side]), faces.reshape(3, 3))
     assert checked.feasible.tolist() == [True, False, False]
     assert checked.broken_rules(1) == ["spacing"] and "balance" in checked.broken_rules(2)
-    assert TRIPOD_RULES == (
-        "region",
-        "aperture",
-        "spacing",
-        "balance",
-        "clearance",
-        "reach",
-        "patch",
-    )
+    assert TRIPOD_RULES == ("region", "aperture", "spacing", "balance", "clearance", "reach",
+                            "patch")
 
 
 def test_match_with_tripods_writes_contacts_and_three_cones(tmp_path, capsys, scans):
     out = tmp_path / "out"
-    code, _, err = run_cli(
-        capsys,
-        "match",
-        "--tangible",
-        scans["013_apple"],
-        scans["005_tomato_soup_can"],
-        "--virtual",
-        scans["040_large_marker"],
-        "--units",
-        "mm",
-        "--grasp",
-        "tripod",
-        "--count",
-        80,
-        "--jobs",
-        1,
-        "-o",
-        out,
-        "--no-cache",
-        "-q",
-        "--no-view",
-    )
+    code, _, err = run_cli(capsys, "match", "--tangible", scans["013_apple"],
+                           scans["005_tomato_soup_can"], "--virtual", scans["040_large_marker"],
+                           "--units", "mm", "--grasp", "tripod", "--count", 80, "--jobs", 1, "-o",
+                           out, "--no-cache", "-q", "--no-view")
     assert code == 0, err
     document = json.loads((out / "matches.json").read_text())
     assert document["grasp"] == "tripod" and document["settings"]["grasp"] == "tripod"
     m = document["matches"][0]
     for side in ("tangible_pose", "virtual_pose"):
         pose = m[side]
-        assert np.array(pose["contacts_mm"]).shape == (3, 3) and np.array(
-            pose["normals"]
-        ).shape == (3, 3)
+        assert np.array(pose["contacts_mm"]).shape == (
+            3, 3) and np.array(pose["normals"]).shape == (3, 3)
         assert pose["fingers"] == ["thumb", "index", "middle"] and pose["aperture_mm"] > 0
     scene = trimesh.load(out / m["scene_file"])
     assert {"cone_p1", "cone_p2", "cone_p3"} <= set(scene.graph.nodes_geometry)
     tips = np.array(m["tangible_pose"]["contacts_mm"])
-    np.testing.assert_allclose(
-        np.linalg.norm(tips[1:].mean(axis=0) - tips[0]),
-        m["tangible_pose"]["aperture_mm"],
-        atol=1e-3,
-    )
+    np.testing.assert_allclose(np.linalg.norm(tips[1:].mean(axis=0) - tips[0]),
+                               m["tangible_pose"]["aperture_mm"], atol=1e-3)
 
 
 def test_tripods_on_a_level_stay_above_the_tables_and_reach_the_level_file(tmp_path, capsys):
@@ -310,39 +253,18 @@ def test_tripods_on_a_level_stay_above_the_tables_and_reach_the_level_file(tmp_p
     contacts."""
     box = trimesh.creation.box(extents=(0.05, 0.04, 0.045))
     box.apply_translation([0.0, 0.0225, 0.0])
-    tabletop_level(
-        tmp_path / "level.glb",
-        [("can", standing_can(), (0.14, 0.0, -0.07)), ("box", box, (0.06, 0.0, -0.11))],
-    )
+    tabletop_level(tmp_path / "level.glb",
+                   [("can", standing_can(), (0.14, 0.0, -0.07)), ("box", box, (0.06, 0.0, -0.11))])
     stand = Rotation.from_euler("y", 35, degrees=True) * Rotation.from_euler("x", -90, degrees=True)
     (tmp_path / "props.toml").write_text(
         '[[object]]\nname = "can_prop"\nshape = { kind = "cylinder", diameter_mm = 54, height_mm = '
         '66 }\n'
         f"pose = {{ position_mm = [120, 0, -80], quaternion_xyzw = {stand.as_quat().tolist()} }}\n")
     out = tmp_path / "out"
-    code, _, err = run_cli(
-        capsys,
-        "match",
-        "--tangible",
-        tmp_path / "props.toml",
-        "--virtual",
-        tmp_path / "level.glb",
-        "--split",
-        "nodes",
-        "--placement",
-        "fixed",
-        "--grasp",
-        "tripod",
-        "--count",
-        80,
-        "--jobs",
-        1,
-        "-o",
-        out,
-        "--no-cache",
-        "-q",
-        "--no-view",
-    )
+    code, _, err = run_cli(capsys, "match", "--tangible", tmp_path / "props.toml", "--virtual",
+                           tmp_path / "level.glb", "--split", "nodes", "--placement", "fixed",
+                           "--grasp", "tripod", "--count", 80, "--jobs", 1, "-o", out, "--no-cache",
+                           "-q", "--no-view")
     assert code == 0, err
     document = json.loads((out / "matches.json").read_text())
     support = document["tangibles"][0]["support"]
@@ -353,9 +275,8 @@ def test_tripods_on_a_level_stay_above_the_tables_and_reach_the_level_file(tmp_p
             tips = np.array(pose["contacts_mm"]) + 8.0 * np.array(pose["normals"])
             assert np.all(tips @ normal - height >= 8.0 - 0.3 - 1e-6)
             assert np.array(pose["approach"]) @ normal >= -1e-9
-    data = (
-        out / "level.glb"
-    ).read_bytes()  # the level file's JSON chunk: each node's three contacts, placed
+    # the level file's JSON chunk: each node's three contacts, placed
+    data = (out / "level.glb").read_bytes()
     length = int.from_bytes(data[12:16], "little")
     nodes = {n["name"]: n for n in json.loads(data[20:20 + length])["nodes"]}
     R, position = stand.as_matrix(), np.array([120.0, 0.0, -80.0])
@@ -364,15 +285,13 @@ def test_tripods_on_a_level_stay_above_the_tables_and_reach_the_level_file(tmp_p
         np.testing.assert_allclose(np.reshape(x["virtual_contacts_m"], (3, 3)),
                                    np.array(m["virtual_pose"]["contacts_mm"]) / 1000.0, atol=2e-6)
         t = np.array(m["tangible_pose"]["contacts_mm"])
-        np.testing.assert_allclose(
-            np.reshape(x["physical_contacts_m"], (3, 3)), (t @ R.T + position) / 1000.0, atol=2e-6
-        )
+        np.testing.assert_allclose(np.reshape(x["physical_contacts_m"], (3, 3)),
+                                   (t @ R.T + position) / 1000.0, atol=2e-6)
 
 
 @pytest.mark.parametrize("height_mm, thin", [(1.5, False), (0.6, True)])
 def test_the_plane_of_forces_is_the_contacts_unless_their_triangle_is_under_a_millimetre_high(
-    height_mm, thin
-):
+        height_mm, thin):
     """The fingers 20 mm apart, the thumb ``height_mm`` off their line, turned and moved: the
     plane's normal is the triangle's where its smallest height is 1 mm or more, else the normal of
     the plane through the fingers' line along the thumb's normal."""
@@ -420,9 +339,8 @@ def test_an_object_no_hand_spans_is_refused_with_the_rules_counts(tmp_path):
         sample_tripods(obj.context, settings=PinchSettings(count=50, seed=0, grasp="tripod"))
     message = str(err.value)
     assert "no feasible tripod among" in message and "rejected by nothing" not in message
-    counts = dict(
-        part.rsplit(" ", 1) for part in message.split("rejected by ")[1].split(")")[0].split(", ")
-    )
+    counts = dict(part.rsplit(" ", 1)
+                  for part in message.split("rejected by ")[1].split(")")[0].split(", "))
     assert set(counts) <= set(TRIPOD_RULES) and sum(int(v) for v in counts.values()) > 0
 
 
@@ -445,9 +363,8 @@ def test_forces_meeting_behind_the_thumb_and_parallel_forces_balance_in_either_f
     q = np.array([[0.0, 0.0], [-10.0, 20.0], [10.0, 20.0]])
     behind = _in_plane_tripod(q, [[0.0, 1.0], [10.0, -50.0], [-10.0, -50.0]], R, t)
     parallel = _in_plane_tripod(q, [[0.0, 1.0], [0.0, -1.0], [0.0, -1.0]], R, t)
-    outside = _in_plane_tripod(
-        q + [[25.0, 0.0], [0.0, 0.0], [0.0, 0.0]], [[0.0, 1.0], [0.0, -1.0], [0.0, -1.0]], R, t
-    )
+    outside = _in_plane_tripod(q + [[25.0, 0.0], [0.0, 0.0], [0.0, 0.0]],
+                               [[0.0, 1.0], [0.0, -1.0], [0.0, -1.0]], R, t)
     cases = [behind, parallel, outside]
     points = np.stack([p[order] for p, _ in cases])
     normals = np.stack([n[order] for _, n in cases])

@@ -25,15 +25,9 @@ from pinchmatch.export.view import page_data, read_matches
 CHROMIUM = os.environ.get("PINCHMATCH_CHROMIUM") or shutil.which("chromium") or "/usr/bin/chromium"
 #: the flags this machine needs: no sandbox as root, no GPU, no background connections to a closed
 #: network
-CHROMIUM_ARGS = [
-    "--no-sandbox",
-    "--disable-gpu",
-    "--no-first-run",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-    "--disable-quic",
-]
+CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--no-first-run",
+                 "--disable-background-networking", "--disable-component-update", "--disable-sync",
+                 "--disable-quic"]
 VIEW_BACKGROUND = np.array([0xEE, 0xF1, 0xF5]) / 255.0
 
 
@@ -104,18 +98,12 @@ def test_page_has_one_entry_per_match_and_no_console_errors(page, demo_out):
         text = entries.nth(k).inner_text()
         assert m["virtual"] in text and m["tangible"] in text
         loud = [c for c, v in m["criteria"].items() if v["noticeable"]]
-        assert all(c in text for c in loud) and (
-            ("nothing noticeable" in text) == (not loud and not m["noticeable"])
-        )
+        assert all(c in text for c in loud) and (("nothing noticeable" in text)
+                                                 == (not loud and not m["noticeable"]))
         assert f"noticed {100 * m['p_noticed']:.0f} %" in text
         landing = m["landing"]  # how it holds when the fingers land off target
-        assert (
-            "steady"
-            if not landing["noticeable_worst"]
-            else "noticed"
-            if m["noticeable"]
-            else "fragile"
-        ) in text
+        assert ("steady" if not landing["noticeable_worst"] else "noticed" if m["noticeable"]
+                else "fragile") in text
     errors = [m for m in page.messages if m[0] in ("error", "pageerror")]
     assert errors == []
     # self-contained: nothing but the file itself (and data: URLs) is requested
@@ -136,10 +124,8 @@ def test_clicking_another_entry_changes_the_view(page):
     page.wait_for_selector("body[data-shown='2']", timeout=30_000)
     after = canvas_pixels(page, "#canvas-main")
     assert np.mean(np.abs(after - before).max(axis=-1) > 0.04) > 0.01
-    assert (
-        np.mean(np.abs(canvas_pixels(page, "#canvas-virtual") - before_virtual).max(axis=-1) > 0.04)
-        > 0.01
-    )
+    assert np.mean(np.abs(canvas_pixels(page, "#canvas-virtual") - before_virtual).max(axis=-1)
+                   > 0.04) > 0.01
     assert "vo3_cube_cylinder_cone.stl" in page.locator("#main-title").inner_text()
     assert page.locator("#matches li.selected").get_attribute("data-index") == "2"
     assert [m for m in page.messages if m[0] in ("error", "pageerror")] == []
@@ -170,14 +156,8 @@ def test_scene_loads_in_three_js_with_the_nodes_and_extras(page, demo_out):
                 units: gltf.scene.userData['pinchmatch:units']};
     }""")
     m = doc["matches"][3]
-    assert sorted(info["names"]) == [
-        "cone_p1",
-        "cone_p2",
-        "finger_p1",
-        "finger_p2",
-        "tangible",
-        "virtual",
-    ]
+    assert sorted(info["names"]) == ["cone_p1", "cone_p2", "finger_p1", "finger_p2", "tangible",
+                                     "virtual"]
     np.testing.assert_allclose(info["approach"], m["tangible_pose"]["approach"], atol=1e-6)
     assert info["cost"] == pytest.approx(m["cost"], abs=1e-6) and info["flipped"] == m["flipped"]
     assert info["units"] == "m"
@@ -194,9 +174,8 @@ def test_page_data_lists_unmatched_objects_apart(demo_out, tmp_path):
     doc["matches"][1] = {"virtual": doc["matches"][1]["virtual"], "tangible": None, "cost": None,
                          "reason": "no tangible left (--one-to-one)"}
     data = page_data(demo_out, doc)
-    assert len(data["matches"]) == 5 and data["unmatched"][0]["reason"].startswith(
-        "no tangible left"
-    )
+    assert (len(data["matches"]) == 5
+            and data["unmatched"][0]["reason"].startswith("no tangible left"))
 
 
 def test_view_cli_rewrites_the_page(demo_out, tmp_path, capsys):
@@ -209,8 +188,8 @@ def test_view_cli_rewrites_the_page(demo_out, tmp_path, capsys):
 
 
 def test_view_takes_the_result_document_and_opens_the_page_where_there_is_a_display(
-    demo_out, tmp_path, capsys, monkeypatch
-):
+    demo_out, tmp_path, capsys,
+                                                                                    monkeypatch):
     import webbrowser
 
     out = tmp_path / "run"
@@ -225,42 +204,34 @@ def test_view_takes_the_result_document_and_opens_the_page_where_there_is_a_disp
     monkeypatch.delenv("DISPLAY")
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
     code, stdout, err = run(capsys, "view", out, "--open")
-    assert (
-        code == 0 and len(opened) == 1 and "no display to open a browser on; open file://" in stdout
-    )
+    assert (code == 0 and len(opened) == 1
+            and "no display to open a browser on; open file://" in stdout)
     (out / "notes.txt").write_text("mine")
     code, _, err = run(capsys, "view", out / "notes.txt")
     assert code == 2 and "not a result document of pinchmatch" in err and "matches.json" in err
 
 
-@pytest.mark.parametrize(
-    "damage, message",
-    [
-        ("no folder", "no such folder"),
-        ("no matches", "matches.json: not found; run 'pinchmatch match -o"),
-        ("bad json", "matches.json: not valid JSON"),
-        ("other schema", "not a pinchmatch matches document"),
-        ("no scene", "scene missing for"),
-        ("missing field", "field 'cost' is missing or malformed"),
-        ("wrong kind", "is missing or malformed"),
-        (
-            "markup weight",
-            "criteria.width.weight: text '<img src=x onerror=alert(1)>' where a number belongs",
-        ),
-        (
-            "markup landings",
-            "landing.landings: text '<script>alert(1)</script>' where a number belongs",
-        ),
-        ("markup radius", "landing.radius_mm: text '1<b>' where a number belongs"),
-        ("markup alternative", "alternatives[0].cost: text"),
-        ("infinite cost", "matches[0].cost: inf is not a number"),
-        ("huge integer", "matches.json: not valid JSON"),
-        ("scene link", "is a link (to"),
-        ("scene folder link", "is a link (to"),
-        ("matches link", "matches.json: a link (to"),
-        ("plan link", "study_plan.json: a link (to"),
-    ],
-)
+@pytest.mark.parametrize("damage, message", [
+    ("no folder", "no such folder"),
+    ("no matches", "matches.json: not found; run 'pinchmatch match -o"),
+    ("bad json", "matches.json: not valid JSON"),
+    ("other schema", "not a pinchmatch matches document"),
+    ("no scene", "scene missing for"),
+    ("missing field", "field 'cost' is missing or malformed"),
+    ("wrong kind", "is missing or malformed"),
+    ("markup weight",
+     "criteria.width.weight: text '<img src=x onerror=alert(1)>' where a number belongs"),
+    ("markup landings",
+     "landing.landings: text '<script>alert(1)</script>' where a number belongs"),
+    ("markup radius", "landing.radius_mm: text '1<b>' where a number belongs"),
+    ("markup alternative", "alternatives[0].cost: text"),
+    ("infinite cost", "matches[0].cost: inf is not a number"),
+    ("huge integer", "matches.json: not valid JSON"),
+    ("scene link", "is a link (to"),
+    ("scene folder link", "is a link (to"),
+    ("matches link", "matches.json: a link (to"),
+    ("plan link", "study_plan.json: a link (to"),
+])
 def test_view_cli_fails_cleanly(demo_out, tmp_path, capsys, damage, message):
     out = tmp_path / "run"
     if damage != "no folder":
@@ -284,29 +255,23 @@ def test_view_cli_fails_cleanly(demo_out, tmp_path, capsys, damage, message):
     elif damage.startswith(("markup", "infinite")):
         doc = json.loads((out / "matches.json").read_text())
         m = doc["matches"][0]
-        m["criteria"]["width"]["weight"] = (
-            "<img src=x onerror=alert(1)>" if damage == "markup weight" else 1.0
-        )
+        markup = "<img src=x onerror=alert(1)>"
+        m["criteria"]["width"]["weight"] = markup if damage == "markup weight" else 1.0
         if damage in ("markup landings", "markup radius"):
-            m["landing"] = dict(
-                m.get("landing") or {}, landings="<script>alert(1)</script>", radius_mm=5.0
-            )
+            m["landing"] = dict(m.get("landing") or {}, landings="<script>alert(1)</script>",
+                                radius_mm=5.0)
             if damage == "markup radius":
                 m["landing"].update(landings=25, radius_mm="1<b>")
         if damage == "markup alternative":
-            m["alternatives"] = (
-                [dict(m["alternatives"][0], cost="<i>")]
-                if m.get("alternatives")
-                else [{"cost": "<i>"}]
-            )
+            m["alternatives"] = [dict(m["alternatives"][0],
+                                      cost="<i>")] if m.get("alternatives") else [{"cost": "<i>"}]
         if damage == "infinite cost":
             m["cost"] = float("inf")
         (out / "matches.json").write_text(json.dumps(doc))
     elif damage == "huge integer":
         text = (out / "matches.json").read_text()
-        (out / "matches.json").write_text(
-            text.replace('"cost": ', '"cost": ' + "9" * 5000 + ', "x": ', 1)
-        )
+        (out / "matches.json").write_text(text.replace(
+            '"cost": ', '"cost": ' + "9" * 5000 + ", \"x\": ", 1))
     elif damage in ("matches link", "plan link"):
         name = "matches.json" if damage == "matches link" else "study_plan.json"
         secret = tmp_path / "secret"
@@ -335,18 +300,13 @@ def test_view_cli_fails_cleanly(demo_out, tmp_path, capsys, damage, message):
 
 
 def test_view_serve_binds_loopback_and_serves_the_page(demo_out):
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "pinchmatch", "view", str(demo_out), "--serve", "-q"],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
+    proc = subprocess.Popen([sys.executable, "-m", "pinchmatch", "view", str(demo_out), "--serve",
+                             "-q"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         line = proc.stdout.readline()
-        assert line.startswith(f"serving {demo_out} at http://127.0.0.1:"), (
-            line,
-            proc.stderr.read(),
-        )
+        assert (line.startswith(f"serving {demo_out} at http://127.0.0.1:")), (
+            line, proc.stderr.read())
         url = line.split(" at ")[1].split()[0]
         with urllib.request.urlopen(url, timeout=10) as response:
             body = response.read().decode("utf-8")
@@ -380,8 +340,7 @@ def _get(url, host=None):
 
 
 def test_serve_answers_only_its_own_host_lists_no_folder_and_follows_no_link_out(
-    demo_out, tmp_path
-):
+    demo_out, tmp_path):
     import threading
 
     from pinchmatch.export.view import make_server
@@ -411,17 +370,13 @@ def test_serve_answers_only_its_own_host_lists_no_folder_and_follows_no_link_out
 
 
 def test_the_list_filters_sorts_and_counts_and_the_scene_shows_alternatives_and_a_see_through_prop(
-    page, demo_out
-):
+        page, demo_out):
     doc = json.loads((demo_out / "matches.json").read_text())
     matched = [m for m in doc["matches"] if m["tangible"] is not None]
     loud = sum(any(c["noticeable"] for c in m["criteria"].values()) for m in matched)
     counts = page.locator("#counts").inner_text()
-    assert (
-        counts
-        == f"{len(doc['matches'])} of {len(doc['matches'])} shown; {loud} of them with a "
-           "noticeable difference"
-    )
+    assert (counts == f"{len(doc['matches'])} of {len(doc['matches'])} shown; {loud} of them with "
+                      "a noticeable difference")
     # filter by name: only the entries whose names hold the text
     page.fill("#filter", "vo3")
     visible = page.locator("#matches li:not([hidden]) .names").all_inner_texts()
@@ -429,9 +384,8 @@ def test_the_list_filters_sorts_and_counts_and_the_scene_shows_alternatives_and_
     page.fill("#filter", "")
     # sort by cost: the entries in the order of the documents' costs
     page.select_option("#sort", "cost")
-    names = [
-        t.split("→")[0].strip() for t in page.locator("#matches li.match .names").all_inner_texts()
-    ]
+    names = [t.split("→")[0].strip()
+             for t in page.locator("#matches li.match .names").all_inner_texts()]
     assert names == [m["virtual"] for m in sorted(matched, key=lambda m: m["cost"])]
     page.select_option("#sort", "-cost")
     names = [t.split("→")[0].strip()
@@ -465,38 +419,32 @@ def test_long_names_wrap_at_separators_not_mid_word(browser, tmp_path):
     pg.set_content("<div id='n' style='width:60px'></div>")
     script = (Path(pinchmatch.__file__).parent / "viewer" / "viewer.js").read_text()
     body = script[script.index("const escape ="):script.index("const turned =")]
-    html = pg.evaluate(
-        f"(() => {{ {body}; return breakable('kitchen_shelf-LeftJar.001/lid'); }})()"
-    )
+    html = pg.evaluate(f"(() => {{ {body}; return breakable('kitchen_shelf-LeftJar.001/lid'); "
+                       f"}})()")
     assert html == "kitchen_<wbr>shelf-<wbr>Left<wbr>Jar.<wbr>001/<wbr>lid"
     pg.close()
 
 
 def test_the_page_says_how_far_an_object_is_turned_and_why_a_reference_is_missing(
-    demo_out, tmp_path
-):
+    demo_out, tmp_path):
     out = tmp_path / "run"
     shutil.copytree(demo_out, out)
     doc = json.loads((out / "matches.json").read_text())
-    doc["matches"][0]["reference"] = {
-        **doc["matches"][0]["reference"],
-        "cost": None,
-        "reason": "the paper's p2 meets nothing on the virtual object",
-    }
+    doc["matches"][0]["reference"] = {**doc["matches"][0]["reference"], "cost": None,
+                                      "reason": "the paper's p2 meets nothing on the virtual "
+                                                "object"}
     (out / "matches.json").write_text(json.dumps(doc))
     data = page_data(out, read_matches(out))
     first = data["matches"][0]
-    assert first["reference_cost"] is None and first["reference_reason"].startswith(
-        "the paper's p2"
-    )
+    assert (first["reference_cost"] is None
+            and first["reference_reason"].startswith("the paper's p2"))
     turns = {m["virtual"]: m["up_turn_deg"] for m in data["matches"]}
     flips = {m["virtual"]: m["flipped"] for m in data["matches"]}
     assert all((turns[v] > 90.0) == flips[v] for v in turns)  # flipped is a turn beyond 90 degrees
 
 
 def test_serve_answers_a_nul_byte_and_departing_clients_without_a_traceback(
-    demo_out, tmp_path, capsys
-):
+    demo_out, tmp_path, capsys):
     import socket
     import threading
 
@@ -562,16 +510,8 @@ def test_a_tripod_demo_shows_three_cones_per_grasp_and_its_alternatives(browser,
                 virtual: gltf.scene.getObjectByName('virtual')
                     .userData['pinchmatch:virtual_contacts_mm']};
     }""")
-    assert sorted(info["names"]) == [
-        "cone_p1",
-        "cone_p2",
-        "cone_p3",
-        "finger_p1",
-        "finger_p2",
-        "finger_p3",
-        "tangible",
-        "virtual",
-    ]
+    assert sorted(info["names"]) == ["cone_p1", "cone_p2", "cone_p3", "finger_p1", "finger_p2",
+                                     "finger_p3", "tangible", "virtual"]
     m = doc["matches"][1]
     np.testing.assert_allclose(info["cones"], m["tangible_pose"]["contacts_mm"], atol=1e-3)
     assert len(info["virtual"]) == 9
@@ -587,20 +527,17 @@ def test_a_tripod_demo_shows_three_cones_per_grasp_and_its_alternatives(browser,
 
 @pytest.mark.parametrize("virtual_up", ["y", "z"])
 def test_the_virtual_pose_view_stands_each_object_on_its_own_up(
-    browser, tmp_path, capsys, virtual_up
-):
+    browser, tmp_path, capsys, virtual_up):
     """A tall bottle, as a y-up GLB (metres) and as a z-up STL (mm), matched on a z-up box prop: in
     the virtual pose view it stands upright (its longest side along the view's vertical), and its
     rest on the prop is said."""
     import trimesh
 
-    bottle = trimesh.creation.cylinder(
-        radius=30.0, height=180.0, sections=32
-    )  # mm, its axis along z
+    # mm, its axis along z
+    bottle = trimesh.creation.cylinder(radius=30.0, height=180.0, sections=32)
     if virtual_up == "y":
-        bottle.apply_transform(
-            trimesh.transformations.rotation_matrix(-np.pi / 2, [1, 0, 0])
-        )  # axis along y
+        # axis along y
+        bottle.apply_transform(trimesh.transformations.rotation_matrix(-np.pi / 2, [1, 0, 0]))
         bottle.apply_scale(0.001)
         bottle.export(tmp_path / "bottle.glb")
         virtual = tmp_path / "bottle.glb"
@@ -609,22 +546,8 @@ def test_the_virtual_pose_view_stands_each_object_on_its_own_up(
         virtual = tmp_path / "bottle.stl"
     trimesh.creation.box(extents=(60.0, 60.0, 120.0)).export(tmp_path / "prop.stl")
     out = tmp_path / "out"
-    code, _, err = run(
-        capsys,
-        "match",
-        "--tangible",
-        tmp_path / "prop.stl",
-        "--virtual",
-        virtual,
-        "--count",
-        150,
-        "--no-figures",
-        "--no-cache",
-        "--jobs",
-        1,
-        "-o",
-        out,
-    )
+    code, _, err = run(capsys, "match", "--tangible", tmp_path / "prop.stl", "--virtual", virtual,
+                       "--count", 150, "--no-figures", "--no-cache", "--jobs", 1, "-o", out)
     assert code == 0, err
     pg = browser.new_page(viewport={"width": 1400, "height": 900})
     pg.goto((out / "index.html").as_uri())

@@ -18,53 +18,13 @@ def results(tmp_path_factory):
     root = tmp_path_factory.mktemp("results")
     can_and_box_level(root / "kitchen.glb")
     (root / "props.toml").write_text(can_prop_manifest())
-    assert (
-        main(
-            [
-                "match",
-                "--tangible",
-                str(root / "props.toml"),
-                "--virtual",
-                str(root / "kitchen.glb"),
-                "--split",
-                "nodes",
-                "--placement",
-                "fixed",
-                "--count",
-                "80",
-                "--jobs",
-                "1",
-                "-q",
-                "--no-cache",
-                "-o",
-                str(root / "fixed"),
-            ]
-        )
-        == 0
-    )
+    assert main(["match", "--tangible", str(root / "props.toml"), "--virtual",
+                 str(root / "kitchen.glb"), "--split", "nodes", "--placement", "fixed", "--count",
+                 "80", "--jobs", "1", "-q", "--no-cache", "-o", str(root / "fixed")]) == 0
     trimesh.creation.cylinder(radius=20.0, height=50.0, sections=32).export(root / "can.stl")
-    assert (
-        main(
-            [
-                "match",
-                "--tangible",
-                str(root / "can.stl"),
-                "--virtual",
-                str(root / "can.stl"),
-                "--grasp",
-                "tripod",
-                "--count",
-                "60",
-                "--jobs",
-                "1",
-                "-q",
-                "--no-cache",
-                "-o",
-                str(root / "tripod"),
-            ]
-        )
-        == 0
-    )
+    assert main(["match", "--tangible", str(root / "can.stl"), "--virtual", str(root / "can.stl"),
+                 "--grasp", "tripod", "--count", "60", "--jobs", "1", "-q", "--no-cache", "-o",
+                 str(root / "tripod")]) == 0
     return root
 
 
@@ -86,37 +46,20 @@ def _set(path, value):
     return change
 
 
-@pytest.mark.parametrize(
-    "which, path, value, words",
-    [
-        (
-            "tripod",
-            ("matches", 0, "tangible_pose", "contacts_mm"),
-            [],
-            ["contacts_mm", "cannot draw"],
-        ),
-        (
-            "tripod",
-            ("matches", 0, "virtual_pose", "contacts_mm"),
-            [[0, 0, 0], [1, 1, 1]],
-            ["contacts_mm"],
-        ),
-        ("fixed", ("matches", 0, "redirection", "angle_deg"), None, ["redirection", "angle_deg"]),
-        ("fixed", ("matches", 0, "redirection"), [], ["redirection"]),
-        ("fixed", ("tangibles", 0, "pose"), "on the table", ["prop's pose"]),
-        ("fixed", ("tangibles", 0, "pose", "position_mm"), [0, 900], ["position_mm"]),
-        (
-            "fixed",
-            ("matches", 0, "transform_virtual_to_tangible"),
-            [[1, 0, 0], [0, 1, 0]],
-            ["transform_virtual_to_tangible"],
-        ),
-        ("fixed", ("matches", 0, "redirection", "hand_start_mm"), None, ["hand_start_mm"]),
-    ],
-)
+@pytest.mark.parametrize("which, path, value, words", [
+    ("tripod", ("matches", 0, "tangible_pose", "contacts_mm"), [], ["contacts_mm", "cannot draw"]),
+    ("tripod", ("matches", 0, "virtual_pose", "contacts_mm"), [[0, 0, 0], [1, 1, 1]],
+     ["contacts_mm"]),
+    ("fixed", ("matches", 0, "redirection", "angle_deg"), None, ["redirection", "angle_deg"]),
+    ("fixed", ("matches", 0, "redirection"), [], ["redirection"]),
+    ("fixed", ("tangibles", 0, "pose"), "on the table", ["prop's pose"]),
+    ("fixed", ("tangibles", 0, "pose", "position_mm"), [0, 900], ["position_mm"]),
+    ("fixed", ("matches", 0, "transform_virtual_to_tangible"), [[1, 0, 0], [0, 1, 0]],
+     ["transform_virtual_to_tangible"]),
+    ("fixed", ("matches", 0, "redirection", "hand_start_mm"), None, ["hand_start_mm"]),
+])
 def test_a_document_the_page_cannot_draw_is_one_line(
-    results, tmp_path, capsys, which, path, value, words
-):
+    results, tmp_path, capsys, which, path, value, words):
     out = _changed(results, tmp_path, which, _set(path, value))
     before = (out / "index.html").read_bytes()
     code, _, err = run_cli(capsys, "view", out)
@@ -126,8 +69,7 @@ def test_a_document_the_page_cannot_draw_is_one_line(
 
 
 def test_a_page_larger_than_a_browser_opens_comfortably_is_said(
-    results, tmp_path, capsys, monkeypatch, caplog
-):
+    results, tmp_path, capsys, monkeypatch, caplog):
     from pinchmatch.export import view
 
     monkeypatch.setattr(view, "PAGE_NOTE_BYTES", 1000)

@@ -23,9 +23,8 @@ def test_the_pure_logic_in_nodes_test_runner():
         pytest.skip("node is not installed (apt-get install nodejs)")
     proc = subprocess.run([NODE, "--test", *sorted(str(p) for p in TESTS.glob("*.test.mjs"))],
                           capture_output=True, text=True, timeout=120, check=False)
-    summary = [
-        line for line in proc.stdout.splitlines() if line.startswith(("# pass", "# fail", "not ok"))
-    ]
+    summary = [line for line in proc.stdout.splitlines()
+               if line.startswith(("# pass", "# fail", "not ok"))]
     assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-2000:]
     assert "# fail 0" in summary and any(line.startswith("# pass") and int(line.split()[-1]) >= 8
                                          for line in summary), summary

@@ -12,9 +12,8 @@ import sys
 
 import numpy
 
-if not hasattr(
-    numpy, "bool"
-):  # Debian's Blender 3.4 importer still says np.bool, gone from numpy >= 1.24
+if not hasattr(numpy, "bool"):
+    # Debian's Blender 3.4 importer still says np.bool, gone from numpy >= 1.24
     numpy.bool = numpy.bool_
 
 import bpy  # noqa: E402 - Blender's module, only inside Blender

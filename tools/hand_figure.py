@@ -49,9 +49,8 @@ def panel(ax, title, make, view, choose, settings):
     mesh = make()
     pinches = sample_pinches(SurfaceContext(mesh), settings=settings)
     shown = pinches.subset(choose(pinches))
-    ax.add_collection3d(
-        Poly3DCollection(mesh.triangles, facecolor=(0.7, 0.7, 0.72, 0.06), edgecolor="none")
-    )
+    ax.add_collection3d(Poly3DCollection(mesh.triangles, facecolor=(0.7, 0.7, 0.72, 0.06),
+                                         edgecolor="none"))
     tips = shown.points + settings.fingertip_radius_mm * shown.normals
     along = finger_directions(shown.points, shown.approach, hand_of(settings))
     for i in range(len(shown)):
@@ -74,23 +73,16 @@ def panel(ax, title, make, view, choose, settings):
 
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
-    out = (
-        Path(argv[0])
-        if argv
-        else Path(__file__).resolve().parents[1] / "docs" / "images" / "hand_model.png"
-    )
+    out = (Path(argv[0]) if argv else Path(__file__).resolve().parents[1] / "docs" / "images"
+           / "hand_model.png")
     settings = PinchSettings(count=300, seed=0)
     fig = plt.figure(figsize=(12, 4.4), dpi=110)
     for i, (title, make, view, choose) in enumerate(PANELS, start=1):
         panel(fig.add_subplot(1, 3, i, projection="3d"), title, make, view, choose, settings)
     fig.tight_layout(rect=(0, 0.05, 1, 0.93))
-    fig.text(
-        0.5,
-        0.02,
-        "Pinches (green) and the two fingers of each, in a V about its approach (orange, 45 mm)",
-        ha="center",
-        fontsize=10,
-    )
+    fig.text(0.5, 0.02,
+             "Pinches (green) and the two fingers of each, in a V about its approach (orange, 45 "
+             "mm)", ha="center", fontsize=10)
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out)
     print(out)
