@@ -67,6 +67,24 @@ def test_the_angles_are_the_level_s_seen_from_the_user(bottle):
         np.testing.assert_allclose(azimuth, expected[1], atol=1e-6)
 
 
+def test_where_the_user_stands_is_kept_per_prop_and_user_as_worked_out(bottle):
+    """The user in the prop's frame, asked again for each of three users (the default among them)
+    in turn: each time what the prop's pose and the default start give, never another user's."""
+    from pinchmatch.config import Redirect
+    from pinchmatch.match.comfort import user_in_prop
+    from pinchmatch.match.redirect import hand_start
+
+    _, prop = bottle
+    default = hand_start(prop.obj.spec, Redirect(), prop.obj.loaded.mesh.vertices)
+    users = [None, (500.0, 900.0, 700.0), [-800.0, 1500.0, -300.0], None, (500.0, 900.0, 700.0)]
+    seen = [user_in_prop(prop.obj, u) for u in users]
+    for u, got in zip(users, seen):
+        world = default if u is None else np.array(u)
+        np.testing.assert_allclose(got, TURN.as_matrix().T @ (world - POSITION_MM), atol=1e-9)
+        assert not got.flags.writeable
+    assert not np.allclose(seen[0], seen[1]) and not np.allclose(seen[1], seen[2])
+
+
 def test_comfortable_is_the_near_half_or_from_above():
     elevation = np.array([0.0, 0.0, 34.9, 35.0, 89.0, -5.0])
     azimuth = np.array([90.0, 90.1, 170.0, 170.0, 180.0, 10.0])

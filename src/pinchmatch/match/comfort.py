@@ -47,11 +47,23 @@ EASIEST_ELEVATION_DEG = 45.0
 TABLE_MARGIN_MM = 10.0
 
 _COMFORT: dict[int, dict] = {}
+_USERS: dict[int, dict] = {}
 
 
 def user_in_prop(tangible_obj, user_mm) -> np.ndarray:
     """(3,) where the user stands, in the prop's file frame (mm): ``user_mm`` (the level's frame),
-    else the hand's default start for that prop."""
+    else the hand's default start for that prop. Worked out once per prop and user while the prop
+    lives (the default start reads every vertex of the prop), read-only."""
+    key = None if user_mm is None else tuple(np.asarray(user_mm, dtype=np.float64).tolist())
+    memo = memo_of(_USERS, tangible_obj)
+    if key not in memo:
+        user = _user_in_prop(tangible_obj, user_mm)
+        user.setflags(write=False)
+        memo[key] = user
+    return memo[key]
+
+
+def _user_in_prop(tangible_obj, user_mm) -> np.ndarray:
     spec = tangible_obj.spec
     if user_mm is None:
         user = hand_start(spec, Redirect(), tangible_obj.loaded.mesh.vertices)
