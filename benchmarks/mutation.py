@@ -60,6 +60,7 @@ CORE = {
     "match/pairs.py": ["test_pairs.py", "test_match.py"],
     "match/register.py": ["test_register.py"],
     "match/rest.py": ["test_rest.py", "test_cost.py"],
+    "mesh/lowest.py": ["test_lowest.py", "test_rest.py"],
     "mesh/frames.py": ["test_register.py", "test_load.py"],
     "mesh/properties.py": ["test_properties.py"],
     "match/redirect.py": ["test_redirect.py"],

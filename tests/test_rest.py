@@ -12,7 +12,8 @@ from scipy.spatial.transform import Rotation
 from pinchmatch import analyze_object
 from pinchmatch.config import MatchSettings
 from pinchmatch.errors import ConfigError
-from pinchmatch.match.rest import REST_TOLERANCE_MM, hull_points, rest_gaps, rest_jnd
+from pinchmatch.match.rest import (REST_TOLERANCE_MM, hull_points, hull_table, rest_gaps,
+                                   rest_jnd)
 from pinchmatch.mesh.support import SupportPlane
 
 from conftest import run_cli
@@ -50,6 +51,10 @@ def test_the_rest_gap_is_the_lowest_vertex_of_the_moved_object(tmp_path):
         brute = np.einsum("kij,vj->kvi", T[:, :3, :3], v) + T[:, None, :3, 3]
         expected = (brute @ normal).min(axis=1) - support.height_mm
         np.testing.assert_allclose(rest_gaps(support, points, T), expected, atol=1e-9)
+        # the object's kept table tries fewer points for the same gaps
+        table = hull_table(obj)
+        assert table is hull_table(obj) and np.diff(table.starts).mean() < len(points)
+        np.testing.assert_allclose(rest_gaps(support, points, T, table=table), expected, atol=1e-9)
 
 
 def test_a_gap_costs_nothing_within_the_tolerance_and_grows_at_each_side_s_rate():

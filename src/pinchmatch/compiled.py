@@ -1,11 +1,11 @@
 """numba's ``njit``, with a place to keep the compiled kernels wherever pinchmatch is installed.
 
 The kernels (:mod:`pinchmatch.mesh.topology_kernel`, ``neighbours_kernel``,
-``distance_field_kernel``, :mod:`pinchmatch.grasp.jets`, ``spread_kernel``) are compiled on first
-use and kept on disk (``cache=True``). numba keeps them beside the source, or else in the user's
-cache folder; where neither can be written (a package installed read-only for a user with no
-writable home) numba refuses to compile a cached kernel at all. So, unless ``NUMBA_CACHE_DIR`` says
-where, a package folder that cannot be written sends the kernels to
+``distance_field_kernel``, ``lowest_kernel``, :mod:`pinchmatch.grasp.jets`, ``spread_kernel``) are
+compiled on first use and kept on disk (``cache=True``). numba keeps them beside the source, or else
+in the user's cache folder; where neither can be written (a package installed read-only for a user
+with no writable home) numba refuses to compile a cached kernel at all. So, unless
+``NUMBA_CACHE_DIR`` says where, a package folder that cannot be written sends the kernels to
 ``$XDG_CACHE_HOME/pinchmatch/numba`` (``~/.cache/...``), else to a folder of this user's in the
 system's temporary folder. Set before numba is first imported, so workers inherit it.
 """

@@ -9,7 +9,8 @@ wrong whatever the fingers feel.
 Per placement, the **rest gap** is the signed height of the placed object's lowest point over the
 prop's support plane, in mm (negative: below it, sunk). It is exact: the lowest point of a rigidly
 moved solid is one of its convex hull's vertices, so the gap is the least of the hull vertices'
-heights (``support.normal · (R v + t) - height``), one matrix product per block of placements.
+heights (``support.normal · (R v + t) - height``), tried only among the vertices that can be lowest
+for the placement's turn (:mod:`pinchmatch.mesh.lowest`).
 
 The gap is not a felt difference, so it is not pooled with the haptic criteria (probability
 summation would let a large haptic difference hide any gap: a 14 JND pinch hovering 35 mm would cost
@@ -45,6 +46,7 @@ import numpy as np
 from ..config import REST_FLOAT_MM_PER_JND as FLOAT_MM_PER_JND
 from ..config import REST_SINK_MM_PER_JND as SINK_MM_PER_JND
 from ..config import REST_TOLERANCE_MM
+from ..mesh.lowest import LowestTable, lowest_along, lowest_table
 from .candidates import memo_of
 #: placements whose gaps are computed at a time (memory: 8 bytes x hull vertices each)
 GAP_CHUNK = 4096
@@ -69,10 +71,21 @@ def hull_points(obj) -> np.ndarray:
     return memo["hull"]
 
 
-def rest_gaps(support, points: np.ndarray, transforms: np.ndarray) -> np.ndarray:
+def hull_table(obj) -> LowestTable:
+    """The :class:`~pinchmatch.mesh.lowest.LowestTable` of :func:`hull_points`, made once while
+    ``obj`` lives."""
+    memo = memo_of(_HULLS, obj)
+    if "table" not in memo:
+        memo["table"] = lowest_table(hull_points(obj))
+    return memo["table"]
+
+
+def rest_gaps(support, points: np.ndarray, transforms: np.ndarray, *,
+              table: LowestTable | None = None) -> np.ndarray:
     """(k,) the signed height (mm) of the lowest of ``points`` (h, 3), moved by each of
     ``transforms`` (k, 4, 4), over ``support`` (a :class:`~pinchmatch.mesh.support.SupportPlane` in
-    the transforms' target frame); negative below it.
+    the transforms' target frame); negative below it. ``table``: the points' table where one is
+    kept (:func:`pinchmatch.mesh.lowest.lowest_along`: the same lowest points, fewer tried).
 
     >>> from pinchmatch.mesh.support import SupportPlane
     >>> table = SupportPlane(np.array([0.0, 0.0, 1.0]), 10.0, "lowest point")
@@ -88,7 +101,7 @@ def rest_gaps(support, points: np.ndarray, transforms: np.ndarray) -> np.ndarray
         X = transforms[start:start + GAP_CHUNK]
         # Rᵀ n: the support's normal in the object's frame
         down = np.einsum("kji,j->ki", X[:, :3, :3], normal)
-        lowest = (points @ down.T).min(axis=0)
+        lowest = (points @ down.T).min(axis=0) if table is None else lowest_along(table, down)
         out[start:start + GAP_CHUNK] = lowest + X[:, :3, 3] @ normal - support.height_mm
     return out
 
@@ -122,6 +135,6 @@ def rested(tangible_obj, virtual_obj, transforms: np.ndarray, model,
     support = presented_support(tangible_obj, redirect)
     if support is None:
         return np.full(k, np.nan), np.zeros(k)
-    gaps = rest_gaps(support, hull_points(virtual_obj), transforms)
+    gaps = rest_gaps(support, hull_points(virtual_obj), transforms, table=hull_table(virtual_obj))
     sink, hover = model.rest_mm_per_jnd
     return gaps, rest_jnd(gaps, sink_mm_per_jnd=sink, float_mm_per_jnd=hover)

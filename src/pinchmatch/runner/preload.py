@@ -26,6 +26,7 @@ def warm_kernels() -> None:
     from ..mesh import topology
     from ..grasp.curvature import patch_geometry
     from ..grasp.sampling import sample_pinches
+    from ..mesh.lowest import lowest_along, lowest_table
     from ..mesh.neighbours import CLUSTER_POINTS
     from ..mesh.shapes import sphere
     from ..mesh.surface import SurfaceContext
@@ -43,6 +44,7 @@ def warm_kernels() -> None:
         topology.signed_volumes(vertices, faces)
         context = SurfaceContext(mesh)
         sample_pinches(context, settings=PinchSettings(count=8, seed=0))
+        lowest_along(lowest_table(vertices), mesh.vertex_normals[:4])  # the rest gaps' kernel
         # a cluster's kernel
         patch_geometry(context, np.repeat(vertices[:1], CLUSTER_POINTS, axis=0),
                        np.repeat(mesh.vertex_normals[:1], CLUSTER_POINTS, axis=0))
