@@ -7,6 +7,7 @@ MeshError): never another exception, never a hang. ``PINCHMATCH_FUZZ_EXAMPLES`` 
 import json
 import os
 
+import pytest
 import trimesh
 from hypothesis import HealthCheck, given, settings, strategies as st
 
@@ -154,6 +155,15 @@ def test_received_control_folders(tmp_path_factory, journal, manifest, run):
     except PinchmatchError as exc:
         assert "\n" not in str(exc)
     assert (outside / "victim.txt").read_text() == "keep me" and outside.exists()
+
+
+def test_a_received_key_with_a_line_break_is_named_on_one_line():
+    """The example the fuzzing below found: a key holding a line break, under a number's field."""
+    from pinchmatch.export.view import _checked_values
+
+    with pytest.raises(PinchmatchError) as refused:
+        _checked_values("matches.json: matches[0].cost", {"\n": ""}, "cost")
+    assert "\n" not in str(refused.value) and "'\\n'" in str(refused.value)
 
 
 @FUZZ

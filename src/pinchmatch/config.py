@@ -123,8 +123,7 @@ def complete_weights(given: Mapping, *, criteria: tuple = DEFAULT_CRITERIA) -> d
         weights[name] = w
     if not any(weights[c] > 0 for c in criteria):
         raise ConfigError("--weights: every weight is 0, so nothing would be compared; give at "
-                          "least one "
-                          "criterion a positive weight")
+                          "least one criterion a positive weight")
     return weights
 
 
@@ -162,8 +161,7 @@ class PinchSettings:
 
     friction_cone_deg: float = option(30.0, group="pinch", kind="float",
                                       help="antipodal tolerance: how far each squeeze may lean "
-                                           "from the surface "
-                                           "normal, 0 to 90 deg")
+                                           "from the surface normal, 0 to 90 deg")
     min_width_mm: float = option(0.5, group="pinch", kind="float",
                                  help="smallest pinch width (a bowl wall, a plate rim, a card)")
     max_width_mm: float = option(100.0, group="pinch", kind="float",
@@ -179,8 +177,7 @@ class PinchSettings:
                                       help="how far a given contact may be from the surface")
     finger_radius_mm: float = option(8.0, group="pinch", kind="float",
                                      help="radius of the finger capsule behind each fingertip; at "
-                                          "most the "
-                                          "fingertip's")
+                                          "most the fingertip's")
     finger_length_mm: float = option(45.0, group="pinch", kind="float",
                                      help="length of the finger capsule: distal and middle "
                                           "phalanges; 5 to 150")
@@ -195,8 +192,7 @@ class PinchSettings:
                                           "to 45")
     grasp: str = option("pinch", group="sampling", kind="choice", choices=GRASPS,
                         help="the grasp: pinch (thumb and index) or tripod (thumb against index "
-                             "and middle "
-                             "finger; docs/method.md)")
+                             "and middle finger; docs/method.md)")
 
     def __post_init__(self):
         lo, hi = FINGERTIP_RADIUS_RANGE_MM
@@ -224,8 +220,7 @@ class PinchSettings:
             ("--finger-radius-mm", self.finger_radius_mm,
              CLEARANCE_TOLERANCE_MM < self.finger_radius_mm <= self.fingertip_radius_mm,
              f"more than {CLEARANCE_TOLERANCE_MM:g} and at most --fingertip-radius-mm (the finger "
-             "starts "
-             "at the fingertip sphere's centre)"),
+             "starts at the fingertip sphere's centre)"),
             ("--finger-length-mm", self.finger_length_mm, 5.0 <= self.finger_length_mm <= 150.0,
              "between 5 and 150 (a fingertip alone to a whole finger)"),
             ("--approach-tilt-deg", self.approach_tilt_deg, 0.0 <= self.approach_tilt_deg < 90.0,
@@ -323,13 +318,11 @@ class MatchSettings:
     weights: dict = option(default_factory=dict, group="weights", kind="weights",
                            metavar="NAME=W,...",
                            help="weight per criterion, 0 to 10^6, default 1: "
-                                "width,tilt,normal,axis,kmax,kmin,mass "
-                                "(com with --criteria paper)")
+                                "width,tilt,normal,axis,kmax,kmin,mass (com with --criteria paper)")
     criteria: tuple = option(DEFAULT_CRITERIA, group="cost", kind="choice",
                              choices={"default": DEFAULT_CRITERIA, "paper": PAPER_CRITERIA},
                              help="default: the paper's criteria with mass (the lever arm) for "
-                                  "com; paper: the "
-                                  "paper's seven")
+                                  "com; paper: the paper's seven")
     normalize: str = option("jnd", group="match", kind="choice", choices=("jnd", "range"),
                             help="jnd: differences in just-noticeable differences; range: the "
                                  "paper's scaling")
@@ -377,30 +370,25 @@ class MatchSettings:
                                               "prop's pose: +Z in a y-up level, -Y in a z-up one)")
     redirect_threshold_deg: float = option(REDIRECT_THRESHOLD_DEG, group="placement", kind="float",
                                            help="the redirection angle that costs as much as one "
-                                                "just-noticeable "
-                                                "difference")
+                                                "just-noticeable difference")
     max_redirect_deg: float = option(MAX_REDIRECT_DEG, group="placement", kind="float",
                                      help="with --placement fixed: the largest redirection angle "
                                           "seen from the "
                                           "hand's start; beyond it the carousel serves the object "
-                                          "(the detection "
-                                          "threshold of body warping)")
+                                          "(the detection threshold of body warping)")
     axis_threshold_deg: float = option(AXIS_THRESHOLD_DEG, group="placement", kind="float",
                                        help="the turn of the pinch axis that costs as much as one "
-                                            "just-noticeable "
-                                            "difference")
+                                            "just-noticeable difference")
     gain_range: tuple = option(GAIN_RANGE, group="placement", kind="vector", metavar="LOW,HIGH",
                                help="with --placement fixed: the reach gains a redirection may "
                                     "use, the virtual "
                                     "target's distance from the hand's start over the physical "
-                                    "one's (HaRT's "
-                                    "unnoticed gains)")
+                                    "one's (HaRT's unnoticed gains)")
     carousel_margin_jnd: float = option(CAROUSEL_MARGIN_JND, group="placement", kind="float",
                                         help="with --placement fixed: an object stays in the "
                                              "level, the hand "
                                              "redirected, unless the carousel costs this many JND "
-                                             "less (keeping the "
-                                             "level intact is worth that much: "
+                                             "less (keeping the level intact is worth that much: "
                                              "docs/redirection.md)")
     user_mm: tuple | None = option(None, group="placement", kind="vector", flag="--user-at",
                                    metavar="X,Y,Z",
@@ -436,14 +424,12 @@ class MatchSettings:
             raise ConfigError(f"--normalize: unknown mode {self.normalize!r}; use jnd or range")
         if not (_finite(self.landing_mm) and 0.0 <= self.landing_mm <= 20.0):
             raise ConfigError(f"--landing-mm: {self.landing_mm!r} must be from 0 to 20 mm (how far "
-                              "off its target "
-                              "a fingertip may land; the headset allows 5)")
+                              "off its target a fingertip may land; the headset allows 5)")
         if not isinstance(self.refine, bool):
             raise ConfigError(f"--refine: {self.refine!r} must be on or off")
         if self.rank not in RANKS:
             raise ConfigError(f"--rank: unknown ranking {self.rank!r}; use expected (the cost "
-                              "where guided fingers "
-                              "land, the default), worst or nominal")
+                              "where guided fingers land, the default), worst or nominal")
         if self.pooling not in POOLINGS:
             raise ConfigError(f"--pooling: unknown pooling {self.pooling!r}; use quick "
                               "(probability summation, "
@@ -459,8 +445,7 @@ class MatchSettings:
                 raise ConfigError(f"{flag}: {value!r} must be from {lo:g} to {hi:g} mm per JND "
                                   "(how many mm of "
                                   "visible gap between a shown object and the table cost one "
-                                  "just-noticeable "
-                                  "difference)")
+                                  "just-noticeable difference)")
 
     def _check_redirect(self) -> None:
         if self.placement not in PLACEMENTS:
@@ -477,8 +462,7 @@ class MatchSettings:
         if (len(gains) != 2 or not all(math.isfinite(g) for g in gains)
                 or not 0.0 < gains[0] <= 1.0 <= gains[1] <= 10.0):
             raise ConfigError(f"--gain-range: {self.gain_range!r} must be two gains LOW,HIGH with "
-                              "0 < LOW <= 1 <= HIGH "
-                              "<= 10 (HaRT's unnoticed gains are 0.94,1.14)")
+                              "0 < LOW <= 1 <= HIGH <= 10 (HaRT's unnoticed gains are 0.94,1.14)")
         object.__setattr__(self, "gain_range", gains)
         if not (_finite(self.carousel_margin_jnd) and 0.0 <= self.carousel_margin_jnd <= 100.0):
             raise ConfigError(f"--carousel-margin-jnd: {self.carousel_margin_jnd!r} must be from 0 "

@@ -53,8 +53,7 @@ class AtomicFile:
 
     def _error(self, exc: OSError) -> OutputError:
         return OutputError(f"{self.path}: cannot write it ({exc.strerror or exc}); free some "
-                           "space, or choose "
-                           "a writable place for the output")
+                           "space, or choose a writable place for the output")
 
     def write(self, data) -> None:
         try:
@@ -142,8 +141,7 @@ def check_writable(path: str | os.PathLike, *, folder: bool) -> None:
                               "another -o")
     if not os.access(target, os.W_OK | os.X_OK):
         raise OutputError(f"{path}: cannot write in {target} (no permission, or a read-only file "
-                          "system); "
-                          "choose another -o")
+                          "system); choose another -o")
 
 
 def remove_temporaries(path: str | os.PathLike) -> None:

@@ -110,8 +110,7 @@ def _cmd_poses(args) -> int:
         f"{obj.name}: {len(obj.loaded.mesh.faces)} faces, {doc['object']['extent_mm']} mm, "
         f"watertight={obj.loaded.watertight}, axis from {obj.props.axis_source}",
         f"{n_ok} feasible of {len(pinches)} {'tripods' if tripods else 'pinches'}; load "
-        f"{t1 - t0:.2f} s, "
-        f"poses and features {t2 - t1:.2f} s",
+        f"{t1 - t0:.2f} s, poses and features {t2 - t1:.2f} s",
     ]
     if given is not None:
         for i in np.flatnonzero(~pinches.feasible):
@@ -267,8 +266,7 @@ def _cmd_calibrate(args) -> int:
             f"{c} (90 % interval {intervals[c][0]:.2f}-{intervals[c][1]:.2f})"
             for c in fit.undetermined)
             + f"; {'it keeps its' if len(fit.undetermined) == 1 else 'they keep their'} default in "
-              f"{args.output} "
-            "(rate placements that differ in it; --force writes the fit)")
+              f"{args.output} (rate placements that differ in it; --force writes the fit)")
     by = "by placement" if fit.hold_out == "placement" else "one virtual object out at a time"
     ui.note(f"held-out rank correlation of cost and rating ({fit.folds} folds, {by}; -1 is "
             "perfect): "
@@ -340,8 +338,7 @@ def _cmd_demo(args) -> int:
         written = [f"{out / 'study.json'}",
                    f"{out / 'study_plan.json'} ({len(plan['trials'])} trials for the headset)",
                    f"{out / 'ratings_static.csv'} (the method's static ratings with this run's "
-                   "differences, for "
-                   "calibrate)",
+                   "differences, for calibrate)",
                    f"{out / 'matches.json'}", f"{sink.scenes} glTF scenes in {out / 'scenes'}"]
         if not args.no_figures:
             # matplotlib: imported when figures are wanted
@@ -372,8 +369,7 @@ def _cmd_demo(args) -> int:
                  + [(name, f"{v['mean_cost']:.4f}", v["noticeable_count"])
                                                           for name, v in c.items()],
                  title="a prop designed for the six virtual objects, from the study prop's shape "
-                       f"({designed['evaluations']} "
-                       "judged)")
+                       f"({designed['evaluations']} judged)")
     ui.note(f"study {t1 - t0:.2f} s; wrote " + ", ".join(written))
     ui.document(to_json(study_doc))
     return 0
@@ -387,8 +383,7 @@ def _cmd_view(args) -> int:
     if folder.is_file():
         if folder.name not in RESULT_DOCUMENTS:
             raise ConfigError(f"{folder}: not a result document of pinchmatch; give the -o folder "
-                              "of a match or "
-                              f"demo run, or its {' or '.join(RESULT_DOCUMENTS)}")
+                              f"of a match or demo run, or its {' or '.join(RESULT_DOCUMENTS)}")
         folder = folder.parent
     if folder.is_dir():
         check_writable(folder / "index.html", folder=False)

@@ -195,12 +195,10 @@ def _add_node_options(p: argparse.ArgumentParser) -> None:
     objects."""
     p.add_argument("--nodes", action="append", metavar="GLOB",
                    help="with --split nodes: only the mesh nodes whose name or path matches GLOB "
-                        "(repeatable; a "
-                        "manifest entry's nodes come first)")
+                        "(repeatable; a manifest entry's nodes come first)")
     p.add_argument("--skip-nodes", action="append", metavar="GLOB",
                    help="with --split nodes: leave out the mesh nodes whose name or path matches "
-                        "GLOB (repeatable; "
-                        "with a manifest entry's skip_nodes)")
+                        "GLOB (repeatable; with a manifest entry's skip_nodes)")
 
 
 def _add_placement_options(p: argparse.ArgumentParser) -> None:
@@ -217,8 +215,7 @@ def _add_output_options(p: argparse.ArgumentParser, *, figures: bool) -> None:
     else:
         p.add_argument("--figures", action="store_true",
                        help="also write PNG figures in OUT/figures: the cost matrix and each "
-                            "match's criteria "
-                            "(the page draws the same bars itself)")
+                            "match's criteria (the page draws the same bars itself)")
         p.add_argument("--no-figures", action="store_true", help="no PNG figures (the default)")
     p.add_argument("--json", action="store_true",
                    help="print the result document to stdout (and nothing else there)")
@@ -234,8 +231,7 @@ def _add_worker_options(p: argparse.ArgumentParser, *, work: str = "the per-obje
                         "nothing")
     p.add_argument("-j", "--jobs", type=int, metavar="N",
                    help=f"objects worked on at once in {work}, in local processes (default: all "
-                        f"{default_jobs()} "
-                        "cores)")
+                        f"{default_jobs()} cores)")
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help=f"run {work} on this Dask scheduler, e.g. tcp://10.0.0.5:8786 "
                         "(needs pinchmatch[dask]; the workers must reach the mesh files)")
@@ -339,8 +335,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_placement_options(select)
     select.add_argument("-o", "--output", metavar="OUT", default="pinchmatch-select",
                         help="folder for selection.json, the coverage figure, and the chosen "
-                             "props' matches.json, "
-                             "scenes and page (default pinchmatch-select)")
+                             "props' matches.json, scenes and page (default pinchmatch-select)")
     _add_worker_options(select)
     select.add_argument("--no-view", action="store_true",
                         help="do not write the viewer page OUT/index.html")
@@ -366,18 +361,15 @@ def build_parser() -> argparse.ArgumentParser:
                         help="parts per prop, 1 to 4 (default 4)")
     design.add_argument("--max-height-mm", type=float, default=200.0,
                         help="tallest prop (default 200); its widest part, a box's diagonal "
-                             "included, is at most "
-                             "--max-width-mm, the largest pinch width")
+                             "included, is at most --max-width-mm, the largest pinch width")
     design.add_argument("--no-supports", action="store_true",
                         help="every prop printable standing on its base without supports: no part "
                              "hangs over "
                              "the one below, no downward face flatter than 45 degrees (default: "
-                             "overhangs "
-                             "allowed and reported)")
+                             "overhangs allowed and reported)")
     design.add_argument("--budget-s", type=float, default=120.0,
                         help="wall time of the design's search (default 120); the scene's sampling "
-                             "and the final "
-                             "match come on top")
+                             "and the final match come on top")
     design.add_argument("--evaluations", type=int, metavar="N",
                         help="judge exactly N candidates, whatever the machine's speed (the budget "
                              "still bounds it)")
@@ -391,8 +383,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_match_options(design, one_to_one=False)
     design.add_argument("-o", "--output", metavar="OUT", default="pinchmatch-design",
                         help="folder for props/*.stl, design.json, and the scene's matches.json, "
-                             "scenes and page "
-                             "on the designed props (default pinchmatch-design)")
+                             "scenes and page on the designed props (default pinchmatch-design)")
     _add_worker_options(design, work="the final match")
     _add_output_options(design, figures=False)
     _add_verbosity(design)
@@ -406,8 +397,7 @@ def build_parser() -> argparse.ArgumentParser:
                            help="fit only these criteria (default: the table's <criterion>_jnd "
                                 "columns of the default "
                                 "criteria whose weights it can determine, said in a note); the "
-                                "others keep their "
-                                "defaults (1; com 0)")
+                                "others keep their defaults (1; com 0)")
     calibrate.add_argument("--seed", type=int, default=0,
                            help="seed of the cross-validation's folds (default 0)")
     calibrate.add_argument("--pooling", choices=("quick", "sum"), default="quick",
@@ -461,13 +451,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     features = sub.add_parser("features",
                               help="the features of one given pinch (or tripod, with --p3), and "
-                                   "whether "
-                                               "it is feasible")
+                                   "whether it is feasible")
     _add_object_options(features)
     features.add_argument("--p1", required=True, metavar="X,Y,Z", help="first contact, mm")
     features.add_argument("--p2", required=True, metavar="X,Y,Z", help="second contact, mm")
     features.add_argument("--p3", metavar="X,Y,Z",
                           help="a third contact, mm: the grasp is then a tripod, --p1 the thumb's "
-                               "contact, --p2 the "
-                               "index's and --p3 the middle finger's")
+                               "contact, --p2 the index's and --p3 the middle finger's")
     return parser

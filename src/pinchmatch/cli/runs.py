@@ -56,8 +56,7 @@ def match_settings_of(args) -> MatchSettings:
                               f"{args.pooling}")
         if fitted_for is not None and fitted_for != args.criteria:
             raise ConfigError(f"{args.weights_file}: its weights are for --criteria {fitted_for}; "
-                              "run with "
-                              f"--criteria {fitted_for}")
+                              f"run with --criteria {fitted_for}")
         weights = complete_weights(given, criteria=criteria)
     else:
         weights = parse_weights(getattr(args, "weights", None), criteria=criteria)
@@ -92,16 +91,14 @@ def check_placement(settings: MatchSettings, tangible_specs: list, virtual_specs
                   if given]
         if unused:
             ui.note(f"{', '.join(unused)} {'is' if len(unused) == 1 else 'are'} used with "
-                    "--placement fixed only; "
-                    "ignored under --placement registered")
+                    "--placement fixed only; ignored under --placement registered")
         return
     loose = [s for s in virtual_specs if s.node is None]
     if loose:
         raise ConfigError(f"{loose[0].path}: --placement fixed keeps each virtual object where a "
                           "level puts it, and "
                           "this file is not a level's node; give a glTF/GLB level with --split "
-                          "nodes, or use "
-                          "--placement registered")
+                          "nodes, or use --placement registered")
     import numpy as np
 
     from ..match.redirect import hand_start, world_pose
@@ -133,8 +130,7 @@ def check_placement(settings: MatchSettings, tangible_specs: list, virtual_specs
                          else "the default hand start")
                 raise ConfigError(f"{where} {np.round(start, 1).tolist()} mm lies inside the prop "
                                   f"{spec.display_name}; give a --hand-start X,Y,Z outside every "
-                                  "prop, where the "
-                                  "hand rests before it reaches")
+                                  "prop, where the hand rests before it reaches")
     _start_outside_objects(starts, virtual_specs, units,
                            "--hand-start" if settings.hand_start_mm is not None
                            else "the default hand start")

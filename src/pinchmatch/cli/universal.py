@@ -45,8 +45,7 @@ def _jnd_settings(args, why: str):
     matching = match_settings_of(args)
     if matching.normalize != "jnd":
         raise ConfigError(f"--normalize range: {why}, which needs a scale that does not change "
-                          "with the props; "
-                          "use --normalize jnd (the default)")
+                          "with the props; use --normalize jnd (the default)")
     run_settings = {**settings.as_dict(), **matching.as_dict(), "units": args.units, "up": args.up,
                     "split": args.split or "none", "support": args.support}
     return settings, matching, run_settings
@@ -65,8 +64,7 @@ def cmd_select(args) -> int:
 
     settings, match_settings, run_settings = _jnd_settings(args,
                                                            "select compares the costs of different "
-                                                           "sets "
-                                                                 "of props")
+                                                           "sets of props")
     shelf_specs = standing(object_specs(args.tangible, option="--tangible"), args, "tangible")
     if not 1 <= args.k <= len(shelf_specs):
         raise ConfigError(f"-k {args.k}: choose between 1 and the {len(shelf_specs)} props of the "
@@ -75,8 +73,7 @@ def cmd_select(args) -> int:
         raise ConfigError(f"--max-k {args.max_k}: give 1 or more")
     if args.max_k is not None and args.max_k < args.k:
         raise ConfigError(f"--max-k {args.max_k}: the coverage curve must reach -k {args.k}; give "
-                          f"--max-k {args.k} "
-                          "or more")
+                          f"--max-k {args.k} or more")
     out = out_folder(args)
     left_out: list[str] = []
     scene_specs = standing(virtual_level_specs(args, left_out), args, "virtual")
@@ -224,8 +221,7 @@ def cmd_design(args) -> int:
         if not virtuals:
             raise ConfigError(failures[0] if len(failures) == 1 else
                               f"none of the {len(failures)} scene files could be used (first: "
-                              f"{failures[0]}); "
-                              "fix or remove them")
+                              f"{failures[0]}); fix or remove them")
         job = match_job(args, settings, matching, cache)
         scene_tasks = object_tasks("virtual", used, [None] * len(used), [None] * len(used))
         shelf, seeds = None, ()
@@ -282,8 +278,7 @@ def cmd_design(args) -> int:
                 f"of the shelf ({', '.join(c['props'])}): mean cost {c['mean_cost']}, "
                 f"{c['noticeable_count']} noticeable")
     ui.note(f"{found.evaluations} candidates judged in {t1 - t0:.1f} s; {t2 - t0:.1f} s in all "
-            "(budget "
-            f"{design.budget_s:g} s); wrote " + ", ".join(written))
+            f"(budget {design.budget_s:g} s); wrote " + ", ".join(written))
     ui.document(to_json(document))
     return EXIT_SOME_FAILED if failures or result.failed else 0
 

@@ -74,8 +74,7 @@ def check_control(out: str | os.PathLike) -> bool:
         raise OutputError(f"{bad[0]}: a symbolic link or not a folder where pinchmatch keeps its "
                           "own control files; "
                           "pinchmatch never follows one there (a result folder received from "
-                          "elsewhere?); remove "
-                          f"{control} and run again")
+                          f"elsewhere?); remove {control} and run again")
     return True
 
 
@@ -105,8 +104,7 @@ class OutputFolder:
     def __enter__(self) -> Path:
         if self.out.is_symlink() and not self.out.exists():
             raise OutputError(f"{self.out}: a symbolic link to {os.readlink(self.out)}, which does "
-                              "not exist; make "
-                              "that folder first, or choose another -o")
+                              "not exist; make that folder first, or choose another -o")
         self._created = not self.out.exists()
         check_control(self.out)
         try:
@@ -120,8 +118,7 @@ class OutputFolder:
         except BlockingIOError:
             os.close(fd)
             raise OutputError(f"{self.out}: another pinchmatch run is writing this folder; wait "
-                              "for it to end, "
-                              "or choose another -o") from None
+                              "for it to end, or choose another -o") from None
         self._lock = fd
         try:
             _refuse_links_out(self.out, read_manifest(self.out))
@@ -290,8 +287,7 @@ def _undo_locked(out: Path, *, last: bool) -> bool:
 
 def _not_ours(path: Path, what: str) -> str:
     return (f"{path}: a {what} that no run of this user's wrote (a result folder received from "
-            "elsewhere?); "
-            f"pinchmatch never carries one out; delete {path} and run again")
+            f"elsewhere?); pinchmatch never carries one out; delete {path} and run again")
 
 
 def undo_killed_run(out: str | os.PathLike) -> bool:
@@ -370,8 +366,7 @@ def finish_commit(out: str | os.PathLike) -> None:
         return
     except OSError as exc:
         raise OutputError(f"{control / 'commit.json'}: unreadable ({exc.strerror or exc}); delete "
-                          f"{control} and run "
-                          "again") from None
+                          f"{control} and run again") from None
     if journal is None:
         raise OutputError(_not_ours(control / "commit.json", "journal"))
     if not (isinstance(journal, dict)
@@ -395,8 +390,7 @@ def finish_commit(out: str | os.PathLike) -> None:
         (control / "commit.json").unlink()
     except OSError as exc:
         raise OutputError(f"{out}: cannot finish writing the result ({exc.strerror or exc}); free "
-                          "some space "
-                          "and run again") from None
+                          "some space and run again") from None
 
 
 def _regular_in(folder: Path, name: str) -> bool:

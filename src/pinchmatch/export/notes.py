@@ -16,8 +16,7 @@ def flipped_note(rows: list[tuple], settings: dict) -> str | None:
     if not flipped or settings.get("keep_upright"):
         return None
     return (f"{flipped} of {len(rows) - 1} placements turn the virtual object upside down (F); "
-            "--keep-upright "
-            "keeps every one upright, at some cost")
+            "--keep-upright keeps every one upright, at some cost")
 
 
 
@@ -50,8 +49,7 @@ def comfort_note(approaches: list[tuple]) -> str | None:
     return (f"{len(far)} of {len(approaches)} objects are pinched from behind their prop, lower "
             "than "
             f"{FAR_SIDE_MIN_ELEVATION_DEG:g} deg: the prop offers no pinch reached from the user's "
-            "side (--user-at, "
-            f"docs/method.md): {shown}")
+            f"side (--user-at, docs/method.md): {shown}")
 
 
 
@@ -62,8 +60,7 @@ def equivalent_note(equivalents: list[tuple]) -> str | None:
     shown = "; ".join(f"{v}: {t} ~ {', '.join(others)}" for v, t, others in equivalents[:6])
     more = f"; and {len(equivalents) - 6} more" if len(equivalents) > 6 else ""
     return (f"{len(equivalents)} objects are served as well by another prop (within 0.1 JND or 5 "
-            "%, "
-            f"equivalent_tangibles in matches.json): {shown}{more}")
+            f"%, equivalent_tangibles in matches.json): {shown}{more}")
 
 
 
@@ -99,5 +96,4 @@ def redirection_note(redirections: list[dict]) -> str | None:
     why = (f"{beyond} beyond the redirection budget, {carousel - beyond} cheaper there by more "
            "than the margin")
     return (f"placement fixed: {len(led)} of {len(redirections)} virtual objects stay in place, "
-            "the hand redirected"
-            f"{largest}; {carousel} served by the carousel ({why})")
+            f"the hand redirected{largest}; {carousel} served by the carousel ({why})")

@@ -100,8 +100,7 @@ def page_data(out: Path, document: dict) -> dict:
     except (KeyError, TypeError, AttributeError, ValueError) as exc:
         what = f"field {exc}" if isinstance(exc, KeyError) else f"a malformed field ({exc})"
         raise ConfigError(f"{Path(out) / 'matches.json'}: {what} is missing or malformed; run "
-                          "pinchmatch "
-                          "again to rewrite it") from None
+                          "pinchmatch again to rewrite it") from None
 
 
 #: the text fields of a match that the page shows; every other leaf it reads must be a number, a
@@ -116,15 +115,15 @@ def _checked_values(where: str, value, key: str = "") -> None:
     belong."""
     if isinstance(value, dict):
         for k, v in value.items():
-            _checked_values(f"{where}.{k}", v, str(k))
+            name = str(k) if str(k).isprintable() else repr(str(k))  # a message stays one line
+            _checked_values(f"{where}.{name}", v, str(k))
     elif isinstance(value, list):
         for k, v in enumerate(value):
             _checked_values(f"{where}[{k}]", v, key)
     elif isinstance(value, str):
         if key not in _TEXT_KEYS:
             raise ConfigError(f"{where}: text {value[:40]!r} where a number belongs; not a matches "
-                              "document "
-                              "pinchmatch wrote: run pinchmatch again to rewrite it")
+                              "document pinchmatch wrote: run pinchmatch again to rewrite it")
     elif not (value is None or isinstance(value, bool) or finite_number(value)):
         raise ConfigError(f"{where}: {value!r} is not a number; run pinchmatch again to rewrite it")
 
@@ -154,8 +153,7 @@ def _shaped(where: str, value, shape: tuple) -> None:
         ok = False
     if not ok:
         raise ConfigError(f"{where}: {str(value)[:40]} is not {' x '.join(map(str, shape))} "
-                          "numbers, so the page "
-                          "cannot draw it; run pinchmatch again to rewrite it")
+                          "numbers, so the page cannot draw it; run pinchmatch again to rewrite it")
 
 
 def _drawable(where: str, m: dict, props: dict) -> None:
@@ -176,8 +174,7 @@ def _drawable(where: str, m: dict, props: dict) -> None:
         if not isinstance(r, dict) or r.get("mode") not in ("redirect", "carousel") or \
                 not finite_number(r.get("angle_deg")) or not finite_number(r.get("gain")):
             raise ConfigError(f"{where}.redirection: not a redirection the page can play (its "
-                              "mode, angle_deg and "
-                              "gain); run pinchmatch again to rewrite it")
+                              "mode, angle_deg and gain); run pinchmatch again to rewrite it")
         for field, shape in _REDIRECTION_SHAPES.items():
             _shaped(f"{where}.redirection.{field}", r.get(field), shape)
         pose = props.get(m["tangible"])
@@ -227,8 +224,7 @@ def _page_data(out: Path, document: dict) -> dict:
         glb = out / name
         if Path(name).is_absolute() or ".." in Path(name).parts:
             raise ConfigError(f"{out / 'matches.json'}: scene file {name!r} of {m['virtual']} is "
-                              f"not inside {out}; "
-                              "run pinchmatch again to rewrite it")
+                              f"not inside {out}; run pinchmatch again to rewrite it")
         _own_file(glb, out, f"the scene of {m['virtual']}")
         if not glb.is_file():
             raise ConfigError(f"{glb}: scene missing for {m['virtual']}; run pinchmatch again with "
@@ -270,8 +266,7 @@ def _page_data(out: Path, document: dict) -> dict:
     criteria = settings.get("criteria", [])
     loud = sum(m["noticeable"] for m in matches)
     summary = (f"{len(matches)} of {n_v} virtual objects matched on {n_t} "
-               f"tangible{'s' if n_t != 1 else ''} "
-               f"({loud} with a noticeable difference); "
+               f"tangible{'s' if n_t != 1 else ''} ({loud} with a noticeable difference); "
                f"criteria {', '.join(criteria) if isinstance(criteria, list) else criteria}; "
                f"normalize {settings.get('normalize', 'jnd')}; pooling "
                f"{settings.get('pooling', 'sum')}")

@@ -344,8 +344,7 @@ def score_pinches(
         raise ContactError(
             f"{source or obj.loaded.path}: {label} ({', '.join(f'{c:g}' for c in point)}) mm is "
             f"{distance[i, k]:.2f} mm from the surface (tolerance {settings.snap_tolerance_mm:g} "
-            "mm); "
-            "give a point on the surface, in the file's frame and in mm (check --units)"
+            "mm); give a point on the surface, in the file's frame and in mm (check --units)"
         )
     return pinches, pinch_features(pinches, obj.props)
 
@@ -373,8 +372,7 @@ def score_tripods(obj: ObjectAnalysis, points_mm: np.ndarray, *,
             f"{source or obj.loaded.path}: the {label} contact "
             f"({', '.join(f'{c:g}' for c in points[i, k])}) mm is "
             f"{distance[i, k]:.2f} mm from the surface (tolerance {settings.snap_tolerance_mm:g} "
-            "mm); "
-            "give a point on the surface, in the file's frame and in mm (check --units)")
+            "mm); give a point on the surface, in the file's frame and in mm (check --units)")
     tripods = check_tripods(obj.context, closest.reshape(n, 3, 3), face.reshape(n, 3),
                             settings=settings)
     tripods = dataclasses.replace(tripods, snap_distance_mm=distance)
@@ -458,8 +456,7 @@ def load_poses_file(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
         )
     if len(data) > MAX_GIVEN_POSES:
         raise ConfigError(f"{path}: {len(data):,} poses, more than the {MAX_GIVEN_POSES:,} a file "
-                          "may give; "
-                          "split it")
+                          "may give; split it")
     p1, p2 = [], []
     for i, entry in enumerate(data):
         try:
@@ -470,8 +467,7 @@ def load_poses_file(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
                 or not (np.abs(b) < MAX_COORDINATE_MM).all():
             raise ConfigError(
                 f"{path}: pose {i} needs \"p1_mm\" and \"p2_mm\", each three finite numbers (mm, "
-                "below "
-                f"{MAX_COORDINATE_MM:g} in size); fix that entry"
+                f"below {MAX_COORDINATE_MM:g} in size); fix that entry"
             )
         p1.append(a)
         p2.append(b)

@@ -195,8 +195,7 @@ def check_patch_radius(context: SurfaceContext, settings: PinchSettings) -> None
         raise ConfigError("--patch-radius-mm: the object was analysed for "
                           f"{context.patch_radius_mm:g} mm patches "
                           f"but the pinch settings ask for {settings.patch_radius_mm:g} mm; "
-                          "analyse it with "
-                          "patch_radius_mm equal to PinchSettings.patch_radius_mm")
+                          "analyse it with patch_radius_mm equal to PinchSettings.patch_radius_mm")
 
 
 def patches(context, points, face_normals, settings) -> PatchGeometry:

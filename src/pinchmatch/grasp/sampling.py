@@ -174,8 +174,7 @@ _RULE_HINTS = {
     "antipodal": "no opposite surfaces face each other: try a wider --friction-cone-deg",
     "clearance": "a fingertip does not fit: try a smaller --fingertip-radius-mm",
     "reach": "no approach lets both fingers get to the contacts: try a shorter --finger-length-mm, "
-             "a thinner "
-             "--finger-radius-mm, or a larger --approach-tilt-deg or --finger-splay-deg",
+             "a thinner --finger-radius-mm, or a larger --approach-tilt-deg or --finger-splay-deg",
     "patch": "too little surface around the contacts: try a smaller --patch-radius-mm",
     "surface": "the points are far from the surface",
 }
@@ -188,8 +187,7 @@ _STANDING_HINTS = {
                  "if it is held in the hand, give support = \"none\" in its manifest or --support "
                  "none",
     "reach": "no approach from above its table lets both fingers get to the contacts: if it is "
-             "held in the hand, "
-             "give support = \"none\" in its manifest or --support none",
+             "held in the hand, give support = \"none\" in its manifest or --support none",
 }
 
 
@@ -201,8 +199,7 @@ def _no_pinch_message(source, n_cand, rejected, settings, standing: bool = False
     node = re.search(r" \(node (.+)\)$", str(source))
     if standing and node and worst in _STANDING_HINTS:
         hint = (f"{hint.split(': if it is held')[0]}: if it is not an object to pick up (a table, "
-                "a shelf, a wall), "
-                f"leave it out with --skip-nodes '{node.group(1)}'")
+                f"a shelf, a wall), leave it out with --skip-nodes '{node.group(1)}'")
     return (
         f"{source}: no feasible pinch among {n_cand} candidates (rejected by "
         f"{', '.join(parts) or 'nothing'}); {hint}"

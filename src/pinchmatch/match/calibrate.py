@@ -186,12 +186,10 @@ def _check(r: Ratings, beta: float) -> None:
                           f"rate at least {m + 3} trials, or fit fewer criteria with --criteria")
     if r.pair.max() + 1 < 3:
         raise ConfigError(f"{r.source}: {r.pair.max() + 1} distinct placements; rate at least 3 to "
-                          "fit and "
-                          "check the weights")
+                          "fit and check the weights")
     if np.ptp(r.rating) == 0:
         raise ConfigError(f"{r.source}: every rating is {r.rating[0]:g}, so they say nothing about "
-                          "the "
-                          "criteria; rate pairs that differ")
+                          "the criteria; rate pairs that differ")
     unknown = undetermined(r, beta)
     if unknown:
         named = {reason: [c for c in unknown if unknown[c] == reason]
@@ -200,8 +198,7 @@ def _check(r: Ratings, beta: float) -> None:
                         for reason, cs in named.items())
         if len(unknown) == len(r.criteria):
             raise ConfigError(f"{r.source}: {why} in the table, so no weight can be determined; "
-                              "rate placements "
-                              "that differ in them")
+                              "rate placements that differ in them")
         its = "its weight" if len(unknown) == 1 else "their weights"
         raise ConfigError(f"{r.source}: {why} in the table, so {its} cannot be determined; leave "
                           f"{'it' if len(unknown) == 1 else 'them'} out with --criteria "
@@ -268,8 +265,7 @@ def _folds(r: Ratings, hold_out: str, seed: int) -> tuple[np.ndarray, int]:
     if hold_out == "object":
         if r.obj is None:
             raise ConfigError(f"{r.source}: no 'object' column, so no virtual object can be held "
-                              "out; "
-                              "use --hold-out placement")
+                              "out; use --hold-out placement")
         groups = int(r.obj.max()) + 1
         if groups < 3:
             raise ConfigError(f"{r.source}: {groups} virtual objects; hold out by object needs at "
@@ -382,5 +378,4 @@ def _unpredictive(r: Ratings, default_rho: float, why: str) -> str:
                 f"{default_rho:+.2f}); "
                 "check the rating scale (higher: the prop corresponds better)")
     return (f"{r.source}: these criteria do not predict the ratings ({why}); rate more placements "
-            "that "
-            "differ in them, or fit other criteria with --criteria")
+            "that differ in them, or fit other criteria with --criteria")

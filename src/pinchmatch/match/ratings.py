@@ -91,8 +91,7 @@ def read_ratings(text: str, source: str, *, criteria: tuple | None = None) -> Ra
     unknown = [n for n in names if n.endswith("_jnd") and n[:-4] not in CRITERIA]
     if unknown:
         raise ConfigError(f"{source}: unknown column {', '.join(map(repr, unknown))}; the criteria "
-                          "are "
-                          f"{', '.join(CRITERIA)}")
+                          f"are {', '.join(CRITERIA)}")
     for line, row in zip(lines[1:], table[1:]):
         if len(row) != len(names):
             raise ConfigError(f"{source}: line {line} has {len(row)} cells and the header "
@@ -103,8 +102,7 @@ def read_ratings(text: str, source: str, *, criteria: tuple | None = None) -> Ra
         raise ConfigError(f"{source}: no 'rating' column (the header reads "
                           f"{', '.join(map(repr, names[:6]))}); the "
                           "table needs rating and <criterion>_jnd columns, separated by commas, "
-                          "semicolons or tabs "
-                          "(docs/study.md)")
+                          "semicolons or tabs (docs/study.md)")
     present = tuple(c for c in CRITERIA if f"{c}_jnd" in header)
     if criteria is not None:
         missing = [c for c in criteria if c not in present]
@@ -129,8 +127,7 @@ def read_ratings(text: str, source: str, *, criteria: tuple | None = None) -> Ra
                                   "number") from None
     if not np.isfinite(values).all() or (values[:, 1:] < 0).any():
         raise ConfigError(f"{source}: a rating or a difference is not finite, or a difference is "
-                          "negative; "
-                          "the <criterion>_jnd columns are sizes in JND (0 or more)")
+                          "negative; the <criterion>_jnd columns are sizes in JND (0 or more)")
     if (np.abs(values[:, 0]) > MAX_RATING).any() or (values[:, 1:] > MAX_JND).any():
         raise ConfigError(f"{source}: a rating beyond ±{MAX_RATING:g} or a difference over "
                           f"{MAX_JND:g} JND; "
@@ -222,32 +219,26 @@ def read_weights_file(text: str, source: str) -> tuple[dict, str | None, str | N
         doc = json.loads(text, object_pairs_hook=unique)
     except json.JSONDecodeError as exc:
         raise ConfigError(f"{source}: not JSON ({exc.msg}, line {exc.lineno}); give the "
-                          "weights.json that "
-                          "'pinchmatch calibrate' writes") from None
+                          "weights.json that 'pinchmatch calibrate' writes") from None
     except UnicodeDecodeError as exc:
         raise ConfigError(f"{source}: not UTF-8 text (byte {exc.start}); save it as UTF-8 JSON, as "
                           "'pinchmatch calibrate' writes it") from None
     except ValueError as exc:  # an integer of thousands of digits
         raise ConfigError(f"{source}: a value no weight can be ({str(exc)[:60]}); give the "
-                          "weights.json that "
-                          "'pinchmatch calibrate' writes") from None
+                          "weights.json that 'pinchmatch calibrate' writes") from None
     except RecursionError:
         raise ConfigError(f"{source}: nested too deep to be a weights file; give the weights.json "
-                          "that "
-                          "'pinchmatch calibrate' writes") from None
+                          "that 'pinchmatch calibrate' writes") from None
     weights = doc.get("weights") if isinstance(doc, dict) else None
     if not isinstance(weights, dict) or not all(finite_number(v) for v in weights.values()):
         raise ConfigError(f"{source}: needs a 'weights' object of criterion: number; give the "
-                          "weights.json "
-                          "that 'pinchmatch calibrate' writes")
+                          "weights.json that 'pinchmatch calibrate' writes")
     pooling = doc.get("pooling")
     if pooling is not None and pooling not in ("quick", "sum"):
         raise ConfigError(f"{source}: pooling {pooling!r} is neither quick nor sum; give the "
-                          "weights.json that "
-                          "'pinchmatch calibrate' writes")
+                          "weights.json that 'pinchmatch calibrate' writes")
     criteria = doc.get("criteria")
     if criteria is not None and criteria not in ("default", "paper"):
         raise ConfigError(f"{source}: criteria {criteria!r} is neither default nor paper; give the "
-                          "weights.json "
-                          "that 'pinchmatch calibrate' writes")
+                          "weights.json that 'pinchmatch calibrate' writes")
     return {str(k): float(v) for k, v in weights.items()}, pooling, criteria

@@ -132,8 +132,7 @@ def reference_pose(tangible: Candidates, t_pose: int, virtual: Candidates, model
         return Reference(None, None, None, None,
                          "the tangible's pinch line misses the virtual object" + (
             " (a level's node lies where the level puts it, not at its file's origin, where the "
-            "paper's reference "
-            "sets it on the prop)" if node is not None else ""))
+            "paper's reference sets it on the prop)" if node is not None else ""))
     features = pinch_features(pinches, virtual.obj.props)
     flipped = bool(virtual.obj.loaded.up @ tangible.obj.loaded.up < FLIP_COSINE)
     terms = _reference_terms(tangible, t_pose, virtual, pinches, features, model)

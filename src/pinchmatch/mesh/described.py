@@ -85,8 +85,7 @@ def _part(table, at: str, problems: list[str]) -> Part | None:
         size = table["size_mm"]
         if not (isinstance(size, list) and len(size) == 3 and all(_size(v) for v in size)):
             problems.append(f"{at}: size_mm must be [across X, across Y, tall], each from "
-                            f"{MIN_SIZE_MM:g} to "
-                            f"{MAX_SIZE_MM:g} mm (sizes are in mm)")
+                            f"{MIN_SIZE_MM:g} to {MAX_SIZE_MM:g} mm (sizes are in mm)")
             return None
         turn = table.get("turn_deg", 0.0)
         if not finite_number(turn):

@@ -71,5 +71,4 @@ def turned_outward(mesh: trimesh.Trimesh) -> str | None:
     faces[inward[labels]] = faces[inward[labels]][:, ::-1]
     mesh.faces = faces
     return (f"turned {int(inward.sum())} open part(s) to face outward (rays from their faces met "
-            "the object on the "
-            "side they faced)")
+            "the object on the side they faced)")

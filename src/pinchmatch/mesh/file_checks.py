@@ -57,8 +57,7 @@ def check_memory(path: Path, size: int, file_type: str) -> None:
         raise MeshError(f"{path}: a {size / 2**20:.0f} MiB mesh needs about {need / 2**30:.1f} GiB "
                         "to analyse, more "
                         f"than the {headroom[1]}; decimate it (to about a million faces) or give "
-                        "the run more "
-                        "memory")
+                        "the run more memory")
 
 
 PLY_SIZES = {"char": 1, "uchar": 1, "int8": 1, "uint8": 1, "short": 2, "ushort": 2, "int16": 2,
@@ -114,8 +113,7 @@ def check_ply_counts(path: Path, size: int) -> None:
                        shape=(claimed["face"] * record,))[::record]
     if (counts == 3).all():
         raise MeshError(f"{path}: its header counts {claimed['face']} faces, but {size - expected} "
-                        "more bytes follow "
-                        "them; the header is wrong, re-export it")
+                        "more bytes follow them; the header is wrong, re-export it")
 
 
 #: formats whose coordinates are 32-bit floats (binary STL and glTF always, binary PLY as written)
@@ -152,8 +150,7 @@ def check_readable(path: Path) -> None:
     if path.is_dir():
         if not os.access(path, os.R_OK | os.X_OK):
             raise MeshError(f"{path}: a folder that cannot be read (permission denied), so its "
-                            "meshes are "
-                            "left out; check its permissions")
+                            "meshes are left out; check its permissions")
         raise MeshError(f"{path}: is a folder, not a mesh file; give a mesh file inside it")
     try:
         with open(path, "rb") as fh:

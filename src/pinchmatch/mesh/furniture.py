@@ -91,8 +91,7 @@ def furniture(scene: trimesh.Scene, *, mm_per_unit: float, up: np.ndarray) -> Fu
     for name, spans in spans_of.items():
         if spans[1] > FURNITURE_SPAN_MM:
             out[name] = (f"it spans {spans[0]:.0f} x {spans[1]:.0f} mm, more than "
-                         f"{FURNITURE_SPAN_MM:.0f} mm in "
-                         "two directions")
+                         f"{FURNITURE_SPAN_MM:.0f} mm in two directions")
     bases = {name: _base_points(np.asarray(m.vertices), up) for name, m in meshes.items()}
     bounds = {name: m.bounds for name, m in meshes.items()}
     cos_up = np.cos(np.radians(UP_FACE_DEG))

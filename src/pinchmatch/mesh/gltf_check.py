@@ -37,8 +37,7 @@ def gltf_document(path: Path, file_type: str) -> dict:
     checks cannot read is never handed to the reader unchecked."""
     def refuse(problem: str):
         return MeshError(f"{path}: {problem}; it is not a glTF document pinchmatch can check: "
-                         "re-export it from the "
-                         "editor (glTF 2.0)")
+                         "re-export it from the editor (glTF 2.0)")
 
     try:
         if file_type == "gltf":
@@ -107,8 +106,7 @@ def check_hierarchy(path: Path, document: dict) -> None:
         for k in kids:
             if not 0 <= k < n:
                 raise MeshError(f"{path}: node {i} names child node {k}, and the level has nodes 0 "
-                                f"to {n - 1}; "
-                                "the file is corrupt, re-export it")
+                                f"to {n - 1}; the file is corrupt, re-export it")
             if parent[k] != -1 or k == i:
                 raise MeshError(f"{path}: node {k} is a child of two nodes "
                                 f"({parent[k] if k != i else i} and {i}) or "
@@ -125,16 +123,14 @@ def check_hierarchy(path: Path, document: dict) -> None:
         reached += 1
         if depth[i] > MAX_DEPTH:
             raise MeshError(f"{path}: the level's nodes nest more than {MAX_DEPTH} deep (node "
-                            f"{i}); flatten the "
-                            "hierarchy when exporting it")
+                            f"{i}); flatten the hierarchy when exporting it")
         for k in children[i]:
             depth[k] = depth[i] + 1
             stack.append(k)
     if reached < n:
         loop = next(i for i in range(n) if depth[i] == 0)
         raise MeshError(f"{path}: the nodes' children form a cycle (through node {loop}), so the "
-                        "level is not a "
-                        "tree; re-export it")
+                        "level is not a tree; re-export it")
 
 
 def check_unique_names(path: Path, document: dict) -> None:
@@ -167,8 +163,7 @@ def check_buffers(path: Path, document: dict) -> None:
     for uri, file in external_files(path, document, kinds=("buffers",)):
         if not file.is_file():
             raise MeshError(f"{path}: its buffer file {uri!r} is missing (looked for {file}); copy "
-                            "it next to "
-                            "the file, or export a .glb, which holds its buffers")
+                            "it next to the file, or export a .glb, which holds its buffers")
 
 
 #: extensions a file may require that change nothing pinchmatch reads (materials, textures, lights)

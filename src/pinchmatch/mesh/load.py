@@ -107,8 +107,7 @@ def mesh_files(paths, *, option: str) -> list[Path]:
         path = Path(given)
         if path.exists() and not path.is_dir() and not path.is_file():
             raise ConfigError(f"{path}: not a regular file (a device, a pipe or a socket); "
-                              f"{option} takes mesh files, "
-                              "folders of them or manifests")
+                              f"{option} takes mesh files, folders of them or manifests")
         if not path.is_dir():
             out.append(path)
             continue
@@ -151,8 +150,7 @@ def _file_type(path: Path) -> str:
     if ext not in MESH_EXTENSIONS:
         known = " ".join(MESH_EXTENSIONS)
         raise MeshError(
-            f"{path}: unknown mesh format {ext or '(no extension)'!r}; "
-            f"export it as one of {known}"
+            f"{path}: unknown mesh format {ext or '(no extension)'!r}; export it as one of {known}"
         )
     return MESH_EXTENSIONS[ext]
 
@@ -487,8 +485,7 @@ def load_mesh(
     if not watertight:
         warnings.append(
             f"{shown.name}: surface is not closed; centre of mass is that of the surface, and "
-            "pinches "
-            "come only from where the ray along the pinch line leaves through a surface"
+            "pinches come only from where the ray along the pinch line leaves through a surface"
         )
     for line in repairs:
         log.info("%s: %s", shown.name, line)

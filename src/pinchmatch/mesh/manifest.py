@@ -158,8 +158,7 @@ def _options(table: dict, where: str, problems: _Problems) -> dict:
             if v is not None and key == "com_mm" and max(abs(c) for c in v) > MAX_COORDINATE_MM:
                 problems.add(where, key,
                              f"must be three numbers [x, y, z] within {MAX_COORDINATE_MM:g} mm of "
-                             "the "
-                                         "file's origin")
+                             "the file's origin")
                 continue
             if v is None or (key == "axis" and not any(v)):
                 problems.add(where, key, "must be three numbers [x, y, z]"
@@ -233,8 +232,7 @@ def _pose(value, where: str, problems: _Problems) -> tuple | None:
     if position is None or max(abs(c) for c in position) > MAX_COORDINATE_MM:
         problems.add(where, "pose",
                      "position_mm must be three numbers [x, y, z] in mm within "
-                     f"{MAX_COORDINATE_MM:g} "
-                                    "mm of the level's origin")
+                     f"{MAX_COORDINATE_MM:g} mm of the level's origin")
         return None
     q = value.get("quaternion_xyzw", [0.0, 0.0, 0.0, 1.0])
     if not (isinstance(q, list) and len(q) == 4 and all(_number(c) for c in q)):
@@ -244,8 +242,7 @@ def _pose(value, where: str, problems: _Problems) -> tuple | None:
     if abs(length - 1.0) > QUATERNION_TOLERANCE:
         problems.add(where, "pose",
                      f"quaternion_xyzw {q} has length {length:.4g}, so it is not a rotation (a "
-                     "rigid "
-                                    "pose turns by a unit quaternion); give one of length 1, [0, "
+                     "rigid pose turns by a unit quaternion); give one of length 1, [0, "
                                     "0, 0, 1] for none")
         return None
     return position, tuple(float(c) / length for c in q)
@@ -291,8 +288,7 @@ def read_manifest(path: str | os.PathLike) -> list[ObjectSpec]:
                           "docs/manifest.md)") from None
     except ValueError as exc:  # an integer of thousands of digits
         raise ConfigError(f"{path}: a value the manifest cannot hold ({str(exc)[:60]}); fix the "
-                          "manifest "
-                          "(see docs/manifest.md)") from None
+                          "manifest (see docs/manifest.md)") from None
     except RecursionError:
         raise ConfigError(f"{path}: nested too deep to be a manifest; fix the manifest (see "
                           "docs/manifest.md)") from None
@@ -332,8 +328,7 @@ def read_manifest(path: str | os.PathLike) -> list[ObjectSpec]:
             problems.add(where, "file",
                          "missing; give the mesh file, relative to the manifest's folder, or the "
                                         "prop's sizes as shape = { kind = \"cylinder\", "
-                                        "diameter_mm = 54, "
-                                        "height_mm = 66 }")
+                                        "diameter_mm = 54, height_mm = 66 }")
             continue
         if not isinstance(given, str):
             problems.add(where, "file",
@@ -345,8 +340,7 @@ def read_manifest(path: str | os.PathLike) -> list[ObjectSpec]:
         if file.is_dir():
             problems.add(where, "file",
                          f"{file}: a folder, not a mesh file; give the mesh file's path (relative "
-                         "to "
-                                        "the manifest's folder)")
+                         "to the manifest's folder)")
         elif not file.is_file():
             problems.add(where, "file",
                          f"{file}: no such file; check the path (relative to the manifest's "
@@ -415,8 +409,7 @@ def node_specs(spec: ObjectSpec, nodes, *, only: tuple = (), skip: tuple = (),
         if not any(matches(n, (g,)) for n in nodes):
             names = ", ".join(n.name for n in nodes[:12]) + (", ..." if len(nodes) > 12 else "")
             raise ConfigError(f"{spec.path}: the node glob {g!r} (--nodes, or a manifest's nodes) "
-                              "matches no mesh node "
-                              f"of the level; its nodes are {names}")
+                              f"matches no mesh node of the level; its nodes are {names}")
     kept = [n for n in nodes if (not include or matches(n, include)) and not matches(n, exclude)]
     left = [n for n in kept if n.name in furniture.why and not (include and matches(n, include))]
     for n in left:
@@ -428,8 +421,7 @@ def node_specs(spec: ObjectSpec, nodes, *, only: tuple = (), skip: tuple = (),
     kept = [n for n in kept if n not in left]
     if not kept:
         raise ConfigError(f"{spec.path}: --nodes and --skip-nodes leave no mesh node of the level; "
-                          "name at least "
-                          "one node to match")
+                          "name at least one node to match")
     return [replace(spec, split="none", node=n.name, node_path=n.path,
                     rests_on_mm=furniture.tops_mm.get(n.name),
                     name=f"{spec.name}/{n.name}" if spec.name else None) for n in kept]
@@ -457,8 +449,7 @@ def manifest_user(paths) -> tuple | None:
     if len(found) > 1:
         (a, first), (b, second) = list(found.items())[:2]
         raise ConfigError(f"{second}: user_mm = {list(b)} puts the user elsewhere than {first} "
-                          f"does ({list(a)}); "
-                          "give one place, in one manifest or with --user-at")
+                          f"does ({list(a)}); give one place, in one manifest or with --user-at")
     return next(iter(found), None)
 
 

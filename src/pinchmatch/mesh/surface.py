@@ -54,8 +54,7 @@ def _embree_installed() -> bool:
         except ImportError:
             _EMBREE = False
             log.warning("embreex is not installed; rays use trimesh's numpy engine, about 10x "
-                        "slower "
-                        "(pip install embreex)")
+                        "slower (pip install embreex)")
     return _EMBREE
 
 

@@ -131,16 +131,14 @@ class DesignSettings:
                               f"(a part is at least {MIN_PART_WIDTH_MM:g} mm wide); give more")
         if not 0 < self.budget_s <= MAX_BUDGET_S:
             raise ConfigError(f"--budget-s {self.budget_s:g}: give a time in seconds, more than 0 "
-                              "and at most "
-                              f"{MAX_BUDGET_S:g} (a day)")
+                              f"and at most {MAX_BUDGET_S:g} (a day)")
         if self.evaluations is not None and not 1 <= self.evaluations <= MAX_EVALUATIONS:
             raise ConfigError(f"--evaluations {self.evaluations}: give 1 to {MAX_EVALUATIONS}")
         if self.k > MAX_PROPS:
             raise ConfigError(f"-k {self.k}: design at most {MAX_PROPS} props at once")
         if self.max_height_mm > MAX_HEIGHT_MM:
             raise ConfigError(f"--max-height-mm {self.max_height_mm:g}: a prop held in one hand is "
-                              "at most "
-                              f"{MAX_HEIGHT_MM:g} mm tall; give less")
+                              f"at most {MAX_HEIGHT_MM:g} mm tall; give less")
 
 
 def _repair(stack: Stack, s: DesignSettings) -> Stack:
@@ -383,8 +381,7 @@ def design_props(virtuals: list[Candidates], s: DesignSettings, *, match: MatchS
         first_s = time.perf_counter() - t0
         if first_s > s.budget_s and s.evaluations is None:
             raise ConfigError(f"--budget-s {s.budget_s:g}: judging one candidate takes "
-                              f"{first_s:.1f} s here, more "
-                              "than the whole search may; give more")
+                              f"{first_s:.1f} s here, more than the whole search may; give more")
         total = s.evaluations or max(1, int(s.budget_s / max(first_s, 1e-3)))
 
         def left() -> bool:

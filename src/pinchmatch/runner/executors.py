@@ -193,8 +193,7 @@ def _probe_scheduler(address: str, timeout_s: float) -> None:
         raise ConfigError(f"--scheduler {address}: no host and port in it; {hint}") from None
     except OSError as exc:
         raise ConfigError(f"--scheduler {address}: nothing answers there ({exc.strerror or exc}); "
-                          "check the "
-                          "address and that the scheduler runs") from None
+                          "check the address and that the scheduler runs") from None
 
 
 class DaskExecutor(Executor):
@@ -213,8 +212,7 @@ class DaskExecutor(Executor):
             self._client = Client(address, timeout=f"{timeout_s}s", set_as_default=False)
         except (OSError, TimeoutError, ValueError) as exc:
             raise ConfigError(f"--scheduler {address}: cannot reach a Dask scheduler there "
-                              f"({exc}); "
-                              "check the address and that the scheduler runs") from None
+                              f"({exc}); check the address and that the scheduler runs") from None
         self.workers = max(1, sum(self._client.nthreads().values()))
 
     def map(self, fn, items, *args):

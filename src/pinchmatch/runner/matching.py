@@ -80,8 +80,7 @@ def run_match(tangible_tasks: list[ObjectTask], virtual_tasks: list[ObjectTask],
         if len(errors) == 1:
             return RoleFailed(errors[0].error + also)
         return ConfigError(f"none of the {len(errors)} {role} files could be used (first: "
-                           f"{errors[0].error}); "
-                           f"fix or remove them{also}")
+                           f"{errors[0].error}); fix or remove them{also}")
 
     payloads = []
     for _, r in each("tangibles: poses and features", candidates_task, tangible_tasks,
@@ -93,8 +92,7 @@ def run_match(tangible_tasks: list[ObjectTask], virtual_tasks: list[ObjectTask],
         bad = [f for f in ex.map(load_task, virtual_tasks, job) if isinstance(f, Failure)]
         also = "" if not bad else (f"; the virtual file {bad[0].error}" if len(bad) == 1 else
                                    f"; {len(bad)} of the {len(virtual_tasks)} virtual files cannot "
-                                   "be used "
-                                   f"either (first: {bad[0].error})")
+                                   f"be used either (first: {bad[0].error})")
         raise none_usable("tangible", also)
     tangibles = [tangible_of(meta, arrays) for meta, arrays in payloads]
     shared = ex.share(payloads, tangibles)
