@@ -269,8 +269,8 @@ def test_a_concave_patch_scales_by_its_curvature_s_size_not_its_sign():
 
 def test_the_pooled_bound_of_identical_rows_is_zero_not_the_round_offs_nan():
     """A table against itself: every matched entry differs by 0, which the blockwise expansion
-    |t|² - 2 t·v + |v|² leaves a few ulps either side of 0. The bound pools those parts with a power
-    of 1.75 (quick): clipped, it is 0 and finite; a negative part would make it NaN."""
+    |t|² - 2 t·v + |v|² leaves a few ulps either side of 0. The bound pools those parts with a
+    power of 1.75 (quick): clipped, it is 0 and finite; a negative part would make it NaN."""
     table = random_table(60, 11)
     table[:, :, 4] = 30.0  # every ρ defined, so that each pose matches itself in every column
     model = CostModel(weights=dict.fromkeys(CRITERIA, 1.0), criteria=CRITERIA, pooling="quick")

@@ -23,8 +23,8 @@ def test_solid_com_and_axis_of_a_moved_cylinder():
 def test_com_of_the_solid_not_of_the_surface():
     """The study stack in closed form: a 64-gon prism (Ø40, z 0-40), a 40 mm cube (z 40-80) and a
     64-gon frustum (Ø60 -> Ø20, z 80-120). A 64-gon of circumradius r has area k·πr², k =
-    64/(2π)·sin(2π/64); a frustum's centroid lies h(R² + 2Rr + 3r²) / (4(R² + Rr + r²)) above its
-    base."""
+    64/(2π)·sin(2π/64); a frustum's centroid lies h(R² + 2Rr + 3r²) / (4(R² + Rr + r²)) above
+    its base."""
     mesh = stacked_prop(sections=64)
     props = object_properties(mesh, up=np.array([0.0, 0.0, 1.0]), watertight=True)
     k = 64 / (2 * np.pi) * np.sin(2 * np.pi / 64)
@@ -90,7 +90,8 @@ def test_centre_of_mass_and_volume_of_moved_solids(make):
 
 def test_an_open_tube_has_the_closed_form_moments_of_a_thin_shell():
     """A uniform cylindrical shell without caps, radius R and height H: centroid on the axis at
-    mid-height, variance H²/12 along the axis and R²/2 across (no caps, so not the solid's R²/4)."""
+    mid-height, variance H²/12 along the axis and R²/2 across (no caps, so not the solid's
+    R²/4)."""
     radius, height = 20.0, 100.0
     tube = trimesh.creation.cylinder(radius=radius, height=height, sections=720)
     tube.update_faces(np.abs(tube.face_normals[:, 2]) < 0.5)  # drop both caps: an open surface

@@ -98,9 +98,9 @@ def test_scene_extras_map_the_virtual_contacts_into_the_scene(written):
 
 
 def test_the_engine_guide_recipes_give_the_scene_placement(written):
-    """docs/engines.md: B·T·B⁻¹ with B = file_mm_to_gltf_m is the virtual node's matrix (three.js),
-    and Unity's mirror S = diag(-1, 1, 1) turns it into a rotation whose quaternion is (x, -y, -z,
-    w)."""
+    """docs/engines.md: B·T·B⁻¹ with B = file_mm_to_gltf_m is the virtual node's matrix
+    (three.js), and Unity's mirror S = diag(-1, 1, 1) turns it into a rotation whose quaternion is
+    (x, -y, -z, w)."""
     from scipy.spatial.transform import Rotation
 
     study, paths = written

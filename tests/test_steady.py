@@ -51,8 +51,8 @@ def _tables(rng, n):
 
 
 def test_the_spread_pass_is_the_expected_separable_cost_of_every_pair():
-    """Σ a ((v - t)² + σ_t² + σ_v²) over the defined entries, in the better finger order, for every
-    pair, against the sum written out pair by pair."""
+    """Σ a ((v - t)² + σ_t² + σ_v²) over the defined entries, in the better finger order, for
+    every pair, against the sum written out pair by pair."""
     rng = np.random.default_rng(4)
     (t, t_var), (v, v_var) = _tables(rng, 7), _tables(rng, 5)
     model = CostModel()

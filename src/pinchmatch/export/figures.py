@@ -82,8 +82,9 @@ def cost_matrix_figure(document: dict) -> Figure:
 
 
 def coverage_figure(document: dict) -> Figure:
-    """The coverage curve of a selection document: the best objective for K = 1, 2, … props (filled:
-    the best subset, exhaustively; open: greedy and swaps), and the count of noticeable objects."""
+    """The coverage curve of a selection document: the best objective for K = 1, 2, … props
+    (filled: the best subset, exhaustively; open: greedy and swaps), and the count of noticeable
+    objects."""
     curve = document["coverage"]
     objective = document["settings"]["objective"]
     k = np.array([c["k"] for c in curve])

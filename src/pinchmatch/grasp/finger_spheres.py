@@ -20,11 +20,11 @@ queries the KD-tree as little as it can:
    can be dropped are dropped by it.
 3. A gate, where the caller gives one, refuses rows that fail whatever their fingers meet (the hand
    behind them is stuck): they are not queried at all.
-4. The rest are queried a pair at a time, coarse to fine along the finger, those whose s·δ is below
-   ρ first (only they can rule a cell out), each pair only for the rows no earlier sphere ruled out.
-   Once a row is known not to fit (some sphere is surely closer than ρ), a sphere whose s·δ alone
-   exceeds a sure upper bound on the row's least d + s·δ is not queried: its term exceeds the bound,
-   so it changes neither the bound nor the sphere that attains it.
+4. The rest are queried a pair at a time, coarse to fine along the finger, those whose s·δ is
+   below ρ first (only they can rule a cell out), each pair only for the rows no earlier sphere
+   ruled out. Once a row is known not to fit (some sphere is surely closer than ρ), a sphere
+   whose s·δ alone exceeds a sure upper bound on the row's least d + s·δ is not queried: its
+   term exceeds the bound, so it changes neither the bound nor the sphere that attains it.
 """
 
 from __future__ import annotations
@@ -82,8 +82,8 @@ def axis_distances(context, tips, h, offsets, cap, rho, delta=None, first=None, 
     tips : (m, F, 3) fingertip centres (F fingers of one hand); h : (m, F, 3) each finger's
     direction; offsets : (P,) the spheres' s; delta : (m, F) how far, per mm along the finger, a
     test centre can move within the cell of directions around h (default 0: h alone); first : (m,)
-    one sphere per row to query before the others (finger-major: finger · P + sphere; -1 none); gate
-    : row indices -> bool, the rows still open that may be queried (default: all).
+    one sphere per row to query before the others (finger-major: finger · P + sphere; -1 none);
+    gate : row indices -> bool, the rows still open that may be queried (default: all).
 
     d : (m, F, P) each sphere's distance to the nearest sample (or the support), capped at ``cap``,
     where a decision needs it; a sphere not queried reads its field bound where that is below ρ,

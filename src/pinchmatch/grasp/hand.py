@@ -442,8 +442,8 @@ def _search_band(context, tips, u, e1, e2, pending, hand, offsets, rho, cap):
     while len(rows):
         # how far a test centre s from the fingertip can move within a cell: s·chord, the chord
         # of the angle from the cell's centre to its farthest corner (on the sphere of directions,
-        # the farthest point of a θ-α rectangle from its centre is a corner); each finger's cell is
-        # the hand's moved by its splay along α
+        # the farthest point of a θ-α rectangle from its centre is a corner); each finger's cell
+        # is the hand's moved by its splay along α
         delta = _far_chord(alpha, ht, ha)
         h = _directions(u[rows], e1[rows], e2[rows], theta, alpha)
         finger_alpha = alpha[:, None] + splay[None, :]

@@ -151,8 +151,8 @@ def _weighted_square(w, r, cnt):
 
 @njit(cache=True, nogil=True, fastmath=_SUMS)
 def _moments(u, v, w, h, cnt, mom, atb):
-    """mom[a, b] = Σ w uᵃ vᵇ (a + b ≤ 8) and atb[k] = Σ w h uⁱ vʲ for the jet's monomials,
-    one power of the samples at a time (each sum a pass over contiguous arrays)."""
+    """mom[a, b] = Σ w uᵃ vᵇ (a + b ≤ 8) and atb[k] = Σ w h uⁱ vʲ for the jet's
+    monomials, one power of the samples at a time (each sum a pass over contiguous arrays)."""
     p = w[:cnt].copy()
     q = np.empty(cnt)
     for a in range(_POW):

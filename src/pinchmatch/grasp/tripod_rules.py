@@ -135,8 +135,8 @@ def balance_broken(points: np.ndarray, normals: np.ndarray, cone_deg: float) -> 
     notes).
 
     Three forces in balance lie in the contacts' plane and meet at one point x, or are parallel. In
-    the plane each contact's forces form a wedge about its inward normal's in-plane part. With λ the
-    barycentric coordinates of x: forces meeting inside the triangle (every λ_k >=
+    the plane each contact's forces form a wedge about its inward normal's in-plane part. With λ
+    the barycentric coordinates of x: forces meeting inside the triangle (every λ_k >=
     ``BALANCE_INSIDE``) each point from their contact to x; meeting behind contact j (the others'
     λ_k <= -``BALANCE_INSIDE``), contact j's points away from x. Each case is a set of half-planes
     with a common point or none. Parallel forces are tested over ``PARALLEL_DIRECTIONS``

@@ -11,10 +11,10 @@ better, the study's 7-point scale), calibrate fits the model the cost itself use
 
 and a rating that falls with it, ``rating = a - b·P`` (``a``: the rating of a perfect match, ``b``:
 how much a surely noticed difference costs on the scale). The weights are absolute: w_c = 1 keeps
-the literature's JND of criterion c, w_c = 2^β would halve it; a criterion not fitted (no column, or
-left out of ``criteria``) keeps its default, 1 for the default criteria and 0 for ``com``. The fit
-is nonlinear least squares (scipy's ``least_squares``, analytic Jacobian, w ≥ 0 and b ≥ 0) started
-from several points.
+the literature's JND of criterion c, w_c = 2^β would halve it; a criterion not fitted (no column,
+or left out of ``criteria``) keeps its default, 1 for the default criteria and 0 for ``com``. The
+fit is nonlinear least squares (scipy's ``least_squares``, analytic Jacobian, w ≥ 0 and b ≥ 0)
+started from several points.
 
 **Held-out agreement.** Rows that rate the same placement are kept together: the folds of the
 cross-validation split whole groups, a group joining the rows of one ``pair`` (else ``object`` and

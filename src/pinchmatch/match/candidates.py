@@ -170,10 +170,10 @@ def mass_ratio(tangible: Candidates, virtual: Candidates) -> float:
 
     The weight of an object held in a pinch pulls with a torque m·g × o about the pinch, o being
     the centre of mass's offset from the pinch midpoint. Felt and seen torques agree when
-    m_T·o_T = m_V·R·o_V, so the ``mass`` criterion compares o_T with (m_V / m_T)·R·o_V: the offset
-    at which the tangible's own mass would pull as the virtual object is seen to. Where a mass is
-    missing on either side, nothing is known about the ratio and the masses are taken as equal:
-    the criterion then compares where the mass sits, as it does with no masses at all.
+    m_T·o_T = m_V·R·o_V, so the ``mass`` criterion compares o_T with (m_V / m_T)·R·o_V: the
+    offset at which the tangible's own mass would pull as the virtual object is seen to. Where a
+    mass is missing on either side, nothing is known about the ratio and the masses are taken as
+    equal: the criterion then compares where the mass sits, as it does with no masses at all.
     """
     m_t, m_v = tangible.obj.mass_g, virtual.obj.mass_g
     return float(m_v / m_t) if m_t and m_v else 1.0

@@ -235,9 +235,9 @@ class CostModel:
         ``extra_weight``, the weight of further contributions the sum holds: the redirection's
         angle).
 
-        ``sum``: S itself. ``quick``: with W = Σ w, the power means give Σ w x^β ≥ W (S / W)^(β/2)
-        for β ≥ 2 (Jensen), so D ≥ W^(1/β - 1/2) √S; increasing in S, so the pairs of least S are
-        the ones to pool."""
+        ``sum``: S itself. ``quick``: with W = Σ w, the power means give Σ w x^β ≥ W (S /
+        W)^(β/2) for β ≥ 2 (Jensen), so D ≥ W^(1/β - 1/2) √S; increasing in S, so the pairs
+        of least S are the ones to pool."""
         separable = np.maximum(np.asarray(separable, dtype=np.float64), 0.0)
         if self.pooling == "sum":
             return separable
@@ -246,8 +246,9 @@ class CostModel:
 
     def p_noticed(self, jnd_cost) -> np.ndarray:
         """The probability that a difference of pooled cost ``jnd_cost`` (in JND, under this
-        pooling) is noticed: 1 - (1 - p₁)^(D^β) for ``quick`` (p₁ = :data:`DETECTION_AT_ONE_JND`),
-        and the same with β = 2 for ``sum`` (whose cost is already D²)."""
+        pooling) is noticed: 1 - (1 - p₁)^(D^β) for ``quick`` (p₁ =
+        :data:`DETECTION_AT_ONE_JND`), and the same with β = 2 for ``sum`` (whose cost is already
+        D²)."""
         d = np.asarray(jnd_cost, dtype=np.float64)
         power = d if self.pooling == "sum" else np.power(d, self.exponent)
         return -np.expm1(power * np.log1p(-DETECTION_AT_ONE_JND))
@@ -352,10 +353,10 @@ def _factors(virtual: np.ndarray, spread: np.ndarray | None = None) -> list[np.n
 def _tangible_factors(t: np.ndarray, model: CostModel, w: np.ndarray,
                       spread: np.ndarray | None = None) -> np.ndarray:
     """Tangible factors of a block of rows (k, F, 9) over the :func:`distinct_entries` of a row,
-    their weights ``w`` (E,) (repeats included): (k, 3 x E) [a, -2 a t, a (t² + σ²)] with a = weight
-    / s² (0 where ρ is undefined), so that Σ a ((v - t)² + σ_v² + σ_t²) m_v = [a, -2 a t, a (t² +
-    σ_t²)] · [(v² + σ_v²) m_v, v m_v, m_v] (:func:`_factors`); σ² the ``spread`` of each entry (0
-    without one)."""
+    their weights ``w`` (E,) (repeats included): (k, 3 x E) [a, -2 a t, a (t² + σ²)] with a =
+    weight / s² (0 where ρ is undefined), so that Σ a ((v - t)² + σ_v² + σ_t²) m_v = [a, -2
+    a t, a (t² + σ_t²)] · [(v² + σ_v²) m_v, v m_v, m_v] (:func:`_factors`); σ² the
+    ``spread`` of each entry (0 without one)."""
     keep, _ = distinct_entries(t.shape[1])
     s = model.scales(t).reshape(len(t), -1)[:, keep]
     var = 0.0 if spread is None else np.nan_to_num(spread.reshape(len(t), -1)[:, keep])
@@ -506,8 +507,8 @@ def separable_terms(tangible_rows: np.ndarray, virtual_rows: np.ndarray, model: 
 
 def mass_term(tangible_rows: np.ndarray, delta_mm: np.ndarray, model: CostModel, *,
               scales: np.ndarray | None = None) -> np.ndarray:
-    """(k,) exact ``mass`` contribution |Δ|²/s² for the offset mismatch Δ (k, 3) after registration
-    (``scales`` as :func:`separable_terms` takes them)."""
+    """(k,) exact ``mass`` contribution |Δ|²/s² for the offset mismatch Δ (k, 3) after
+    registration (``scales`` as :func:`separable_terms` takes them)."""
     s = (model.scales(tangible_rows) if scales is None else scales)[:, 0, 7]
     return np.einsum("kd,kd->k", delta_mm, delta_mm) / s**2
 

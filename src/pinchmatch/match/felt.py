@@ -28,9 +28,9 @@ hand and guided together, so they share one offset and a tripod pose has 625 lan
 eye sees the corresponding points of the virtual object, the points of its table that the pair's
 registration carries nearest to them (each of the virtual object's ring points, turned by the
 registration into the prop's frame, is matched to the prop's ring point of the same ring nearest in
-angle: within half a ring step, 22.5° or 11.25°). Each landing costs the run's cost of felt against
-seen (the mass offset under the match's own placement, a planned redirection as the match's); a
-landing where a finger meets no surface on either object is a miss, noticed for certain
+angle: within half a ring step, 22.5° or 11.25°). Each landing costs the run's cost of felt
+against seen (the mass offset under the match's own placement, a planned redirection as the
+match's); a landing where a finger meets no surface on either object is a miss, noticed for certain
 (:data:`pinchmatch.match.landing.MISS_JND`).
 
 :func:`felt_costs` gives, per choice, the nominal cost, the expected cost (the weighted mean over
@@ -64,9 +64,9 @@ MIN_CELL_MM = 0.1
 
 def ring_weights(radius_mm: float, rings=RING_POINTS,
                  sigma_share: float = SIGMA_SHARE) -> np.ndarray:
-    """(1 + Σ rings,) the weight of each point of :func:`disc_offsets`: the mass, under an isotropic
-    Gaussian of σ = sigma_share · radius truncated to the disc, of the annulus the point's ring
-    stands for, shared equally by the ring's points; the weights sum to 1."""
+    """(1 + Σ rings,) the weight of each point of :func:`disc_offsets`: the mass, under an
+    isotropic Gaussian of σ = sigma_share · radius truncated to the disc, of the annulus the
+    point's ring stands for, shared equally by the ring's points; the weights sum to 1."""
     if radius_mm <= 0:
         return np.ones(1)
     n = len(rings)
@@ -212,8 +212,8 @@ def _field_patches(candidates: Candidates, poses: np.ndarray, landed: _Landed, s
 def _tables(candidates: Candidates, landed: _Landed, geom, radius_mm: float, axis_deg: float,
             rings) -> LandingTable:
     """The :class:`LandingTable` s of the poses ``landed`` holds, their landing points' patches
-    ``geom`` (arrays of F·k·n, in ``landed.points``' order): every combination of one landing point
-    per finger."""
+    ``geom`` (arrays of F·k·n, in ``landed.points``' order): every combination of one landing
+    point per finger."""
     fingers, k, n, _ = landed.points.shape
     normal = geom.normal.reshape(fingers, k, n, 3)
     kmax, kmin = geom.kappa_max_per_m.reshape(fingers, k, n), geom.kappa_min_per_m.reshape(fingers,

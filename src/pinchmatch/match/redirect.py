@@ -130,8 +130,8 @@ def hand_start(spec, redirect: Redirect, vertices_mm: np.ndarray) -> np.ndarray:
 
 
 def reach_gain(start: np.ndarray, physical_mm: np.ndarray, virtual_mm: np.ndarray) -> np.ndarray:
-    """|virtual − start| / |physical − start| per row: how much longer the seen reach is than the
-    felt one."""
+    """|virtual − start| / |physical − start| per row: how much longer the seen reach is than
+    the felt one."""
     return np.linalg.norm(virtual_mm - start,
                           axis=-1) / np.maximum(np.linalg.norm(physical_mm - start, axis=-1), 1e-9)
 

@@ -352,9 +352,9 @@ def _keep_reached(grown: _Grown, moves: _Moves) -> np.ndarray:
 
 def separable_sums(T: Candidates, V: Candidates, it: np.ndarray, iv: np.ndarray,
                    model: CostModel) -> np.ndarray:
-    """(k,) S = Σ w·t of each pair in its better finger order, with the ``mass`` term's lower bound:
-    what the blockwise pass computes (:func:`pinchmatch.match.cost.pair_cost_blocks`), for given
-    pairs."""
+    """(k,) S = Σ w·t of each pair in its better finger order, with the ``mass`` term's lower
+    bound: what the blockwise pass computes (:func:`pinchmatch.match.cost.pair_cost_blocks`), for
+    given pairs."""
     t_rows = T.table[it]
     v_rows = felt_table(V.table[iv], mass_ratio(T, V))
     w = model.weight_vector()

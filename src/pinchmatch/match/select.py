@@ -25,12 +25,12 @@ in lexicographic order among equals, is returned. Beyond it, two steps, each doc
 it guarantees:
 
 1. **Greedy**: start empty, add the prop that lowers the objective most. For ``mean`` this is the
-   greedy of the facility-location problem: the saving Σ_j (c_j⁰ - min_{t∈S} C_jt), c_j⁰ an object's
-   worst finite cost, is monotone and submodular, so the greedy subset saves at least (1 - 1/e) of
-   the best K-subset's saving (Nemhauser, Wolsey and Fisher, 1978). For ``noticeable`` the count of
-   quietly served objects is a coverage function: the same (1 - 1/e) bound on it. For ``max`` (a
-   K-centre problem on costs that are not a metric) no constant factor is known: the greedy is a
-   heuristic.
+   greedy of the facility-location problem: the saving Σ_j (c_j⁰ - min_{t∈S} C_jt), c_j⁰ an
+   object's worst finite cost, is monotone and submodular, so the greedy subset saves at least (1 -
+   1/e) of the best K-subset's saving (Nemhauser, Wolsey and Fisher, 1978). For ``noticeable`` the
+   count of quietly served objects is a coverage function: the same (1 - 1/e) bound on it. For
+   ``max`` (a K-centre problem on costs that are not a metric) no constant factor is known: the
+   greedy is a heuristic.
 2. **Local search**: swap one chosen prop for one left out while that improves the objective,
    best swap first, until none does (a local optimum under single swaps; it can only improve on the
    greedy, so the greedy's bound still holds).

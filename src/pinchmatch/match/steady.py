@@ -6,15 +6,16 @@ a sample (a million for two objects of 1,000 poses). The pairs best on target ar
 features that agree at one point and nowhere around it, so ranking only them by their felt cost
 misses the pairs that feel alike wherever the fingers land. This search finds those:
 
-- **per pose, once per object**: the mean μ and the variance σ² of its feature-table rows over its
-  own landings (:func:`pinchmatch.match.felt.landing_moments`), on ``MOMENT_RINGS``: the target and
-  eight points at the acceptance radius, weighed by the felt cost's landing distribution. A process
-  keeps each object's moments while the object lives (:func:`moments_of`).
+- **per pose, once per object**: the mean μ and the variance σ² of its feature-table rows over
+  its own landings (:func:`pinchmatch.match.felt.landing_moments`), on ``MOMENT_RINGS``: the target
+  and eight points at the acceptance radius, weighed by the felt cost's landing distribution. A
+  process keeps each object's moments while the object lives (:func:`moments_of`).
 - **per pair, every pair**: the expected separable cost of two independent landings,
-  Σ a ((μ_v − μ_t)² + σ_t² + σ_v²), computed for all pairs by the search's blockwise matrix products
-  at the price of one more pass (the ``spreads`` of :func:`pinchmatch.match.cost.pair_cost_blocks`).
-  The ``STEADY_POOL`` lowest are registered; their expected terms are pooled as the model pools them
-  (``mass`` exact on target plus its spread, the hand's redirection as the match's).
+  Σ a ((μ_v − μ_t)² + σ_t² + σ_v²), computed for all pairs by the search's blockwise
+  matrix products at the price of one more pass (the ``spreads`` of
+  :func:`pinchmatch.match.cost.pair_cost_blocks`). The ``STEADY_POOL`` lowest are registered; their
+  expected terms are pooled as the model pools them (``mass`` exact on target plus its spread, the
+  hand's redirection as the match's).
 - the ``STEADY_CHOICES`` best distinct pairs by that expected cost join the best distinct pairs on
   target (:mod:`pinchmatch.match.scene`), and all of them are ranked by their exact felt cost.
 

@@ -21,10 +21,10 @@ from ..compiled import njit
 def field_bounds(points, origin, inverse_voxel, voxel, distance, guard, margin, lower, upper):
     """For each row of ``points`` (n, 3): its voxel of the grid ``distance`` (a, b, c) float32,
     whose lowest corner is ``origin`` and side ``voxel`` (``inverse_voxel`` its inverse);
-    ``lower[i]`` and ``upper[i]`` bound the distance to the nearest sample: e ∓ (|x - g| + v·√3/2 +
-    guard·(1 + max |x|) + 2.4e-7·e), the voxel's value e and centre g, max |x| over the finite
-    coordinates of ``points``; the margin and inf outside the grid (and for a point that is not
-    finite)."""
+    ``lower[i]`` and ``upper[i]`` bound the distance to the nearest sample: e ∓ (|x - g| +
+    v·√3/2 + guard·(1 + max |x|) + 2.4e-7·e), the voxel's value e and centre g, max |x| over
+    the finite coordinates of ``points``; the margin and inf outside the grid (and for a point that
+    is not finite)."""
     shape = distance.shape
     flat = distance.ravel()
     # over the finite coordinates: a point that is not one is outside, and spoils no other's guard

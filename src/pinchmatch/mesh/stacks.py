@@ -148,10 +148,10 @@ def supported(stack: Stack) -> Stack:
     """The stack changed as little as needed to print standing on its base without supports: every
     part's bottom footprint inside the top face below it (a box's corners included), a frustum that
     widens upward at most 45° from vertical, and a barrel's lower half no flatter than 45° at its
-    cut (a² - e² <= e·h/2, a and e its middle and cut radii, h its height: the surface is flattest
-    at the cut). Widths only shrink, so the limits still hold; a box that cannot stand on what is
-    below becomes a cylinder of the largest width that can, and a part that would be narrower than
-    ``MIN_PART_WIDTH_MM`` ends the stack below it."""
+    cut (a² - e² <= e·h/2, a and e its middle and cut radii, h its height: the surface is
+    flattest at the cut). Widths only shrink, so the limits still hold; a box that cannot stand on
+    what is below becomes a cylinder of the largest width that can, and a part that would be
+    narrower than ``MIN_PART_WIDTH_MM`` ends the stack below it."""
     parts = []
     for k, p in enumerate(stack.parts):
         if k > 0:

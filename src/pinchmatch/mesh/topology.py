@@ -210,9 +210,9 @@ ENCLOSED_SAMPLES = 16
 
 def winding_numbers(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """(k,) the generalised winding number of a triangle surface around each point: the sum of the
-    triangles' signed solid angles (Van Oosterom and Strackee) over 4π; ±1 inside a closed surface,
-    0 outside. Vectorised over points and faces, as many points at a time as keep about 2 million
-    pairs."""
+    triangles' signed solid angles (Van Oosterom and Strackee) over 4π; ±1 inside a closed
+    surface, 0 outside. Vectorised over points and faces, as many points at a time as keep about 2
+    million pairs."""
     tri = vertices[faces]  # (f, 3, 3)
     out = np.zeros(len(points))
     step = max(1, 2_000_000 // max(len(faces), 1))

@@ -135,9 +135,9 @@ def merge_rounded(vertices, referenced, factor):
 
 @njit(cache=True, nogil=True)
 def group_rows_by_key(rows, keys):
-    """:func:`group_rows` for rows whose first column is a small key in ``0 … keys - 1`` (a vertex):
-    rows are bucketed by it and compared only within their bucket, a pass over memory in the
-    order the rows come. Worth it where buckets are small (a vertex's edges); quadratic in a
+    """:func:`group_rows` for rows whose first column is a small key in ``0 … keys - 1`` (a
+    vertex): rows are bucketed by it and compared only within their bucket, a pass over memory in
+    the order the rows come. Worth it where buckets are small (a vertex's edges); quadratic in a
     bucket's size."""
     n, k = rows.shape
     start = np.zeros(keys + 1, np.int64)

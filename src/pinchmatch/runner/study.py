@@ -129,8 +129,8 @@ def _pose_entry(order, candidates: Candidates, v_pose: int | None, *, points=Non
                 cost_expected=None) -> dict:
     """One virtual pose of a row: candidate ``v_pose``, or the contacts ``points`` (neither: no
     pose, the reference's fingers met nothing). ``transform`` (virtual -> tangible, mm), ``swapped``
-    (the virtual p1 lies on the tangible's p2) and ``terms`` (each criterion's contribution in JND²,
-    under our criteria) describe the pose pair as the headset's study shows and rates it."""
+    (the virtual p1 lies on the tangible's p2) and ``terms`` (each criterion's contribution in
+    JND², under our criteria) describe the pose pair as the headset's study shows and rates it."""
     pts = (points if points is not None else None if v_pose is None
            else candidates.pinches.points[v_pose])
     height = float(pts[:, 2].mean()) if pts is not None else None
