@@ -85,7 +85,7 @@ def rest_gaps(support, points: np.ndarray, transforms: np.ndarray, *,
     """(k,) the signed height (mm) of the lowest of ``points`` (h, 3), moved by each of
     ``transforms`` (k, 4, 4), over ``support`` (a :class:`~pinchmatch.mesh.support.SupportPlane` in
     the transforms' target frame); negative below it. ``table``: the points' table where one is
-    kept (:func:`pinchmatch.mesh.lowest.lowest_along`: the same lowest points, fewer tried).
+    kept (:func:`pinchmatch.mesh.lowest.lowest_table`; else it is made here).
 
     >>> from pinchmatch.mesh.support import SupportPlane
     >>> table = SupportPlane(np.array([0.0, 0.0, 1.0]), 10.0, "lowest point")
@@ -96,12 +96,13 @@ def rest_gaps(support, points: np.ndarray, transforms: np.ndarray, *,
     """
     transforms = np.asarray(transforms, dtype=np.float64)
     normal = np.asarray(support.normal, dtype=np.float64)
+    table = lowest_table(points) if table is None else table
     out = np.empty(len(transforms))
     for start in range(0, len(transforms), GAP_CHUNK):
         X = transforms[start:start + GAP_CHUNK]
         # Rᵀ n: the support's normal in the object's frame
         down = np.einsum("kji,j->ki", X[:, :3, :3], normal)
-        lowest = (points @ down.T).min(axis=0) if table is None else lowest_along(table, down)
+        lowest = lowest_along(table, down)
         out[start:start + GAP_CHUNK] = lowest + X[:, :3, 3] @ normal - support.height_mm
     return out
 

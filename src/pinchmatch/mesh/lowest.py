@@ -12,10 +12,10 @@ A :class:`LowestTable` splits the sphere of directions into the cells of a cube 
 direction in it. With ``c`` a cell's centre direction, ``θ`` its angular radius (the angle to its
 farthest corner: the cell is a convex polygon on the cube's face, whose farthest point from ``c`` in
 angle is a corner) and ``R`` the largest distance of a vertex from the set's centre ``o``, any unit
-``d`` of the cell has ``|d - c| <= δ = 2 sin(θ/2)``, so each vertex's height moves by at most ``Rδ``
-between ``c`` and ``d`` (heights about ``o``; ``o · d`` is common to every vertex). The vertex
-lowest along ``d`` is then within ``2Rδ`` of the least height along ``c``: the cell keeps every
-vertex within that (and a rounding margin), and the least over them is the least over all. The
+``d`` of the cell has ``|d - c| <= δ = 2 sin(θ/2)``, so each vertex's height moves by at most
+``Rδ`` between ``c`` and ``d`` (heights about ``o``; ``o · d`` is common to every vertex). The
+vertex lowest along ``d`` is then within ``2Rδ`` of the least height along ``c``: the cell keeps
+every vertex within that (and a rounding margin), and the least over them is the least over all. The
 answer is the same number as the full search's: the same products of the same vertex, only fewer
 tried.
 """
@@ -43,11 +43,15 @@ class LowestTable:
     cells: int
 
 
+#: per major axis, the two others, in order: a face's (u, v) coordinates
+OTHER_AXES = np.array([[1, 2], [0, 2], [0, 1]])
+
+
 def _face_axes(face: int) -> tuple[int, float, int, int]:
     """The major axis, its sign and the two others of a cube face (0: +x, 1: -x, 2: +y, ...)."""
     axis = face // 2
-    others = [a for a in range(3) if a != axis]
-    return axis, 1.0 if face % 2 == 0 else -1.0, others[0], others[1]
+    b, c = OTHER_AXES[axis]
+    return axis, 1.0 if face % 2 == 0 else -1.0, int(b), int(c)
 
 
 def _cell_directions(cells: int) -> tuple[np.ndarray, np.ndarray]:
@@ -94,8 +98,7 @@ def direction_cells(directions: np.ndarray, cells: int) -> np.ndarray:
     rows = np.arange(len(d))
     major = d[rows, axis]
     face = 2 * axis + (major < 0)
-    b = np.where(axis == 0, 1, 0)
-    c = np.where(axis == 2, 1, 2)
+    b, c = OTHER_AXES[axis].T
     scale = np.abs(major)
     u, v = d[rows, b] / scale, d[rows, c] / scale
     i = np.clip(np.floor((u + 1.0) / 2.0 * cells), 0, cells - 1).astype(np.int64)
