@@ -76,6 +76,7 @@ CORE = {
     "config.py": ["test_config.py", "test_pinches.py", "test_cost.py", "test_redirect.py",
                   "test_match.py"],
     "options.py": ["test_config.py", "test_cache.py", "test_result_cache.py"],
+    "match/ranking.py": ["test_ranking.py", "test_steady.py"],
     "match/scene.py": ["test_match.py", "test_redirect.py", "test_landing.py", "test_select.py"],
     "match/reference.py": ["test_match.py", "test_cache.py"],
     "match/felt.py": ["test_landing.py", "test_tripod_landing.py"],
@@ -272,9 +273,7 @@ EQUIVALENT.update({
     ("match/scene.py", "list(search.tangibles), virtual, landed)", "drop list(...)"):
         "the search's list of tangibles is never changed after the search: the match may hold it "
         "itself",
-    ("match/scene.py", "best = search.choices(0, [int(t)], 1)[0]", "drop int(...)"):
-        "numpy's integer indexes the tangibles as Python's does",
-    ("match/scene.py", "best = search.choices(0, [int(t)], 1)[0]", "1 -> 2"):
+    ("match/ranking.py", "best = search.choices(0, [t], 1)[0]", "1 -> 2"):
         "the first of the two best choices is the best choice",
     ("match/scene.py", "big = (np.abs(cost_matrix[finite]).sum() + 1.0) * (min(m, n) + 1)",
      "drop .abs(...)"):

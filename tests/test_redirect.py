@@ -498,7 +498,9 @@ def test_select_with_the_fixed_placement_ranks_props_as_the_match_serves_them(
     tmp_path, capsys, kitchen):
     """Two posed props; under --placement fixed each object's cost on the chosen prop is what the
     match serves it with there (redirected, or by the carousel when that is cheaper by more than the
-    margin): the row ranks fewer choices than the match, so the match's is at most the row's."""
+    margin). The row ranks a few choices per prop among all the shelf's, the match of the chosen
+    prop alone more of them on it, so the match's cost is at most the row's, or within the band of
+    choices that feel the same (the more comfortable first)."""
     props = tmp_path / "shelf.toml"
     props.write_text(PROP + PROP.replace('"can_prop"', '"far_prop"').replace(
         "[0, 0, 0]", "[600, 0, -400]"))
@@ -513,6 +515,6 @@ def test_select_with_the_fixed_placement_ranks_props_as_the_match_serves_them(
     for entry in selection["objects"]:
         m = matches[entry["virtual"]]
         assert m["tangible"] == entry["tangible"]
-        assert m["cost"] <= entry["cost"] + 1e-6
+        assert m["cost"] <= entry["cost"] + max(0.1, 0.05 * entry["cost"]) + 1e-6
         r = m["redirection"]
         assert r["mode"] in ("redirect", "carousel") and r["carousel_cost"] is not None

@@ -250,7 +250,7 @@ def test_equivalent_props_are_listed_and_ties_go_to_the_prop_given_first(tmp_pat
 def test_the_felt_set_on_target_grows_with_the_count(tmp_path, monkeypatch):
     """128 distinct best pairs on target are felt up to the default count, in proportion above it (a
     denser sample holds more knife edges), at most 1,024; the row of each prop keeps its few."""
-    from pinchmatch.match import scene as scene_module
+    from pinchmatch.match import ranking as scene_module
     from pinchmatch.match.search import Search
 
     assert [scene_module.ranked_choices(n) for n in (50, 1000, 1001, 4000, 100_000)] == [

@@ -18,38 +18,20 @@ from scipy.optimize import linear_sum_assignment
 
 from ..errors import ConfigError
 from ..grasp.pinches import PinchSettings
-from .candidates import Candidates, one_grasp, with_count
-from .comfort import comfort_score
+from .candidates import Candidates, one_grasp
 from .cost import CostModel
-from .felt import FeltTables, felt_cost
+from .felt import FeltTables
 from .landing import LANDING_AXIS_DEG, Landing
 from .reference import Reference, reference_pose
 from .refine import refined_search
 from .redirect import redirection
 from ..config import Config, config_of
 from ..grasp.spread import other_order
-from .noticed import p_noticed
-from .search import Choice, MatchSettings, Search, cost_model, cost_row, pinch_distance
-from .steady import STEADY_CHOICES, SteadySearch, ranks_by_landings
+from .ranking import EQUIVALENT_JND, EQUIVALENT_SHARE, Ranking, rank
+from .search import Choice, MatchSettings, Search, cost_model, cost_row
+from .steady import SteadySearch, ranks_by_landings
 
 
-#: unless ``--rank nominal``, this many distinct best choices on target (or top_k + 1, if more) and
-#: the steady search's ``STEADY_CHOICES`` are ranked by their cost over the landings. The pair that
-#: feels best is often far down the order on target (a scanned marker's on a mustard bottle: between
-#: the 97th and the 128th), and a felt pair costs little beside the search, so the set is wide
-RANKED_CHOICES = 128
-#: above the default count, the set on target grows in proportion, up to this many: a denser sample
-#: holds more knife edges, distinct but each barely better on target, that push the pairs that feel
-#: best out of a set of fixed size (the YCB scissors on the mustard bottle: 2.76 JND at four times
-#: the count with 128, 2.31 with 512,
-#: 2.40 at the default count)
-MAX_RANKED_CHOICES = 1024
-#: and per tangible, for its row of the cost matrix (what select and design rank props by), this
-#: many of each
-ROW_CHOICES = 3
-#: another prop is equivalent to the best when its ranked cost is within this much of the best's, in
-#: JND, or within this share of it, whichever is larger
-EQUIVALENT_JND, EQUIVALENT_SHARE = 0.1, 0.05
 
 
 @dataclass
@@ -181,49 +163,31 @@ def match_one(tangibles: list[Candidates], virtual: Candidates, config: Config, 
     one_grasp([*tangibles, virtual])
     search = search or refined_search(tangibles, virtual, model, settings, pinch_settings=pinch)
     tables = FeltTables(settings.landing_mm, pinch)
-    steady = steady_search(search, tangibles, virtual, pinch)
-    row, noticed = ranked_row(search, cost_row(search, 0), tables, steady)
-    carousel = None
-    if settings.redirect is not None:
-        # each prop serves by redirection or by the carousel, as _mode decides
-        registered = dataclasses.replace(settings, placement="registered")
-        carousel = refined_search(search.tangibles, search.virtuals[0], search.model, registered,
-                                  pinch_settings=pinch)
-        c_row, c_noticed = ranked_row(carousel, cost_row(carousel, 0), tables,
-                                      steady_search(carousel, tangibles, virtual, pinch))
-        stays = redirect_stays(row, c_row, settings.carousel_margin_jnd)
-        row, noticed = np.where(stays, row, c_row), np.where(stays, noticed, c_noticed)
     allowed = allowed or (list(range(len(tangibles))), None)
-    if not details:  # what select and design rank props by: the row
-        picks = _ranked(search, steady, allowed[0], 1, tables) if allowed[0] else []
-        picks = [dataclasses.replace(p, virtual=index) for p, _ in picks]
-        row, noticed = _with_picks(row, noticed, picks)
-        return VirtualMatch(index, picks[0] if picks else None, [], None if picks else allowed[1],
-                            None, virtual.name, list(search.tangibles), search.virtuals[0], row=row,
-                            row_noticed=noticed)
-    vm = _placed(search, allowed, pinch_settings=pinch, index=index, probes=probes, tables=tables,
-                 sampled=(tangibles, virtual), steady=steady, carousel=carousel)
-    row, noticed = _with_picks(row, noticed, [vm.best, *vm.alternatives] if vm.best else [])
+    count = settings.top_k + 1
+    ranking = rank(search, steady_search(search, tangibles, virtual, pinch), tables, allowed[0],
+                   count)
+    row, noticed, carousel = ranking.row, ranking.noticed, None
+    if settings.redirect is not None:  # each prop serves by redirection or by the carousel
+        registered = dataclasses.replace(settings, placement="registered")
+        served = refined_search(search.tangibles, search.virtuals[0], search.model, registered,
+                                pinch_settings=pinch)
+        carousel = (served, rank(served, steady_search(served, tangibles, virtual, pinch), tables,
+                                 allowed[0], count))
+        stays = redirect_stays(row, carousel[1].row, settings.carousel_margin_jnd)
+        row = np.where(stays, row, carousel[1].row)
+        noticed = np.where(stays, noticed, carousel[1].noticed)
+    vm = _placed(search, ranking, allowed[1], pinch_settings=pinch, index=index, probes=probes,
+                 carousel=carousel, details=details)
     return dataclasses.replace(vm, row=row, row_noticed=noticed,
-                               equivalent=equivalent_tangibles(vm.best, row))
-
-
-def _with_picks(row: np.ndarray, noticed: np.ndarray, picks: list) -> tuple[np.ndarray, np.ndarray]:
-    """The ranked row lowered to the match's own ranked choices where one is cheaper on its tangible
-    (the row ranks a few pairs per tangible, the match many), so that the row, the equivalents and
-    the match agree."""
-    row, noticed = row.copy(), noticed.copy()
-    for p in picks:
-        if p.cost < row[p.tangible]:
-            row[p.tangible], noticed[p.tangible] = p.cost, p.p_noticed >= 0.5
-    return row, noticed
+                               equivalent=equivalent_tangibles(vm.best, row) if details else None)
 
 
 def equivalent_tangibles(best: Choice | None, row: np.ndarray) -> list:
     """[(tangible index, cost)] of the tangibles other than the best choice's whose ranked cost in
     ``row`` is within ``EQUIVALENT_JND`` or ``EQUIVALENT_SHARE`` of the best's (whichever is
     larger), cheapest first, ties in the order the tangibles were given (the best itself is chosen
-    the same way: :func:`_ranked`)."""
+    the same way: :func:`~pinchmatch.match.ranking.rank`)."""
     if best is None:
         return []
     limit = best.cost + max(EQUIVALENT_JND, EQUIVALENT_SHARE * best.cost)
@@ -319,102 +283,21 @@ def steady_search(search: Search, tangibles: list[Candidates], virtual: Candidat
     return SteadySearch(search, tangibles, virtual, settings.landing_mm, pinch_settings)
 
 
-def _felt(search: Search, picks: list, tables: FeltTables) -> list[Choice]:
-    """The picks with their ranked cost and its chance of being noticed (``--rank``), the landing
-    kept."""
-    rank, out = search.settings.rank, []
-    if tables.radius_mm > 0:  # the landing tables of every pick at once
-        for t in sorted({p.tangible for p in picks}):
-            tables.prefetch(search.tangibles[t], [p.t_pose for p in picks if p.tangible == t])
-        tables.prefetch(search.virtuals[0], [p.v_pose for p in picks])
-    for p in picks:
-        key = (id(search), p.tangible, p.t_pose, p.v_pose, p.swapped)
-        if key not in tables.felt:
-            tables.felt[key] = felt_cost(search.tangibles[p.tangible], search.virtuals[0], p,
-                                         search.model, tables)
-        felt = tables.felt[key]
-        out.append((dataclasses.replace(p, cost=felt.ranked(rank),
-                                        p_noticed=felt.ranked_p_noticed(rank)), felt))
-    return out
-
-
-def ranked_choices(count: int) -> int:
-    """How many distinct best pairs on target the match feels at a sampling count of ``count`` poses
-    per object: ``RANKED_CHOICES`` up to the default count, in proportion above it, at most
-    ``MAX_RANKED_CHOICES``."""
-    return with_count(RANKED_CHOICES, count, MAX_RANKED_CHOICES)
-
-
-def _ranked(search: Search, steady: SteadySearch | None, allowed: list[int], count: int,
-            tables: FeltTables, *, nominal: int | None = None,
-            by_steady: int = STEADY_CHOICES) -> list:
-    """Up to ``count`` distinct best (choice, felt) of virtual object 0 among the ``allowed``
-    tangibles.
-
-    Ranked on target (``steady`` None): the search's ``count`` best, exact. Else the ``nominal``
-    best distinct on target (default :func:`ranked_choices` of the run's count) and the steady
-    search's ``by_steady`` best distinct, each felt exactly (:mod:`pinchmatch.match.felt`), by
-    ``--rank``'s cost; ties by the cost on target, then tangible and poses; none a near duplicate of
-    a better one."""
-    if steady is None:
-        return comfort_first(search, _felt(search, search.choices(0, allowed, count), tables),
-                             tables.settings)
-    nominal = ranked_choices(steady.pinch_settings.count) if nominal is None else nominal
-    picks = search.choices(0, allowed, max(count, nominal)) + steady.choices(allowed,
-                                                                             max(count, by_steady))
-    felt = sorted(_felt(search, picks, tables),
-                  key=lambda pf: (pf[0].cost, pf[0].cost_nominal, pf[0].tangible, pf[0].t_pose,
-                                  pf[0].v_pose))
-    felt = comfort_first(search, felt, tables.settings)
-    out: list = []
-    for choice, f in felt:
-        if len(out) >= count:
-            break
-        if not any(_near(choice, other, search.settings.distinct_mm) for other, _ in out):
-            out.append((choice, f))
-    return out
-
-
-def comfort_first(search: Search, felt: list, pinch: PinchSettings) -> list:
-    """``felt`` [(choice, felt)], ranked by cost, with the choices that cost the same as the best
-    (within ``EQUIVALENT_JND`` or ``EQUIVALENT_SHARE`` of it, as :func:`equivalent_tangibles` judges
-    props) put in the order of their :func:`~pinchmatch.match.comfort.comfort_score`, most
-    comfortable first (ties by cost): among choices a person cannot tell apart by feel, the one
-    reached most easily."""
-    if len(felt) < 2:
-        return felt
-    best = felt[0][0].cost
-    limit = best + max(EQUIVALENT_JND, EQUIVALENT_SHARE * best)
-    band = [pf for pf in felt if pf[0].cost <= limit]
-    scores = [comfort_score(search.tangibles[c.tangible], c.t_pose, search.settings.user_mm,
-                            pinch.fingertip_radius_mm)
-              for c, _ in band]
-    order = sorted(range(len(band)), key=lambda k: (-round(scores[k], 9), k))
-    return [band[k] for k in order] + felt[len(band):]
-
-
-def _near(a: Choice, b: Choice, distinct_mm: float) -> bool:
-    """Is ``a`` a near duplicate of ``b`` (the same tangible, both grasps within
-    ``distinct_mm``)?"""
-    return a.tangible == b.tangible and all(
-        float(pinch_distance(x.contacts_mm[None], y.contacts_mm)[0]) < distinct_mm
-        for x, y in ((a.tangible_pose, b.tangible_pose), (a.virtual_pose, b.virtual_pose)))
-
-
-def _match(search: Search, allowed: list[int], reason: str | None, *, pinch_settings: PinchSettings,
-           index: int = 0, probes: dict | None = None, tables: FeltTables | None = None,
-           steady: SteadySearch | None = None) -> VirtualMatch:
+def _match(search: Search, ranking: Ranking, reason: str | None, *,
+           pinch_settings: PinchSettings, index: int = 0, probes: dict | None = None,
+           details: bool = True) -> VirtualMatch:
     """The result of a one-virtual-object search, as the scene's virtual object ``index``: its best
-    choice and alternatives by :func:`_ranked`."""
+    choice and alternatives, the answer of its ``ranking``; with ``details``, the reference and the
+    landing of the best."""
     settings, virtual = search.settings, search.virtuals[0]
-    tables = tables or FeltTables(settings.landing_mm, pinch_settings)
-    count = settings.top_k + 1
-    felt = _ranked(search, steady, allowed, count, tables) if allowed else []
-    felt = [(dataclasses.replace(p, virtual=index), f) for p, f in felt]
+    felt = [(dataclasses.replace(p, virtual=index), f) for p, f in ranking.answer]
     picks = [p for p, _ in felt]
     if not picks and reason is None:
         reason = "no registration is allowed: every one flips the virtual object (--keep-upright)"
     best = picks[0] if picks else None
+    if not details:  # what select and design rank props by: the best and the row
+        return VirtualMatch(index, best, [], None if best else reason, None, virtual.name,
+                            list(search.tangibles), virtual)
     ref = reference_pose(search.tangibles[best.tangible], best.t_pose, virtual, search.model,
                          settings=pinch_settings, memo=probes) if best else None
     landed = None
@@ -426,53 +309,27 @@ def _match(search: Search, allowed: list[int], reason: str | None, *, pinch_sett
                         list(search.tangibles), virtual, landed)
 
 
-def ranked_row(search: Search, row: np.ndarray, tables: FeltTables,
-               steady: SteadySearch | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """(n,) the ranked cost of virtual object 0 on each tangible and (n,) whether that choice is
-    noticed at least half of the time; inf and True where no registration is allowed. Ranked on
-    target (``steady`` None) the row is the search's least cost; else the best of :func:`_ranked`
-    over ``ROW_CHOICES`` of each kind."""
-    cost, loud = np.full(len(row), np.inf), np.ones(len(row), dtype=bool)
-    for t in np.flatnonzero(np.isfinite(row)):
-        if steady is None:  # on target: no landing needed
-            best = search.choices(0, [int(t)], 1)[0]
-            cost[t], loud[t] = row[t], p_noticed(search.tangibles[t], search.virtuals[0], best,
-                                                 search.model) >= 0.5
-            continue
-        best = _ranked(search, steady, [int(t)], 1, tables, nominal=ROW_CHOICES,
-                       by_steady=ROW_CHOICES)[0][0]
-        cost[t], loud[t] = best.cost, best.p_noticed >= 0.5
-    return cost, loud
-
-
-def _placed(search: Search, allowed: tuple, *, pinch_settings: PinchSettings, index: int = 0,
-            probes: dict | None = None, tables: FeltTables | None = None,
-            sampled: tuple | None = None, steady: SteadySearch | None = None,
-            carousel: Search | None = None) -> VirtualMatch:
+def _placed(search: Search, ranking: Ranking, reason: str | None, *,
+            pinch_settings: PinchSettings, index: int = 0, probes: dict | None = None,
+            carousel: tuple | None = None, details: bool = True) -> VirtualMatch:
     """The virtual object's match; under ``placement="fixed"`` with its redirection, or the
-    carousel's (registered) match where no pair is within the redirection budget, or where the
-    carousel costs more than ``carousel_margin_jnd`` less than the best redirected pair (both ranked
-    as the match ranks). The redirection's record gives both costs and the reason."""
-    tables = tables or FeltTables(search.settings.landing_mm, pinch_settings)
-    vm = _match(search, *allowed, pinch_settings=pinch_settings, index=index, probes=probes,
-                tables=tables, steady=steady)
+    carousel's (registered) match (``carousel``: its search and ranking) where no pair is within
+    the redirection budget, or where the carousel costs more than ``carousel_margin_jnd`` less than
+    the best redirected pair (:func:`redirect_stays`). The redirection's record gives both costs
+    and the reason."""
+    kw = dict(pinch_settings=pinch_settings, index=index, probes=probes, details=details)
+    vm = _match(search, ranking, reason, **kw)
     settings = search.settings
-    if settings.redirect is None or not allowed[0]:
-        return vm
     if carousel is None:
-        registered = dataclasses.replace(settings, placement="registered")
-        carousel = refined_search(search.tangibles, search.virtuals[0], search.model, registered,
-                                  pinch_settings=pinch_settings)
-    served = _match(carousel, *allowed, pinch_settings=pinch_settings, index=index, probes=probes,
-                    tables=tables, steady=steady_search(carousel, *sampled, pinch_settings)
-                    if sampled else None)
+        return vm
+    served = _match(*carousel, reason, **kw)
     mode, why = _mode(vm, served, settings.carousel_margin_jnd)
     costs = {"redirect_cost": None if vm.best is None else round(float(vm.best.cost), 6),
              "carousel_cost": None if served.best is None else round(float(served.best.cost), 6),
              "reason": why}
     if mode == "carousel":
         vm = served
-    if vm.best is None:
+    if vm.best is None or not details:
         return vm
     best = vm.best
     tangible = vm.tangibles[best.tangible]
