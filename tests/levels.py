@@ -120,6 +120,19 @@ def tabletop_level(path, places) -> None:
     scene.export(path)
 
 
+def counter_kitchen(path) -> None:
+    """A kitchen (GLB): a counter 0.9 m up, a can and a box on it beside where a prop stands (0.5,
+    0.9, -0.25), and a can 0.5 m farther off, beyond the redirection's reach."""
+    box = trimesh.creation.box(extents=(0.05, 0.05, 0.05))
+    box.apply_translation([0.0, 0.025, 0.0])
+    counter = trimesh.creation.box(extents=(1.4, 0.04, 0.7))
+    counter.apply_translation([0.0, -0.02, 0.0])
+    tabletop_level(path, [("counter", counter, (0.5, 0.9, -0.25)),
+                          ("can_near", standing_can(), (0.52, 0.9, -0.25)),
+                          ("box_near", box, (0.47, 0.9, -0.23)),
+                          ("can_far", standing_can(), (0.9, 0.9, -0.5))])
+
+
 def standing_can(radius_m: float = 0.027, height_m: float = 0.066) -> trimesh.Trimesh:
     """A can (metres) standing on y = 0 with its axis along +Y, as a glTF level holds it."""
     can = trimesh.creation.cylinder(radius=radius_m, height=height_m, sections=64)

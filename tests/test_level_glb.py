@@ -16,7 +16,7 @@ import trimesh
 from scipy.spatial.transform import Rotation
 
 from conftest import run_cli
-from levels import standing_can, tabletop_level
+from levels import counter_kitchen, standing_can, tabletop_level
 
 NODE = shutil.which("node")
 VALIDATE = Path(__file__).parent / "js" / "validate_gltf.cjs"
@@ -29,14 +29,7 @@ POSITION_MM = np.array([500.0, 900.0, -250.0])
 @pytest.fixture(scope="module")
 def level_out(tmp_path_factory):
     folder = tmp_path_factory.mktemp("level")
-    box = trimesh.creation.box(extents=(0.05, 0.05, 0.05))
-    box.apply_translation([0.0, 0.025, 0.0])
-    counter = trimesh.creation.box(extents=(1.4, 0.04, 0.7))
-    counter.apply_translation([0.0, -0.02, 0.0])
-    tabletop_level(folder / "kitchen.glb", [("counter", counter, (0.5, 0.9, -0.25)),
-                                           ("can_near", standing_can(), (0.52, 0.9, -0.25)),
-                                           ("box_near", box, (0.47, 0.9, -0.23)),
-                                           ("can_far", standing_can(), (0.9, 0.9, -0.5))])
+    counter_kitchen(folder / "kitchen.glb")
     (folder / "props.toml").write_text(
         '[[object]]\nname = "can_prop"\nshape = { kind = "cylinder", diameter_mm = 54, height_mm = '
         '66 }\n'
