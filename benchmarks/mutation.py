@@ -77,6 +77,8 @@ CORE = {
                   "test_match.py"],
     "options.py": ["test_config.py", "test_cache.py", "test_result_cache.py"],
     "match/ranking.py": ["test_ranking.py", "test_steady.py"],
+    "scan/clean.py": ["test_prop_import.py"],
+    "scan/read.py": ["test_prop_import.py"],
     "match/scene.py": ["test_match.py", "test_redirect.py", "test_landing.py", "test_select.py"],
     "match/reference.py": ["test_match.py", "test_cache.py"],
     "match/felt.py": ["test_landing.py", "test_tripod_landing.py"],

@@ -88,7 +88,8 @@ _API = {
     "calibrate": "match.calibrate", "read_ratings": "match.calibrate",
     "read_weights_file": "match.calibrate", "fittable_criteria": "match.calibrate",
     "DesignResult": "runner.design", "DesignSettings": "runner.design",
-    "design_props": "runner.design",
+    "design_props": "runner.design", "Scan": "scan.read", "read_scan": "scan.read",
+    "Imported": "scan.prop_import", "import_prop": "scan.prop_import",
 }
 
 if TYPE_CHECKING:  # what static tools see; at run time each name is imported on first use
@@ -117,6 +118,8 @@ if TYPE_CHECKING:  # what static tools see; at run time each name is imported on
     from .match.calibrate import (Calibration, Ratings, calibrate, fittable_criteria, read_ratings,
                                   read_weights_file)
     from .runner.design import DesignResult, DesignSettings, design_props
+    from .scan.read import Scan, read_scan
+    from .scan.prop_import import Imported, import_prop
 
 __all__ = sorted(_API) + ["__version__"]
 

@@ -291,6 +291,21 @@ def _cmd_cache(args) -> int:
     return 0
 
 
+def _cmd_prop(args) -> int:
+    from ..scan.prop_import import import_prop
+    from ..scan.surface import MAX_FACES
+
+    ui = Presenter(quiet=args.quiet)
+    if args.faces is not None and args.faces < 1000:
+        raise ConfigError(f"--faces {args.faces}: give at least 1000 faces (default {MAX_FACES})")
+    prop = import_prop(args.scan, args.out, name=args.name, units=args.units, up=args.up,
+                       measured=args.measured_mm, mass_g=args.mass_g,
+                       faces=args.faces or MAX_FACES)
+    for line in prop.lines:
+        ui.note(line)
+    return 0
+
+
 def _cmd_demo(args) -> int:
     settings = pinch_settings_of(args)
     match = match_settings_of(args)
@@ -433,4 +448,4 @@ def _open_in_browser(url: str, ui) -> None:
 
 COMMANDS = {"calibrate": _cmd_calibrate, "demo": _cmd_demo, "match": _cmd_match,
             "select": cmd_select, "design": cmd_design, "view": _cmd_view, "cache": _cmd_cache,
-            "poses": _cmd_poses, "features": _cmd_features}
+            "poses": _cmd_poses, "features": _cmd_features, "prop": _cmd_prop}

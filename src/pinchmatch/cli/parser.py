@@ -424,6 +424,26 @@ def build_parser() -> argparse.ArgumentParser:
                        help="the cache folder (default: the per-user cache)")
     _add_verbosity(cache)
 
+    prop = sub.add_parser("prop", help="make a prop from a phone scan (pinchmatch prop import)")
+    prop.add_argument("action", choices=("import",),
+                      help="import: clean a scan and add it to a props folder's manifest")
+    prop.add_argument("scan", metavar="SCAN",
+                      help="the scan: USDZ/USD, GLB/glTF, OBJ, PLY (mesh or point cloud), STL")
+    prop.add_argument("-o", "--out", metavar="PROPS_DIR", required=True,
+                      help="the props folder: NAME.stl goes there, its entry into props.toml")
+    prop.add_argument("--name", help="the prop's name (default: the scan's file name)")
+    prop.add_argument("--units", choices=sorted(UNITS_MM),
+                      help="the scan's unit where its file has none (OBJ, PLY, STL; default mm)")
+    prop.add_argument("--up", choices=list(UP_VECTORS),
+                      help="the scan's up where its file has none (OBJ, PLY, STL; default z)")
+    prop.add_argument("--measured-mm", metavar="AXIS=VALUE",
+                      help="a ruler or caliper reading of the object, mm: height=, x=, y= or "
+                           "diameter=; the scan is scaled to it")
+    prop.add_argument("--mass-g", type=float, help="the prop's mass, grams")
+    prop.add_argument("--faces", type=int, default=None,
+                      help="at most this many faces in the prop's mesh (default 40000)")
+    _add_verbosity(prop)
+
     view = sub.add_parser("view",
                           help="write OUT/index.html, the viewer page of a match or demo run, and "
                                "serve it")
