@@ -32,8 +32,9 @@ def scan_of(clean: trimesh.Trimesh, path: Path, *, rng, noise_mm: float = 0.0,
     ``noise_mm``: Gaussian noise along the normal, σ; ``open_bottom_mm``: the underside's faces
     (facing down) within this height of the lowest point are missing (a cloud: every point there);
     ``units`` and ``up``: how the file holds it; ``faces``: split until it has at least this many
-    (and always until nine edges in ten are ``DENSE_MM`` at most, as a scan's); ``cloud_points``: a point cloud of this
-    many points instead of a mesh."""
+    (and always until nine edges in ten are ``DENSE_MM`` at most, as a scan's); ``cloud_points``: a
+    point cloud of this many points instead of a mesh.
+    """
     mesh = clean.copy()
     while (faces and len(mesh.faces) < faces) or np.quantile(mesh.edges_unique_length,
                                                               0.9) > DENSE_MM:

@@ -4,8 +4,8 @@ tomato soup can) made fit to pinch, checked against the clean mesh they were mad
 Each scan is the clean mesh split until it is as dense as a phone scan's, with Gaussian noise along
 the normal, or its underside left open, or in centimetres with another up, or of a million faces,
 or a point cloud (benchmarks/scans.py). The imported prop's volume, centre of mass and pinch widths
-are compared with the clean mesh's through the map the scan was written with and the import's own map
-(never the import's bounds). Bad scans end in one line each and write nothing.
+are compared with the clean mesh's through the map the scan was written with and the import's own
+map (never the import's bounds). Bad scans end in one line each and write nothing.
 """
 
 from __future__ import annotations

@@ -5,8 +5,9 @@ the floaters.
   the table, a stray blob) are removed and counted; an object made of several sizable pieces keeps
   them all.
 - **The bottom:** the object stood on a plane, so its underside was never seen: a phone scan leaves
-  it open, or closes it with a guess. An open bottom is a boundary loop in the lowest quarter of the
-  height: the object is cut flat just above the loop's highest point and closed there. A closed
+  it open, or closes it with a guess. An open bottom is a wide boundary loop low on the object
+  (``OPEN_BOTTOM_SHARE``): the object is cut flat just above the loop's highest point and closed
+  there. A closed
   scan is not cut (where its guess ends cannot be told from the scan; cutting would take away what
   was seen): its lowest ``CLOSED_BOTTOM_MM`` (or three times the noise, if more) are marked unseen.
 - **Closing:** the cut and every other hole are closed by a fan from a new vertex at the loop's
@@ -28,8 +29,10 @@ from ..mesh.regions import Region
 
 #: a connected piece of less than this share of the surface is a floater
 FLOATER_SHARE = 0.05
-#: a boundary loop wholly within this share of the height above the lowest point is the open bottom
-OPEN_BOTTOM_SHARE = 0.25
+#: a boundary loop is the open bottom when it lies wholly within this share of the height above the
+#: lowest point, reaches down to within the second share of it, and spans at least the third share
+#: of the footprint (a hole in a mug's inner floor is none of these)
+OPEN_BOTTOM_SHARE, OPEN_BOTTOM_REACH, OPEN_BOTTOM_SPAN = 0.25, 0.08, 0.3
 #: a closed scan's lowest this many mm are marked unseen (or three times its noise, if more)
 CLOSED_BOTTOM_MM = 2.0
 #: the cut is this far above an open bottom's highest point (mm)
@@ -99,7 +102,11 @@ def bottom_cut(mesh: trimesh.Trimesh, loops: list) -> float | None:
     """Where an open bottom is cut (mm), or None for a closed one (module notes)."""
     z = mesh.vertices[:, 2]
     low, height = float(z.min()), float(np.ptp(z))
-    bottom = [loop for loop in loops if z[loop].max() <= low + OPEN_BOTTOM_SHARE * height]
+    footprint = float(np.ptp(mesh.vertices[:, :2], axis=0).max())
+    bottom = [loop for loop in loops
+              if z[loop].max() <= low + OPEN_BOTTOM_SHARE * height
+              and z[loop].min() <= low + OPEN_BOTTOM_REACH * height
+              and np.ptp(mesh.vertices[loop, :2], axis=0).max() >= OPEN_BOTTOM_SPAN * footprint]
     if not bottom:
         return None
     return max(float(z[loop].max()) for loop in bottom) + CUT_ABOVE_MM

@@ -6,8 +6,8 @@ noise smoothed, the bottom cut flat and closed and every hole filled (:mod:`.cle
 decimated, and the scale checked against a reading taken with a ruler or a caliper. Written into
 PROPS_DIR: ``NAME.stl`` (binary, mm, +Z up, the bottom's middle at the origin) and an
 ``[[object]]`` entry in ``PROPS_DIR/props.toml`` (units, up, mass, and the regions never seen as
-``exclude``), added to the manifest already there. Nothing is written unless all of it can be: the files go in whole,
-and a name already in the folder is refused, never overwritten.
+``exclude``), added to the manifest already there. Nothing is written unless all of it can be: the
+files go in whole, and a name already in the folder is refused, never overwritten.
 """
 
 from __future__ import annotations
