@@ -118,7 +118,7 @@ def match_scene(root: Path) -> None:
                           noise_mm=0.5, open_bottom_mm=3.0)
         prop = import_prop(root / f"{name}.ply", root / "imported", name=name,
                            measured=f"height={clean.extents[2]:.2f}")
-        maps[f"{name}.stl"] = np.linalg.inv(prop.from_scan @ to_file)  # imported -> clean
+        maps[name] = np.linalg.inv(prop.from_scan @ to_file)  # imported -> clean
     clean = _matches(clean_paths, scene, root / "clean_out")
     scanned = _matches([root / "imported" / "props.toml"], scene, root / "scanned_out")
     print("\n| object | clean: prop, cost | imported: prop, cost | same prop | pinch apart mm |")
@@ -126,7 +126,7 @@ def match_scene(root: Path) -> None:
     good = 0
     for name, a in clean.items():
         b = scanned[name]
-        same = a["tangible"] == b["tangible"]
+        same = Path(a["tangible"]).stem == b["tangible"]
         apart = float("nan")
         if same:
             M = maps[b["tangible"]]
