@@ -34,6 +34,9 @@ MEASURED_AXES = ("height", "x", "y", "diameter")
 #: scale
 MAX_SCALE_FACTOR = 2.0
 MANIFEST = "props.toml"
+#: a surface rebuilt from a cloud is refused when more than this share of a draw of this many of
+#: its points lie farther than this from it (mm)
+OFF_SURFACE_SHARE, OFF_SURFACE_SAMPLE, OFF_SURFACE_MM = 0.05, 5000, 2.0
 #: the smoothed scan is decimated to this share of the faces kept before it is closed
 FACES_BEFORE_CLOSING = 0.97
 
@@ -160,6 +163,8 @@ def import_prop(scan_path, props_dir, *, name: str | None = None, units: str | N
                                "rebuilt through them (screened Poisson)")
     lines += closed.lines
     mesh = closed.mesh
+    if scan.is_cloud:
+        _check_rebuilt(mesh, scan.vertices, scan_path)
     scale, verified = 1.0, reading is not None
     if reading is not None:
         axis, value = reading
@@ -178,6 +183,20 @@ def import_prop(scan_path, props_dir, *, name: str | None = None, units: str | N
                      "only with a depth sensor (measure the height and import again)")
     return _write(scan_path, name, mesh, closed.exclude, scale, verified, noise, mass_g,
                   mesh_path, manifest, lines, scan.from_file)
+
+
+def _check_rebuilt(mesh: trimesh.Trimesh, points: np.ndarray, path: Path) -> None:
+    """Refuse a surface rebuilt from a cloud that leaves its points behind: more than
+    ``OFF_SURFACE_SHARE`` of them (a fixed draw) farther than ``OFF_SURFACE_MM`` from it, as when
+    a thin wall, its normals estimated from both of its sides, is turned inside out."""
+    rng = np.random.default_rng(0)
+    some = points[rng.choice(len(points), min(len(points), OFF_SURFACE_SAMPLE), replace=False)]
+    _, distance, _ = mesh.nearest.on_surface(some)
+    off = float(np.mean(distance > OFF_SURFACE_MM))
+    if off > OFF_SURFACE_SHARE:
+        raise MeshError(f"{path}: the surface rebuilt from the point cloud misses "
+                        f"{100 * off:.0f} % of its points by more than {OFF_SURFACE_MM:g} mm (a "
+                        f"thin wall turned inside out?); export the scan as a mesh")
 
 
 def _check_free(mesh_path: Path, manifest: Path, name: str) -> None:
