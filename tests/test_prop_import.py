@@ -20,7 +20,8 @@ import trimesh
 from conftest import assert_bad_input, run_cli
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-from scans import clean_mesh, scan_of  # noqa: E402 (benchmarks/ first)
+from bench_import import widths_on  # noqa: E402 (benchmarks/ first)
+from scans import clean_mesh, scan_of  # noqa: E402
 
 pytest.importorskip("pymeshlab", reason="the scan extra: pip install -e '.[scan]'")
 
@@ -36,25 +37,6 @@ def meshes(tmp_path_factory) -> dict:
     duck = next(p for name, p in real_meshes(DEFAULT_ASSETS, folder) if name == "pybullet duck")
     (can,) = ycb_objects(folder, ["005_tomato_soup_can"])
     return {"duck": clean_mesh(duck), "can": clean_mesh(can)}
-
-
-def _widths(mesh: trimesh.Trimesh, p1: np.ndarray, p2: np.ndarray) -> np.ndarray:
-    """The width along each pinch line on ``mesh``: between the surface points nearest p1 and p2
-    where the line meets it (rays from the pinch's middle both ways)."""
-    u = (p2 - p1) / np.linalg.norm(p2 - p1, axis=1, keepdims=True)
-    mid = (p1 + p2) / 2
-    origins = np.concatenate([mid, mid])
-    hits, ray, _ = mesh.ray.intersects_location(origins, np.concatenate([-u, u]),
-                                                multiple_hits=True)
-    out = np.full(len(p1), np.nan)
-    for k in range(len(p1)):
-        a = hits[ray == k]
-        b = hits[ray == k + len(p1)]
-        if len(a) and len(b):
-            a = a[np.argmin(np.linalg.norm(a - p1[k], axis=1))]
-            b = b[np.argmin(np.linalg.norm(b - p2[k], axis=1))]
-            out[k] = np.linalg.norm(a - b)
-    return out
 
 
 def _import(tmp_path, clean, name, **scan):
@@ -101,7 +83,7 @@ def test_an_imported_scan_keeps_the_objects_mass_and_widths(tmp_path, meshes, ob
     p1, p2 = (poses.pinches.points[seen, k] @ M[:3, :3].T + M[:3, 3] for k in (0, 1))
     width = np.linalg.norm(p2 - p1, axis=1)
     jnd = np.maximum(WIDTH_JND_FRACTION * width, WIDTH_JND_FLOOR_MM)
-    error = np.abs(_widths(prop.mesh, p1, p2) - width) / jnd
+    error = np.abs(widths_on(prop.mesh, p1, p2) - width) / jnd
     assert np.isfinite(error).mean() > 0.95
     error = error[np.isfinite(error)]
     assert np.quantile(error, 0.9) <= 0.25 and error.max() <= 2.0, np.sort(error)[-5:]

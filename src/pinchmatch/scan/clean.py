@@ -49,7 +49,6 @@ class Closed:
 
     mesh: trimesh.Trimesh
     exclude: list = field(default_factory=list)
-    cut_mm: float | None = None
     holes: int = 0
     lines: list = field(default_factory=list)
 
@@ -147,7 +146,7 @@ def close(mesh: trimesh.Trimesh, path, noise_mm: float = 0.0) -> Closed:
     mesh = _manifold(mesh)
     loops = boundary_loops(mesh)
     cut = bottom_cut(mesh, loops)
-    out = Closed(mesh, cut_mm=cut)
+    out = Closed(mesh)
     if cut is not None:
         kept = trimesh.intersections.slice_faces_plane(
             mesh.vertices, mesh.faces, np.array([0.0, 0.0, 1.0]), np.array([0.0, 0.0, cut]))

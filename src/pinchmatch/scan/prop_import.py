@@ -24,9 +24,10 @@ import trimesh
 from ..config import WIDTH_JND_FRACTION
 from ..errors import ConfigError, MeshError
 from ..mesh.frames import check_units
+from ..mesh.regions import Region
 from .clean import close, without_floaters
 from .read import read_scan
-from .surface import MAX_FACES, decimate, rebuild, reconstruct, smooth
+from .surface import MAX_FACES, decimate, flat, rebuild, reconstruct, smooth
 
 #: what a --measured-mm reading may name: an extent along the prop's axes after the cut
 MEASURED_AXES = ("height", "x", "y", "diameter")
@@ -143,22 +144,22 @@ def import_prop(scan_path, props_dir, *, name: str | None = None, units: str | N
     mesh, removed = without_floaters(mesh, scan_path)
     if removed:
         lines.append(removed)
-    thinnest = np.linalg.svd(mesh.vertices - mesh.vertices.mean(axis=0), compute_uv=False)[2]
-    if float(thinnest) < 1e-3 * float(np.ptp(mesh.vertices, axis=0).max()):
+    if flat(mesh.vertices):
         raise MeshError(f"{scan_path}: the scan is flat (a sheet, not an object); scan the object "
                         f"all round")
     mesh, noise = smooth(mesh)  # at the scan's own density: a collapse first would keep its noise
-    lines.append(f"smoothed its noise along the normal: {noise:.2f} mm RMS" if noise == noise else
+    smoothed = bool(np.isfinite(noise))
+    lines.append(f"smoothed its noise along the normal: {noise:.2f} mm RMS" if smoothed else
                  "not smoothed: smoothing would change its shape (a model, not a scan)")
     before = len(mesh.faces)
     mesh = decimate(mesh, int(FACES_BEFORE_CLOSING * faces))  # the fans that close it add a few
     if len(mesh.faces) < before:
         lines.append(f"decimated {before} faces to {len(mesh.faces)}")
     try:
-        closed = close(mesh, scan_path, noise if noise == noise else 0.0)
+        closed = close(mesh, scan_path, noise if smoothed else 0.0)
     except MeshError:  # open edges no face can close as they are: a surface through them
         mesh = rebuild(mesh, scan_path)
-        closed = close(mesh, scan_path, noise if noise == noise else 0.0)
+        closed = close(mesh, scan_path, noise if smoothed else 0.0)
         closed.lines.insert(0, "its open edges could not be closed as they were: the surface was "
                                "rebuilt through them (screened Poisson)")
     lines += closed.lines
@@ -238,9 +239,7 @@ def _write(scan_path: Path, name: str, mesh: trimesh.Trimesh, exclude: list, sca
                     placed @ from_file, lines)
 
 
-def _moved(region, shift: np.ndarray, scale: float):
-    from ..mesh.regions import Region
-
+def _moved(region: Region, shift: np.ndarray, scale: float) -> Region:
     if region.kind == "sphere":
         return Region.sphere((np.array(region.a) + shift) * scale, region.b * scale)
     return Region.box((np.array(region.a) + shift) * scale, (np.array(region.b) + shift) * scale)

@@ -145,14 +145,13 @@ def _read_usd(path: Path) -> tuple[np.ndarray, np.ndarray, float, str]:
     except ImportError:
         raise MeshError(f"{path}: reading USD needs usd-core; install it with "
                         f"pip install 'pinchmatch[scan]'") from None
+    stage, reason = None, "corrupt"
     try:
         stage = Usd.Stage.Open(str(path))
     except Exception as exc:  # pxr raises Tf.ErrorException on a corrupt layer
-        stage, reason = None, str(exc).strip().splitlines()[-1:] or ["corrupt"]
-    else:
-        reason = ["corrupt"]
+        reason = (str(exc).strip().splitlines() or [reason])[-1]
     if stage is None:
-        raise MeshError(f"{path}: cannot open the USD stage ({reason[0][:120]}); export it again")
+        raise MeshError(f"{path}: cannot open the USD stage ({reason[:120]}); export it again")
     meters = (UsdGeom.GetStageMetersPerUnit(stage)
               if stage.HasAuthoredMetadata("metersPerUnit") else USD_DEFAULT_METERS_PER_UNIT)
     up_label = str(UsdGeom.GetStageUpAxis(stage)).lower()

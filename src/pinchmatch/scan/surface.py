@@ -55,14 +55,26 @@ def _meshlab(path):
     return pymeshlab
 
 
+def flat(points: np.ndarray) -> bool:
+    """Is the point set a sheet (its thinnest spread under a thousandth of its widest)?"""
+    spread = np.linalg.svd(points - points.mean(axis=0), compute_uv=False)
+    return bool(spread[2] < 1e-3 * spread[0])
+
+
+def _poisson(ms, *, process: bool) -> trimesh.Trimesh:
+    """The screened Poisson surface of the MeshSet's mesh (its points and normals)."""
+    ms.generate_surface_reconstruction_screened_poisson(depth=POISSON_DEPTH, preclean=True)
+    rebuilt = ms.current_mesh()
+    return trimesh.Trimesh(rebuilt.vertex_matrix(), rebuilt.face_matrix(), process=process)
+
+
 def reconstruct(points: np.ndarray, path) -> trimesh.Trimesh:
     """The surface of a point cloud (mm): screened Poisson, trimmed where the cloud was thin."""
     if len(points) < MIN_CLOUD_POINTS:
         raise MeshError(f"{path}: a point cloud of {len(points)} points is too sparse to rebuild a "
                         f"surface (at least {MIN_CLOUD_POINTS}); export the dense cloud or the "
                         f"mesh")
-    spread = np.linalg.svd(points - points.mean(axis=0), compute_uv=False)
-    if spread[2] < 1e-3 * spread[0]:
+    if flat(points):
         raise MeshError(f"{path}: the point cloud is flat (a sheet, not an object); scan the "
                         f"object all round")
     ml = _meshlab(path)
@@ -72,9 +84,7 @@ def reconstruct(points: np.ndarray, path) -> trimesh.Trimesh:
     ms = ml.MeshSet()
     ms.add_mesh(ml.Mesh(vertex_matrix=np.ascontiguousarray(points, dtype=np.float64)))
     ms.compute_normal_for_point_clouds(k=10, smoothiter=2)
-    ms.generate_surface_reconstruction_screened_poisson(depth=POISSON_DEPTH, preclean=True)
-    rebuilt = ms.current_mesh()
-    mesh = trimesh.Trimesh(rebuilt.vertex_matrix(), rebuilt.face_matrix(), process=False)
+    mesh = _poisson(ms, process=False)
     tree = cKDTree(points)
     spacing = float(np.median(tree.query(points, k=2)[0][:, 1]))
     far, _ = tree.query(mesh.triangles_center)
@@ -96,9 +106,7 @@ def rebuild(mesh: trimesh.Trimesh, path) -> trimesh.Trimesh:
     ms.add_mesh(ml.Mesh(vertex_matrix=np.ascontiguousarray(mesh.vertices, dtype=np.float64),
                         v_normals_matrix=np.ascontiguousarray(mesh.vertex_normals,
                                                               dtype=np.float64)))
-    ms.generate_surface_reconstruction_screened_poisson(depth=POISSON_DEPTH, preclean=True)
-    rebuilt = ms.current_mesh()
-    out = trimesh.Trimesh(rebuilt.vertex_matrix(), rebuilt.face_matrix(), process=True)
+    out = _poisson(ms, process=True)
     trimesh.repair.fix_normals(out)
     if not out.is_watertight or abs(out.volume - _enclosed(mesh)) > 0.05 * abs(_enclosed(mesh)):
         raise MeshError(f"{path}: the scan could not be closed into a solid (its open edges do "
