@@ -16,7 +16,10 @@ With ``--match``: three YCB props (soup can, mustard bottle, mug) matched agains
 once as the clean meshes and once imported from scans of them (0.5 mm of noise, the underside open,
 the height measured). Prints per object whether the best prop is the same and how far the imported
 prop's pinch lies from the clean one's (both mapped into the clean prop's frame; target: the same
-prop and within 5 mm in at least 90 % of the matches).
+prop and within 5 mm in at least 90 % of the matches). Then the match's trust in the scan: the
+scene matched again on the imported props with their scan error set to 0, and for both runs each
+chosen pinch's true error (its features on the imported prop against the clean prop's at the same
+place, in JND) and the uncertainty the match reported.
 """
 
 from __future__ import annotations
@@ -129,16 +132,70 @@ def match_scene(root: Path) -> None:
         same = Path(a["tangible"]).stem == b["tangible"]
         apart = float("nan")
         if same:
-            M = maps[b["tangible"]]
-            pa = np.array([a["tangible_pose"]["p1_mm"], a["tangible_pose"]["p2_mm"]])
-            pb = np.array([b["tangible_pose"]["p1_mm"], b["tangible_pose"]["p2_mm"]])
-            pb = pb @ M[:3, :3].T + M[:3, 3]
+            pa, pb = _contacts(a), _mapped(_contacts(b), maps[b["tangible"]])
             apart = min(np.linalg.norm(pa - pb, axis=1).max(),
                         np.linalg.norm(pa - pb[::-1], axis=1).max())
         good += bool(same and apart <= 5.0)
         print(f"| {name} | {a['tangible']}, {a['cost']:.3f} | {b['tangible']}, {b['cost']:.3f} | "
               f"{'yes' if same else 'no'} | {apart:.1f} |")
     print(f"\nthe same prop and a pinch within 5 mm: {good} of {len(clean)}")
+    trust_effect(root, scene, scanned, maps, dict(zip(PROPS, clean_paths)))
+
+
+def _contacts(match: dict) -> np.ndarray:
+    return np.array([match["tangible_pose"]["p1_mm"], match["tangible_pose"]["p2_mm"]])
+
+
+def _mapped(points: np.ndarray, M: np.ndarray) -> np.ndarray:
+    return points @ M[:3, :3].T + M[:3, 3]
+
+
+def trust_effect(root: Path, scene: list, aware: dict, maps: dict, clean_paths: dict) -> None:
+    """The scene matched on the imported props again with their scan error set to 0 (the match
+    unaware of it), and for both runs each chosen prop pinch's true error: its features on the
+    imported prop against the clean prop's at the same place, pooled in JND as the match pools
+    them (the default criteria). The uncertainty the aware match reports beside it."""
+    import re
+    import shutil
+
+    from pinchmatch.grasp.analysis import analyze_object, score_pinches
+    from pinchmatch.match.cost import CostModel, feature_table, separable_terms
+
+    off = root / "unaware"
+    shutil.copytree(root / "imported", off)
+    text = (off / "props.toml").read_text()
+    (off / "props.toml").write_text(re.sub(r"scan = \{[^}]*\}", "scan = { residual_mm = 0 }", text))
+    unaware = _matches([off / "props.toml"], scene, root / "unaware_out")
+    model, objects = CostModel(), {}
+
+    def table(name: str, path: Path, points: np.ndarray) -> np.ndarray:
+        if path not in objects:
+            objects[path] = analyze_object(path)
+        _, features = score_pinches(objects[path], points[None, 0], points[None, 1])
+        return feature_table(features)
+
+    clean_stl = {}
+    for name, path in clean_paths.items():
+        clean_stl[name] = root / f"clean-{name}.stl"
+        clean_mesh(path).export(clean_stl[name])
+    print("\n| object | aware: prop, true error JND, uncertainty JND | unaware: prop, true error "
+          "JND |")
+    print("|---|---|---|")
+    errors = {"aware": [], "unaware": []}
+    for name in aware:
+        row = []
+        for label, run in (("aware", aware), ("unaware", unaware)):
+            m, prop = run[name], run[name]["tangible"]
+            points = _contacts(m)
+            scanned = table(prop, root / "imported" / f"{prop}.stl", points)
+            true = table(prop, clean_stl[prop], _mapped(points, maps[prop]))
+            error = float(model.pool(separable_terms(true, scanned, model))[0])
+            errors[label].append(error)
+            row.append(f"{prop}, {error:.3f}" + (f", {m['scan_uncertainty_jnd']:.3f}"
+                                                  if label == "aware" else ""))
+        print(f"| {name} | {row[0]} | {row[1]} |")
+    print(f"\nmean true error of the chosen pinches: aware {np.mean(errors['aware']):.3f} JND, "
+          f"unaware {np.mean(errors['unaware']):.3f} JND")
 
 
 def main(argv=None) -> int:

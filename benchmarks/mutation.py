@@ -344,7 +344,7 @@ EQUIVALENT.update({
     ("mesh/distance_field_kernel.py", "e = np.float64(flat[index])", "drop .float64(...)"):
         "numba computes e - slack and e + slack in float64 either way: the float32 value is "
         "promoted exactly",
-    ("match/felt.py", "key = _pose_key(candidates.pinches, int(pose))", "drop int(...)"):
+    ("match/felt.py", "key = pose_key(candidates.pinches, int(pose))", "drop int(...)"):
         "a numpy integer indexes the contacts as an int does: the key's bytes are the same",
     ("grasp/tripods.py", "phi = rng.random(len(ray)) * 2.0 * np.pi", "2.0 -> 4.0"):
         "an angle uniform over two turns is uniform over one: its cosine and sine take the same "

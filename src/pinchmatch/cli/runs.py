@@ -12,7 +12,7 @@ from pathlib import Path
 from ..errors import ConfigError, RunError
 from ..export.documents import OPTIONAL_COLUMNS, matches_legend, scene_stems
 from ..export.notes import (comfort_note, equivalent_note, flipped_note, redirection_note,
-                            reference_note, rest_note)
+                            reference_note, rest_note, scan_note)
 from ..export.sink import MatchesSink
 from ..export.view import write_page
 from ..files import check_writable, read_input, write_atomic
@@ -369,6 +369,9 @@ def print_match(ui, sink, result, run_settings) -> None:
     if note := comfort_note(sink.approaches):
         ui.note(note)
     if note := reference_note(sink.references):
+        ui.note(note)
+    if note := scan_note([(c.name, None if c.obj.spec is None else c.obj.spec.scale_verified)
+                          for c in result.tangibles]):
         ui.note(note)
     if result.failed:
         ui.table(table_rows([("file", "role", "problem")]

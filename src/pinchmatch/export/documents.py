@@ -23,6 +23,7 @@ from ..grasp.features import PinchFeatures, TripodFeatures
 from ..mesh.load import LoadedMesh
 from ..match.candidates import mass_ratio
 from ..match.noticed import contact_offset_mm, criterion_table, p_noticed
+from ..match.trust import uncertainty_jnd
 from ..grasp.pinches import Pinches
 from ..grasp.spread import other_order
 from ..grasp.tripod_rules import FINGERS, Tripods
@@ -298,6 +299,8 @@ def _choice_record(scene, vm, choice, *, full: bool) -> dict:
             choice.approach_elevation_deg, 2),
         "approach_azimuth_deg": None if choice.approach_azimuth_deg is None else json_number(
             choice.approach_azimuth_deg, 2),
+        "scan_uncertainty_jnd": json_number(uncertainty_jnd(T, [choice.t_pose], scene.model)[0],
+                                            4),
     }
     return record
 
@@ -359,7 +362,10 @@ def object_entry(candidates, *, dump_poses: bool = False) -> dict:
              "regions": obj.context.regions.as_dict(),
              "support": None if obj.context.support is None else obj.context.support.as_dict(),
              **object_section(obj.loaded, obj.props, ray_engine=obj.context.ray_engine_name),
-             "pose_count": len(candidates), "poses_given": candidates.given}
+             "pose_count": len(candidates), "poses_given": candidates.given,
+             "scan": None if spec is None or spec.scale_verified is None and spec.scan_noise_mm
+             is None else {"noise_mm": spec.scan_noise_mm, "residual_mm": spec.scan_residual_mm,
+                           "scale_verified": spec.scale_verified}}
     if spec is not None and spec.pose is not None:  # where the prop stands in the level (mm, y up)
         entry["pose"] = {"position_mm": [float(c) for c in spec.pose[0]],
                          "quaternion_xyzw": [float(c) for c in spec.pose[1]]}

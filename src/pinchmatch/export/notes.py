@@ -1,6 +1,7 @@
 """The one-line notes that close a run's summary: what a person should know about the answers as a
 whole (upside-down placements, objects that do not rest on their prop's table or are pinched from
-behind, props that serve as well, what the redirection did). Each reads the rows or records the run
+behind, props that serve as well, what the redirection did, props from scans whose scale nobody
+measured). Each reads the rows or records the run
 kept and returns a line, or None when there is nothing to say."""
 
 from __future__ import annotations
@@ -97,3 +98,17 @@ def redirection_note(redirections: list[dict]) -> str | None:
            "than the margin")
     return (f"placement fixed: {len(led)} of {len(redirections)} virtual objects stay in place, "
             f"the hand redirected{largest}; {carousel} served by the carousel ({why})")
+
+
+def scan_note(props: list[tuple]) -> str | None:
+    """Which props, imported from a scan, have a scale nobody measured: ``props`` [(name, scale
+    verified: True, False or None for a prop not from a scan)] (None when every scan's was)."""
+    unverified = [name for name, verified in props if verified is False]
+    if not unverified:
+        return None
+    shown = ", ".join(unverified[:6]) + (f" and {len(unverified) - 6} more" if len(unverified) > 6
+                                         else "")
+    return (f"scale unverified for {len(unverified)} of {len(props)} props, imported from a scan "
+            f"with no measurement: {shown}; a phone scan's scale is right only with a depth "
+            "sensor, so every width felt on them may be off (measure a height and import again "
+            "with --measured-mm, docs/scans.md)")

@@ -165,6 +165,12 @@ def memo_of(store: dict, owner) -> dict:
     return entry[1]
 
 
+def pose_key(pinches, pose: int) -> bytes:
+    """What a pose's geometry on its object (its landing table, its spread at a scan's noise)
+    depends on besides the object: its contacts and their triangles."""
+    return pinches.points[pose].tobytes() + pinches.face_index[pose].tobytes()
+
+
 def mass_ratio(tangible: Candidates, virtual: Candidates) -> float:
     """m_V / m_T, the virtual object's mass over the tangible's, where both are known; else 1.
 

@@ -49,10 +49,11 @@ import numpy as np
 from ..grasp.features import grasp_features
 from ..grasp.pinches import closing_directions, patches
 from ..grasp.spread import other_order
-from .candidates import Candidates, memo_of, pair_terms
+from .candidates import Candidates, mass_ratio, memo_of, pair_terms, pose_key
 from .cost import CRITERIA, WIDTH_JND_FLOOR_MM, WIDTH_JND_FRACTION, CostModel, feature_table
 from .landing import LANDING_AXIS_DEG, MISS_JND, RING_POINTS, disc_offsets
 from .redirect import seen_turn
+from .trust import scan_variance, spread_terms
 from .refine import close_fingers, move_directions
 from .noticed import criterion_table, p_noticed
 
@@ -346,13 +347,13 @@ class FeltTables:
 
     def _store(self, candidates: Candidates) -> dict:
         """The tables of ``candidates``' object for this radius and these settings, by
-        :func:`_pose_key`."""
+        :func:`~pinchmatch.match.candidates.pose_key`."""
         return memo_of(_LANDINGS, candidates.obj).setdefault(
             (self.radius_mm, self.settings, type(candidates.pinches).__name__), {})
 
     def table(self, candidates: Candidates, pose: int) -> LandingTable:
         store = self._store(candidates)
-        key = _pose_key(candidates.pinches, int(pose))
+        key = pose_key(candidates.pinches, int(pose))
         if key not in store:
             self.prefetch(candidates, [pose])
         return store[key]
@@ -363,20 +364,14 @@ class FeltTables:
         ``LANDING_MEMO_POSES`` newest."""
         store = self._store(candidates)
         missing = sorted({int(p) for p in poses
-                          if _pose_key(candidates.pinches, int(p)) not in store})
+                          if pose_key(candidates.pinches, int(p)) not in store})
         if not missing:
             return
         stacked = landing_tables(candidates, missing, self.radius_mm, self.settings)
         for k, pose in enumerate(missing):
-            store[_pose_key(candidates.pinches, pose)] = _one_table(stacked, k)
+            store[pose_key(candidates.pinches, pose)] = _one_table(stacked, k)
         for key in list(store)[:max(len(store) - LANDING_MEMO_POSES, 0)]:  # the oldest first
             del store[key]
-
-
-def _pose_key(pinches, pose: int) -> bytes:
-    """What a pose's landing table depends on besides its object: its contacts and their
-    triangles."""
-    return pinches.points[pose].tobytes() + pinches.face_index[pose].tobytes()
 
 
 def _matched_points(t: LandingTable, v: LandingTable, R: np.ndarray) -> np.ndarray:
@@ -444,9 +439,12 @@ def felt_cost(tangible: Candidates, virtual: Candidates, choice, model: CostMode
     R_mass = seen_turn(tangible.obj, R, choice.redirect_terms is not None)
     terms, _ = pair_terms(tangible, virtual, t.rows[t_pair], v_rows[keep], model, R=R_mass,
                           t_points=t.points[t_pair], v_points=v.points[keep])
+    scan = _scan_spread(tangible, virtual, choice, model)
+    terms = terms + scan  # the scans' spread: the same at every landing
     cost = np.asarray(model.pool(terms, extra=choice.redirect_terms, rest=choice.rest_jnd),
                       dtype=np.float64)
-    cost[0] = nominal  # the nominal landing is the match itself, to the last bit
+    if not scan.any():
+        cost[0] = nominal  # the nominal landing is the match itself, to the last bit
     miss = float(model.pool(np.full((1, len(CRITERIA)), MISS_JND ** 2)
                             * (np.arange(len(CRITERIA)) == 0))[0])
     cost = np.where(hit, cost, max(miss, float(cost[hit].max()) if hit.any() else miss))
@@ -455,7 +453,8 @@ def felt_cost(tangible: Candidates, virtual: Candidates, choice, model: CostMode
     # the terms depend on the scales alone
     jnd_terms = terms if model.normalize == "jnd" else pair_terms(
         tangible, virtual, t.rows[t_pair], v_rows[keep], jnd_all, R=R_mass,
-        t_points=t.points[t_pair], v_points=v.points[keep])[0]
+        t_points=t.points[t_pair], v_points=v.points[keep])[0] + _scan_spread(
+        tangible, virtual, choice, jnd_all)
     loud = tuple(c for k, c in enumerate(CRITERIA)
                  if c in model.criteria and (jnd_terms[hit, k] >= 1.0).any())
     # a miss is noticed
@@ -465,3 +464,14 @@ def felt_cost(tangible: Candidates, virtual: Candidates, choice, model: CostMode
     return Felt(nominal, float(weights @ cost), float(cost[worst]), float(chance[0]),
                 float(weights @ chance), float(chance[worst]), loud, int(len(keep)),
                 int((~hit).sum()))
+
+
+def _scan_spread(tangible: Candidates, virtual: Candidates, choice, model: CostModel) -> np.ndarray:
+    """(8,) the contribution of both poses' spread at their objects' scan noise
+    (:mod:`pinchmatch.match.trust`; 0 where neither object is from a scan)."""
+    t_var = scan_variance(tangible, [choice.t_pose])
+    v_var = scan_variance(virtual, [choice.v_pose])
+    if choice.swapped:
+        v_var = v_var[:, other_order(v_var.shape[1])]
+    return spread_terms(tangible.table[[choice.t_pose]], t_var, v_var,
+                        mass_ratio(tangible, virtual), model)[0]

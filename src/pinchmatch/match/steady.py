@@ -8,7 +8,8 @@ misses the pairs that feel alike wherever the fingers land. This search finds th
 
 - **per pose, once per object**: the mean μ and the variance σ² of its feature-table rows over
   its own landings (:func:`pinchmatch.match.felt.landing_moments`), on ``MOMENT_RINGS``: the target
-  and eight points at the acceptance radius, weighed by the felt cost's landing distribution. A
+  and eight points at the acceptance radius, weighed by the felt cost's landing distribution, the
+  variance at the scan's noise added for an object from a scan (:mod:`pinchmatch.match.trust`). A
   process keeps each object's moments while the object lives (:func:`moments_of`).
 - **per pair, every pair**: the expected separable cost of two independent landings,
   Σ a ((μ_v − μ_t)² + σ_t² + σ_v²), computed for all pairs by the search's blockwise
@@ -38,6 +39,7 @@ from .cost import separable_terms
 from .felt import landing_moments
 from ..grasp.spread import other_order
 from .search import Choice, Search, evaluate_pairs, pool_pairs, take_pairs
+from .trust import scan_variance, spread_terms
 
 #: the landings the moments are made of: the target and this many points on a ring at the radius
 MOMENT_RINGS = (8,)
@@ -59,8 +61,9 @@ def moments_of(candidates: Candidates, radius_mm: float, settings) -> tuple[np.n
     key = moments_key(radius_mm, settings)
     memo = memo_of(_MOMENTS, candidates)
     if key not in memo:
-        memo[key] = landing_moments(candidates, radius_mm, settings, rings=MOMENT_RINGS,
-                                        patch_spacing_mm=MOMENT_SPACING_SHARE * radius_mm)
+        mean, var = landing_moments(candidates, radius_mm, settings, rings=MOMENT_RINGS,
+                                    patch_spacing_mm=MOMENT_SPACING_SHARE * radius_mm)
+        memo[key] = mean, var + scan_variance(candidates)  # independent: the variances add
     return memo[key]
 
 
@@ -93,10 +96,8 @@ def expected_terms(tangible_moments: tuple, virtual_moments: tuple, ratio: float
     of the means' difference plus that of both variances, in the tangible's scales; ``mass`` at its
     separable bound."""
     (t_mean, t_var), (v_mean, v_var) = tangible_moments, virtual_moments
-    spread = np.sqrt(np.nan_to_num(t_var)
-                     + np.nan_to_num(felt_table(felt_table(v_var, ratio), ratio)))
     return (separable_terms(t_mean, felt_table(v_mean, ratio), model)
-            + separable_terms(t_mean, t_mean + spread, model))
+            + spread_terms(t_mean, t_var, v_var, ratio, model))
 
 
 class SteadySearch:

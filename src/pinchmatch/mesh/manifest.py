@@ -55,8 +55,12 @@ MANIFEST_SUFFIX = ".toml"
 MAX_COORDINATE_MM = 1e6
 #: the keys of an object; ``[defaults]`` takes all but ``file`` and ``name``
 OBJECT_KEYS = ("file", "shape", "name", "units", "up", "com_mm", "axis", "mass_g", "split",
-               "exclude", "only", "pose", "support", "support_mm", "nodes", "skip_nodes")
-DEFAULT_KEYS = tuple(k for k in OBJECT_KEYS if k not in ("file", "shape", "name", "pose"))
+               "exclude", "only", "pose", "support", "support_mm", "nodes", "skip_nodes", "scan")
+DEFAULT_KEYS = tuple(k for k in OBJECT_KEYS if k not in ("file", "shape", "name", "pose", "scan"))
+#: the keys of an object's ``scan`` table (written by ``pinchmatch prop import``)
+SCAN_KEYS = ("noise_mm", "residual_mm", "scale_verified")
+#: a scan noisier than this (mm RMS along the normal) is no surface to pinch
+MAX_SCAN_NOISE_MM = 10.0
 #: a pose's quaternion may be this far from length 1 (then it is normalised); farther, it is no
 #: rotation
 QUATERNION_TOLERANCE = 1e-3
@@ -193,6 +197,8 @@ def _options(table: dict, where: str, problems: _Problems) -> dict:
                 problems.add(where, key,
                              "must be a glob of node names or paths, or a list of them, as "
                                          f'{key} = ["counter*", "Kitchen/Wall_?"]')
+    if "scan" in table:
+        out |= _scan(table["scan"], where, problems)
     if "pose" in table:
         pose = _pose(table["pose"], where, problems)
         if pose is not None:
@@ -217,6 +223,25 @@ def _options(table: dict, where: str, problems: _Problems) -> dict:
             problems.add(where, "support_mm", f"must be a height in mm along the prop's up, within "
                                               f"{MAX_COORDINATE_MM:g} mm of its origin")
     return out
+
+
+def _scan(value, where: str, problems: _Problems) -> dict:
+    """The spec's fields of a ``scan`` table: ``{ noise_mm = 0.6, residual_mm = 0.1,
+    scale_verified = false }``."""
+    fix = ("must be a table as { noise_mm = 0.6, residual_mm = 0.1, scale_verified = false }: the "
+           f"noise its smoothing took out and the error it left, in mm RMS (0 to "
+           f"{MAX_SCAN_NOISE_MM:g}), and whether its scale was measured")
+    if not isinstance(value, dict) or set(value) - set(SCAN_KEYS):
+        problems.add(where, "scan", fix)
+        return {}
+    noise, left = value.get("noise_mm"), value.get("residual_mm")
+    verified = value.get("scale_verified")
+    if any(n is not None and not (_number(n) and 0 <= n <= MAX_SCAN_NOISE_MM) for n in (noise, left)
+           ) or (verified is not None and not isinstance(verified, bool)):
+        problems.add(where, "scan", fix)
+        return {}
+    return {"scan_noise_mm": None if noise is None else float(noise),
+            "scan_residual_mm": None if left is None else float(left), "scale_verified": verified}
 
 
 def _pose(value, where: str, problems: _Problems) -> tuple | None:

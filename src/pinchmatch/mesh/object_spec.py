@@ -15,7 +15,8 @@ from .regions import ContactRegions, Region
 
 #: the fields of an :class:`ObjectSpec` that do not shape its candidates
 NOT_SHAPE = frozenset({"path", "name", "mass_g", "split", "node_path", "manifest", "nodes",
-                       "skip_nodes"})
+                       "skip_nodes", "scan_noise_mm", "scan_residual_mm",
+                       "scale_verified"})
 
 
 @dataclass(frozen=True)
@@ -50,6 +51,12 @@ class ObjectSpec:
     # none that matches one of these
     nodes: tuple = ()
     skip_nodes: tuple = ()
+    # a prop imported from a scan (``pinchmatch prop import``): the noise its smoothing took out
+    # and the error it left (mm RMS along the normal), and whether its scale was checked against a
+    # measurement
+    scan_noise_mm: float | None = None
+    scan_residual_mm: float | None = None
+    scale_verified: bool | None = None
 
     @property
     def display_name(self) -> str:
@@ -85,7 +92,9 @@ def spec_to_dict(spec: ObjectSpec) -> dict:
             "mass_g": spec.mass_g, "regions": spec.regions.as_dict(), "split": spec.split,
             "node": spec.node, "node_path": spec.node_path, "manifest": spec.manifest,
             "pose": None if spec.pose is None else [list(spec.pose[0]), list(spec.pose[1])],
-            "support": spec.support, "rests_on_mm": spec.rests_on_mm, "level_up": spec.level_up}
+            "support": spec.support, "rests_on_mm": spec.rests_on_mm, "level_up": spec.level_up,
+            "scan_noise_mm": spec.scan_noise_mm, "scan_residual_mm": spec.scan_residual_mm,
+            "scale_verified": spec.scale_verified}
 
 
 def spec_from_dict(d: dict) -> ObjectSpec:
@@ -103,4 +112,6 @@ def spec_from_dict(d: dict) -> ObjectSpec:
                       manifest=d["manifest"], pose=None if d.get("pose") is None
                       else (tuple(d["pose"][0]), tuple(d["pose"][1])),
                       support=d.get("support"), rests_on_mm=d.get("rests_on_mm"),
-                      level_up=d.get("level_up"))
+                      level_up=d.get("level_up"), scan_noise_mm=d.get("scan_noise_mm"),
+                      scan_residual_mm=d.get("scan_residual_mm"),
+                      scale_verified=d.get("scale_verified"))

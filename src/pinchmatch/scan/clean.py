@@ -51,6 +51,8 @@ class Closed:
     exclude: list = field(default_factory=list)
     holes: int = 0
     lines: list = field(default_factory=list)
+    #: an open bottom cut flat: how far above the scan's lowest point (mm); None: it was closed
+    cut_above_mm: float | None = None
 
 
 def without_floaters(mesh: trimesh.Trimesh, path) -> tuple[trimesh.Trimesh, str | None]:
@@ -160,6 +162,7 @@ def close(mesh: trimesh.Trimesh, path, noise_mm: float = 0.0) -> Closed:
         out.exclude.append(Region.box([lo[0] - 1, lo[1] - 1, cut - CAP_MARK_MM],
                                       [hi[0] + 1, hi[1] + 1, cut + CAP_MARK_MM]))
         above = cut - float(out.mesh.vertices[:, 2].min())
+        out.cut_above_mm = above
         out.lines.append(f"cut the open bottom flat {above:.1f} mm above the scan's lowest point, "
                          f"and closed it")
     else:

@@ -5,9 +5,11 @@ The scan is read (:mod:`.read`), a point cloud rebuilt (:mod:`.surface`), the fl
 noise smoothed, the bottom cut flat and closed and every hole filled (:mod:`.clean`), the faces
 decimated, and the scale checked against a reading taken with a ruler or a caliper. Written into
 PROPS_DIR: ``NAME.stl`` (binary, mm, +Z up, the bottom's middle at the origin) and an
-``[[object]]`` entry in ``PROPS_DIR/props.toml`` (units, up, mass, and the regions never seen as
-``exclude``), added to the manifest already there. Nothing is written unless all of it can be: the
-files go in whole, and a name already in the folder is refused, never overwritten.
+``[[object]]`` entry in ``PROPS_DIR/props.toml`` (units, up, mass, the regions never seen as
+``exclude``, and as ``scan`` the noise the smoothing took out, what it left and whether the scale
+was measured),
+added to the manifest already there. Nothing is written unless all of it can be: the files go in
+whole, and a name already in the folder is refused, never overwritten.
 """
 
 from __future__ import annotations
@@ -27,7 +29,7 @@ from ..mesh.frames import check_units
 from ..mesh.regions import Region
 from .clean import close, without_floaters
 from .read import read_scan
-from .surface import MAX_FACES, decimate, flat, rebuild, reconstruct, smooth
+from .surface import MAX_FACES, decimate, flat, rebuild, reconstruct, residual, smooth
 
 #: what a --measured-mm reading may name: an extent along the prop's axes after the cut
 MEASURED_AXES = ("height", "x", "y", "diameter")
@@ -52,6 +54,8 @@ class Imported:
     mesh: trimesh.Trimesh
     exclude: list
     noise_mm: float
+    #: the error the smoothing left (mm RMS), what the match's trust in a pinch is measured at
+    residual_mm: float
     scale: float
     scale_verified: bool
     #: (4, 4) the scan file's coordinates to the prop's (mm, +Z up, the bottom's middle at 0)
@@ -149,7 +153,9 @@ def import_prop(scan_path, props_dir, *, name: str | None = None, units: str | N
                         f"all round")
     mesh, noise = smooth(mesh)  # at the scan's own density: a collapse first would keep its noise
     smoothed = bool(np.isfinite(noise))
-    lines.append(f"smoothed its noise along the normal: {noise:.2f} mm RMS" if smoothed else
+    left = residual(mesh, noise) if smoothed else 0.0
+    lines.append(f"smoothed its noise along the normal: {noise:.2f} mm RMS, {left:.2f} mm left"
+                 if smoothed else
                  "not smoothed: smoothing would change its shape (a model, not a scan)")
     before = len(mesh.faces)
     mesh = decimate(mesh, int(FACES_BEFORE_CLOSING * faces))  # the fans that close it add a few
@@ -169,10 +175,16 @@ def import_prop(scan_path, props_dir, *, name: str | None = None, units: str | N
     scale, verified = 1.0, reading is not None
     if reading is not None:
         axis, value = reading
-        scale = value / _extent(mesh, axis)
+        # a height reading runs from where it stood: the scan's lowest point, not the cut's
+        below = closed.cut_above_mm if axis == "height" and closed.cut_above_mm else 0.0
+        scale = value / (_extent(mesh, axis) + below)
+        if below:
+            lines.append(f"its bottom was open and cut {below:.1f} mm above its lowest point: the "
+                         f"height reading counts from that point, where it stood")
         if not 1 / MAX_SCALE_FACTOR <= scale <= MAX_SCALE_FACTOR:
             raise MeshError(f"{scan_path}: --measured-mm {axis}={value:g} disagrees with the "
-                            f"scan's {_extent(mesh, axis):.1f} mm by {scale:.2f}x; check the axis "
+                            f"scan's {_extent(mesh, axis) + below:.1f} mm by {scale:.2f}x; check "
+                            f"the axis "
                             f"and the units (--units), or measure again")
         off = abs(scale - 1.0)
         lines.append(f"scaled by {scale:.4f} to the measured {axis} of {value:g} mm" + (
@@ -182,8 +194,9 @@ def import_prop(scan_path, props_dir, *, name: str | None = None, units: str | N
     else:
         lines.append("scale unverified: no --measured-mm reading; a phone scan's scale is right "
                      "only with a depth sensor (measure the height and import again)")
-    return _write(scan_path, name, mesh, closed.exclude, scale, verified, noise, mass_g,
-                  mesh_path, manifest, lines, scan.from_file)
+    return _write(scan_path, name, mesh, closed.exclude, scale, verified,
+                  (noise if smoothed else 0.0, left), mass_g, mesh_path, manifest, lines,
+                  scan.from_file)
 
 
 def _check_rebuilt(mesh: trimesh.Trimesh, points: np.ndarray, path: Path) -> None:
@@ -211,7 +224,7 @@ def _check_free(mesh_path: Path, manifest: Path, name: str) -> None:
 
 
 def _write(scan_path: Path, name: str, mesh: trimesh.Trimesh, exclude: list, scale: float,
-           verified: bool, noise: float, mass_g, mesh_path: Path, manifest: Path,
+           verified: bool, noise: tuple, mass_g, mesh_path: Path, manifest: Path,
            lines: list, from_file: np.ndarray) -> Imported:
     """The prop scaled, its bottom's middle put at the origin, written whole (mesh then manifest:
     each into a temporary file renamed into place)."""
@@ -221,6 +234,7 @@ def _write(scan_path: Path, name: str, mesh: trimesh.Trimesh, exclude: list, sca
     mesh.apply_translation(shift)
     mesh.apply_scale(scale)
     regions = [_moved(r, shift, scale) for r in exclude]
+    noise = tuple(scale * float(n) for n in noise)  # (removed, left), mm of the prop
     entry = _entry(scan_path, name, mass_g, regions, verified, noise)
     mesh_path.parent.mkdir(parents=True, exist_ok=True)
     old = manifest.read_text(encoding="utf-8") if manifest.is_file() else ""
@@ -235,7 +249,7 @@ def _write(scan_path: Path, name: str, mesh: trimesh.Trimesh, exclude: list, sca
                  f"its entry in {manifest}")
     placed = np.diag([scale, scale, scale, 1.0])
     placed[:3, 3] = shift * scale
-    return Imported(name, mesh_path, manifest, mesh, regions, noise, scale, verified,
+    return Imported(name, mesh_path, manifest, mesh, regions, noise[0], noise[1], scale, verified,
                     placed @ from_file, lines)
 
 
@@ -246,7 +260,7 @@ def _moved(region: Region, shift: np.ndarray, scale: float) -> Region:
 
 
 def _entry(scan_path: Path, name: str, mass_g, regions: list, verified: bool,
-           noise: float) -> str:
+           noise: tuple) -> str:
     def number(x) -> str:
         return f"{float(x):.3f}".rstrip("0").rstrip(".")
 
@@ -256,13 +270,16 @@ def _entry(scan_path: Path, name: str, mass_g, regions: list, verified: bool,
             f"{k} = [{', '.join(number(v) for v in d[k])}]" if isinstance(d[k], list) else
             f"{k} = {number(d[k])}" for k in d) + " }"
 
-    head = [f"# from the scan {scan_path.name}: noise {noise:.2f} mm RMS, scale "
+    head = [f"# from the scan {scan_path.name}: noise {noise[0]:.2f} mm RMS, scale "
             f"{'checked against a measurement' if verified else 'unverified'}; the regions "
             f"under exclude were never seen (the bottom where it stood, the holes closed)",
             "[[object]]", f'file = "{name}.stl"', f'name = "{name}"', 'units = "mm"', 'up = "z"']
     if mass_g is not None:
         head.append(f"mass_g = {number(mass_g)}")
     head.append("exclude = [" + ", ".join(region(r) for r in regions) + "]")
+    # the noise the smoothing took out and what it left: the match's trust in each pinch
+    head.append(f"scan = {{ noise_mm = {number(noise[0])}, residual_mm = {number(noise[1])}, "
+                f"scale_verified = {'true' if verified else 'false'} }}")
     return "\n".join(head) + "\n"
 
 

@@ -130,6 +130,23 @@ def smooth(mesh: trimesh.Trimesh) -> tuple[trimesh.Trimesh, float]:
     return smoothed, float(np.sqrt(np.mean(moved ** 2))) if len(moved) else 0.0
 
 
+def residual(smoothed: trimesh.Trimesh, noise_mm: float, *, seed: int = 0) -> float:
+    """The error the smoothing leaves (mm RMS along the normal): ``smoothed`` given a fresh draw of
+    Gaussian noise of ``noise_mm`` along its normals and smoothed again as :func:`smooth` does, its
+    distance from ``smoothed``. At the scan's own density, before any decimation: what the prop's
+    surface is still off by, for :mod:`pinchmatch.match.trust`."""
+    if not np.isfinite(noise_mm) or noise_mm <= 0 or not len(smoothed.vertices):
+        return 0.0
+    normals = smoothed.vertex_normals.copy()
+    draw = np.random.default_rng(seed).standard_normal(len(normals))
+    again = smoothed.copy()
+    again.vertices = smoothed.vertices + normals * (noise_mm * draw)[:, None]
+    trimesh.smoothing.filter_taubin(again, lamb=TAUBIN_LAMBDA, nu=TAUBIN_MU,
+                                    iterations=TAUBIN_PASSES)
+    off = np.einsum("nd,nd->n", again.vertices - smoothed.vertices, normals)
+    return float(np.sqrt(np.mean(off ** 2)))
+
+
 def _enclosed(mesh: trimesh.Trimesh) -> float:
     """The volume the faces enclose as seen from their centroid (an open scan's too: the cones
     from the centroid to each face, summed with their signs)."""
