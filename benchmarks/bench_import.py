@@ -17,7 +17,7 @@ once as the clean meshes and once imported from scans of them (0.5 mm of noise, 
 the height measured). Prints per object whether the best prop is the same and how far the imported
 prop's pinch lies from the clean one's (both mapped into the clean prop's frame; target: the same
 prop and within 5 mm in at least 90 % of the matches). Then the match's trust in the scan: the
-scene matched again on the imported props with their scan error set to 0, and for both runs each
+scene matched again on the imported props with ``--scan-trust``, and for both runs each
 chosen pinch's true error (its features on the imported prop against the clean prop's at the same
 place, in JND) and the uncertainty the match reported.
 """
@@ -97,13 +97,13 @@ SCENE = ["010_potted_meat_can", "011_banana", "013_apple", "024_bowl", "033_spat
          "048_hammer", "065-a_cups", "037_scissors"]
 
 
-def _matches(props: list, scene: list, out: Path) -> dict:
+def _matches(props: list, scene: list, out: Path, *options: str) -> dict:
     import json
     import subprocess
 
     subprocess.run([sys.executable, "-m", "pinchmatch", "match", "--tangible", *map(str, props),
                     "--virtual", *map(str, scene), "-o", str(out), "--no-view", "--jobs", "2",
-                    "-q", "--no-cache"], check=True)
+                    "-q", "--no-cache", *options], check=True)
     doc = json.loads((out / "matches.json").read_text())
     return {m["virtual"]: m for m in doc["matches"]}
 
@@ -150,52 +150,54 @@ def _mapped(points: np.ndarray, M: np.ndarray) -> np.ndarray:
     return points @ M[:3, :3].T + M[:3, 3]
 
 
-def trust_effect(root: Path, scene: list, aware: dict, maps: dict, clean_paths: dict) -> None:
-    """The scene matched on the imported props again with their scan error set to 0 (the match
-    unaware of it), and for both runs each chosen prop pinch's true error: its features on the
-    imported prop against the clean prop's at the same place, pooled in JND as the match pools
-    them (the default criteria). The uncertainty the aware match reports beside it."""
-    import re
-    import shutil
-
+def trust_effect(root: Path, scene: list, unaware: dict, maps: dict, clean_paths: dict) -> None:
+    """The scene matched on the imported props again with ``--scan-trust`` (the match weighing each
+    pinch by its uncertainty at the scan's error), beside the default's run. For both runs, each chosen prop pinch: its features on the imported prop
+    against the clean prop's at the same place (the error the scan left, pooled in JND as the match
+    pools them), and what the hand would feel there: the virtual pinch against the clean prop, on
+    target (the separable cost, the mass term at its bound), beside the same on the imported prop.
+    The uncertainty each match reports beside them."""
     from pinchmatch.grasp.analysis import analyze_object, score_pinches
     from pinchmatch.match.cost import CostModel, feature_table, separable_terms
 
-    off = root / "unaware"
-    shutil.copytree(root / "imported", off)
-    text = (off / "props.toml").read_text()
-    (off / "props.toml").write_text(re.sub(r"scan = \{[^}]*\}", "scan = { residual_mm = 0 }", text))
-    unaware = _matches([off / "props.toml"], scene, root / "unaware_out")
+    aware = _matches([root / "imported" / "props.toml"], scene, root / "aware_out",
+                     "--scan-trust")
     model, objects = CostModel(), {}
+    scene_paths = {Path(p).name: Path(p) for p in scene}
 
-    def table(name: str, path: Path, points: np.ndarray) -> np.ndarray:
+    def table(path: Path, points: np.ndarray) -> np.ndarray:
         if path not in objects:
             objects[path] = analyze_object(path)
         _, features = score_pinches(objects[path], points[None, 0], points[None, 1])
         return feature_table(features)
 
+    def cost(t_rows: np.ndarray, v_rows: np.ndarray) -> float:
+        return float(model.pool(separable_terms(t_rows, v_rows, model))[0])
+
     clean_stl = {}
     for name, path in clean_paths.items():
         clean_stl[name] = root / f"clean-{name}.stl"
         clean_mesh(path).export(clean_stl[name])
-    print("\n| object | aware: prop, true error JND, uncertainty JND | unaware: prop, true error "
-          "JND |")
-    print("|---|---|---|")
-    errors = {"aware": [], "unaware": []}
+    print("\n| object | run | prop | scan error JND | uncertainty JND | cost on the scan | "
+          "cost on the object |")
+    print("|---|---|---|---:|---:|---:|---:|")
+    sums = {"--scan-trust": np.zeros(3), "default": np.zeros(3)}
     for name in aware:
-        row = []
-        for label, run in (("aware", aware), ("unaware", unaware)):
+        for label, run in (("--scan-trust", aware), ("default", unaware)):
             m, prop = run[name], run[name]["tangible"]
             points = _contacts(m)
-            scanned = table(prop, root / "imported" / f"{prop}.stl", points)
-            true = table(prop, clean_stl[prop], _mapped(points, maps[prop]))
-            error = float(model.pool(separable_terms(true, scanned, model))[0])
-            errors[label].append(error)
-            row.append(f"{prop}, {error:.3f}" + (f", {m['scan_uncertainty_jnd']:.3f}"
-                                                  if label == "aware" else ""))
-        print(f"| {name} | {row[0]} | {row[1]} |")
-    print(f"\nmean true error of the chosen pinches: aware {np.mean(errors['aware']):.3f} JND, "
-          f"unaware {np.mean(errors['unaware']):.3f} JND")
+            v_points = np.array([m["virtual_pose"]["p1_mm"], m["virtual_pose"]["p2_mm"]])
+            scanned = table(root / "imported" / f"{prop}.stl", points)
+            true = table(clean_stl[prop], _mapped(points, maps[prop]))
+            seen = table(scene_paths[name], v_points)
+            row = np.array([cost(true, scanned), cost(scanned, seen), cost(true, seen)])
+            sums[label] += row
+            print(f"| {name} | {label} | {prop} | {row[0]:.3f} | "
+                  f"{m['scan_uncertainty_jnd']:.3f} | {row[1]:.3f} | {row[2]:.3f} |")
+    for label, total in sums.items():
+        mean = total / len(aware)
+        print(f"\n{label}: mean scan error {mean[0]:.3f} JND; on target, the virtual pinch costs "
+              f"{mean[1]:.3f} on the scan and {mean[2]:.3f} on the object")
 
 
 def main(argv=None) -> int:

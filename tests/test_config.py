@@ -29,6 +29,7 @@ CHANGED = {
     "snap_tolerance_mm": "3", "finger_radius_mm": "6.5", "finger_length_mm": "40",
     "approach_tilt_deg": "20", "finger_splay_deg": "5", "grasp": "tripod",
     "weights": "width=3", "criteria": "paper", "normalize": "range", "pooling": "sum", "top_k": "1",
+    "scan_trust": None,
     "one_to_one": None, "keep_upright": None, "distinct_mm": "40", "refine": "off",
     "landing_mm": "3", "rank": "nominal", "placement": "fixed", "hand_start_mm": "40,180,260",
     "redirect_threshold_deg": "6", "max_redirect_deg": "9", "axis_threshold_deg": "25",

@@ -83,16 +83,18 @@ def test_an_object_not_from_a_scan_has_no_spread_and_costs_what_it_did(cylinders
 
 def test_the_felt_cost_adds_each_criterions_expected_squared_difference(tmp_path, cylinders):
     """Under ``sum`` pooling a cost is linear in the contributions, so the felt cost at a scan's
-    error is the felt cost without it plus Σ_c w_c mean_entries(σ² / s²), computed here from the
-    spread and the JND table directly; the nominal cost does not move."""
+    error is the felt cost without it plus Σ_c w_c mean_entries(σ² / s²), s the JND of the value
+    two σ nearer 0, computed here from the spread and the JND table directly, under
+    ``--scan-trust``; the nominal cost does not move."""
     a, _ = cylinders
     ball = sphere(20.0, faces=8000).mesh
     ball.export(tmp_path / "ball.stl")
     V = candidate_poses(analyze_object(tmp_path / "ball.stl"), settings=SETTINGS)
     scanned = dataclasses.replace(a, obj=_scanned(a.obj, 0.2))
-    settings = MatchSettings(top_k=2, pooling="sum")
+    settings = MatchSettings(top_k=2, pooling="sum", scan_trust=True)
     scene = match_scene([scanned], [V], settings=settings, pinch_settings=SETTINGS)
     model = scene.model
+    default = dataclasses.replace(model, scan_trust=False)
     for choice in [scene.matches[0].best] + scene.matches[0].alternatives:
         T, Vc = scene.objects(scene.matches[0])[0][0], scene.objects(scene.matches[0])[1]
         with_error = felt_cost(T, Vc, choice, model, FeltTables(5.0, SETTINGS))
@@ -100,7 +102,9 @@ def test_the_felt_cost_adds_each_criterions_expected_squared_difference(tmp_path
         without = felt_cost(plain, Vc, choice, model, FeltTables(5.0, SETTINGS))
         var = scan_variance(T, [choice.t_pose])[0]  # (2, 9)
         row = T.table[choice.t_pose]
-        s = model.scales(row[None])[0]
+        # the JND of the least value each feature may have: two standard deviations nearer 0
+        least = np.sign(row) * np.maximum(np.abs(row) - 2.0 * np.sqrt(var), 0.0)
+        s = model.scales(least[None])[0]
         per_column = (var / s ** 2).mean(axis=0)  # the two patches' mean
         oracle = np.zeros(len(CRITERIA))
         np.add.at(oracle, COLUMN_CRITERION, per_column)
@@ -109,6 +113,8 @@ def test_the_felt_cost_adds_each_criterions_expected_squared_difference(tmp_path
         assert with_error.nominal == without.nominal == pytest.approx(choice.cost_nominal)
         assert with_error.expected - without.expected == pytest.approx(added, rel=1e-6)
         assert with_error.worst - without.worst == pytest.approx(added, rel=1e-6)
+        # without --scan-trust the spread is reported, never weighed
+        assert felt_cost(T, Vc, choice, default, FeltTables(5.0, SETTINGS)) == without
 
 
 def test_the_manifests_scan_table_is_read_and_checked(tmp_path):

@@ -329,6 +329,11 @@ class MatchSettings:
     pooling: str = option("quick", group="cost", kind="choice", choices=POOLINGS,
                           help="quick: probability summation of the criteria in JND; sum: the "
                                "paper's sum of squares")
+    scan_trust: bool = option(False, group="cost", kind="flag",
+                              help="weigh each pinch on a prop imported from a scan by how far "
+                                   "the scan's error makes its features uncertain (off: on YCB "
+                                   "scans it chose pinches that felt worse on the object; "
+                                   "docs/scans.md)")
     top_k: int = option(3, group="match", kind="int",
                         help="distinct alternatives per virtual object")
     one_to_one: bool = option(False, group="assignment", kind="flag",

@@ -151,6 +151,8 @@ class CostModel:
     rest_mm_per_jnd : (sink, hover), the mm of visible gap between a placed object and its prop's
     support
         that cost one JND (:mod:`pinchmatch.match.rest`)
+    scan_trust : the expected cost adds the spread of a scanned prop's features at its scan's
+        error (:mod:`pinchmatch.match.trust`)
 
     >>> model = CostModel({"width": 2.0})
     >>> model.weights["width"], model.weights["com"], model.weights["kmax"]
@@ -165,6 +167,7 @@ class CostModel:
     criteria: tuple = DEFAULT_CRITERIA
     pooling: str = "quick"
     rest_mm_per_jnd: tuple = (REST_SINK_MM_PER_JND, REST_FLOAT_MM_PER_JND)
+    scan_trust: bool = False
 
     def __post_init__(self):
         if self.normalize not in ("jnd", "range"):
@@ -192,7 +195,7 @@ class CostModel:
         """The same criteria, weights and pooling, in just-noticeable differences (for
         ``p_noticed``)."""
         return CostModel(self.weights, "jnd", None, self.criteria, self.pooling,
-                         self.rest_mm_per_jnd)
+                         self.rest_mm_per_jnd, self.scan_trust)
 
     def weight_vector(self) -> np.ndarray:
         """(8,) the weights in the order of :data:`CRITERIA`."""

@@ -53,7 +53,7 @@ from .candidates import Candidates, mass_ratio, memo_of, pair_terms, pose_key
 from .cost import CRITERIA, WIDTH_JND_FLOOR_MM, WIDTH_JND_FRACTION, CostModel, feature_table
 from .landing import LANDING_AXIS_DEG, MISS_JND, RING_POINTS, disc_offsets
 from .redirect import seen_turn
-from .trust import scan_variance, spread_terms
+from .trust import least, scan_variance, spread_terms
 from .refine import close_fingers, move_directions
 from .noticed import criterion_table, p_noticed
 
@@ -439,11 +439,12 @@ def felt_cost(tangible: Candidates, virtual: Candidates, choice, model: CostMode
     R_mass = seen_turn(tangible.obj, R, choice.redirect_terms is not None)
     terms, _ = pair_terms(tangible, virtual, t.rows[t_pair], v_rows[keep], model, R=R_mass,
                           t_points=t.points[t_pair], v_points=v.points[keep])
-    scan = _scan_spread(tangible, virtual, choice, model)
-    terms = terms + scan  # the scans' spread: the same at every landing
+    scan = model.scan_trust and _scan_spread(tangible, virtual, choice, model)
+    if scan is not False:
+        terms = terms + scan  # the scans' spread: the same at every landing
     cost = np.asarray(model.pool(terms, extra=choice.redirect_terms, rest=choice.rest_jnd),
                       dtype=np.float64)
-    if not scan.any():
+    if scan is False or not scan.any():
         cost[0] = nominal  # the nominal landing is the match itself, to the last bit
     miss = float(model.pool(np.full((1, len(CRITERIA)), MISS_JND ** 2)
                             * (np.arange(len(CRITERIA)) == 0))[0])
@@ -453,8 +454,8 @@ def felt_cost(tangible: Candidates, virtual: Candidates, choice, model: CostMode
     # the terms depend on the scales alone
     jnd_terms = terms if model.normalize == "jnd" else pair_terms(
         tangible, virtual, t.rows[t_pair], v_rows[keep], jnd_all, R=R_mass,
-        t_points=t.points[t_pair], v_points=v.points[keep])[0] + _scan_spread(
-        tangible, virtual, choice, jnd_all)
+        t_points=t.points[t_pair], v_points=v.points[keep])[0] + (
+        _scan_spread(tangible, virtual, choice, jnd_all) if model.scan_trust else 0.0)
     loud = tuple(c for k, c in enumerate(CRITERIA)
                  if c in model.criteria and (jnd_terms[hit, k] >= 1.0).any())
     # a miss is noticed
@@ -467,11 +468,11 @@ def felt_cost(tangible: Candidates, virtual: Candidates, choice, model: CostMode
 
 
 def _scan_spread(tangible: Candidates, virtual: Candidates, choice, model: CostModel) -> np.ndarray:
-    """(8,) the contribution of both poses' spread at their objects' scan noise
-    (:mod:`pinchmatch.match.trust`; 0 where neither object is from a scan)."""
+    """(8,) the contribution of both poses' spread at their objects' scan error, under
+    ``--scan-trust`` (:mod:`pinchmatch.match.trust`; 0 where neither object is from a scan)."""
     t_var = scan_variance(tangible, [choice.t_pose])
     v_var = scan_variance(virtual, [choice.v_pose])
     if choice.swapped:
         v_var = v_var[:, other_order(v_var.shape[1])]
-    return spread_terms(tangible.table[[choice.t_pose]], t_var, v_var,
+    return spread_terms(least(tangible.table[[choice.t_pose]], t_var), t_var, v_var,
                         mass_ratio(tangible, virtual), model)[0]

@@ -103,7 +103,8 @@ def cost_model(settings: MatchSettings, candidates: list[Candidates], *,
     return CostModel(dict(settings.weights), settings.normalize,
                      ranges if settings.normalize == "range" else None, tuple(settings.criteria),
                      settings.pooling,
-                     (settings.rest_sink_mm_per_jnd, settings.rest_float_mm_per_jnd))
+                     (settings.rest_sink_mm_per_jnd, settings.rest_float_mm_per_jnd),
+                     settings.scan_trust)
 
 
 def evaluate_pairs(

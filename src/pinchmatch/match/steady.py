@@ -8,9 +8,9 @@ misses the pairs that feel alike wherever the fingers land. This search finds th
 
 - **per pose, once per object**: the mean μ and the variance σ² of its feature-table rows over
   its own landings (:func:`pinchmatch.match.felt.landing_moments`), on ``MOMENT_RINGS``: the target
-  and eight points at the acceptance radius, weighed by the felt cost's landing distribution, the
-  variance at the scan's noise added for an object from a scan (:mod:`pinchmatch.match.trust`). A
-  process keeps each object's moments while the object lives (:func:`moments_of`).
+  and eight points at the acceptance radius, weighed by the felt cost's landing distribution (with
+  ``--scan-trust``, a scanned prop's variance at its scan's error added: :mod:`pinchmatch.match.
+  trust`). A process keeps each object's moments while the object lives (:func:`moments_of`).
 - **per pair, every pair**: the expected separable cost of two independent landings,
   Σ a ((μ_v − μ_t)² + σ_t² + σ_v²), computed for all pairs by the search's blockwise
   matrix products at the price of one more pass (the ``spreads`` of
@@ -39,7 +39,7 @@ from .cost import separable_terms
 from .felt import landing_moments
 from ..grasp.spread import other_order
 from .search import Choice, Search, evaluate_pairs, pool_pairs, take_pairs
-from .trust import scan_variance, spread_terms
+from .trust import scan_terms, scan_variance, spread_terms
 
 #: the landings the moments are made of: the target and this many points on a ring at the radius
 MOMENT_RINGS = (8,)
@@ -61,9 +61,8 @@ def moments_of(candidates: Candidates, radius_mm: float, settings) -> tuple[np.n
     key = moments_key(radius_mm, settings)
     memo = memo_of(_MOMENTS, candidates)
     if key not in memo:
-        mean, var = landing_moments(candidates, radius_mm, settings, rings=MOMENT_RINGS,
-                                    patch_spacing_mm=MOMENT_SPACING_SHARE * radius_mm)
-        memo[key] = mean, var + scan_variance(candidates)  # independent: the variances add
+        memo[key] = landing_moments(candidates, radius_mm, settings, rings=MOMENT_RINGS,
+                                        patch_spacing_mm=MOMENT_SPACING_SHARE * radius_mm)
     return memo[key]
 
 
@@ -122,8 +121,12 @@ class SteadySearch:
         T, V, model, settings = (search.tangibles[t], search.virtuals[0], search.model,
                                  search.settings)
         mt = moments_of(self.sampled_tangibles[t], self.radius_mm, self.pinch_settings)
+        pooled = mt
+        if model.scan_trust:  # independent of the landings: the variances add
+            pooled = mt[0], mt[1] + scan_variance(self.sampled_tangibles[t])
         mv = moments_of(self.sampled_virtual, self.radius_mm, self.pinch_settings)
-        it, iv, _, _ = pool_pairs(T, V, model, STEADY_POOL, settings.block_rows, moments=(mt, mv),
+        it, iv, _, _ = pool_pairs(T, V, model, STEADY_POOL, settings.block_rows,
+                                  moments=(pooled, mv),
                                   redirect=settings.redirect, user_mm=settings.user_mm)
         order = np.lexsort((iv, it))  # the pool's own order depends on its blocks
         it, iv = it[order], iv[order]
@@ -133,6 +136,8 @@ class SteadySearch:
         v_mean = np.where(swapped, mv[0][iv][:, other], mv[0][iv])
         v_var = np.where(swapped, mv[1][iv][:, other], mv[1][iv])
         terms = expected_terms((mt[0][it], mt[1][it]), (v_mean, v_var), mass_ratio(T, V), model)
+        if model.scan_trust:  # in the JND of the least values (pinchmatch.match.trust)
+            terms += scan_terms(self.sampled_tangibles[t], it, model)
         # the mass offset exact on target (it needs the registration), and its spread
         terms[:, 7] += r.terms[:, 7] - separable_terms(mt[0][it],
                                                        felt_table(v_mean, mass_ratio(T, V)),

@@ -1,24 +1,26 @@
-"""What a scanned prop's features are worth: their spread at the scan's error, in the cost.
+"""What a scanned prop's features are worth: their spread at the scan's error, and in the cost.
 
 A prop imported from a scan says how far its surface may still be off: the error the import's
-smoothing left (the manifest's ``scan.residual_mm``, :class:`~pinchmatch.mesh.object_spec.
-ObjectSpec`'s ``scan_residual_mm``; :func:`pinchmatch.scan.surface.residual`). Its feature table is
-one draw of that error: each pose's features have a variance σ² around the object's true ones
-(:func:`pinchmatch.grasp.scan_noise.noisy_features`). Under an error ε of variance σ² on the
-prop's side, a criterion's expected squared difference is
-E[(v - t - ε)²] = (v - t)² + σ², so the expected cost adds, per criterion, the mean over its
-entries of σ² / s² (s the tangible's scale), as the landing spread adds its variance
-(:mod:`pinchmatch.match.steady`). The felt cost and the steady search add it; the nominal cost,
-the difference on target as the scan has it, does not.
+smoothing left (the manifest's ``scan.residual_mm``; :func:`pinchmatch.scan.surface.residual`).
+Its feature table is one draw of that error: each pose's features have a variance σ² around the
+object's true ones (:func:`pinchmatch.grasp.scan_noise.noisy_features`).
+:func:`uncertainty_jnd` reports it per pose as one number, in JND: the run's pooling in JND of one
+standard deviation of every feature (``scan_uncertainty_jnd`` in ``matches.json``).
 
-So the match prefers, among pinches that match alike on target, those whose features the scan can
-be trusted on. Curvature decides most of it: a tenth of a millimetre of waviness over an 8 mm
-patch is a curvature of a few per metre, several JND where the surface is flat (the JND's floor is
-2 /m) and a fraction of one on a small cylinder (66 % of its curvature). An object not from a scan
-has a spread of 0 and costs what it did.
+With ``--scan-trust`` (:class:`~pinchmatch.match.cost.CostModel`'s ``scan_trust``) the cost weighs
+it. Under an error ε of variance σ² on the prop's side a criterion's expected squared difference
+is E[(v - t - ε)²] = (v - t)² + σ², so the felt cost and the steady search add, per criterion,
+the mean over its entries of σ² / s², as the landing spread adds its variance
+(:mod:`pinchmatch.match.steady`); the nominal cost, the difference on target as the scan has it,
+never does. s is the JND of the least value the feature may have, ``LEAST_SIGMAS`` σ nearer 0: a
+JND relative to a value the noise inflated (a straight wall's curvature read as 8 /m) would call
+that noise small, and the match would seek out exactly the pinches the scan got wrong.
 
-:func:`uncertainty_jnd` reports a pose's spread as one number, in JND: the cost, under the run's
-pooling in JND, of a difference of one standard deviation in every feature.
+It is off by default. On synthetic scans of three YCB props matched against eight YCB objects
+(``benchmarks/bench_import.py --match``), the two pinches it changed felt worse on the real
+objects: the spread, a variance, does not see where the import's smoothing changed the shape
+(a mug's rim), which is where a scan is most wrong (docs/scans.md). An object not from a scan
+has a spread of 0 either way.
 """
 
 from __future__ import annotations
@@ -30,6 +32,9 @@ from .candidates import Candidates, felt_table, memo_of, pose_key
 from .cost import CostModel, feature_table, separable_terms
 
 _SPREADS: dict[int, dict] = {}
+#: a spread is measured in the JND of the least value its feature may have: this many standard
+#: deviations nearer 0 than the scan has it
+LEAST_SIGMAS = 2.0
 
 
 def surface_error_mm(candidates: Candidates) -> float:
@@ -82,11 +87,19 @@ def spread_terms(t_rows: np.ndarray, t_var: np.ndarray, v_var: np.ndarray, ratio
     return separable_terms(t_rows, t_rows + spread, model)
 
 
+def least(rows: np.ndarray, var: np.ndarray) -> np.ndarray:
+    """``rows`` moved ``LEAST_SIGMAS`` standard deviations towards 0 (not past it): the scale a
+    spread is measured in. A JND relative to a value the noise inflated (a straight wall's
+    curvature read as 8 /m) would call its own noise small."""
+    return np.sign(rows) * np.maximum(np.abs(rows) - LEAST_SIGMAS * np.sqrt(var), 0.0)
+
+
 def scan_terms(tangible: Candidates, poses, model: CostModel) -> np.ndarray:
-    """(k, 8) the contribution of the scan's spread of each of the tangible's ``poses``."""
+    """(k, 8) the contribution of the scan's spread of each of the tangible's ``poses``, in the JND
+    of their :func:`least` values."""
     poses = np.asarray(poses, dtype=np.int64)
     var = scan_variance(tangible, poses)
-    return spread_terms(tangible.table[poses], var, np.zeros_like(var), 1.0, model)
+    return spread_terms(least(tangible.table[poses], var), var, np.zeros_like(var), 1.0, model)
 
 
 def uncertainty_jnd(tangible: Candidates, poses, model: CostModel) -> np.ndarray:
