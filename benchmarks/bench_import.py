@@ -152,11 +152,12 @@ def _mapped(points: np.ndarray, M: np.ndarray) -> np.ndarray:
 
 def trust_effect(root: Path, scene: list, unaware: dict, maps: dict, clean_paths: dict) -> None:
     """The scene matched on the imported props again with ``--scan-trust`` (the match weighing each
-    pinch by its uncertainty at the scan's error), beside the default's run. For both runs, each chosen prop pinch: its features on the imported prop
-    against the clean prop's at the same place (the error the scan left, pooled in JND as the match
-    pools them), and what the hand would feel there: the virtual pinch against the clean prop, on
-    target (the separable cost, the mass term at its bound), beside the same on the imported prop.
-    The uncertainty each match reports beside them."""
+    pinch by its uncertainty at the scan's error), beside the default's run. For both runs, each
+    chosen prop pinch: its features on the imported prop against the clean prop's at the same place
+    (the error the scan left, pooled in JND as the match pools them), and what the hand would feel
+    there: the virtual pinch against the clean prop, on target (the separable cost, the mass term
+    at its bound), beside the same on the imported prop. The uncertainty each match reports beside
+    them."""
     from pinchmatch.grasp.analysis import analyze_object, score_pinches
     from pinchmatch.match.cost import CostModel, feature_table, separable_terms
 
