@@ -100,6 +100,8 @@ CORE = {
     "match/targeted.py": ["test_targeted.py"],
     "grasp/tripods.py": ["test_tripods.py"],
     "grasp/rounds.py": ["test_rounds.py", "test_spread.py", "test_coverage.py"],
+    "match/trust.py": ["test_trust.py", "test_prop_import.py"],
+    "grasp/scan_noise.py": ["test_trust.py"],
 }
 
 #: surviving mutants judged equivalent: (module, source line stripped, description) -> reason
