@@ -355,6 +355,12 @@ EQUIVALENT.update({
      "drop float(...)"):
         "a whole-number height computes as its float does, and the plane's record writes "
         "float(...) of it",
+    ("match/trust.py", "var = draws_variance(np.stack([feature_table(f) for f in noisy_features(",
+     "drop .stack(...)"):
+        "numpy takes the list of the draws' tables as the array they stack into",
+    ("match/trust.py", "return spread_terms(least(tangible.table[poses], var), var, "
+     "np.zeros_like(var), 1.0, model)", "1.0 -> 2.0"):
+        "the virtual variance is 0 here: the mass ratio scales nothing",
     ("match/trust.py", "return separable_terms(t_rows, t_rows + spread, model)", "+ -> -"):
         "a difference of -spread squares as +spread does, and the scales are the tangible rows'",
     ("grasp/scan_noise.py", "DRAWS = 16", "16 -> 17"):

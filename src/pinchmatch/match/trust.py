@@ -87,8 +87,7 @@ def spread_terms(t_rows: np.ndarray, t_var: np.ndarray, v_var: np.ndarray, ratio
     ``v_var`` (the virtual's, in the tangible's finger order, its mass columns scaled by the mass
     ``ratio`` as :func:`~pinchmatch.match.candidates.felt_table` scales the values), in the
     tangible rows' scales: the mean over a criterion's entries of (σ_t² + σ_v²) / s²."""
-    spread = np.sqrt(np.nan_to_num(t_var) + np.nan_to_num(felt_table(felt_table(v_var, ratio),
-                                                                     ratio)))
+    spread = np.sqrt(t_var + felt_table(felt_table(v_var, ratio), ratio))
     return separable_terms(t_rows, t_rows + spread, model)
 
 
