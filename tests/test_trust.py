@@ -92,6 +92,7 @@ def test_the_felt_cost_adds_each_criterions_expected_squared_difference(tmp_path
     ball.export(tmp_path / "ball.stl")
     V = candidate_poses(analyze_object(tmp_path / "ball.stl"), settings=SETTINGS)
     scanned = dataclasses.replace(a, obj=_scanned(a.obj, 0.2))
+    assert scan_variance(scanned, []).shape == (0, 2, 9)  # no poses asked, none drawn
     settings = MatchSettings(top_k=2, pooling="sum", scan_trust=True)
     scene = match_scene([scanned], [V], settings=settings, pinch_settings=SETTINGS)
     model = scene.model
