@@ -360,3 +360,15 @@ def test_a_placement_s_visible_fault_adds_to_the_pooled_cost_in_the_pooling_s_un
 def test_a_model_keeps_its_rest_rates_in_jnd_form():
     model = CostModel(rest_mm_per_jnd=(0.5, 7.0))
     assert model.as_jnd().rest_mm_per_jnd == (0.5, 7.0)
+
+
+def test_a_tripods_lever_arm_is_scaled_by_the_torque_threshold_a_pinchs_by_the_weights():
+    """A tripod's mass columns (three contacts) take the 12.7 % torque threshold, a pinch's (two)
+    the 22 % weight threshold, each above its 20 mm floor: a lever arm of 400 mm."""
+    from pinchmatch.match.cost import MASS_JND_FRACTION, TORQUE_JND_FRACTION
+
+    for fingers, fraction in ((3, TORQUE_JND_FRACTION), (2, MASS_JND_FRACTION)):
+        table = np.zeros((1, fingers, 9))
+        table[..., 7] = 400.0
+        s = CostModel().scales(table)
+        assert s[..., 7:9] == pytest.approx(np.full((1, fingers, 2), fraction * 400.0))
