@@ -97,13 +97,17 @@ SCENE = ["010_potted_meat_can", "011_banana", "013_apple", "024_bowl", "033_spat
          "048_hammer", "065-a_cups", "037_scissors"]
 
 
+#: poses per object of the --match runs (``--count``)
+COUNT = ["--count", "1000"]
+
+
 def _matches(props: list, scene: list, out: Path, *options: str) -> dict:
     import json
     import subprocess
 
     subprocess.run([sys.executable, "-m", "pinchmatch", "match", "--tangible", *map(str, props),
                     "--virtual", *map(str, scene), "-o", str(out), "--no-view", "--jobs", "2",
-                    "-q", "--no-cache", *options], check=True)
+                    "-q", "--no-cache", *COUNT, *options], check=True)
     doc = json.loads((out / "matches.json").read_text())
     return {m["virtual"]: m for m in doc["matches"]}
 
@@ -212,11 +216,14 @@ def trust_effect(root: Path, scene: list, unaware: dict, maps: dict, clean_paths
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="two objects")
+    parser.add_argument("--count", type=int, default=1000,
+                        help="with --match: poses per object (default 1,000)")
     parser.add_argument("--match", action="store_true",
                         help="a YCB scene matched on clean props and on imported scans of them")
     args = parser.parse_args(argv)
     root = Path(tempfile.mkdtemp(prefix="pinchmatch-bench-import-"))
     if args.match:
+        COUNT[1] = str(args.count)
         match_scene(root)
         return 0
     names = ["005_tomato_soup_can"] + ([] if args.quick else ["025_mug", "006_mustard_bottle"])
