@@ -13,7 +13,7 @@ from scipy.spatial.transform import Rotation
 
 from levels import glb_of, standing_can
 from pinchmatch.cli.main import main
-from pinchmatch.mesh.object_spec import NOT_SHAPE, ObjectSpec
+from pinchmatch.mesh.object_spec import NOT_SHAPE, ObjectSpec, spec_from_dict, spec_to_dict
 
 #: the fields that do not shape an object's candidates, and why (a new field must be added here or
 #: to the key)
@@ -34,6 +34,26 @@ def test_every_field_of_a_spec_is_keyed_or_excluded_by_name():
     key = ObjectSpec("a.stl").shape_key()
     assert set(key) == names - set(NOT_SHAPE)
     assert set(key) | set(NOT_SHAPE) == names
+
+
+def test_every_field_of_a_spec_goes_through_its_record_and_back():
+    """A spec with every field away from its default, through JSON: the same spec (a field added
+    must be given a value here)."""
+    from pinchmatch.mesh.regions import ContactRegions, Region
+
+    values = {"path": "a.glb", "name": "cup", "units": "m", "up": "-x", "com_mm": (1.0, 2.0, 3.5),
+              "axis": (0.0, 1.0, 0.0), "mass_g": 120.0,
+              "regions": ContactRegions((Region.sphere((0.0, 0.0, 5.0), 2.0),),
+                                        (Region.box((-1.0, -1.0, 0.0), (1.0, 1.0, 9.0)),)),
+              "split": "nodes", "node": "cup_1", "node_path": "Kitchen/cup_1",
+              "manifest": "props.toml", "pose": ((10.0, 900.0, -5.0), (0.0, 0.6, 0.0, 0.8)),
+              "support": 12.5, "rests_on_mm": 900.0, "level_up": "z", "nodes": ("cup*",),
+              "skip_nodes": ("wall*", "floor"), "scan_noise_mm": 0.5, "scan_residual_mm": 0.1,
+              "scale_verified": False}
+    assert set(values) == {f.name for f in dataclasses.fields(ObjectSpec)}
+    spec = ObjectSpec(**values)
+    again = spec_from_dict(json.loads(json.dumps(spec_to_dict(spec))))
+    assert again == spec and spec_to_dict(again) == spec_to_dict(spec)
 
 
 def test_the_key_turns_with_a_standing_props_pose_not_with_where_it_stands():

@@ -439,12 +439,12 @@ def felt_cost(tangible: Candidates, virtual: Candidates, choice, model: CostMode
     R_mass = seen_turn(tangible.obj, R, choice.redirect_terms is not None)
     terms, _ = pair_terms(tangible, virtual, t.rows[t_pair], v_rows[keep], model, R=R_mass,
                           t_points=t.points[t_pair], v_points=v.points[keep])
-    scan = model.scan_trust and _scan_spread(tangible, virtual, choice, model)
-    if scan is not False:
+    scan = _scan_spread(tangible, virtual, choice, model) if model.scan_trust else None
+    if scan is not None:
         terms = terms + scan  # the scans' spread: the same at every landing
     cost = np.asarray(model.pool(terms, extra=choice.redirect_terms, rest=choice.rest_jnd),
                       dtype=np.float64)
-    if scan is False or not scan.any():
+    if scan is None or not scan.any():
         cost[0] = nominal  # the nominal landing is the match itself, to the last bit
     miss = float(model.pool(np.full((1, len(CRITERIA)), MISS_JND ** 2)
                             * (np.arange(len(CRITERIA)) == 0))[0])

@@ -10,6 +10,8 @@ from __future__ import annotations
 from dataclasses import dataclass, fields, replace
 from pathlib import Path
 
+import numpy as np
+
 from .regions import ContactRegions, Region
 
 
@@ -85,33 +87,31 @@ class ObjectSpec:
 
 
 def spec_to_dict(spec: ObjectSpec) -> dict:
-    """A spec as plain JSON values (:func:`spec_from_dict` makes it again)."""
-    return {"path": spec.path, "name": spec.name, "units": spec.units, "up": spec.up,
-            "com_mm": None if spec.com_mm is None else [float(c) for c in spec.com_mm],
-            "axis": None if spec.axis is None else [float(c) for c in spec.axis],
-            "mass_g": spec.mass_g, "regions": spec.regions.as_dict(), "split": spec.split,
-            "node": spec.node, "node_path": spec.node_path, "manifest": spec.manifest,
-            "pose": None if spec.pose is None else [list(spec.pose[0]), list(spec.pose[1])],
-            "support": spec.support, "rests_on_mm": spec.rests_on_mm, "level_up": spec.level_up,
-            "scan_noise_mm": spec.scan_noise_mm, "scan_residual_mm": spec.scan_residual_mm,
-            "scale_verified": spec.scale_verified}
+    """A spec as plain JSON values, every field by its name (:func:`spec_from_dict` makes it
+    again): tuples as lists, the regions as their record."""
+    return {f.name: _plain(getattr(spec, f.name)) for f in fields(spec)}
+
+
+def _plain(value):
+    if isinstance(value, ContactRegions):
+        return value.as_dict()
+    if isinstance(value, tuple):
+        return [_plain(v) for v in value]
+    return value.item() if isinstance(value, np.generic) else value
 
 
 def spec_from_dict(d: dict) -> ObjectSpec:
+    """The spec :func:`spec_to_dict` wrote (a field it does not hold takes its default)."""
     def region(r: dict) -> Region:
         return Region.sphere(r["center_mm"],
                              r["radius_mm"]) if "center_mm" in r else Region.box(r["min_mm"],
                                                                                  r["max_mm"])
 
-    return ObjectSpec(d["path"], name=d["name"], units=d["units"], up=d["up"],
-                      com_mm=None if d["com_mm"] is None else tuple(d["com_mm"]),
-                      axis=None if d["axis"] is None else tuple(d["axis"]), mass_g=d["mass_g"],
-                      regions=ContactRegions(tuple(region(r) for r in d["regions"]["exclude"]),
-                                             tuple(region(r) for r in d["regions"]["only"])),
-                      split=d["split"], node=d["node"], node_path=d["node_path"],
-                      manifest=d["manifest"], pose=None if d.get("pose") is None
-                      else (tuple(d["pose"][0]), tuple(d["pose"][1])),
-                      support=d.get("support"), rests_on_mm=d.get("rests_on_mm"),
-                      level_up=d.get("level_up"), scan_noise_mm=d.get("scan_noise_mm"),
-                      scan_residual_mm=d.get("scan_residual_mm"),
-                      scale_verified=d.get("scale_verified"))
+    def tupled(value):
+        return tuple(tupled(v) for v in value) if isinstance(value, list) else value
+
+    given = {f.name: tupled(d[f.name]) for f in fields(ObjectSpec) if f.name in d}
+    if "regions" in given:
+        given["regions"] = ContactRegions(tuple(region(r) for r in d["regions"]["exclude"]),
+                                          tuple(region(r) for r in d["regions"]["only"]))
+    return ObjectSpec(**given)

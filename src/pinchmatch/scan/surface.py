@@ -118,16 +118,25 @@ def rebuild(mesh: trimesh.Trimesh, path) -> trimesh.Trimesh:
 def smooth(mesh: trimesh.Trimesh) -> tuple[trimesh.Trimesh, float]:
     """The mesh with its noise along the normal smoothed away (Taubin), and the noise: the RMS of
     the vertices' moves along their normals, mm (NaN: a coarse mesh, left as it is)."""
-    before = mesh.vertices.copy()
-    normals = mesh.vertex_normals.copy()
-    smoothed = mesh.copy()
-    trimesh.smoothing.filter_taubin(smoothed, lamb=TAUBIN_LAMBDA, nu=TAUBIN_MU,
-                                    iterations=TAUBIN_PASSES)
+    smoothed = _taubin(mesh)
     before_v, after_v = _enclosed(mesh), _enclosed(smoothed)
     if abs(after_v - before_v) > MAX_SMOOTH_VOLUME_CHANGE * abs(before_v):
         return mesh, float("nan")  # the filter moved the shape, not the noise: not a scan
-    moved = np.einsum("nd,nd->n", smoothed.vertices - before, normals)
-    return smoothed, float(np.sqrt(np.mean(moved ** 2))) if len(moved) else 0.0
+    return smoothed, _along_normals_rms(smoothed.vertices, mesh)
+
+
+def _taubin(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
+    """A copy of ``mesh`` smoothed by Taubin's filter (the import's one setting)."""
+    smoothed = mesh.copy()
+    trimesh.smoothing.filter_taubin(smoothed, lamb=TAUBIN_LAMBDA, nu=TAUBIN_MU,
+                                    iterations=TAUBIN_PASSES)
+    return smoothed
+
+
+def _along_normals_rms(vertices: np.ndarray, reference: trimesh.Trimesh) -> float:
+    """The RMS of ``vertices``' moves from ``reference``'s along its vertex normals, mm."""
+    moved = np.einsum("nd,nd->n", vertices - reference.vertices, reference.vertex_normals)
+    return float(np.sqrt(np.mean(moved ** 2))) if len(moved) else 0.0
 
 
 def residual(smoothed: trimesh.Trimesh, noise_mm: float, *, seed: int = 0) -> float:
@@ -137,14 +146,10 @@ def residual(smoothed: trimesh.Trimesh, noise_mm: float, *, seed: int = 0) -> fl
     surface is still off by, for :mod:`pinchmatch.match.trust`."""
     if not np.isfinite(noise_mm) or noise_mm <= 0 or not len(smoothed.vertices):
         return 0.0
-    normals = smoothed.vertex_normals.copy()
-    draw = np.random.default_rng(seed).standard_normal(len(normals))
-    again = smoothed.copy()
-    again.vertices = smoothed.vertices + normals * (noise_mm * draw)[:, None]
-    trimesh.smoothing.filter_taubin(again, lamb=TAUBIN_LAMBDA, nu=TAUBIN_MU,
-                                    iterations=TAUBIN_PASSES)
-    off = np.einsum("nd,nd->n", again.vertices - smoothed.vertices, normals)
-    return float(np.sqrt(np.mean(off ** 2)))
+    draw = np.random.default_rng(seed).standard_normal(len(smoothed.vertices))
+    noisy = smoothed.copy()
+    noisy.vertices = smoothed.vertices + smoothed.vertex_normals * (noise_mm * draw)[:, None]
+    return _along_normals_rms(_taubin(noisy).vertices, smoothed)
 
 
 def _enclosed(mesh: trimesh.Trimesh) -> float:
