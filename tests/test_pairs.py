@@ -1,6 +1,8 @@
-"""The search's pair lists: a pool served from a larger pass's list, a pool that grows without
-evaluating a pair twice, and a search whose candidates grew, all against brute force over every
-pair."""
+"""The search's pair lists: a pool served from a larger pass's list, a pool that grows evaluating a
+pair again only when its bound has passed the pair's cost, and a search whose candidates grew, all
+against brute force over every pair."""
+
+import collections
 
 import numpy as np
 import pytest
@@ -95,8 +97,17 @@ def test_a_growing_pool_evaluates_each_pair_once_and_finds_what_brute_force_does
     monkeypatch.setattr(search_module, "MIN_POOL", 5)  # the pools grow many times
     monkeypatch.setattr(search_module, "MAX_POOL", 5)
     asked = counting(monkeypatch)
-    grown = picks(Search([T], [V], model, settings), 25)
-    assert len(asked) == len(set(asked))  # no pair evaluated twice
+    search = Search([T], [V], model, settings)
+    grown = picks(search, 25)
+    # a pair is evaluated again only when it cost at least the pool's bound then (its cost alone
+    # was kept) and less than the bound now: it is kept from then on, so never a third time
+    times = collections.Counter(asked)
+    again = [pair for pair, n in times.items() if n > 1]
+    assert max(times.values()) <= 2
+    pool = search.pools[(0, 0)]
+    costs = evaluate_pairs(T, V, [a for a, _ in again], [b for _, b in again], model=model).cost
+    assert (costs < pool.tau).all()
+    assert set(again) <= set(zip(pool.it.tolist(), pool.iv.tolist()))
     once = len(asked)
     # a pass per growth, and every pool evaluated afresh
     monkeypatch.setattr(search_module, "RESERVE", 1)

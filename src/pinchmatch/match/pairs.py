@@ -7,7 +7,8 @@
   candidates that grow (refinement) add the new pairs' own passes to it (:meth:`Ranked.merged`), and
   the grown pool is its first pairs.
 - :class:`Seen`: every pair evaluated for a pool, kept or not, so that a pool that grows evaluates
-  only pairs it has not seen.
+  only pairs it has not seen, or saw costing less than its bound then (kept) or at least its bound
+  now (left out by their cost).
 
 None of them changes what a search finds: a pool of a given size holds the pairs of least value and
 a bound below every pair it leaves out, whether it came from a pass of its own size or from a larger
@@ -106,31 +107,65 @@ class Ranked:
         return Ranked(*_ordered(it[below], iv[below], value[below]), rest, self.tight)
 
 
+def pair_keys(it: np.ndarray, iv: np.ndarray) -> np.ndarray:
+    """(k,) int64 one key per (tangible pose, virtual pose) pair, the same whatever either list's
+    length (poses appended to a list keep their keys)."""
+    return (np.asarray(it, dtype=np.int64) << 32) | np.asarray(iv, dtype=np.int64)
+
+
+def _sorted_by(key: np.ndarray, *values) -> tuple:
+    order = np.argsort(key, kind="stable")
+    return (key[order],) + tuple(v[order] if isinstance(v, np.ndarray) else take_pairs(v, order)
+                                 for v in values)
+
+
+def _find(keys: np.ndarray, asked: np.ndarray) -> np.ndarray:
+    """(k,) where each of ``asked`` lies in the sorted ``keys``, -1 where it is not there."""
+    if not len(keys):
+        return np.full(len(asked), -1)
+    pos = np.minimum(np.searchsorted(keys, asked), len(keys) - 1)
+    return np.where(keys[pos] == asked, pos, -1)
+
+
 @dataclass(frozen=True)
 class Seen:
-    """Pairs evaluated for a pool, kept or not, in (tangible pose, virtual pose) order, and their
-    results."""
+    """Pairs evaluated for a pool, kept or not: every one's key (:func:`pair_keys`, sorted) and
+    exact cost, and the whole evaluation of those that cost less than the pool's bound when they
+    were evaluated (the others are not kept then, and stay out while the bound is at most their
+    cost: their cost alone says so, about 16 bytes a pair against 250)."""
 
-    it: np.ndarray
-    iv: np.ndarray
-    result: PairResult
+    key: np.ndarray
+    cost: np.ndarray
+    kept_key: np.ndarray
+    kept: PairResult
 
     @classmethod
-    def of(cls, it: np.ndarray, iv: np.ndarray, result: PairResult) -> "Seen":
-        """The pairs (it, iv), any order, evaluated as ``result``."""
-        order = np.lexsort((iv, it))
-        return cls(it[order], iv[order], take_pairs(result, order))
+    def of(cls, it: np.ndarray, iv: np.ndarray, cost: np.ndarray, kept_it: np.ndarray,
+           kept_iv: np.ndarray, kept: PairResult) -> "Seen":
+        """The pairs (it, iv), any order, evaluated at ``cost``, those of them kept (kept_it,
+        kept_iv) evaluated as ``kept``."""
+        return cls(*_sorted_by(pair_keys(it, iv), np.asarray(cost, dtype=np.float64)),
+                   *_sorted_by(pair_keys(kept_it, kept_iv), kept))
 
-    def find(self, it: np.ndarray, iv: np.ndarray, nv: int) -> np.ndarray:
-        """(k,) where each pair lies in this list, -1 where it was not evaluated (``nv``: the
-        virtual poses)."""
-        mine, asked = self.it * nv + self.iv, it * nv + iv
-        if not len(mine):
-            return np.full(len(asked), -1)
-        pos = np.minimum(np.searchsorted(mine, asked), len(mine) - 1)
-        return np.where(mine[pos] == asked, pos, -1)
+    def __len__(self) -> int:
+        return len(self.key)
 
-    def plus(self, it: np.ndarray, iv: np.ndarray, result: PairResult) -> "Seen":
-        """This list with the pairs (it, iv) evaluated as ``result`` added."""
-        return Seen.of(np.concatenate([self.it, it]), np.concatenate([self.iv, iv]),
-                       concat_pairs([self.result, result]))
+    def find(self, it: np.ndarray, iv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """For each pair (it, iv): where its whole evaluation lies in ``kept`` (-1 where it is not
+        kept), and its exact cost (NaN where it was never evaluated)."""
+        asked = pair_keys(it, iv)
+        at = _find(self.key, asked)
+        cost = np.where(at >= 0, self.cost[np.maximum(at, 0)] if len(self.key) else np.nan,
+                        np.nan)
+        return _find(self.kept_key, asked), cost
+
+    def plus(self, it: np.ndarray, iv: np.ndarray, cost: np.ndarray, kept_it: np.ndarray,
+             kept_iv: np.ndarray, kept: PairResult) -> "Seen":
+        """This list with the pairs (it, iv) evaluated at ``cost`` added, and those of them kept
+        (a pair listed already, not kept then and evaluated again, is kept now)."""
+        key = pair_keys(it, iv)
+        fresh = _find(self.key, key) < 0
+        return Seen(*_sorted_by(np.concatenate([self.key, key[fresh]]),
+                                np.concatenate([self.cost, np.asarray(cost)[fresh]])),
+                    *_sorted_by(np.concatenate([self.kept_key, pair_keys(kept_it, kept_iv)]),
+                                concat_pairs([self.kept, kept])))

@@ -59,9 +59,9 @@ EVALUATE_CHUNK = 65_536
 #: a blockwise pass keeps this many times its pool's size, in order, where the pool's next growth
 #: selects by the same sum (separable, or the pooled bound): growths within them need no new pass
 RESERVE = 4
-#: pairs a pool remembers having evaluated, kept or not (about 250 bytes each), so that a growth
-#: evaluates only pairs it has not seen
-SEEN_PAIRS = 32_768
+#: pairs a pool remembers having evaluated, kept or not (16 bytes each, and about 250 for each
+#: kept), so that a growth evaluates only pairs it has not seen
+SEEN_PAIRS = 2_097_152
 
 
 def initial_pool(n_tangible: int, n_virtual: int) -> int:
@@ -371,36 +371,41 @@ class Search:
         and those evaluated here (None once more than ``SEEN_PAIRS``). Evaluated ``EVALUATE_CHUNK``
         pairs at a time, so that a pool of millions (a prop whose poses all look alike) never holds
         them all at once."""
-        at = seen.find(it, iv, len(V)) if seen is not None else np.full(len(it), -1)
-        new = np.flatnonzero(at < 0)
-        remember = (0 if seen is None else len(seen.it)) + len(new) <= SEEN_PAIRS
-        keep, parts, evaluated = [], [], []
+        if seen is not None:
+            at, cost = seen.find(it, iv)
+        else:
+            at, cost = np.full(len(it), -1), np.full(len(it), np.nan)
+        # evaluated: the pairs never seen, and those seen, not kept, and below tau now; a pair seen
+        # costing at least tau is left out by its cost
+        new = np.flatnonzero((at < 0) & ~(cost >= tau))
+        remember = (0 if seen is None else len(seen)) + len(new) <= SEEN_PAIRS
+        keep, parts, costs = [], [], []
         for start in range(0, max(len(new), 1), EVALUATE_CHUNK):
             # once at least: an empty result has its fields
             rows = new[start:start + EVALUATE_CHUNK]
             result = evaluate_pairs(T, V, it[rows], iv[rows], model=self.model,
                                     keep_upright=self.settings.keep_upright,
                                     redirect=self.settings.redirect, user_mm=self.settings.user_mm)
-            if remember:
-                evaluated.append(result)
+            costs.append(result.cost)
             below = np.flatnonzero(result.cost < tau)
             keep.append(rows[below])
             parts.append(take_pairs(result, below))
+        fresh = len(keep)  # the parts evaluated here
         known = np.flatnonzero(at >= 0)
         if len(known):
-            result = take_pairs(seen.result, at[known])
+            result = take_pairs(seen.kept, at[known])
             below = np.flatnonzero(result.cost < tau)
             keep.append(known[below])
             parts.append(take_pairs(result, below))
+        if remember:
+            kept = np.concatenate(keep[:fresh])
+            args = (it[new], iv[new], np.concatenate(costs), it[kept], iv[kept],
+                    concat_pairs(parts[:fresh]))
+            seen = seen.plus(*args) if seen is not None else Seen.of(*args)
         keep = np.concatenate(keep)
         order = np.argsort(keep, kind="stable")
         keep, result = keep[order], take_pairs(concat_pairs(parts), order)
-        if not remember:
-            return it[keep], iv[keep], result, None
-        evaluated = concat_pairs(evaluated)
-        return it[keep], iv[keep], result, (seen.plus(it[new], iv[new], evaluated)
-                                            if seen is not None else
-                                           Seen.of(it[new], iv[new], evaluated))
+        return it[keep], iv[keep], result, seen if remember else None
 
     def grown(self, tangibles: list, virtuals: list) -> "Search":
         """The search over the same objects with poses appended to their candidates (each list
@@ -422,8 +427,8 @@ class Search:
                 ranked = Ranked.of(*out._pass(T, V, old.size, old.first), tight)
             it, iv, rest = ranked.first(old.size)
             tau = _bound(self.model, rest, tight, self.settings.redirect)
-            it, iv, result, seen = out._below(T, V, it, iv, tau,
-                                              old.seen or Seen.of(old.it, old.iv, old.result))
+            seen = old.seen or Seen.of(old.it, old.iv, old.result.cost, old.it, old.iv, old.result)
+            it, iv, result, seen = out._below(T, V, it, iv, tau, seen)
             out.pools[(j, t)] = _PairPool(t, it, iv, result, tau, old.size, old.first, ranked, seen)
         return out
 
