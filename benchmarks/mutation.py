@@ -59,7 +59,7 @@ CORE = {
     "match/choice.py": ["test_match.py", "test_pairs.py"],
     "match/pairs.py": ["test_pairs.py", "test_match.py"],
     "match/register.py": ["test_register.py"],
-    "match/rest.py": ["test_rest.py", "test_cost.py"],
+    "match/rest.py": ["test_rest.py", "test_rest_floor.py", "test_cost.py"],
     "mesh/lowest.py": ["test_lowest.py", "test_rest.py"],
     "mesh/frames.py": ["test_register.py", "test_load.py"],
     "mesh/properties.py": ["test_properties.py"],

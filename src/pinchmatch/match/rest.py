@@ -37,9 +37,13 @@ not reported. Under ``--placement fixed`` a redirected object stays where its le
 the carousel's placements are charged.
 
 Every term is at least 0, so the search's lower bounds stay lower bounds and the search stays exact.
+The search also pools by the least charge a pair can have (:class:`RestFloor`, from one number per
+pose on each side), so that it evaluates the pairs that can rest.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -51,7 +55,11 @@ from .candidates import memo_of
 #: placements whose gaps are computed at a time (memory: 8 bytes x hull vertices each)
 GAP_CHUNK = 4096
 
+#: how far (mm) the reach of a grasp (:func:`grasp_reach`) is widened for round-off
+ROUND_OFF_MM = 1e-6
+
 _HULLS: dict[int, tuple] = {}
+_REACH: dict[int, tuple] = {}
 
 
 def hull_points(obj) -> np.ndarray:
@@ -139,3 +147,78 @@ def rested(tangible_obj, virtual_obj, transforms: np.ndarray, model,
     gaps = rest_gaps(support, hull_points(virtual_obj), transforms, table=hull_table(virtual_obj))
     sink, hover = model.rest_mm_per_jnd
     return gaps, rest_jnd(gaps, sink_mm_per_jnd=sink, float_mm_per_jnd=hover)
+
+
+@dataclass(frozen=True)
+class RestFloor:
+    """A lower bound of what the rest gap adds to the cost of every pose pair of a prop and a
+    virtual object, from one number per pose on each side.
+
+    A registration puts the virtual grasp's contact centroid m on the prop's (both pinches and
+    tripods: :mod:`pinchmatch.match.register`), so a pair's gap is the prop centroid's height H over
+    the support less the virtual hull's support function about m in the turned-down direction:
+    ``gap = H - h(d)``, d a unit vector. Whatever d, ``inner <= h(d) <= outer``: ``outer`` is the
+    farthest hull vertex from m; ``inner`` the distance from m to the nearest hull facet's plane
+    where m is inside the hull (the largest ball about m inside it), else minus the distance to the
+    nearest hull vertex. So the gap lies in [H - outer, H - inner], and the charge is at least
+    :func:`rest_jnd` of the nearer end (0 where the interval meets the tolerance)."""
+
+    height_mm: np.ndarray
+    inner_mm: np.ndarray
+    outer_mm: np.ndarray
+    sink_mm_per_jnd: float
+    float_mm_per_jnd: float
+    squared: bool
+
+    def block(self, start: int, stop: int) -> np.ndarray:
+        """(stop - start, v) the bound for the prop's poses ``start:stop`` against every virtual
+        pose, in the cost's units (x, or x² under ``sum`` pooling: :meth:`CostModel.pool`)."""
+        h = self.height_mm[start:stop, None]
+        x = (np.maximum(self.inner_mm[None] - h - REST_TOLERANCE_MM, 0.0) / self.sink_mm_per_jnd
+             + np.maximum(h - self.outer_mm[None] - REST_TOLERANCE_MM, 0.0)
+             / self.float_mm_per_jnd)
+        return x * x if self.squared else x
+
+
+def grasp_reach(obj, centroids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(inner, outer) (k,) each of ``centroids`` (k, 3) mm: the least and the greatest that the
+    support function of ``obj``'s hull about it can be, in any direction (:class:`RestFloor`)."""
+    points = hull_points(obj)
+    memo = memo_of(_HULLS, obj)
+    if "planes" not in memo:
+        try:
+            from scipy.spatial import ConvexHull
+
+            memo["planes"] = ConvexHull(points).equations  # n·x + b <= 0 inside, n unit
+        except Exception:  # a flat set: no inside, the vertex bound alone
+            memo["planes"] = np.zeros((0, 4))
+    planes = memo["planes"]
+    inner, outer = np.empty(len(centroids)), np.empty(len(centroids))
+    for start in range(0, len(centroids), GAP_CHUNK // 16):
+        c = centroids[start:start + GAP_CHUNK // 16]
+        # |c - v|² as |c|² - 2 c·v + |v|², one matrix product
+        square = (np.einsum("kd,kd->k", c, c)[:, None] - 2.0 * c @ points.T
+                  + np.einsum("hd,hd->h", points, points)[None])
+        distance = np.sqrt(np.maximum(square, 0.0))
+        outer[start:start + len(c)] = distance.max(axis=1)
+        depth = (-(c @ planes[:, :3].T + planes[:, 3]).max(axis=1) if len(planes)
+                 else np.full(len(c), -np.inf))
+        inner[start:start + len(c)] = np.where(depth >= 0.0, depth, -distance.min(axis=1))
+    # the products' round-off, outward
+    return inner - ROUND_OFF_MM, outer + ROUND_OFF_MM
+
+
+def rest_floor(tangible, virtual, model, redirect=None) -> RestFloor | None:
+    """The :class:`RestFloor` of every pose pair of the candidates ``tangible`` and ``virtual``, or
+    None where the placement is charged nothing (no support, or a fixed placement)."""
+    support = presented_support(tangible.obj, redirect)
+    if support is None:
+        return None
+    memo = memo_of(_REACH, virtual)
+    if "reach" not in memo:
+        memo["reach"] = grasp_reach(virtual.obj, virtual.pinches.points.mean(axis=1))
+    inner, outer = memo["reach"]
+    height = (tangible.pinches.points.mean(axis=1) @ np.asarray(support.normal, dtype=np.float64)
+              - support.height_mm)
+    sink, hover = model.rest_mm_per_jnd
+    return RestFloor(height, inner, outer, sink, hover, model.pooling == "sum")

@@ -4,9 +4,11 @@ The search is exact over the poses it is given (sampled, and refined:
 :mod:`pinchmatch.match.refine`; :mod:`pinchmatch.match.scene` runs it for a whole scene). For each
 (virtual object, tangible) pair of objects:
 
-1. The separable part of the cost (the paper's seven criteria and the lower
-   bound of ``mass``) is computed for every pose pair, blockwise with BLAS
-   (:func:`pinchmatch.match.cost.pair_cost_blocks`), keeping only the ``pool``
+1. A lower bound of every pose pair's cost is computed blockwise with BLAS: from
+   the separable part of the cost (the paper's seven criteria and the lower
+   bound of ``mass``: :func:`pinchmatch.match.cost.pair_cost_blocks`), plus the
+   least that the placement's rest gap can add on a prop standing on a table
+   (:class:`pinchmatch.match.rest.RestFloor`), keeping only the ``pool``
    smallest values; ``tau`` is the smallest value left out.
 2. The pooled pairs are registered and get their exact cost (the exact
    ``mass`` term, and ``--keep-upright``). Every pair left out costs at
@@ -44,7 +46,7 @@ from .choice import Choice, Pose, pinch_distance  # noqa: F401 (re-exported)
 from .pairs import PairResult, Ranked, Seen, concat_pairs, take_pairs
 from .register import FLIP_COSINE, register_poses
 from .comfort import approach_angles, comfortable_poses
-from .rest import rested
+from .rest import rest_floor, rested
 from ..grasp.spread import other_order
 
 #: pose pairs kept per (virtual, tangible) object pair before the exact evaluation: one per
@@ -228,19 +230,22 @@ def _only_rows(rows: np.ndarray, n_virtual: int, budget=None):
 def pool_pairs(tangible: Candidates, virtual: Candidates, model: CostModel, size: int,
                block_rows: int, tight: bool = False, moments: tuple | None = None,
                redirect: Redirect | None = None, *, raw: bool = False, user_mm=None):
-    """The ``size`` pose pairs with the smallest separable sum (``tight``: the smallest pooled
-    bound, :func:`pinchmatch.match.cost.pooled_bound_blocks`), and tau, a cost no pair left out is
-    below. With ``moments`` ((mean, variance) of the tangible's rows, the same of the virtual's),
-    the sum is the expected one of :mod:`pinchmatch.match.steady` over the first ``len(mean)`` poses
-    of each. With ``redirect`` (the virtual object stays in the level) the sum gains a lower bound
+    """The ``size`` pose pairs of least bound on their cost, and tau, a cost no pair left out is
+    below. The bound: the model's bound from the separable sum
+    (:meth:`~pinchmatch.match.cost.CostModel.bound_from_separable`; ``tight``: the pooled bound,
+    :func:`pinchmatch.match.cost.pooled_bound_blocks`), plus the least that the placement's rest gap
+    can add (:class:`~pinchmatch.match.rest.RestFloor`). With ``moments`` ((mean, variance) of the
+    tangible's rows, the same of the virtual's), the sum is the expected one of
+    :mod:`pinchmatch.match.steady` over the first ``len(mean)`` poses of each, and no floor is
+    added. With ``redirect`` (the virtual object stays in the level) the sum gains a lower bound
     of the redirection angle's contribution and the pairs beyond the budget are left out
     (:func:`pinchmatch.match.redirect.pair_budget`).
 
     The tangible's poses that the user cannot reach comfortably (``user_mm``:
     :func:`evaluate_pairs`) are left out too.
 
-    Returns (it, iv, separable sum or bound, tau); tau is inf when no pair was left out. ``raw``:
-    tau is the least sum (or bound) of a pair left out, not a cost.
+    Returns (it, iv, bound, tau); tau is inf when no pair was left out. ``raw``: tau is the least
+    bound of a pair left out, without the margin for round-off.
     """
     ratio = mass_ratio(tangible, virtual)
     t_table, v_table, spreads = tangible.table, virtual.table, None
@@ -266,7 +271,13 @@ def pool_pairs(tangible: Candidates, virtual: Candidates, model: CostModel, size
     else:
         blocks = pair_cost_blocks(t_table, felt, model, block_rows=block_rows, with_swapped=False,
                                   spreads=spreads, extra=budget)
+    floor = rest_floor(tangible, virtual, model, redirect) if moments is None else None
+    extra_weight = 0.0 if redirect is None else 1.0
     for start, block, _ in blocks:
+        if not tight:  # the separable sum's bound on the cost
+            block = model.bound_from_separable(block, extra_weight=extra_weight)
+        if floor is not None:
+            block = block + floor.block(start, start + len(block))
         flat = block.ravel()
         if not np.isfinite(tau) and flat.size > 4 * size:
             # a first threshold from a subsample, so that the full block is only compared, never
@@ -284,15 +295,13 @@ def pool_pairs(tangible: Candidates, virtual: Candidates, model: CostModel, size
             keep = part[:size]
             vals, idx = vals[keep], idx[keep]
         kept_val, kept_idx = vals, idx
-    return kept_idx // nv, kept_idx % nv, kept_val, tau if raw else _bound(model, tau, tight,
-                                                                           redirect)
+    return kept_idx // nv, kept_idx % nv, kept_val, tau if raw else _bound(tau)
 
 
-def _bound(model: CostModel, value: float, tight: bool, redirect: Redirect | None) -> float:
-    """The least cost of a pair whose separable sum (``tight``: pooled bound) is at least ``value``:
-    its bound (tight: the value, less a margin for the round-off of its matrix products)."""
-    return value * (1.0 - TIGHT_ROUND_OFF) if tight else \
-        float(model.bound_from_separable(value, extra_weight=0.0 if redirect is None else 1.0))
+def _bound(value: float) -> float:
+    """The least cost of a pair whose bound (:func:`pool_pairs`) is at least ``value``: the value,
+    less a margin for the round-off of its matrix products."""
+    return value * (1.0 - TIGHT_ROUND_OFF)
 
 
 @dataclass
@@ -334,7 +343,7 @@ class Search:
         if ranked is None or not ranked.serves(size, tight):
             ranked = Ranked.of(*self._pass(T, V, size, first), tight)
         it, iv, rest = ranked.first(size)
-        tau = _bound(self.model, rest, tight, self.settings.redirect)
+        tau = _bound(rest)
         it, iv, result, seen = self._below(T, V, it, iv, tau, old.seen if old is not None else None)
         pool = _PairPool(t, it, iv, result, tau, size, first, ranked, seen)
         self.pools[(j, t)] = pool
@@ -426,7 +435,7 @@ class Search:
             else:
                 ranked = Ranked.of(*out._pass(T, V, old.size, old.first), tight)
             it, iv, rest = ranked.first(old.size)
-            tau = _bound(self.model, rest, tight, self.settings.redirect)
+            tau = _bound(rest)
             seen = old.seen or Seen.of(old.it, old.iv, old.result.cost, old.it, old.iv, old.result)
             it, iv, result, seen = out._below(T, V, it, iv, tau, seen)
             out.pools[(j, t)] = _PairPool(t, it, iv, result, tau, old.size, old.first, ranked, seen)
