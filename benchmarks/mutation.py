@@ -377,6 +377,12 @@ EQUIVALENT.update({
                          "same way",
     ("mesh/facing.py", "parts = int(labels.max()) + 1 if len(labels) else 0", "0 -> 1"):
         "a mesh with no faces never comes here: the loader refuses it first",
+    ("match/rest.py", "c = centroids[start:start + GAP_CHUNK // 16]", "16 -> 17"):
+        "a chunk size only: each centroid's reach is computed alike in any chunk",
+    ("match/rest.py", "transforms = np.asarray(transforms, dtype=np.float64)",
+     "drop .asarray(...)"): _SAME_TYPE,
+    ("match/pairs.py", "return np.full(len(asked), -1)", "1 -> 2"):
+        "callers read any negative position as not found (< 0, >= 0): -2 is read as -1 is",
 })
 
 BINOPS = {ast.Add: ast.Sub, ast.Sub: ast.Add, ast.Mult: ast.Div, ast.Div: ast.Mult,

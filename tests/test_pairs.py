@@ -108,6 +108,13 @@ def test_a_growing_pool_evaluates_each_pair_once_and_finds_what_brute_force_does
     costs = evaluate_pairs(T, V, [a for a, _ in again], [b for _, b in again], model=model).cost
     assert (costs < pool.tau).all()
     assert set(again) <= set(zip(pool.it.tolist(), pool.iv.tolist()))
+    # the pool remembers each pair evaluated once, at its cost
+    seen = pool.seen
+    assert len(seen) == len(times) and len(np.unique(seen.key)) == len(seen)
+    first = list(times)
+    remembered = seen.find(np.array([a for a, _ in first]), np.array([b for _, b in first]))[1]
+    exact = evaluate_pairs(T, V, [a for a, _ in first], [b for _, b in first], model=model).cost
+    np.testing.assert_array_equal(remembered, exact)
     once = len(asked)
     # a pass per growth, and every pool evaluated afresh
     monkeypatch.setattr(search_module, "RESERVE", 1)

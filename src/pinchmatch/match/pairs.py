@@ -144,7 +144,7 @@ class Seen:
            kept_iv: np.ndarray, kept: PairResult) -> "Seen":
         """The pairs (it, iv), any order, evaluated at ``cost``, those of them kept (kept_it,
         kept_iv) evaluated as ``kept``."""
-        return cls(*_sorted_by(pair_keys(it, iv), np.asarray(cost, dtype=np.float64)),
+        return cls(*_sorted_by(pair_keys(it, iv), cost),
                    *_sorted_by(pair_keys(kept_it, kept_iv), kept))
 
     def __len__(self) -> int:
@@ -166,6 +166,6 @@ class Seen:
         key = pair_keys(it, iv)
         fresh = _find(self.key, key) < 0
         return Seen(*_sorted_by(np.concatenate([self.key, key[fresh]]),
-                                np.concatenate([self.cost, np.asarray(cost)[fresh]])),
+                                np.concatenate([self.cost, cost[fresh]])),
                     *_sorted_by(np.concatenate([self.kept_key, pair_keys(kept_it, kept_iv)]),
                                 concat_pairs([self.kept, kept])))
