@@ -233,19 +233,22 @@ class CostModel:
         safe = np.where(scale > 0, scale, 1.0)
         return scale[..., 0] * (((np.sqrt(terms) / safe) ** beta) @ w) ** (1.0 / beta)
 
-    def bound_from_separable(self, separable, extra_weight: float = 0.0) -> np.ndarray:
+    def bound_from_separable(self, separable, extra_weight: float = 0.0, *,
+                             out: np.ndarray | None = None) -> np.ndarray:
         """A lower bound of the cost from S = Σ w t, the sum that the blockwise pass computes (with
         ``extra_weight``, the weight of further contributions the sum holds: the redirection's
-        angle).
+        angle); into ``out`` where given (float64, S's shape: S itself, overwritten).
 
         ``sum``: S itself. ``quick``: with W = Σ w, the power means give Σ w x^β ≥ W (S /
         W)^(β/2) for β ≥ 2 (Jensen), so D ≥ W^(1/β - 1/2) √S; increasing in S, so the pairs
         of least S are the ones to pool."""
-        separable = np.maximum(np.asarray(separable, dtype=np.float64), 0.0)
+        separable = np.maximum(np.asarray(separable, dtype=np.float64), 0.0, out=out)
         if self.pooling == "sum":
             return separable
         total_weight = float(self.weight_vector().sum()) + extra_weight
-        return total_weight ** (1.0 / self.exponent - 0.5) * np.sqrt(separable)
+        bound = np.sqrt(separable, out=separable)
+        bound *= total_weight ** (1.0 / self.exponent - 0.5)
+        return bound
 
     def p_noticed(self, jnd_cost) -> np.ndarray:
         """The probability that a difference of pooled cost ``jnd_cost`` (in JND, under this

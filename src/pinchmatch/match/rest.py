@@ -173,11 +173,29 @@ class RestFloor:
     def block(self, start: int, stop: int) -> np.ndarray:
         """(stop - start, v) the bound for the prop's poses ``start:stop`` against every virtual
         pose, in the cost's units (x, or x² under ``sum`` pooling: :meth:`CostModel.pool`)."""
-        h = self.height_mm[start:stop, None]
-        x = (np.maximum(self.inner_mm[None] - h - REST_TOLERANCE_MM, 0.0) / self.sink_mm_per_jnd
-             + np.maximum(h - self.outer_mm[None] - REST_TOLERANCE_MM, 0.0)
-             / self.float_mm_per_jnd)
-        return x * x if self.squared else x
+        out = np.zeros((stop - start, len(self.inner_mm)))
+        self.add_to(out, start)
+        return out
+
+    def add_to(self, values: np.ndarray, start: int) -> None:
+        """Add :meth:`block` of the prop's poses from ``start`` to ``values`` (rows, v), in place,
+        touching only the rows where some virtual pose can sink or hover past the tolerance (a
+        pair can do one or the other: inner <= outer)."""
+        h = self.height_mm[start:start + len(values)]
+        sides = ((np.flatnonzero(h + REST_TOLERANCE_MM < self.inner_mm.max(initial=-np.inf)),
+                  -1.0, self.inner_mm, self.sink_mm_per_jnd),
+                 (np.flatnonzero(h - REST_TOLERANCE_MM > self.outer_mm.min(initial=np.inf)),
+                  1.0, self.outer_mm, self.float_mm_per_jnd))
+        for rows, sign, reach, mm_per_jnd in sides:
+            if not len(rows):
+                continue
+            # sink: inner - h - tolerance; hover: h - outer - tolerance
+            x = sign * (h[rows, None] - reach[None]) - REST_TOLERANCE_MM
+            np.maximum(x, 0.0, out=x)
+            x /= mm_per_jnd
+            if self.squared:
+                x *= x
+            values[rows] += x
 
 
 def grasp_reach(obj, centroids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

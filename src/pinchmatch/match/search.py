@@ -274,10 +274,10 @@ def pool_pairs(tangible: Candidates, virtual: Candidates, model: CostModel, size
     floor = rest_floor(tangible, virtual, model, redirect) if moments is None else None
     extra_weight = 0.0 if redirect is None else 1.0
     for start, block, _ in blocks:
-        if not tight:  # the separable sum's bound on the cost
-            block = model.bound_from_separable(block, extra_weight=extra_weight)
+        if not tight:  # the separable sum's bound on the cost, in the pass's own buffer
+            block = model.bound_from_separable(block, extra_weight=extra_weight, out=block)
         if floor is not None:
-            block = block + floor.block(start, start + len(block))
+            floor.add_to(block, start)
         flat = block.ravel()
         if not np.isfinite(tau) and flat.size > 4 * size:
             # a first threshold from a subsample, so that the full block is only compared, never
