@@ -233,7 +233,7 @@ class CostModel:
         safe = np.where(scale > 0, scale, 1.0)
         return scale[..., 0] * (((np.sqrt(terms) / safe) ** beta) @ w) ** (1.0 / beta)
 
-    def bound_from_separable(self, separable, extra_weight: float = 0.0, *,
+    def bound_from_separable(self, separable, *, extra_weight: float = 0.0,
                              out: np.ndarray | None = None) -> np.ndarray:
         """A lower bound of the cost from S = Σ w t, the sum that the blockwise pass computes (with
         ``extra_weight``, the weight of further contributions the sum holds: the redirection's
