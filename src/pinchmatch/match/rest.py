@@ -46,6 +46,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial.distance import cdist
 
 from ..config import REST_FLOAT_MM_PER_JND as FLOAT_MM_PER_JND
 from ..config import REST_SINK_MM_PER_JND as SINK_MM_PER_JND
@@ -214,15 +215,12 @@ def grasp_reach(obj, centroids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     inner, outer = np.empty(len(centroids)), np.empty(len(centroids))
     for start in range(0, len(centroids), GAP_CHUNK // 16):
         c = centroids[start:start + GAP_CHUNK // 16]
-        # |c - v|² as |c|² - 2 c·v + |v|², one matrix product
-        square = (np.einsum("kd,kd->k", c, c)[:, None] - 2.0 * c @ points.T
-                  + np.einsum("hd,hd->h", points, points)[None])
-        distance = np.sqrt(np.maximum(square, 0.0))
+        distance = cdist(c, points)
         outer[start:start + len(c)] = distance.max(axis=1)
         depth = (-(c @ planes[:, :3].T + planes[:, 3]).max(axis=1) if len(planes)
                  else np.full(len(c), -np.inf))
         inner[start:start + len(c)] = np.where(depth >= 0.0, depth, -distance.min(axis=1))
-    # the products' round-off, outward
+    # the planes' round-off, outward
     return inner - ROUND_OFF_MM, outer + ROUND_OFF_MM
 
 
