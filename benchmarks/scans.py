@@ -16,6 +16,19 @@ from pinchmatch.mesh.frames import UNITS_MM, UP_VECTORS, rotations_between
 DENSE_MM = 1.0
 
 
+def cup(wall_mm: float, *, base_mm: float | None = None, radius_mm: float = 40.0,
+        height_mm: float = 90.0) -> trimesh.Trimesh:
+    """An open cup standing on z = 0 (mm): a cylinder with one of ``wall_mm`` less radius taken
+    out from above, down to a base ``base_mm`` thick (default ``wall_mm``): a thin-walled object
+    whose every width is known."""
+    outer = trimesh.creation.cylinder(radius=radius_mm, height=height_mm, sections=96)
+    inner = trimesh.creation.cylinder(radius=radius_mm - wall_mm, height=height_mm, sections=96)
+    inner.apply_translation([0.0, 0.0, wall_mm if base_mm is None else base_mm])
+    out = outer.difference(inner, engine="manifold")
+    out.apply_translation([0.0, 0.0, -out.bounds[0, 2]])
+    return out
+
+
 def clean_mesh(path) -> trimesh.Trimesh:
     """A real mesh (mm, +Z up) as the reference: its pieces merged, its windings made outward."""
     mesh = trimesh.load(path, force="mesh", process=True)

@@ -151,7 +151,8 @@ def import_prop(scan_path, props_dir, *, name: str | None = None, units: str | N
     if flat(mesh.vertices):
         raise MeshError(f"{scan_path}: the scan is flat (a sheet, not an object); scan the object "
                         f"all round")
-    mesh, noise = smooth(mesh)  # at the scan's own density: a collapse first would keep its noise
+    # at the scan's own density: a collapse first would keep its noise
+    mesh, noise = smooth(mesh, rebuilt=scan.is_cloud)
     smoothed = bool(np.isfinite(noise))
     left = residual(mesh, noise) if smoothed else 0.0
     lines.append(f"smoothed its noise along the normal: {noise:.2f} mm RMS, {left:.2f} mm left"

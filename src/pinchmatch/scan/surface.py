@@ -4,16 +4,19 @@ smoothed away, the faces decimated to a size the pipeline handles quickly.
 - **Reconstruction:** screened Poisson (Kazhdan & Hoppe 2013), MeshLab's, through pymeshlab (the
   ``scan`` extra). It is the reconstruction photogrammetry tools use for dense clouds, robust to the
   scan's noise (it fits an indicator function, never interpolates the points), and MeshLab keeps it
-  maintained. The normals are estimated from 10 neighbours and propagated over the cloud. Where the
-  surface lies farther from every scanned point than ``TRIM_SPACINGS`` times the cloud's spacing
-  (at least ``TRIM_MIN_MM``), it is trimmed: Poisson closes every gap (the bottom where the object
-  stood) with a guess, and a guess is never pinched; the gap is then closed and marked as a mesh
-  scan's is.
+  maintained. The normals are estimated from ``NORMAL_NEIGHBOURS`` neighbours (MeshLab's), and each
+  is turned toward the outside the scanner saw it from (:mod:`pinchmatch.scan.orient`): propagated
+  from neighbour to neighbour, a sign crosses a thin wall and turns one of its sides inside out.
+  Where the surface lies farther from every scanned point than ``TRIM_SPACINGS`` times the cloud's
+  spacing (at least ``TRIM_MIN_MM``), it is trimmed: Poisson closes every gap (the bottom where the
+  object stood) with a guess, and a guess is never pinched; the gap is then closed and marked as a
+  mesh scan's is.
 - **Smoothing:** Taubin's λ|μ filter (trimesh), which removes noise without shrinking the object:
   phone scans carry 0.5 to 1 mm of noise along the normal, which the 8 mm patches would read as
   curvature. The noise itself is measured as the RMS of what the filter moves. A mesh whose enclosed
   volume the filter would change by more than ``MAX_SMOOTH_VOLUME_CHANGE`` is left as it is: its
-  vertices are shape (a model's), not noise.
+  vertices are shape (a model's), not noise. A surface rebuilt from a point cloud is always
+  smoothed: a cloud is a scan's.
 - **Decimation:** quadric edge collapse (fast-simplification, through trimesh) to ``MAX_FACES``.
 """
 
@@ -26,6 +29,7 @@ import trimesh
 from scipy.spatial import cKDTree
 
 from ..errors import MeshError
+from .orient import outward_normals
 
 #: a prop is decimated to at most this many faces: the pipeline samples a 16k-face scan in about a
 #: second, and a hand feels nothing finer than the 8 mm patches
@@ -42,6 +46,8 @@ MAX_SMOOTH_VOLUME_CHANGE = 0.03
 #: a denser cloud is thinned to this many points before it is rebuilt (a point every 0.7 mm or so on
 #: a hand-sized object; the rebuild's time grows with the points)
 CLOUD_POINTS = 100_000
+#: a cloud's normal lines are fitted to this many neighbours (MeshLab's, then smoothed twice)
+NORMAL_NEIGHBOURS = 10
 #: a cloud of fewer points than this cannot be a prop's surface
 MIN_CLOUD_POINTS = 500
 
@@ -81,9 +87,13 @@ def reconstruct(points: np.ndarray, path) -> trimesh.Trimesh:
     if len(points) > CLOUD_POINTS:  # a fixed draw: the same prop every run
         points = points[np.sort(np.random.default_rng(0).choice(len(points), CLOUD_POINTS,
                                                                  replace=False))]
+    points = np.ascontiguousarray(points, dtype=np.float64)
     ms = ml.MeshSet()
-    ms.add_mesh(ml.Mesh(vertex_matrix=np.ascontiguousarray(points, dtype=np.float64)))
-    ms.compute_normal_for_point_clouds(k=10, smoothiter=2)
+    ms.add_mesh(ml.Mesh(vertex_matrix=points))
+    ms.compute_normal_for_point_clouds(k=NORMAL_NEIGHBOURS, smoothiter=2)
+    normals = outward_normals(points, ms.current_mesh().vertex_normal_matrix())
+    ms = ml.MeshSet()
+    ms.add_mesh(ml.Mesh(vertex_matrix=points, v_normals_matrix=np.ascontiguousarray(normals)))
     mesh = _poisson(ms, process=False)
     tree = cKDTree(points)
     spacing = float(np.median(tree.query(points, k=2)[0][:, 1]))
@@ -115,12 +125,15 @@ def rebuild(mesh: trimesh.Trimesh, path) -> trimesh.Trimesh:
     return out
 
 
-def smooth(mesh: trimesh.Trimesh) -> tuple[trimesh.Trimesh, float]:
+def smooth(mesh: trimesh.Trimesh, *, rebuilt: bool = False) -> tuple[trimesh.Trimesh, float]:
     """The mesh with its noise along the normal smoothed away (Taubin), and the noise: the RMS of
-    the vertices' moves along their normals, mm (NaN: a coarse mesh, left as it is)."""
+    the vertices' moves along their normals, mm (NaN: a coarse mesh, left as it is). A surface
+    ``rebuilt`` from a point cloud is a scan's whatever its volume does: it is always smoothed (the
+    volume of an open, thin-walled one, a cup's, is its walls' alone, and a tenth of a millimetre
+    changes it by more than the check allows)."""
     smoothed = _taubin(mesh)
     before_v, after_v = _enclosed(mesh), _enclosed(smoothed)
-    if abs(after_v - before_v) > MAX_SMOOTH_VOLUME_CHANGE * abs(before_v):
+    if not rebuilt and abs(after_v - before_v) > MAX_SMOOTH_VOLUME_CHANGE * abs(before_v):
         return mesh, float("nan")  # the filter moved the shape, not the noise: not a scan
     return smoothed, _along_normals_rms(smoothed.vertices, mesh)
 
