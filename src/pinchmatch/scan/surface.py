@@ -17,13 +17,16 @@ smoothed away, the faces decimated to a size the pipeline handles quickly.
   volume the filter would change by more than ``MAX_SMOOTH_VOLUME_CHANGE`` is left as it is: its
   vertices are shape (a model's), not noise. A surface rebuilt from a point cloud is always
   smoothed: a cloud is a scan's.
-- **Decimation:** quadric edge collapse (MeshLab's, through pymeshlab) to ``MAX_FACES``, keeping the
-  surface's topology: a collapse that joins a thin wall's two sides (a mug's wall is 1 to 1.5 mm,
-  a decimated edge 1.5 to 2 mm) would leave edges shared by four faces, holes the import must then
-  close and mark unseen.
+- **Decimation:** quadric edge collapse (fast-simplification, through trimesh) to ``MAX_FACES``.
+  Where it joins a thin wall's two sides (a mug's wall is 1 to 1.5 mm; a surface rebuilt from a
+  cloud is decimated from half a million faces), it leaves edges shared by four faces, holes the
+  import would then close and mark unseen: there MeshLab's collapse, which keeps the topology, is
+  taken instead.
 """
 
 from __future__ import annotations
+
+import importlib.util
 
 import numpy as np
 import trimesh
@@ -174,15 +177,28 @@ def _enclosed(mesh: trimesh.Trimesh) -> float:
 
 
 def decimate(mesh: trimesh.Trimesh, faces: int = MAX_FACES) -> trimesh.Trimesh:
-    """The mesh with at most ``faces`` faces (MeshLab's quadric edge collapse, its topology and its
-    faces' facing kept), unchanged when it has fewer."""
+    """The mesh with at most ``faces`` faces (quadric edge collapse), unchanged when it has
+    fewer: fast-simplification's, or where that joins two sheets of the surface (edges shared by
+    more than two faces that were not), MeshLab's with the topology kept."""
     if len(mesh.faces) <= faces:
         return mesh
-    ml = _meshlab(mesh.metadata.get("file_path", "the scan"), f"decimating {len(mesh.faces)} faces")
+    where = mesh.metadata.get("file_path", "the scan")
+    if importlib.util.find_spec("fast_simplification") is None:  # trimesh's decimation calls it
+        raise MeshError(f"{where}: decimating {len(mesh.faces)} faces needs fast-simplification; "
+                        f"install it with pip install 'pinchmatch[scan]'") from None
+    fast = mesh.simplify_quadric_decimation(face_count=faces)
+    out = trimesh.Trimesh(fast.vertices, fast.faces, process=True)
+    if _joined_edges(out) <= _joined_edges(mesh):
+        return out
+    ml = _meshlab(where, f"decimating {len(mesh.faces)} faces of a thin wall")
     ms = ml.MeshSet()
     ms.add_mesh(ml.Mesh(vertex_matrix=np.ascontiguousarray(mesh.vertices, dtype=np.float64),
                         face_matrix=np.ascontiguousarray(mesh.faces, dtype=np.int32)))
-    ms.meshing_decimation_quadric_edge_collapse(targetfacenum=int(faces), preservetopology=True,
-                                                preservenormal=True)
-    out = ms.current_mesh()
-    return trimesh.Trimesh(out.vertex_matrix(), out.face_matrix(), process=True)
+    ms.meshing_decimation_quadric_edge_collapse(targetfacenum=int(faces), preservetopology=True)
+    kept = ms.current_mesh()
+    return trimesh.Trimesh(kept.vertex_matrix(), kept.face_matrix(), process=True)
+
+
+def _joined_edges(mesh: trimesh.Trimesh) -> int:
+    """How many of the mesh's edges more than two faces share."""
+    return int((np.bincount(mesh.edges_unique_inverse) > 2).sum()) if len(mesh.faces) else 0
