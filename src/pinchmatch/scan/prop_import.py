@@ -159,7 +159,8 @@ def import_prop(scan_path, props_dir, *, name: str | None = None, units: str | N
                  if smoothed else
                  "not smoothed: smoothing would change its shape (a model, not a scan)")
     before = len(mesh.faces)
-    mesh = decimate(mesh, int(FACES_BEFORE_CLOSING * faces))  # the fans that close it add a few
+    # the fans that close it add a few faces
+    mesh = decimate(mesh, int(FACES_BEFORE_CLOSING * faces), keep_topology=scan.is_cloud)
     if len(mesh.faces) < before:
         lines.append(f"decimated {before} faces to {len(mesh.faces)}")
     try:
