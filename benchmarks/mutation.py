@@ -125,6 +125,14 @@ _GUARD_WIDE = ("the round-off guard is 1e-9 mm per mm of the largest coordinate:
                "decides any point they leave open (the loop over the points' bounds, the same "
                "line, is killed)")
 EQUIVALENT: dict[tuple[str, str, str], str] = {
+    ("scan/orient.py", "directed=False)", "False -> True"):
+        "the graph holds each neighbour pair one way; scipy joins a directed graph's components "
+        "weakly by default, as the undirected graph's",
+    ("scan/orient.py", "border = np.unique(np.concatenate([labels[[0, -1]].ravel(), labels[:, [0, "
+     "-1]].ravel(),", "drop -1"):
+        "the padded grid's air is one piece touching every face of the border, so any face finds it",
+    ("scan/orient.py", "undecided = np.flatnonzero(sign == 0)", "drop .flatnonzero(...)"):
+        "a mask indexes as its indices do; with none undecided the second probing changes nothing",
     ("scan/orient.py", "top = np.array(outside.shape) - 1", "1 -> 2"):
         "the grid's last two layers are both empty, padded past the grown cells, and joined to the "
         "border: a probe clipped to either is outside",

@@ -240,6 +240,7 @@ def _floaters(path: Path, rng) -> None:
     ("sheet", "flat"),
     ("tenfold", "disagrees"),
     ("ten points", "too sparse"),
+    ("thin dish", "too thin"),
     ("not a mesh", "cannot read"),
 ])
 def test_a_bad_scan_ends_in_one_line_and_writes_nothing(tmp_path, capsys, meshes, bad, words):
@@ -257,6 +258,9 @@ def test_a_bad_scan_ends_in_one_line_and_writes_nothing(tmp_path, capsys, meshes
         extra = ["--measured-mm", f"height={10 * meshes['duck'].extents[2]:.1f}"]
     elif bad == "ten points":
         trimesh.PointCloud(rng.uniform(0, 50, (10, 3))).export(scan)
+    elif bad == "thin dish":  # walls of 1 mm, noise of 0.5 mm: no side can be told
+        scan_of(cup(1.0, radius_mm=40.0, height_mm=30.0), scan, rng=rng, noise_mm=0.5,
+                cloud_points=100_000, open_bottom_mm=2.0)
     else:
         scan.write_bytes(b"ply\nformat nonsense\n" + bytes(range(256)))
     out = tmp_path / "props"

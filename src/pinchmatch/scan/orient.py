@@ -30,9 +30,14 @@ from them is a sheet turned inside out. Here the sign comes from where the outsi
   whose probes disagree more is a thin wall's two sides joined: there each point keeps its own
   probe, and a point whose probes cannot tell takes the sign most of its nearest points agree
   with, round after round until no sign changes (at most ``VOTE_ROUNDS``).
+- **How sure:** the share of points whose outside lies as near on both sides (within
+  ``UNSURE_MM``): on a wall about as thin as the noise is wide, a point's side is a guess. The
+  import refuses a cloud where too many are (:mod:`pinchmatch.scan.surface`).
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 from scipy import ndimage
@@ -55,11 +60,24 @@ VOTE_NEIGHBOURS, VOTE_ROUNDS = 10, 500
 REGION_COS = 0.5
 #: a region whose decided points disagree more than this share is split: a thin wall's two sides
 SPLIT_SHARE = 0.1
+#: a point whose outside lies as near on both sides, within this, is on a wall too thin for its
+#: noise to tell which side it was scanned from (:class:`Faced`)
+UNSURE_MM = 0.5
 
 
-def outward_normals(points: np.ndarray, normals: np.ndarray) -> np.ndarray:
+@dataclass(frozen=True)
+class Faced:
+    """A cloud's normals turned to face out (n, 3; their lines kept), and the share of its points
+    on walls too thin for the probes to tell their sides apart (the outside on both sides within
+    ``UNSURE_MM`` of each other)."""
+
+    normals: np.ndarray
+    unsure: float
+
+
+def outward_normals(points: np.ndarray, normals: np.ndarray) -> Faced:
     """``normals`` (n, 3) of the cloud ``points`` (n, 3, mm, up along +Z), each turned to face the
-    outside (see the module notes); their lines are kept.
+    outside (see the module notes), and how sure that is.
 
     Examples
     --------
@@ -68,8 +86,8 @@ def outward_normals(points: np.ndarray, normals: np.ndarray) -> np.ndarray:
     >>> ball = 30.0 * ball / np.linalg.norm(ball, axis=1, keepdims=True)
     >>> signs = np.where(rng.random(20000) < 0.5, -1.0, 1.0)[:, None]
     >>> faced = outward_normals(ball + 100.0, signs * ball / 30.0)
-    >>> bool(np.all(np.einsum("ij,ij->i", faced, ball) > 0))
-    True
+    >>> bool(np.all(np.einsum("ij,ij->i", faced.normals, ball) > 0)), faced.unsure
+    (True, 0.0)
     """
     points = np.asarray(points, dtype=np.float64)
     normals = np.asarray(normals, dtype=np.float64)
@@ -79,22 +97,29 @@ def outward_normals(points: np.ndarray, normals: np.ndarray) -> np.ndarray:
                float(np.ptp(points, axis=0).max()) / MAX_CELLS)
     grow = int(np.ceil(SEAL_MM / cell))
     reach = 2.0 * grow * cell + PROBE_BEYOND_MM
-    sign = _toward_nearer(points, normals, *_outside(points, cell, grow, table=True), cell, reach)
+    sign, unsure = _toward_nearer(points, normals, *_outside(points, cell, grow, table=True),
+                                  cell, reach)
     undecided = np.flatnonzero(sign == 0)
     if len(undecided):  # a base scanned from below too: its hollow opens onto the room
         sign[undecided] = _toward_nearer(points[undecided], normals[undecided],
-                                         *_outside(points, cell, grow, table=False), cell, reach)
+                                         *_outside(points, cell, grow, table=False), cell,
+                                         reach)[0]
     sign = _by_regions(tree, normals, sign)
-    return normals * np.where(sign < 0, -1.0, 1.0)[:, None]
+    return Faced(normals * np.where(sign < 0, -1.0, 1.0)[:, None], float(np.mean(unsure)))
 
 
 def _toward_nearer(points: np.ndarray, normals: np.ndarray, outside: np.ndarray,
-                   origin: np.ndarray, cell: float, reach: float) -> np.ndarray:
+                   origin: np.ndarray, cell: float, reach: float) -> tuple[np.ndarray, np.ndarray]:
     """(n,) +1 where the outside is nearer along each normal than against it, -1 where it is
-    nearer against it, 0 where they are as near (or neither is within ``reach``)."""
+    nearer against it, 0 where they are as near (or neither is within ``reach``); and (n,) whether
+    the outside lies on both sides within ``UNSURE_MM`` of each other."""
     ahead = _nearest_outside(points, normals, outside, origin, cell, reach)
     behind = _nearest_outside(points, -normals, outside, origin, cell, reach)
-    return np.where(ahead < behind, 1.0, np.where(behind < ahead, -1.0, 0.0))
+    both = np.isfinite(ahead) & np.isfinite(behind)
+    gap = np.full(len(points), np.inf)
+    gap[both] = np.abs(ahead[both] - behind[both])
+    unsure = gap <= UNSURE_MM
+    return np.where(ahead < behind, 1.0, np.where(behind < ahead, -1.0, 0.0)), unsure
 
 
 def _outside(points: np.ndarray, cell: float, grow: int, *,
@@ -159,7 +184,7 @@ def _by_regions(tree: cKDTree, normals: np.ndarray, sign: np.ndarray) -> np.ndar
     joined = ((np.einsum("ij,ij->i", normals[i], normals[j]) > REGION_COS)
               & (sign[i] * sign[j] >= 0))
     count, region = connected_components(
-        coo_matrix((np.ones(int(joined.sum())), (i[joined], j[joined])), shape=(n, n)),
+        coo_matrix((np.ones(joined.sum()), (i[joined], j[joined])), shape=(n, n)),
         directed=False)
     votes = np.bincount(region, weights=sign, minlength=count)
     decided = np.bincount(region, weights=np.abs(sign), minlength=count)
