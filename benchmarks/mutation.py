@@ -130,7 +130,8 @@ EQUIVALENT: dict[tuple[str, str, str], str] = {
         "weakly by default, as the undirected graph's",
     ("scan/orient.py", "border = np.unique(np.concatenate([labels[[0, -1]].ravel(), labels[:, [0, "
      "-1]].ravel(),", "drop -1"):
-        "the padded grid's air is one piece touching every face of the border, so any face finds it",
+        "the padded grid's air is one piece touching every face of the border, so any face finds "
+        "it",
     ("scan/orient.py", "undecided = np.flatnonzero(sign == 0)", "drop .flatnonzero(...)"):
         "a mask indexes as its indices do; with none undecided the second probing changes nothing",
     ("scan/orient.py", "top = np.array(outside.shape) - 1", "1 -> 2"):
