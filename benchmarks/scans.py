@@ -43,7 +43,8 @@ def scan_of(clean: trimesh.Trimesh, path: Path, *, rng, noise_mm: float = 0.0,
     return the (4, 4) map from the clean frame to the file's coordinates.
 
     ``noise_mm``: Gaussian noise along the normal, σ; ``open_bottom_mm``: the underside's faces
-    (facing down) within this height of the lowest point are missing (a cloud: every point there);
+    (facing down) within this height of the lowest point are missing (a cloud: every point there
+    but those facing up, seen from above: a cup's inside floor);
     ``units`` and ``up``: how the file holds it; ``faces``: split until it has at least this many
     (and always until nine edges in ten are ``DENSE_MM`` at most, as a scan's); ``cloud_points``: a
     point cloud of this many points instead of a mesh.
@@ -56,7 +57,8 @@ def scan_of(clean: trimesh.Trimesh, path: Path, *, rng, noise_mm: float = 0.0,
     if cloud_points:
         points, index = trimesh.sample.sample_surface_even(mesh, cloud_points, seed=rng)
         normals = mesh.face_normals[index]
-        keep = points[:, 2] >= low + (open_bottom_mm or 0.0)
+        # near the table only what faces up is seen (a cup's inside floor, from above)
+        keep = (points[:, 2] >= low + (open_bottom_mm or 0.0)) | (normals[:, 2] > 0.5)
         points = points[keep] + normals[keep] * rng.normal(0, noise_mm, (keep.sum(), 1))
         vertices, triangles = points, None
     else:

@@ -24,11 +24,12 @@ from scans import cup  # noqa: E402 (benchmarks/ first)
 def _cloud(mesh: trimesh.Trimesh, rng, *, points: int, noise_mm: float,
            open_bottom_mm: float = 0.0):
     """Points on ``mesh`` with their outward normals, the noise along them, none within
-    ``open_bottom_mm`` of the lowest point (the table hid them); turned about +Z, moved and
-    shuffled."""
+    ``open_bottom_mm`` of the lowest point but those facing up (the table hid the rest); turned
+    about +Z, moved and shuffled."""
     p, face = trimesh.sample.sample_surface_even(mesh, points, seed=rng)
     n = mesh.face_normals[face]
-    keep = p[:, 2] >= mesh.bounds[0, 2] + open_bottom_mm
+    # near the table only what faces up is seen (a cup's inside floor, from above)
+    keep = (p[:, 2] >= mesh.bounds[0, 2] + open_bottom_mm) | (n[:, 2] > 0.5)
     p, n = p[keep] + n[keep] * rng.normal(0.0, noise_mm, (keep.sum(), 1)), n[keep]
     turn = trimesh.transformations.rotation_matrix(rng.uniform(0, 2 * np.pi), [0, 0, 1])[:3, :3]
     order = rng.permutation(len(p))
@@ -61,6 +62,26 @@ def test_both_sides_of_a_thin_wall_face_out(wall_mm, noise_mm, least):
     away = np.where(np.einsum("ij,ij->i", truth, radial) < 0, -1.0, 1.0)[:, None] * truth
     assert _outward_share(points, truth, away) >= least
     assert _outward_share(points, truth, _random_signs(truth, rng)) >= least
+
+
+def test_a_real_mugs_cloud_with_its_inside_floor_seen_faces_out(tmp_path):
+    """The YCB mug (a scan nobody here made, 1 to 1.5 mm walls) as a cloud with 0.5 mm of noise,
+    its lowest 3 mm unseen but for its inside floor, seen from above: the floor is the cloud's
+    lowest point, below where the outer wall was last seen. Without the band under the object
+    closed with the table, the room reaches under the floor through the gap below the wall
+    (measured: 73 % of the normals right, 24 % of the points unsure); with it, at least 95 % face
+    out and under 15 % are unsure (the import's limit). Given all facing in, as propagation can
+    leave them."""
+    from assets import ycb_objects
+    from scans import clean_mesh
+
+    (path,) = ycb_objects(tmp_path, ["025_mug"])
+    rng = np.random.default_rng(8)
+    points, truth = _cloud(clean_mesh(path), rng, points=100_000, noise_mm=0.5,
+                           open_bottom_mm=3.0)
+    faced = outward_normals(points, -truth)
+    assert np.mean(np.einsum("ij,ij->i", faced.normals, truth) > 0) >= 0.95
+    assert faced.unsure < 0.15
 
 
 def test_a_scan_with_gaps_and_a_bottom_it_stood_on_faces_out():

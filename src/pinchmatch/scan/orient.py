@@ -10,9 +10,11 @@ from them is a sheet turned inside out. Here the sign comes from where the outsi
 - **The outside:** the cloud's points fill the cells of a grid (``CELL_SPACINGS`` of the cloud's
   point spacing wide), grown by ``SEAL_MM`` so that the gaps a scan leaves between its points are
   sealed. The cells at and below the lowest point are closed too: the object stood there on a
-  table, and a scan never sees under it, so the bottom is open (the scan's up is +Z). The outside
-  is every empty cell connected to the grid's border (:func:`scipy.ndimage.label`): the air round
-  the object, and a cup's inside through its mouth.
+  table, and a scan never sees under it, so the bottom is open (the scan's up is +Z). So are the
+  cells under the object up to ``UNSEEN_MM`` above the table: a scan misses the lowest few mm of
+  its sides too, and a mug's inside floor, seen from above, can be its lowest point, below where
+  its outer wall was last seen. The outside is every empty cell connected to the grid's border
+  (:func:`scipy.ndimage.label`): the air round the object, and a cup's inside through its mouth.
 - **The sign:** along each point's normal line, both ways, probes every ``PROBE_STEP_MM`` find the
   nearest outside cell. The normal is turned toward the nearer. On a solid's skin the outside lies
   on one side only; on a thin wall it lies on both, and the nearer is the side of the wall the
@@ -60,6 +62,8 @@ VOTE_NEIGHBOURS, VOTE_ROUNDS = 10, 500
 REGION_COS = 0.5
 #: a region whose decided points disagree more than this share is split: a thin wall's two sides
 SPLIT_SHARE = 0.1
+#: how high above the table a scan may have seen nothing under the object (:func:`_outside`)
+UNSEEN_MM = 5.0
 #: a point whose outside lies as near on both sides, within this, is on a wall too thin for its
 #: noise to tell which side it was scanned from (:class:`Faced`)
 UNSURE_MM = 0.5
@@ -133,8 +137,15 @@ def _outside(points: np.ndarray, cell: float, grow: int, *,
     occupied = np.zeros(index.max(axis=0) + pad + 1, dtype=bool)
     occupied[tuple(index.T)] = True
     occupied = ndimage.binary_dilation(occupied, iterations=grow)
-    if table:  # the table the object stood on, solid
-        occupied[:, :, :index[:, 2].min() + 1] = True
+    if table:  # the table the object stood on, solid, and what it hid under the object
+        floor = index[:, 2].min()
+        occupied[:, :, :floor + 1] = True
+        # under each column of the object, up to its lowest cell but at most UNSEEN_MM above the
+        # table: the band a scan never sees (a mug's wall ends above it, its inside floor below)
+        has = occupied[:, :, floor + 1:].any(axis=2)
+        lowest = floor + 1 + occupied[:, :, floor + 1:].argmax(axis=2)
+        top = np.where(has, np.minimum(lowest, floor + 1 + int(np.ceil(UNSEEN_MM / cell))), 0)
+        occupied |= np.arange(occupied.shape[2])[None, None, :] < top[:, :, None]
     labels, _ = ndimage.label(~occupied)
     border = np.unique(np.concatenate([labels[[0, -1]].ravel(), labels[:, [0, -1]].ravel(),
                                        labels[:, :, [0, -1]].ravel()]))
