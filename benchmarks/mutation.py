@@ -132,6 +132,9 @@ EQUIVALENT: dict[tuple[str, str, str], str] = {
      "-1]].ravel(),", "drop -1"):
         "the padded grid's air is one piece touching every face of the border, so any face finds "
         "it",
+    ("scan/orient.py", "border = np.unique(np.concatenate([labels[[0, -1]].ravel(), labels[:, [0, "
+     "-1]].ravel(),", "1 -> 2"):
+        "the grid is padded two layers past the grown cells: its last two layers are the same air",
     ("scan/orient.py", "undecided = np.flatnonzero(sign == 0)", "drop .flatnonzero(...)"):
         "a mask indexes as its indices do; with none undecided the second probing changes nothing",
     ("scan/orient.py", "top = np.array(outside.shape) - 1", "1 -> 2"):
