@@ -130,7 +130,7 @@ def _outside(points: np.ndarray, cell: float, grow: int, *,
              table: bool) -> tuple[np.ndarray, np.ndarray]:
     """The grid's outside cells (bool, 3-D) and the grid's origin (mm): the empty cells connected to
     the border, the cells of the points grown by ``grow`` and, with ``table``, the layers up to the
-    lowest point's closed."""
+    lowest point's closed, and each column under the object up to ``UNSEEN_MM`` above them."""
     pad = grow + 2
     origin = points.min(axis=0) - pad * cell
     index = np.floor((points - origin) / cell).astype(np.int64)
