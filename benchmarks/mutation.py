@@ -124,6 +124,8 @@ _GUARD_WIDE = ("the round-off guard is 1e-9 mm per mm of the largest coordinate:
                "exact distance "
                "decides any point they leave open (the loop over the points' bounds, the same "
                "line, is killed)")
+_PADDED = ("the grid is padded two layers past the grown cells: its last two layers are the same "
+           "air, joined to the border")
 EQUIVALENT: dict[tuple[str, str, str], str] = {
     ("scan/orient.py", "directed=False)", "False -> True"):
         "the graph holds each neighbour pair one way; scipy joins a directed graph's components "
@@ -133,13 +135,10 @@ EQUIVALENT: dict[tuple[str, str, str], str] = {
         "the padded grid's air is one piece touching every face of the border, so any face finds "
         "it",
     ("scan/orient.py", "border = np.unique(np.concatenate([labels[[0, -1]].ravel(), labels[:, [0, "
-     "-1]].ravel(),", "1 -> 2"):
-        "the grid is padded two layers past the grown cells: its last two layers are the same air",
+     "-1]].ravel(),", "1 -> 2"): _PADDED,
     ("scan/orient.py", "undecided = np.flatnonzero(sign == 0)", "drop .flatnonzero(...)"):
         "a mask indexes as its indices do; with none undecided the second probing changes nothing",
-    ("scan/orient.py", "top = np.array(outside.shape) - 1", "1 -> 2"):
-        "the grid's last two layers are both empty, padded past the grown cells, and joined to the "
-        "border: a probe clipped to either is outside",
+    ("scan/orient.py", "top = np.array(outside.shape) - 1", "1 -> 2"): _PADDED,
     ("scan/orient.py", "split = ((decided - np.abs(votes)) / 2 > SPLIT_SHARE * np.maximum(decided, "
      "1))[region]", "1 -> 2"):
         "a region with fewer than two decided points has no minority, so it is split by neither",

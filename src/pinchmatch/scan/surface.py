@@ -209,8 +209,3 @@ def decimate(mesh: trimesh.Trimesh, faces: int = MAX_FACES, *,
                         f"install it with pip install 'pinchmatch[scan]'") from None
     out = mesh.simplify_quadric_decimation(face_count=faces)
     return trimesh.Trimesh(out.vertices, out.faces, process=True)
-
-
-def joined_edges(mesh: trimesh.Trimesh) -> int:
-    """How many of the mesh's edges more than two faces share (two sheets of its surface joined)."""
-    return int((np.bincount(mesh.edges_unique_inverse) > 2).sum()) if len(mesh.faces) else 0
